@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Installs what fesbench needs from Debian's packages (only what is missing),
+# then configures and builds it. Idempotent and non-interactive; run as root
+# (or with sudo available) on Debian 12.
+#
+#   scripts/setup.sh [BUILD_DIR]      default BUILD_DIR: build
+set -euo pipefail
+
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build_dir=${1:-"$root/build"}
+
+packages=(
+  build-essential cmake ninja-build pkg-config
+  libeigen3-dev libboost-math-dev nlohmann-json3-dev
+  libsqlite3-dev libcpp-httplib-dev
+  libfastrtps-dev libfastcdr-dev fastddsgen
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}"
+  sudo_cmd=()
+  [[ $(id -u) -eq 0 ]] || sudo_cmd=(sudo)
+  export DEBIAN_FRONTEND=noninteractive
+  "${sudo_cmd[@]}" apt-get update -qq
+  "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+jobs=${FESBENCH_JOBS:-$(nproc)}
+cmake -S "$root" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+cmake --build "$build_dir" -j "$jobs"
