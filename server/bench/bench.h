@@ -1,0 +1,88 @@
+#pragma once
+
+/// @file
+/// The bench hardware abstraction (DESIGN.md §6): what a knee bench can do
+/// and sense. Three kinds implement it: the simulated bench (a virtual leg),
+/// a replay bench that plays recorded trials, and a real-hardware driver.
+/// Nothing above this interface knows which one it drives.
+///
+/// Threading: one thread (the protocol runner's control loop) calls every
+/// method, except `HardwareEStop`, which any thread may call at any time
+/// and which must act at once (it is the software twin of the red button
+/// that cuts stimulator and motor power, §5.1).
+
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+namespace fesbench::server {
+
+/// Fixed properties of a bench (DESIGN.md §2, §6; thesis §5.1).
+struct BenchLimits {
+  double max_stim_ma = 100.0;           ///< stimulator hardware range 0–100 mA.
+  double pulse_rate_hz = 33.0;          ///< stimulation pulse rate.
+  double pulse_width_us = 300.0;        ///< stimulation pulse width.
+  double min_angle_deg = 10.0;          ///< mechanical range of motion.
+  double max_angle_deg = 110.0;
+  double max_motor_torque_nm = 50.0;    ///< servo torque limit at the knee.
+  double control_rate_hz = 1000.0;      ///< motor set-point updates.
+  double sample_rate_hz = 200.0;        ///< position, torque, acceleration.
+  double emg_rate_hz = 1000.0;          ///< EMG sampling.
+};
+
+/// How the motor holds the brace.
+enum class MotorMode : std::uint8_t {
+  kDisabled,   ///< servo unpowered; the brace is still coupled (motor drag).
+  kPosition,   ///< servo follows set-points (passive protocols).
+  kLocked,     ///< held at a fixed angle (isometric protocols).
+  kDecoupled,  ///< coupler open: the leg swings freely (free-swing protocols).
+};
+
+/// One reading of the slow sensors, at bench time t_s.
+struct SensorFrame {
+  double t_s = 0.0;
+  double angle_deg = 0.0;      ///< potentiometer.
+  double torque_nm = 0.0;      ///< strut strain gauge (brace on shank, + flexion).
+  double accel_m_s2 = 0.0;     ///< tangential accelerometer on the calf (includes gravity).
+  double stim_ma = 0.0;        ///< amplitude the stimulator is delivering.
+  bool limit_flexion = false;  ///< limit switch near the 110° stop.
+  bool limit_extension = false;///< limit switch near the 10° stop.
+  bool estop = false;          ///< hardware e-stop engaged.
+};
+
+class Bench {
+ public:
+  virtual ~Bench() = default;
+
+  /// "sim", "replay" or a driver's name.
+  virtual std::string_view kind() const = 0;
+  virtual const BenchLimits& limits() const = 0;
+
+  /// Stimulation envelope: while amplitude > 0 the stimulator fires pulses
+  /// at the pulse rate, the first one at once when it rises from 0.
+  virtual void SetStimAmplitude(double stim_ma) = 0;
+  /// One single pulse now (impulse-response protocols, §4.1.2).
+  virtual void TriggerPulse(double stim_ma) = 0;
+
+  virtual void SetMotorMode(MotorMode mode) = 0;
+  /// Position set-point for kPosition and the lock angle for kLocked.
+  virtual void SetMotorSetpoint(double angle_deg) = 0;
+
+  /// Current bench time (seconds since the bench started).
+  virtual double Now_s() const = 0;
+  /// Lets bench time run to t_s: a real bench sleeps; the simulated bench
+  /// integrates its physics (paced by its time scale).
+  virtual void AdvanceTo(double t_s) = 0;
+
+  virtual SensorFrame ReadSensors() = 0;
+  /// EMG samples (mV) recorded since the previous call.
+  virtual std::vector<double> DrainEmg_mv() = 0;
+
+  /// Cuts stimulation and motor power immediately and latches until
+  /// ClearHardwareEStop. Thread-safe; never blocks.
+  virtual void HardwareEStop() = 0;
+  virtual void ClearHardwareEStop() = 0;
+  virtual bool HardwareEStopped() const = 0;
+};
+
+}  // namespace fesbench::server

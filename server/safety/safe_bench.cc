@@ -1,0 +1,155 @@
+#include "server/safety/safe_bench.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace fesbench::server {
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+}  // namespace
+
+SafeBench::SafeBench(Bench& bench, EventSink sink, WallClock wall_clock)
+    : bench_(bench), sink_(std::move(sink)), wall_clock_(std::move(wall_clock)) {
+  if (!wall_clock_) {
+    wall_clock_ = [] {
+      using namespace std::chrono;
+      return duration<double>(steady_clock::now().time_since_epoch()).count();
+    };
+  }
+  estop_.store(bench_.HardwareEStopped());
+  last_heartbeat_s_.store(wall_clock_());
+}
+
+void SafeBench::Configure(const SafetyLimits& limits) {
+  std::lock_guard lock(mu_);
+  limits_ = limits;
+  configured_ = true;
+}
+
+SafetyLimits SafeBench::limits() const {
+  std::lock_guard lock(mu_);
+  return limits_;
+}
+
+void SafeBench::Emit(SafetyEvent event) const {
+  if (sink_) sink_(event);
+}
+
+void SafeBench::SetStimAmplitude(double stim_ma) {
+  if (estop_.load() || watchdog_fired_.load()) {
+    bench_.SetStimAmplitude(0.0);
+    return;
+  }
+  double max_ma;
+  {
+    std::lock_guard lock(mu_);
+    max_ma = configured_ ? std::min(limits_.max_stim_ma, bench_.limits().max_stim_ma) : 0.0;
+  }
+  max_ma = std::max(max_ma, 0.0);
+  double applied = stim_ma;
+  if (!std::isfinite(stim_ma) || stim_ma < 0.0) applied = 0.0;
+  if (applied > max_ma) applied = max_ma;
+  if (applied != stim_ma) {
+    Emit({SafetyEvent::Kind::kStimClamped, bench_.Now_s(), stim_ma, applied,
+          "stimulation limited to " + std::to_string(max_ma) + " mA"});
+  }
+  bench_.SetStimAmplitude(applied);
+}
+
+void SafeBench::TriggerPulse(double stim_ma) {
+  if (estop_.load() || watchdog_fired_.load()) return;
+  double max_ma;
+  {
+    std::lock_guard lock(mu_);
+    max_ma = configured_ ? std::min(limits_.max_stim_ma, bench_.limits().max_stim_ma) : 0.0;
+  }
+  double applied = std::isfinite(stim_ma) ? std::clamp(stim_ma, 0.0, std::max(max_ma, 0.0)) : 0.0;
+  if (applied != stim_ma) {
+    Emit({SafetyEvent::Kind::kStimClamped, bench_.Now_s(), stim_ma, applied,
+          "pulse limited to " + std::to_string(max_ma) + " mA"});
+  }
+  if (applied > 0.0) bench_.TriggerPulse(applied);
+}
+
+void SafeBench::SetMotorMode(MotorMode mode) {
+  if (estop_.load() || watchdog_fired_.load()) mode = MotorMode::kDisabled;
+  bench_.SetMotorMode(mode);
+}
+
+void SafeBench::SetMotorSetpoint(double angle_deg) {
+  double lo, hi;
+  {
+    std::lock_guard lock(mu_);
+    lo = std::max(limits_.min_angle_deg, bench_.limits().min_angle_deg);
+    hi = std::min(limits_.max_angle_deg, bench_.limits().max_angle_deg);
+  }
+  if (!std::isfinite(angle_deg)) {
+    Emit({SafetyEvent::Kind::kSetpointClamped, bench_.Now_s(), angle_deg, kNaN,
+          "non-finite set-point ignored"});
+    return;
+  }
+  if (lo > hi) hi = lo;  // an empty range collapses to its lower edge
+  const double applied = std::clamp(angle_deg, lo, hi);
+  if (applied != angle_deg) {
+    Emit({SafetyEvent::Kind::kSetpointClamped, bench_.Now_s(), angle_deg, applied,
+          "set-point limited to the range of motion"});
+  }
+  bench_.SetMotorSetpoint(applied);
+}
+
+void SafeBench::MakeSafe() {
+  bench_.SetStimAmplitude(0.0);
+  bench_.SetMotorMode(MotorMode::kDisabled);
+}
+
+void SafeBench::AdvanceTo(double t_s) {
+  CheckWatchdog();
+  bench_.AdvanceTo(t_s);
+}
+
+void SafeBench::EStop(const std::string& source) {
+  // Hardware first: this is the action that must not wait for anything.
+  bench_.HardwareEStop();
+  const bool was = estop_.exchange(true);
+  if (!was) Emit({SafetyEvent::Kind::kEStop, bench_.Now_s(), kNaN, kNaN, source});
+}
+
+void SafeBench::ClearEStop(const std::string& source) {
+  if (!estop_.load()) return;
+  bench_.ClearHardwareEStop();
+  MakeSafe();
+  estop_.store(false);
+  Emit({SafetyEvent::Kind::kEStopCleared, bench_.Now_s(), kNaN, kNaN, source});
+}
+
+bool SafeBench::estopped() const { return estop_.load(); }
+
+void SafeBench::Heartbeat() { last_heartbeat_s_.store(wall_clock_()); }
+
+void SafeBench::ArmWatchdog() {
+  last_heartbeat_s_.store(wall_clock_());
+  watchdog_fired_.store(false);
+  watchdog_armed_.store(true);
+}
+
+void SafeBench::DisarmWatchdog() { watchdog_armed_.store(false); }
+
+void SafeBench::CheckWatchdog() {
+  if (!watchdog_armed_.load() || watchdog_fired_.load()) return;
+  double timeout_s;
+  {
+    std::lock_guard lock(mu_);
+    timeout_s = limits_.heartbeat_timeout_s;
+  }
+  const double silent = wall_clock_() - last_heartbeat_s_.load();
+  if (silent > timeout_s) {
+    watchdog_fired_.store(true);
+    MakeSafe();
+    Emit({SafetyEvent::Kind::kWatchdog, bench_.Now_s(), silent, 0.0,
+          "controlling client silent for " + std::to_string(silent) + " s"});
+  }
+}
+
+}  // namespace fesbench::server

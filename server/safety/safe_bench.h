@@ -1,0 +1,105 @@
+#pragma once
+
+/// @file
+/// Safety interlocks (DESIGN.md §6), the only way anything above reaches a
+/// Bench. They hold whatever a client, a protocol or a bug asks for:
+/// - stimulation never exceeds the session's max tolerated amplitude nor the
+///   bench limit (each clamp is reported as a SafetyEvent);
+/// - motor set-points stay inside the subject's range of motion and the
+///   bench's mechanical range;
+/// - e-stop zeroes stimulation and disables the motor at once, from any
+///   thread, and latches until cleared;
+/// - a controlling client whose heartbeat stops for longer than the timeout
+///   trips the watchdog, which stops stimulation and the motor like an
+///   e-stop (without latching the hardware).
+
+#include <atomic>
+#include <functional>
+#include <mutex>
+#include <string>
+
+#include "server/bench/bench.h"
+
+namespace fesbench::server {
+
+/// Per-session limits. The effective limits are the intersection with the
+/// bench's own (BenchLimits).
+struct SafetyLimits {
+  double max_stim_ma = 0.0;           ///< subject's recorded max tolerated amplitude.
+  double min_angle_deg = 10.0;        ///< subject's range of motion.
+  double max_angle_deg = 110.0;
+  double heartbeat_timeout_s = 1.0;   ///< watchdog period of the controlling client.
+};
+
+struct SafetyEvent {
+  enum class Kind { kStimClamped, kSetpointClamped, kEStop, kEStopCleared, kWatchdog };
+  Kind kind;
+  double t_s;             ///< bench time.
+  double requested;       ///< what was asked (mA or deg), NaN if not applicable.
+  double applied;         ///< what the bench got.
+  std::string detail;
+};
+
+class SafeBench {
+ public:
+  using EventSink = std::function<void(const SafetyEvent&)>;
+  /// Monotonic wall-clock seconds. Client liveness is a wall-clock matter
+  /// even when the simulated bench runs faster than real time.
+  using WallClock = std::function<double()>;
+
+  /// @param bench the hardware; must outlive this object.
+  /// @param sink receives every safety event (may be called from any thread
+  ///   that triggers an e-stop). May be empty.
+  /// @param wall_clock for the heartbeat watchdog; empty = steady_clock.
+  SafeBench(Bench& bench, EventSink sink, WallClock wall_clock = {});
+
+  /// Sets the session's limits; until called, stimulation is limited to 0 mA.
+  void Configure(const SafetyLimits& limits);
+  SafetyLimits limits() const;
+
+  void SetStimAmplitude(double stim_ma);
+  void TriggerPulse(double stim_ma);
+  void SetMotorMode(MotorMode mode);
+  void SetMotorSetpoint(double angle_deg);
+
+  double Now_s() const { return bench_.Now_s(); }
+  void AdvanceTo(double t_s);
+  SensorFrame ReadSensors() { return bench_.ReadSensors(); }
+
+  /// Thread-safe, never blocks on the control loop: cuts stimulation and
+  /// motor power through the hardware e-stop and latches.
+  void EStop(const std::string& source);
+  /// Clears a latched e-stop; the motor stays disabled and stimulation at 0
+  /// until commanded again.
+  void ClearEStop(const std::string& source);
+  bool estopped() const;
+
+  /// Records a heartbeat of the controlling client (wall-clock now).
+  void Heartbeat();
+  /// Starts watching heartbeats (a run begins); Disarm stops watching.
+  void ArmWatchdog();
+  void DisarmWatchdog();
+  /// True once the watchdog has fired since it was last armed.
+  bool watchdog_fired() const { return watchdog_fired_.load(); }
+
+  const BenchLimits& bench_limits() const { return bench_.limits(); }
+  Bench& bench() { return bench_; }
+
+ private:
+  void Emit(SafetyEvent event) const;
+  void CheckWatchdog();
+  void MakeSafe();
+
+  Bench& bench_;
+  EventSink sink_;
+  WallClock wall_clock_;
+  mutable std::mutex mu_;  // guards limits_
+  SafetyLimits limits_;
+  bool configured_ = false;
+  std::atomic<bool> estop_{false};
+  std::atomic<bool> watchdog_armed_{false};
+  std::atomic<bool> watchdog_fired_{false};
+  std::atomic<double> last_heartbeat_s_{0.0};
+};
+
+}  // namespace fesbench::server
