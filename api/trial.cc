@@ -1,0 +1,488 @@
+#include "api/trial.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <system_error>
+#include <unordered_set>
+
+namespace fesbench::api {
+namespace {
+
+bool EndsWith(std::string_view s, std::string_view suffix) {
+  return s.size() >= suffix.size() && s.substr(s.size() - suffix.size()) == suffix;
+}
+
+std::string_view Trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  return s;
+}
+
+std::vector<std::string_view> SplitFields(std::string_view line, char sep) {
+  std::vector<std::string_view> fields;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t end = line.find(sep, start);
+    if (end == std::string_view::npos) {
+      fields.push_back(Trim(line.substr(start)));
+      return fields;
+    }
+    fields.push_back(Trim(line.substr(start, end - start)));
+    start = end + 1;
+  }
+}
+
+// Parses the whole field as a double; nullopt if it is not exactly a number.
+std::optional<double> ParseDouble(std::string_view field) {
+  if (field.empty()) return std::nullopt;
+  if (field.front() == '+') field.remove_prefix(1);
+  double value = 0.0;
+  const auto [ptr, ec] = std::from_chars(field.data(), field.data() + field.size(), value);
+  if (ec != std::errc() || ptr != field.data() + field.size()) return std::nullopt;
+  return value;
+}
+
+void AppendNumber(std::string& out, double value) {
+  char buffer[32];
+  const auto [ptr, ec] = std::to_chars(buffer, buffer + sizeof buffer, value);
+  out.append(buffer, ec == std::errc() ? ptr : buffer);
+}
+
+std::string Quoted(std::string_view s) {
+  constexpr std::size_t kMax = 40;
+  std::string q = "'";
+  q += s.size() > kMax ? std::string(s.substr(0, kMax)) + "..." : std::string(s);
+  q += "'";
+  return q;
+}
+
+std::string Where(std::size_t line, std::size_t column, std::string_view name) {
+  std::string s = "line " + std::to_string(line) + ", column " + std::to_string(column);
+  if (!name.empty()) s += " (" + std::string(name) + ")";
+  return s;
+}
+
+template <typename Group>
+auto* FindIn(Group& channels, std::string_view name) {
+  auto it = std::find_if(channels.begin(), channels.end(),
+                         [&](const Channel& c) { return c.name == name; });
+  return it == channels.end() ? nullptr : &*it;
+}
+
+Channel& SetIn(std::vector<Channel>& channels, std::string name, std::vector<double> values) {
+  if (Channel* c = FindIn(channels, name)) {
+    c->values = std::move(values);
+    return *c;
+  }
+  std::string unit = ChannelUnit(name);
+  channels.push_back({std::move(name), std::move(unit), std::move(values)});
+  return channels.back();
+}
+
+std::size_t NumSamples(const std::vector<Channel>& channels) {
+  return channels.empty() ? 0 : channels.front().values.size();
+}
+
+}  // namespace
+
+// --- ChannelGroup, Trial ------------------------------------------------------
+
+const Channel* ChannelGroup::Find(std::string_view name) const { return FindIn(channels, name); }
+Channel* ChannelGroup::Find(std::string_view name) { return FindIn(channels, name); }
+const std::vector<double>* ChannelGroup::Values(std::string_view name) const {
+  const Channel* c = Find(name);
+  return c ? &c->values : nullptr;
+}
+Channel& ChannelGroup::Set(std::string name, std::vector<double> values) {
+  return SetIn(channels, std::move(name), std::move(values));
+}
+std::size_t ChannelGroup::num_samples() const { return NumSamples(channels); }
+
+const Channel* Trial::FindChannel(std::string_view name) const { return FindIn(channels, name); }
+Channel* Trial::FindChannel(std::string_view name) { return FindIn(channels, name); }
+const std::vector<double>* Trial::Values(std::string_view name) const {
+  const Channel* c = FindChannel(name);
+  return c ? &c->values : nullptr;
+}
+Channel& Trial::SetChannel(std::string name, std::vector<double> values) {
+  return SetIn(channels, std::move(name), std::move(values));
+}
+std::size_t Trial::num_samples() const { return NumSamples(channels); }
+
+std::string ChannelUnit(std::string_view name) {
+  // Longest suffixes first: "_deg_s2" before "_deg_s" before "_s".
+  static constexpr std::pair<std::string_view, std::string_view> kSuffixes[] = {
+      {"_deg_s2", "deg/s^2"}, {"_deg_s", "deg/s"}, {"_deg", "deg"}, {"_ms", "ms"},
+      {"_ma", "mA"},          {"_nm", "N.m"},      {"_mv", "mV"},   {"_hz", "Hz"},
+      {"_gain", "1"},         {"_s", "s"},
+  };
+  if (name == "activation") return "1";
+  for (const auto& [suffix, unit] : kSuffixes) {
+    if (EndsWith(name, suffix) && name.size() > suffix.size()) return std::string(unit);
+  }
+  return "";
+}
+
+bool IsValidChannelName(std::string_view name) {
+  if (name.empty() || name.size() > 64) return false;
+  if (name.front() < 'a' || name.front() > 'z') return false;
+  return std::all_of(name.begin(), name.end(), [](char ch) {
+    return (ch >= 'a' && ch <= 'z') || (ch >= '0' && ch <= '9') || ch == '_';
+  });
+}
+
+Status ValidateChannelGroup(const ChannelGroup& group, std::string_view field_prefix) {
+  const std::string prefix(field_prefix);
+  if (!std::isfinite(group.sample_rate_hz) || group.sample_rate_hz <= 0.0) {
+    return Status::InvalidArgument("must be a finite number > 0", prefix + "sample_rate_hz");
+  }
+  std::unordered_set<std::string_view> seen;
+  const std::size_t n = group.num_samples();
+  for (std::size_t i = 0; i < group.channels.size(); ++i) {
+    const Channel& c = group.channels[i];
+    const std::string field = prefix + "channels[" + std::to_string(i) + "]";
+    if (!IsValidChannelName(c.name)) {
+      return Status::InvalidArgument(
+          "invalid channel name " + Quoted(c.name) + " (want [a-z][a-z0-9_]*)", field + ".name");
+    }
+    if (!seen.insert(c.name).second) {
+      return Status::InvalidArgument("duplicate channel name " + Quoted(c.name), field + ".name");
+    }
+    if (c.values.size() != n) {
+      return Status::InvalidArgument("channel " + c.name + " has " +
+                                         std::to_string(c.values.size()) + " samples, expected " +
+                                         std::to_string(n),
+                                     field + ".values");
+    }
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!std::isfinite(c.values[k])) {
+        return Status::InvalidArgument("value is not finite",
+                                       field + ".values[" + std::to_string(k) + "]");
+      }
+    }
+  }
+  const Channel* t = group.Find(kTimeChannel);
+  if (t == nullptr) {
+    return Status::InvalidArgument("no t_s (time) channel", prefix + "channels");
+  }
+  for (std::size_t k = 1; k < t->values.size(); ++k) {
+    if (!(t->values[k] > t->values[k - 1])) {
+      const auto index = static_cast<std::size_t>(t - group.channels.data());
+      return Status::InvalidArgument(
+          "t_s is not strictly increasing at sample " + std::to_string(k),
+          prefix + "channels[" + std::to_string(index) + "].values[" + std::to_string(k) + "]");
+    }
+  }
+  return Status::Ok();
+}
+
+Status ValidateTrial(const Trial& trial) {
+  if (Status s = ValidateChannelGroup(trial.MainGroup()); !s.ok()) return s;
+  if (trial.emg) return ValidateChannelGroup(*trial.emg, "emg.");
+  return Status::Ok();
+}
+
+// --- CSV ----------------------------------------------------------------------
+
+std::string GroupToCsv(const ChannelGroup& group) {
+  std::string out;
+  const std::size_t n = group.num_samples();
+  out.reserve((n + 1) * group.channels.size() * 12);
+  for (std::size_t j = 0; j < group.channels.size(); ++j) {
+    if (j) out += ',';
+    out += group.channels[j].name;
+  }
+  out += '\n';
+  for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t j = 0; j < group.channels.size(); ++j) {
+      if (j) out += ',';
+      const auto& values = group.channels[j].values;
+      if (k < values.size()) AppendNumber(out, values[k]);
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+std::string TrialToCsv(const Trial& trial) { return GroupToCsv(trial.MainGroup()); }
+
+Result<ChannelGroup> GroupFromCsv(std::string_view text, double default_rate_hz) {
+  if (text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);
+  if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) {
+    return Status::InvalidArgument("empty file: expected a header row of channel names");
+  }
+  // Split into lines, remembering 1-based line numbers.
+  std::vector<std::string_view> lines;
+  for (std::size_t start = 0; start <= text.size();) {
+    std::size_t end = text.find('\n', start);
+    if (end == std::string_view::npos) end = text.size();
+    lines.push_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  while (!lines.empty() && Trim(lines.back()).empty()) lines.pop_back();
+
+  // Header.
+  const std::vector<std::string_view> names = SplitFields(lines.front(), ',');
+  ChannelGroup group;
+  bool numeric_header = true;
+  for (std::string_view name : names) numeric_header = numeric_header && ParseDouble(name);
+  if (numeric_header) {
+    return Status::InvalidArgument(
+        "line 1: missing header row (expected channel names such as t_s,stim_ma, found numbers)");
+  }
+  for (std::size_t j = 0; j < names.size(); ++j) {
+    const std::string_view name = names[j];
+    if (name.empty()) {
+      return Status::InvalidArgument(Where(1, j + 1, {}) + ": empty channel name");
+    }
+    if (!IsValidChannelName(name)) {
+      return Status::InvalidArgument(Where(1, j + 1, {}) + ": invalid channel name " +
+                                     Quoted(name) + " (want [a-z][a-z0-9_]*, e.g. angle_deg)");
+    }
+    if (group.Find(name)) {
+      return Status::InvalidArgument(Where(1, j + 1, {}) + ": duplicate channel name " +
+                                     Quoted(name));
+    }
+    group.channels.push_back({std::string(name), ChannelUnit(name), {}});
+  }
+  const Channel* time_channel = group.Find(kTimeChannel);
+  if (time_channel == nullptr) {
+    return Status::InvalidArgument("line 1: no t_s column in the header");
+  }
+  const auto time_column = static_cast<std::size_t>(time_channel - group.channels.data());
+  if (lines.size() < 2) {
+    return Status::InvalidArgument("no data rows after the header");
+  }
+
+  for (Channel& c : group.channels) c.values.reserve(lines.size() - 1);
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const std::size_t line_no = i + 1;
+    if (Trim(lines[i]).empty()) {
+      return Status::InvalidArgument("line " + std::to_string(line_no) + ": blank line");
+    }
+    const std::vector<std::string_view> fields = SplitFields(lines[i], ',');
+    if (fields.size() != names.size()) {
+      return Status::InvalidArgument("line " + std::to_string(line_no) + ": expected " +
+                                     std::to_string(names.size()) + " columns, found " +
+                                     std::to_string(fields.size()));
+    }
+    for (std::size_t j = 0; j < fields.size(); ++j) {
+      Channel& c = group.channels[j];
+      const std::optional<double> value = ParseDouble(fields[j]);
+      if (!value) {
+        return Status::InvalidArgument(
+            Where(line_no, j + 1, c.name) + ": " + Quoted(fields[j]) + " is not a number", c.name);
+      }
+      if (!std::isfinite(*value)) {
+        return Status::InvalidArgument(
+            Where(line_no, j + 1, c.name) + ": " + Quoted(fields[j]) + " is not finite", c.name);
+      }
+      if (j == time_column && !c.values.empty() && !(*value > c.values.back())) {
+        std::string previous;
+        AppendNumber(previous, c.values.back());
+        return Status::InvalidArgument(Where(line_no, j + 1, c.name) + ": time " +
+                                           std::string(fields[j]) +
+                                           " is not greater than the previous " + previous,
+                                       c.name);
+      }
+      c.values.push_back(*value);
+    }
+  }
+  const std::vector<double>& t = *group.Values(kTimeChannel);
+  group.sample_rate_hz = t.size() >= 2
+                             ? static_cast<double>(t.size() - 1) / (t.back() - t.front())
+                             : default_rate_hz;
+  if (!std::isfinite(group.sample_rate_hz) || group.sample_rate_hz <= 0.0) {
+    return Status::InvalidArgument("sample rate must be a finite number > 0", "sample_rate_hz");
+  }
+  return group;
+}
+
+Result<Trial> TrialFromCsv(std::string_view text, double default_rate_hz) {
+  Result<ChannelGroup> group = GroupFromCsv(text, default_rate_hz);
+  if (!group.ok()) return group.status();
+  Trial trial;
+  trial.sample_rate_hz = group->sample_rate_hz;
+  trial.channels = std::move(group->channels);
+  return trial;
+}
+
+// --- OpenSim Storage ------------------------------------------------------------
+
+std::string GroupToSto(const ChannelGroup& group, std::string_view name) {
+  const Channel* time_channel = group.Find(kTimeChannel);
+  std::vector<const Channel*> columns;
+  if (time_channel) columns.push_back(time_channel);
+  for (const Channel& c : group.channels) {
+    if (&c != time_channel) columns.push_back(&c);
+  }
+  const std::size_t n = group.num_samples();
+  std::string out;
+  out += name.empty() ? std::string_view("fesbench_trial") : name;
+  out += "\nversion=1\nnRows=" + std::to_string(n) +
+         "\nnColumns=" + std::to_string(columns.size()) + "\ninDegrees=yes\nendheader\n";
+  for (std::size_t j = 0; j < columns.size(); ++j) {
+    if (j) out += '\t';
+    out += columns[j] == time_channel ? std::string("time") : columns[j]->name;
+  }
+  out += '\n';
+  for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t j = 0; j < columns.size(); ++j) {
+      if (j) out += '\t';
+      if (k < columns[j]->values.size()) AppendNumber(out, columns[j]->values[k]);
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+std::string TrialToSto(const Trial& trial) {
+  return GroupToSto(trial.MainGroup(), trial.name ? *trial.name : "fesbench_trial");
+}
+
+// --- JSON ---------------------------------------------------------------------
+
+namespace {
+
+nlohmann::json ChannelsToJson(const std::vector<Channel>& channels) {
+  nlohmann::json array = nlohmann::json::array();
+  for (const Channel& c : channels) {
+    array.push_back({{"name", c.name}, {"unit", c.unit}, {"values", c.values}});
+  }
+  return array;
+}
+
+Status GroupFromJsonInto(const nlohmann::json& json, const std::string& prefix,
+                         ChannelGroup& group) {
+  if (!json.is_object()) {
+    return Status::InvalidArgument("must be an object",
+                                   prefix.empty() ? "" : prefix.substr(0, prefix.size() - 1));
+  }
+  const auto rate = json.find("sample_rate_hz");
+  if (rate == json.end()) return Status::InvalidArgument("missing", prefix + "sample_rate_hz");
+  if (!rate->is_number()) {
+    return Status::InvalidArgument("must be a number", prefix + "sample_rate_hz");
+  }
+  group.sample_rate_hz = rate->get<double>();
+  const auto channels = json.find("channels");
+  if (channels == json.end()) return Status::InvalidArgument("missing", prefix + "channels");
+  if (!channels->is_array()) {
+    return Status::InvalidArgument("must be an array", prefix + "channels");
+  }
+  for (std::size_t i = 0; i < channels->size(); ++i) {
+    const nlohmann::json& c = (*channels)[i];
+    const std::string field = prefix + "channels[" + std::to_string(i) + "]";
+    if (!c.is_object()) return Status::InvalidArgument("must be an object", field);
+    Channel channel;
+    const auto name = c.find("name");
+    if (name == c.end()) return Status::InvalidArgument("missing", field + ".name");
+    if (!name->is_string()) return Status::InvalidArgument("must be a string", field + ".name");
+    channel.name = name->get<std::string>();
+    const auto unit = c.find("unit");
+    if (unit != c.end()) {
+      if (!unit->is_string()) return Status::InvalidArgument("must be a string", field + ".unit");
+      channel.unit = unit->get<std::string>();
+    } else {
+      channel.unit = ChannelUnit(channel.name);
+    }
+    const auto values = c.find("values");
+    if (values == c.end()) return Status::InvalidArgument("missing", field + ".values");
+    if (!values->is_array()) return Status::InvalidArgument("must be an array", field + ".values");
+    channel.values.reserve(values->size());
+    for (std::size_t k = 0; k < values->size(); ++k) {
+      if (!(*values)[k].is_number()) {
+        return Status::InvalidArgument("must be a number",
+                                       field + ".values[" + std::to_string(k) + "]");
+      }
+      channel.values.push_back((*values)[k].get<double>());
+    }
+    group.channels.push_back(std::move(channel));
+  }
+  return ValidateChannelGroup(group, prefix);
+}
+
+}  // namespace
+
+nlohmann::json GroupToJson(const ChannelGroup& group) {
+  return {{"sample_rate_hz", group.sample_rate_hz}, {"channels", ChannelsToJson(group.channels)}};
+}
+
+nlohmann::json TrialToJson(const Trial& trial) {
+  nlohmann::json json = nlohmann::json::object();
+  if (trial.id) json["id"] = *trial.id;
+  if (trial.name) json["name"] = *trial.name;
+  if (trial.start_time_unix_ms) json["start_time_unix_ms"] = *trial.start_time_unix_ms;
+  json["sample_rate_hz"] = trial.sample_rate_hz;
+  json["channels"] = ChannelsToJson(trial.channels);
+  if (trial.emg) json["emg"] = GroupToJson(*trial.emg);
+  return json;
+}
+
+Result<Trial> TrialFromJson(const nlohmann::json& json) {
+  if (!json.is_object()) return Status::InvalidArgument("a trial must be a JSON object");
+  Trial trial;
+  if (const auto id = json.find("id"); id != json.end() && !id->is_null()) {
+    if (!id->is_number_integer()) return Status::InvalidArgument("must be an integer", "id");
+    trial.id = id->get<std::int64_t>();
+  }
+  if (const auto name = json.find("name"); name != json.end() && !name->is_null()) {
+    if (!name->is_string()) return Status::InvalidArgument("must be a string", "name");
+    trial.name = name->get<std::string>();
+  }
+  if (const auto start = json.find("start_time_unix_ms"); start != json.end() && !start->is_null()) {
+    if (!start->is_number_integer()) {
+      return Status::InvalidArgument("must be an integer", "start_time_unix_ms");
+    }
+    trial.start_time_unix_ms = start->get<std::int64_t>();
+  }
+  ChannelGroup main;
+  if (Status s = GroupFromJsonInto(json, "", main); !s.ok()) return s;
+  trial.sample_rate_hz = main.sample_rate_hz;
+  trial.channels = std::move(main.channels);
+  if (const auto emg = json.find("emg"); emg != json.end() && !emg->is_null()) {
+    ChannelGroup group;
+    if (Status s = GroupFromJsonInto(*emg, "emg.", group); !s.ok()) return s;
+    trial.emg = std::move(group);
+  }
+  return trial;
+}
+
+// --- files --------------------------------------------------------------------
+
+Result<std::string> ReadTextFile(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    return Status::NotFound(path.string() + ": is a directory");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::NotFound(path.string() + ": cannot open for reading");
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  if (in.bad()) return Status::Unavailable(path.string() + ": read error");
+  return std::move(buffer).str();
+}
+
+Status WriteTextFile(const std::filesystem::path& path, std::string_view text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) return Status::Unavailable(path.string() + ": cannot open for writing");
+  out.write(text.data(), static_cast<std::streamsize>(text.size()));
+  out.close();
+  if (!out) return Status::Unavailable(path.string() + ": write error");
+  return Status::Ok();
+}
+
+Result<Trial> ReadTrialCsvFile(const std::filesystem::path& path, double default_rate_hz) {
+  Result<std::string> text = ReadTextFile(path);
+  if (!text.ok()) return text.status();
+  Result<Trial> trial = TrialFromCsv(*text, default_rate_hz);
+  if (!trial.ok()) {
+    const Status& s = trial.status();
+    return Status(s.code(), path.string() + ": " + s.message(), s.field());
+  }
+  return trial;
+}
+
+}  // namespace fesbench::api
