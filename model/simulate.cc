@@ -1,0 +1,161 @@
+#include "model/simulate.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "model/units.h"
+
+namespace fesbench::model {
+namespace {
+
+void RequirePositive(double v, const char* field) {
+  if (!std::isfinite(v) || !(v > 0.0)) {
+    throw std::invalid_argument(std::string("simulation: ") + field + " must be finite and > 0");
+  }
+}
+
+void RequireAngle(double angle_deg, const char* field) {
+  if (!std::isfinite(angle_deg) || angle_deg < 0.0 || angle_deg > 180.0) {
+    throw std::invalid_argument(std::string("simulation: ") + field +
+                                " must be within 0-180 deg, got " + std::to_string(angle_deg));
+  }
+}
+
+// Parameter-set checks shared by every mode; returns the model.
+JointModel PrepareModel(const ParameterSet& params, const SimulationOptions& options) {
+  ValidateContraction(params.contraction);
+  if (params.irc.empty()) throw std::invalid_argument("simulation: irc is empty");
+  return JointModel::FromParameters(params, options.model_kind);
+}
+
+SimulationResult MakeResult(std::size_t n, double rate_hz, ModelKind kind) {
+  SimulationResult r;
+  r.model = kind;
+  r.t_s.resize(n);
+  for (std::size_t i = 0; i < n; ++i) r.t_s[i] = static_cast<double>(i) / rate_hz;
+  for (auto* col : {&r.stim_ma, &r.angle_deg, &r.velocity_deg_s, &r.accel_deg_s2, &r.torque_nm,
+                    &r.activation}) {
+    col->assign(n, 0.0);
+  }
+  return r;
+}
+
+}  // namespace
+
+namespace detail {
+
+double DefaultDuration(const PulseTrain& pulses) {
+  return pulses.empty() ? 1.0 : pulses.back().t_s + 1.0;
+}
+
+std::size_t ValidateOptions(const SimulationOptions& options, double default_duration_s) {
+  RequirePositive(options.step_s, "step_s");
+  RequirePositive(options.output_rate_hz, "output_rate_hz");
+  RequirePositive(options.pulse_rate_hz, "pulse_rate_hz");
+  const double duration = options.duration_s.value_or(default_duration_s);
+  RequirePositive(duration, "duration_s");
+  if (options.integrator == IntegratorKind::kAdaptive) ValidateTolerances(options.tolerances);
+  const double n = std::floor(duration * options.output_rate_hz + 1e-9);
+  if (n > 1e9) throw std::invalid_argument("simulation: duration_s * output_rate_hz too large");
+  return std::max<std::size_t>(1, static_cast<std::size_t>(n));
+}
+
+}  // namespace detail
+
+std::vector<double> StimulusColumn(const PulseTrain& pulses, double pulse_rate_hz,
+                                   const std::vector<double>& t_s) {
+  const double hold_s = 1.0 / pulse_rate_hz + 1e-6;
+  std::vector<double> out(t_s.size(), 0.0);
+  std::size_t p = 0;  // number of pulses at or before the current time
+  for (std::size_t i = 0; i < t_s.size(); ++i) {
+    while (p < pulses.size() && pulses[p].t_s <= t_s[i]) ++p;
+    if (p > 0 && t_s[i] - pulses[p - 1].t_s < hold_s) out[i] = pulses[p - 1].stim_ma;
+  }
+  return out;
+}
+
+SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain& pulses,
+                                   const SimulationOptions& options) {
+  ValidatePulseTrain(pulses);
+  const std::size_t n = detail::ValidateOptions(options, detail::DefaultDuration(pulses));
+  RequireAngle(options.initial_angle_deg, "initial_angle_deg");
+  if (!std::isfinite(options.initial_velocity_deg_s)) {
+    throw std::invalid_argument("simulation: initial_velocity_deg_s must be finite");
+  }
+  const JointModel model = PrepareModel(params, options);
+
+  SimulationResult r = MakeResult(n, options.output_rate_hz, model.kind());
+  r.stim_ma = StimulusColumn(pulses, options.pulse_rate_hz, r.t_s);
+
+  // State x = (θ in deg, θ̇ in deg/s); ẍ from J·θ̈ = −τ_pta − τ_ptv − τ_act (§3.4).
+  using State = Eigen::Vector2d;
+  const auto rhs = [&model](double /*t*/, const State& x, double activation) {
+    return State(x[1], model.AccelerationDegS2(x[0], x[1], activation));
+  };
+  const auto record = [&](std::size_t i, double /*t*/, const State& x, double activation) {
+    r.angle_deg[i] = x[0];
+    r.velocity_deg_s[i] = x[1];
+    r.accel_deg_s2[i] = model.AccelerationDegS2(x[0], x[1], activation);
+    r.activation[i] = activation;
+  };
+  const IntegratorSettings settings{options.integrator, options.step_s, options.tolerances};
+  IntegratorWorkspace ws;
+  detail::RunPulseDriven(rhs, record, State(options.initial_angle_deg, options.initial_velocity_deg_s),
+                         params.contraction, params.irc, pulses, options.pulse_rate_hz,
+                         options.output_rate_hz, n, settings, ws);
+  r.stats = ws.stats;
+  return r;
+}
+
+SimulationResult SimulateIsometric(const ParameterSet& params, const PulseTrain& pulses,
+                                   double angle_deg, const SimulationOptions& options) {
+  ValidatePulseTrain(pulses);
+  const std::size_t n = detail::ValidateOptions(options, detail::DefaultDuration(pulses));
+  RequireAngle(angle_deg, "angle_deg");
+  const JointModel model = PrepareModel(params, options);
+
+  SimulationResult r = MakeResult(n, options.output_rate_hz, model.kind());
+  r.stim_ma = StimulusColumn(pulses, options.pulse_rate_hz, r.t_s);
+  r.activation = ActivationAt(params.contraction, params.irc, pulses, options.pulse_rate_hz, r.t_s);
+  // Eqs. 3.18–3.20: τ = C₀·f_stim + C₁ with the τ_ptv(0) of §6.5 referencing.
+  const double c0 = model.ActiveGain(angle_deg, 0.0);
+  const double c1 = model.PassiveAngleTorque(angle_deg) + model.PassiveVelocityTorque(0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    r.angle_deg[i] = angle_deg;
+    r.torque_nm[i] = c1 + c0 * r.activation[i];
+  }
+  return r;
+}
+
+SimulationResult SimulateTrajectory(const ParameterSet& params, const PulseTrain& pulses,
+                                    const Trajectory& trajectory, const SimulationOptions& options) {
+  ValidatePulseTrain(pulses);
+  const std::size_t n = detail::ValidateOptions(options, trajectory.duration_s());
+  const JointModel model = PrepareModel(params, options);
+
+  SimulationResult r = MakeResult(n, options.output_rate_hz, model.kind());
+  r.stim_ma = StimulusColumn(pulses, options.pulse_rate_hz, r.t_s);
+  r.activation = ActivationAt(params.contraction, params.irc, pulses, options.pulse_rate_hz, r.t_s);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Kinematics k = trajectory.At(r.t_s[i]);
+    if (!std::isfinite(k.velocity_deg_s) || !std::isfinite(k.accel_deg_s2)) {
+      throw std::invalid_argument("simulation: trajectory gives a non-finite value at t = " +
+                                  std::to_string(r.t_s[i]));
+    }
+    RequireAngle(k.angle_deg, "trajectory angle");
+    r.angle_deg[i] = k.angle_deg;
+    r.velocity_deg_s[i] = k.velocity_deg_s;
+    r.accel_deg_s2[i] = k.accel_deg_s2;
+    // Eq. 4.9 plus the active term: τ_motor = J·θ̈ + τ_ptv(θ̇) + τ_pta(θ) + τ_act.
+    r.torque_nm[i] = model.inertia_kgm2() * DegToRad(k.accel_deg_s2) +
+                     model.PassiveVelocityTorque(k.velocity_deg_s) +
+                     model.PassiveAngleTorque(k.angle_deg) +
+                     r.activation[i] * model.ActiveGain(k.angle_deg, k.velocity_deg_s);
+  }
+  return r;
+}
+
+}  // namespace fesbench::model

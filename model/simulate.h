@@ -1,0 +1,175 @@
+#pragma once
+
+/// @file
+/// Forward simulation of the muscle–tendon–joint model (thesis ch. 3,
+/// Fig. 3-9; DESIGN.md §3) under a stimulation pulse train, in the bench's
+/// three modes: free swing (motor off), isometric (angle held) and
+/// trajectory (motor imposes θ(t), §4.2.2).
+///
+/// Method. The activation f_stim is linear in the pulses and is computed
+/// exactly: the contraction chain is propagated in closed form between
+/// events and each pulse jumps its first state at the pulse's exact time
+/// (contraction.h). Only the mechanics (θ, θ̇) are integrated numerically,
+/// and every integration interval ends at each pulse time and each output
+/// time, so no step straddles a pulse. With RK4 an interval is cut into
+/// ⌈span/step_s⌉ equal steps (200 Hz output and a 1 ms step give exactly the
+/// 1 kHz grid); the adaptive integrator restarts at each event with its
+/// last step-size estimate.
+///
+/// Time starts at t = 0 with the muscle at rest (f_stim = 0). Output samples
+/// are at t_i = i / output_rate_hz for i = 0 … N − 1, N = ⌊duration·rate⌋
+/// (at least 1), i.e. they cover [0, duration) like a recording.
+
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include "model/contraction.h"
+#include "model/integrators.h"
+#include "model/joint_model.h"
+#include "model/parameter_set.h"
+#include "model/signal.h"
+
+namespace fesbench::model {
+
+/// Options of every simulation mode.
+struct SimulationOptions {
+  IntegratorKind integrator = IntegratorKind::kRk4;
+  double step_s = 1e-3;            ///< RK4 internal step (maximum), s, > 0.
+  double output_rate_hz = 200.0;   ///< output sample rate, Hz, > 0.
+  /// Simulated span, s, > 0. Unset: the trajectory's duration in trajectory
+  /// mode, otherwise the last pulse's time + 1 s (1 s without pulses).
+  std::optional<double> duration_s;
+  double initial_angle_deg = 90.0;       ///< free swing θ(0), deg, 0–180.
+  double initial_velocity_deg_s = 0.0;   ///< free swing θ̇(0), deg/s.
+  double pulse_rate_hz = kDefaultPulseRateHz;  ///< f_pulse of the pulse weight R(u)/f_pulse, Hz, > 0.
+  AdaptiveTolerances tolerances{1e-8, 1e-8, 1e-10, 0.01, 10'000'000};  ///< adaptive only.
+  std::optional<ModelKind> model_kind;   ///< overrides params.model when set.
+};
+
+/// Equal-length columns, one row per output sample.
+struct SimulationResult {
+  std::vector<double> t_s;
+  /// Amplitude of the most recent pulse at or before t_i if it came less than
+  /// one pulse period (1/pulse_rate_hz, plus 1 µs slack) before t_i, else 0:
+  /// a steady train reads as its amplitude, a stopped train as 0, and a
+  /// single pulse shows for one period.
+  std::vector<double> stim_ma;
+  std::vector<double> angle_deg;
+  std::vector<double> velocity_deg_s;
+  std::vector<double> accel_deg_s2;
+  /// Brace torque, N·m, positive in flexion: 0 in free swing; isometric
+  /// τ_pta(θ₀) + τ_ptv(0) + τ_act (raw, offset not removed); trajectory
+  /// J·θ̈ + τ_pta(θ) + τ_ptv(θ̇) + τ_act (Eq. 4.9 plus the active term).
+  std::vector<double> torque_nm;
+  std::vector<double> activation;  ///< f_stim (dimensionless).
+  ModelKind model = ModelKind::kFull;  ///< the variant simulated.
+  IntegrationStats stats;              ///< free swing only; zeros otherwise.
+
+  std::size_t size() const { return t_s.size(); }
+};
+
+/// Free swing: motor off, J·θ̈ = −τ_pta(θ) − τ_ptv(θ̇) − τ_act.
+/// @throws std::invalid_argument on invalid options (non-finite or
+///   non-positive step, rate, duration, pulse rate, tolerances; initial
+///   angle outside 0–180° or non-finite velocity), an invalid pulse train
+///   (non-finite, negative, or non-increasing times; negative amplitudes),
+///   or an invalid parameter set (contraction, empty irc, JointModel); the
+///   message names the field.
+/// @throws std::runtime_error if the adaptive integrator fails (step below
+///   its minimum, non-finite state).
+SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain& pulses,
+                                   const SimulationOptions& options);
+
+/// Isometric: θ ≡ angle_deg; the torque column is the raw brace reading
+/// τ_pta(θ₀) + τ_ptv(0) + τ_scale·f_ata(θ₀)·f_atv(0)·f_stim (Eqs. 3.18–3.20).
+/// @throws std::invalid_argument as SimulateFreeSwing, and if angle_deg is
+///   not in 0–180.
+SimulationResult SimulateIsometric(const ParameterSet& params, const PulseTrain& pulses,
+                                   double angle_deg, const SimulationOptions& options);
+
+/// Trajectory (motor) mode: θ(t) imposed; the torque column is the torque
+/// the brace must apply, J·θ̈ + τ_pta(θ) + τ_ptv(θ̇) + τ_act (Eq. 4.9 with
+/// the active term), θ̈ converted to rad/s².
+/// @throws std::invalid_argument as SimulateFreeSwing, and if the
+///   trajectory gives a non-finite value or an angle outside 0–180 at an
+///   output time.
+SimulationResult SimulateTrajectory(const ParameterSet& params, const PulseTrain& pulses,
+                                    const Trajectory& trajectory, const SimulationOptions& options);
+
+/// The stim_ma column rule of SimulationResult at the given sample times
+/// (non-decreasing; pulses validated by the caller).
+std::vector<double> StimulusColumn(const PulseTrain& pulses, double pulse_rate_hz,
+                                   const std::vector<double>& t_s);
+
+namespace detail {
+
+/// Validates the shared options and returns the number of output samples.
+/// `default_duration_s` is used when options.duration_s is unset.
+std::size_t ValidateOptions(const SimulationOptions& options, double default_duration_s);
+
+/// Default duration of free swing / isometric runs (see SimulationOptions).
+double DefaultDuration(const PulseTrain& pulses);
+
+/// Integrates a mechanical state driven by the exact activation of a pulse
+/// train (see the file comment): rhs(t, x, f_stim) → ẋ; record(i, t_i, x,
+/// f_stim) at each output time. Inputs are assumed validated.
+template <class State, class Rhs, class Record>
+void RunPulseDriven(const Rhs& rhs, const Record& record, State x,
+                    const ContractionParams& contraction, const PiecewiseLinear& irc,
+                    const PulseTrain& pulses, double pulse_rate_hz, double output_rate_hz,
+                    std::size_t n_out, const IntegratorSettings& settings,
+                    IntegratorWorkspace& ws) {
+  ContractionPropagator prop(contraction);
+  ContractionState chain{};
+  double t = 0.0;
+  std::size_t p = 0;
+  const auto apply_pulses_until = [&](double until_s) {
+    while (p < pulses.size() && pulses[p].t_s <= until_s) {
+      prop.ApplyImpulse(chain, PulseWeight(irc, pulses[p].stim_ma, pulse_rate_hz));
+      ++p;
+    }
+  };
+  // Advances from t to t_end with no pulse strictly inside.
+  const auto advance = [&](double t_end) {
+    if (settings.kind == IntegratorKind::kRk4) {
+      const long m = EvenStepCount(t_end - t, settings.step_s);
+      const double h = (t_end - t) / static_cast<double>(m);
+      const double t0 = t;
+      for (long k = 0; k < m; ++k) {
+        const double ts = t0 + static_cast<double>(k) * h;
+        const ContractionState c0 = chain;
+        const auto f = [&](double tt, const State& xx) {
+          return rhs(tt, xx, prop.OutputAfter(c0, tt - ts));
+        };
+        x = Rk4Step(f, ts, x, h);
+        chain = prop.Propagate(chain, h);
+      }
+      ws.stats.accepted_steps += m;
+      ws.stats.rhs_evaluations += 4 * m;
+    } else {
+      const ContractionState c0 = chain;
+      const double ts = t;
+      const auto f = [&](double tt, const State& xx) {
+        return rhs(tt, xx, prop.OutputAfter(c0, tt - ts));
+      };
+      x = IntegrateDormandPrince45(f, t, t_end, x, settings.tolerances, ws);
+      chain = prop.Propagate(chain, t_end - t);
+    }
+    t = t_end;
+  };
+  apply_pulses_until(0.0);
+  for (std::size_t i = 0; i < n_out; ++i) {
+    const double ti = static_cast<double>(i) / output_rate_hz;
+    while (t < ti) {
+      const double seg_end = (p < pulses.size() && pulses[p].t_s < ti) ? pulses[p].t_s : ti;
+      advance(seg_end);
+      apply_pulses_until(t);
+    }
+    record(i, ti, x, prop.Output(chain));
+  }
+}
+
+}  // namespace detail
+
+}  // namespace fesbench::model
