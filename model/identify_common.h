@@ -1,0 +1,67 @@
+#pragma once
+
+/// @file
+/// Shared types of the identification methods (thesis ch. 4, §5.3–5.4;
+/// DESIGN.md §4): the columns of one recorded trial, breakpoint choices for
+/// piecewise-linear fits, and the report every method returns.
+
+#include <cstddef>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace fesbench::model {
+
+/// The channels of one trial as plain columns, all sampled at the same
+/// instants t_s (DESIGN.md §2). A column the trial did not record is empty;
+/// each method documents which columns it needs and throws
+/// std::invalid_argument if one is missing or of the wrong length.
+struct TrialColumns {
+  std::vector<double> t_s;             ///< sample times, s, strictly increasing.
+  std::vector<double> stim_ma;         ///< stimulation envelope, mA (≥ 0).
+  std::vector<double> angle_deg;       ///< knee flexion, deg.
+  std::vector<double> velocity_deg_s;  ///< deg/s.
+  std::vector<double> accel_deg_s2;    ///< deg/s².
+  std::vector<double> torque_nm;       ///< brace torque, N·m, + flexion.
+  std::vector<double> activation;      ///< f_stim(t), dimensionless (computed).
+  std::vector<double> emg;             ///< EMG, arbitrary units.
+
+  std::size_t size() const { return t_s.size(); }
+  /// Mean sample rate 1 / mean(Δt), Hz.
+  /// @throws std::invalid_argument if fewer than 2 samples or t_s is not
+  ///   strictly increasing at its ends.
+  double SampleRateHz() const;
+};
+
+/// Throws std::invalid_argument naming `what` and `column` unless `values`
+/// has exactly `n` entries, all finite.
+void RequireColumn(const char* what, const char* column, std::span<const double> values,
+                   std::size_t n);
+
+/// Breakpoints of one piecewise-linear curve to be fitted: either explicit
+/// (non-empty `explicit_x`, strictly increasing) or `count` breakpoints
+/// spread evenly over the range the data visit.
+struct BreakpointSpec {
+  int count = 11;
+  std::vector<double> explicit_x;
+};
+
+/// The breakpoints `spec` asks for, given the data abscissae x.
+/// @throws std::invalid_argument if count < 2 with no explicit breakpoints,
+///   the explicit breakpoints are not strictly increasing, or x is empty or
+///   constant while count is used.
+std::vector<double> ResolveBreakpoints(const BreakpointSpec& spec, std::span<const double> x);
+
+/// What an identification reports besides the parameters: fit residuals
+/// (per fitted part, in that part's unit), numerical rank, phase-plane
+/// coverage and human-readable warnings (e.g. under-determined fits).
+struct IdentifyReport {
+  std::map<std::string, double> fit_rms;
+  std::map<std::string, double> values;   ///< other figures (rank, delay_s, …).
+  std::vector<std::string> warnings;
+  /// Appends the other report's entries (its keys win on collision).
+  void Merge(const IdentifyReport& other);
+};
+
+}  // namespace fesbench::model

@@ -1,0 +1,101 @@
+#include "model/identify_least_squares.h"
+
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "model/piecewise_linear.h"
+
+namespace fesbench::model {
+
+LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
+                                       double relative_tolerance) {
+  if (a.rows() == 0 || a.cols() == 0) {
+    throw std::invalid_argument("SolveTruncatedSvd: empty design matrix");
+  }
+  if (b.size() != a.rows()) {
+    throw std::invalid_argument("SolveTruncatedSvd: wrong argument size: expected " +
+                                std::to_string(a.rows()) + " observations, got " +
+                                std::to_string(b.size()));
+  }
+  if (!(relative_tolerance > 0.0)) {
+    throw std::invalid_argument("SolveTruncatedSvd: relative_tolerance must be positive");
+  }
+  const Eigen::Index m = a.cols();
+  // Column scaling: basis weights (0–1) and accelerations (~10² rad/s²)
+  // share one matrix; equilibrating keeps the truncation scale-free.
+  Eigen::VectorXd scale(m);
+  for (Eigen::Index j = 0; j < m; ++j) {
+    const double n = a.col(j).norm();
+    scale(j) = n > 0.0 ? 1.0 / n : 1.0;
+  }
+  const Eigen::MatrixXd as = a * scale.asDiagonal();
+
+  // A = Q·R; the singular values of A equal those of R (M×M), so the SVD
+  // of Eq. 4.19 is taken of R and g = U_Rᵀ·(Qᵀ·b) (Eq. 4.23).
+  Eigen::MatrixXd r;
+  Eigen::VectorXd qtb;
+  if (as.rows() >= m) {
+    Eigen::HouseholderQR<Eigen::MatrixXd> qr(as);
+    r = qr.matrixQR().topRows(m).triangularView<Eigen::Upper>();
+    qtb = (qr.householderQ().transpose() * b).head(m);
+  } else {
+    r = as;
+    qtb = b;
+  }
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(r, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd& w = svd.singularValues();
+  const Eigen::VectorXd g = svd.matrixU().transpose() * qtb;
+  Eigen::VectorXd p = Eigen::VectorXd::Zero(w.size());
+  const double w_max = w.size() > 0 ? w(0) : 0.0;
+  int rank = 0;
+  for (Eigen::Index j = 0; j < w.size(); ++j) {
+    if (w(j) > relative_tolerance * w_max) {  // Eqs. 4.25–4.26
+      p(j) = g(j) / w(j);
+      ++rank;
+    }
+  }
+  LeastSquaresSolution out;
+  out.c = scale.asDiagonal() * (svd.matrixV() * p);  // Eq. 4.24, unscaled
+  out.rank = rank;
+  out.rms = std::sqrt((a * out.c - b).squaredNorm() / static_cast<double>(a.rows()));
+  out.singular_values = w;
+  return out;
+}
+
+void SetPwlBasisRow(Eigen::MatrixXd& a, Eigen::Index row, Eigen::Index col0,
+                    std::span<const double> bp, double x, double scale) {
+  const BasisWeights bw = PiecewiseLinear::Basis(bp, x);  // Eq. 4.30
+  const Eigen::Index lo = col0 + static_cast<Eigen::Index>(bw.index_lo);
+  a(row, lo) += scale * bw.weight_lo;
+  if (bp.size() > 1) a(row, lo + 1) += scale * bw.weight_hi;
+}
+
+std::vector<double> BreakpointSupport(std::span<const double> bp, std::span<const double> x) {
+  std::vector<double> support(bp.size(), 0.0);
+  if (bp.empty()) return support;
+  for (double xi : x) {
+    const BasisWeights bw = PiecewiseLinear::Basis(bp, xi);
+    support[bw.index_lo] += bw.weight_lo;
+    if (bp.size() > 1) support[bw.index_lo + 1] += bw.weight_hi;
+  }
+  return support;
+}
+
+std::vector<std::string> SupportWarnings(const std::string& curve, const std::string& unit,
+                                         std::span<const double> bp,
+                                         std::span<const double> support, double min_support) {
+  std::vector<std::string> out;
+  for (std::size_t j = 0; j < bp.size() && j < support.size(); ++j) {
+    if (support[j] < min_support) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    "%s: breakpoint %.4g %s has support %.3g samples (under-determined)",
+                    curve.c_str(), bp[j], unit.c_str(), support[j]);
+      out.emplace_back(buf);
+    }
+  }
+  return out;
+}
+
+}  // namespace fesbench::model

@@ -1,0 +1,89 @@
+#include "model/identify_least_squares.h"
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "model/piecewise_linear.h"
+
+namespace fesbench::model {
+namespace {
+
+TEST(SolveTruncatedSvd, RecoversExactLinearModel) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Eigen::MatrixXd a(200, 4);
+  for (Eigen::Index i = 0; i < a.rows(); ++i)
+    for (Eigen::Index j = 0; j < a.cols(); ++j) a(i, j) = u(rng) * std::pow(10.0, j);
+  const Eigen::Vector4d truth(1.5, -2.0, 0.25, 3e-3);
+  const auto sol = SolveTruncatedSvd(a, a * truth);
+  EXPECT_EQ(sol.rank, 4);
+  EXPECT_LT((sol.c - truth).norm(), 1e-10);
+  EXPECT_LT(sol.rms, 1e-10);
+}
+
+TEST(SolveTruncatedSvd, ZeroesNullDirectionGivingShortestSolution) {
+  // Two identical columns: only their sum is determined; the shortest
+  // solution splits it equally (Eq. 4.26).
+  Eigen::MatrixXd a(50, 2);
+  Eigen::VectorXd b(50);
+  for (int i = 0; i < 50; ++i) {
+    a(i, 0) = a(i, 1) = i * 0.1;
+    b(i) = 4.0 * i * 0.1;
+  }
+  const auto sol = SolveTruncatedSvd(a, b);
+  EXPECT_EQ(sol.rank, 1);
+  EXPECT_NEAR(sol.c(0), 2.0, 1e-10);
+  EXPECT_NEAR(sol.c(1), 2.0, 1e-10);
+}
+
+TEST(SolveTruncatedSvd, FitsPiecewiseLinearCurveThroughItsBasis) {
+  const PiecewiseLinear truth({0, 10, 20, 30, 40}, {1.0, -2.0, 0.5, 3.0, 2.0});
+  const std::vector<double> bp = truth.x();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-5.0, 45.0);
+  const int n = 300;
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, 5);
+  Eigen::VectorXd b(n);
+  for (int i = 0; i < n; ++i) {
+    const double x = u(rng);
+    SetPwlBasisRow(a, i, 0, bp, x);
+    b(i) = truth(x);
+  }
+  const auto sol = SolveTruncatedSvd(a, b);
+  for (int j = 0; j < 5; ++j) EXPECT_NEAR(sol.c(j), truth.y()[static_cast<std::size_t>(j)], 1e-9);
+}
+
+TEST(SolveTruncatedSvd, UnvisitedBreakpointIsTruncatedNotBlownUp) {
+  const std::vector<double> bp = {0, 1, 2, 3};
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(40, 4);
+  Eigen::VectorXd b(40);
+  for (int i = 0; i < 40; ++i) {
+    const double x = 2.0 * i / 39.0;  // never reaches the segment (2, 3]
+    SetPwlBasisRow(a, i, 0, bp, x);
+    b(i) = 2.0 * x + 1.0;
+  }
+  const auto sol = SolveTruncatedSvd(a, b);
+  EXPECT_EQ(sol.rank, 3);
+  EXPECT_NEAR(sol.c(0), 1.0, 1e-9);
+  EXPECT_NEAR(sol.c(2), 5.0, 1e-9);
+  EXPECT_NEAR(sol.c(3), 0.0, 1e-12);
+  const auto support = BreakpointSupport(bp, std::vector<double>{0.5, 1.5, 2.0});
+  EXPECT_NEAR(support[0], 0.5, 1e-12);
+  EXPECT_NEAR(support[1], 1.0, 1e-12);
+  EXPECT_NEAR(support[2], 1.5, 1e-12);
+  EXPECT_NEAR(support[3], 0.0, 1e-12);
+  EXPECT_EQ(SupportWarnings("c", "u", bp, support, 1.0).size(), 2u);
+}
+
+TEST(SolveTruncatedSvd, RejectsBrokenPreconditions) {
+  EXPECT_THROW(SolveTruncatedSvd(Eigen::MatrixXd(3, 2), Eigen::VectorXd(4)), std::invalid_argument);
+  EXPECT_THROW(SolveTruncatedSvd(Eigen::MatrixXd(0, 2), Eigen::VectorXd(0)), std::invalid_argument);
+  EXPECT_THROW(SolveTruncatedSvd(Eigen::MatrixXd::Ones(3, 2), Eigen::VectorXd::Ones(3), 0.0),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace fesbench::model
