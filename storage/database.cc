@@ -1,0 +1,363 @@
+#include "storage/database.h"
+
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <exception>
+#include <filesystem>
+#include <system_error>
+
+#include "storage/migrations.h"
+
+namespace fesbench::storage {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Every problem row of PRAGMA integrity_check (at most `limit`), or empty
+// when the check says "ok".
+api::Result<std::vector<std::string>> IntegrityProblems(Connection& connection, int limit) {
+  auto statement = connection.Prepare("PRAGMA integrity_check(" + std::to_string(limit) + ")");
+  if (!statement.ok()) return statement.status();
+  std::vector<std::string> problems;
+  while (true) {
+    auto row = statement->Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    std::string text = statement->Text(0);
+    if (text != "ok") problems.push_back(std::move(text));
+  }
+  return problems;
+}
+
+api::Status CorruptStatus(const std::string& path, const std::string& detail) {
+  return api::Status::DataLoss("database file '" + path + "' is corrupt (" + detail +
+                               "); refusing to use it: restore it from a backup");
+}
+
+// Turns any failure while touching a possibly corrupt file into kDataLoss
+// when SQLite says the file is corrupt or not a database.
+api::Status CheckedOpenStep(api::Status status, const std::string& path) {
+  if (status.ok() || status.code() != api::ErrorCode::kDataLoss) return status;
+  return CorruptStatus(path, status.message());
+}
+
+api::Result<int> UserVersion(Connection& connection) {
+  auto text = connection.QueryText("PRAGMA user_version");
+  if (!text.ok()) return text.status();
+  return std::stoi(text->empty() ? std::string("0") : *text);
+}
+
+// Copies the whole database behind `source` into `destination` with the
+// backup API, retrying while either side is busy.
+api::Status CopyDatabase(Connection& source, Connection& destination, Clock::time_point deadline) {
+  auto delay = std::chrono::milliseconds(1);
+  while (true) {
+    sqlite3_backup* backup =
+        sqlite3_backup_init(destination.handle(), "main", source.handle(), "main");
+    if (backup == nullptr) {
+      return destination.StatusFromCode(sqlite3_extended_errcode(destination.handle()),
+                                        "starting a backup");
+    }
+    const int step_rc = sqlite3_backup_step(backup, -1);
+    const int finish_rc = sqlite3_backup_finish(backup);
+    if (step_rc == SQLITE_DONE && finish_rc == SQLITE_OK) return api::Status::Ok();
+    const int rc = step_rc == SQLITE_DONE ? finish_rc : step_rc;
+    const int primary = rc & 0xff;
+    if ((primary == SQLITE_BUSY || primary == SQLITE_LOCKED) && Clock::now() < deadline) {
+      std::this_thread::sleep_for(delay);
+      delay = std::min(delay * 2, std::chrono::milliseconds(50));
+      continue;
+    }
+    api::Status status = destination.StatusFromCode(rc, "copying the database");
+    destination.ClearBusy();
+    if (status.code() == api::ErrorCode::kUnavailable) {
+      return api::Status::Unavailable("database stayed busy during the copy: " + status.message());
+    }
+    return status;
+  }
+}
+
+}  // namespace
+
+Database::Database(DatabaseOptions options) : options_(std::move(options)) {}
+
+Database::~Database() {
+  readers_.clear();
+  writer_.reset();
+}
+
+UtcTime Database::Now() const { return options_.clock ? options_.clock() : NowUtc(); }
+
+api::Result<std::unique_ptr<Database>> Database::Open(DatabaseOptions options) {
+  if (options.path.empty()) return api::Status::InvalidArgument("empty database path", "path");
+  if (options.reader_count < 1) {
+    return api::Status::InvalidArgument("reader_count must be at least 1", "reader_count");
+  }
+  if (options.target_schema_version &&
+      (*options.target_schema_version < 0 ||
+       *options.target_schema_version > LatestSchemaVersion())) {
+    return api::Status::InvalidArgument(
+        "target_schema_version must be in [0, " + std::to_string(LatestSchemaVersion()) + "]",
+        "target_schema_version");
+  }
+  std::unique_ptr<Database> database(new Database(std::move(options)));
+  if (auto status = database->Initialise(); !status.ok()) return status;
+  return database;
+}
+
+api::Status Database::Initialise() {
+  const std::string& path = options_.path;
+  const int timeout_ms = static_cast<int>(options_.busy_timeout.count());
+  auto writer = Connection::Open(
+      path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, timeout_ms);
+  if (!writer.ok()) return CheckedOpenStep(writer.status(), path);
+  writer_ = std::move(*writer);
+
+  // The first statement that reads the file: a file that is not a database
+  // fails here with SQLITE_NOTADB.
+  auto mode = writer_->QueryText("PRAGMA journal_mode = WAL");
+  if (!mode.ok()) return CheckedOpenStep(mode.status(), path);
+  if (*mode != "wal") {
+    return api::Status::Unavailable("cannot switch '" + path + "' to WAL (journal_mode " + *mode +
+                                    ")");
+  }
+  const char* synchronous =
+      options_.synchronous == Synchronous::kFull ? "PRAGMA synchronous = FULL"
+                                                 : "PRAGMA synchronous = NORMAL";
+  if (auto status = writer_->ExecScript(synchronous); !status.ok()) return status;
+
+  if (options_.check_integrity) {
+    auto problems = IntegrityProblems(*writer_, 5);
+    if (!problems.ok()) return CheckedOpenStep(problems.status(), path);
+    if (!problems->empty()) {
+      std::string detail = "integrity_check: ";
+      for (std::size_t i = 0; i < problems->size(); ++i) {
+        detail += (i == 0 ? "" : "; ") + (*problems)[i];
+      }
+      return CorruptStatus(path, detail);
+    }
+  }
+
+  if (auto status = CheckedOpenStep(Migrate(options_.target_schema_version), path);
+      !status.ok()) {
+    return status;
+  }
+
+  for (int i = 0; i < options_.reader_count; ++i) {
+    auto reader = Connection::Open(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, timeout_ms);
+    if (!reader.ok()) return reader.status();
+    if (auto status = (*reader)->ExecScript("PRAGMA query_only = ON"); !status.ok()) {
+      return status;
+    }
+    free_readers_.push_back(reader->get());
+    readers_.push_back(std::move(*reader));
+  }
+  return api::Status::Ok();
+}
+
+api::Status Database::Migrate(std::optional<int> target) {
+  const int latest = LatestSchemaVersion();
+  const int goal = target.value_or(latest);
+  int version = 0;
+  auto read = RunOnWriter([&](Connection& c) -> api::Status {
+    auto v = UserVersion(c);
+    if (!v.ok()) return v.status();
+    version = *v;
+    return api::Status::Ok();
+  });
+  if (!read.ok()) return read;
+  if (version > latest) {
+    return api::Status::FailedPrecondition(
+        "database schema version " + std::to_string(version) +
+        " is newer than this software's (" + std::to_string(latest) + ")");
+  }
+  for (const Migration& migration : AllMigrations()) {
+    if (migration.version <= version || migration.version > goal) continue;
+    auto status = RunOnWriter([&](Connection& c) -> api::Status {
+      // Re-read inside the write lock: another process may have migrated.
+      auto now_version = UserVersion(c);
+      if (!now_version.ok()) return now_version.status();
+      if (*now_version >= migration.version) return api::Status::Ok();
+      if (auto s = c.ExecScript(migration.sql); !s.ok()) return s;
+      auto insert = c.Prepare(
+          "INSERT INTO schema_migrations (version, name, applied_at_utc) VALUES (?1, ?2, ?3)");
+      if (!insert.ok()) return insert.status();
+      insert->Bind(1, migration.version).Bind(2, migration.name).Bind(3, FormatUtc(Now()));
+      if (auto s = insert->Run(); !s.ok()) return s;
+      return c.ExecScript("PRAGMA user_version = " + std::to_string(migration.version));
+    });
+    if (!status.ok()) {
+      return api::Status(status.code(), "migration " + std::to_string(migration.version) + " (" +
+                                            migration.name + "): " + status.message());
+    }
+  }
+  return api::Status::Ok();
+}
+
+api::Status Database::RunTransaction(bool write,
+                                     const std::function<api::Status(Connection&)>& fn) {
+  if (writer_owner_.load() == std::this_thread::get_id()) return fn(*writer_);
+  return write ? RunOnWriter(fn) : RunOnReader(fn);
+}
+
+api::Status Database::RunOnWriter(const std::function<api::Status(Connection&)>& fn) {
+  std::lock_guard lock(writer_mutex_);
+  const auto deadline = Clock::now() + options_.retry_budget;
+  auto delay = std::chrono::milliseconds(1);
+  while (true) {
+    writer_->ClearBusy();
+    api::Status status = writer_->ExecScript("BEGIN IMMEDIATE");
+    if (status.ok()) {
+      writer_owner_.store(std::this_thread::get_id());
+      try {
+        status = fn(*writer_);
+      } catch (const std::exception& e) {
+        status = api::Status::Internal(std::string("exception in a write transaction: ") + e.what());
+      }
+      writer_owner_.store(std::thread::id());
+      if (status.ok()) status = writer_->ExecScript("COMMIT");
+      if (!writer_->autocommit()) (void)writer_->ExecScript("ROLLBACK");
+    }
+    if (status.ok()) return status;
+    if (!writer_->busy_seen()) return status;
+    if (Clock::now() >= deadline) {
+      return api::Status::Unavailable("database stayed busy for " +
+                                      std::to_string(options_.retry_budget.count()) +
+                                      " ms; retry later");
+    }
+    std::this_thread::sleep_for(delay);
+    delay = std::min(delay * 2, std::chrono::milliseconds(50));
+  }
+}
+
+api::Status Database::RunOnReader(const std::function<api::Status(Connection&)>& fn) {
+  Connection* reader = nullptr;
+  {
+    std::unique_lock lock(readers_mutex_);
+    reader_freed_.wait(lock, [&] { return !free_readers_.empty(); });
+    reader = free_readers_.back();
+    free_readers_.pop_back();
+  }
+  const auto deadline = Clock::now() + options_.retry_budget;
+  auto delay = std::chrono::milliseconds(1);
+  api::Status status;
+  while (true) {
+    reader->ClearBusy();
+    status = reader->ExecScript("BEGIN");
+    if (status.ok()) {
+      try {
+        status = fn(*reader);
+      } catch (const std::exception& e) {
+        status = api::Status::Internal(std::string("exception in a read transaction: ") + e.what());
+      }
+      if (!reader->autocommit()) {
+        api::Status end = reader->ExecScript("COMMIT");
+        if (!reader->autocommit()) (void)reader->ExecScript("ROLLBACK");
+        if (status.ok()) status = end;
+      }
+    }
+    if (status.ok() || !reader->busy_seen()) break;
+    if (Clock::now() >= deadline) {
+      status = api::Status::Unavailable("database stayed busy for " +
+                                        std::to_string(options_.retry_budget.count()) +
+                                        " ms; retry later");
+      break;
+    }
+    std::this_thread::sleep_for(delay);
+    delay = std::min(delay * 2, std::chrono::milliseconds(50));
+  }
+  {
+    std::lock_guard lock(readers_mutex_);
+    free_readers_.push_back(reader);
+  }
+  reader_freed_.notify_one();
+  return status;
+}
+
+api::Status Database::CheckIntegrity() {
+  return RunOnReader([&](Connection& c) -> api::Status {
+    auto problems = IntegrityProblems(c, 20);
+    if (!problems.ok()) return CheckedOpenStep(problems.status(), options_.path);
+    if (problems->empty()) return api::Status::Ok();
+    std::string detail = "integrity_check: ";
+    for (std::size_t i = 0; i < problems->size(); ++i) {
+      detail += (i == 0 ? "" : "; ") + (*problems)[i];
+    }
+    return CorruptStatus(options_.path, detail);
+  });
+}
+
+api::Result<int> Database::SchemaVersion() {
+  return Read([](Connection& c) { return UserVersion(c); });
+}
+
+api::Status Database::Backup(const std::string& destination_path) {
+  namespace fs = std::filesystem;
+  const std::string temporary = destination_path + ".partial-" + std::to_string(::getpid());
+  std::error_code ignored;
+  fs::remove(temporary, ignored);
+  api::Status status;
+  {
+    auto destination = Connection::Open(
+        temporary, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
+        static_cast<int>(options_.busy_timeout.count()));
+    if (!destination.ok()) return destination.status();
+    // A reader connection is the source: the copy is one read transaction
+    // (a WAL snapshot), so writers keep committing while it runs.
+    Connection* reader = nullptr;
+    {
+      std::unique_lock lock(readers_mutex_);
+      reader_freed_.wait(lock, [&] { return !free_readers_.empty(); });
+      reader = free_readers_.back();
+      free_readers_.pop_back();
+    }
+    status = CopyDatabase(*reader, **destination, Clock::now() + options_.retry_budget);
+    {
+      std::lock_guard lock(readers_mutex_);
+      free_readers_.push_back(reader);
+    }
+    reader_freed_.notify_one();
+  }
+  if (!status.ok()) {
+    fs::remove(temporary, ignored);
+    return status;
+  }
+  std::error_code error;
+  fs::rename(temporary, destination_path, error);
+  if (error) {
+    fs::remove(temporary, ignored);
+    return api::Status::Unavailable("cannot move the backup to '" + destination_path +
+                                    "': " + error.message());
+  }
+  return api::Status::Ok();
+}
+
+api::Status Database::RestoreFrom(const std::string& backup_path) {
+  if (!std::filesystem::exists(backup_path)) {
+    return api::Status::NotFound("backup file '" + backup_path + "' does not exist");
+  }
+  auto source = Connection::Open(backup_path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX,
+                                 static_cast<int>(options_.busy_timeout.count()));
+  if (!source.ok()) return CheckedOpenStep(source.status(), backup_path);
+  auto problems = IntegrityProblems(**source, 5);
+  if (!problems.ok()) return CheckedOpenStep(problems.status(), backup_path);
+  if (!problems->empty()) return CorruptStatus(backup_path, "integrity_check: " + problems->front());
+  auto version = UserVersion(**source);
+  if (!version.ok()) return version.status();
+  if (*version > LatestSchemaVersion()) {
+    return api::Status::FailedPrecondition("backup schema version " + std::to_string(*version) +
+                                           " is newer than this software's");
+  }
+  {
+    std::lock_guard lock(writer_mutex_);
+    auto status = CopyDatabase(**source, *writer_, Clock::now() + options_.retry_budget);
+    if (!status.ok()) return status;
+    auto mode = writer_->QueryText("PRAGMA journal_mode = WAL");
+    if (!mode.ok()) return mode.status();
+  }
+  return Migrate(std::nullopt);
+}
+
+}  // namespace fesbench::storage

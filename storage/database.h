@@ -1,0 +1,134 @@
+#pragma once
+
+/// @file
+/// The SQLite database (DESIGN.md §7): one writer connection serialised by a
+/// mutex and a small pool of reader connections. WAL lets readers proceed
+/// while one transaction writes; a busy timeout plus a retry of the whole
+/// transaction keep "database is locked" from ever reaching a caller (after
+/// `retry_budget` of contention it becomes kUnavailable, retry may succeed).
+///
+/// Opening applies, in order: WAL journal, foreign keys, the synchronous
+/// level, PRAGMA integrity_check (kDataLoss naming the file on any problem:
+/// the database refuses to run on a corrupt file), then the pending numbered
+/// migrations (storage/migrations.h), each in its own transaction.
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "api/status.h"
+#include "storage/connection.h"
+#include "storage/time_utc.h"
+
+namespace fesbench::storage {
+
+/// PRAGMA synchronous. kFull (the default) fsyncs the WAL at every commit,
+/// so a transaction acknowledged to a client survives power loss as well as
+/// a process crash; kNormal survives process crashes only (see README).
+enum class Synchronous { kNormal, kFull };
+
+struct DatabaseOptions {
+  std::string path;                        ///< database file; created if missing.
+  Synchronous synchronous = Synchronous::kFull;
+  int reader_count = 4;                    ///< reader connections, ≥ 1.
+  std::chrono::milliseconds busy_timeout{2000};  ///< SQLite's own wait per attempt.
+  std::chrono::milliseconds retry_budget{30000}; ///< total wait before kUnavailable.
+  bool check_integrity = true;             ///< PRAGMA integrity_check at open.
+  /// Apply migrations up to this version only (tests of upgrades); nullopt
+  /// applies all of them.
+  std::optional<int> target_schema_version;
+  /// The clock for every *_utc column; NowUtc when empty.
+  std::function<UtcTime()> clock;
+};
+
+class Database {
+ public:
+  /// Opens (or creates) the database. Errors: kDataLoss for a file that is
+  /// not a database or fails integrity_check; kFailedPrecondition for a
+  /// schema newer than this software; kUnavailable when the file cannot be
+  /// opened; kInvalidArgument for bad options.
+  static api::Result<std::unique_ptr<Database>> Open(DatabaseOptions options);
+  ~Database();
+  Database(const Database&) = delete;
+  Database& operator=(const Database&) = delete;
+
+  /// Runs `fn(Connection&)` in one write transaction (BEGIN IMMEDIATE …
+  /// COMMIT) on the writer connection; rolls back when fn returns an error
+  /// (Status, or a Result<T> without value). On SQLITE_BUSY the whole
+  /// transaction is retried, so fn may run more than once: it must not have
+  /// side effects outside the database. A Write (or Read) called from inside
+  /// fn on the same thread joins the open transaction. Returns fn's result.
+  template <typename F>
+  auto Write(F&& fn) -> std::invoke_result_t<F, Connection&> {
+    return Run(/*write=*/true, std::forward<F>(fn));
+  }
+  /// Runs `fn` in one read transaction (a consistent snapshot) on a pooled
+  /// reader connection; inside a Write on this thread, on the writer.
+  template <typename F>
+  auto Read(F&& fn) -> std::invoke_result_t<F, Connection&> {
+    return Run(/*write=*/false, std::forward<F>(fn));
+  }
+
+  /// Online backup through SQLite's backup API into `destination_path`
+  /// (written to a temporary file, then renamed). Writers are not blocked:
+  /// the copy is one consistent snapshot read from a reader connection.
+  api::Status Backup(const std::string& destination_path);
+  /// Replaces the whole content with that of the backup at `backup_path`,
+  /// after checking the backup's integrity (kDataLoss if it is corrupt) and
+  /// schema version; migrates it forward if it is older.
+  api::Status RestoreFrom(const std::string& backup_path);
+
+  /// PRAGMA integrity_check: OK, or kDataLoss listing the first problems.
+  api::Status CheckIntegrity();
+  /// The schema version in the file (PRAGMA user_version).
+  api::Result<int> SchemaVersion();
+
+  /// The time stamp for new rows, from options.clock.
+  UtcTime Now() const;
+  const DatabaseOptions& options() const { return options_; }
+
+ private:
+  explicit Database(DatabaseOptions options);
+  api::Status Initialise();
+  api::Status Migrate(std::optional<int> target);
+  api::Status RunTransaction(bool write, const std::function<api::Status(Connection&)>& fn);
+  api::Status RunOnWriter(const std::function<api::Status(Connection&)>& fn);
+  api::Status RunOnReader(const std::function<api::Status(Connection&)>& fn);
+
+  template <typename F>
+  auto Run(bool write, F&& fn) -> std::invoke_result_t<F, Connection&> {
+    using R = std::invoke_result_t<F, Connection&>;
+    if constexpr (std::is_same_v<R, api::Status>) {
+      return RunTransaction(write, [&](Connection& c) { return fn(c); });
+    } else {
+      std::optional<R> out;
+      api::Status status = RunTransaction(write, [&](Connection& c) {
+        out.emplace(fn(c));
+        return out->ok() ? api::Status::Ok() : out->status();
+      });
+      if (!status.ok()) return R(std::move(status));
+      return std::move(*out);
+    }
+  }
+
+  DatabaseOptions options_;
+  std::unique_ptr<Connection> writer_;
+  std::mutex writer_mutex_;
+  std::atomic<std::thread::id> writer_owner_{};  // the thread inside a write transaction
+
+  std::vector<std::unique_ptr<Connection>> readers_;
+  std::vector<Connection*> free_readers_;
+  std::mutex readers_mutex_;
+  std::condition_variable reader_freed_;
+};
+
+}  // namespace fesbench::storage

@@ -1,0 +1,264 @@
+#include "storage/migrations.h"
+
+#include <initializer_list>
+
+namespace fesbench::storage {
+namespace {
+
+// Triggers that make each table append-only: nothing is ever silently
+// overwritten; a correction is a new row that points at what it corrects.
+std::string AppendOnly(std::initializer_list<const char*> tables) {
+  std::string sql;
+  for (const char* table : tables) {
+    const std::string t(table);
+    sql += "CREATE TRIGGER " + t + "_no_update BEFORE UPDATE ON " + t +
+           " BEGIN SELECT RAISE(ABORT, '" + t +
+           " is append-only: add a correcting row instead'); END;\n";
+    sql += "CREATE TRIGGER " + t + "_no_delete BEFORE DELETE ON " + t +
+           " BEGIN SELECT RAISE(ABORT, '" + t + " is append-only: rows are never deleted'); END;\n";
+  }
+  return sql;
+}
+
+// Conventions for every migration:
+//  * *_utc columns hold ISO 8601 UTC text "YYYY-MM-DDTHH:MM:SS.ffffffZ"
+//    (fixed width: text order is time order).
+//  * Column names carry their unit (height_cm, threshold_ma, sample_rate_hz).
+//  * A corrected row is never updated: the correction is a new row whose
+//    corrects_id points at the row it replaces (a partial unique index keeps
+//    the chain linear), and the current value is the row nobody corrects.
+
+const char* const kMigration1 = R"sql(
+CREATE TABLE schema_migrations (
+  version        INTEGER PRIMARY KEY,
+  name           TEXT NOT NULL,
+  applied_at_utc TEXT NOT NULL
+);
+
+-- Subjects are known by a pseudonymous code only; anthropometrics live in
+-- revisions so a correction never overwrites what was recorded.
+CREATE TABLE subjects (
+  id             INTEGER PRIMARY KEY,
+  code           TEXT NOT NULL UNIQUE CHECK (length(code) BETWEEN 1 AND 32),
+  created_at_utc TEXT NOT NULL
+);
+CREATE TABLE subject_revisions (
+  id                    INTEGER PRIMARY KEY,
+  subject_id            INTEGER NOT NULL REFERENCES subjects(id),
+  revision              INTEGER NOT NULL CHECK (revision >= 1),
+  age_years             INTEGER CHECK (age_years BETWEEN 0 AND 130),
+  sex                   TEXT NOT NULL CHECK (sex IN ('female', 'male', 'other', 'undisclosed')),
+  height_cm             REAL CHECK (height_cm > 0),
+  weight_kg             REAL CHECK (weight_kg > 0),
+  shank_length_cm       REAL CHECK (shank_length_cm > 0),
+  calf_circumference_cm REAL CHECK (calf_circumference_cm > 0),
+  corrects_id           INTEGER REFERENCES subject_revisions(id),
+  reason                TEXT NOT NULL DEFAULT '',
+  recorded_at_utc       TEXT NOT NULL,
+  UNIQUE (subject_id, revision),
+  CHECK ((revision = 1) = (corrects_id IS NULL))
+);
+CREATE UNIQUE INDEX subject_revisions_corrects ON subject_revisions(corrects_id)
+  WHERE corrects_id IS NOT NULL;
+
+CREATE TABLE legs (
+  id             INTEGER PRIMARY KEY,
+  subject_id     INTEGER NOT NULL REFERENCES subjects(id),
+  side           TEXT NOT NULL CHECK (side IN ('left', 'right')),
+  created_at_utc TEXT NOT NULL,
+  UNIQUE (subject_id, side),
+  UNIQUE (id, subject_id)
+);
+
+CREATE TABLE sessions (
+  id             INTEGER PRIMARY KEY,
+  subject_id     INTEGER NOT NULL REFERENCES subjects(id),
+  leg_id         INTEGER NOT NULL,
+  created_at_utc TEXT NOT NULL,
+  FOREIGN KEY (leg_id, subject_id) REFERENCES legs(id, subject_id)
+);
+CREATE INDEX sessions_subject ON sessions(subject_id, id);
+CREATE TABLE session_revisions (
+  id                      INTEGER PRIMARY KEY,
+  session_id              INTEGER NOT NULL REFERENCES sessions(id),
+  revision                INTEGER NOT NULL CHECK (revision >= 1),
+  session_date            TEXT NOT NULL
+                          CHECK (session_date GLOB '[0-9][0-9][0-9][0-9]-[0-1][0-9]-[0-3][0-9]'),
+  accelerometer_placement TEXT NOT NULL,
+  threshold_ma            REAL CHECK (threshold_ma BETWEEN 0 AND 100),
+  max_tolerated_ma        REAL CHECK (max_tolerated_ma BETWEEN 0 AND 100),
+  notes                   TEXT NOT NULL DEFAULT '',
+  corrects_id             INTEGER REFERENCES session_revisions(id),
+  reason                  TEXT NOT NULL DEFAULT '',
+  recorded_at_utc         TEXT NOT NULL,
+  UNIQUE (session_id, revision),
+  CHECK ((revision = 1) = (corrects_id IS NULL)),
+  CHECK (threshold_ma IS NULL OR max_tolerated_ma IS NULL OR threshold_ma <= max_tolerated_ma)
+);
+CREATE UNIQUE INDEX session_revisions_corrects ON session_revisions(corrects_id)
+  WHERE corrects_id IS NOT NULL;
+
+-- A run is one execution of a protocol; its state is the last of its events.
+CREATE TABLE runs (
+  id               INTEGER PRIMARY KEY,
+  session_id       INTEGER NOT NULL REFERENCES sessions(id),
+  protocol_name    TEXT NOT NULL CHECK (length(protocol_name) > 0),
+  protocol_version TEXT NOT NULL CHECK (length(protocol_version) > 0),
+  parameters_json  TEXT NOT NULL CHECK (json_valid(parameters_json)),
+  created_at_utc   TEXT NOT NULL
+);
+CREATE INDEX runs_session ON runs(session_id, id);
+CREATE TABLE run_events (
+  id      INTEGER PRIMARY KEY,
+  run_id  INTEGER NOT NULL REFERENCES runs(id),
+  state   TEXT NOT NULL
+          CHECK (state IN ('queued', 'running', 'completed', 'failed', 'cancelled')),
+  message TEXT NOT NULL DEFAULT '',
+  at_utc  TEXT NOT NULL
+);
+CREATE INDEX run_events_run ON run_events(run_id, id);
+
+CREATE TABLE users (
+  id             INTEGER PRIMARY KEY,
+  name           TEXT NOT NULL UNIQUE CHECK (length(name) BETWEEN 1 AND 64),
+  role           TEXT NOT NULL CHECK (role IN ('clinician', 'analyst', 'admin')),
+  created_at_utc TEXT NOT NULL
+);
+CREATE TABLE user_deactivations (
+  user_id INTEGER PRIMARY KEY REFERENCES users(id),
+  reason  TEXT NOT NULL DEFAULT '',
+  at_utc  TEXT NOT NULL
+);
+-- Tokens are stored as SHA-256 digests only; the plain token is shown once.
+CREATE TABLE tokens (
+  id             INTEGER PRIMARY KEY,
+  user_id        INTEGER NOT NULL REFERENCES users(id),
+  token_sha256   BLOB NOT NULL UNIQUE CHECK (length(token_sha256) = 32),
+  label          TEXT NOT NULL DEFAULT '',
+  created_at_utc TEXT NOT NULL,
+  expires_at_utc TEXT
+);
+CREATE TABLE token_revocations (
+  token_id INTEGER PRIMARY KEY REFERENCES tokens(id),
+  at_utc   TEXT NOT NULL
+);
+
+CREATE TABLE audit_log (
+  id              INTEGER PRIMARY KEY,
+  at_utc          TEXT NOT NULL,
+  user_id         INTEGER REFERENCES users(id),
+  actor           TEXT NOT NULL,
+  action          TEXT NOT NULL CHECK (length(action) > 0),
+  target          TEXT NOT NULL DEFAULT '',
+  request_summary TEXT NOT NULL DEFAULT '',
+  outcome         TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX audit_log_time ON audit_log(at_utc);
+)sql";
+
+// Samples are BLOBs of little-endian IEEE-754 float64, 8 bytes per sample,
+// one BLOB per channel; `grp` is 'main' (with the t_s time base) or 'emg'
+// (its own rate and t_s), as in api::Trial.
+const char* const kMigration2 = R"sql(
+CREATE TABLE trials (
+  id                 INTEGER PRIMARY KEY,
+  session_id         INTEGER NOT NULL REFERENCES sessions(id),
+  run_id             INTEGER REFERENCES runs(id),
+  name               TEXT,
+  start_time_unix_ms INTEGER,
+  created_at_utc     TEXT NOT NULL
+);
+CREATE INDEX trials_session ON trials(session_id, id);
+CREATE INDEX trials_run ON trials(run_id) WHERE run_id IS NOT NULL;
+CREATE TABLE trial_channels (
+  id             INTEGER PRIMARY KEY,
+  trial_id       INTEGER NOT NULL REFERENCES trials(id),
+  grp            TEXT NOT NULL CHECK (grp IN ('main', 'emg')),
+  ordinal        INTEGER NOT NULL CHECK (ordinal >= 0),
+  name           TEXT NOT NULL,
+  unit           TEXT NOT NULL,
+  sample_rate_hz REAL NOT NULL CHECK (sample_rate_hz > 0),
+  sample_count   INTEGER NOT NULL CHECK (sample_count >= 0),
+  samples_f64le  BLOB NOT NULL CHECK (length(samples_f64le) = 8 * sample_count),
+  UNIQUE (trial_id, grp, ordinal),
+  UNIQUE (trial_id, grp, name)
+);
+)sql";
+
+// Parameter sets: the JSON text (api/parameter_set_json.h) plus indexed
+// columns, so a subject's history is an index range scan.
+const char* const kMigration3 = R"sql(
+CREATE TABLE parameter_sets (
+  id               INTEGER PRIMARY KEY,
+  subject_id       INTEGER NOT NULL REFERENCES subjects(id),
+  leg_id           INTEGER NOT NULL,
+  version          INTEGER NOT NULL CHECK (version >= 1),
+  model            TEXT NOT NULL,
+  irc_method       TEXT NOT NULL DEFAULT '',
+  passive_method   TEXT NOT NULL DEFAULT '',
+  active_method    TEXT NOT NULL DEFAULT '',
+  software_version TEXT NOT NULL DEFAULT '',
+  supersedes_id    INTEGER REFERENCES parameter_sets(id),
+  created_at_utc   TEXT NOT NULL,
+  params_json      TEXT NOT NULL CHECK (json_valid(params_json)),
+  FOREIGN KEY (leg_id, subject_id) REFERENCES legs(id, subject_id),
+  UNIQUE (subject_id, leg_id, version)
+);
+CREATE INDEX parameter_sets_subject_time ON parameter_sets(subject_id, created_at_utc);
+CREATE INDEX parameter_sets_leg_time ON parameter_sets(subject_id, leg_id, created_at_utc);
+CREATE TABLE parameter_set_trials (
+  parameter_set_id INTEGER NOT NULL REFERENCES parameter_sets(id),
+  trial_id         INTEGER NOT NULL REFERENCES trials(id),
+  PRIMARY KEY (parameter_set_id, trial_id)
+) WITHOUT ROWID;
+CREATE INDEX parameter_set_trials_trial ON parameter_set_trials(trial_id);
+)sql";
+
+const char* const kMigration4 = R"sql(
+CREATE TABLE predictions (
+  id               INTEGER PRIMARY KEY,
+  parameter_set_id INTEGER NOT NULL REFERENCES parameter_sets(id),
+  trial_id         INTEGER REFERENCES trials(id),
+  input_json       TEXT NOT NULL CHECK (json_valid(input_json)),
+  output_json      TEXT NOT NULL CHECK (json_valid(output_json)),
+  created_at_utc   TEXT NOT NULL
+);
+CREATE INDEX predictions_parameter_set ON predictions(parameter_set_id, id);
+CREATE TABLE evaluations (
+  id               INTEGER PRIMARY KEY,
+  parameter_set_id INTEGER NOT NULL REFERENCES parameter_sets(id),
+  trial_id         INTEGER NOT NULL REFERENCES trials(id),
+  prediction_id    INTEGER REFERENCES predictions(id),
+  channel          TEXT NOT NULL,
+  unit             TEXT NOT NULL,
+  rms_error        REAL NOT NULL CHECK (rms_error >= 0),
+  max_abs_error    REAL NOT NULL CHECK (max_abs_error >= 0),
+  details_json     TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(details_json)),
+  created_at_utc   TEXT NOT NULL
+);
+CREATE INDEX evaluations_parameter_set ON evaluations(parameter_set_id, id);
+CREATE INDEX evaluations_trial ON evaluations(trial_id, id);
+)sql";
+
+}  // namespace
+
+const std::vector<Migration>& AllMigrations() {
+  static const std::vector<Migration> kMigrations = {
+      {1, "subjects, legs, sessions, runs, users, tokens, audit log",
+       std::string(kMigration1) +
+           AppendOnly({"schema_migrations", "subjects", "subject_revisions", "legs", "sessions",
+                       "session_revisions", "runs", "run_events", "users",
+                       "user_deactivations", "tokens", "token_revocations", "audit_log"})},
+      {2, "trials and their channels", std::string(kMigration2) +
+                                           AppendOnly({"trials", "trial_channels"})},
+      {3, "parameter sets and their provenance trials",
+       std::string(kMigration3) + AppendOnly({"parameter_sets", "parameter_set_trials"})},
+      {4, "predictions and evaluations",
+       std::string(kMigration4) + AppendOnly({"predictions", "evaluations"})},
+  };
+  return kMigrations;
+}
+
+int LatestSchemaVersion() { return AllMigrations().back().version; }
+
+}  // namespace fesbench::storage

@@ -1,0 +1,27 @@
+#pragma once
+
+/// @file
+/// The schema as numbered migrations compiled into the library. Migration N
+/// moves a database from schema version N − 1 to N; each runs in one
+/// transaction that also records it in `schema_migrations` and sets
+/// PRAGMA user_version = N, so a crash leaves the database at N − 1 or N.
+
+#include <string>
+#include <vector>
+
+namespace fesbench::storage {
+
+struct Migration {
+  int version;       ///< 1, 2, …, consecutive.
+  std::string name;  ///< short description, recorded in schema_migrations.
+  std::string sql;   ///< the DDL, fixed text (no caller values).
+};
+
+/// Every migration, in order. Tables are append-only: each migration also
+/// installs triggers that refuse UPDATE and DELETE on the tables it creates.
+const std::vector<Migration>& AllMigrations();
+
+/// The schema version this software writes (the last migration's number).
+int LatestSchemaVersion();
+
+}  // namespace fesbench::storage
