@@ -12,9 +12,10 @@ build_dir=${1:-"$root/build"}
 packages=(
   build-essential cmake ninja-build pkg-config
   libeigen3-dev libboost-math-dev nlohmann-json3-dev
-  libsqlite3-dev libcpp-httplib-dev
+  libsqlite3-dev libssl-dev libcpp-httplib-dev
   libfastrtps-dev libfastcdr-dev fastddsgen
   libgtest-dev libgmock-dev libbenchmark-dev
+  libcli11-dev
 )
 
 missing=()

@@ -1,0 +1,56 @@
+#pragma once
+
+/// @file
+/// The append-only audit log of state-changing requests (DESIGN.md §7):
+/// who, what, when (UTC) and a summary of the request. Triggers refuse any
+/// UPDATE or DELETE of its rows.
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "api/status.h"
+#include "storage/database.h"
+
+namespace fesbench::storage {
+
+struct NewAuditEntry {
+  std::optional<std::int64_t> user_id;  ///< the authenticated user, if any.
+  std::string actor;            ///< e.g. the user name, "system", a client address.
+  std::string action;           ///< e.g. "POST /api/v1/subjects"; must not be empty.
+  std::string target;           ///< e.g. "subjects/12".
+  std::string request_summary;  ///< short summary; never secrets or tokens.
+  std::string outcome;          ///< e.g. "201", "409 already_exists".
+};
+
+struct AuditEntry {
+  std::int64_t id = 0;
+  UtcTime at;
+  NewAuditEntry entry;
+};
+
+struct AuditQuery {
+  std::optional<UtcTime> from;          ///< inclusive.
+  std::optional<UtcTime> to;            ///< exclusive.
+  std::optional<std::int64_t> user_id;
+  std::size_t limit = 1000;             ///< at most this many, newest first.
+};
+
+class AuditLog {
+ public:
+  explicit AuditLog(Database& db) : db_(db) {}
+
+  /// Appends an entry stamped with the database clock; its id.
+  /// kInvalidArgument (field "action") for an empty action, kNotFound for an
+  /// unknown user id. Joins the caller's transaction inside Database::Write.
+  api::Result<std::int64_t> Append(const NewAuditEntry& entry);
+  /// Entries matching `query`, newest first.
+  api::Result<std::vector<AuditEntry>> List(const AuditQuery& query);
+
+ private:
+  Database& db_;
+};
+
+}  // namespace fesbench::storage

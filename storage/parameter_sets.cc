@@ -1,0 +1,273 @@
+#include "storage/parameter_sets.h"
+
+#include <algorithm>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "api/parameter_set_json.h"
+#include "storage/row_helpers.h"
+
+#ifndef FESBENCH_VERSION
+#define FESBENCH_VERSION "unknown"
+#endif
+
+namespace fesbench::storage {
+namespace {
+
+constexpr std::string_view kSummaryColumns =
+    "id, subject_id, leg_id, version, model, irc_method, passive_method, active_method,"
+    " software_version, supersedes_id, created_at_utc";
+
+api::Result<ParameterSetSummary> ReadSummary(const Statement& s) {
+  ParameterSetSummary summary;
+  summary.id = s.Int64(0);
+  summary.subject_id = s.Int64(1);
+  summary.leg_id = s.Int64(2);
+  summary.version = static_cast<int>(s.Int64(3));
+  summary.model = s.Text(4);
+  summary.irc_method = s.Text(5);
+  summary.passive_method = s.Text(6);
+  summary.active_method = s.Text(7);
+  summary.software_version = s.Text(8);
+  summary.supersedes_id = s.OptionalInt64(9);
+  const auto created = ParseUtc(s.Text(10));
+  if (!created) return internal::BadStoredValue("parameter set");
+  summary.created_at = *created;
+  return summary;
+}
+
+api::Result<StoredParameterSet> GetIn(Connection& c, std::int64_t id) {
+  auto statement = c.Prepare("SELECT " + std::string(kSummaryColumns) +
+                             ", params_json FROM parameter_sets WHERE id = ?1");
+  if (!statement.ok()) return statement.status();
+  statement->Bind(1, id);
+  auto found = statement->Step();
+  if (!found.ok()) return found.status();
+  if (!*found) return api::Status::NotFound("parameter set " + std::to_string(id) + " not found");
+  auto summary = ReadSummary(*statement);
+  if (!summary.ok()) return summary.status();
+  const nlohmann::json json = nlohmann::json::parse(statement->Text(11), nullptr,
+                                                    /*allow_exceptions=*/false);
+  if (json.is_discarded()) return internal::BadStoredValue("parameter set JSON");
+  auto params = api::ParameterSetFromJson(json);
+  if (!params.ok()) {
+    return api::Status::DataLoss("stored parameter set " + std::to_string(id) +
+                                 " no longer validates: " + params.status().ToString());
+  }
+  StoredParameterSet stored{std::move(*summary), std::move(*params), {}};
+  auto trials = c.Prepare(
+      "SELECT trial_id FROM parameter_set_trials WHERE parameter_set_id = ?1 ORDER BY trial_id");
+  if (!trials.ok()) return trials.status();
+  trials->Bind(1, id);
+  while (true) {
+    auto row = trials->Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    stored.trial_ids.push_back(trials->Int64(0));
+  }
+  return stored;
+}
+
+// Checks that trial `trial_id` exists and belongs to `subject_id`.
+api::Status CheckTrial(Connection& c, std::int64_t trial_id, std::int64_t subject_id,
+                       const std::string& field) {
+  auto statement = c.Prepare(
+      "SELECT s.subject_id FROM trials t JOIN sessions s ON s.id = t.session_id WHERE t.id = ?1");
+  if (!statement.ok()) return statement.status();
+  statement->Bind(1, trial_id);
+  auto found = statement->Step();
+  if (!found.ok()) return found.status();
+  if (!*found) {
+    return api::Status(api::ErrorCode::kNotFound,
+                       "trial " + std::to_string(trial_id) + " not found", field);
+  }
+  if (statement->Int64(0) != subject_id) {
+    return api::Status::InvalidArgument(
+        "trial " + std::to_string(trial_id) + " belongs to another subject", field);
+  }
+  return api::Status::Ok();
+}
+
+}  // namespace
+
+std::string_view StorageSoftwareVersion() { return "fesbench " FESBENCH_VERSION; }
+
+api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParameterSet& set) {
+  model::ParameterSet params = set.params;
+  if (params.provenance.software_version.empty()) {
+    params.provenance.software_version = std::string(StorageSoftwareVersion());
+  }
+  const nlohmann::json json = api::ParameterSetToJson(params);
+  // Validate through the wire form: what is stored is what clients can read.
+  if (auto parsed = api::ParameterSetFromJson(json); !parsed.ok()) return parsed.status();
+  const std::string json_text = json.dump();
+  std::set<std::int64_t> trial_ids(params.provenance.trial_ids.begin(),
+                                   params.provenance.trial_ids.end());
+  if (params.provenance.active_trial_id) trial_ids.insert(*params.provenance.active_trial_id);
+
+  return db_.Write([&](Connection& c) -> api::Result<ParameterSetSummary> {
+    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", set.subject_id,
+                                      "subject");
+        !s.ok()) {
+      return s;
+    }
+    auto leg = c.Prepare("SELECT subject_id FROM legs WHERE id = ?1");
+    if (!leg.ok()) return leg.status();
+    leg->Bind(1, set.leg_id);
+    auto leg_found = leg->Step();
+    if (!leg_found.ok()) return leg_found.status();
+    if (!*leg_found) return api::Status::NotFound("leg " + std::to_string(set.leg_id) + " not found");
+    if (leg->Int64(0) != set.subject_id) {
+      return api::Status::InvalidArgument(
+          "leg " + std::to_string(set.leg_id) + " belongs to another subject", "leg_id");
+    }
+    for (std::size_t i = 0; i < params.provenance.trial_ids.size(); ++i) {
+      if (auto s = CheckTrial(c, params.provenance.trial_ids[i], set.subject_id,
+                              "provenance.trial_ids[" + std::to_string(i) + "]");
+          !s.ok()) {
+        return s;
+      }
+    }
+    if (params.provenance.active_trial_id) {
+      if (auto s = CheckTrial(c, *params.provenance.active_trial_id, set.subject_id,
+                              "provenance.active_trial_id");
+          !s.ok()) {
+        return s;
+      }
+    }
+    if (set.supersedes_id) {
+      auto old = c.Prepare("SELECT subject_id, leg_id FROM parameter_sets WHERE id = ?1");
+      if (!old.ok()) return old.status();
+      old->Bind(1, *set.supersedes_id);
+      auto found = old->Step();
+      if (!found.ok()) return found.status();
+      if (!*found) {
+        return api::Status(api::ErrorCode::kNotFound,
+                           "parameter set " + std::to_string(*set.supersedes_id) + " not found",
+                           "supersedes_id");
+      }
+      if (old->Int64(0) != set.subject_id || old->Int64(1) != set.leg_id) {
+        return api::Status::InvalidArgument(
+            "a set can only supersede one of the same subject and leg", "supersedes_id");
+      }
+    }
+    auto next = c.Prepare(
+        "SELECT COALESCE(MAX(version), 0) + 1 FROM parameter_sets WHERE subject_id = ?1"
+        " AND leg_id = ?2");
+    if (!next.ok()) return next.status();
+    next->Bind(1, set.subject_id).Bind(2, set.leg_id);
+    auto next_row = next->Step();
+    if (!next_row.ok()) return next_row.status();
+    const std::int64_t version = next->Int64(0);
+
+    const UtcTime created_at = set.created_at.value_or(db_.Now());
+    auto insert = c.Prepare(
+        "INSERT INTO parameter_sets (subject_id, leg_id, version, model, irc_method,"
+        " passive_method, active_method, software_version, supersedes_id, created_at_utc,"
+        " params_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
+    if (!insert.ok()) return insert.status();
+    insert->Bind(1, set.subject_id).Bind(2, set.leg_id).Bind(3, version)
+        .Bind(4, model::ModelKindName(params.model)).Bind(5, params.provenance.irc_method)
+        .Bind(6, params.provenance.passive_method).Bind(7, params.provenance.active_method)
+        .Bind(8, params.provenance.software_version).Bind(9, set.supersedes_id)
+        .Bind(10, FormatUtc(created_at)).Bind(11, json_text);
+    if (auto s = insert->Run(); !s.ok()) return s;
+    const std::int64_t id = c.LastInsertRowId();
+    for (std::int64_t trial_id : trial_ids) {
+      auto link = c.Prepare(
+          "INSERT INTO parameter_set_trials (parameter_set_id, trial_id) VALUES (?1, ?2)");
+      if (!link.ok()) return link.status();
+      link->Bind(1, id).Bind(2, trial_id);
+      if (auto s = link->Run(); !s.ok()) return s;
+    }
+    ParameterSetSummary summary;
+    summary.id = id;
+    summary.subject_id = set.subject_id;
+    summary.leg_id = set.leg_id;
+    summary.version = static_cast<int>(version);
+    summary.model = std::string(model::ModelKindName(params.model));
+    summary.irc_method = params.provenance.irc_method;
+    summary.passive_method = params.provenance.passive_method;
+    summary.active_method = params.provenance.active_method;
+    summary.software_version = params.provenance.software_version;
+    summary.supersedes_id = set.supersedes_id;
+    summary.created_at = created_at;
+    return summary;
+  });
+}
+
+api::Result<StoredParameterSet> ParameterSetRepository::Get(std::int64_t id) {
+  return db_.Read([&](Connection& c) { return GetIn(c, id); });
+}
+
+api::Result<std::vector<ParameterSetSummary>> ParameterSetRepository::History(
+    const HistoryQuery& query) {
+  // Fixed SQL fragments per filter (values are always bound), so each shape
+  // is a cached statement that range-scans (subject_id, created_at_utc).
+  std::string sql = "SELECT " + std::string(kSummaryColumns) +
+                    " FROM parameter_sets WHERE subject_id = ?1"
+                    " AND created_at_utc >= ?2 AND created_at_utc < ?3";
+  if (query.leg_id) sql += " AND leg_id = ?4";
+  if (query.method) sql += " AND ?5 IN (irc_method, passive_method, active_method)";
+  sql += " ORDER BY created_at_utc, id LIMIT ?6";
+  const std::string from = query.from ? FormatUtc(*query.from) : std::string();
+  const std::string to = query.to ? FormatUtc(*query.to) : std::string("~");  // '~' > any digit
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<ParameterSetSummary>> {
+    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", query.subject_id,
+                                      "subject");
+        !s.ok()) {
+      return s;
+    }
+    auto statement = c.Prepare(sql);
+    if (!statement.ok()) return statement.status();
+    statement->Bind(1, query.subject_id).Bind(2, from).Bind(3, to)
+        .Bind(6, static_cast<std::int64_t>(query.limit));
+    if (query.leg_id) statement->Bind(4, *query.leg_id);
+    if (query.method) statement->Bind(5, *query.method);
+    std::vector<ParameterSetSummary> history;
+    while (true) {
+      auto row = statement->Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      auto summary = ReadSummary(*statement);
+      if (!summary.ok()) return summary.status();
+      history.push_back(std::move(*summary));
+    }
+    return history;
+  });
+}
+
+api::Result<StoredParameterSet> ParameterSetRepository::Latest(std::int64_t subject_id,
+                                                               std::int64_t leg_id) {
+  return db_.Read([&](Connection& c) -> api::Result<StoredParameterSet> {
+    auto statement = c.Prepare(
+        "SELECT id FROM parameter_sets WHERE subject_id = ?1 AND leg_id = ?2"
+        " ORDER BY version DESC LIMIT 1");
+    if (!statement.ok()) return statement.status();
+    statement->Bind(1, subject_id).Bind(2, leg_id);
+    auto found = statement->Step();
+    if (!found.ok()) return found.status();
+    if (!*found) {
+      return api::Status::NotFound("no parameter set for subject " + std::to_string(subject_id) +
+                                   ", leg " + std::to_string(leg_id));
+    }
+    return GetIn(c, statement->Int64(0));
+  });
+}
+
+api::Result<std::string> ParameterSetRepository::ExportJson(std::int64_t id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::string> {
+    auto statement = c.Prepare("SELECT params_json FROM parameter_sets WHERE id = ?1");
+    if (!statement.ok()) return statement.status();
+    statement->Bind(1, id);
+    auto found = statement->Step();
+    if (!found.ok()) return found.status();
+    if (!*found) return api::Status::NotFound("parameter set " + std::to_string(id) + " not found");
+    const nlohmann::json json = nlohmann::json::parse(statement->Text(0), nullptr, false);
+    if (json.is_discarded()) return internal::BadStoredValue("parameter set JSON");
+    return json.dump(2) + "\n";
+  });
+}
+
+}  // namespace fesbench::storage

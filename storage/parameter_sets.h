@@ -1,0 +1,90 @@
+#pragma once
+
+/// @file
+/// Parameter sets (DESIGN.md §3, §7): immutable versions with provenance.
+/// Each is stored as its JSON text (api/parameter_set_json.h) plus indexed
+/// columns (subject, leg, model, methods, software version, created_at UTC),
+/// so a subject's history is an index range scan on (subject_id,
+/// created_at_utc). A refit is a new version that may name the version it
+/// supersedes; nothing is overwritten.
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "api/status.h"
+#include "model/parameter_set.h"
+#include "storage/database.h"
+
+namespace fesbench::storage {
+
+struct NewParameterSet {
+  std::int64_t subject_id = 0;
+  std::int64_t leg_id = 0;
+  model::ParameterSet params;  ///< provenance.trial_ids / active_trial_id must be stored trials.
+  std::optional<std::int64_t> supersedes_id;  ///< an earlier set of the same subject and leg.
+  std::optional<UtcTime> created_at;          ///< default: the database clock.
+};
+
+/// The indexed columns of a stored set.
+struct ParameterSetSummary {
+  std::int64_t id = 0;
+  std::int64_t subject_id = 0;
+  std::int64_t leg_id = 0;
+  int version = 1;  ///< 1, 2, … per subject and leg.
+  std::string model;
+  std::string irc_method;
+  std::string passive_method;
+  std::string active_method;
+  std::string software_version;
+  std::optional<std::int64_t> supersedes_id;
+  UtcTime created_at;
+};
+
+struct StoredParameterSet {
+  ParameterSetSummary summary;
+  model::ParameterSet params;
+  std::vector<std::int64_t> trial_ids;  ///< provenance trials, ascending.
+};
+
+/// History filter: one subject; optionally one leg, one method (matching
+/// the IRC, passive or active method) and a time range [from, to).
+struct HistoryQuery {
+  std::int64_t subject_id = 0;
+  std::optional<std::int64_t> leg_id;
+  std::optional<std::string> method;
+  std::optional<UtcTime> from;
+  std::optional<UtcTime> to;
+  std::size_t limit = 1000;  ///< oldest first, at most this many.
+};
+
+/// The software version recorded when a set's provenance names none.
+std::string_view StorageSoftwareVersion();
+
+class ParameterSetRepository {
+ public:
+  explicit ParameterSetRepository(Database& db) : db_(db) {}
+
+  /// Stores a new version. The set is validated through its JSON form
+  /// (kInvalidArgument with the field path). kNotFound for an unknown
+  /// subject, leg, trial or superseded set; kInvalidArgument for a leg or
+  /// trial of another subject ("leg_id", "provenance.trial_ids[i]") or a
+  /// superseded set of another subject or leg ("supersedes_id"). An empty
+  /// provenance.software_version is filled with StorageSoftwareVersion().
+  api::Result<ParameterSetSummary> Insert(const NewParameterSet& set);
+  /// kNotFound for an unknown id; kDataLoss if the stored JSON is unreadable.
+  api::Result<StoredParameterSet> Get(std::int64_t id);
+  /// Summaries matching `query`, oldest first (kNotFound for an unknown subject).
+  api::Result<std::vector<ParameterSetSummary>> History(const HistoryQuery& query);
+  /// The latest version for a subject and leg (kNotFound if there is none).
+  api::Result<StoredParameterSet> Latest(std::int64_t subject_id, std::int64_t leg_id);
+  /// The stored JSON text, pretty-printed (2-space indent).
+  api::Result<std::string> ExportJson(std::int64_t id);
+
+ private:
+  Database& db_;
+};
+
+}  // namespace fesbench::storage

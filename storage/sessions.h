@@ -1,0 +1,107 @@
+#pragma once
+
+/// @file
+/// Sessions (one visit of a subject at the bench, for one leg) and runs (one
+/// execution of a protocol within a session), DESIGN.md §7. Session details
+/// are revisions (a correction points at what it corrects); a run's state is
+/// the last of its append-only state events.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "api/status.h"
+#include "storage/database.h"
+
+namespace fesbench::storage {
+
+struct SessionDetails {
+  std::string date;                        ///< "YYYY-MM-DD" (local calendar date).
+  std::string accelerometer_placement;     ///< e.g. "shank, 20 cm below knee".
+  std::optional<double> threshold_ma;      ///< stimulation threshold, [0, 100] mA.
+  std::optional<double> max_tolerated_ma;  ///< [threshold, 100] mA.
+  std::string notes;
+  friend bool operator==(const SessionDetails&, const SessionDetails&) = default;
+};
+
+struct SessionRevision {
+  std::int64_t id = 0;
+  int revision = 1;
+  SessionDetails details;
+  std::optional<std::int64_t> corrects_id;
+  std::string reason;
+  UtcTime recorded_at;
+};
+
+struct Session {
+  std::int64_t id = 0;
+  std::int64_t subject_id = 0;
+  std::int64_t leg_id = 0;
+  UtcTime created_at;
+  SessionRevision current;  ///< the latest revision.
+};
+
+enum class RunState { kQueued, kRunning, kCompleted, kFailed, kCancelled };
+/// "queued", "running", "completed", "failed", "cancelled".
+std::string_view RunStateName(RunState state);
+std::optional<RunState> ParseRunState(std::string_view name);
+/// True for completed, failed and cancelled.
+bool IsTerminal(RunState state);
+
+struct NewRun {
+  std::string protocol_name;     ///< e.g. "irc_ramp".
+  std::string protocol_version;  ///< e.g. "1.0".
+  std::string parameters_json = "{}";  ///< the protocol's parameters, valid JSON.
+};
+
+struct Run {
+  std::int64_t id = 0;
+  std::int64_t session_id = 0;
+  std::string protocol_name;
+  std::string protocol_version;
+  std::string parameters_json;
+  RunState state = RunState::kQueued;
+  std::string message;                ///< of the last state event.
+  UtcTime created_at;
+  std::optional<UtcTime> started_at;  ///< first "running" event.
+  std::optional<UtcTime> finished_at; ///< the terminal event.
+};
+
+/// Checks SessionDetails (field names the member): a valid date, currents in
+/// [0, 100] mA, threshold ≤ max tolerated.
+api::Status ValidateSessionDetails(const SessionDetails& details);
+
+class SessionRepository {
+ public:
+  explicit SessionRepository(Database& db) : db_(db) {}
+
+  /// Errors: kNotFound for an unknown subject or leg; kInvalidArgument
+  /// (field "leg_id") for a leg of another subject, or bad details.
+  api::Result<Session> Create(std::int64_t subject_id, std::int64_t leg_id,
+                              const SessionDetails& details);
+  api::Result<Session> Get(std::int64_t session_id);
+  /// The subject's sessions, oldest first (kNotFound for an unknown subject).
+  api::Result<std::vector<Session>> ListForSubject(std::int64_t subject_id);
+  /// Adds a revision pointing at the current one; `reason` must not be empty.
+  api::Result<Session> Correct(std::int64_t session_id, const SessionDetails& details,
+                               std::string_view reason);
+  api::Result<std::vector<SessionRevision>> Revisions(std::int64_t session_id);
+
+  /// A new run in state queued. kNotFound for an unknown session;
+  /// kInvalidArgument for empty names or invalid parameters JSON.
+  api::Result<Run> CreateRun(std::int64_t session_id, const NewRun& run);
+  api::Result<Run> GetRun(std::int64_t run_id);
+  api::Result<std::vector<Run>> ListRuns(std::int64_t session_id);
+  /// Appends a state event. Allowed: queued → running | failed | cancelled;
+  /// running → completed | failed | cancelled. Anything else (including from
+  /// a terminal state) is kFailedPrecondition naming both states.
+  api::Result<Run> RecordRunState(std::int64_t run_id, RunState state,
+                                  std::string_view message = {});
+
+ private:
+  Database& db_;
+};
+
+}  // namespace fesbench::storage

@@ -1,0 +1,315 @@
+#include "storage/subjects.h"
+
+#include <cmath>
+
+#include "storage/row_helpers.h"
+
+namespace fesbench::storage {
+namespace {
+
+constexpr std::string_view kRevisionColumns =
+    "r.id, r.revision, r.age_years, r.sex, r.height_cm, r.weight_kg, r.shank_length_cm, "
+    "r.calf_circumference_cm, r.corrects_id, r.reason, r.recorded_at_utc";
+
+// Reads kRevisionColumns starting at column `first`.
+api::Result<SubjectRevision> ReadRevision(const Statement& s, int first) {
+  SubjectRevision revision;
+  revision.id = s.Int64(first);
+  revision.revision = static_cast<int>(s.Int64(first + 1));
+  if (!s.IsNull(first + 2)) revision.details.age_years = static_cast<int>(s.Int64(first + 2));
+  const auto sex = ParseSex(s.Text(first + 3));
+  const auto recorded = ParseUtc(s.Text(first + 10));
+  if (!sex || !recorded) return internal::BadStoredValue("subject revision");
+  revision.details.sex = *sex;
+  revision.details.height_cm = s.OptionalDouble(first + 4);
+  revision.details.weight_kg = s.OptionalDouble(first + 5);
+  revision.details.shank_length_cm = s.OptionalDouble(first + 6);
+  revision.details.calf_circumference_cm = s.OptionalDouble(first + 7);
+  revision.corrects_id = s.OptionalInt64(first + 8);
+  revision.reason = s.Text(first + 9);
+  revision.recorded_at = *recorded;
+  return revision;
+}
+
+// The subject with its latest revision: `where` selects on s.
+api::Result<std::vector<Subject>> QuerySubjects(Connection& c, std::string_view where,
+                                                const std::function<void(Statement&)>& bind) {
+  const std::string sql =
+      "SELECT s.id, s.code, s.created_at_utc, " + std::string(kRevisionColumns) +
+      " FROM subjects s JOIN subject_revisions r ON r.subject_id = s.id"
+      " AND r.revision = (SELECT MAX(revision) FROM subject_revisions WHERE subject_id = s.id) " +
+      std::string(where) + " ORDER BY s.id";
+  auto statement = c.Prepare(sql);
+  if (!statement.ok()) return statement.status();
+  bind(*statement);
+  std::vector<Subject> subjects;
+  while (true) {
+    auto row = statement->Step();
+    if (!row.ok()) return row.status();
+    if (!*row) break;
+    Subject subject;
+    subject.id = statement->Int64(0);
+    subject.code = statement->Text(1);
+    const auto created = ParseUtc(statement->Text(2));
+    auto revision = ReadRevision(*statement, 3);
+    if (!created) return internal::BadStoredValue("subject");
+    if (!revision.ok()) return revision.status();
+    subject.created_at = *created;
+    subject.current = std::move(*revision);
+    subjects.push_back(std::move(subject));
+  }
+  return subjects;
+}
+
+api::Result<Subject> GetById(Connection& c, std::int64_t id) {
+  auto subjects = QuerySubjects(c, "WHERE s.id = ?1", [&](Statement& s) { s.Bind(1, id); });
+  if (!subjects.ok()) return subjects.status();
+  if (subjects->empty()) return api::Status::NotFound("subject " + std::to_string(id) + " not found");
+  return std::move(subjects->front());
+}
+
+api::Status InsertRevision(Connection& c, std::int64_t subject_id, int revision,
+                           const SubjectDetails& d, std::optional<std::int64_t> corrects_id,
+                           std::string_view reason, UtcTime now) {
+  auto insert = c.Prepare(
+      "INSERT INTO subject_revisions (subject_id, revision, age_years, sex, height_cm, weight_kg,"
+      " shank_length_cm, calf_circumference_cm, corrects_id, reason, recorded_at_utc)"
+      " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
+  if (!insert.ok()) return insert.status();
+  std::optional<std::int64_t> age;
+  if (d.age_years) age = *d.age_years;
+  insert->Bind(1, subject_id).Bind(2, revision).Bind(3, age).Bind(4, SexName(d.sex))
+      .Bind(5, d.height_cm).Bind(6, d.weight_kg).Bind(7, d.shank_length_cm)
+      .Bind(8, d.calf_circumference_cm).Bind(9, corrects_id).Bind(10, reason)
+      .Bind(11, FormatUtc(now));
+  return insert->Run();
+}
+
+api::Status CheckRange(const std::optional<double>& value, double low, double high,
+                       const char* field) {
+  if (!value) return api::Status::Ok();
+  if (!std::isfinite(*value) || *value <= low || *value > high) {
+    return api::Status::InvalidArgument(std::string(field) + " must be in (" +
+                                            std::to_string(low) + ", " + std::to_string(high) + "]",
+                                        field);
+  }
+  return api::Status::Ok();
+}
+
+api::Result<Leg> ReadLeg(const Statement& s) {
+  Leg leg;
+  leg.id = s.Int64(0);
+  leg.subject_id = s.Int64(1);
+  const auto side = ParseSide(s.Text(2));
+  const auto created = ParseUtc(s.Text(3));
+  if (!side || !created) return internal::BadStoredValue("leg");
+  leg.side = *side;
+  leg.created_at = *created;
+  return leg;
+}
+
+}  // namespace
+
+std::string_view SexName(Sex sex) {
+  switch (sex) {
+    case Sex::kFemale: return "female";
+    case Sex::kMale: return "male";
+    case Sex::kOther: return "other";
+    case Sex::kUndisclosed: return "undisclosed";
+  }
+  return "undisclosed";
+}
+
+std::optional<Sex> ParseSex(std::string_view name) {
+  for (Sex sex : {Sex::kFemale, Sex::kMale, Sex::kOther, Sex::kUndisclosed}) {
+    if (SexName(sex) == name) return sex;
+  }
+  return std::nullopt;
+}
+
+std::string_view SideName(Side side) { return side == Side::kLeft ? "left" : "right"; }
+
+std::optional<Side> ParseSide(std::string_view name) {
+  if (name == "left") return Side::kLeft;
+  if (name == "right") return Side::kRight;
+  return std::nullopt;
+}
+
+api::Status ValidateSubjectCode(std::string_view code) {
+  if (code.empty() || code.size() > 32) {
+    return api::Status::InvalidArgument("subject code must have 1 to 32 characters", "code");
+  }
+  for (char ch : code) {
+    const bool ok = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
+                    (ch >= '0' && ch <= '9') || ch == '_' || ch == '-';
+    if (!ok) {
+      return api::Status::InvalidArgument(
+          "subject code may hold only letters, digits, '_' and '-' (it is a pseudonym)", "code");
+    }
+  }
+  return api::Status::Ok();
+}
+
+api::Status ValidateSubjectDetails(const SubjectDetails& d) {
+  if (d.age_years && (*d.age_years < 0 || *d.age_years > 130)) {
+    return api::Status::InvalidArgument("age_years must be in [0, 130]", "age_years");
+  }
+  if (auto s = CheckRange(d.height_cm, 30, 250, "height_cm"); !s.ok()) return s;
+  if (auto s = CheckRange(d.weight_kg, 1, 400, "weight_kg"); !s.ok()) return s;
+  if (auto s = CheckRange(d.shank_length_cm, 10, 80, "shank_length_cm"); !s.ok()) return s;
+  return CheckRange(d.calf_circumference_cm, 10, 100, "calf_circumference_cm");
+}
+
+api::Result<Subject> SubjectRepository::Create(std::string_view code,
+                                               const SubjectDetails& details) {
+  if (auto s = ValidateSubjectCode(code); !s.ok()) return s;
+  if (auto s = ValidateSubjectDetails(details); !s.ok()) return s;
+  return db_.Write([&](Connection& c) -> api::Result<Subject> {
+    auto existing = c.Prepare("SELECT id FROM subjects WHERE code = ?1");
+    if (!existing.ok()) return existing.status();
+    existing->Bind(1, code);
+    auto found = existing->Step();
+    if (!found.ok()) return found.status();
+    if (*found) {
+      return api::Status::AlreadyExists("subject code '" + std::string(code) + "' already exists",
+                                        "code");
+    }
+    const UtcTime now = db_.Now();
+    auto insert = c.Prepare("INSERT INTO subjects (code, created_at_utc) VALUES (?1, ?2)");
+    if (!insert.ok()) return insert.status();
+    insert->Bind(1, code).Bind(2, FormatUtc(now));
+    if (auto s = insert->Run(); !s.ok()) return s;
+    const std::int64_t id = c.LastInsertRowId();
+    if (auto s = InsertRevision(c, id, 1, details, std::nullopt, "", now); !s.ok()) return s;
+    return GetById(c, id);
+  });
+}
+
+api::Result<Subject> SubjectRepository::Get(std::int64_t subject_id) {
+  return db_.Read([&](Connection& c) { return GetById(c, subject_id); });
+}
+
+api::Result<Subject> SubjectRepository::GetByCode(std::string_view code) {
+  return db_.Read([&](Connection& c) -> api::Result<Subject> {
+    auto subjects = QuerySubjects(c, "WHERE s.code = ?1", [&](Statement& s) { s.Bind(1, code); });
+    if (!subjects.ok()) return subjects.status();
+    if (subjects->empty()) {
+      return api::Status::NotFound("subject code '" + std::string(code) + "' not found");
+    }
+    return std::move(subjects->front());
+  });
+}
+
+api::Result<std::vector<Subject>> SubjectRepository::List() {
+  return db_.Read([&](Connection& c) { return QuerySubjects(c, "", [](Statement&) {}); });
+}
+
+api::Result<Subject> SubjectRepository::Correct(std::int64_t subject_id,
+                                                const SubjectDetails& details,
+                                                std::string_view reason) {
+  if (auto s = ValidateSubjectDetails(details); !s.ok()) return s;
+  if (reason.empty()) {
+    return api::Status::InvalidArgument("a correction needs a reason", "reason");
+  }
+  return db_.Write([&](Connection& c) -> api::Result<Subject> {
+    auto subject = GetById(c, subject_id);
+    if (!subject.ok()) return subject.status();
+    if (auto s = InsertRevision(c, subject_id, subject->current.revision + 1, details,
+                                subject->current.id, reason, db_.Now());
+        !s.ok()) {
+      return s;
+    }
+    return GetById(c, subject_id);
+  });
+}
+
+api::Result<std::vector<SubjectRevision>> SubjectRepository::Revisions(std::int64_t subject_id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<SubjectRevision>> {
+    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id,
+                                      "subject");
+        !s.ok()) {
+      return s;
+    }
+    auto statement = c.Prepare("SELECT " + std::string(kRevisionColumns) +
+                               " FROM subject_revisions r WHERE r.subject_id = ?1"
+                               " ORDER BY r.revision");
+    if (!statement.ok()) return statement.status();
+    statement->Bind(1, subject_id);
+    std::vector<SubjectRevision> revisions;
+    while (true) {
+      auto row = statement->Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      auto revision = ReadRevision(*statement, 0);
+      if (!revision.ok()) return revision.status();
+      revisions.push_back(std::move(*revision));
+    }
+    return revisions;
+  });
+}
+
+api::Result<Leg> SubjectRepository::AddLeg(std::int64_t subject_id, Side side) {
+  return db_.Write([&](Connection& c) -> api::Result<Leg> {
+    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id,
+                                      "subject");
+        !s.ok()) {
+      return s;
+    }
+    auto existing = c.Prepare("SELECT 1 FROM legs WHERE subject_id = ?1 AND side = ?2");
+    if (!existing.ok()) return existing.status();
+    existing->Bind(1, subject_id).Bind(2, SideName(side));
+    auto found = existing->Step();
+    if (!found.ok()) return found.status();
+    if (*found) {
+      return api::Status::AlreadyExists("subject " + std::to_string(subject_id) + " already has a " +
+                                            std::string(SideName(side)) + " leg",
+                                        "side");
+    }
+    auto insert =
+        c.Prepare("INSERT INTO legs (subject_id, side, created_at_utc) VALUES (?1, ?2, ?3)");
+    if (!insert.ok()) return insert.status();
+    const UtcTime now = db_.Now();
+    insert->Bind(1, subject_id).Bind(2, SideName(side)).Bind(3, FormatUtc(now));
+    if (auto s = insert->Run(); !s.ok()) return s;
+    return Leg{c.LastInsertRowId(), subject_id, side, now};
+  });
+}
+
+api::Result<Leg> SubjectRepository::GetLeg(std::int64_t leg_id) {
+  return db_.Read([&](Connection& c) -> api::Result<Leg> {
+    auto statement =
+        c.Prepare("SELECT id, subject_id, side, created_at_utc FROM legs WHERE id = ?1");
+    if (!statement.ok()) return statement.status();
+    statement->Bind(1, leg_id);
+    auto row = statement->Step();
+    if (!row.ok()) return row.status();
+    if (!*row) return api::Status::NotFound("leg " + std::to_string(leg_id) + " not found");
+    return ReadLeg(*statement);
+  });
+}
+
+api::Result<std::vector<Leg>> SubjectRepository::Legs(std::int64_t subject_id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<Leg>> {
+    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id,
+                                      "subject");
+        !s.ok()) {
+      return s;
+    }
+    auto statement = c.Prepare(
+        "SELECT id, subject_id, side, created_at_utc FROM legs WHERE subject_id = ?1 ORDER BY id");
+    if (!statement.ok()) return statement.status();
+    statement->Bind(1, subject_id);
+    std::vector<Leg> legs;
+    while (true) {
+      auto row = statement->Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      auto leg = ReadLeg(*statement);
+      if (!leg.ok()) return leg.status();
+      legs.push_back(*leg);
+    }
+    return legs;
+  });
+}
+
+}  // namespace fesbench::storage

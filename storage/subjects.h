@@ -1,0 +1,100 @@
+#pragma once
+
+/// @file
+/// Subjects (pseudonymous code and anthropometrics) and their legs
+/// (DESIGN.md §7). Anthropometrics are kept as revisions: a correction adds
+/// a revision that points at the one it corrects; nothing is overwritten.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "api/status.h"
+#include "storage/database.h"
+
+namespace fesbench::storage {
+
+enum class Sex { kFemale, kMale, kOther, kUndisclosed };
+/// "female", "male", "other", "undisclosed".
+std::string_view SexName(Sex sex);
+std::optional<Sex> ParseSex(std::string_view name);
+
+enum class Side { kLeft, kRight };
+/// "left", "right".
+std::string_view SideName(Side side);
+std::optional<Side> ParseSide(std::string_view name);
+
+/// Anthropometrics; absent values were not measured.
+struct SubjectDetails {
+  std::optional<int> age_years;                  ///< 0–130.
+  Sex sex = Sex::kUndisclosed;
+  std::optional<double> height_cm;               ///< (30, 250].
+  std::optional<double> weight_kg;               ///< (1, 400].
+  std::optional<double> shank_length_cm;         ///< (10, 80].
+  std::optional<double> calf_circumference_cm;   ///< (10, 100].
+  friend bool operator==(const SubjectDetails&, const SubjectDetails&) = default;
+};
+
+/// One recorded version of a subject's details.
+struct SubjectRevision {
+  std::int64_t id = 0;
+  int revision = 1;                     ///< 1 for the original, then 2, 3, …
+  SubjectDetails details;
+  std::optional<std::int64_t> corrects_id;  ///< the revision this one corrects.
+  std::string reason;
+  UtcTime recorded_at;
+};
+
+/// A subject with its current (latest) details.
+struct Subject {
+  std::int64_t id = 0;
+  std::string code;           ///< pseudonymous: [A-Za-z0-9_-], 1–32 characters.
+  UtcTime created_at;
+  SubjectRevision current;
+};
+
+struct Leg {
+  std::int64_t id = 0;
+  std::int64_t subject_id = 0;
+  Side side = Side::kRight;
+  UtcTime created_at;
+};
+
+/// Checks a pseudonymous code: 1–32 of [A-Za-z0-9_-] (no spaces, so no
+/// names). kInvalidArgument with field "code" otherwise.
+api::Status ValidateSubjectCode(std::string_view code);
+/// Checks the ranges documented on SubjectDetails (field names the member).
+api::Status ValidateSubjectDetails(const SubjectDetails& details);
+
+class SubjectRepository {
+ public:
+  explicit SubjectRepository(Database& db) : db_(db) {}
+
+  /// Errors: kInvalidArgument (bad code or details, field named),
+  /// kAlreadyExists (field "code") for a code already in use.
+  api::Result<Subject> Create(std::string_view code, const SubjectDetails& details);
+  /// kNotFound for an unknown id or code.
+  api::Result<Subject> Get(std::int64_t subject_id);
+  api::Result<Subject> GetByCode(std::string_view code);
+  /// Every subject, by id.
+  api::Result<std::vector<Subject>> List();
+  /// Records corrected details as a new revision pointing at the current one.
+  /// `reason` must not be empty (field "reason").
+  api::Result<Subject> Correct(std::int64_t subject_id, const SubjectDetails& details,
+                               std::string_view reason);
+  /// All revisions, oldest first.
+  api::Result<std::vector<SubjectRevision>> Revisions(std::int64_t subject_id);
+
+  /// Adds a leg. kNotFound for an unknown subject, kAlreadyExists (field
+  /// "side") if the subject already has that leg.
+  api::Result<Leg> AddLeg(std::int64_t subject_id, Side side);
+  api::Result<Leg> GetLeg(std::int64_t leg_id);
+  api::Result<std::vector<Leg>> Legs(std::int64_t subject_id);
+
+ private:
+  Database& db_;
+};
+
+}  // namespace fesbench::storage

@@ -1,0 +1,57 @@
+#pragma once
+
+/// @file
+/// Recorded trials (DESIGN.md §7): every channel with its name, unit and
+/// sample rate; samples as one BLOB per channel of little-endian IEEE-754
+/// float64 values. Trials are immutable once stored.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "api/status.h"
+#include "api/trial.h"
+#include "storage/database.h"
+
+namespace fesbench::storage {
+
+/// Where a trial belongs.
+struct TrialOwner {
+  std::int64_t session_id = 0;
+  std::optional<std::int64_t> run_id;  ///< the run that recorded it, if any.
+};
+
+/// A stored trial's metadata without samples.
+struct TrialSummary {
+  std::int64_t id = 0;
+  std::int64_t session_id = 0;
+  std::optional<std::int64_t> run_id;
+  std::optional<std::string> name;
+  std::size_t num_samples = 0;  ///< per main channel.
+  double sample_rate_hz = 0;
+  UtcTime created_at;
+};
+
+class TrialRepository {
+ public:
+  explicit TrialRepository(Database& db) : db_(db) {}
+
+  /// Stores a trial (its channels in one transaction) and returns its id.
+  /// The trial is validated with api::ValidateTrial (kInvalidArgument with
+  /// the field path). kNotFound for an unknown session or run;
+  /// kInvalidArgument (field "run_id") for a run of another session.
+  /// `trial.id` is ignored.
+  api::Result<std::int64_t> Insert(const TrialOwner& owner, const api::Trial& trial);
+  /// The whole trial with `id` set. kNotFound for an unknown id.
+  api::Result<api::Trial> Get(std::int64_t trial_id);
+  /// The owner of a stored trial.
+  api::Result<TrialOwner> Owner(std::int64_t trial_id);
+  /// Summaries of a session's trials, oldest first.
+  api::Result<std::vector<TrialSummary>> ListForSession(std::int64_t session_id);
+
+ private:
+  Database& db_;
+};
+
+}  // namespace fesbench::storage
