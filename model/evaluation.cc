@@ -1,12 +1,11 @@
 #include "model/evaluation.h"
 
 #include <algorithm>
+#include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
-
-#include <boost/math/distributions/students_t.hpp>
 
 #include "model/units.h"
 
@@ -173,8 +172,8 @@ PassiveLinearisation LinearisePassive(const PassiveParams& passive, double angle
       SlopeAt(passive.torque_velocity, velocity_deg_s, options.velocity_side) * kDegPerRad;
   if (!(r.stiffness_nm_per_rad > 0.0)) {
     throw std::invalid_argument("LinearisePassive: stiffness at " + std::to_string(angle_deg) +
-                                " deg is not positive (" +
-                                std::to_string(r.stiffness_nm_per_rad) + " N·m/rad)");
+                                " deg is not positive (" + std::to_string(r.stiffness_nm_per_rad) +
+                                " N·m/rad)");
   }
   const double j = passive.inertia_kgm2;
   // J·θ̈ + b·θ̇ + k·θ = 0 → ω_n = √(k/J), ζ = b / (2√(kJ)) (§6.9, Table 6.4).

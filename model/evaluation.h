@@ -27,8 +27,8 @@ double AbsError(std::span<const double> prediction, std::span<const double> data
 
 /// Result of the normalised RMS error.
 struct NormalisedRms {
-  double value = 0.0;              ///< dimensionless (0.1 = 10 %).
-  std::size_t samples_used = 0;    ///< N in Eq. 6.1 after exclusion.
+  double value = 0.0;            ///< dimensionless (0.1 = 10 %).
+  std::size_t samples_used = 0;  ///< N in Eq. 6.1 after exclusion.
   std::size_t samples_excluded = 0;
 };
 
@@ -55,12 +55,12 @@ struct PairedTTestResult {
   double mean_difference = 0.0;  ///< d̄ = mean(a − b); positive: a has more error.
   double sd_difference = 0.0;    ///< S_d, sample standard deviation (n − 1).
   std::size_t n = 0;
-  double t = 0.0;                ///< d̄ / (S_d / √n).
-  double df = 0.0;               ///< n − 1.
-  double p_value = 1.0;          ///< two-sided.
+  double t = 0.0;        ///< d̄ / (S_d / √n).
+  double df = 0.0;       ///< n − 1.
+  double p_value = 1.0;  ///< two-sided.
   double confidence = 0.95;
-  double t_critical = 0.0;       ///< two-sided critical value at `confidence`.
-  bool significant = false;      ///< |t| > t_critical.
+  double t_critical = 0.0;   ///< two-sided critical value at `confidence`.
+  bool significant = false;  ///< |t| > t_critical.
 };
 
 /// Paired t-test of the differences a[i] − b[i] (Eq. 6.3, §6.1.2), e.g. the

@@ -39,7 +39,8 @@ class Envelope {
   template <typename F>
   void Function(double duration_s, F f) {
     const std::size_t n = Samples(duration_s);
-    for (std::size_t i = 0; i < n; ++i) values_.push_back(f(static_cast<double>(i) / kStimulusRateHz));
+    for (std::size_t i = 0; i < n; ++i)
+      values_.push_back(f(static_cast<double>(i) / kStimulusRateHz));
   }
   // Linear ramp from `from` to `to` over duration_s, reaching `to` on its last
   // sample (so a ramp up from 0 is non-zero from its first sample).
@@ -77,7 +78,8 @@ Subject GetSubject(std::string_view generator, const GeneratorParams& p) {
 }
 
 GeneratorParameter Threshold() {
-  return {"threshold_ma", "subject's stimulation threshold for torque, mA", 20.0, 0.0, 100.0, false};
+  return {"threshold_ma", "subject's stimulation threshold for torque, mA", 20.0, 0.0, 100.0,
+          false};
 }
 GeneratorParameter Max() {
   return {"max_ma", "subject's maximum tolerated stimulation, mA", 45.0, 1.0, 100.0, false};
@@ -110,8 +112,8 @@ SampledSignal BuildImpulses(const GeneratorParams& p) {
 }
 
 // --- §5.3.3 cosine ramps ---------------------------------------------------
-void AppendCosineRamps(Envelope& e, const Subject& s, double below_ma, double duration_s,
-                       int count, double rest_s) {
+void AppendCosineRamps(Envelope& e, const Subject& s, double below_ma, double duration_s, int count,
+                       double rest_s) {
   const double lo = std::max(s.threshold_ma - below_ma, 0.0);
   const double hi = s.max_ma;
   for (int k = 0; k < count; ++k) {
@@ -264,8 +266,9 @@ SampledSignal BuildRandomBinary(std::string_view name, const GeneratorParams& p)
       if (u < (on ? p_leave_on : p_leave_off)) on = !on;
     }
     const std::size_t end = std::min(start + n_slot, n_active_end);
-    if (on) std::fill(values.begin() + static_cast<std::ptrdiff_t>(start),
-                      values.begin() + static_cast<std::ptrdiff_t>(end), amplitude_ma);
+    if (on)
+      std::fill(values.begin() + static_cast<std::ptrdiff_t>(start),
+                values.begin() + static_cast<std::ptrdiff_t>(end), amplitude_ma);
   }
   return SampledSignal{kStimulusRateHz, 0.0, std::move(values)};
 }
@@ -295,45 +298,48 @@ std::vector<GeneratorParameter> RandomBinaryParameters(double slot_s, double on_
 const std::vector<Entry>& Registry() {
   static const std::vector<Entry> entries = [] {
     std::vector<Entry> r;
-    r.push_back({{"conditioning",
-                  "3 s conditioning burst at 75 % of the threshold-max range (§5.3)",
-                  {Threshold(), Max(),
-                   {"duration_s", "burst length, s", 3.0, 0.1, 10.0, false},
-                   {"level_fraction", "level as fraction of threshold->max range", 0.75, 0.0, 1.0,
-                    false},
-                   {"rest_s", "zero stimulation after the burst, s", 1.0, 0.0, 60.0, false}}},
-                 &BuildConditioning});
+    r.push_back(
+        {{"conditioning",
+          "3 s conditioning burst at 75 % of the threshold-max range (§5.3)",
+          {Threshold(),
+           Max(),
+           {"duration_s", "burst length, s", 3.0, 0.1, 10.0, false},
+           {"level_fraction", "level as fraction of threshold->max range", 0.75, 0.0, 1.0, false},
+           {"rest_s", "zero stimulation after the burst, s", 1.0, 0.0, 60.0, false}}},
+         &BuildConditioning});
     r.push_back({{"impulses",
                   "single pulses at max_ma, one per interval (Fig. 5-7)",
-                  {Threshold(), Max(),
+                  {Threshold(),
+                   Max(),
                    {"count", "number of pulses", 2.0, 1.0, 100.0, true},
                    {"interval_s", "time between pulses, s", 1.0, 0.2, 10.0, false}}},
                  &BuildImpulses});
     r.push_back({{"cosine_ramps",
                   "cosine ramps threshold-5 mA -> max -> back, rest between (§5.3.3)",
-                  {Threshold(), Max(),
-                   {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0,
-                    false},
+                  {Threshold(),
+                   Max(),
+                   {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0, false},
                    {"ramp_duration_s", "whole ramp (half up, half down), s", 4.0, 0.5, 30.0, false},
                    {"count", "number of ramps", 2.0, 1.0, 10.0, true},
                    {"rest_s", "zero stimulation after each ramp, s", 1.0, 0.0, 60.0, false}}},
                  &BuildCosineRamps});
     r.push_back({{"isometric_ramp_irc",
                   "conditioning, 2 impulses at max, 2 cosine ramps with rests (Fig. 5-7)",
-                  {Threshold(), Max(),
+                  {Threshold(),
+                   Max(),
                    {"conditioning_s", "conditioning burst length, s", 3.0, 0.0, 10.0, false},
                    {"conditioning_fraction", "conditioning level, fraction of range", 0.75, 0.0,
                     1.0, false},
                    {"impulses", "number of impulses", 2.0, 0.0, 20.0, true},
                    {"ramps", "number of cosine ramps", 2.0, 1.0, 10.0, true},
-                   {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0,
-                    false},
+                   {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0, false},
                    {"ramp_duration_s", "whole ramp (half up, half down), s", 4.0, 0.5, 30.0, false},
                    {"rest_s", "zero stimulation after each element, s", 1.0, 0.2, 60.0, false}}},
                  &BuildIsometricRampIrc});
     r.push_back({{"step_bursts",
                   "10 bursts threshold -> max, 0.5 s ramp + 2.5 s hold, 30 s rest (§5.3.1)",
-                  {Threshold(), Max(),
+                  {Threshold(),
+                   Max(),
                    {"levels", "number of amplitudes", 10.0, 2.0, 50.0, true},
                    {"burst_s", "burst length incl. ramp, s", 3.0, 0.2, 20.0, false},
                    {"ramp_s", "linear ramp at burst start, s", 0.5, 0.0, 10.0, false},
@@ -341,31 +347,33 @@ const std::vector<Entry>& Registry() {
                  &BuildStepBursts});
     r.push_back({{"impulse_series",
                   "30 single pulses from below threshold to max, 1 s apart (§5.3.2)",
-                  {Threshold(), Max(),
+                  {Threshold(),
+                   Max(),
                    {"count", "number of pulses", 30.0, 2.0, 200.0, true},
-                   {"below_threshold_ma", "first pulse below threshold, mA", 5.0, 0.0, 50.0,
-                    false},
+                   {"below_threshold_ma", "first pulse below threshold, mA", 5.0, 0.0, 50.0, false},
                    {"interval_s", "time between pulses, s", 1.0, 0.2, 10.0, false}}},
                  &BuildImpulseSeries});
-    r.push_back({{"plateau_profile",
-                  "11 s staircase of Fig. 5-8 (threshold+5 mA, 25/50/75 %, max and back)",
-                  {Threshold(), Max(),
-                   {"above_threshold_ma", "lowest plateau above threshold, mA", 5.0, 0.0, 50.0,
-                    false},
-                   {"lead_s", "zero stimulation before the first ramp, s", 0.5, 0.0, 10.0, false},
-                   {"ramp_s", "linear ramp between plateaus, s", 0.25, 0.005, 5.0, false},
-                   {"hold_s", "plateau hold, s", 0.75, 0.0, 10.0, false},
-                   {"tail_s", "zero stimulation at the end, s", 1.25, 0.0, 10.0, false}}},
-                 &BuildPlateauProfile});
-    r.push_back({{"prediction_step",
-                  "step at 75 % of range from 0.5 s for 3 s, then 1.5 s off (§5.4.5)",
-                  {Threshold(), Max(),
-                   {"level_fraction", "level as fraction of threshold->max range", 0.75, 0.0, 1.0,
-                    false},
-                   {"onset_s", "zero stimulation before the step, s", 0.5, 0.0, 10.0, false},
-                   {"on_s", "step length, s", 3.0, 0.1, 30.0, false},
-                   {"off_s", "zero stimulation after the step, s", 1.5, 0.0, 30.0, false}}},
-                 &BuildPredictionStep});
+    r.push_back(
+        {{"plateau_profile",
+          "11 s staircase of Fig. 5-8 (threshold+5 mA, 25/50/75 %, max and back)",
+          {Threshold(),
+           Max(),
+           {"above_threshold_ma", "lowest plateau above threshold, mA", 5.0, 0.0, 50.0, false},
+           {"lead_s", "zero stimulation before the first ramp, s", 0.5, 0.0, 10.0, false},
+           {"ramp_s", "linear ramp between plateaus, s", 0.25, 0.005, 5.0, false},
+           {"hold_s", "plateau hold, s", 0.75, 0.0, 10.0, false},
+           {"tail_s", "zero stimulation at the end, s", 1.25, 0.0, 10.0, false}}},
+         &BuildPlateauProfile});
+    r.push_back(
+        {{"prediction_step",
+          "step at 75 % of range from 0.5 s for 3 s, then 1.5 s off (§5.4.5)",
+          {Threshold(),
+           Max(),
+           {"level_fraction", "level as fraction of threshold->max range", 0.75, 0.0, 1.0, false},
+           {"onset_s", "zero stimulation before the step, s", 0.5, 0.0, 10.0, false},
+           {"on_s", "step length, s", 3.0, 0.1, 30.0, false},
+           {"off_s", "zero stimulation after the step, s", 1.5, 0.0, 30.0, false}}},
+         &BuildPredictionStep});
     r.push_back({{"prediction_ramp",
                   "linear ramp 0 -> max in 5 s and back to 0 in 5 s (§5.4.5)",
                   {Max(),
@@ -374,9 +382,9 @@ const std::vector<Entry>& Registry() {
                  &BuildPredictionRamp});
     r.push_back({{"prediction_sine",
                   "swept sine threshold+5 mA <-> max, periods 5, 2, 1 s, then 1 s off (§5.4.5)",
-                  {Threshold(), Max(),
-                   {"above_threshold_ma", "lower level above threshold, mA", 5.0, 0.0, 50.0,
-                    false},
+                  {Threshold(),
+                   Max(),
+                   {"above_threshold_ma", "lower level above threshold, mA", 5.0, 0.0, 50.0, false},
                    {"tail_s", "zero stimulation at the end, s", 1.0, 0.0, 10.0, false}}},
                  &BuildPredictionSine});
     r.push_back({{"random_binary_sparse",

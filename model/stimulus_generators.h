@@ -81,9 +81,9 @@ struct GeneratorParameter {
   std::string name;
   std::string description;
   double default_value = 0.0;
-  double min_value = 0.0;   ///< inclusive
-  double max_value = 0.0;   ///< inclusive
-  bool integer = false;     ///< value must be a whole number
+  double min_value = 0.0;  ///< inclusive
+  double max_value = 0.0;  ///< inclusive
+  bool integer = false;    ///< value must be a whole number
 };
 
 /// A named generator and its parameters (registry entry).

@@ -51,7 +51,8 @@ SumOfSinesTrajectory::SumOfSinesTrajectory(const SumOfSinesOptions& o) : options
   std::mt19937_64 rng(o.seed);
   for (int i = 0; i < o.sines; ++i) {
     SineComponent c;
-    c.frequency_hz = o.min_frequency_hz + (o.max_frequency_hz - o.min_frequency_hz) * Uniform01(rng);
+    c.frequency_hz =
+        o.min_frequency_hz + (o.max_frequency_hz - o.min_frequency_hz) * Uniform01(rng);
     c.phase_rad = 2.0 * kPi * Uniform01(rng);
     c.amplitude = 0.5 + 0.5 * Uniform01(rng);
     components_.push_back(c);
@@ -115,8 +116,8 @@ PiecewisePolynomialTrajectory::PiecewisePolynomialTrajectory(std::vector<Piece> 
       throw std::invalid_argument("PiecewisePolynomialTrajectory: piece " + std::to_string(i) +
                                   " has a non-positive duration");
     }
-    if (i > 0 && std::abs(pieces_[i].start_s - pieces_[i - 1].start_s - pieces_[i - 1].duration_s) >
-                     1e-6) {
+    if (i > 0 &&
+        std::abs(pieces_[i].start_s - pieces_[i - 1].start_s - pieces_[i - 1].duration_s) > 1e-6) {
       throw std::invalid_argument("PiecewisePolynomialTrajectory: piece " + std::to_string(i) +
                                   " is not contiguous with the previous one");
     }
@@ -199,8 +200,8 @@ class PlanBuilder {
 
 SequentialPlan PassivePositions(const PassivePositionsOptions& o) {
   constexpr const char* kWhere = "PassivePositions";
-  for (const auto& [name, v] : {std::pair{"start_deg", o.start_deg}, std::pair{"max_deg", o.max_deg},
-                                std::pair{"min_deg", o.min_deg}}) {
+  for (const auto& [name, v] : {std::pair{"start_deg", o.start_deg},
+                                std::pair{"max_deg", o.max_deg}, std::pair{"min_deg", o.min_deg}}) {
     if (!std::isfinite(v)) Fail(kWhere, name, "must be finite");
   }
   if (!(o.min_deg < o.max_deg)) Fail(kWhere, "min_deg", "must be below max_deg");
@@ -341,8 +342,8 @@ const std::vector<Entry>& Registry() {
            {"positions", "number of angles per pass", 20.0, 2.0, 200.0, true},
            {"hold_s", "hold at each angle, s", pp.hold_s, 0.1, 120.0, false},
            {"move_s", "move between angles, s", pp.move_s, 0.05, 60.0, false},
-           {"reference_s", "hold at start_deg before the first move, s", pp.reference_s, 0.0,
-            120.0, false}}},
+           {"reference_s", "hold at start_deg before the first move, s", pp.reference_s, 0.0, 120.0,
+            false}}},
          &BuildPassivePositions});
     r.push_back(
         {{"passive_velocities",

@@ -38,14 +38,14 @@ namespace fesbench::model {
 /// [x_min, x_max] in the range. Velocity and acceleration are analytic
 /// (product rule); outside [0, duration_s] the end angles are held at rest.
 struct SumOfSinesOptions {
-  double min_deg = 30.0;               ///< lower angle limit, deg.
-  double max_deg = 100.0;              ///< upper angle limit, deg (> min_deg).
-  double max_velocity_deg_s = 200.0;   ///< |θ̇| limit, deg/s (> 0).
-  double duration_s = 10.0;            ///< length, s (> 2·fade_s).
-  double fade_s = 1.0;                 ///< fade-in/out length, s (> 0).
-  int sines = 6;                       ///< number of components (≥ 1).
-  double min_frequency_hz = 0.1;       ///< lowest component frequency (> 0).
-  double max_frequency_hz = 1.0;       ///< highest component frequency (≥ min).
+  double min_deg = 30.0;              ///< lower angle limit, deg.
+  double max_deg = 100.0;             ///< upper angle limit, deg (> min_deg).
+  double max_velocity_deg_s = 200.0;  ///< |θ̇| limit, deg/s (> 0).
+  double duration_s = 10.0;           ///< length, s (> 2·fade_s).
+  double fade_s = 1.0;                ///< fade-in/out length, s (> 0).
+  int sines = 6;                      ///< number of components (≥ 1).
+  double min_frequency_hz = 0.1;      ///< lowest component frequency (> 0).
+  double max_frequency_hz = 1.0;      ///< highest component frequency (≥ min).
   std::uint64_t seed = 1;
 };
 
@@ -126,13 +126,13 @@ struct SequentialPlan {
 /// back to start_deg. One window per hold (its whole hold_s).
 /// Defaults: 10 + 40·(1 + 10) + 1 = 451 s.
 struct PassivePositionsOptions {
-  double start_deg = 90.0;      ///< reference angle, deg.
-  double max_deg = 110.0;       ///< first (largest flexion) angle, deg.
-  double min_deg = 30.0;        ///< full extension for the subject, deg (< max_deg).
-  int positions = 20;           ///< ≥ 2.
-  double hold_s = 10.0;         ///< > 0.
-  double move_s = 1.0;          ///< > 0.
-  double reference_s = 10.0;    ///< ≥ 0.
+  double start_deg = 90.0;    ///< reference angle, deg.
+  double max_deg = 110.0;     ///< first (largest flexion) angle, deg.
+  double min_deg = 30.0;      ///< full extension for the subject, deg (< max_deg).
+  int positions = 20;         ///< ≥ 2.
+  double hold_s = 10.0;       ///< > 0.
+  double move_s = 1.0;        ///< > 0.
+  double reference_s = 10.0;  ///< ≥ 0.
 };
 /// @throws std::invalid_argument if an option breaks its stated range.
 SequentialPlan PassivePositions(const PassivePositionsOptions& options);

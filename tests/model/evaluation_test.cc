@@ -1,10 +1,10 @@
 #include "model/evaluation.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <stdexcept>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "model/units.h"
 
@@ -107,8 +107,8 @@ PassiveParams LinearSystem(double j, double k_per_rad, double b_per_rad, double 
   PassiveParams p;
   p.inertia_kgm2 = j;
   const double k = k_per_rad * kRadPerDeg, b = b_per_rad * kRadPerDeg;
-  p.torque_angle = PiecewiseLinear({0.0, 60.0, 120.0}, {k * (0 - rest_deg), k * (60 - rest_deg),
-                                                        k * (120 - rest_deg)});
+  p.torque_angle = PiecewiseLinear({0.0, 60.0, 120.0},
+                                   {k * (0 - rest_deg), k * (60 - rest_deg), k * (120 - rest_deg)});
   p.torque_velocity = PiecewiseLinear({-500.0, 0.0, 500.0}, {-500.0 * b, 0.0, 500.0 * b});
   return p;
 }

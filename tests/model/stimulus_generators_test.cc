@@ -1,12 +1,12 @@
 #include "model/stimulus_generators.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <set>
 #include <stdexcept>
 #include <string>
-
-#include <gtest/gtest.h>
 
 namespace fesbench::model {
 namespace {
@@ -103,9 +103,9 @@ TEST(StimulusGenerators, CosineRampsRiseFromThresholdMinus5ToMax) {
   EXPECT_DOUBLE_EQ(runs[0].seconds(), 4.0);
   EXPECT_DOUBLE_EQ(runs[1].seconds(), 4.0);
   EXPECT_DOUBLE_EQ((runs[1].begin - runs[0].end) * kDt, 1.0);  // 1 s rest between
-  EXPECT_DOUBLE_EQ(s.values[0], 15.0);                          // threshold - 5 mA
-  EXPECT_DOUBLE_EQ(s.values[400], 45.0);                        // max at 2 s (half of 4 s)
-  EXPECT_NEAR(s.values[200], 30.0, 1e-12);                      // midpoint of the cosine at 1 s
+  EXPECT_DOUBLE_EQ(s.values[0], 15.0);                         // threshold - 5 mA
+  EXPECT_DOUBLE_EQ(s.values[400], 45.0);                       // max at 2 s (half of 4 s)
+  EXPECT_NEAR(s.values[200], 30.0, 1e-12);                     // midpoint of the cosine at 1 s
   EXPECT_DOUBLE_EQ(MaxOf(s), 45.0);
   EXPECT_DOUBLE_EQ(s.EndTime(), 10.0);
   // Ramp duration is a parameter (thesis tested 2, 4 and 10 s).
@@ -172,8 +172,8 @@ TEST(StimulusGenerators, PlateauProfileIs11sStaircase) {
       MakeStimulus("plateau_profile", {{"threshold_ma", kThr}, {"max_ma", kMax}});
   EXPECT_DOUBLE_EQ(s.EndTime(), 11.0);
   const double lo = 25.0;  // threshold + 5 mA
-  const double expected[] = {lo, lo + 5.0, lo + 10.0, lo + 15.0, kMax,
-                             lo + 15.0, lo + 10.0, lo + 5.0, lo};
+  const double expected[] = {lo,        lo + 5.0,  lo + 10.0, lo + 15.0, kMax,
+                             lo + 15.0, lo + 10.0, lo + 5.0,  lo};
   for (int k = 0; k < 9; ++k) {
     // Plateau k holds over [0.5 + k + 0.25, 0.5 + k + 1) s.
     const auto first = static_cast<std::size_t>(std::lround((0.75 + k) * 200.0));
@@ -209,11 +209,11 @@ TEST(StimulusGenerators, PredictionInputsOf5_4_5) {
 
   const SampledSignal sine = MakeStimulus("prediction_sine", subject);
   EXPECT_DOUBLE_EQ(sine.EndTime(), 9.0);
-  EXPECT_DOUBLE_EQ(sine.values[0], 25.0);      // threshold + 5 mA
-  EXPECT_DOUBLE_EQ(sine.values[500], kMax);    // peak of the 5 s cycle at 2.5 s
-  EXPECT_DOUBLE_EQ(sine.values[1000], 25.0);   // start of the 2 s cycle
-  EXPECT_DOUBLE_EQ(sine.values[1200], kMax);   // its peak at 6 s
-  EXPECT_DOUBLE_EQ(sine.values[1500], kMax);   // peak of the 1 s cycle at 7.5 s
+  EXPECT_DOUBLE_EQ(sine.values[0], 25.0);     // threshold + 5 mA
+  EXPECT_DOUBLE_EQ(sine.values[500], kMax);   // peak of the 5 s cycle at 2.5 s
+  EXPECT_DOUBLE_EQ(sine.values[1000], 25.0);  // start of the 2 s cycle
+  EXPECT_DOUBLE_EQ(sine.values[1200], kMax);  // its peak at 6 s
+  EXPECT_DOUBLE_EQ(sine.values[1500], kMax);  // peak of the 1 s cycle at 7.5 s
   runs = Runs(sine);
   ASSERT_EQ(runs.size(), 1u);
   EXPECT_DOUBLE_EQ(runs[0].seconds(), 8.0);
@@ -240,7 +240,8 @@ TEST(StimulusGenerators, RandomBinaryIsSeededAndRespectsSwitchInterval) {
         EXPECT_GE(r.end - r.begin, slot);
         EXPECT_DOUBLE_EQ(s->values[r.begin], 30.0);
       }
-      for (std::size_t k = 1; k < runs.size(); ++k) EXPECT_GE(runs[k].begin - runs[k - 1].end, slot);
+      for (std::size_t k = 1; k < runs.size(); ++k)
+        EXPECT_GE(runs[k].begin - runs[k - 1].end, slot);
     }
   }
 }

@@ -1,11 +1,11 @@
 #include "model/trajectory.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <gtest/gtest.h>
 
 namespace fesbench::model {
 namespace {
@@ -142,7 +142,8 @@ TEST(PassiveVelocities, EightSpeedsTwoDirections) {
   const SequentialPlan plan = PassiveVelocities({});
   ASSERT_EQ(plan.windows.size(), 16u);
   double min_angle = 1e9;
-  for (int i = 0; i <= 200000; ++i) min_angle = std::min(min_angle, plan.trajectory.At(i * 1e-3).angle_deg);
+  for (int i = 0; i <= 200000; ++i)
+    min_angle = std::min(min_angle, plan.trajectory.At(i * 1e-3).angle_deg);
   EXPECT_GE(min_angle, 30.0 - 1e-9);
   EXPECT_NEAR(min_angle, 90.0 - 30.0 * 1.75, 1e-6);  // fastest move covers 1.75·v
   for (std::size_t i = 0; i < 16; ++i) {
