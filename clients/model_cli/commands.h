@@ -1,0 +1,19 @@
+#pragma once
+
+/// @file
+/// Registration functions of the `fesbench-model` subcommands, one per
+/// source file (see cli.h). RunModelCli calls them in the order listed in
+/// kCommands (cli.cc).
+
+#include "clients/model_cli/cli.h"
+
+namespace fesbench::cli {
+
+/// `simulate`: a parameter set driven by a stimulus CSV (simulate_command.cc).
+void RegisterSimulateCommand(CLI::App& app, CliContext& context);
+
+/// `stimulus`: writes or lists the stimulus/trajectory generators
+/// (stimulus_command.cc).
+void RegisterStimulusCommand(CLI::App& app, CliContext& context);
+
+}  // namespace fesbench::cli

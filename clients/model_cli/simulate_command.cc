@@ -1,0 +1,198 @@
+#include "clients/model_cli/simulate_command.h"
+
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "clients/model_cli/cli_io.h"
+#include "clients/model_cli/commands.h"
+#include "model/integrators.h"
+
+namespace fesbench::cli {
+
+std::string_view SimulateModeName(SimulateMode mode) {
+  switch (mode) {
+    case SimulateMode::kFreeSwing: return "free_swing";
+    case SimulateMode::kIsometric: return "isometric";
+    case SimulateMode::kTrajectory: return "trajectory";
+  }
+  return "unknown";
+}
+
+std::optional<SimulateMode> ParseSimulateMode(std::string_view name) {
+  for (SimulateMode m :
+       {SimulateMode::kFreeSwing, SimulateMode::kIsometric, SimulateMode::kTrajectory}) {
+    if (SimulateModeName(m) == name) return m;
+  }
+  return std::nullopt;
+}
+
+api::Trial RunSimulation(const model::ParameterSet& params, const model::SampledSignal& envelope_ma,
+                         SimulateMode mode, double angle_deg,
+                         const model::Trajectory* trajectory, double trajectory_end_s,
+                         model::SimulationOptions options) {
+  const model::PulseTrain pulses = model::PulsesFromEnvelope(envelope_ma, options.pulse_rate_hz);
+  model::SimulationResult r;
+  switch (mode) {
+    case SimulateMode::kFreeSwing:
+      if (!options.duration_s) options.duration_s = envelope_ma.EndTime();
+      options.initial_angle_deg = angle_deg;
+      r = model::SimulateFreeSwing(params, pulses, options);
+      break;
+    case SimulateMode::kIsometric:
+      if (!options.duration_s) options.duration_s = envelope_ma.EndTime();
+      r = model::SimulateIsometric(params, pulses, angle_deg, options);
+      break;
+    case SimulateMode::kTrajectory:
+      if (trajectory == nullptr) {
+        throw std::invalid_argument("RunSimulation: trajectory mode needs a trajectory");
+      }
+      if (!options.duration_s) options.duration_s = trajectory_end_s;
+      r = model::SimulateTrajectory(params, pulses, *trajectory, options);
+      break;
+  }
+  api::Trial trial;
+  trial.name = "simulated_" + std::string(SimulateModeName(mode));
+  trial.sample_rate_hz = options.output_rate_hz;
+  trial.SetChannel("t_s", std::move(r.t_s));
+  trial.SetChannel("stim_ma", std::move(r.stim_ma));
+  trial.SetChannel("angle_deg", std::move(r.angle_deg));
+  trial.SetChannel("velocity_deg_s", std::move(r.velocity_deg_s));
+  trial.SetChannel("accel_deg_s2", std::move(r.accel_deg_s2));
+  trial.SetChannel("torque_nm", std::move(r.torque_nm));
+  trial.SetChannel("activation", std::move(r.activation));
+  return trial;
+}
+
+namespace {
+
+struct SimulateArgs {
+  std::string params_path;
+  std::string stimulus_path;
+  std::string mode = "free_swing";
+  std::string model;
+  std::string integrator = "rk4";
+  double angle_deg = 90.0;
+  std::string trajectory_path;
+  std::string out_path;
+  std::string format;
+  double duration_s = 0.0;  // 0: unset
+  double pulse_rate_hz = model::kDefaultPulseRateHz;
+  double step_s = 1e-3;
+};
+
+void RunSimulateCommand(const SimulateArgs& args, CliContext& context) {
+  const SimulateMode mode = *ParseSimulateMode(args.mode);  // checked by CLI11
+  if (mode == SimulateMode::kTrajectory && args.trajectory_path.empty()) {
+    throw CliError::Usage("--mode trajectory needs --trajectory T.csv");
+  }
+  if (mode != SimulateMode::kTrajectory && !args.trajectory_path.empty()) {
+    throw CliError::Usage("--trajectory is only used with --mode trajectory");
+  }
+  const TableFormat format = ResolveTableFormat(args.format, args.out_path);
+
+  model::SimulationOptions options;
+  options.integrator = *model::ParseIntegratorKind(args.integrator);  // checked by CLI11
+  options.step_s = args.step_s;
+  options.pulse_rate_hz = args.pulse_rate_hz;
+  if (args.duration_s > 0.0) options.duration_s = args.duration_s;
+  if (!args.model.empty()) options.model_kind = *model::ParseModelKind(args.model);
+
+  const model::ParameterSet params = ReadParameterSetFile(args.params_path);
+  const api::Trial stimulus = ReadUniformCsv(args.stimulus_path, "stimulus", {"stim_ma"});
+  const model::SampledSignal envelope = ChannelAsSignal(stimulus, "stim_ma");
+  if (envelope.t0_s < 0.0) {
+    throw CliError::BadInput("stimulus " + args.stimulus_path +
+                             ": line 2: t_s must start at or after 0");
+  }
+  for (std::size_t i = 0; i < envelope.size(); ++i) {
+    if (envelope.values[i] < 0.0) {
+      throw CliError::BadInput("stimulus " + args.stimulus_path + ": line " +
+                               std::to_string(i + 2) + ": stim_ma must be >= 0");
+    }
+  }
+
+  std::unique_ptr<model::SampledTrajectory> trajectory;
+  double trajectory_end_s = 0.0;
+  if (mode == SimulateMode::kTrajectory) {
+    const api::Trial table = ReadUniformCsv(args.trajectory_path, "trajectory",
+                                            {"angle_deg", "velocity_deg_s", "accel_deg_s2"});
+    const double t0 = table.Values(api::kTimeChannel)->front();
+    if (std::abs(t0) > 1e-9) {
+      throw CliError::BadInput("trajectory " + args.trajectory_path +
+                               ": line 2: t_s must start at 0");
+    }
+    try {
+      trajectory = std::make_unique<model::SampledTrajectory>(
+          table.sample_rate_hz, *table.Values("angle_deg"), *table.Values("velocity_deg_s"),
+          *table.Values("accel_deg_s2"));
+    } catch (const std::invalid_argument& e) {
+      throw CliError::BadInput("trajectory " + args.trajectory_path + ": " + e.what());
+    }
+    // The samples cover [0, N / rate), like a recording.
+    trajectory_end_s = static_cast<double>(table.num_samples()) / table.sample_rate_hz;
+  }
+
+  api::Trial result;
+  try {
+    result = RunSimulation(params, envelope, mode, args.angle_deg, trajectory.get(),
+                           trajectory_end_s, options);
+  } catch (const std::exception& e) {
+    // Invalid combinations of data (e.g. a variant whose fields the
+    // parameter set lacks) and integrator failures.
+    throw CliError::BadInput(std::string("simulation failed: ") + e.what());
+  }
+  WriteTable(result, args.out_path, format, context);
+}
+
+}  // namespace
+
+void RegisterSimulateCommand(CLI::App& app, CliContext& context) {
+  auto args = std::make_shared<SimulateArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "simulate",
+      "Simulate a parameter set driven by a stimulation envelope; writes t_s, stim_ma, "
+      "angle_deg, velocity_deg_s, accel_deg_s2, torque_nm, activation at 200 Hz.");
+  std::vector<std::string> model_names;
+  for (model::ModelKind k : model::AllModelKinds()) {
+    model_names.emplace_back(model::ModelKindName(k));
+  }
+  sub->add_option("--params", args->params_path, "parameter set JSON (DESIGN.md §3)")
+      ->required();
+  sub->add_option("--stimulus", args->stimulus_path,
+                  "stimulus CSV with columns t_s, stim_ma (uniformly sampled envelope, mA)")
+      ->required();
+  sub->add_option("--mode", args->mode, "bench mode")
+      ->check(CLI::IsMember({"free_swing", "isometric", "trajectory"}))
+      ->capture_default_str();
+  sub->add_option("--model", args->model, "model variant overriding the parameter set's")
+      ->check(CLI::IsMember(model_names));
+  sub->add_option("--integrator", args->integrator, "integrator of the mechanics")
+      ->check(CLI::IsMember({"rk4", "adaptive"}))
+      ->capture_default_str();
+  sub->add_option("--angle-deg", args->angle_deg,
+                  "isometric: locked knee angle; free swing: initial angle (deg, 0-180)")
+      ->check(CLI::Range(0.0, 180.0))
+      ->capture_default_str();
+  sub->add_option("--trajectory", args->trajectory_path,
+                  "trajectory mode: CSV with t_s, angle_deg, velocity_deg_s, accel_deg_s2 "
+                  "(uniform, from t_s = 0)");
+  sub->add_option("--duration-s", args->duration_s,
+                  "simulated span in s (default: the stimulus, or the trajectory)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--pulse-rate-hz", args->pulse_rate_hz, "stimulator pulse rate (Hz)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  sub->add_option("--step-s", args->step_s, "RK4 step (s)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  sub->add_option("--out", args->out_path, "output file ('-' for standard output)")->required();
+  sub->add_option("--format", args->format,
+                  "output format (default from the --out extension: .sto, .json, else csv)")
+      ->check(CLI::IsMember({"csv", "sto", "json"}));
+  sub->callback([args, &context] { RunSimulateCommand(*args, context); });
+}
+
+}  // namespace fesbench::cli
