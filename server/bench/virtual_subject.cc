@@ -1,0 +1,224 @@
+#include "server/bench/virtual_subject.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "model/units.h"
+
+namespace fesbench::server {
+namespace {
+
+using model::DegToRad;
+using model::kRadPerDeg;
+using model::PiecewiseLinear;
+
+// Uniform draws from the standardised mt19937_64 output (the standard
+// library's distributions are implementation-defined; this is not).
+class Draw {
+ public:
+  explicit Draw(std::uint64_t seed) : engine_(seed) {}
+  double Uniform(double lo, double hi) {
+    const double u = static_cast<double>(engine_() >> 11) * 0x1.0p-53;
+    return lo + (hi - lo) * u;
+  }
+
+ private:
+  std::mt19937_64 engine_;
+};
+
+// Winter (2009), Biomechanics and Motor Control of Human Movement, Table 4.1:
+// leg-and-foot segment (knee to medial malleolus) mass fraction, centre of
+// mass and proximal radius of gyration as fractions of segment length.
+constexpr double kShankFootMassFraction = 0.061;
+constexpr double kShankFootComFraction = 0.606;
+constexpr double kShankFootGyrationFraction = 0.735;
+constexpr double kShankOfHeight = 0.246;  // knee–ankle length / height.
+constexpr double kBraceInertiaKgm2 = 0.02;
+
+}  // namespace
+
+Fidelity Fidelity::Off() {
+  Fidelity f;
+  f.twitch_variation = 0.0;
+  f.series_stiffness_nm_per_deg = 0.0;
+  f.hysteresis_nm = 0.0;
+  f.static_friction_nm = 0.0;
+  f.fatigue_rate_per_s = 0.0;
+  f.potentiation_max = 0.0;
+  f.potentiation_rate_per_s = 0.0;
+  f.pot_nonlinearity = 0.0;
+  f.angle_noise_deg = 0.0;
+  f.torque_noise_nm = 0.0;
+  f.accel_noise_m_s2 = 0.0;
+  f.emg_noise_mv = 0.0;
+  f.quantise_adc = false;
+  f.emg_m_wave_mv = 0.0;
+  f.cocontraction_per_min = 0.0;
+  return f;
+}
+
+double HangingAngleDeg(const Anthropometrics& anthropometrics) {
+  return 90.0 - anthropometrics.thigh_elevation_deg;
+}
+
+LinearisedPassive LinearisePassive(const model::PassiveParams& passive) {
+  if (passive.torque_angle.empty() || passive.torque_velocity.empty()) {
+    throw std::invalid_argument("LinearisePassive: passive curves must not be empty");
+  }
+  const PiecewiseLinear& pta = passive.torque_angle;
+  const double ptv0 = passive.torque_velocity(0.0);
+  const auto g = [&](double th) { return pta(th) + ptv0; };
+  // The stable rest angle: g rises through zero (restoring torque).
+  double lo = std::nan(""), hi = std::nan("");
+  for (double th = 10.0; th < 110.0 - 1e-9; th += 0.5) {
+    if (g(th) <= 0.0 && g(th + 0.5) > 0.0) {
+      lo = th;
+      hi = th + 0.5;
+      break;
+    }
+  }
+  if (std::isnan(lo)) {
+    throw std::invalid_argument(
+        "LinearisePassive: tau_pta + tau_ptv(0) has no stable zero in [10, 110] deg");
+  }
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (g(mid) <= 0.0 ? lo : hi) = mid;
+  }
+  LinearisedPassive out;
+  out.rest_angle_deg = 0.5 * (lo + hi);
+  const double th = out.rest_angle_deg;
+  const double k_per_deg = (pta(th + 1.0) - pta(th - 1.0)) / 2.0;
+  const double b_per_deg_s = (passive.torque_velocity(1.0) - passive.torque_velocity(-1.0)) / 2.0;
+  if (!(k_per_deg > 0.0)) {
+    throw std::invalid_argument("LinearisePassive: passive stiffness at rest is not positive");
+  }
+  // Table 6.4: per-degree slopes to SI (N·m/rad, N·m·s/rad).
+  out.stiffness_nm_per_rad = k_per_deg / kRadPerDeg;
+  out.damping_nm_s_per_rad = b_per_deg_s / kRadPerDeg;
+  const double j = passive.inertia_kgm2;
+  out.natural_frequency_rad_s = std::sqrt(out.stiffness_nm_per_rad / j);
+  out.zeta = out.damping_nm_s_per_rad / (2.0 * std::sqrt(out.stiffness_nm_per_rad * j));
+  return out;
+}
+
+double SteadyIsometricActiveTorqueNm(const model::ParameterSet& truth, double stim_ma,
+                                     double angle_deg) {
+  // Eqs. 3.18–3.19: C0·f_stim with C0 = f_ata(θ)·f_atv(0)·τ_scale; a steady
+  // train settles at f_stim = R(u) (unit DC gain, DESIGN.md §3).
+  const double r = std::max(0.0, truth.irc(stim_ma));
+  return truth.active.torque_scale_nm * std::max(0.0, truth.active.torque_angle(angle_deg)) *
+         std::max(0.0, truth.active.torque_velocity(0.0)) * r;
+}
+
+VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& ranges) {
+  Draw draw(seed);
+  VirtualSubject s;
+  s.name = "virtual-" + std::to_string(seed);
+  s.seed = seed;
+  s.fidelity = Fidelity::Default();
+
+  // Anthropometrics (§5.2.1: heights 5'2"–6'3").
+  Anthropometrics& a = s.anthropometrics;
+  a.body_mass_kg = draw.Uniform(50.0, 95.0);
+  a.height_m = draw.Uniform(1.57, 1.91);
+  a.shank_length_m = kShankOfHeight * a.height_m;
+  a.accel_distance_m = draw.Uniform(0.24, 0.31);  // ≈ 11 in (§5.1)
+  a.thigh_elevation_deg = draw.Uniform(4.0, 14.0);
+
+  // Inertia of shank, foot and brace about the knee, with the ±10 % error of
+  // the anthropometric estimate (§6.5, Table 6.3).
+  const double m_kg = kShankFootMassFraction * a.body_mass_kg;
+  const double l_m = a.shank_length_m;
+  const double gyration_m = kShankFootGyrationFraction * l_m;
+  double j = (m_kg * gyration_m * gyration_m + kBraceInertiaKgm2) * draw.Uniform(0.9, 1.1);
+  j = std::clamp(j, ranges.min_inertia_kgm2, ranges.max_inertia_kgm2);
+  const double mgl_nm = m_kg * model::kStandardGravity_m_s2 * kShankFootComFraction * l_m;
+  const double hang_deg = HangingAngleDeg(a);
+
+  // τ_pta: gravity (shank vertical at hang_deg) plus tissue stiffening near
+  // full extension and deep flexion (Fig. 6-19, I-1).
+  const double ext_nm = draw.Uniform(2.0, 6.0), ext_width = draw.Uniform(8.0, 15.0);
+  const double flex_nm = draw.Uniform(1.0, 5.0), flex_width = draw.Uniform(10.0, 20.0);
+  std::vector<double> angles, pta;
+  for (int deg = 10; deg <= 110; deg += 10) {
+    const double th = deg;
+    angles.push_back(th);
+    pta.push_back(mgl_nm * std::sin(DegToRad(th - hang_deg)) -
+                  ext_nm * std::exp(-(th - 10.0) / ext_width) +
+                  flex_nm * std::exp((th - 110.0) / flex_width));
+  }
+  model::PassiveParams passive;
+  passive.inertia_kgm2 = j;
+  passive.torque_angle = PiecewiseLinear(angles, pta);
+  passive.torque_velocity = PiecewiseLinear::Constant(0.0);
+
+  // τ_ptv: linear with slope b through ±20 deg/s so the linearised ζ is the
+  // drawn one, mildly progressive and asymmetric beyond (Fig. 6-20, I-2).
+  const double zeta = draw.Uniform(ranges.min_zeta + 0.1 * (ranges.max_zeta - ranges.min_zeta),
+                                   ranges.max_zeta - 0.1 * (ranges.max_zeta - ranges.min_zeta));
+  const LinearisedPassive lin = LinearisePassive(passive);
+  const double b_per_deg_s =
+      2.0 * zeta * std::sqrt(lin.stiffness_nm_per_rad * j) * kRadPerDeg;
+  const double grow_neg = draw.Uniform(0.0, 0.6), grow_pos = draw.Uniform(0.0, 0.6);
+  const std::vector<double> vel = {-300, -150, -60, -20, 0, 20, 60, 150, 300};
+  std::vector<double> ptv;
+  for (double v : vel) {
+    const double excess = std::max(0.0, std::abs(v) - 20.0) / 280.0;
+    ptv.push_back(b_per_deg_s * v * (1.0 + (v < 0 ? grow_neg : grow_pos) * excess));
+  }
+  passive.torque_velocity = PiecewiseLinear(vel, ptv);
+  s.truth.passive = model::ReferencePassive(passive);
+
+  // Contraction dynamics: 3rd order, pole ≈ 25 s⁻¹ (§6.2).
+  s.truth.model = model::ModelKind::kFull;
+  s.truth.contraction.order = 3;
+  s.truth.contraction.pole_per_s =
+      ranges.nominal_pole_per_s * draw.Uniform(1.0 - ranges.pole_spread, 1.0 + ranges.pole_spread);
+
+  // IRC: zero to threshold, smooth rise to saturation (§6.1, Fig. 6-1).
+  s.max_tolerated_ma = draw.Uniform(ranges.min_max_tolerated_ma, ranges.max_max_tolerated_ma);
+  s.threshold_ma = s.max_tolerated_ma * draw.Uniform(0.35, 0.6);
+  const double sat_ma = s.max_tolerated_ma * draw.Uniform(1.0, 1.3);
+  std::vector<double> irc_u = {0.0}, irc_r = {0.0};
+  constexpr int kIrcPoints = 7;
+  for (int i = 0; i < kIrcPoints; ++i) {
+    const double x = static_cast<double>(i) / (kIrcPoints - 1);
+    irc_u.push_back(s.threshold_ma + x * (sat_ma - s.threshold_ma));
+    irc_r.push_back(x * x * (3.0 - 2.0 * x));
+  }
+  s.truth.irc = PiecewiseLinear(irc_u, irc_r);
+
+  // Active curves: Gaussian f_ata peaking at 55–75° (Fig. I-3), Hill-like
+  // f_atv: concentric hyperbola, eccentric rise to 1.3–1.6 (Fig. I-4).
+  const double peak_deg = draw.Uniform(55.0, 75.0), width_deg = draw.Uniform(30.0, 45.0);
+  const auto gauss = [&](double th) {
+    return std::exp(-(th - peak_deg) * (th - peak_deg) / (2.0 * width_deg * width_deg));
+  };
+  std::vector<double> fata;
+  for (double th : angles) fata.push_back(gauss(th) / gauss(model::kReferenceAngleDeg));
+  const double v_max = draw.Uniform(700.0, 1000.0), kappa = draw.Uniform(0.6, 1.0);
+  const double ecc_max = draw.Uniform(1.3, 1.6), ecc_half = draw.Uniform(100.0, 200.0);
+  std::vector<double> atv_v, fatv;
+  for (int v = -400; v <= 400; v += 100) {
+    const double vd = v;
+    atv_v.push_back(vd);
+    if (v < 0) {
+      fatv.push_back((1.0 + vd / v_max) / (1.0 - vd / (kappa * v_max)));
+    } else {
+      fatv.push_back(1.0 + (ecc_max - 1.0) * vd / (vd + ecc_half));
+    }
+  }
+  const double max_torque_nm = draw.Uniform(ranges.min_max_torque_nm, ranges.max_max_torque_nm);
+  s.truth.active.torque_angle = PiecewiseLinear(angles, fata);
+  s.truth.active.torque_velocity = PiecewiseLinear(atv_v, fatv);
+  s.truth.active.torque_scale_nm = max_torque_nm / s.truth.irc(s.max_tolerated_ma);
+  s.truth.provenance.passive_method = "virtual_subject";
+  return s;
+}
+
+}  // namespace fesbench::server

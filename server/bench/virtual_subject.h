@@ -1,0 +1,143 @@
+#pragma once
+
+/// @file
+/// The virtual subject behind the simulated bench (DESIGN.md §6): a truth
+/// parameter set of the identification model (DESIGN.md §3) plus the
+/// "fidelity" effects the identification model leaves out (thesis §3.3,
+/// §6.4, §6.6), the subject's anthropometrics and stimulation levels.
+///
+/// Every fidelity effect has an on/off switch or a magnitude whose zero turns
+/// it off; with `Fidelity::Off()` the virtual leg is exactly the model of
+/// DESIGN.md §3 (the anchor test against model/simulate.h).
+
+#include <cstdint>
+#include <string>
+
+#include "model/parameter_set.h"
+
+namespace fesbench::server {
+
+/// Effects of the real leg and bench beyond the identification model.
+/// Magnitudes are ≥ 0; 0 turns an effect off.
+struct Fidelity {
+  /// Twitch shape variation with level (Fig. 3-8, §3.3): a fraction
+  /// `twitch_variation · R(u)` of each pulse drives a contraction chain of
+  /// the other order (2 ↔ 3) whose pole puts its peak at the same time, so
+  /// the shape changes with level while the peak stays (0–1).
+  double twitch_variation = 0.3;
+  /// Series elastic element stiffness K_se (Eqs. 3.11–3.14, §6.4), N·m/deg;
+  /// 0 = infinitely stiff (off). The CE–SE interaction through f_atv delays
+  /// the twitch peak (Fig. 6-13).
+  double series_stiffness_nm_per_deg = 35.0;
+  /// Passive torque–angle hysteresis (Fig. 3-7, §6.6): half-width of the
+  /// loop, N·m, reached after `hysteresis_angle_deg` of travel.
+  double hysteresis_nm = 0.5;
+  double hysteresis_angle_deg = 3.0;
+  /// Static (Coulomb) friction in the joint (Fig. 6-22), N·m, regularised as
+  /// F·tanh(θ̇ / friction_velocity_deg_s).
+  double static_friction_nm = 0.3;
+  double friction_velocity_deg_s = 0.5;
+  /// Fatigue (§3.3): dF/dt = rate·f_stim·(1 − F) − F/recovery_s; force × (1 − F).
+  double fatigue_rate_per_s = 0.02;
+  double fatigue_recovery_s = 30.0;
+  /// Post-tetanic potentiation (§3.3): dP/dt = rate·f_stim·(max − P) − P/decay_s;
+  /// activation f → (1 + P)·f / (1 + P·f): twitches grow by up to 1 + max,
+  /// fused tetanus (f = 1) is unchanged.
+  double potentiation_max = 0.3;
+  double potentiation_rate_per_s = 0.5;
+  double potentiation_decay_s = 60.0;
+  /// Potentiometer non-linearity as a fraction of one turn (120° of knee,
+  /// §5.1): error = k·120°·sin(2π·θ/120°).
+  double pot_nonlinearity = 0.01;
+  /// White sensor noise, one standard deviation per channel.
+  double angle_noise_deg = 0.02;
+  double torque_noise_nm = 0.05;
+  double accel_noise_m_s2 = 0.05;
+  double emg_noise_mv = 0.005;
+  /// 12-bit quantisation of the angle and accelerometer channels (§5.1). The
+  /// torque channel is always quantised at 0.0381 N·m/LSB, ±78 N·m.
+  bool quantise_adc = true;
+  /// M-wave on the EMG after each pulse, peak mV at R(u) = 1.
+  double emg_m_wave_mv = 0.5;
+  /// Voluntary co-contraction bursts (§5.2.1): mean rate per minute (0 = off),
+  /// net extensor torque and EMG RMS during a burst (0.5–1.5 s each).
+  double cocontraction_per_min = 0.0;
+  double cocontraction_torque_nm = 2.0;
+  double cocontraction_emg_mv = 0.2;
+
+  /// Every effect off, no noise, no angle/accel quantisation.
+  static Fidelity Off();
+  /// The defaults above (a realistic bench).
+  static Fidelity Default() { return {}; }
+  friend bool operator==(const Fidelity&, const Fidelity&) = default;
+};
+
+/// Body measures (DESIGN.md §7) and bench placement (§5.1).
+struct Anthropometrics {
+  double body_mass_kg = 70.0;
+  double height_m = 1.75;
+  double shank_length_m = 0.43;         ///< knee centre to lateral malleolus.
+  double accel_distance_m = 0.28;       ///< accelerometer from the knee centre (≈ 11 in, §5.1).
+  /// Thigh elevation above horizontal as the subject reclines (Fig. 5-5):
+  /// the shank hangs vertically at θ = 90° − elevation (81° for 9°).
+  double thigh_elevation_deg = 9.0;
+  friend bool operator==(const Anthropometrics&, const Anthropometrics&) = default;
+};
+
+/// A virtual subject: what the simulated bench's leg is made of.
+struct VirtualSubject {
+  std::string name = "virtual";
+  /// Seed of the subject's own random effects (sensor noise, voluntary
+  /// bursts). The bench combines it with its own seed.
+  std::uint64_t seed = 1;
+  model::ParameterSet truth;            ///< the DESIGN.md §3 model part.
+  double threshold_ma = 20.0;           ///< lowest amplitude giving torque.
+  double max_tolerated_ma = 45.0;       ///< highest amplitude the subject accepts.
+  Anthropometrics anthropometrics;
+  Fidelity fidelity;
+  friend bool operator==(const VirtualSubject&, const VirtualSubject&) = default;
+};
+
+/// The vertical-shank angle, 90° − thigh elevation, deg.
+double HangingAngleDeg(const Anthropometrics& anthropometrics);
+
+/// Ranges of the seeded generator (thesis §5.2.1, §6.5, Table 6.3–6.4,
+/// DESIGN.md §6).
+struct SubjectRanges {
+  double min_inertia_kgm2 = 0.17, max_inertia_kgm2 = 0.70;
+  double min_max_tolerated_ma = 30.0, max_max_tolerated_ma = 60.0;
+  double min_max_torque_nm = 10.0, max_max_torque_nm = 60.0;
+  double nominal_pole_per_s = 25.0, pole_spread = 0.1;  ///< pole = 25·(1 ± 0.1).
+  double min_zeta = 0.02, max_zeta = 0.15;
+};
+
+/// Draws a plausible subject (full model, 3rd-order contraction) from the
+/// seed: anthropometrics → J (Winter's shank-and-foot segment) and gravity;
+/// tissue stiffness near the ends of the range; passive damping set so the
+/// linearised free-swing ζ is in range; IRC from threshold to saturation;
+/// Gaussian f_ata, Hill-like f_atv; τ_scale from the drawn max isometric
+/// torque. Same seed → identical subject. Fidelity is Fidelity::Default().
+VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& ranges = {});
+
+/// Linearised passive dynamics about the free-hanging rest angle (Table
+/// 6.4): θ_eq solves τ_pta(θ) + τ_ptv(0) = 0, k = dτ_pta/dθ and
+/// b = dτ_ptv/dθ̇ there (central secant over ±1° and ±1 deg/s), in SI:
+/// ω_n = √(k/J), ζ = b / (2√(k·J)).
+struct LinearisedPassive {
+  double rest_angle_deg = 0.0;
+  double stiffness_nm_per_rad = 0.0;
+  double damping_nm_s_per_rad = 0.0;
+  double natural_frequency_rad_s = 0.0;
+  double zeta = 0.0;
+};
+/// @throws std::invalid_argument if the curves are empty, τ_pta + τ_ptv(0)
+///   has no zero in [10°, 110°], or the stiffness there is not positive.
+LinearisedPassive LinearisePassive(const model::PassiveParams& passive);
+
+/// Steady isometric torque at stim_ma with the knee locked at angle_deg in
+/// the model without fidelity effects (Eqs. 3.18–3.20):
+/// τ_scale·f_ata(θ)·f_atv(0)·R(u), N·m (the active part only).
+double SteadyIsometricActiveTorqueNm(const model::ParameterSet& truth, double stim_ma,
+                                     double angle_deg);
+
+}  // namespace fesbench::server
