@@ -1,0 +1,261 @@
+#include "model/identify_passive.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "model/identify_least_squares.h"
+#include "model/quality.h"
+#include "model/units.h"
+
+namespace fesbench::model {
+namespace {
+
+std::size_t CheckColumns(const char* what, const TrialColumns& tr, bool torque, bool activation) {
+  const std::size_t n = tr.size();
+  if (n < 2) throw std::invalid_argument(std::string(what) + ": trial has fewer than 2 samples");
+  RequireColumn(what, "t_s", tr.t_s, n);
+  RequireColumn(what, "angle_deg", tr.angle_deg, n);
+  RequireColumn(what, "velocity_deg_s", tr.velocity_deg_s, n);
+  RequireColumn(what, "accel_deg_s2", tr.accel_deg_s2, n);
+  if (torque) RequireColumn(what, "torque_nm", tr.torque_nm, n);
+  if (activation) RequireColumn(what, "activation", tr.activation, n);
+  return n;
+}
+
+std::vector<double> Gather(std::span<const TrialColumns> trials,
+                           const std::vector<std::vector<std::size_t>>& rows,
+                           std::vector<double> TrialColumns::*column) {
+  std::vector<double> out;
+  for (std::size_t k = 0; k < trials.size(); ++k) {
+    for (std::size_t i : rows[k]) out.push_back((trials[k].*column)[i]);
+  }
+  return out;
+}
+
+}  // namespace
+
+double AnthropometricInertia(double body_mass_kg, double leg_length_m) {
+  if (!(body_mass_kg > 0.0) || !(leg_length_m > 0.0) || !std::isfinite(body_mass_kg) ||
+      !std::isfinite(leg_length_m)) {
+    throw std::invalid_argument("AnthropometricInertia: mass and length must be finite and > 0");
+  }
+  const double r = 0.735 * leg_length_m;  // radius of gyration
+  return 0.061 * body_mass_kg * r * r;    // Eq. 4.13
+}
+
+PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
+                                        const TrialColumns& velocities,
+                                        const SequentialPassiveOptions& options) {
+  const char* what = "IdentifyPassiveSequential";
+  {
+    const std::size_t n = positions.size();
+    RequireColumn(what, "t_s", positions.t_s, n);
+    RequireColumn(what, "angle_deg", positions.angle_deg, n);
+    RequireColumn(what, "torque_nm", positions.torque_nm, n);
+  }
+  PassiveResult res;
+  // Eq. 4.10: static torque at each hold, both directions averaged (§5.4.1).
+  const auto holds = DetectHolds(positions.t_s, positions.angle_deg, positions.torque_nm,
+                                 positions.accel_deg_s2.size() == positions.size()
+                                     ? std::span<const double>(positions.accel_deg_s2)
+                                     : std::span<const double>(),
+                                 options.holds);
+  if (holds.empty()) throw std::invalid_argument(std::string(what) + ": no position hold found");
+  const PiecewiseLinear pta = AverageHoldsByAngle(holds, false, options.hold_tolerance_deg);
+  res.report.values["holds"] = static_cast<double>(holds.size());
+
+  // Eq. 4.12 on the constant-velocity part of every move.
+  const std::size_t n = velocities.size();
+  RequireColumn(what, "t_s", velocities.t_s, n);
+  RequireColumn(what, "angle_deg", velocities.angle_deg, n);
+  RequireColumn(what, "velocity_deg_s", velocities.velocity_deg_s, n);
+  RequireColumn(what, "torque_nm", velocities.torque_nm, n);
+  std::vector<double> vx = {0.0}, vy = {0.0};  // τ_ptv(0) = 0 by construction
+  double ss = 0.0;
+  std::size_t used = 0;
+  const auto& v = velocities.velocity_deg_s;
+  for (std::size_t i = 0; i < n;) {
+    if (std::abs(v[i]) < options.min_move_speed_deg_s) {
+      ++i;
+      continue;
+    }
+    const double sign = v[i] > 0 ? 1.0 : -1.0;
+    std::size_t j = i;
+    double peak = 0.0;
+    while (j < n && sign * v[j] >= options.min_move_speed_deg_s) peak = std::max(peak, sign * v[j++]);
+    // Constant part: |θ̇| within tolerance of the peak; its last use_last_s.
+    std::size_t last = j;
+    while (last > i && sign * v[last - 1] < (1.0 - options.constant_velocity_tolerance) * peak) --last;
+    std::size_t first = last;
+    while (first > i && sign * v[first - 1] >= (1.0 - options.constant_velocity_tolerance) * peak &&
+           velocities.t_s[last - 1] - velocities.t_s[first - 1] < options.use_last_s - 1e-9) {
+      --first;
+    }
+    if (last - first >= 5) {
+      double sv = 0.0, st = 0.0;
+      for (std::size_t k = first; k < last; ++k) {
+        sv += v[k];
+        st += velocities.torque_nm[k] - pta(velocities.angle_deg[k]);
+      }
+      const double cnt = static_cast<double>(last - first);
+      vx.push_back(sv / cnt);
+      vy.push_back(st / cnt);
+      for (std::size_t k = first; k < last; ++k) {
+        const double e = velocities.torque_nm[k] - pta(velocities.angle_deg[k]) - st / cnt;
+        ss += e * e;
+      }
+      used += last - first;
+    }
+    i = j;
+  }
+  if (vx.size() < 2) throw std::invalid_argument(std::string(what) + ": no constant-velocity move found");
+  // Sort; equal velocities (repeated moves) are averaged.
+  std::vector<std::size_t> idx(vx.size());
+  for (std::size_t k = 0; k < idx.size(); ++k) idx[k] = k;
+  std::sort(idx.begin(), idx.end(), [&](auto a, auto b) { return vx[a] < vx[b]; });
+  std::vector<double> x, y;
+  for (std::size_t k = 0; k < idx.size();) {
+    std::size_t m = k;
+    double sx = 0.0, sy = 0.0;
+    while (m < idx.size() && vx[idx[m]] - vx[idx[k]] < 0.05) sx += vx[idx[m]], sy += vy[idx[m]], ++m;
+    x.push_back(sx / static_cast<double>(m - k));
+    y.push_back(sy / static_cast<double>(m - k));
+    k = m;
+  }
+  res.report.values["velocity_moves"] = static_cast<double>(vx.size() - 1);
+  res.report.fit_rms["tau_ptv_window_nm"] = used > 0 ? std::sqrt(ss / static_cast<double>(used)) : 0.0;
+
+  PassiveParams p;
+  p.torque_angle = pta;
+  p.torque_velocity = PiecewiseLinear(std::move(x), std::move(y));
+  if (options.body_mass_kg && options.leg_length_m) {
+    p.inertia_kgm2 = AnthropometricInertia(*options.body_mass_kg, *options.leg_length_m);
+  } else {
+    p.inertia_kgm2 = options.inertia_kgm2;
+    res.report.warnings.push_back(
+        "sequential: no body mass / leg length, inertia taken from the options (Eq. 4.13 not used)");
+  }
+  res.passive = ReferencePassive(p);  // §6.5
+  return res;
+}
+
+PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
+                                          const SimultaneousPassiveOptions& options) {
+  const char* what = "IdentifyPassiveSimultaneous";
+  std::vector<std::vector<std::size_t>> rows(trials.size());
+  std::size_t total = 0;
+  for (std::size_t k = 0; k < trials.size(); ++k) {
+    const std::size_t n = CheckColumns(what, trials[k], true, false);
+    const bool act = trials[k].activation.size() == n;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!act || trials[k].activation[i] <= 0.01) rows[k].push_back(i);
+    }
+    total += rows[k].size();
+  }
+  const auto angle = Gather(trials, rows, &TrialColumns::angle_deg);
+  const auto vel = Gather(trials, rows, &TrialColumns::velocity_deg_s);
+  const auto acc = Gather(trials, rows, &TrialColumns::accel_deg_s2);
+  const auto tq = Gather(trials, rows, &TrialColumns::torque_nm);
+  const auto bp_a = ResolveBreakpoints(options.angle, angle);
+  const auto bp_v = ResolveBreakpoints(options.velocity, vel);
+  const Eigen::Index ma = static_cast<Eigen::Index>(bp_a.size());
+  const Eigen::Index mv = static_cast<Eigen::Index>(bp_v.size());
+  if (total < static_cast<std::size_t>(ma + mv + 1)) {
+    throw std::invalid_argument(std::string(what) + ": fewer samples than parameters");
+  }
+  // Eq. 4.31: [X(θ) | X(θ̇) | θ̈] · c = τ.
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(total), ma + mv + 1);
+  Eigen::VectorXd b(static_cast<Eigen::Index>(total));
+  for (std::size_t i = 0; i < total; ++i) {
+    const auto r = static_cast<Eigen::Index>(i);
+    SetPwlBasisRow(a, r, 0, bp_a, angle[i]);
+    SetPwlBasisRow(a, r, ma, bp_v, vel[i]);
+    a(r, ma + mv) = DegToRad(acc[i]);
+    b(r) = tq[i];
+  }
+  const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, options.relative_tolerance);
+  PassiveParams p;
+  p.torque_angle = PiecewiseLinear(bp_a, std::vector<double>(sol.c.data(), sol.c.data() + ma));
+  p.torque_velocity =
+      PiecewiseLinear(bp_v, std::vector<double>(sol.c.data() + ma, sol.c.data() + ma + mv));
+  p.inertia_kgm2 = sol.c(ma + mv);
+  PassiveResult res;
+  res.passive = ReferencePassive(p);  // §6.5
+  res.report.fit_rms["passive_nm"] = sol.rms;
+  res.report.values["passive_rank"] = sol.rank;
+  res.report.values["passive_parameters"] = static_cast<double>(ma + mv + 1);
+  res.report.values["passive_samples"] = static_cast<double>(total);
+  // One null direction is inherent (the constant shared by τ_pta and τ_ptv).
+  if (sol.rank < ma + mv) {
+    res.report.warnings.push_back("simultaneous passive: rank " + std::to_string(sol.rank) + " of " +
+                                  std::to_string(ma + mv + 1) +
+                                  " parameters (under-determined; shortest solution used)");
+  }
+  for (auto& w : SupportWarnings("tau_pta", "deg", bp_a, BreakpointSupport(bp_a, angle), options.min_support))
+    res.report.warnings.push_back(std::move(w));
+  for (auto& w : SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
+    res.report.warnings.push_back(std::move(w));
+  if (!(p.inertia_kgm2 > 0.0)) res.report.warnings.push_back("simultaneous passive: inertia not positive");
+  const Coverage cov = PhasePlaneCoverage(angle, vel, bp_a, bp_v);
+  res.report.values["coverage"] = cov.share;
+  if (auto w = CoverageWarning("simultaneous passive", cov, options.coverage_warn_below); !w.empty()) {
+    res.report.warnings.push_back(std::move(w));
+  }
+  return res;
+}
+
+PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
+                                       const PiecewiseLinear& torque_angle,
+                                       const FreeSwingPassiveOptions& options) {
+  const char* what = "IdentifyPassiveFreeSwing";
+  if (torque_angle.empty()) throw std::invalid_argument(std::string(what) + ": tau_pta is empty");
+  std::vector<std::vector<std::size_t>> rows(trials.size());
+  std::size_t total = 0;
+  for (std::size_t k = 0; k < trials.size(); ++k) {
+    const std::size_t n = CheckColumns(what, trials[k], false, true);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (trials[k].activation[i] <= options.max_activation) rows[k].push_back(i);  // §5.4.3
+    }
+    total += rows[k].size();
+  }
+  const auto angle = Gather(trials, rows, &TrialColumns::angle_deg);
+  const auto vel = Gather(trials, rows, &TrialColumns::velocity_deg_s);
+  const auto acc = Gather(trials, rows, &TrialColumns::accel_deg_s2);
+  const auto bp_v = ResolveBreakpoints(options.velocity, vel);
+  const Eigen::Index mv = static_cast<Eigen::Index>(bp_v.size());
+  if (total < static_cast<std::size_t>(mv + 1)) {
+    throw std::invalid_argument(std::string(what) + ": fewer passive samples than parameters");
+  }
+  // Eq. 4.35: −τ_pta(θ) = Σ c_k X_k(θ̇) + J·θ̈.
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(total), mv + 1);
+  Eigen::VectorXd b(static_cast<Eigen::Index>(total));
+  for (std::size_t i = 0; i < total; ++i) {
+    const auto r = static_cast<Eigen::Index>(i);
+    SetPwlBasisRow(a, r, 0, bp_v, vel[i]);
+    a(r, mv) = DegToRad(acc[i]);
+    b(r) = -torque_angle(angle[i]);
+  }
+  const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, options.relative_tolerance);
+  PassiveParams p;
+  p.torque_angle = torque_angle;
+  p.torque_velocity = PiecewiseLinear(bp_v, std::vector<double>(sol.c.data(), sol.c.data() + mv));
+  p.inertia_kgm2 = sol.c(mv);
+  PassiveResult res;
+  res.passive = ReferencePassive(p);
+  res.report.fit_rms["free_swing_passive_nm"] = sol.rms;
+  res.report.values["free_swing_rank"] = sol.rank;
+  res.report.values["free_swing_samples"] = static_cast<double>(total);
+  if (sol.rank < mv + 1) {
+    res.report.warnings.push_back("free-swing passive: rank " + std::to_string(sol.rank) + " of " +
+                                  std::to_string(mv + 1) + " parameters (under-determined)");
+  }
+  for (auto& w : SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
+    res.report.warnings.push_back(std::move(w));
+  if (!(p.inertia_kgm2 > 0.0)) res.report.warnings.push_back("free-swing passive: inertia not positive");
+  return res;
+}
+
+}  // namespace fesbench::model

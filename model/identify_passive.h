@@ -1,0 +1,94 @@
+#pragma once
+
+/// @file
+/// Passive identification (thesis §4.2, §5.4.1–5.4.3, §6.5–6.6): the
+/// sequential method (static holds, constant-velocity moves, anthropometric
+/// inertia), simultaneous linear estimation (Eq. 4.31) and free swing
+/// (Eq. 4.35). Every result is referenced as in §6.5 (ReferencePassive:
+/// τ_pta(90°) = 0, the constant moved into τ_ptv), so τ_pta + τ_ptv is
+/// unchanged.
+///
+/// Motor-mode trials need t_s, angle_deg, velocity_deg_s, accel_deg_s2 and
+/// torque_nm (the torque the brace applies, Eq. 4.9); free-swing trials
+/// need t_s, angle_deg, velocity_deg_s, accel_deg_s2 and activation
+/// (f_stim, e.g. from ActivationAt). Acceleration is in deg/s² and is
+/// converted to rad/s² for the inertia term.
+
+#include <optional>
+#include <span>
+
+#include "model/conditioning.h"
+#include "model/identify_common.h"
+#include "model/parameter_set.h"
+
+namespace fesbench::model {
+
+/// A passive parameter set with its report.
+struct PassiveResult {
+  PassiveParams passive;
+  IdentifyReport report;
+};
+
+/// Eq. 4.13, §4.2.1: J = (0.061·w)·(0.735·l)², w body mass in kg, l the
+/// femoral condyle to medial malleolus length in m.
+/// @throws std::invalid_argument unless both are finite and > 0.
+double AnthropometricInertia(double body_mass_kg, double leg_length_m);
+
+/// Options of the sequential method.
+struct SequentialPassiveOptions {
+  HoldOptions holds;                    ///< hold detection, 50-sample means.
+  double hold_tolerance_deg = 0.5;      ///< holds this close are one angle.
+  double constant_velocity_tolerance = 0.03;  ///< |θ̇| within 3 % of the move's peak.
+  double min_move_speed_deg_s = 1.0;    ///< slower samples are not moving.
+  double use_last_s = 1.0;              ///< §5.4.1: last 1 s of each move.
+  std::optional<double> body_mass_kg;   ///< with leg_length_m: Eq. 4.13.
+  std::optional<double> leg_length_m;
+  double inertia_kgm2 = 0.36;           ///< used when mass/length are absent.
+};
+
+/// Sequential identification (§4.2.1, §5.4.1): τ_pta from the position
+/// holds of `positions` averaged over both directions (Eq. 4.10); τ_ptv
+/// from the constant-velocity part of each move of `velocities`, τ_pta
+/// removed (Eq. 4.12) and averaged over its last use_last_s, with τ_ptv(0)
+/// = 0 (the holds define zero velocity); J from Eq. 4.13.
+/// @throws std::invalid_argument if a needed column is missing, no hold or
+///   no move is found.
+PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
+                                        const TrialColumns& velocities,
+                                        const SequentialPassiveOptions& options = {});
+
+/// Options of the simultaneous least-squares method.
+struct SimultaneousPassiveOptions {
+  BreakpointSpec angle{11, {}};      ///< τ_pta breakpoints (§7.4.4: 11).
+  BreakpointSpec velocity{9, {}};    ///< τ_ptv breakpoints.
+  double relative_tolerance = 1e-10; ///< SVD truncation (Eq. 4.26).
+  double min_support = 1.0;          ///< breakpoint support warning, samples.
+  double coverage_warn_below = 0.25;
+};
+
+/// Simultaneous linear estimation (§4.2.2, Eq. 4.31): τ_motor = Σ c_j·X_j(θ)
+/// + Σ c_k·X_k(θ̇) + J·θ̈, solved by truncated SVD (Eqs. 4.19–4.26) over all
+/// samples of all trials (samples with activation > 0.01 are skipped when
+/// an activation column is present).
+/// @throws std::invalid_argument on missing columns or too few samples.
+PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
+                                          const SimultaneousPassiveOptions& options = {});
+
+/// Options of the free-swing method.
+struct FreeSwingPassiveOptions {
+  BreakpointSpec velocity{4, {}};    ///< τ_ptv breakpoints (§7.4.4: 4).
+  double max_activation = 0.01;      ///< §5.4.3: passive samples only.
+  double relative_tolerance = 1e-10;
+  double min_support = 1.0;
+};
+
+/// Free-swing identification (§4.2.3, Eq. 4.35): with τ_pta known (from the
+/// sequential method), −τ_pta(θ) = Σ c_k·X_k(θ̇) + J·θ̈ on the samples with
+/// activation ≤ max_activation.
+/// @throws std::invalid_argument on missing columns, an empty τ_pta or too
+///   few passive samples.
+PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
+                                       const PiecewiseLinear& torque_angle,
+                                       const FreeSwingPassiveOptions& options = {});
+
+}  // namespace fesbench::model
