@@ -32,6 +32,48 @@ FastCurve::FastCurve(const PiecewiseLinear& curve) : x_(curve.x()), y_(curve.y()
   }
 }
 
+CurvePairTable::CurvePairTable(const PiecewiseLinear& f, const PiecewiseLinear& g) {
+  if (f.empty() || g.empty()) throw std::invalid_argument("CurvePairTable: empty curve");
+  // A constant (one-breakpoint) curve adds no breakpoint, so tabulating a
+  // curve with a constant gives bit-identical values to tabulating it alone.
+  std::vector<double> x;
+  if (f.size() > 1) x = f.x();
+  if (g.size() > 1) x.insert(x.end(), g.x().begin(), g.x().end());
+  std::sort(x.begin(), x.end());
+  x.erase(std::unique(x.begin(), x.end()), x.end());
+  if (x.empty()) x = {0.0, 1.0};  // two constants: one flat segment
+  const std::size_t m = x.size();
+  x_ = x;
+  f_.resize(m);
+  g_.resize(m);
+  f_slope_.assign(m, 0.0);
+  g_slope_.assign(m, 0.0);
+  for (std::size_t i = 0; i < m; ++i) {
+    f_[i] = f(x[i]);
+    g_[i] = g(x[i]);
+  }
+  for (std::size_t i = 0; i + 1 < m; ++i) {
+    const double dx = x[i + 1] - x[i];
+    f_slope_[i] = (f_[i + 1] - f_[i]) / dx;  // Eq. 4.27 on each union segment
+    g_slope_[i] = (g_[i + 1] - g_[i]) / dx;
+  }
+  double min_width = x[m - 1] - x[0];
+  for (std::size_t i = 0; i + 1 < m; ++i) min_width = std::min(min_width, x[i + 1] - x[i]);
+  constexpr double kMaxCells = 4096.0;
+  const double cells = std::min(kMaxCells, std::ceil((x[m - 1] - x[0]) / min_width - 1e-9));
+  const auto n_cells = static_cast<std::size_t>(std::max(1.0, cells));
+  const double cell = (x[m - 1] - x[0]) / static_cast<double>(n_cells);
+  inv_cell_ = 1.0 / cell;
+  bucket_.resize(n_cells);
+  for (std::size_t k = 0; k < n_cells; ++k) {
+    // Segment containing the cell's start: interior breakpoints ≤ start.
+    const double start = x[0] + static_cast<double>(k) * cell;
+    std::uint32_t seg = 0;
+    while (seg + 2 < m && start >= x[seg + 1]) ++seg;
+    bucket_[k] = seg;
+  }
+}
+
 JointModel JointModel::FromParameters(const ParameterSet& params,
                                       std::optional<ModelKind> kind_override) {
   JointModel m;
@@ -45,20 +87,20 @@ JointModel JointModel::FromParameters(const ParameterSet& params,
     throw std::invalid_argument("joint model: active.torque_scale_nm must be finite and >= 0");
   }
   m.inertia_kgm2_ = j;
+  m.accel_deg_per_nm_ = RadToDeg(1.0 / j);
   m.torque_scale_nm_ = scale;
 
   RequireCurve(params.passive.torque_velocity, "passive.torque_velocity");
-  m.ptv_ = FastCurve(params.passive.torque_velocity);
-  if (m.kind_ != ModelKind::kParametric) {
-    RequireCurve(params.passive.torque_angle, "passive.torque_angle");
-    m.pta_ = FastCurve(params.passive.torque_angle);
-  }
+  const PiecewiseLinear unit = PiecewiseLinear::Constant(1.0);
+  // Tabulated gains (clamped at 0 when evaluated); 1 where the variant has none.
+  const PiecewiseLinear* ata = &unit;
+  const PiecewiseLinear* atv = &unit;
   switch (m.kind_) {
     case ModelKind::kFull:
       RequireCurve(params.active.torque_angle, "active.torque_angle");
       RequireCurve(params.active.torque_velocity, "active.torque_velocity");
-      m.ata_ = FastCurve(params.active.torque_angle);
-      m.atv_ = FastCurve(params.active.torque_velocity);
+      ata = &params.active.torque_angle;
+      atv = &params.active.torque_velocity;
       break;
     case ModelKind::kTorqueGenerator:
       break;
@@ -73,7 +115,7 @@ JointModel JointModel::FromParameters(const ParameterSet& params,
     }
     case ModelKind::kStaticGainPwlVelocity:
       RequireCurve(params.active.torque_velocity, "active.torque_velocity");
-      m.atv_ = FastCurve(params.active.torque_velocity);
+      atv = &params.active.torque_velocity;
       break;
     case ModelKind::kParametric: {
       const ParametricParams& p = params.parametric;
@@ -91,6 +133,13 @@ JointModel JointModel::FromParameters(const ParameterSet& params,
       break;
     }
   }
+  if (m.kind_ == ModelKind::kParametric) {
+    m.angle_table_ = CurvePairTable(unit, unit);  // τ_pta in closed form (Eq. 7.3)
+  } else {
+    RequireCurve(params.passive.torque_angle, "passive.torque_angle");
+    m.angle_table_ = CurvePairTable(params.passive.torque_angle, *ata);
+  }
+  m.velocity_table_ = CurvePairTable(params.passive.torque_velocity, *atv);
   return m;
 }
 
@@ -101,13 +150,24 @@ double JointModel::PassiveAngleTorque(double angle_deg) const {
     const double th = DegToRad(angle_deg);
     return p.mgl_nm * std::sin(th) + p.k1_nm * std::exp(p.k2_per_rad * th) + p.offset_nm;
   }
-  return pta_(angle_deg);
+  double pta = 0.0, gain = 0.0;
+  angle_table_.Evaluate(angle_deg, pta, gain);
+  return pta;
+}
+
+double JointModel::PassiveVelocityTorque(double velocity_deg_s) const {
+  double ptv = 0.0, gain = 0.0;
+  velocity_table_.Evaluate(velocity_deg_s, ptv, gain);
+  return ptv;
 }
 
 double JointModel::AngleGain(double angle_deg) const {
   switch (kind_) {
-    case ModelKind::kFull:
-      return std::max(0.0, ata_(angle_deg));
+    case ModelKind::kFull: {
+      double pta = 0.0, gain = 0.0;
+      angle_table_.Evaluate(angle_deg, pta, gain);
+      return std::max(0.0, gain);
+    }
     case ModelKind::kSingleSegment:  // Eq. 5.1
       return std::max(0.0, single_segment_.a * angle_deg + single_segment_.b);
     case ModelKind::kParametric: {
@@ -128,8 +188,11 @@ double JointModel::AngleGain(double angle_deg) const {
 double JointModel::VelocityGain(double velocity_deg_s) const {
   switch (kind_) {
     case ModelKind::kFull:
-    case ModelKind::kStaticGainPwlVelocity:
-      return std::max(0.0, atv_(velocity_deg_s));
+    case ModelKind::kStaticGainPwlVelocity: {
+      double ptv = 0.0, gain = 0.0;
+      velocity_table_.Evaluate(velocity_deg_s, ptv, gain);
+      return std::max(0.0, gain);
+    }
     case ModelKind::kSingleSegment:  // Eq. 5.2
       return std::max(0.0, single_segment_.c * velocity_deg_s + single_segment_.d);
     case ModelKind::kParametric: {
@@ -143,13 +206,39 @@ double JointModel::VelocityGain(double velocity_deg_s) const {
   return 1.0;
 }
 
+double JointModel::ActiveGain(double angle_deg, double velocity_deg_s) const {
+  double passive = 0.0, gain = 0.0;
+  PassiveAndGain(angle_deg, velocity_deg_s, passive, gain);
+  return gain;
+}
+
+void JointModel::PassiveAndGain(double angle_deg, double velocity_deg_s, double& passive_nm,
+                                double& gain_nm) const {
+  double pta = 0.0, ata = 1.0, ptv = 0.0, atv = 1.0;
+  angle_table_.Evaluate(angle_deg, pta, ata);
+  velocity_table_.Evaluate(velocity_deg_s, ptv, atv);
+  switch (kind_) {
+    case ModelKind::kFull:
+    case ModelKind::kTorqueGenerator:
+    case ModelKind::kStaticGainPwlVelocity:
+      // Eq. 3.16: τ_scale·f_ata(θ)·f_atv(θ̇), gains clamped at 0.
+      passive_nm = pta + ptv;
+      gain_nm = torque_scale_nm_ * std::max(0.0, ata) * std::max(0.0, atv);
+      return;
+    case ModelKind::kSingleSegment:
+    case ModelKind::kParametric:
+      passive_nm = PassiveAngleTorque(angle_deg) + ptv;
+      gain_nm = torque_scale_nm_ * AngleGain(angle_deg) * VelocityGain(velocity_deg_s);
+      return;
+  }
+}
+
 double JointModel::AccelerationDegS2(double angle_deg, double velocity_deg_s, double activation,
                                      double motor_torque_nm) const {
   // J·θ̈ = τ_motor − τ_pta(θ) − τ_ptv(θ̇) − τ_act, θ̈ in rad/s² (§3.4, Eq. 3.16).
-  const double net_nm = motor_torque_nm - PassiveAngleTorque(angle_deg) -
-                        PassiveVelocityTorque(velocity_deg_s) -
-                        activation * ActiveGain(angle_deg, velocity_deg_s);
-  return RadToDeg(net_nm / inertia_kgm2_);
+  double passive_nm = 0.0, gain_nm = 0.0;
+  PassiveAndGain(angle_deg, velocity_deg_s, passive_nm, gain_nm);
+  return (motor_torque_nm - passive_nm - activation * gain_nm) * accel_deg_per_nm_;
 }
 
 }  // namespace fesbench::model
