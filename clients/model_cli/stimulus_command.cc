@@ -4,19 +4,20 @@
 #include <cmath>
 #include <memory>
 #include <ostream>
-#include <sstream>
 #include <stdexcept>
 
 #include "clients/model_cli/cli_io.h"
 #include "clients/model_cli/commands.h"
+#include "model/trajectory.h"
 
 namespace fesbench::cli {
 namespace {
 
+// Shortest form that reads back exactly (a 32-bit seed limit stays whole).
 std::string FormatNumber(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
+  char buffer[32];
+  const auto [ptr, ec] = std::to_chars(buffer, buffer + sizeof buffer, v);
+  return std::string(buffer, ec == std::errc() ? ptr : buffer);
 }
 
 std::string UnitOf(std::string_view parameter_name) {
@@ -104,6 +105,26 @@ api::Trial RunGenerator(std::string_view name, const model::GeneratorParams& par
     table.SetChannel("stim_ma", std::move(envelope.values));
     return table;
   }
+  if (model::FindTrajectoryGenerator(name) != nullptr) {
+    model::TrajectorySamples samples;
+    try {
+      samples = model::SampleTrajectory(*model::MakeTrajectory(name, params), kTrajectoryRateHz);
+    } catch (const std::invalid_argument& e) {
+      throw CliError::Usage(e.what());
+    }
+    std::vector<double> t_s(samples.angle_deg.size());
+    for (std::size_t i = 0; i < t_s.size(); ++i) {
+      t_s[i] = static_cast<double>(i) / samples.rate_hz;
+    }
+    api::Trial table;
+    table.name = std::string(name);
+    table.sample_rate_hz = samples.rate_hz;
+    table.SetChannel("t_s", std::move(t_s));
+    table.SetChannel("angle_deg", std::move(samples.angle_deg));
+    table.SetChannel("velocity_deg_s", std::move(samples.velocity_deg_s));
+    table.SetChannel("accel_deg_s2", std::move(samples.accel_deg_s2));
+    return table;
+  }
   throw CliError::Usage("unknown generator '" + std::string(name) +
                         "' (see 'fesbench-model stimulus --list')");
 }
@@ -112,6 +133,9 @@ void ListGenerators(std::ostream& out) {
   out << "Stimulus generators (output t_s, stim_ma at " << FormatNumber(model::kStimulusRateHz)
       << " Hz). Set parameters with --param name=value.\n";
   ListRegistry(out, "stimulus", model::StimulusGenerators());
+  out << "\nTrajectory generators (output t_s, angle_deg, velocity_deg_s, accel_deg_s2 at "
+      << FormatNumber(kTrajectoryRateHz) << " Hz, for simulate --mode trajectory).\n";
+  ListRegistry(out, "trajectory", model::TrajectoryGenerators());
 }
 
 void RegisterStimulusCommand(CLI::App& app, CliContext& context) {

@@ -18,8 +18,13 @@ namespace fesbench::cli {
 /// @throws CliError (usage) naming the malformed entry.
 model::GeneratorParams ParseGeneratorParams(const std::vector<std::string>& entries);
 
+/// Sample rate of the trajectory tables `stimulus` writes, Hz (DESIGN.md §2).
+inline constexpr double kTrajectoryRateHz = 200.0;
+
 /// The output of generator `name` with `params`: for a stimulus generator the
-/// channels t_s, stim_ma at model::kStimulusRateHz.
+/// channels t_s, stim_ma at model::kStimulusRateHz; for a trajectory
+/// generator (model/trajectory.h) t_s, angle_deg, velocity_deg_s,
+/// accel_deg_s2 at kTrajectoryRateHz from 0 to its duration inclusive.
 /// @throws CliError (usage) for an unknown generator or a bad parameter.
 api::Trial RunGenerator(std::string_view name, const model::GeneratorParams& params);
 

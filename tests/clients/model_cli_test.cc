@@ -180,6 +180,32 @@ TEST_F(ModelCliTest, TrajectoryModeFollowsTheTrajectoryFile) {
               p.passive.torque_angle(45.0) + p.passive.torque_velocity(0.0), 1e-9);
 }
 
+TEST_F(ModelCliTest, TrajectoryGeneratorThenTrajectorySimulation) {
+  const std::string traj = Path("sines.csv");
+  RunResult r = Run("stimulus sum_of_sines --param duration_s=4 --param seed=7 --out '" + traj +
+                    "'");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const api::Trial t = ReadCsv(traj);
+  EXPECT_EQ(ChannelNames(t),
+            (std::vector<std::string>{"t_s", "angle_deg", "velocity_deg_s", "accel_deg_s2"}));
+  ASSERT_EQ(t.num_samples(), 801u);  // 0..4 s inclusive at 200 Hz
+
+  const std::string stim = Path("rb.csv");
+  ASSERT_EQ(Run("stimulus random_binary_dense --param duration_s=4 --out '" + stim + "'")
+                .exit_code,
+            0);
+  const std::string out = Path("motor.csv");
+  r = Run("simulate --params '" + params_ + "' --stimulus '" + stim +
+          "' --mode trajectory --trajectory '" + traj + "' --out '" + out + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const api::Trial sim = ReadCsv(out);
+  EXPECT_EQ(ChannelNames(sim), kSimulationColumns);
+  ASSERT_EQ(sim.num_samples(), 801u);  // the trajectory's samples, [0, 801 / 200 s)
+  for (std::size_t i = 0; i < 801; i += 50) {
+    EXPECT_NEAR((*sim.Values("angle_deg"))[i], (*t.Values("angle_deg"))[i], 1e-9) << i;
+  }
+}
+
 TEST_F(ModelCliTest, StimulusParamsListAndStdout) {
   RunResult r = Run("stimulus impulses --param count=3 --param interval_s=0.5 --out -");
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -196,6 +222,8 @@ TEST_F(ModelCliTest, StimulusParamsListAndStdout) {
   EXPECT_THAT(r.out, HasSubstr("threshold_ma"));
   EXPECT_THAT(r.out, HasSubstr("mA"));
   EXPECT_THAT(r.out, HasSubstr("default 20"));
+  EXPECT_THAT(r.out, HasSubstr("sum_of_sines (trajectory)"));
+  EXPECT_THAT(r.out, HasSubstr("max_velocity_deg_s  unit deg/s"));
 }
 
 TEST_F(ModelCliTest, HelpOnEveryCommand) {
