@@ -11,27 +11,32 @@
 namespace fesbench::api {
 namespace {
 
-using nlohmann::json;
 using model::ModelKind;
 using model::PiecewiseLinear;
+using nlohmann::json;
 
 // Which optional parts each model variant evaluates (DESIGN.md §3): a part a
 // variant uses is required on input; one it ignores may be omitted.
 struct VariantNeeds {
-  bool passive_torque_angle = true;   // PWL τ_pta (parametric uses Eq. 7.3).
-  bool active_torque_angle = true;    // PWL f_ata.
-  bool active_torque_velocity = true; // PWL f_atv.
+  bool passive_torque_angle = true;    // PWL τ_pta (parametric uses Eq. 7.3).
+  bool active_torque_angle = true;     // PWL f_ata.
+  bool active_torque_velocity = true;  // PWL f_atv.
   bool single_segment = false;
   bool parametric = false;
 };
 
 VariantNeeds NeedsOf(ModelKind kind) {
   switch (kind) {
-    case ModelKind::kFull: return {};
-    case ModelKind::kTorqueGenerator: return {true, false, false, false, false};
-    case ModelKind::kSingleSegment: return {true, false, false, true, false};
-    case ModelKind::kStaticGainPwlVelocity: return {true, false, true, false, false};
-    case ModelKind::kParametric: return {false, false, false, false, true};
+    case ModelKind::kFull:
+      return {};
+    case ModelKind::kTorqueGenerator:
+      return {true, false, false, false, false};
+    case ModelKind::kSingleSegment:
+      return {true, false, false, true, false};
+    case ModelKind::kStaticGainPwlVelocity:
+      return {true, false, true, false, false};
+    case ModelKind::kParametric:
+      return {false, false, false, false, true};
   }
   return {};
 }
@@ -140,14 +145,15 @@ class Reader {
     }
     for (std::size_t i = 1; i < x.size(); ++i) {
       if (!(x[i] > x[i - 1])) {
-        return Fail("breakpoints must be strictly increasing", x_path + "[" + std::to_string(i) + "]");
+        return Fail("breakpoints must be strictly increasing",
+                    x_path + "[" + std::to_string(i) + "]");
       }
     }
     for (std::size_t i = 0; i < y.size(); ++i) {
       if (y[i] < y_min || y[i] > y_max) {
-        std::string range = y_max == kUnbounded ? "must be >= " + Number(y_min)
-                                                : "must be in [" + Number(y_min) + ", " +
-                                                      Number(y_max) + "]";
+        std::string range = y_max == kUnbounded
+                                ? "must be >= " + Number(y_min)
+                                : "must be in [" + Number(y_min) + ", " + Number(y_max) + "]";
         return Fail(std::move(range), y_path + "[" + std::to_string(i) + "]");
       }
     }
@@ -243,7 +249,8 @@ bool Read(Reader& r, const json& j, model::ParameterSet& p) {
   }
   const json* order = r.Member(*contraction, "order", "contraction", true);
   if (order == nullptr) return false;
-  if (!order->is_number_integer()) return r.Fail("must be an integer (2 or 3)", "contraction.order");
+  if (!order->is_number_integer())
+    return r.Fail("must be an integer (2 or 3)", "contraction.order");
   const std::int64_t n = order->get<std::int64_t>();
   if (n != 2 && n != 3) return r.Fail("must be 2 or 3", "contraction.order");
   p.contraction.order = static_cast<int>(n);
@@ -309,10 +316,9 @@ bool Read(Reader& r, const json& j, model::ParameterSet& p) {
     model::ParametricParams& q = p.parametric;
     if (s == nullptr || !r.RequireObject(*s, path) ||
         !r.OnlyKeys(*s, path,
-                    {"mgl_nm", "k1_nm", "k2_per_rad", "offset_nm", "ata_peak_deg",
-                     "ata_width_deg", "atv_slope_neg_per_deg_s", "atv_slope_pos_per_deg_s"}) ||
-        !r.ReadNumber(*s, "mgl_nm", path, q.mgl_nm) ||
-        !r.ReadNumber(*s, "k1_nm", path, q.k1_nm) ||
+                    {"mgl_nm", "k1_nm", "k2_per_rad", "offset_nm", "ata_peak_deg", "ata_width_deg",
+                     "atv_slope_neg_per_deg_s", "atv_slope_pos_per_deg_s"}) ||
+        !r.ReadNumber(*s, "mgl_nm", path, q.mgl_nm) || !r.ReadNumber(*s, "k1_nm", path, q.k1_nm) ||
         !r.ReadNumber(*s, "k2_per_rad", path, q.k2_per_rad) ||
         !r.ReadNumber(*s, "offset_nm", path, q.offset_nm) ||
         !r.ReadNumber(*s, "ata_peak_deg", path, q.ata_peak_deg) ||

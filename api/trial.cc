@@ -17,7 +17,8 @@ bool EndsWith(std::string_view s, std::string_view suffix) {
 
 std::string_view Trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r'))
+    s.remove_suffix(1);
   return s;
 }
 
@@ -115,9 +116,8 @@ std::size_t Trial::num_samples() const { return NumSamples(channels); }
 std::string ChannelUnit(std::string_view name) {
   // Longest suffixes first: "_deg_s2" before "_deg_s" before "_s".
   static constexpr std::pair<std::string_view, std::string_view> kSuffixes[] = {
-      {"_deg_s2", "deg/s^2"}, {"_deg_s", "deg/s"}, {"_deg", "deg"}, {"_ms", "ms"},
-      {"_ma", "mA"},          {"_nm", "N.m"},      {"_mv", "mV"},   {"_hz", "Hz"},
-      {"_gain", "1"},         {"_s", "s"},
+      {"_deg_s2", "deg/s^2"}, {"_deg_s", "deg/s"}, {"_deg", "deg"}, {"_ms", "ms"},  {"_ma", "mA"},
+      {"_nm", "N.m"},         {"_mv", "mV"},       {"_hz", "Hz"},   {"_gain", "1"}, {"_s", "s"},
   };
   if (name == "activation") return "1";
   for (const auto& [suffix, unit] : kSuffixes) {
@@ -292,9 +292,8 @@ Result<ChannelGroup> GroupFromCsv(std::string_view text, double default_rate_hz)
     }
   }
   const std::vector<double>& t = *group.Values(kTimeChannel);
-  group.sample_rate_hz = t.size() >= 2
-                             ? static_cast<double>(t.size() - 1) / (t.back() - t.front())
-                             : default_rate_hz;
+  group.sample_rate_hz =
+      t.size() >= 2 ? static_cast<double>(t.size() - 1) / (t.back() - t.front()) : default_rate_hz;
   if (!std::isfinite(group.sample_rate_hz) || group.sample_rate_hz <= 0.0) {
     return Status::InvalidArgument("sample rate must be a finite number > 0", "sample_rate_hz");
   }
@@ -432,7 +431,8 @@ Result<Trial> TrialFromJson(const nlohmann::json& json) {
     if (!name->is_string()) return Status::InvalidArgument("must be a string", "name");
     trial.name = name->get<std::string>();
   }
-  if (const auto start = json.find("start_time_unix_ms"); start != json.end() && !start->is_null()) {
+  if (const auto start = json.find("start_time_unix_ms");
+      start != json.end() && !start->is_null()) {
     if (!start->is_number_integer()) {
       return Status::InvalidArgument("must be an integer", "start_time_unix_ms");
     }

@@ -21,12 +21,11 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "api/status.h"
 
@@ -37,8 +36,8 @@ inline constexpr std::string_view kTimeChannel = "t_s";
 
 /// One named channel of samples.
 struct Channel {
-  std::string name;     ///< e.g. "angle_deg"; [a-z][a-z0-9_]*.
-  std::string unit;     ///< e.g. "deg"; see ChannelUnit.
+  std::string name;  ///< e.g. "angle_deg"; [a-z][a-z0-9_]*.
+  std::string unit;  ///< e.g. "deg"; see ChannelUnit.
   std::vector<double> values;
   friend bool operator==(const Channel&, const Channel&) = default;
 };
@@ -158,7 +157,6 @@ Result<std::string> ReadTextFile(const std::filesystem::path& path);
 /// Writes a whole text file (kUnavailable if it cannot be written).
 Status WriteTextFile(const std::filesystem::path& path, std::string_view text);
 /// ReadTextFile + TrialFromCsv; messages are prefixed with the path.
-Result<Trial> ReadTrialCsvFile(const std::filesystem::path& path,
-                               double default_rate_hz = 200.0);
+Result<Trial> ReadTrialCsvFile(const std::filesystem::path& path, double default_rate_hz = 200.0);
 
 }  // namespace fesbench::api

@@ -14,6 +14,7 @@ namespace {
 constexpr CommandRegistrar kCommands[] = {
     RegisterSimulateCommand,
     RegisterStimulusCommand,
+    RegisterIdentifyCommand,
 };
 
 // One line: CLI11 and library messages may carry newlines.

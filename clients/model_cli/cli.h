@@ -16,7 +16,6 @@
 /// `fesbench-model: error: <what>`, on the error stream.
 
 #include <CLI/CLI.hpp>
-
 #include <iosfwd>
 #include <stdexcept>
 #include <string>

@@ -1,10 +1,9 @@
 #include "clients/model_cli/cli_io.h"
 
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <ostream>
 #include <sstream>
-
-#include <nlohmann/json.hpp>
 
 #include "api/parameter_set_json.h"
 
@@ -93,9 +92,15 @@ void WriteTable(const api::Trial& trial, const std::string& path, TableFormat fo
                 CliContext& context) {
   std::string text;
   switch (format) {
-    case TableFormat::kCsv: text = api::TrialToCsv(trial); break;
-    case TableFormat::kSto: text = api::TrialToSto(trial); break;
-    case TableFormat::kJson: text = api::TrialToJson(trial).dump() + "\n"; break;
+    case TableFormat::kCsv:
+      text = api::TrialToCsv(trial);
+      break;
+    case TableFormat::kSto:
+      text = api::TrialToSto(trial);
+      break;
+    case TableFormat::kJson:
+      text = api::TrialToJson(trial).dump() + "\n";
+      break;
   }
   if (path == "-") {
     context.out << text;

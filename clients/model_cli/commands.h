@@ -16,4 +16,8 @@ void RegisterSimulateCommand(CLI::App& app, CliContext& context);
 /// (stimulus_command.cc).
 void RegisterStimulusCommand(CLI::App& app, CliContext& context);
 
+/// `identify`: runs an identification method on trial CSVs
+/// (identify_command.cc).
+void RegisterIdentifyCommand(CLI::App& app, CliContext& context);
+
 }  // namespace fesbench::cli

@@ -14,9 +14,12 @@ namespace fesbench::cli {
 
 std::string_view SimulateModeName(SimulateMode mode) {
   switch (mode) {
-    case SimulateMode::kFreeSwing: return "free_swing";
-    case SimulateMode::kIsometric: return "isometric";
-    case SimulateMode::kTrajectory: return "trajectory";
+    case SimulateMode::kFreeSwing:
+      return "free_swing";
+    case SimulateMode::kIsometric:
+      return "isometric";
+    case SimulateMode::kTrajectory:
+      return "trajectory";
   }
   return "unknown";
 }
@@ -30,9 +33,8 @@ std::optional<SimulateMode> ParseSimulateMode(std::string_view name) {
 }
 
 api::Trial RunSimulation(const model::ParameterSet& params, const model::SampledSignal& envelope_ma,
-                         SimulateMode mode, double angle_deg,
-                         const model::Trajectory* trajectory, double trajectory_end_s,
-                         model::SimulationOptions options) {
+                         SimulateMode mode, double angle_deg, const model::Trajectory* trajectory,
+                         double trajectory_end_s, model::SimulationOptions options) {
   const model::PulseTrain pulses = model::PulsesFromEnvelope(envelope_ma, options.pulse_rate_hz);
   model::SimulationResult r;
   switch (mode) {
@@ -159,8 +161,7 @@ void RegisterSimulateCommand(CLI::App& app, CliContext& context) {
   for (model::ModelKind k : model::AllModelKinds()) {
     model_names.emplace_back(model::ModelKindName(k));
   }
-  sub->add_option("--params", args->params_path, "parameter set JSON (DESIGN.md §3)")
-      ->required();
+  sub->add_option("--params", args->params_path, "parameter set JSON (DESIGN.md §3)")->required();
   sub->add_option("--stimulus", args->stimulus_path,
                   "stimulus CSV with columns t_s, stim_ma (uniformly sampled envelope, mA)")
       ->required();

@@ -37,8 +37,7 @@ inline constexpr std::string_view kSimulationColumns[] = {
 /// @throws std::invalid_argument for invalid inputs (see model/simulate.h);
 ///   trajectory must be non-null in trajectory mode.
 api::Trial RunSimulation(const model::ParameterSet& params, const model::SampledSignal& envelope_ma,
-                         SimulateMode mode, double angle_deg,
-                         const model::Trajectory* trajectory, double trajectory_end_s,
-                         model::SimulationOptions options);
+                         SimulateMode mode, double angle_deg, const model::Trajectory* trajectory,
+                         double trajectory_end_s, model::SimulationOptions options);
 
 }  // namespace fesbench::cli

@@ -109,10 +109,14 @@ TEST(ParameterSetJson, VariantsNeedOnlyTheirOwnParts) {
   j["passive"].erase("torque_angle");
   j["active"].erase("torque_angle");
   j["active"].erase("torque_velocity");
-  j["parametric"] = {{"mgl_nm", 8.6},          {"k1_nm", 0.5},
-                     {"k2_per_rad", -2.0},     {"offset_nm", 0.0},
-                     {"ata_peak_deg", 65.0},   {"ata_width_deg", 35.0},
-                     {"atv_slope_neg_per_deg_s", 0.0014}, {"atv_slope_pos_per_deg_s", 0.0007}};
+  j["parametric"] = {{"mgl_nm", 8.6},
+                     {"k1_nm", 0.5},
+                     {"k2_per_rad", -2.0},
+                     {"offset_nm", 0.0},
+                     {"ata_peak_deg", 65.0},
+                     {"ata_width_deg", 35.0},
+                     {"atv_slope_neg_per_deg_s", 0.0014},
+                     {"atv_slope_pos_per_deg_s", 0.0007}};
   r = ParameterSetFromJson(j);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->parametric.ata_width_deg, 35.0);
@@ -175,19 +179,18 @@ TEST(ParameterSetJson, RejectsMissingVariantSection) {
 TEST(ParameterSetJson, RejectsWrongTypes) {
   EXPECT_EQ(RejectedField([](json& j) { j["irc"] = "linear"; }), "irc");
   EXPECT_EQ(RejectedField([](json& j) { j["irc"]["stim_ma"] = 20.0; }), "irc.stim_ma");
-  EXPECT_EQ(RejectedField([](json& j) { j["irc"]["activation"][2] = "0.1"; }),
-            "irc.activation[2]");
+  EXPECT_EQ(RejectedField([](json& j) { j["irc"]["activation"][2] = "0.1"; }), "irc.activation[2]");
   EXPECT_EQ(RejectedField([](json& j) { j["contraction"]["pole_per_s"] = "25"; }),
             "contraction.pole_per_s");
-  EXPECT_EQ(RejectedField([](json& j) { j["contraction"]["order"] = 3.0; }),
-            "contraction.order");
+  EXPECT_EQ(RejectedField([](json& j) { j["contraction"]["order"] = 3.0; }), "contraction.order");
   EXPECT_EQ(RejectedField([](json& j) { j["passive"]["inertia_kgm2"] = true; }),
             "passive.inertia_kgm2");
   EXPECT_EQ(RejectedField([](json& j) { j["passive"]["torque_angle"]["angle_deg"][0] = nullptr; }),
             "passive.torque_angle.angle_deg[0]");
-  EXPECT_EQ(RejectedField([](json& j) { j["single_segment"] = {{"a", "x"}}; }),
-            "single_segment.a");
-  EXPECT_EQ(RejectedField([](json& j) { j["provenance"]["trial_ids"] = {1, 2.5}; }),
+  EXPECT_EQ(RejectedField([](json& j) { j["single_segment"] = {{"a", "x"}}; }), "single_segment.a");
+  EXPECT_EQ(RejectedField([](json& j) {
+              j["provenance"]["trial_ids"] = {1, 2.5};
+            }),
             "provenance.trial_ids[1]");
   EXPECT_EQ(RejectedField([](json& j) { j["provenance"]["irc_method"] = 7; }),
             "provenance.irc_method");
@@ -214,7 +217,9 @@ TEST(ParameterSetJson, RejectsNanAndInfinity) {
   EXPECT_EQ(RejectedField([&](json& j) { j["active"]["torque_scale_nm"] = -inf; }),
             "active.torque_scale_nm");
   EXPECT_EQ(RejectedField([&](json& j) { j["irc"]["stim_ma"][1] = nan; }), "irc.stim_ma[1]");
-  EXPECT_EQ(RejectedField([&](json& j) { j["single_segment"] = {{"a", 0.0}, {"b", nan}}; }),
+  EXPECT_EQ(RejectedField([&](json& j) {
+              j["single_segment"] = {{"a", 0.0}, {"b", nan}};
+            }),
             "single_segment.b");
   EXPECT_EQ(RejectedField([&](json& j) { j["provenance"]["fit_rms"]["x"] = nan; }),
             "provenance.fit_rms.x");

@@ -183,17 +183,19 @@ TEST(TrialCsv, RejectsNanAndInfinity) {
 }
 
 TEST(TrialCsv, RejectsNonIncreasingTime) {
-  EXPECT_THAT(CsvError("stim_ma,t_s\n1,0\n1,0.005\n1,0.005\n"),
-              HasSubstr("line 4, column 2 (t_s): time 0.005 is not greater than the previous 0.005"));
+  EXPECT_THAT(
+      CsvError("stim_ma,t_s\n1,0\n1,0.005\n1,0.005\n"),
+      HasSubstr("line 4, column 2 (t_s): time 0.005 is not greater than the previous 0.005"));
   EXPECT_THAT(CsvError("t_s,stim_ma\n0.01,1\n0.005,1\n"), HasSubstr("line 3, column 1 (t_s)"));
 }
 
 TEST(TrialSto, WritesOpenSimStorageHeaderAndTabSeparatedRows) {
   const std::string sto = TrialToSto(SampleTrial());
-  EXPECT_TRUE(sto.starts_with("free_swing_passive\nversion=1\nnRows=5\nnColumns=4\n"
-                              "inDegrees=yes\nendheader\n"
-                              "time\tstim_ma\tangle_deg\ttorque_nm\n"
-                              "0\t0\t90\t0\n0.005\t0\t"))
+  EXPECT_TRUE(
+      sto.starts_with("free_swing_passive\nversion=1\nnRows=5\nnColumns=4\n"
+                      "inDegrees=yes\nendheader\n"
+                      "time\tstim_ma\tangle_deg\ttorque_nm\n"
+                      "0\t0\t90\t0\n0.005\t0\t"))
       << sto;
   // One header block of 7 lines plus 5 rows.
   EXPECT_EQ(std::count(sto.begin(), sto.end(), '\n'), 12);

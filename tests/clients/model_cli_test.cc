@@ -1,10 +1,9 @@
 // Integration tests of the fesbench-model binary: runs it on temporary files
 // and checks outputs, exit codes and one-line error messages.
 
-#include <sys/wait.h>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <atomic>
 #include <cstdlib>
@@ -38,11 +37,9 @@ class ModelCliTest : public ::testing::Test {
   void SetUp() override {
     static std::atomic<int> counter{0};
     dir_ = fs::path(::testing::TempDir()) /
-           ("fesbench_model_cli_" + std::to_string(::getpid()) + "_" +
-            std::to_string(counter++));
+           ("fesbench_model_cli_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
     fs::create_directories(dir_);
-    params_ = Write("params.json",
-                    api::ParameterSetToJson(model::ExampleParameterSet()).dump(2));
+    params_ = Write("params.json", api::ParameterSetToJson(model::ExampleParameterSet()).dump(2));
   }
   void TearDown() override { fs::remove_all(dir_); }
 
@@ -182,8 +179,8 @@ TEST_F(ModelCliTest, TrajectoryModeFollowsTheTrajectoryFile) {
 
 TEST_F(ModelCliTest, TrajectoryGeneratorThenTrajectorySimulation) {
   const std::string traj = Path("sines.csv");
-  RunResult r = Run("stimulus sum_of_sines --param duration_s=4 --param seed=7 --out '" + traj +
-                    "'");
+  RunResult r =
+      Run("stimulus sum_of_sines --param duration_s=4 --param seed=7 --out '" + traj + "'");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const api::Trial t = ReadCsv(traj);
   EXPECT_EQ(ChannelNames(t),
@@ -191,8 +188,7 @@ TEST_F(ModelCliTest, TrajectoryGeneratorThenTrajectorySimulation) {
   ASSERT_EQ(t.num_samples(), 801u);  // 0..4 s inclusive at 200 Hz
 
   const std::string stim = Path("rb.csv");
-  ASSERT_EQ(Run("stimulus random_binary_dense --param duration_s=4 --out '" + stim + "'")
-                .exit_code,
+  ASSERT_EQ(Run("stimulus random_binary_dense --param duration_s=4 --out '" + stim + "'").exit_code,
             0);
   const std::string out = Path("motor.csv");
   r = Run("simulate --params '" + params_ + "' --stimulus '" + stim +
@@ -303,11 +299,11 @@ TEST_F(ModelCliTest, BadInputDataExitsWithOne) {
   ExpectError(traj_common + " --trajectory '" +
                   Write("tm.csv", "t_s,angle_deg,velocity_deg_s\n0,45,0\n0.005,45,0\n") + "'",
               1, "no accel_deg_s2 column");
-  ExpectError(traj_common + " --trajectory '" +
-                  Write("tl.csv",
-                        "t_s,angle_deg,velocity_deg_s,accel_deg_s2\n1,45,0,0\n1.005,45,0,0\n") +
-                  "'",
-              1, "t_s must start at 0");
+  ExpectError(
+      traj_common + " --trajectory '" +
+          Write("tl.csv", "t_s,angle_deg,velocity_deg_s,accel_deg_s2\n1,45,0,0\n1.005,45,0,0\n") +
+          "'",
+      1, "t_s must start at 0");
 }
 
 }  // namespace
