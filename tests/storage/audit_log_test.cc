@@ -1,0 +1,43 @@
+#include "storage/audit_log.h"
+
+#include <gtest/gtest.h>
+
+#include "storage/users.h"
+#include "storage_test_util.h"
+
+namespace fesbench::storage {
+namespace {
+
+using testing::Epoch2026;
+using testing::StorageTest;
+
+TEST_F(StorageTest, AuditLogAppendsAndFilters) {
+  auto user = UserRepository(*db_).CreateUser("erin", Role::kAdmin);  // clock tick 0
+  ASSERT_TRUE(user.ok());
+  AuditLog log(*db_);
+  for (int i = 0; i < 5; ++i) {  // clock ticks 1..5
+    auto id = log.Append({i % 2 == 0 ? std::optional<std::int64_t>(user->id) : std::nullopt,
+                          i % 2 == 0 ? "erin" : "system", "POST /api/v1/backup",
+                          "backup/" + std::to_string(i), "{}", "202"});
+    ASSERT_TRUE(id.ok()) << id.status().ToString();
+  }
+  auto all = log.List({});
+  ASSERT_TRUE(all.ok());
+  ASSERT_EQ(all->size(), 5u);
+  EXPECT_EQ(all->front().entry.target, "backup/4");  // newest first
+  EXPECT_EQ(FormatUtc(all->back().at), "2026-01-01T00:00:01.000000Z");
+  auto by_user = log.List({std::nullopt, std::nullopt, user->id, 100});
+  ASSERT_TRUE(by_user.ok());
+  EXPECT_EQ(by_user->size(), 3u);
+  auto window = log.List({Epoch2026() + std::chrono::seconds(2),
+                          Epoch2026() + std::chrono::seconds(4), std::nullopt, 100});
+  ASSERT_TRUE(window.ok());
+  ASSERT_EQ(window->size(), 2u);
+  EXPECT_EQ(window->front().entry.target, "backup/2");
+
+  EXPECT_EQ(log.Append({std::nullopt, "x", "", "", "", ""}).status().field(), "action");
+  EXPECT_EQ(log.Append({999, "x", "GET", "", "", ""}).status().message(), "user 999 not found");
+}
+
+}  // namespace
+}  // namespace fesbench::storage

@@ -1,0 +1,355 @@
+#include "storage/database.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include "storage/audit_log.h"
+#include "storage/migrations.h"
+#include "storage/parameter_sets.h"
+#include "storage/sessions.h"
+#include "storage/subjects.h"
+#include "storage/users.h"
+#include "storage_test_util.h"
+
+namespace fesbench::storage {
+namespace {
+
+using testing::StorageTest;
+
+TEST_F(StorageTest, OpensInWalWithForeignKeysAndFullSync) {
+  auto pragmas = db_->Read([](Connection& c) -> api::Result<std::string> {
+    auto mode = c.QueryText("PRAGMA journal_mode");
+    auto fk = c.QueryText("PRAGMA foreign_keys");
+    if (!mode.ok() || !fk.ok()) return api::Status::Internal("pragma failed");
+    return *mode + "," + *fk;
+  });
+  ASSERT_TRUE(pragmas.ok()) << pragmas.status().ToString();
+  EXPECT_EQ(*pragmas, "wal,1");
+  auto sync = db_->Write([](Connection& c) { return c.QueryText("PRAGMA synchronous"); });
+  ASSERT_TRUE(sync.ok());
+  EXPECT_EQ(*sync, "2");  // FULL
+  auto version = db_->SchemaVersion();
+  ASSERT_TRUE(version.ok());
+  EXPECT_EQ(*version, LatestSchemaVersion());
+  EXPECT_EQ(LatestSchemaVersion(), 4);
+  auto recorded = db_->Read([](Connection& c) {
+    return c.QueryText("SELECT group_concat(version) FROM schema_migrations");
+  });
+  ASSERT_TRUE(recorded.ok());
+  EXPECT_EQ(*recorded, "1,2,3,4");
+}
+
+TEST_F(StorageTest, ReopeningAppliesNothingTwice) {
+  db_.reset();
+  auto db = Database::Open(Options());
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  auto count = (*db)->Read([](Connection& c) {
+    return c.QueryText("SELECT count(*) FROM schema_migrations");
+  });
+  ASSERT_TRUE(count.ok());
+  EXPECT_EQ(*count, "4");
+}
+
+TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
+  db_.reset();
+  std::filesystem::remove(path_);
+  DatabaseOptions v1 = Options();
+  v1.target_schema_version = 1;
+  std::int64_t subject_id = 0;
+  std::int64_t session_id = 0;
+  std::int64_t user_id = 0;
+  {
+    auto db = Database::Open(v1);
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    auto version = (*db)->SchemaVersion();
+    ASSERT_TRUE(version.ok());
+    EXPECT_EQ(*version, 1);
+    // Tables of later migrations do not exist yet.
+    auto tables = (*db)->Read([](Connection& c) {
+      return c.QueryText("SELECT count(*) FROM sqlite_schema WHERE name = 'trials'");
+    });
+    ASSERT_TRUE(tables.ok());
+    EXPECT_EQ(*tables, "0");
+
+    SubjectRepository subjects(**db);
+    SubjectDetails details;
+    details.age_years = 34;
+    details.sex = Sex::kFemale;
+    details.height_cm = 168.5;
+    auto subject = subjects.Create("P07", details);
+    ASSERT_TRUE(subject.ok());
+    subject_id = subject->id;
+    auto corrected = details;
+    corrected.height_cm = 169.0;
+    ASSERT_TRUE(subjects.Correct(subject_id, corrected, "remeasured").ok());
+    auto leg = subjects.AddLeg(subject_id, Side::kLeft);
+    ASSERT_TRUE(leg.ok());
+    SessionDetails sd{"2026-02-03", "lateral shank", 18.0, 55.0, "first visit"};
+    auto session = SessionRepository(**db).Create(subject_id, leg->id, sd);
+    ASSERT_TRUE(session.ok()) << session.status().ToString();
+    session_id = session->id;
+    auto user = UserRepository(**db).CreateUser("alice", Role::kClinician);
+    ASSERT_TRUE(user.ok());
+    user_id = user->id;
+    ASSERT_TRUE(AuditLog(**db).Append({user_id, "alice", "POST /api/v1/subjects", "subjects/1",
+                                       "{code: P07}", "201"})
+                    .ok());
+  }
+  auto db = Database::Open(Options());
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  auto version = (*db)->SchemaVersion();
+  ASSERT_TRUE(version.ok());
+  EXPECT_EQ(*version, 4);
+
+  auto subject = SubjectRepository(**db).Get(subject_id);
+  ASSERT_TRUE(subject.ok());
+  EXPECT_EQ(subject->code, "P07");
+  EXPECT_EQ(subject->current.revision, 2);
+  EXPECT_EQ(subject->current.details.height_cm, 169.0);
+  EXPECT_EQ(subject->current.details.age_years, 34);
+  auto revisions = SubjectRepository(**db).Revisions(subject_id);
+  ASSERT_TRUE(revisions.ok());
+  ASSERT_EQ(revisions->size(), 2u);
+  EXPECT_EQ((*revisions)[0].details.height_cm, 168.5);
+  auto session = SessionRepository(**db).Get(session_id);
+  ASSERT_TRUE(session.ok());
+  EXPECT_EQ(session->current.details.threshold_ma, 18.0);
+  EXPECT_EQ(session->current.details.max_tolerated_ma, 55.0);
+  EXPECT_EQ(session->current.details.notes, "first visit");
+  auto user = UserRepository(**db).GetUser(user_id);
+  ASSERT_TRUE(user.ok());
+  EXPECT_EQ(user->name, "alice");
+  auto audit = AuditLog(**db).List({});
+  ASSERT_TRUE(audit.ok());
+  ASSERT_EQ(audit->size(), 1u);
+  EXPECT_EQ((*audit)[0].entry.request_summary, "{code: P07}");
+
+  // The tables of migrations 2-4 exist and are empty on the upgraded file.
+  auto count = (*db)->Read([](Connection& c) {
+    return c.QueryText("SELECT count(*) FROM trials");
+  });
+  ASSERT_TRUE(count.ok());
+  EXPECT_EQ(*count, "0");
+}
+
+TEST_F(StorageTest, RefusesSchemaNewerThanSoftware) {
+  ASSERT_TRUE(db_->Write([](Connection& c) { return c.ExecScript("PRAGMA user_version = 99"); })
+                  .ok());
+  db_.reset();
+  auto db = Database::Open(Options());
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(db.status().message().find("99"), std::string::npos);
+}
+
+TEST(DatabaseOpen, RejectsBadOptions) {
+  DatabaseOptions options;
+  auto db = Database::Open(options);
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().field(), "path");
+  options.path = "/tmp/x.db";
+  options.reader_count = 0;
+  db = Database::Open(options);
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().field(), "reader_count");
+  options.reader_count = 1;
+  options.target_schema_version = 5;
+  db = Database::Open(options);
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().field(), "target_schema_version");
+}
+
+TEST(DatabaseOpen, GarbageFileIsDataLoss) {
+  const auto dir = testing::MakeTempDir("garbage");
+  const std::string path = (dir / "garbage.db").string();
+  {
+    std::ofstream out(path, std::ios::binary);
+    std::mt19937 rng(7);
+    for (int i = 0; i < 8192; ++i) out.put(static_cast<char>(rng() & 0xff));
+  }
+  DatabaseOptions options;
+  options.path = path;
+  auto db = Database::Open(options);
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), api::ErrorCode::kDataLoss);
+  EXPECT_NE(db.status().message().find("garbage.db"), std::string::npos);
+  EXPECT_NE(db.status().message().find("corrupt"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(DatabaseOpen, DamagedPageIsDataLoss) {
+  const auto dir = testing::MakeTempDir("damaged");
+  const std::string path = (dir / "damaged.db").string();
+  DatabaseOptions options;
+  options.path = path;
+  {
+    auto db = Database::Open(options);
+    ASSERT_TRUE(db.ok());
+    SubjectRepository subjects(**db);
+    for (int i = 0; i < 400; ++i) {
+      ASSERT_TRUE(subjects.Create("S" + std::to_string(i), SubjectDetails{}).ok());
+    }
+  }  // closing the last connection checkpoints the WAL into the file
+  ASSERT_FALSE(std::filesystem::exists(path + "-wal"));
+  const auto size = std::filesystem::file_size(path);
+  ASSERT_GT(size, 16u * 4096u);
+  {
+    // Overwrite the last quarter of the file (b-tree pages of the subject
+    // tables and their indexes) with a fixed pattern.
+    std::fstream file(path, std::ios::binary | std::ios::in | std::ios::out);
+    file.seekp(static_cast<std::streamoff>(size - size / 4));
+    for (std::uintmax_t i = 0; i < size / 4; ++i) file.put(static_cast<char>(0xA5));
+  }
+  auto db = Database::Open(options);
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), api::ErrorCode::kDataLoss);
+  EXPECT_NE(db.status().message().find("restore it from a backup"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_F(StorageTest, AppendOnlyTablesRefuseUpdateAndDelete) {
+  auto subject = SubjectRepository(*db_).Create("A1", SubjectDetails{});
+  ASSERT_TRUE(subject.ok());
+  auto update = db_->Write([](Connection& c) -> api::Status {
+    auto s = c.Prepare("UPDATE subjects SET code = 'B2'");
+    if (!s.ok()) return s.status();
+    return s->Run();
+  });
+  EXPECT_EQ(update.code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(update.message().find("append-only"), std::string::npos);
+  ASSERT_TRUE(AuditLog(*db_).Append({std::nullopt, "system", "start", "", "", "ok"}).ok());
+  auto erase = db_->Write([](Connection& c) -> api::Status {
+    auto s = c.Prepare("DELETE FROM audit_log");
+    if (!s.ok()) return s.status();
+    return s->Run();
+  });
+  EXPECT_EQ(erase.code(), api::ErrorCode::kFailedPrecondition);
+  auto entries = AuditLog(*db_).List({});
+  ASSERT_TRUE(entries.ok());
+  EXPECT_EQ(entries->size(), 1u);
+  auto still = SubjectRepository(*db_).Get(subject->id);
+  ASSERT_TRUE(still.ok());
+  EXPECT_EQ(still->code, "A1");
+}
+
+TEST_F(StorageTest, FailedTransactionRollsBackEveryRow) {
+  SubjectRepository subjects(*db_);
+  auto status = db_->Write([&](Connection&) -> api::Status {
+    auto a = subjects.Create("R1", SubjectDetails{});  // joins this transaction
+    if (!a.ok()) return a.status();
+    auto b = subjects.Create("R1", SubjectDetails{});  // duplicate: fails
+    return b.status();
+  });
+  EXPECT_EQ(status.code(), api::ErrorCode::kAlreadyExists);
+  auto missing = subjects.GetByCode("R1");
+  EXPECT_EQ(missing.status().code(), api::ErrorCode::kNotFound);
+}
+
+TEST_F(StorageTest, BackupAndRestoreRoundTrip) {
+  SubjectRepository subjects(*db_);
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(subjects.Create("B" + std::to_string(i), SubjectDetails{}).ok());
+  }
+  const std::string backup = (dir_ / "backup.db").string();
+  ASSERT_TRUE(db_->Backup(backup).ok());
+  ASSERT_TRUE(std::filesystem::exists(backup));
+  // Writes after the backup are not in it.
+  ASSERT_TRUE(subjects.Create("AFTER", SubjectDetails{}).ok());
+  {
+    DatabaseOptions options;
+    options.path = backup;
+    auto copy = Database::Open(options);
+    ASSERT_TRUE(copy.ok()) << copy.status().ToString();
+    auto list = SubjectRepository(**copy).List();
+    ASSERT_TRUE(list.ok());
+    EXPECT_EQ(list->size(), 20u);
+  }
+  ASSERT_TRUE(db_->RestoreFrom(backup).ok());
+  auto list = subjects.List();
+  ASSERT_TRUE(list.ok());
+  EXPECT_EQ(list->size(), 20u);
+  EXPECT_EQ(subjects.GetByCode("AFTER").status().code(), api::ErrorCode::kNotFound);
+  EXPECT_TRUE(subjects.GetByCode("B19").ok());
+  EXPECT_TRUE(db_->CheckIntegrity().ok());
+  // The restored database accepts writes.
+  EXPECT_TRUE(subjects.Create("AFTER", SubjectDetails{}).ok());
+}
+
+TEST_F(StorageTest, RestoreRefusesCorruptOrMissingBackup) {
+  EXPECT_EQ(db_->RestoreFrom((dir_ / "none.db").string()).code(), api::ErrorCode::kNotFound);
+  const std::string junk = (dir_ / "junk.db").string();
+  {
+    std::ofstream out(junk, std::ios::binary);
+    for (int i = 0; i < 4096; ++i) out.put(static_cast<char>(i * 31));
+  }
+  EXPECT_EQ(db_->RestoreFrom(junk).code(), api::ErrorCode::kDataLoss);
+  ASSERT_TRUE(SubjectRepository(*db_).Create("OK1", SubjectDetails{}).ok());
+}
+
+// Several reader threads and writer threads on one Database, plus a second
+// Database on the same file (as another process would be): no caller ever
+// sees an error, in particular not "database is locked".
+TEST_F(StorageTest, ConcurrentReadersAndWritersNeverSeeLocked) {
+  SubjectRepository subjects(*db_);
+  auto seed_subject = subjects.Create("C0", SubjectDetails{});
+  ASSERT_TRUE(seed_subject.ok());
+  DatabaseOptions second_options = Options();
+  second_options.busy_timeout = std::chrono::milliseconds(5);  // force retries
+  auto second = Database::Open(second_options);
+  ASSERT_TRUE(second.ok());
+
+  constexpr int kWriters = 2;
+  constexpr int kWritesPerWriter = 60;
+  constexpr int kReaders = 4;
+  constexpr int kReadsPerReader = 150;
+  std::atomic<int> errors{0};
+  std::vector<std::string> first_errors(kWriters + kReaders + 1);
+  std::vector<std::thread> threads;
+  for (int w = 0; w < kWriters; ++w) {
+    threads.emplace_back([&, w] {
+      SubjectRepository repo(*db_);
+      for (int i = 0; i < kWritesPerWriter; ++i) {
+        auto r = repo.Create("W" + std::to_string(w) + "_" + std::to_string(i), SubjectDetails{});
+        if (!r.ok() && errors.fetch_add(1) == 0) first_errors[w] = r.status().ToString();
+      }
+    });
+  }
+  threads.emplace_back([&] {
+    SubjectRepository repo(**second);
+    for (int i = 0; i < kWritesPerWriter; ++i) {
+      auto r = repo.Create("X_" + std::to_string(i), SubjectDetails{});
+      if (!r.ok() && errors.fetch_add(1) == 0) first_errors[kWriters] = r.status().ToString();
+    }
+  });
+  for (int rd = 0; rd < kReaders; ++rd) {
+    threads.emplace_back([&, rd] {
+      SubjectRepository repo(*db_);
+      std::size_t last = 0;
+      for (int i = 0; i < kReadsPerReader; ++i) {
+        auto list = repo.List();
+        if (!list.ok()) {
+          if (errors.fetch_add(1) == 0) first_errors[kWriters + 1 + rd] = list.status().ToString();
+          continue;
+        }
+        // Snapshots only grow.
+        if (list->size() < last) errors.fetch_add(1);
+        last = list->size();
+        if (!repo.Get(seed_subject->id).ok()) errors.fetch_add(1);
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  std::string first;
+  for (const auto& e : first_errors) if (!e.empty()) first = e;
+  EXPECT_EQ(errors.load(), 0) << first;
+  auto list = subjects.List();
+  ASSERT_TRUE(list.ok());
+  EXPECT_EQ(list->size(), 1u + kWriters * kWritesPerWriter + kWritesPerWriter);
+}
+
+}  // namespace
+}  // namespace fesbench::storage

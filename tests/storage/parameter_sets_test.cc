@@ -1,0 +1,186 @@
+#include "storage/parameter_sets.h"
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "api/parameter_set_json.h"
+#include "storage/trials.h"
+#include "storage_test_util.h"
+
+namespace fesbench::storage {
+namespace {
+
+using testing::Epoch2026;
+using testing::MakeTrial;
+using testing::StorageTest;
+
+model::ParameterSet Params(const std::string& irc_method, const std::string& passive_method) {
+  model::ParameterSet p = model::ExampleParameterSet();
+  p.provenance.irc_method = irc_method;
+  p.provenance.passive_method = passive_method;
+  p.provenance.active_method = "log_least_squares";
+  return p;
+}
+
+TEST_F(StorageTest, ParameterSetRoundTripWithProvenance) {
+  const Session session = MakeSession("P1");
+  TrialRepository trials(*db_);
+  auto t1 = trials.Insert({session.id, std::nullopt}, MakeTrial(20));
+  auto t2 = trials.Insert({session.id, std::nullopt}, MakeTrial(20, 0.5));
+  ASSERT_TRUE(t1.ok() && t2.ok());
+  model::ParameterSet params = Params("ramp_correlation", "free_swing");
+  params.provenance.trial_ids = {*t2, *t1};
+  params.provenance.active_trial_id = *t1;
+  params.contraction.pole_per_s = 23.5;
+
+  ParameterSetRepository sets(*db_);
+  auto stored = sets.Insert({session.subject_id, session.leg_id, params, std::nullopt, std::nullopt});
+  ASSERT_TRUE(stored.ok()) << stored.status().ToString();
+  EXPECT_EQ(stored->version, 1);
+  EXPECT_EQ(stored->model, "full");
+  EXPECT_EQ(stored->software_version, StorageSoftwareVersion());
+
+  auto got = sets.Get(stored->id);
+  ASSERT_TRUE(got.ok()) << got.status().ToString();
+  model::ParameterSet expected = params;
+  expected.provenance.software_version = std::string(StorageSoftwareVersion());
+  EXPECT_EQ(got->params, expected);
+  EXPECT_EQ(got->trial_ids, (std::vector<std::int64_t>{*t1, *t2}));
+  EXPECT_EQ(got->params.contraction.pole_per_s, 23.5);
+
+  // A refit is a new version pointing at the one it supersedes.
+  params.contraction.pole_per_s = 24.0;
+  auto refit = sets.Insert({session.subject_id, session.leg_id, params, stored->id, std::nullopt});
+  ASSERT_TRUE(refit.ok());
+  EXPECT_EQ(refit->version, 2);
+  EXPECT_EQ(refit->supersedes_id, stored->id);
+  auto latest = sets.Latest(session.subject_id, session.leg_id);
+  ASSERT_TRUE(latest.ok());
+  EXPECT_EQ(latest->summary.id, refit->id);
+  auto first = sets.Get(stored->id);
+  ASSERT_TRUE(first.ok());
+  EXPECT_EQ(first->params.contraction.pole_per_s, 23.5);  // never overwritten
+
+  auto json_text = sets.ExportJson(stored->id);
+  ASSERT_TRUE(json_text.ok());
+  auto parsed = api::ParameterSetFromJson(nlohmann::json::parse(*json_text));
+  ASSERT_TRUE(parsed.ok());
+  EXPECT_EQ(*parsed, expected);
+}
+
+TEST_F(StorageTest, HistoryFiltersBySubjectLegMethodAndDate) {
+  const Session a = MakeSession("H1");
+  const Session b = MakeSession("H2");
+  auto left = SubjectRepository(*db_).AddLeg(a.subject_id, Side::kLeft);
+  ASSERT_TRUE(left.ok());
+  ParameterSetRepository sets(*db_);
+  // Subject a: day 0..9 alternating methods on the right leg, days 10, 11 on the left.
+  for (int day = 0; day < 12; ++day) {
+    const bool right = day < 10;
+    auto params = Params(day % 2 == 0 ? "ramp_correlation" : "twitch_deconvolution",
+                         "free_swing");
+    NewParameterSet set{a.subject_id, right ? a.leg_id : left->id, params, std::nullopt,
+                        Epoch2026() + std::chrono::days(day)};
+    ASSERT_TRUE(sets.Insert(set).ok());
+    ASSERT_TRUE(sets.Insert({b.subject_id, b.leg_id, params, std::nullopt,
+                             Epoch2026() + std::chrono::days(day)})
+                    .ok());
+  }
+  auto all = sets.History({a.subject_id, std::nullopt, std::nullopt, std::nullopt, std::nullopt});
+  ASSERT_TRUE(all.ok());
+  ASSERT_EQ(all->size(), 12u);
+  for (const auto& s : *all) EXPECT_EQ(s.subject_id, a.subject_id);
+  EXPECT_EQ(FormatUtc(all->front().created_at), "2026-01-01T00:00:00.000000Z");
+  EXPECT_EQ(all->back().version, 2);  // second set of the left leg
+
+  auto right_leg = sets.History({a.subject_id, a.leg_id, std::nullopt, std::nullopt, std::nullopt});
+  ASSERT_TRUE(right_leg.ok());
+  EXPECT_EQ(right_leg->size(), 10u);
+  EXPECT_EQ(right_leg->back().version, 10);
+
+  auto twitch = sets.History({a.subject_id, a.leg_id, "twitch_deconvolution", std::nullopt,
+                              std::nullopt});
+  ASSERT_TRUE(twitch.ok());
+  EXPECT_EQ(twitch->size(), 5u);
+  auto passive = sets.History({a.subject_id, std::nullopt, "free_swing", std::nullopt,
+                               std::nullopt});
+  ASSERT_TRUE(passive.ok());
+  EXPECT_EQ(passive->size(), 12u);
+
+  // [day 3, day 7): days 3, 4, 5, 6.
+  auto range = sets.History({a.subject_id, std::nullopt, std::nullopt,
+                             Epoch2026() + std::chrono::days(3),
+                             Epoch2026() + std::chrono::days(7)});
+  ASSERT_TRUE(range.ok());
+  ASSERT_EQ(range->size(), 4u);
+  EXPECT_EQ(range->front().version, 4);
+  EXPECT_EQ(range->back().version, 7);
+
+  HistoryQuery limited{a.subject_id, std::nullopt, std::nullopt, std::nullopt, std::nullopt, 3};
+  auto first3 = sets.History(limited);
+  ASSERT_TRUE(first3.ok());
+  EXPECT_EQ(first3->size(), 3u);
+
+  EXPECT_EQ(sets.History({999, std::nullopt, std::nullopt, std::nullopt, std::nullopt})
+                .status().code(),
+            api::ErrorCode::kNotFound);
+
+  // The history query is an index range scan, not a table scan.
+  auto plan = db_->Read([](Connection& c) -> api::Result<std::string> {
+    auto s = c.Prepare(
+        "EXPLAIN QUERY PLAN SELECT id FROM parameter_sets WHERE subject_id = ?1"
+        " AND created_at_utc >= ?2 AND created_at_utc < ?3 ORDER BY created_at_utc, id");
+    if (!s.ok()) return s.status();
+    std::string all_rows;
+    while (true) {
+      auto row = s->Step();
+      if (!row.ok()) return row.status();
+      if (!*row) break;
+      all_rows += s->Text(3) + "\n";
+    }
+    return all_rows;
+  });
+  ASSERT_TRUE(plan.ok());
+  EXPECT_NE(plan->find("INDEX parameter_sets_subject_time"), std::string::npos) << *plan;
+}
+
+TEST_F(StorageTest, ParameterSetBadInputNamesTheProblem) {
+  const Session a = MakeSession("Q1");
+  const Session b = MakeSession("Q2");
+  ParameterSetRepository sets(*db_);
+  auto params = Params("ramp_correlation", "free_swing");
+  EXPECT_EQ(sets.Insert({999, a.leg_id, params, std::nullopt, std::nullopt}).status().message(),
+            "subject 999 not found");
+  EXPECT_EQ(sets.Insert({a.subject_id, b.leg_id, params, std::nullopt, std::nullopt})
+                .status().field(),
+            "leg_id");
+  auto trial_b = TrialRepository(*db_).Insert({b.id, std::nullopt}, MakeTrial(5));
+  ASSERT_TRUE(trial_b.ok());
+  auto with_b = params;
+  with_b.provenance.trial_ids = {*trial_b};
+  auto foreign = sets.Insert({a.subject_id, a.leg_id, with_b, std::nullopt, std::nullopt});
+  EXPECT_EQ(foreign.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(foreign.status().field(), "provenance.trial_ids[0]");
+  auto with_missing = params;
+  with_missing.provenance.trial_ids = {4242};
+  auto missing = sets.Insert({a.subject_id, a.leg_id, with_missing, std::nullopt, std::nullopt});
+  EXPECT_EQ(missing.status().code(), api::ErrorCode::kNotFound);
+  EXPECT_EQ(missing.status().field(), "provenance.trial_ids[0]");
+  auto bad = params;
+  bad.passive.inertia_kgm2 = -1.0;
+  auto invalid = sets.Insert({a.subject_id, a.leg_id, bad, std::nullopt, std::nullopt});
+  EXPECT_EQ(invalid.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(invalid.status().field(), "passive.inertia_kgm2");
+  auto other = sets.Insert({b.subject_id, b.leg_id, params, std::nullopt, std::nullopt});
+  ASSERT_TRUE(other.ok());
+  EXPECT_EQ(sets.Insert({a.subject_id, a.leg_id, params, other->id, std::nullopt})
+                .status().field(),
+            "supersedes_id");
+  EXPECT_EQ(sets.Get(999).status().code(), api::ErrorCode::kNotFound);
+  EXPECT_EQ(sets.ExportJson(999).status().code(), api::ErrorCode::kNotFound);
+  EXPECT_EQ(sets.Latest(a.subject_id, a.leg_id).status().code(), api::ErrorCode::kNotFound);
+}
+
+}  // namespace
+}  // namespace fesbench::storage

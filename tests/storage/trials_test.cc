@@ -1,0 +1,83 @@
+#include "storage/trials.h"
+
+#include <gtest/gtest.h>
+
+#include "storage_test_util.h"
+
+namespace fesbench::storage {
+namespace {
+
+using testing::MakeTrial;
+using testing::StorageTest;
+
+TEST_F(StorageTest, TrialRoundTripKeepsEveryChannelExactly) {
+  const Session session = MakeSession("T1");
+  auto run = SessionRepository(*db_).CreateRun(session.id, {"free_swing", "1.0", "{}"});
+  ASSERT_TRUE(run.ok());
+  api::Trial trial = MakeTrial(2000);
+  // EMG at 1 kHz in its own group.
+  api::ChannelGroup emg;
+  emg.sample_rate_hz = 1000.0;
+  std::vector<double> t(50), mv(50);
+  for (int i = 0; i < 50; ++i) {
+    t[static_cast<std::size_t>(i)] = i / 1000.0;
+    mv[static_cast<std::size_t>(i)] = 0.001 * i - 0.02;
+  }
+  emg.Set("t_s", t);
+  emg.Set("emg_mv", mv);
+  trial.emg = emg;
+
+  TrialRepository trials(*db_);
+  auto id = trials.Insert({session.id, run->id}, trial);
+  ASSERT_TRUE(id.ok()) << id.status().ToString();
+  auto back = trials.Get(*id);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  api::Trial expected = trial;
+  expected.id = *id;
+  EXPECT_EQ(*back, expected);  // bit-exact samples, units, rates, names
+  ASSERT_EQ(back->channels.size(), 4u);
+  EXPECT_EQ(back->channels[2].unit, "N.m");
+  EXPECT_EQ(back->emg->sample_rate_hz, 1000.0);
+
+  auto owner = trials.Owner(*id);
+  ASSERT_TRUE(owner.ok());
+  EXPECT_EQ(owner->session_id, session.id);
+  EXPECT_EQ(owner->run_id, run->id);
+  auto list = trials.ListForSession(session.id);
+  ASSERT_TRUE(list.ok());
+  ASSERT_EQ(list->size(), 1u);
+  EXPECT_EQ(list->front().num_samples, 2000u);
+  EXPECT_EQ(list->front().sample_rate_hz, 200.0);
+  EXPECT_EQ(list->front().name, "free_swing");
+
+  // The BLOB is 8 bytes per sample.
+  auto bytes = db_->Read([&](Connection& c) {
+    return c.QueryText("SELECT sum(length(samples_f64le)) FROM trial_channels WHERE grp = 'main'");
+  });
+  ASSERT_TRUE(bytes.ok());
+  EXPECT_EQ(*bytes, std::to_string(4 * 2000 * 8));
+}
+
+TEST_F(StorageTest, TrialBadInputNamesTheProblem) {
+  const Session session = MakeSession("T2");
+  TrialRepository trials(*db_);
+  EXPECT_EQ(trials.Insert({999, std::nullopt}, MakeTrial(5)).status().message(),
+            "session 999 not found");
+  EXPECT_EQ(trials.Insert({session.id, 42}, MakeTrial(5)).status().message(), "run 42 not found");
+  const Session other = MakeSession("T3");
+  auto other_run = SessionRepository(*db_).CreateRun(other.id, {"p", "1", "{}"});
+  ASSERT_TRUE(other_run.ok());
+  EXPECT_EQ(trials.Insert({session.id, other_run->id}, MakeTrial(5)).status().field(), "run_id");
+  api::Trial bad = MakeTrial(5);
+  bad.channels[1].values.pop_back();  // ragged
+  auto invalid = trials.Insert({session.id, std::nullopt}, bad);
+  EXPECT_EQ(invalid.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_FALSE(invalid.status().field().empty());
+  EXPECT_EQ(trials.Get(31337).status().message(), "trial 31337 not found");
+  auto none = trials.ListForSession(session.id);
+  ASSERT_TRUE(none.ok());
+  EXPECT_TRUE(none->empty());
+}
+
+}  // namespace
+}  // namespace fesbench::storage
