@@ -34,8 +34,10 @@ constexpr double kLockToleranceDeg = 0.05;
 constexpr double kLockVelocityDegS = 5.0;
 
 // Hard stops: stiff one-sided spring–damper.
-constexpr double kStopStiffnessNmPerDeg = 2000.0;
-constexpr double kStopDampingNmPerDegS = 4.0;
+constexpr double kStopStiffnessNmPerDeg = 10000.0;
+constexpr double kStopDampingNmPerDegS = 20.0;
+constexpr double kStopZoneDeg = 5.0;        // finer sub-steps this close to a stop
+constexpr double kStopZoneSubStepS = 1e-4;
 
 // EMG: M-wave shape after each pulse.
 constexpr double kMWavePeriodS = 0.012;
@@ -200,7 +202,7 @@ void SimulatedBench::SetMotorMode(MotorMode mode) {
   std::lock_guard lock(mu_);
   if (mode != mode_) lock_engaged_ = false;
   mode_ = mode;
-  ControlStepStart();
+  TryEngageLock();
 }
 
 void SimulatedBench::SetMotorSetpoint(double angle_deg) {
@@ -214,7 +216,7 @@ void SimulatedBench::SetMotorSetpoint(double angle_deg) {
   }
   if (angle_deg != setpoint_deg_) lock_engaged_ = false;
   setpoint_deg_ = angle_deg;
-  ControlStepStart();
+  TryEngageLock();
 }
 
 MotorMode SimulatedBench::EffectiveMode() const {
@@ -287,7 +289,7 @@ SimulatedBench::Forces SimulatedBench::CalcForces(double t_s, const State& x, do
   f.ptv = joint_.PassiveVelocityTorque(om);
   if (fid.hysteresis_nm > 0.0) {
     // Dahl-type loop: dτ_h/dθ = (H·sgn θ̇ − τ_h)/θ_h (Fig. 3-7, §6.6).
-    f.hyst_rate = (std::abs(om) * fid.hysteresis_nm - om * hyst) / fid.hysteresis_angle_deg;
+    f.hyst_rate = (om * fid.hysteresis_nm - std::abs(om) * hyst) / fid.hysteresis_angle_deg;
   }
   if (fid.static_friction_nm > 0.0) {
     f.fric = fid.static_friction_nm * std::tanh(om / fid.friction_velocity_deg_s);  // Fig. 6-22
@@ -377,7 +379,9 @@ void SimulatedBench::SubStep(double h) {
 void SimulatedBench::IntegratePiece(double t_end) {
   const double span = t_end - t_;
   if (!(span > 0.0)) return;
-  const long n = model::EvenStepCount(span, kMaxSubStepS);
+  const bool near_stop = x_[0] < options_.limits.min_angle_deg + kStopZoneDeg ||
+                         x_[0] > options_.limits.max_angle_deg - kStopZoneDeg;
+  const long n = model::EvenStepCount(span, near_stop ? kStopZoneSubStepS : kMaxSubStepS);
   const double h = span / static_cast<double>(n);
   for (long k = 0; k < n; ++k) SubStep(h);
   t_ = t_end;  // exact end, no round-off drift
@@ -391,16 +395,22 @@ void SimulatedBench::ControlStepStart() {
     lock_engaged_ = false;
   } else {
     StartTrainIfDue();
+    FireDuePulses();  // a pulse due exactly where the last AdvanceTo stopped
   }
   if (t_ - setpoint_time_s_ > 2.5 * kControlDtS) setpoint_velocity_deg_s_ = 0.0;
+  TryEngageLock();
+  if (t_ >= burst_end_s_) ScheduleBursts();
+}
+
+void SimulatedBench::TryEngageLock() {
   if (mode_ == MotorMode::kLocked && !lock_engaged_ && !HardwareEStopped() &&
       std::abs(x_[0] - setpoint_deg_) <= kLockToleranceDeg &&
       std::abs(x_[1]) <= kLockVelocityDegS) {
     lock_engaged_ = true;
     x_[0] = setpoint_deg_;
     x_[1] = 0.0;
+    ce_angle_deg_ = subject_.fidelity.series_stiffness_nm_per_deg > 0.0 ? ce_angle_deg_ : x_[0];
   }
-  if (t_ >= burst_end_s_) ScheduleBursts();
 }
 
 void SimulatedBench::AdvanceTo(double t_target) {
@@ -416,7 +426,9 @@ void SimulatedBench::AdvanceTo(double t_target) {
         next = std::min(next, train_start_s_ + static_cast<double>(train_count_) * period_s);
       }
       if (next > t_) IntegratePiece(next);
-      FireDuePulses();
+      // Pulses due at the very end wait for the caller's commands at that
+      // time (a stimulator samples its amplitude when it fires).
+      if (t_ < t_target - 1e-12) FireDuePulses();
     }
     t_ = std::max(t_, seg_end);
     if (t_ >= grid_next - 1e-12) {
