@@ -1,0 +1,87 @@
+#pragma once
+
+/// @file
+/// Rapid parameterisation (thesis §7.4.1): a complete parameter set from
+/// three short trials —
+///  1. an isometric ramp trial (impulses + cosine ramp, knee locked): the
+///     contraction pole from the averaged impulse responses (Eqs. 4.2, 4.4)
+///     and the IRC by ramp correlation (Eq. 4.5);
+///  2. a free-swing trial under a sparse random-binary train and
+///  3. a free-swing trial under a dense random-binary train:
+///     with the limb inertia J known ("the torque-angle curve can be
+///     estimated from the free swing method if the inertia is already
+///     known", §7.4.1), τ_pta(θ) and τ_ptv(θ̇) from the passive samples
+///     (f_stim ≤ 0.01) of both, by Eq. 4.35 with J moved to the left:
+///       −J·θ̈ = Σ c_j X_j(θ) + Σ c_k X_k(θ̇)   (Eq. 4.30 basis, SVD Eqs. 4.19–4.26),
+///     then f_ata, f_atv and τ_scale from the stimulated samples (f_stim ≥
+///     0.01) by Eq. 4.40.
+/// Velocity and acceleration come from the position by a GCV smoothing
+/// spline (§5.1, and §7.4.1: "the position signal could be double
+/// differentiated off-line … This would eliminate the need to calibrate
+/// the accelerometer"); f_stim from the identified IRC and contraction
+/// dynamics driven by the recorded envelope's pulses.
+
+#include "model/identify_active.h"
+#include "model/identify_common.h"
+#include "model/identify_isometric.h"
+#include "model/identify_passive.h"
+#include "model/parameter_set.h"
+#include "model/signal.h"
+
+namespace fesbench::model {
+
+/// Options of IdentifyRapid.
+struct RapidOptions {
+  double inertia_kgm2 = 0.0;            ///< known limb inertia J > 0, kg·m².
+  double pulse_rate_hz = 33.0;          ///< stimulator pulse rate, Hz (> 0).
+  ContractionOptions contraction{};     ///< order 3, pole from the peak.
+  IrcOptions irc{};                     ///< ramp-correlation settings.
+  BreakpointSpec passive_angle{9, {}};  ///< τ_pta breakpoints over the visited range.
+  BreakpointSpec passive_velocity{7, {}};
+  BreakpointSpec active_angle{7, {}};
+  BreakpointSpec active_velocity{7, {}};
+  double max_passive_activation = 0.01; ///< §5.4.3.
+  double relative_tolerance = 1e-8;     ///< SVD truncation (Eq. 4.26).
+};
+
+/// A parameter set and what the fits reported.
+struct RapidResult {
+  ParameterSet parameters;
+  IdentifyReport report;
+};
+
+/// The stimulator's pulses for a trial's stim_ma envelope (200 Hz samples
+/// held, PulsesFromEnvelope), times relative to t_s[0].
+/// @throws std::invalid_argument if t_s has fewer than 2 samples, the
+///   columns differ in length, or the pulse rate is not > 0.
+PulseTrain TrialPulses(const TrialColumns& trial, double pulse_rate_hz);
+
+/// Fills velocity_deg_s and accel_deg_s2 from angle_deg by a GCV cubic
+/// smoothing spline (GcvSmoothingSpline, §5.1).
+/// @throws std::invalid_argument as GcvSmoothingSpline.
+void AddKinematics(TrialColumns& trial);
+
+/// τ_pta and τ_ptv from free-swing trials with known inertia (§7.4.1,
+/// Eq. 4.35 rearranged): uses the samples with activation ≤
+/// max_activation. Trials need t_s, angle_deg, velocity_deg_s,
+/// accel_deg_s2, activation. Result referenced (§6.5, ReferencePassive).
+/// @throws std::invalid_argument if inertia_kgm2 is not > 0, a column is
+///   missing, or there are fewer passive samples than parameters.
+PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials,
+                                          double inertia_kgm2,
+                                          const BreakpointSpec& angle = {9, {}},
+                                          const BreakpointSpec& velocity = {7, {}},
+                                          double max_activation = 0.01,
+                                          double relative_tolerance = 1e-8);
+
+/// The whole §7.4.1 identification. `isometric` needs t_s, stim_ma,
+/// torque_nm (offset-corrected or not); `passive` and `active` need t_s,
+/// stim_ma and angle_deg (velocity, acceleration and activation are
+/// computed). Provenance: irc_method "ramp_correlation", passive_method
+/// "free_swing_known_inertia", active_method "log_least_squares".
+/// @throws std::invalid_argument if inertia_kgm2 is not > 0 or any fit's
+///   precondition fails (the message names it).
+RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& passive,
+                          const TrialColumns& active, const RapidOptions& options);
+
+}  // namespace fesbench::model

@@ -1,0 +1,390 @@
+#include "server/protocols/plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "model/stimulus_generators.h"
+#include "model/trajectory.h"
+
+namespace fesbench::server::protocols {
+namespace {
+
+std::int64_t Ticks(double s) { return static_cast<std::int64_t>(std::llround(s * kTicksPerSecond)); }
+
+model::GeneratorParams Pick(const ParameterValues& v, std::initializer_list<const char*> names) {
+  model::GeneratorParams out;
+  for (const char* n : names) {
+    if (const auto it = v.find(n); it != v.end()) out[n] = it->second;
+  }
+  return out;
+}
+
+class Builder {
+ public:
+  explicit Builder(Plan& plan) : plan_(plan) {}
+
+  int AddTrial(std::string name, MotorMode mode, bool setpoint = false) {
+    plan_.trials.push_back({std::move(name), mode, setpoint});
+    return static_cast<int>(plan_.trials.size()) - 1;
+  }
+
+  void Prepare(std::string label, MotorMode mode, double angle_deg, double settle_s,
+               bool move_from_current = false) {
+    Step s;
+    s.phase = StepPhase::kPrepare;
+    s.label = std::move(label);
+    s.ticks = Ticks(settle_s);
+    s.motor_mode = mode;
+    s.setpoint_deg = angle_deg;
+    s.move_from_current = move_from_current;
+    Push(std::move(s));
+  }
+
+  /// The 50-sample offset that starts a trial (§5.3).
+  void Offset(int trial, MotorMode mode, double angle_deg) {
+    Step s;
+    s.phase = StepPhase::kOffset;
+    s.label = "offset";
+    s.ticks = kOffsetSamples;
+    s.motor_mode = mode;
+    s.setpoint_deg = angle_deg;
+    s.trial = trial;
+    Push(std::move(s));
+  }
+
+  void Rest(std::string label, double rest_s, double min_rest_s, int trial, MotorMode mode,
+            double angle_deg) {
+    Step s;
+    s.phase = StepPhase::kRest;
+    s.label = std::move(label);
+    s.ticks = Ticks(std::max(rest_s, min_rest_s));
+    s.motor_mode = mode;
+    s.setpoint_deg = angle_deg;
+    s.trial = trial;
+    s.min_rest_s = min_rest_s;
+    Push(std::move(s));
+  }
+
+  /// A recorded stimulation envelope: the offset lead, then its runs of
+  /// stimulation (kStimulate) and of zero (kRest, whose last 50 ms before
+  /// the next stimulation is a fresh torque offset, kOffset).
+  void EnvelopeTrial(int trial, const model::SampledSignal& envelope, MotorMode mode,
+                     double angle_deg, double min_rest_s) {
+    Offset(trial, mode, angle_deg);
+    auto env = std::make_shared<const model::SampledSignal>(envelope);
+    const std::vector<double>& v = env->values;
+    std::size_t i = 0;
+    while (i < v.size()) {
+      const bool on = v[i] > 0.0;
+      std::size_t j = i;
+      while (j < v.size() && (v[j] > 0.0) == on) ++j;
+      const std::int64_t begin = static_cast<std::int64_t>(i) * kTicksPerSample;
+      const std::int64_t len = static_cast<std::int64_t>(j - i) * kTicksPerSample;
+      const auto piece = [&](StepPhase phase, std::int64_t from, std::int64_t ticks) {
+        if (ticks <= 0) return;
+        Step s;
+        s.phase = phase;
+        s.label = phase == StepPhase::kStimulate ? "stimulate"
+                  : phase == StepPhase::kOffset  ? "offset"
+                                                 : "rest";
+        s.ticks = ticks;
+        s.motor_mode = mode;
+        s.setpoint_deg = angle_deg;
+        s.envelope = env;
+        s.stim_offset_ticks = from;
+        s.trial = trial;
+        if (phase == StepPhase::kRest) s.min_rest_s = std::min(min_rest_s, ticks / 1000.0);
+        Push(std::move(s));
+      };
+      if (on) {
+        piece(StepPhase::kStimulate, begin, len);
+      } else if (j < v.size() && len >= 2 * kOffsetSamples) {
+        piece(StepPhase::kRest, begin, len - kOffsetSamples);
+        piece(StepPhase::kOffset, begin + len - kOffsetSamples, kOffsetSamples);
+      } else {
+        piece(StepPhase::kRest, begin, len);
+      }
+      i = j;
+    }
+  }
+
+  void Move(std::string label, std::shared_ptr<const model::Trajectory> trajectory, int trial) {
+    Step s;
+    s.phase = StepPhase::kMove;
+    s.label = std::move(label);
+    s.ticks = Ticks(trajectory->duration_s());
+    s.motor_mode = MotorMode::kPosition;
+    s.setpoint_deg = trajectory->At(trajectory->duration_s()).angle_deg;
+    s.trajectory = std::move(trajectory);
+    s.trial = trial;
+    Push(std::move(s));
+  }
+
+  void MoveTo(std::string label, double angle_deg, double move_s, int trial) {
+    Step s;
+    s.phase = StepPhase::kMove;
+    s.label = std::move(label);
+    s.ticks = Ticks(move_s);
+    s.motor_mode = MotorMode::kPosition;
+    s.setpoint_deg = angle_deg;
+    s.move_from_current = true;
+    s.trial = trial;
+    Push(std::move(s));
+  }
+
+  void Push(Step s) {
+    if (s.ticks > 0) plan_.steps.push_back(std::move(s));
+  }
+
+ private:
+  Plan& plan_;
+};
+
+model::SampledSignal Stimulus(const char* generator, const model::GeneratorParams& params) {
+  return model::MakeStimulus(generator, params);
+}
+
+void BuildTolerance(const ParameterValues& v, Plan& plan, Builder& b) {
+  const double lock = v.at("lock_angle_deg");
+  plan.max_stim_ma = v.at("ceiling_ma");
+  plan.tolerance = ToleranceSettings{v.at("threshold_torque_nm"), v.at("min_torque_at_max_nm")};
+  if (!(v.at("ceiling_ma") > v.at("start_ma"))) {
+    throw std::invalid_argument("ceiling_ma: must be above start_ma");
+  }
+  b.Prepare("lock", MotorMode::kLocked, lock, v.at("settle_s"));
+  const int t = b.AddTrial("tolerance_test", MotorMode::kLocked);
+  b.Offset(t, MotorMode::kLocked, lock);
+  Step s;
+  s.phase = StepPhase::kStimulate;
+  s.label = "raise amplitude";
+  s.ticks = Ticks((v.at("ceiling_ma") - v.at("start_ma")) / v.at("rate_ma_per_s"));
+  s.motor_mode = MotorMode::kLocked;
+  s.setpoint_deg = lock;
+  s.tolerance_ramp = true;
+  s.ramp_start_ma = v.at("start_ma");
+  s.ramp_ma_per_s = v.at("rate_ma_per_s");
+  s.trial = t;
+  b.Push(std::move(s));
+  b.Rest("relax", 1.0, 0.0, t, MotorMode::kLocked, lock);
+}
+
+void BuildIsometric(const std::string& name, const ParameterValues& v, double min_rest_s,
+                    Builder& b) {
+  const double lock = v.at("lock_angle_deg");
+  b.Prepare("lock", MotorMode::kLocked, lock, v.at("settle_s"));
+  model::SampledSignal env;
+  if (name == "isometric_ramp_irc") {
+    env = Stimulus("isometric_ramp_irc",
+                   Pick(v, {"threshold_ma", "max_ma", "conditioning_s", "conditioning_fraction",
+                            "impulses", "ramps", "below_threshold_ma", "ramp_duration_s",
+                            "rest_s"}));
+  } else if (name == "isometric_step_irc") {
+    env = Stimulus("step_bursts",
+                   Pick(v, {"threshold_ma", "max_ma", "levels", "burst_s", "ramp_s", "rest_s"}));
+  } else if (name == "isometric_impulse_irc") {
+    env = Stimulus("impulse_series",
+                   Pick(v, {"threshold_ma", "max_ma", "count", "below_threshold_ma", "interval_s"}));
+  } else {
+    env = Stimulus("plateau_profile", Pick(v, {"threshold_ma", "max_ma", "above_threshold_ma",
+                                               "lead_s", "ramp_s", "hold_s", "tail_s"}));
+  }
+  const int t = b.AddTrial(name, MotorMode::kLocked);
+  b.EnvelopeTrial(t, env, MotorMode::kLocked, lock, min_rest_s);
+}
+
+void BuildSequential(const ParameterValues& v, double min_rest_s, Builder& b) {
+  const double ref = v.at("reference_deg");
+  auto positions = std::make_shared<model::PiecewisePolynomialTrajectory>(
+      model::PassivePositions({ref, v.at("max_angle_deg"), v.at("min_angle_deg"),
+                               static_cast<int>(v.at("positions")), v.at("hold_s"),
+                               v.at("move_s"), 10.0})
+          .trajectory);
+  model::PassiveVelocitiesOptions pv;
+  pv.reference_deg = ref;
+  pv.min_deg = v.at("min_angle_deg");
+  pv.speeds = static_cast<int>(v.at("speeds"));
+  pv.max_speed_deg_s = v.at("max_speed_deg_s");
+  pv.pause_s = std::max(v.at("pause_s"), min_rest_s);
+  auto velocities = std::make_shared<model::PiecewisePolynomialTrajectory>(
+      model::PassiveVelocities(pv).trajectory);
+  const int tp = b.AddTrial("passive_positions", MotorMode::kPosition, true);
+  b.Prepare("move to reference", MotorMode::kPosition, ref, v.at("settle_s"), true);
+  b.Offset(tp, MotorMode::kPosition, ref);
+  b.Move("positions", positions, tp);
+  const int tv = b.AddTrial("passive_velocities", MotorMode::kPosition, true);
+  b.Prepare("move to reference", MotorMode::kPosition, ref, v.at("settle_s"), true);
+  b.Offset(tv, MotorMode::kPosition, ref);
+  b.Move("velocities", velocities, tv);
+}
+
+void BuildSimultaneous(const ParameterValues& v, Builder& b) {
+  const int n = static_cast<int>(v.at("trajectories"));
+  for (int k = 0; k < n; ++k) {
+    model::SumOfSinesOptions o;
+    o.min_deg = v.at("min_angle_deg");
+    o.max_deg = v.at("max_angle_deg");
+    o.max_velocity_deg_s = v.at("max_velocity_deg_s");
+    o.duration_s = v.at("duration_s");
+    o.seed = static_cast<std::uint64_t>(v.at("seed")) + static_cast<std::uint64_t>(k);
+    auto traj = std::make_shared<model::SumOfSinesTrajectory>(o);
+    const int t = b.AddTrial("passive_simultaneous_" + std::to_string(k + 1),
+                             MotorMode::kPosition, true);
+    b.Prepare("move to reference", MotorMode::kPosition, 90.0, v.at("settle_s"), true);
+    b.Offset(t, MotorMode::kPosition, 90.0);
+    b.MoveTo("move to start", traj->centre_deg(), v.at("settle_s"), t);
+    b.Move("sum of sines", traj, t);
+  }
+}
+
+model::SampledSignal RandomBinary(bool dense, double amplitude_ma, double duration_s,
+                                  double seed) {
+  return Stimulus(dense ? "random_binary_dense" : "random_binary_sparse",
+                  {{"amplitude_ma", amplitude_ma}, {"duration_s", duration_s}, {"seed", seed}});
+}
+
+void BuildFreeSwing(const std::string& name, const ParameterValues& v, double min_rest_s,
+                    Builder& b) {
+  b.Prepare("decouple", MotorMode::kDecoupled, 90.0, v.at("settle_s"));
+  const double amp = v.at("amplitude_ma");
+  if (name == "free_swing_passive") {
+    const int t = b.AddTrial(name, MotorMode::kDecoupled);
+    b.EnvelopeTrial(t, RandomBinary(false, amp, v.at("duration_s"), v.at("seed")),
+                    MotorMode::kDecoupled, 90.0, 0.0);
+    return;
+  }
+  const int t1 = b.AddTrial("active_random_binary_rb1", MotorMode::kDecoupled);
+  b.EnvelopeTrial(t1, RandomBinary(true, amp, v.at("duration_s"), v.at("rb1_seed")),
+                  MotorMode::kDecoupled, 90.0, 0.0);
+  b.Rest("rest between trains", v.at("rest_s"), min_rest_s, -1, MotorMode::kDecoupled, 90.0);
+  const int t2 = b.AddTrial("active_random_binary_rb2", MotorMode::kDecoupled);
+  b.EnvelopeTrial(t2, RandomBinary(true, amp, v.at("duration_s"), v.at("rb2_seed")),
+                  MotorMode::kDecoupled, 90.0, 0.0);
+}
+
+void BuildPrediction(const std::string& name, const ParameterValues& v, Builder& b) {
+  b.Prepare("decouple", MotorMode::kDecoupled, 90.0, v.at("settle_s"));
+  model::SampledSignal env;
+  if (name == "prediction_step") {
+    env = Stimulus("prediction_step",
+                   Pick(v, {"threshold_ma", "max_ma", "level_fraction", "onset_s", "on_s", "off_s"}));
+  } else if (name == "prediction_ramp") {
+    env = Stimulus("prediction_ramp", Pick(v, {"max_ma", "up_s", "down_s"}));
+  } else if (name == "prediction_sine") {
+    env = Stimulus("prediction_sine", Pick(v, {"threshold_ma", "max_ma", "above_threshold_ma",
+                                               "tail_s"}));
+  } else {
+    env = RandomBinary(v.at("dense") != 0.0, v.at("amplitude_ma"), v.at("duration_s"),
+                       v.at("seed"));
+  }
+  const int t = b.AddTrial(name, MotorMode::kDecoupled);
+  b.EnvelopeTrial(t, env, MotorMode::kDecoupled, 90.0, 0.0);
+}
+
+void BuildRapid(const ParameterValues& v, double min_rest_s, Plan& plan, Builder& b) {
+  const double lock = v.at("lock_angle_deg");
+  b.Prepare("lock", MotorMode::kLocked, lock, v.at("settle_s"));
+  const int ramp = b.AddTrial("rapid_isometric_ramp_irc", MotorMode::kLocked);
+  b.EnvelopeTrial(ramp,
+                  Stimulus("isometric_ramp_irc",
+                           Pick(v, {"threshold_ma", "max_ma", "conditioning_s", "impulses",
+                                    "ramps", "below_threshold_ma", "ramp_duration_s", "rest_s"})),
+                  MotorMode::kLocked, lock, min_rest_s);
+  b.Prepare("decouple", MotorMode::kDecoupled, lock, v.at("swing_settle_s"));
+  const double amp = v.at("amplitude_ma");
+  const int passive = b.AddTrial("rapid_free_swing_passive", MotorMode::kDecoupled);
+  b.EnvelopeTrial(passive, RandomBinary(false, amp, v.at("duration_s"), v.at("passive_seed")),
+                  MotorMode::kDecoupled, lock, 0.0);
+  const int active = b.AddTrial("rapid_active_random_binary", MotorMode::kDecoupled);
+  b.EnvelopeTrial(active, RandomBinary(true, amp, v.at("duration_s"), v.at("active_seed")),
+                  MotorMode::kDecoupled, lock, 0.0);
+  plan.rapid = RapidSettings{ramp, passive, active};
+}
+
+}  // namespace
+
+std::string_view StepPhaseName(StepPhase phase) {
+  switch (phase) {
+    case StepPhase::kPrepare: return "prepare";
+    case StepPhase::kOffset: return "offset";
+    case StepPhase::kStimulate: return "stimulate";
+    case StepPhase::kRest: return "rest";
+    case StepPhase::kMove: return "move";
+    case StepPhase::kIdentify: return "identify";
+  }
+  return "rest";
+}
+
+std::int64_t Plan::total_ticks() const {
+  std::int64_t n = 0;
+  for (const Step& s : steps) n += s.ticks;
+  return n;
+}
+
+api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const ParameterValues& values,
+                            const SubjectContext& subject) {
+  Plan plan;
+  plan.protocol = protocol.name;
+  plan.protocol_version = protocol.version;
+  plan.kind = protocol.kind;
+  plan.parameters = values;
+  plan.max_stim_ma = subject.max_tolerated_ma;
+  Builder b(plan);
+  const std::string& name = protocol.name;
+  try {
+    if (name == "tolerance_test") {
+      BuildTolerance(values, plan, b);
+    } else if (name.starts_with("isometric_")) {
+      BuildIsometric(name, values, protocol.min_rest_s, b);
+    } else if (name == "passive_sequential") {
+      BuildSequential(values, protocol.min_rest_s, b);
+    } else if (name == "passive_simultaneous") {
+      BuildSimultaneous(values, b);
+    } else if (name == "free_swing_passive" || name == "active_random_binary") {
+      BuildFreeSwing(name, values, protocol.min_rest_s, b);
+    } else if (name.starts_with("prediction_")) {
+      BuildPrediction(name, values, b);
+    } else if (name == "rapid_parameterisation") {
+      BuildRapid(values, protocol.min_rest_s, plan, b);
+    } else {
+      return api::Status::NotFound("no plan for protocol " + name);
+    }
+  } catch (const std::out_of_range& e) {
+    return api::Status::InvalidArgument(std::string("parameters not resolved: ") + e.what(),
+                                        "parameters");
+  } catch (const std::invalid_argument& e) {
+    return api::Status::InvalidArgument(e.what(), "parameters");
+  }
+  return plan;
+}
+
+api::Result<Plan> MakePlan(std::string_view protocol, const ParameterValues& values,
+                           const SubjectContext& subject) {
+  const ProtocolDescription* p = FindProtocol(protocol);
+  if (p == nullptr) return api::Status::NotFound("unknown protocol " + std::string(protocol));
+  api::Result<ParameterValues> resolved = ResolveParameters(*p, values, subject);
+  if (!resolved.ok()) return resolved.status();
+  return BuildPlan(*p, *resolved, subject);
+}
+
+model::SampledSignal TrialEnvelope(const Plan& plan, int trial) {
+  model::SampledSignal out;
+  out.rate_hz = 200.0;
+  for (const Step& s : plan.steps) {
+    if (s.trial != trial) continue;
+    const std::int64_t samples = s.ticks / kTicksPerSample;
+    for (std::int64_t k = 0; k < samples; ++k) {
+      double u = 0.0;
+      if (s.envelope) {
+        const std::int64_t idx = (s.stim_offset_ticks + k * kTicksPerSample) / kTicksPerSample;
+        if (idx >= 0 && idx < static_cast<std::int64_t>(s.envelope->values.size())) {
+          u = s.envelope->values[static_cast<std::size_t>(idx)];
+        }
+      }
+      out.values.push_back(u);
+    }
+  }
+  return out;
+}
+
+}  // namespace fesbench::server::protocols

@@ -1,0 +1,119 @@
+#pragma once
+
+/// @file
+/// A protocol's bench steps (DESIGN.md §5): what BuildPlan makes of a
+/// description, resolved parameter values and the subject, and what the
+/// engine (runner.h) executes tick by tick at the control rate (1 kHz).
+///
+/// All durations are whole control ticks (1 ms). Stimulation envelopes are
+/// the 200 Hz generators of model/stimulus_generators.h, held between
+/// samples as the stimulator's D/A does; set-points come from the
+/// trajectories of model/trajectory.h at every tick.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "api/status.h"
+#include "model/signal.h"
+#include "server/bench/bench.h"
+#include "server/protocols/protocol.h"
+
+namespace fesbench::server::protocols {
+
+/// Control ticks per second (DESIGN.md §2: set-points at 1 kHz).
+inline constexpr std::int64_t kTicksPerSecond = 1000;
+/// Ticks per 200 Hz sample.
+inline constexpr std::int64_t kTicksPerSample = 5;
+/// Torque samples averaged as the offset before stimulation (§5.3: "sampled
+/// 50 times in rapid succession"), one per tick.
+inline constexpr std::int64_t kOffsetSamples = 50;
+
+/// What a step is doing (reported to observers).
+enum class StepPhase { kPrepare, kOffset, kStimulate, kRest, kMove, kIdentify };
+std::string_view StepPhaseName(StepPhase phase);
+
+/// One step of a plan.
+struct Step {
+  StepPhase phase = StepPhase::kRest;
+  std::string label;
+  std::int64_t ticks = 0;                ///< duration, 1 ms ticks.
+  MotorMode motor_mode = MotorMode::kLocked;
+  /// Set-points: trajectory(t − step start + trajectory_offset_s) if set,
+  /// else a minimum-jerk move from the angle at the step's start to
+  /// setpoint_deg when move_from_current, else setpoint_deg held.
+  std::shared_ptr<const model::Trajectory> trajectory;
+  double trajectory_offset_s = 0.0;
+  double setpoint_deg = 90.0;
+  bool move_from_current = false;
+  /// Stimulation: envelope sample ⌊(tick − step start + stim_offset_ticks)/5⌋,
+  /// 0 without an envelope.
+  std::shared_ptr<const model::SampledSignal> envelope;
+  std::int64_t stim_offset_ticks = 0;
+  /// Tolerance test: amplitude ramp_start_ma + ramp_ma_per_s·t instead of an
+  /// envelope; the step ends early on StopWithResult.
+  bool tolerance_ramp = false;
+  double ramp_start_ma = 0.0;
+  double ramp_ma_per_s = 0.0;
+  /// Index of the trial the step's samples go to, or −1.
+  int trial = -1;
+  /// The step is a rest period with this protocol minimum (s); the engine
+  /// never runs it shorter.
+  double min_rest_s = 0.0;
+};
+
+/// A trial the plan records.
+struct TrialPlan {
+  std::string name;              ///< e.g. "active_random_binary_rb1".
+  MotorMode mode = MotorMode::kLocked;
+  bool record_setpoint = false;  ///< motor trials add a setpoint_deg channel.
+};
+
+/// The tolerance test's detection settings (DESIGN.md §5 tolerance_test).
+struct ToleranceSettings {
+  double threshold_torque_nm = 0.5;   ///< torque above the offset taken as response.
+  double min_torque_at_max_nm = 6.0;  ///< Appendix F part II.K.3.
+};
+
+/// The identification the rapid protocol ends with.
+struct RapidSettings {
+  int ramp_trial = 0;
+  int passive_trial = 1;
+  int active_trial = 2;
+};
+
+/// Steps, trials and what follows them.
+struct Plan {
+  std::string protocol;
+  int protocol_version = 1;
+  ProtocolKind kind = ProtocolKind::kIsometric;
+  ParameterValues parameters;  ///< resolved values.
+  std::vector<TrialPlan> trials;
+  std::vector<Step> steps;
+  /// Stimulation limit of the run, mA (session's max tolerated, or the
+  /// tolerance test's ceiling).
+  double max_stim_ma = 0.0;
+  std::optional<ToleranceSettings> tolerance;
+  std::optional<RapidSettings> rapid;
+
+  std::int64_t total_ticks() const;
+  double duration_s() const { return static_cast<double>(total_ticks()) / kTicksPerSecond; }
+};
+
+/// Builds the plan of protocol with resolved values (ResolveParameters) for
+/// subject. kInvalidArgument if a generator refuses the values (the message
+/// names the parameter), kNotFound for an unknown protocol.
+api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const ParameterValues& values,
+                            const SubjectContext& subject);
+
+/// ResolveParameters then BuildPlan.
+api::Result<Plan> MakePlan(std::string_view protocol, const ParameterValues& values,
+                           const SubjectContext& subject);
+
+/// The stimulation envelope (stim_ma at 200 Hz, t = 0 at the trial's first
+/// sample) a plan's trial commands, concatenated over its steps. Empty
+/// tolerance ramps are not included.
+model::SampledSignal TrialEnvelope(const Plan& plan, int trial);
+
+}  // namespace fesbench::server::protocols

@@ -1,0 +1,135 @@
+#pragma once
+
+/// @file
+/// Protocols as data (DESIGN.md §5; thesis §5.3–§5.4, §7.4.1, Appendix F):
+/// a named, versioned description with typed parameters (units in their
+/// names, thesis defaults, limits) that the server lists
+/// (GET /api/v1/protocols) and validates client values against. How a
+/// description becomes bench steps is in plan.h; the engine that runs the
+/// steps is runner.h.
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "api/status.h"
+#include "model/parameter_set.h"
+#include "server/bench/bench.h"
+
+namespace fesbench::server::protocols {
+
+/// How a parameter's default and limits follow the subject (Appendix F:
+/// "Set Maximum Stimulation to Subject maximum tolerance", "Set Minimum
+/// Stimulation to 5 mA below threshold"; §5.4.2 "scaled to cover the
+/// angular range of the individual subject").
+enum class Scaling {
+  kNone,          ///< default_value as is.
+  kThreshold,     ///< default = the session's threshold, mA.
+  kMaxTolerated,  ///< default = the session's max tolerated amplitude, mA.
+  /// default = threshold + default_value·(max tolerated − threshold), mA
+  /// (default_value is the fraction of the range).
+  kStimRange,
+  kRangeMin,      ///< default = the subject's range-of-motion minimum, deg.
+  kRangeMax,      ///< default = the subject's range-of-motion maximum, deg.
+};
+
+/// "none", "threshold", "max_tolerated", "stim_range", "range_min", "range_max".
+std::string_view ScalingName(Scaling scaling);
+
+/// One protocol parameter. The name ends in its unit (`_ma`, `_s`, `_deg`,
+/// `_deg_s`, `_nm`, `_ma_per_s`); unitless names are counts, fractions or
+/// seeds.
+struct ParameterSpec {
+  std::string name;
+  std::string description;
+  double default_value = 0.0;  ///< see Scaling; for kStimRange a fraction.
+  double min_value = 0.0;      ///< inclusive, in the parameter's unit.
+  double max_value = 0.0;      ///< inclusive.
+  bool integer = false;
+  Scaling scaling = Scaling::kNone;
+  /// A rest period: values below the protocol's min_rest_s are refused
+  /// (DESIGN.md §6: rest periods cannot be shortened below the minimum).
+  bool is_rest = false;
+};
+
+/// What the runner does with the bench during a protocol.
+enum class BenchMode {
+  kLocked,     ///< knee locked (isometric), 90° by default.
+  kMotor,      ///< motor moves the knee on a trajectory.
+  kDecoupled,  ///< free swing.
+  kMixed,      ///< several of the above in sequence (rapid_parameterisation).
+};
+std::string_view BenchModeName(BenchMode mode);
+
+/// Protocol families (model-gated stimulation applies to kPrediction).
+enum class ProtocolKind { kTolerance, kIsometric, kPassive, kFreeSwing, kPrediction, kRapid };
+
+/// A protocol description: pure data.
+struct ProtocolDescription {
+  std::string name;       ///< e.g. "isometric_ramp_irc".
+  int version = 1;
+  std::string title;
+  std::string description;   ///< what it does and the thesis section.
+  BenchMode bench_mode = BenchMode::kLocked;
+  ProtocolKind kind = ProtocolKind::kIsometric;
+  double min_rest_s = 0.0;   ///< shortest allowed rest period, s.
+  std::vector<ParameterSpec> parameters;
+
+  const ParameterSpec* FindParameter(std::string_view name) const;
+};
+
+/// Every protocol of DESIGN.md §5, in table order.
+const std::vector<ProtocolDescription>& ProtocolCatalog();
+/// The protocol called name, or nullptr.
+const ProtocolDescription* FindProtocol(std::string_view name);
+
+/// The session and subject a run is scaled to (DESIGN.md §7 sessions).
+struct SubjectContext {
+  double threshold_ma = 20.0;       ///< lowest amplitude giving torque.
+  double max_tolerated_ma = 45.0;   ///< highest amplitude the subject accepts.
+  double min_angle_deg = 10.0;      ///< subject's range of motion.
+  double max_angle_deg = 110.0;
+  /// Limb inertia known from elsewhere (a slow accurate method, §7.4.1, or a
+  /// prior parameter set), kg·m². Unset: Eq. 4.13 from body_mass_kg and
+  /// leg_length_m.
+  std::optional<double> inertia_kgm2;
+  std::optional<double> body_mass_kg;
+  std::optional<double> leg_length_m;  ///< femoral condyle to medial malleolus, m.
+  /// The leg's current parameter set, if any: gates prediction protocols
+  /// (model-gated stimulation) and supplies the inertia for the rapid fit.
+  std::optional<model::ParameterSet> parameter_set;
+};
+
+/// Checks a context: finite values, 0 ≤ threshold < max tolerated ≤ 100 mA,
+/// 0 ≤ min angle < max angle ≤ 180°; kInvalidArgument naming the field.
+api::Status ValidateSubject(const SubjectContext& subject);
+
+/// Parameter values by name.
+using ParameterValues = std::map<std::string, double, std::less<>>;
+
+/// The value a parameter takes by default for this subject.
+double DefaultFor(const ParameterSpec& spec, const SubjectContext& subject);
+
+/// Fills in defaults and validates client values. kInvalidArgument with
+/// field "parameters.<name>" for an unknown name, a non-finite, non-integer
+/// or out-of-range value, a stimulation parameter above the session's max
+/// tolerated amplitude, an angle outside the subject's range of motion, or
+/// a rest below the protocol's minimum ("rest below minimum").
+api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protocol,
+                                               const ParameterValues& values,
+                                               const SubjectContext& subject);
+
+/// JSON of a description (GET /api/v1/protocols/{name}):
+/// {"name", "version", "title", "description", "bench_mode", "min_rest_s",
+///  "parameters": [{"name", "unit", "description", "default", "min", "max",
+///  "integer", "scales_to", "rest"}]}.
+nlohmann::json ProtocolToJson(const ProtocolDescription& protocol);
+/// {"protocols": [...]} of the whole catalog.
+nlohmann::json CatalogToJson();
+
+}  // namespace fesbench::server::protocols

@@ -1,0 +1,55 @@
+#include "server/protocols/rapid_identification.h"
+
+#include <stdexcept>
+
+#include "model/identify_passive.h"
+#include "model/identify_rapid.h"
+#include "server/protocols/runner.h"
+
+namespace fesbench::server::protocols {
+
+api::Result<double> KnownInertia(const SubjectContext& subject) {
+  if (subject.inertia_kgm2) return *subject.inertia_kgm2;
+  if (subject.parameter_set && subject.parameter_set->passive.inertia_kgm2 > 0.0) {
+    return subject.parameter_set->passive.inertia_kgm2;
+  }
+  if (subject.body_mass_kg && subject.leg_length_m) {
+    try {
+      return model::AnthropometricInertia(*subject.body_mass_kg, *subject.leg_length_m);  // Eq. 4.13
+    } catch (const std::invalid_argument& e) {
+      return api::Status::FailedPrecondition(std::string("inertia from anthropometrics: ") + e.what());
+    }
+  }
+  return api::Status::FailedPrecondition(
+      "rapid parameterisation needs the limb inertia: give inertia_kgm2, a prior parameter set, "
+      "or body mass and leg length (Eq. 4.13)");
+}
+
+api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedTrial>& trials,
+                                                     const RapidSettings& settings,
+                                                     const SubjectContext& subject) {
+  const api::Result<double> inertia = KnownInertia(subject);
+  if (!inertia.ok()) return inertia.status();
+  const auto pick = [&](int index) -> const RecordedTrial* {
+    if (index < 0 || static_cast<std::size_t>(index) >= trials.size()) return nullptr;
+    return &trials[static_cast<std::size_t>(index)];
+  };
+  const RecordedTrial* iso = pick(settings.ramp_trial);
+  const RecordedTrial* pas = pick(settings.passive_trial);
+  const RecordedTrial* act = pick(settings.active_trial);
+  if (iso == nullptr || pas == nullptr || act == nullptr) {
+    return api::Status::FailedPrecondition("rapid parameterisation: a trial is missing");
+  }
+  model::RapidOptions options;
+  options.inertia_kgm2 = *inertia;
+  try {
+    model::RapidResult r =
+        model::IdentifyRapid(ToColumns(iso->trial), ToColumns(pas->trial), ToColumns(act->trial), options);
+    r.parameters.provenance.software_version = "fesbench 0.1.0";
+    return r.parameters;
+  } catch (const std::exception& e) {
+    return api::Status::FailedPrecondition(e.what());
+  }
+}
+
+}  // namespace fesbench::server::protocols

@@ -1,0 +1,396 @@
+#include "server/protocols/runner.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <numeric>
+
+#include "server/protocols/rapid_identification.h"
+
+namespace fesbench::server::protocols {
+namespace {
+
+double SteadyNow() {
+  using namespace std::chrono;
+  return duration<double>(steady_clock::now().time_since_epoch()).count();
+}
+
+double MinJerk(double u) {
+  u = std::clamp(u, 0.0, 1.0);
+  return u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
+}
+
+// The trial being recorded.
+struct Recorder {
+  RecordedTrial rec;
+  std::vector<double> t_s, stim_ma, angle_deg, torque_nm, accel_m_s2, setpoint_deg;
+  std::vector<double> emg_mv;
+  bool record_setpoint = false;
+  std::int64_t start_tick = 0;
+  double offset_nm = 0.0;
+  std::size_t batch_begin = 0;
+};
+
+}  // namespace
+
+// --- SafetyEventLog -----------------------------------------------------------
+
+SafeBench::EventSink SafetyEventLog::sink() {
+  return [this](const SafetyEvent& e) { Append(e); };
+}
+
+void SafetyEventLog::Append(const SafetyEvent& event) {
+  std::lock_guard lock(mu_);
+  events_.push_back(event);
+}
+
+std::size_t SafetyEventLog::size() const {
+  std::lock_guard lock(mu_);
+  return events_.size();
+}
+
+std::vector<SafetyEvent> SafetyEventLog::Since(std::size_t from) const {
+  std::lock_guard lock(mu_);
+  if (from >= events_.size()) return {};
+  return {events_.begin() + static_cast<std::ptrdiff_t>(from), events_.end()};
+}
+
+// --- ProtocolRunner -------------------------------------------------------------
+
+ProtocolRunner::ProtocolRunner(SafeBench& bench, SafetyEventLog* log, RunObserver* observer,
+                               RunnerOptions options)
+    : bench_(bench), log_(log), observer_(observer), options_(std::move(options)) {
+  if (!options_.wall_clock) options_.wall_clock = SteadyNow;
+}
+
+void ProtocolRunner::Cancel(const std::string& reason) {
+  {
+    std::lock_guard lock(reason_mu_);
+    if (cancel_reason_.empty()) cancel_reason_ = reason;
+  }
+  cancel_.store(true);
+}
+
+void ProtocolRunner::Stop() { stop_.store(true); }
+
+bool ProtocolRunner::Transition(RunTransition transition, const std::string& reason) {
+  const std::optional<RunState> next = NextState(state_.load(), transition);
+  if (!next) return false;
+  state_.store(*next);
+  if (result_ != nullptr) {
+    result_->state = *next;
+    if (IsFinal(*next) && *next != RunState::kDone) result_->reason = reason;
+  }
+  if (observer_ != nullptr) observer_->OnStateChanged(*next, reason);
+  return true;
+}
+
+RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
+  RunResult result;
+  result_ = &result;
+  result.protocol = plan.protocol;
+  result.protocol_version = plan.protocol_version;
+  result.parameters = plan.parameters;
+  const std::size_t first_event = log_ != nullptr ? log_->size() : 0;
+  const double wall0 = options_.wall_clock();
+
+  const auto finish = [&]() -> RunResult {
+    bench_.SetStimAmplitude(0.0);
+    bench_.DisarmWatchdog();
+    if (log_ != nullptr) result.safety_events = log_->Since(first_event);
+    result.wall_duration_s = options_.wall_clock() - wall0;
+    if (observer_ != nullptr) observer_->OnFinished(result);
+    result_ = nullptr;
+    return std::move(result);
+  };
+
+  if (bench_.estopped()) {
+    Transition(RunTransition::kError, "e-stop latched: clear it before starting a run");
+    return finish();
+  }
+  if (api::Status st = ValidateSubject(subject); !st.ok()) {
+    Transition(RunTransition::kError, st.ToString());
+    return finish();
+  }
+  Transition(RunTransition::kStart, "");
+
+  // Interlock limits of this run (DESIGN.md §6).
+  SafetyLimits limits;
+  limits.max_stim_ma = plan.max_stim_ma;
+  limits.min_angle_deg = subject.min_angle_deg;
+  limits.max_angle_deg = subject.max_angle_deg;
+  limits.heartbeat_timeout_s = options_.heartbeat_timeout_s;
+  bench_.Configure(limits);
+  const double max_applied_ma = std::max(0.0, std::min(plan.max_stim_ma, bench_.bench_limits().max_stim_ma));
+  if (options_.arm_watchdog) bench_.ArmWatchdog();
+
+  const double t0 = bench_.Now_s();
+  const std::int64_t total = plan.total_ticks();
+  const auto progress_every =
+      std::max<std::int64_t>(1, std::llround(options_.progress_interval_s * kTicksPerSecond));
+  std::int64_t n = 0;  // global tick
+
+  std::optional<MotorMode> mode;
+  double last_setpoint = std::numeric_limits<double>::quiet_NaN();
+  double last_stim = -1.0;
+  std::optional<Recorder> rec;
+  int rec_trial = -1;
+
+  // Tolerance test state.
+  ToleranceResult tol;
+  std::deque<double> tol_window;
+  double tol_sum = 0.0;
+  double offset_sd_nm = 0.0;
+  if (plan.tolerance) result.tolerance = tol;
+
+  const auto emit_batch = [&](bool all) {
+    if (!rec || observer_ == nullptr) return;
+    const std::size_t end = rec->t_s.size();
+    if (end == rec->batch_begin) return;
+    if (!all && end - rec->batch_begin < options_.batch_samples) return;
+    SampleBatch b;
+    b.trial = rec_trial;
+    b.trial_name = plan.trials[static_cast<std::size_t>(rec_trial)].name;
+    const auto slice = [&](const std::vector<double>& v) {
+      return std::vector<double>(v.begin() + static_cast<std::ptrdiff_t>(rec->batch_begin), v.end());
+    };
+    b.t_s = slice(rec->t_s);
+    b.stim_ma = slice(rec->stim_ma);
+    b.angle_deg = slice(rec->angle_deg);
+    b.torque_nm = slice(rec->torque_nm);
+    b.accel_m_s2 = slice(rec->accel_m_s2);
+    rec->batch_begin = end;
+    observer_->OnSamples(b);
+  };
+
+  const auto close_trial = [&](bool complete) {
+    if (!rec) return;
+    emit_batch(true);
+    for (double v : bench_.bench().DrainEmg_mv()) rec->emg_mv.push_back(v);
+    api::Trial& t = rec->rec.trial;
+    t.name = plan.trials[static_cast<std::size_t>(rec_trial)].name;
+    t.sample_rate_hz = 200.0;
+    t.SetChannel("t_s", std::move(rec->t_s));
+    t.SetChannel("stim_ma", std::move(rec->stim_ma));
+    t.SetChannel("angle_deg", std::move(rec->angle_deg));
+    t.SetChannel("torque_nm", std::move(rec->torque_nm));
+    t.SetChannel("accel_m_s2", std::move(rec->accel_m_s2));
+    if (rec->record_setpoint) t.SetChannel("setpoint_deg", std::move(rec->setpoint_deg));
+    if (!rec->emg_mv.empty()) {
+      api::ChannelGroup emg;
+      emg.sample_rate_hz = bench_.bench_limits().emg_rate_hz;
+      std::vector<double> et(rec->emg_mv.size());
+      for (std::size_t i = 0; i < et.size(); ++i) et[i] = static_cast<double>(i) / emg.sample_rate_hz;
+      emg.Set("t_s", std::move(et));
+      emg.Set("emg_mv", std::move(rec->emg_mv));
+      t.emg = std::move(emg);
+    }
+    rec->rec.complete = complete;
+    result.trials.push_back(std::move(rec->rec));
+    if (observer_ != nullptr) observer_->OnTrial(result.trials.back());
+    rec.reset();
+    rec_trial = -1;
+  };
+
+  const auto abort_reason = [&]() -> std::optional<std::pair<RunTransition, std::string>> {
+    if (bench_.estopped()) return std::pair{RunTransition::kEStop, std::string("e-stop")};
+    if (bench_.watchdog_fired()) {
+      return std::pair{RunTransition::kWatchdog,
+                       std::string("watchdog: controlling client stopped heart-beating")};
+    }
+    if (cancel_.load()) {
+      std::lock_guard lock(reason_mu_);
+      return std::pair{RunTransition::kCancel, cancel_reason_};
+    }
+    return std::nullopt;
+  };
+
+  std::optional<std::pair<RunTransition, std::string>> aborted;
+  for (std::size_t si = 0; si < plan.steps.size() && !aborted; ++si) {
+    const Step& step = plan.steps[si];
+    if (observer_ != nullptr) observer_->OnStep(si, step);
+    if (step.trial != rec_trial) {
+      close_trial(true);
+      if (step.trial >= 0) {
+        rec.emplace();
+        rec_trial = step.trial;
+        rec->start_tick = n;
+        rec->rec.bench_start_s = t0 + static_cast<double>(n) / kTicksPerSecond;
+        rec->record_setpoint = plan.trials[static_cast<std::size_t>(step.trial)].record_setpoint;
+        bench_.bench().DrainEmg_mv();  // EMG from the trial's first sample on
+      }
+    }
+    // Motor mode first, so a move starts from where the knee is.
+    if (!mode || *mode != step.motor_mode) {
+      bench_.SetMotorMode(step.motor_mode);
+      mode = step.motor_mode;
+      if (step.motor_mode != MotorMode::kPosition) last_setpoint = std::numeric_limits<double>::quiet_NaN();
+    }
+    double move_from = step.setpoint_deg;
+    if (step.move_from_current) {
+      move_from = std::isfinite(last_setpoint) ? last_setpoint : bench_.ReadSensors().angle_deg;
+      move_from = std::clamp(move_from, subject.min_angle_deg, subject.max_angle_deg);
+    }
+    double offset_sum = 0.0, offset_sq = 0.0;
+    std::int64_t offset_count = 0;
+
+    for (std::int64_t k = 0; k < step.ticks; ++k, ++n) {
+      if ((aborted = abort_reason())) break;
+      if (step.tolerance_ramp && stop_.load()) {
+        tol.stopped_by_clinician = true;
+        break;
+      }
+      // Set-point (1 kHz) and stimulation (200 Hz envelope, held).
+      if (step.motor_mode == MotorMode::kPosition || step.motor_mode == MotorMode::kLocked) {
+        double sp = step.setpoint_deg;
+        if (step.trajectory) {
+          sp = step.trajectory->At(static_cast<double>(k) / kTicksPerSecond + step.trajectory_offset_s)
+                   .angle_deg;
+        } else if (step.move_from_current) {
+          sp = move_from + (step.setpoint_deg - move_from) *
+                               MinJerk(static_cast<double>(k) / static_cast<double>(step.ticks));
+        }
+        if (sp != last_setpoint) {
+          bench_.SetMotorSetpoint(sp);
+          last_setpoint = sp;
+        }
+      }
+      double u = 0.0;
+      if (step.tolerance_ramp) {
+        // Held per 200 Hz sample like every envelope.
+        const std::int64_t ks = (k / kTicksPerSample) * kTicksPerSample;
+        u = step.ramp_start_ma + step.ramp_ma_per_s * static_cast<double>(ks) / kTicksPerSecond;
+      } else if (step.envelope) {
+        const std::int64_t idx = (step.stim_offset_ticks + k) / kTicksPerSample;
+        if (idx >= 0 && idx < static_cast<std::int64_t>(step.envelope->values.size())) {
+          u = step.envelope->values[static_cast<std::size_t>(idx)];
+        }
+      }
+      if (u != last_stim) {
+        bench_.SetStimAmplitude(u);
+        last_stim = u;
+      }
+      if (step.phase == StepPhase::kOffset) {
+        const double raw = bench_.ReadSensors().torque_nm;
+        offset_sum += raw;
+        offset_sq += raw * raw;
+        ++offset_count;
+      }
+      if (rec && (n - rec->start_tick) % kTicksPerSample == 0) {
+        const SensorFrame f = bench_.ReadSensors();
+        const double applied = bench_.estopped() || bench_.watchdog_fired()
+                                   ? 0.0
+                                   : std::clamp(u, 0.0, max_applied_ma);
+        const double torque = f.torque_nm - rec->offset_nm;
+        rec->t_s.push_back(static_cast<double>(n - rec->start_tick) / kTicksPerSecond);
+        rec->stim_ma.push_back(applied);
+        rec->angle_deg.push_back(f.angle_deg);
+        rec->torque_nm.push_back(torque);
+        rec->accel_m_s2.push_back(f.accel_m_s2);
+        if (rec->record_setpoint) rec->setpoint_deg.push_back(last_setpoint);
+        for (double v : bench_.bench().DrainEmg_mv()) rec->emg_mv.push_back(v);
+        emit_batch(false);
+        if (step.tolerance_ramp) {
+          // Threshold: first amplitude whose 50 ms mean torque leaves the
+          // offset's noise band (Appendix F part II.K).
+          tol_window.push_back(torque);
+          tol_sum += torque;
+          if (tol_window.size() > 10) {
+            tol_sum -= tol_window.front();
+            tol_window.pop_front();
+          }
+          const double mean = tol_sum / static_cast<double>(tol_window.size());
+          tol.max_torque_nm = std::max(tol.max_torque_nm, mean);
+          if (!tol.threshold_ma && tol_window.size() == 10 && mean > tol.noise_band_nm) {
+            tol.threshold_ma = applied;
+          }
+          tol.max_tolerated_ma = applied;
+        }
+      }
+      bench_.AdvanceTo(t0 + static_cast<double>(n + 1) / kTicksPerSecond);
+      if (observer_ != nullptr && (n + 1) % progress_every == 0) {
+        Progress p;
+        p.bench_elapsed_s = static_cast<double>(n + 1) / kTicksPerSecond;
+        p.bench_total_s = static_cast<double>(total) / kTicksPerSecond;
+        p.fraction = std::min(1.0, static_cast<double>(n + 1) / static_cast<double>(total));
+        const double left = p.bench_total_s - p.bench_elapsed_s;
+        const double wall_rate = (options_.wall_clock() - wall0) / p.bench_elapsed_s;
+        p.eta_s = options_.time_scale > 0.0 ? left / options_.time_scale : left * wall_rate;
+        p.step = si;
+        p.phase = step.phase;
+        observer_->OnProgress(p);
+      }
+    }
+    if (step.phase == StepPhase::kOffset && offset_count > 0 && rec) {
+      rec->offset_nm = offset_sum / static_cast<double>(offset_count);
+      rec->rec.offsets_nm.push_back(rec->offset_nm);
+      const double var = offset_sq / static_cast<double>(offset_count) - rec->offset_nm * rec->offset_nm;
+      offset_sd_nm = std::sqrt(std::max(0.0, var));
+      if (plan.tolerance) {
+        tol.noise_band_nm = std::max(plan.tolerance->threshold_torque_nm, 4.0 * offset_sd_nm);
+      }
+    }
+    if (step.tolerance_ramp && stop_.load()) tol.stopped_by_clinician = true;
+  }
+
+  // Stop stimulation whatever happened; a cancelled motor holds where it is.
+  bench_.SetStimAmplitude(0.0);
+  close_trial(!aborted);
+  result.bench_duration_s = bench_.Now_s() - t0;
+  if (plan.tolerance) {
+    if (tol.max_torque_nm < plan.tolerance->min_torque_at_max_nm) {
+      tol.warnings.push_back("torque at max below the 6 N·m of Appendix F part II.K.3");
+    }
+    if (!tol.threshold_ma) tol.warnings.push_back("no torque response above the noise band");
+    result.tolerance = tol;
+  }
+  if (aborted) {
+    if (aborted->first == RunTransition::kCancel && mode == MotorMode::kPosition &&
+        std::isfinite(last_setpoint)) {
+      bench_.SetMotorSetpoint(last_setpoint);
+    }
+    Transition(aborted->first, aborted->second);
+    return finish();
+  }
+  if (plan.rapid) {
+    if (observer_ != nullptr) {
+      Step identify;
+      identify.phase = StepPhase::kIdentify;
+      identify.label = "identify";
+      observer_->OnStep(plan.steps.size(), identify);
+    }
+    api::Result<model::ParameterSet> params = IdentifyRapidTrials(result.trials, *plan.rapid, subject);
+    if (!params.ok()) {
+      Transition(RunTransition::kError, "identification failed: " + params.status().message());
+      return finish();
+    }
+    result.parameter_set = std::move(params).value();
+  }
+  if (observer_ != nullptr) {
+    Progress p;
+    p.fraction = 1.0;
+    p.bench_elapsed_s = p.bench_total_s = static_cast<double>(total) / kTicksPerSecond;
+    p.step = plan.steps.size();
+    p.phase = plan.rapid ? StepPhase::kIdentify : StepPhase::kRest;
+    observer_->OnProgress(p);
+  }
+  Transition(RunTransition::kComplete, "");
+  return finish();
+}
+
+model::TrialColumns ToColumns(const api::Trial& trial) {
+  model::TrialColumns c;
+  const auto get = [&](std::string_view name) {
+    const std::vector<double>* v = trial.Values(name);
+    return v != nullptr ? *v : std::vector<double>{};
+  };
+  c.t_s = get("t_s");
+  c.stim_ma = get("stim_ma");
+  c.angle_deg = get("angle_deg");
+  c.torque_nm = get("torque_nm");
+  return c;
+}
+
+}  // namespace fesbench::server::protocols

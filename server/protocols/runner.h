@@ -1,0 +1,164 @@
+#pragma once
+
+/// @file
+/// The protocol engine (DESIGN.md §5–§6): runs a Plan on a SafeBench — never
+/// on a Bench directly — tick by tick at the control rate (1 kHz):
+/// stimulation amplitude and motor set-points through the interlocks, then
+/// AdvanceTo the next tick; sensors read at 200 Hz into the trial being
+/// recorded (t_s, stim_ma, angle_deg, torque_nm, accel_m_s2, and
+/// setpoint_deg for motor trials; EMG at 1 kHz in the trial's emg group),
+/// torque offset-corrected by the 50-sample offset measured before each
+/// stimulation segment (§5.3).
+///
+/// Cancel, Stop and the safety conditions are checked at every tick: a
+/// cancel, an e-stop (SafeBench::EStop from any thread) or a fired heartbeat
+/// watchdog abort the run within one control period, leaving stimulation at
+/// 0. The run's states are those of run_state.h.
+
+#include <atomic>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "api/status.h"
+#include "api/trial.h"
+#include "model/identify_common.h"
+#include "model/parameter_set.h"
+#include "server/protocols/plan.h"
+#include "server/protocols/run_state.h"
+#include "server/safety/safe_bench.h"
+
+namespace fesbench::server::protocols {
+
+/// Thread-safe append-only record of safety events; give `sink()` to the
+/// SafeBench so runs can report the events of their span.
+class SafetyEventLog {
+ public:
+  SafeBench::EventSink sink();
+  void Append(const SafetyEvent& event);
+  std::size_t size() const;
+  /// Events from index `from` on.
+  std::vector<SafetyEvent> Since(std::size_t from) const;
+
+ private:
+  mutable std::mutex mu_;
+  std::vector<SafetyEvent> events_;
+};
+
+/// A trial as recorded, with what the engine knows about it.
+struct RecordedTrial {
+  api::Trial trial;                 ///< name = plan's trial name; t_s from 0.
+  double bench_start_s = 0.0;       ///< bench time of its first sample.
+  std::vector<double> offsets_nm;   ///< torque offsets measured (raw N·m), in order.
+  bool complete = true;             ///< false if the run ended inside it.
+};
+
+/// The tolerance test's outcome (Appendix F part II.K).
+struct ToleranceResult {
+  std::optional<double> threshold_ma;  ///< first amplitude with torque above the band.
+  double max_tolerated_ma = 0.0;       ///< amplitude when stopped (or the ceiling).
+  double max_torque_nm = 0.0;          ///< largest smoothed torque (offset removed).
+  double noise_band_nm = 0.0;          ///< torque band used for the threshold.
+  bool stopped_by_clinician = false;
+  std::vector<std::string> warnings;
+};
+
+/// What a run produced.
+struct RunResult {
+  RunState state = RunState::kQueued;
+  std::string reason;                ///< why failed or aborted; empty when done.
+  std::string protocol;
+  int protocol_version = 1;
+  ParameterValues parameters;
+  std::vector<RecordedTrial> trials;
+  std::optional<model::ParameterSet> parameter_set;  ///< rapid_parameterisation.
+  std::optional<ToleranceResult> tolerance;           ///< tolerance_test.
+  std::vector<SafetyEvent> safety_events;
+  double bench_duration_s = 0.0;
+  double wall_duration_s = 0.0;
+};
+
+/// A block of recorded samples for live streaming (SSE, DDS).
+struct SampleBatch {
+  int trial = -1;
+  std::string trial_name;
+  std::vector<double> t_s, stim_ma, angle_deg, torque_nm, accel_m_s2;
+};
+
+/// Progress of a run: bench-time fraction and an ETA in wall seconds.
+struct Progress {
+  double fraction = 0.0;      ///< 0–1.
+  double eta_s = 0.0;         ///< wall seconds left (bench s / time scale, or measured).
+  double bench_elapsed_s = 0.0;
+  double bench_total_s = 0.0;
+  std::size_t step = 0;
+  StepPhase phase = StepPhase::kPrepare;
+};
+
+/// Receives a run's events on the run's thread. Default: ignore.
+class RunObserver {
+ public:
+  virtual ~RunObserver() = default;
+  virtual void OnStateChanged(RunState /*state*/, const std::string& /*reason*/) {}
+  virtual void OnStep(std::size_t /*index*/, const Step& /*step*/) {}
+  virtual void OnProgress(const Progress& /*progress*/) {}
+  virtual void OnSamples(const SampleBatch& /*batch*/) {}
+  virtual void OnTrial(const RecordedTrial& /*trial*/) {}
+  virtual void OnFinished(const RunResult& /*result*/) {}
+};
+
+struct RunnerOptions {
+  /// Bench seconds per wall second the bench is paced at (0 = as fast as
+  /// possible); for the ETA only.
+  double time_scale = 0.0;
+  double progress_interval_s = 0.1;   ///< bench seconds between OnProgress.
+  std::size_t batch_samples = 40;     ///< samples per OnSamples batch.
+  bool arm_watchdog = true;           ///< arm SafeBench's heartbeat watchdog.
+  double heartbeat_timeout_s = 1.0;
+  SafeBench::WallClock wall_clock;    ///< for wall durations; empty = steady clock.
+};
+
+/// The engine. One Run at a time per object (BenchOwner enforces one run
+/// per bench); Cancel and Stop may be called from any thread.
+class ProtocolRunner {
+ public:
+  /// @param bench must outlive the runner. @param log may be null.
+  ProtocolRunner(SafeBench& bench, SafetyEventLog* log, RunObserver* observer,
+                 RunnerOptions options = {});
+
+  /// Runs plan for subject to its end (blocking). Configures the bench's
+  /// safety limits (stimulation ≤ plan.max_stim_ma, set-points inside the
+  /// subject's range of motion), arms the watchdog, runs the steps, and for
+  /// rapid_parameterisation identifies the parameter set.
+  RunResult Run(const Plan& plan, const SubjectContext& subject);
+
+  /// Aborts the run at the next tick (state aborted with reason).
+  void Cancel(const std::string& reason = "cancelled by client");
+  /// "Stop with result": ends the tolerance test's ramp at the current
+  /// amplitude, which becomes the max tolerated; other protocols: Cancel.
+  void Stop();
+
+  RunState state() const { return state_.load(); }
+
+ private:
+  bool Transition(RunTransition transition, const std::string& reason);
+
+  SafeBench& bench_;
+  SafetyEventLog* log_;
+  RunObserver* observer_;
+  RunnerOptions options_;
+  std::atomic<RunState> state_{RunState::kQueued};
+  std::atomic<bool> cancel_{false};
+  std::atomic<bool> stop_{false};
+  std::mutex reason_mu_;
+  std::string cancel_reason_;
+  RunResult* result_ = nullptr;
+};
+
+/// Converts a recorded trial to identification columns: t_s, stim_ma,
+/// angle_deg, torque_nm (empty columns for channels the trial lacks).
+model::TrialColumns ToColumns(const api::Trial& trial);
+
+}  // namespace fesbench::server::protocols

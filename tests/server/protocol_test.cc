@@ -1,0 +1,326 @@
+// Protocol descriptions, parameter validation and plans (DESIGN.md §5).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "model/stimulus_generators.h"
+#include "server/protocols/plan.h"
+#include "server/protocols/protocol.h"
+#include "server/protocols/run_state.h"
+
+namespace fesbench::server::protocols {
+namespace {
+
+SubjectContext Subject() {
+  SubjectContext s;
+  s.threshold_ma = 22.0;
+  s.max_tolerated_ma = 42.0;
+  s.min_angle_deg = 25.0;
+  s.max_angle_deg = 105.0;
+  return s;
+}
+
+// Runs of non-zero samples of an envelope: (first index, length).
+std::vector<std::pair<std::size_t, std::size_t>> Runs(const std::vector<double>& v) {
+  std::vector<std::pair<std::size_t, std::size_t>> out;
+  for (std::size_t i = 0; i < v.size();) {
+    if (v[i] > 0.0) {
+      std::size_t j = i;
+      while (j < v.size() && v[j] > 0.0) ++j;
+      out.emplace_back(i, j - i);
+      i = j;
+    } else {
+      ++i;
+    }
+  }
+  return out;
+}
+
+TEST(ProtocolCatalog, HoldsEveryProtocolOfDesignTable) {
+  const std::set<std::string> want = {
+      "tolerance_test",        "isometric_ramp_irc",      "isometric_step_irc",
+      "isometric_impulse_irc", "isometric_prediction",    "passive_sequential",
+      "passive_simultaneous",  "free_swing_passive",      "active_random_binary",
+      "prediction_step",       "prediction_ramp",         "prediction_sine",
+      "prediction_random_binary", "rapid_parameterisation"};
+  std::set<std::string> have;
+  for (const ProtocolDescription& p : ProtocolCatalog()) have.insert(p.name);
+  EXPECT_EQ(have, want);
+  EXPECT_EQ(ProtocolCatalog().size(), want.size());
+  EXPECT_EQ(FindProtocol("nope"), nullptr);
+}
+
+TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
+  const std::set<std::string> unitless = {"conditioning_fraction", "impulses", "ramps", "levels",
+                                          "count",  "positions", "speeds", "trajectories",
+                                          "seed", "rb1_seed", "rb2_seed", "passive_seed",
+                                          "active_seed", "level_fraction", "dense"};
+  for (const ProtocolDescription& p : ProtocolCatalog()) {
+    std::set<std::string> names;
+    for (const ParameterSpec& s : p.parameters) {
+      SCOPED_TRACE(p.name + "." + s.name);
+      EXPECT_TRUE(names.insert(s.name).second) << "duplicate";
+      const bool has_unit = s.name.ends_with("_ma") || s.name.ends_with("_s") ||
+                            s.name.ends_with("_deg") || s.name.ends_with("_deg_s") ||
+                            s.name.ends_with("_nm") || s.name.ends_with("_ma_per_s");
+      EXPECT_TRUE(has_unit || unitless.count(s.name)) << "name without unit suffix";
+      EXPECT_LE(s.min_value, s.max_value);
+      if (s.scaling == Scaling::kNone) {
+        EXPECT_GE(s.default_value, s.min_value);
+        EXPECT_LE(s.default_value, s.max_value);
+      }
+      if (s.is_rest) {
+        EXPECT_GE(s.min_value, p.min_rest_s);
+      }
+    }
+  }
+}
+
+TEST(ProtocolCatalog, JsonListsNameVersionAndParameters) {
+  const nlohmann::json j = CatalogToJson();
+  ASSERT_EQ(j.at("protocols").size(), ProtocolCatalog().size());
+  const nlohmann::json& step = j.at("protocols").at(2);
+  EXPECT_EQ(step.at("name"), "isometric_step_irc");
+  EXPECT_EQ(step.at("version"), 1);
+  EXPECT_EQ(step.at("bench_mode"), "locked");
+  EXPECT_DOUBLE_EQ(step.at("min_rest_s").get<double>(), 10.0);
+  bool found = false;
+  for (const auto& p : step.at("parameters")) {
+    if (p.at("name") == "rest_s") {
+      found = true;
+      EXPECT_EQ(p.at("unit"), "s");
+      EXPECT_DOUBLE_EQ(p.at("default").get<double>(), 30.0);
+      EXPECT_EQ(p.at("rest"), true);
+    }
+    if (p.at("name") == "max_ma") {
+      EXPECT_EQ(p.at("unit"), "mA");
+      EXPECT_EQ(p.at("scales_to"), "max_tolerated");
+    }
+  }
+  EXPECT_TRUE(found);
+}
+
+TEST(ResolveParameters, ScalesDefaultsToTheSubject) {
+  const SubjectContext s = Subject();
+  auto v = ResolveParameters(*FindProtocol("active_random_binary"), {}, s);
+  ASSERT_TRUE(v.ok()) << v.status().ToString();
+  EXPECT_DOUBLE_EQ(v->at("threshold_ma"), 22.0);
+  EXPECT_DOUBLE_EQ(v->at("max_ma"), 42.0);
+  EXPECT_NEAR(v->at("amplitude_ma"), 22.0 + 0.6 * 20.0, 1e-12);
+  EXPECT_DOUBLE_EQ(v->at("rest_s"), 10.0);
+  auto sim = ResolveParameters(*FindProtocol("passive_simultaneous"), {}, s);
+  ASSERT_TRUE(sim.ok());
+  EXPECT_DOUBLE_EQ(sim->at("min_angle_deg"), 25.0);
+  EXPECT_DOUBLE_EQ(sim->at("max_angle_deg"), 105.0);
+}
+
+TEST(ResolveParameters, RejectsBadValuesNamingTheParameter) {
+  const SubjectContext s = Subject();
+  const ProtocolDescription& step = *FindProtocol("isometric_step_irc");
+  auto unknown = ResolveParameters(step, {{"bogus_s", 1.0}}, s);
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_EQ(unknown.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(unknown.status().field(), "parameters.bogus_s");
+
+  auto rest = ResolveParameters(step, {{"rest_s", 5.0}}, s);
+  ASSERT_FALSE(rest.ok());
+  EXPECT_EQ(rest.status().field(), "parameters.rest_s");
+  EXPECT_NE(rest.status().message().find("rest below minimum"), std::string::npos);
+
+  auto range = ResolveParameters(step, {{"levels", 1.0}}, s);
+  ASSERT_FALSE(range.ok());
+  EXPECT_EQ(range.status().field(), "parameters.levels");
+  auto whole = ResolveParameters(step, {{"levels", 4.5}}, s);
+  ASSERT_FALSE(whole.ok());
+  EXPECT_EQ(whole.status().field(), "parameters.levels");
+  auto nan = ResolveParameters(step, {{"burst_s", std::nan("")}}, s);
+  ASSERT_FALSE(nan.ok());
+  EXPECT_EQ(nan.status().field(), "parameters.burst_s");
+
+  auto stim = ResolveParameters(step, {{"max_ma", 50.0}}, s);
+  ASSERT_FALSE(stim.ok());
+  EXPECT_EQ(stim.status().field(), "parameters.max_ma");
+  EXPECT_NE(stim.status().message().find("max tolerated"), std::string::npos);
+
+  auto angle = ResolveParameters(*FindProtocol("passive_simultaneous"), {{"min_angle_deg", 15.0}}, s);
+  ASSERT_FALSE(angle.ok());
+  EXPECT_EQ(angle.status().field(), "parameters.min_angle_deg");
+
+  SubjectContext bad = s;
+  bad.max_tolerated_ma = 10.0;  // below threshold
+  auto subj = ResolveParameters(step, {}, bad);
+  ASSERT_FALSE(subj.ok());
+  EXPECT_EQ(subj.status().field(), "subject.max_tolerated_ma");
+}
+
+TEST(Plan, UnknownProtocolIsNotFound) {
+  auto p = MakePlan("no_such", {}, Subject());
+  ASSERT_FALSE(p.ok());
+  EXPECT_EQ(p.status().code(), api::ErrorCode::kNotFound);
+}
+
+TEST(Plan, RampIrcFollowsFigure57) {
+  auto plan = MakePlan("isometric_ramp_irc", {}, Subject());
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  ASSERT_EQ(plan->trials.size(), 1u);
+  // Lock 1.5 s, 50-sample offset, then the 16 s sequence of Fig. 5-7.
+  EXPECT_EQ(plan->total_ticks(), 1500 + 50 + 16000);
+  const model::SampledSignal env = TrialEnvelope(*plan, 0);
+  ASSERT_EQ(env.size(), 10u + 3200u);
+  const auto runs = Runs(env.values);
+  ASSERT_EQ(runs.size(), 5u);  // conditioning, 2 impulses, 2 ramps
+  EXPECT_EQ(runs[0], (std::pair<std::size_t, std::size_t>{10, 600}));  // 3 s burst
+  EXPECT_NEAR(env.values[10], 22.0 + 0.75 * 20.0, 1e-9);              // 75 % of range
+  EXPECT_EQ(runs[1].first, 10u + 800u);                                 // impulse at 4 s
+  EXPECT_EQ(runs[1].second, 1u);
+  EXPECT_DOUBLE_EQ(env.values[runs[1].first], 42.0);                    // at max
+  EXPECT_EQ(runs[2].first, 10u + 1000u);                                // impulse at 5 s
+  EXPECT_EQ(runs[3].first, 10u + 1200u);                                // ramp at 6 s
+  const double ramp_max = *std::max_element(env.values.begin() + 1210, env.values.begin() + 2010);
+  EXPECT_NEAR(ramp_max, 42.0, 1e-9);
+  EXPECT_NEAR(env.values[runs[3].first], 17.0, 0.05);  // threshold − 5 mA
+  EXPECT_EQ(runs[4].first, 10u + 2200u);               // second ramp at 11 s (1 s rest)
+}
+
+TEST(Plan, StepIrcHasTenBurstsWithThirtySecondRests) {
+  auto plan = MakePlan("isometric_step_irc", {}, Subject());
+  ASSERT_TRUE(plan.ok());
+  const model::SampledSignal env = TrialEnvelope(*plan, 0);
+  const auto runs = Runs(env.values);
+  ASSERT_EQ(runs.size(), 10u);
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    EXPECT_EQ(runs[k].second, 600u);  // 3 s bursts at 200 Hz
+    const double level = 22.0 + 20.0 * static_cast<double>(k) / 9.0;
+    EXPECT_NEAR(env.values[runs[k].first + 599], level, 1e-9);
+    if (k > 0) {
+      EXPECT_EQ(runs[k].first - (runs[k - 1].first + 600), 6000u);  // 30 s rest
+    }
+  }
+  double shortest_rest = 1e9;
+  int offsets = 0;
+  for (const Step& s : plan->steps) {
+    if (s.phase == StepPhase::kRest && s.trial == 0 && s.ticks > 1000) {
+      shortest_rest = std::min(shortest_rest, s.ticks / 1000.0);
+      EXPECT_DOUBLE_EQ(s.min_rest_s, 10.0);
+    }
+    if (s.phase == StepPhase::kOffset) ++offsets;
+  }
+  EXPECT_EQ(offsets, 10);  // one 50-sample offset before every burst (§5.3)
+  EXPECT_NEAR(shortest_rest, 29.95, 1e-9);  // 30 s minus the 50 ms offset
+}
+
+TEST(Plan, ImpulseIrcIsThirtyPulsesOneSecondApart) {
+  auto plan = MakePlan("isometric_impulse_irc", {}, Subject());
+  ASSERT_TRUE(plan.ok());
+  const model::SampledSignal env = TrialEnvelope(*plan, 0);
+  const auto runs = Runs(env.values);
+  ASSERT_EQ(runs.size(), 30u);
+  EXPECT_NEAR(env.values[runs.front().first], 17.0, 1e-9);
+  EXPECT_NEAR(env.values[runs.back().first], 42.0, 1e-9);
+  for (std::size_t k = 1; k < runs.size(); ++k) {
+    EXPECT_EQ(runs[k].second, 1u);
+    EXPECT_EQ(runs[k].first - runs[k - 1].first, 200u);
+  }
+}
+
+TEST(Plan, PredictionStepRampSineTimings) {
+  const SubjectContext s = Subject();
+  auto step = MakePlan("prediction_step", {}, s);
+  ASSERT_TRUE(step.ok());
+  auto env = TrialEnvelope(*step, 0);
+  auto runs = Runs(env.values);
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].first, 10u + 100u);  // onset 0.5 s after the offset lead
+  EXPECT_EQ(runs[0].second, 600u);       // 3 s
+  EXPECT_NEAR(env.values[runs[0].first], 22.0 + 0.75 * 20.0, 1e-9);
+  EXPECT_EQ(env.size() - (runs[0].first + runs[0].second), 300u);  // 1.5 s after
+
+  auto ramp = MakePlan("prediction_ramp", {}, s);
+  ASSERT_TRUE(ramp.ok());
+  env = TrialEnvelope(*ramp, 0);
+  EXPECT_EQ(env.size(), 10u + 2000u);
+  const auto peak = std::max_element(env.values.begin(), env.values.end());
+  EXPECT_NEAR(*peak, 42.0, 0.1);
+  EXPECT_NEAR(static_cast<double>(peak - env.values.begin() - 10) / 200.0, 5.0, 0.01);
+
+  auto sine = MakePlan("prediction_sine", {}, s);
+  ASSERT_TRUE(sine.ok());
+  env = TrialEnvelope(*sine, 0);
+  EXPECT_EQ(env.size(), 10u + 1800u);  // 5 + 2 + 1 + 1 s
+  EXPECT_NEAR(env.values[10], 27.0, 1e-9);  // threshold + 5 mA
+}
+
+TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
+  auto plan = MakePlan("rapid_parameterisation", {}, Subject());
+  ASSERT_TRUE(plan.ok());
+  EXPECT_LT(plan->duration_s(), 30.0);  // §7.4.1
+  ASSERT_EQ(plan->trials.size(), 3u);
+  ASSERT_TRUE(plan->rapid.has_value());
+  EXPECT_EQ(plan->trials[0].mode, MotorMode::kLocked);
+  EXPECT_EQ(plan->trials[1].mode, MotorMode::kDecoupled);
+  EXPECT_EQ(plan->trials[2].mode, MotorMode::kDecoupled);
+  // The isometric part: 2 impulses and one 4 s ramp.
+  const auto runs = Runs(TrialEnvelope(*plan, 0).values);
+  ASSERT_EQ(runs.size(), 3u);
+  EXPECT_EQ(runs[0].second, 1u);
+  EXPECT_EQ(runs[1].second, 1u);
+  EXPECT_NEAR(runs[2].second / 200.0, 4.0, 0.01);
+  EXPECT_EQ(TrialEnvelope(*plan, 1).size(), 10u + 2000u);  // 10 s trains
+  EXPECT_EQ(TrialEnvelope(*plan, 2).size(), 10u + 2000u);
+}
+
+TEST(Plan, MotorProtocolsCoverTheRangeAndSequentialTimings) {
+  const SubjectContext s = Subject();
+  auto sim = MakePlan("passive_simultaneous", {}, s);
+  ASSERT_TRUE(sim.ok());
+  ASSERT_EQ(sim->trials.size(), 2u);
+  double lo = 1e9, hi = -1e9;
+  int moves = 0;
+  for (const Step& st : sim->steps) {
+    if (!st.trajectory) continue;
+    ++moves;
+    EXPECT_EQ(st.ticks, 10000);  // 10 s trajectories
+    for (int k = 0; k <= 10000; k += 5) {
+      const double a = st.trajectory->At(k / 1000.0).angle_deg;
+      lo = std::min(lo, a);
+      hi = std::max(hi, a);
+    }
+  }
+  EXPECT_EQ(moves, 2);
+  EXPECT_GE(lo, 25.0 - 1e-9);
+  EXPECT_LE(hi, 105.0 + 1e-9);
+  EXPECT_GT(hi - lo, 0.9 * 80.0);  // scaled to the subject's range
+
+  auto seq = MakePlan("passive_sequential", {}, s);
+  ASSERT_TRUE(seq.ok());
+  ASSERT_EQ(seq->trials.size(), 2u);
+  std::vector<std::int64_t> move_ticks;
+  for (const Step& st : seq->steps) {
+    if (st.trajectory) move_ticks.push_back(st.ticks);
+  }
+  ASSERT_EQ(move_ticks.size(), 2u);
+  EXPECT_EQ(move_ticks[0], 451000);  // 10 + 40·(1 + 10) + 1 s (§5.4.1)
+  EXPECT_EQ(move_ticks[1], 200000);  // 8 speeds × 2 × (10 s + 2.5 s)
+}
+
+TEST(RunState, TransitionTable) {
+  EXPECT_EQ(NextState(RunState::kQueued, RunTransition::kStart), RunState::kRunning);
+  EXPECT_EQ(NextState(RunState::kRunning, RunTransition::kComplete), RunState::kDone);
+  EXPECT_EQ(NextState(RunState::kRunning, RunTransition::kEStop), RunState::kAborted);
+  EXPECT_EQ(NextState(RunState::kRunning, RunTransition::kWatchdog), RunState::kAborted);
+  EXPECT_EQ(NextState(RunState::kRunning, RunTransition::kError), RunState::kFailed);
+  EXPECT_EQ(NextState(RunState::kQueued, RunTransition::kComplete), std::nullopt);
+  for (RunState final : {RunState::kDone, RunState::kFailed, RunState::kAborted}) {
+    EXPECT_TRUE(IsFinal(final));
+    for (RunTransition t : {RunTransition::kStart, RunTransition::kComplete, RunTransition::kCancel,
+                            RunTransition::kEStop, RunTransition::kWatchdog, RunTransition::kError}) {
+      EXPECT_EQ(NextState(final, t), std::nullopt);
+    }
+  }
+  EXPECT_EQ(RunStateName(RunState::kAborted), "aborted");
+}
+
+}  // namespace
+}  // namespace fesbench::server::protocols
