@@ -24,14 +24,6 @@ void RequireFinite(double v, const char* field) {
 
 }  // namespace
 
-FastCurve::FastCurve(const PiecewiseLinear& curve) : x_(curve.x()), y_(curve.y()) {
-  if (x_.empty()) throw std::invalid_argument("FastCurve: empty curve");
-  slope_.assign(x_.size(), 0.0);
-  for (std::size_t i = 0; i + 1 < x_.size(); ++i) {
-    slope_[i] = (y_[i + 1] - y_[i]) / (x_[i + 1] - x_[i]);  // Eq. 4.27
-  }
-}
-
 CurvePairTable::CurvePairTable(const PiecewiseLinear& f, const PiecewiseLinear& g) {
   if (f.empty() || g.empty()) throw std::invalid_argument("CurvePairTable: empty curve");
   // A constant (one-breakpoint) curve adds no breakpoint, so tabulating a
@@ -57,21 +49,10 @@ CurvePairTable::CurvePairTable(const PiecewiseLinear& f, const PiecewiseLinear& 
     f_slope_[i] = (f_[i + 1] - f_[i]) / dx;  // Eq. 4.27 on each union segment
     g_slope_[i] = (g_[i + 1] - g_[i]) / dx;
   }
-  double min_width = x[m - 1] - x[0];
-  for (std::size_t i = 0; i + 1 < m; ++i) min_width = std::min(min_width, x[i + 1] - x[i]);
-  constexpr double kMaxCells = 4096.0;
-  const double cells = std::min(kMaxCells, std::ceil((x[m - 1] - x[0]) / min_width - 1e-9));
-  const auto n_cells = static_cast<std::size_t>(std::max(1.0, cells));
-  const double cell = (x[m - 1] - x[0]) / static_cast<double>(n_cells);
-  inv_cell_ = 1.0 / cell;
-  bucket_.resize(n_cells);
-  for (std::size_t k = 0; k < n_cells; ++k) {
-    // Segment containing the cell's start: interior breakpoints ≤ start.
-    const double start = x[0] + static_cast<double>(k) * cell;
-    std::uint32_t seg = 0;
-    while (seg + 2 < m && start >= x[seg + 1]) ++seg;
-    bucket_[k] = seg;
-  }
+}
+
+std::size_t CurvePairTable::SegmentBySearch(double x) const {
+  return static_cast<std::size_t>(std::upper_bound(x_.begin(), x_.end(), x) - x_.begin()) - 1;
 }
 
 JointModel JointModel::FromParameters(const ParameterSet& params,
@@ -210,35 +191,6 @@ double JointModel::ActiveGain(double angle_deg, double velocity_deg_s) const {
   double passive = 0.0, gain = 0.0;
   PassiveAndGain(angle_deg, velocity_deg_s, passive, gain);
   return gain;
-}
-
-void JointModel::PassiveAndGain(double angle_deg, double velocity_deg_s, double& passive_nm,
-                                double& gain_nm) const {
-  double pta = 0.0, ata = 1.0, ptv = 0.0, atv = 1.0;
-  angle_table_.Evaluate(angle_deg, pta, ata);
-  velocity_table_.Evaluate(velocity_deg_s, ptv, atv);
-  switch (kind_) {
-    case ModelKind::kFull:
-    case ModelKind::kTorqueGenerator:
-    case ModelKind::kStaticGainPwlVelocity:
-      // Eq. 3.16: τ_scale·f_ata(θ)·f_atv(θ̇), gains clamped at 0.
-      passive_nm = pta + ptv;
-      gain_nm = torque_scale_nm_ * std::max(0.0, ata) * std::max(0.0, atv);
-      return;
-    case ModelKind::kSingleSegment:
-    case ModelKind::kParametric:
-      passive_nm = PassiveAngleTorque(angle_deg) + ptv;
-      gain_nm = torque_scale_nm_ * AngleGain(angle_deg) * VelocityGain(velocity_deg_s);
-      return;
-  }
-}
-
-double JointModel::AccelerationDegS2(double angle_deg, double velocity_deg_s, double activation,
-                                     double motor_torque_nm) const {
-  // J·θ̈ = τ_motor − τ_pta(θ) − τ_ptv(θ̇) − τ_act, θ̈ in rad/s² (§3.4, Eq. 3.16).
-  double passive_nm = 0.0, gain_nm = 0.0;
-  PassiveAndGain(angle_deg, velocity_deg_s, passive_nm, gain_nm);
-  return (motor_torque_nm - passive_nm - activation * gain_nm) * accel_deg_per_nm_;
 }
 
 }  // namespace fesbench::model

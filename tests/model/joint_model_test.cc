@@ -10,14 +10,33 @@
 namespace fesbench::model {
 namespace {
 
-TEST(JointModelTest, FastCurveMatchesPiecewiseLinear) {
-  const PiecewiseLinear curve({-400, -200, -50, 0, 10, 200}, {0.4, 0.7, 0.9, 1.0, 1.02, 1.3});
-  const FastCurve fast(curve);
-  for (double x = -600.0; x <= 600.0; x += 0.37) EXPECT_NEAR(fast(x), curve(x), 1e-12) << x;
-  for (double x : curve.x()) EXPECT_NEAR(fast(x), curve(x), 1e-12) << x;
-  const FastCurve single(PiecewiseLinear::Constant(2.5));
-  EXPECT_EQ(single(-3.0), 2.5);
-  EXPECT_EQ(single(7.0), 2.5);
+TEST(JointModelTest, CurvePairTableMatchesPiecewiseLinear) {
+  const PiecewiseLinear f({-400, -200, -50, 0, 10, 200}, {0.4, 0.7, 0.9, 1.0, 1.02, 1.3});
+  const PiecewiseLinear g({-300, -100, 0, 100, 300}, {-1.0, 0.5, 0.0, 2.0, 2.5});
+  const CurvePairTable table(f, g);
+  const auto check = [](const CurvePairTable& t, const PiecewiseLinear& a,
+                        const PiecewiseLinear& b, double x) {
+    double fa = 0.0, gb = 0.0;
+    t.Evaluate(x, fa, gb);
+    EXPECT_NEAR(fa, a(x), 1e-12) << x;
+    EXPECT_NEAR(gb, b(x), 1e-12) << x;
+  };
+  for (double x = -600.0; x <= 600.0; x += 0.37) check(table, f, g, x);
+  for (double x : f.x()) check(table, f, g, x);
+  for (double x : g.x()) check(table, f, g, x);
+  // A constant partner adds no breakpoint; two constants still evaluate.
+  const PiecewiseLinear one = PiecewiseLinear::Constant(1.0, 90.0);
+  const CurvePairTable with_const(f, one);
+  for (double x = -600.0; x <= 600.0; x += 7.1) check(with_const, f, one, x);
+  const CurvePairTable constants(PiecewiseLinear::Constant(2.5), one);
+  check(constants, PiecewiseLinear::Constant(2.5), one, -3.0);
+  check(constants, PiecewiseLinear::Constant(2.5), one, 1e6);
+  // Many breakpoints: the binary-search path.
+  std::vector<double> y(60);
+  for (std::size_t i = 0; i < y.size(); ++i) y[i] = std::sin(0.3 * static_cast<double>(i));
+  const PiecewiseLinear dense = PiecewiseLinear::Uniform(0.0, 120.0, y);
+  const CurvePairTable dense_table(dense, g);
+  for (double x = -10.0; x <= 130.0; x += 0.53) check(dense_table, dense, g, x);
 }
 
 TEST(JointModelTest, FullModelEvaluatesItsCurves) {
