@@ -319,7 +319,7 @@ SmoothingSplineFit GcvSmoothingSpline(std::span<const double> t_s, std::span<con
     sys.Solve(unit * std::pow(10.0, log10_rho));
     return sys.Gcv();
   };
-  constexpr double kLo = -4.0, kHi = 16.0, kStep = 0.5;
+  constexpr double kLo = -4.0, kHi = 16.0, kStep = 1.0;
   double best_x = kLo, best_g = std::numeric_limits<double>::infinity();
   for (double x = kLo; x <= kHi + 1e-9; x += kStep) {
     const double g = gcv_at(x);
@@ -330,7 +330,7 @@ SmoothingSplineFit GcvSmoothingSpline(std::span<const double> t_s, std::span<con
   const double r = (std::sqrt(5.0) - 1.0) / 2.0;
   double c = b - r * (b - a), d = a + r * (b - a);
   double gc = gcv_at(c), gd = gcv_at(d);
-  for (int it = 0; it < 30; ++it) {
+  for (int it = 0; it < 20; ++it) {
     if (gc < gd) {
       b = d, d = c, gd = gc;
       c = b - r * (b - a);
