@@ -15,6 +15,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// The reader connection this thread holds inside Database::Read, so a Read
+// nested in a Read reuses it instead of taking a second one from the pool
+// (which could exhaust the pool and deadlock).
+thread_local const Database* tls_reader_owner = nullptr;
+thread_local Connection* tls_reader = nullptr;
+
 // Every problem row of PRAGMA integrity_check (at most `limit`), or empty
 // when the check says "ok".
 api::Result<std::vector<std::string>> IntegrityProblems(Connection& connection, int limit) {
@@ -199,6 +205,7 @@ api::Status Database::Migrate(std::optional<int> target) {
 api::Status Database::RunTransaction(bool write,
                                      const std::function<api::Status(Connection&)>& fn) {
   if (writer_owner_.load() == std::this_thread::get_id()) return fn(*writer_);
+  if (!write && tls_reader_owner == this) return fn(*tls_reader);
   return write ? RunOnWriter(fn) : RunOnReader(fn);
 }
 
@@ -247,11 +254,15 @@ api::Status Database::RunOnReader(const std::function<api::Status(Connection&)>&
     reader->ClearBusy();
     status = reader->ExecScript("BEGIN");
     if (status.ok()) {
+      tls_reader_owner = this;
+      tls_reader = reader;
       try {
         status = fn(*reader);
       } catch (const std::exception& e) {
         status = api::Status::Internal(std::string("exception in a read transaction: ") + e.what());
       }
+      tls_reader_owner = nullptr;
+      tls_reader = nullptr;
       if (!reader->autocommit()) {
         api::Status end = reader->ExecScript("COMMIT");
         if (!reader->autocommit()) (void)reader->ExecScript("ROLLBACK");

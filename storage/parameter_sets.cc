@@ -101,7 +101,12 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
   const nlohmann::json json = api::ParameterSetToJson(params);
   // Validate through the wire form: what is stored is what clients can read.
   if (auto parsed = api::ParameterSetFromJson(json); !parsed.ok()) return parsed.status();
-  const std::string json_text = json.dump();
+  std::string json_text;
+  try {
+    json_text = json.dump();
+  } catch (const nlohmann::json::type_error&) {
+    return api::Status::InvalidArgument("text fields must be valid UTF-8", "provenance");
+  }
   std::set<std::int64_t> trial_ids(params.provenance.trial_ids.begin(),
                                    params.provenance.trial_ids.end());
   if (params.provenance.active_trial_id) trial_ids.insert(*params.provenance.active_trial_id);

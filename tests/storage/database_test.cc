@@ -249,6 +249,24 @@ TEST_F(StorageTest, FailedTransactionRollsBackEveryRow) {
   EXPECT_EQ(missing.status().code(), api::ErrorCode::kNotFound);
 }
 
+TEST_F(StorageTest, NestedReadsShareOneReaderConnection) {
+  db_.reset();
+  DatabaseOptions options = Options();
+  options.reader_count = 1;  // a second reader would deadlock
+  auto db = Database::Open(options);
+  ASSERT_TRUE(db.ok());
+  SubjectRepository subjects(**db);
+  auto created = subjects.Create("N1", SubjectDetails{});
+  ASSERT_TRUE(created.ok());
+  auto code = (*db)->Read([&](Connection&) -> api::Result<std::string> {
+    auto inner = subjects.Get(created->id);  // nested Read on this thread
+    if (!inner.ok()) return inner.status();
+    return inner->code;
+  });
+  ASSERT_TRUE(code.ok()) << code.status().ToString();
+  EXPECT_EQ(*code, "N1");
+}
+
 TEST_F(StorageTest, BackupAndRestoreRoundTrip) {
   SubjectRepository subjects(*db_);
   for (int i = 0; i < 20; ++i) {

@@ -172,6 +172,10 @@ TEST_F(StorageTest, ParameterSetBadInputNamesTheProblem) {
   auto invalid = sets.Insert({a.subject_id, a.leg_id, bad, std::nullopt, std::nullopt});
   EXPECT_EQ(invalid.status().code(), api::ErrorCode::kInvalidArgument);
   EXPECT_EQ(invalid.status().field(), "passive.inertia_kgm2");
+  auto not_utf8 = params;
+  not_utf8.provenance.irc_method = "ramp\xff";
+  auto refused = sets.Insert({a.subject_id, a.leg_id, not_utf8, std::nullopt, std::nullopt});
+  EXPECT_EQ(refused.status().code(), api::ErrorCode::kInvalidArgument);
   auto other = sets.Insert({b.subject_id, b.leg_id, params, std::nullopt, std::nullopt});
   ASSERT_TRUE(other.ok());
   EXPECT_EQ(sets.Insert({a.subject_id, a.leg_id, params, other->id, std::nullopt})
