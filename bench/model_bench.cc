@@ -4,9 +4,9 @@
 // prediction on one core (identification and the web client's predictions
 // call this in loops).
 
-#include <random>
-
 #include <benchmark/benchmark.h>
+
+#include <random>
 
 #include "model/contraction.h"
 #include "model/joint_model.h"

@@ -125,8 +125,9 @@ std::vector<double> ActivationAt(const ContractionParams& contraction, const Pie
   ValidatePulseTrain(pulses);
   for (std::size_t i = 0; i < t_s.size(); ++i) {
     if (!std::isfinite(t_s[i]) || (i > 0 && t_s[i] < t_s[i - 1])) {
-      throw std::invalid_argument("ActivationAt: sample times must be finite and non-decreasing (index " +
-                                  std::to_string(i) + ")");
+      throw std::invalid_argument(
+          "ActivationAt: sample times must be finite and non-decreasing (index " +
+          std::to_string(i) + ")");
     }
   }
   ContractionPropagator prop(contraction);

@@ -12,11 +12,10 @@
 /// period) at f_stim = R(u), and a single pulse gives the twitch
 /// h_n(t)·R(u)/f_pulse, which peaks at (n − 1)/a.
 
+#include <Eigen/Core>
 #include <array>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "model/parameter_set.h"
 #include "model/piecewise_linear.h"

@@ -11,7 +11,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -32,11 +31,11 @@ std::optional<IntegratorKind> ParseIntegratorKind(std::string_view name);
 /// Error control of the adaptive integrator. A step is accepted when the RMS
 /// over components of err_i / (atol + rtol·max(|x_i|, |x_new_i|)) is ≤ 1.
 struct AdaptiveTolerances {
-  double rtol = 1e-6;          ///< relative tolerance, > 0.
-  double atol = 1e-6;          ///< absolute tolerance in the state's units, > 0.
-  double min_step_s = 1e-10;   ///< smallest step before giving up, > 0.
-  double max_step_s = 0.05;    ///< largest step, ≥ min_step_s.
-  long max_steps = 10'000'000; ///< accepted + rejected steps per call, > 0.
+  double rtol = 1e-6;           ///< relative tolerance, > 0.
+  double atol = 1e-6;           ///< absolute tolerance in the state's units, > 0.
+  double min_step_s = 1e-10;    ///< smallest step before giving up, > 0.
+  double max_step_s = 0.05;     ///< largest step, ≥ min_step_s.
+  long max_steps = 10'000'000;  ///< accepted + rejected steps per call, > 0.
 };
 
 /// @throws std::invalid_argument if a tolerance or step bound is not finite
@@ -101,7 +100,8 @@ State IntegrateRk4(const Rhs& f, double t0, double t1, State x, double max_step_
 namespace detail {
 
 template <class State>
-double ErrorNorm(const State& err, const State& x0, const State& x1, const AdaptiveTolerances& tol) {
+double ErrorNorm(const State& err, const State& x0, const State& x1,
+                 const AdaptiveTolerances& tol) {
   double sum = 0.0;
   const auto n = err.size();
   for (decltype(err.size()) i = 0; i < n; ++i) {
@@ -133,13 +133,13 @@ State IntegrateDormandPrince45(const Rhs& f, double t0, double t1, State x,
   constexpr double a41 = 44.0 / 45, a42 = -56.0 / 15, a43 = 32.0 / 9;
   constexpr double a51 = 19372.0 / 6561, a52 = -25360.0 / 2187, a53 = 64448.0 / 6561,
                    a54 = -212.0 / 729;
-  constexpr double a61 = 9017.0 / 3168, a62 = -355.0 / 33, a63 = 46732.0 / 5247,
-                   a64 = 49.0 / 176, a65 = -5103.0 / 18656;
+  constexpr double a61 = 9017.0 / 3168, a62 = -355.0 / 33, a63 = 46732.0 / 5247, a64 = 49.0 / 176,
+                   a65 = -5103.0 / 18656;
   constexpr double b1 = 35.0 / 384, b3 = 500.0 / 1113, b4 = 125.0 / 192, b5 = -2187.0 / 6784,
                    b6 = 11.0 / 84;
   // e = b(5th) − b(4th).
-  constexpr double e1 = 71.0 / 57600, e3 = -71.0 / 16695, e4 = 71.0 / 1920,
-                   e5 = -17253.0 / 339200, e6 = 22.0 / 525, e7 = -1.0 / 40;
+  constexpr double e1 = 71.0 / 57600, e3 = -71.0 / 16695, e4 = 71.0 / 1920, e5 = -17253.0 / 339200,
+                   e6 = 22.0 / 525, e7 = -1.0 / 40;
 
   double t = t0;
   State k1 = f(t, x);
@@ -164,8 +164,7 @@ State IntegrateDormandPrince45(const Rhs& f, double t0, double t1, State x,
     const State k2 = f(t + c2 * hs, State(x + hs * (a21 * k1)));
     const State k3 = f(t + c3 * hs, State(x + hs * (a31 * k1 + a32 * k2)));
     const State k4 = f(t + c4 * hs, State(x + hs * (a41 * k1 + a42 * k2 + a43 * k3)));
-    const State k5 =
-        f(t + c5 * hs, State(x + hs * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4)));
+    const State k5 = f(t + c5 * hs, State(x + hs * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4)));
     const State k6 =
         f(t + hs, State(x + hs * (a61 * k1 + a62 * k2 + a63 * k3 + a64 * k4 + a65 * k5)));
     const State x_new = x + hs * (b1 * k1 + b3 * k3 + b4 * k4 + b5 * k5 + b6 * k6);

@@ -1,10 +1,9 @@
 #include "model/series_elastic.h"
 
+#include <Eigen/Core>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "model/joint_model.h"
 #include "model/units.h"
@@ -42,8 +41,8 @@ SeriesElasticResult MakeResult(std::size_t n, double rate_hz, ModelKind kind,
   j.model = kind;
   j.t_s.resize(n);
   for (std::size_t i = 0; i < n; ++i) j.t_s[i] = static_cast<double>(i) / rate_hz;
-  for (auto* col : {&j.angle_deg, &j.velocity_deg_s, &j.accel_deg_s2, &j.torque_nm,
-                    &j.activation, &r.ce_angle_deg, &r.ce_velocity_deg_s, &r.se_torque_nm}) {
+  for (auto* col : {&j.angle_deg, &j.velocity_deg_s, &j.accel_deg_s2, &j.torque_nm, &j.activation,
+                    &r.ce_angle_deg, &r.ce_velocity_deg_s, &r.se_torque_nm}) {
     col->assign(n, 0.0);
   }
   j.stim_ma = StimulusColumn(pulses, pulse_rate_hz, j.t_s);
@@ -92,9 +91,9 @@ SeriesElasticResult SimulateSeriesElasticFreeSwing(const ParameterSet& params,
   const auto accel = [&](const State& x, double activation) {
     const double tse = SeTorque(se, x[0], x[1], x[2], x[3]);
     // Eq. 3.14 (our signs): J·θ̈ = −τ_pta(θ) − τ_ptv(θ̇) − τ_se.
-    const double joint = RadToDeg(
-        (-model.PassiveAngleTorque(x[0]) - model.PassiveVelocityTorque(x[1]) - tse) /
-        model.inertia_kgm2());
+    const double joint =
+        RadToDeg((-model.PassiveAngleTorque(x[0]) - model.PassiveVelocityTorque(x[1]) - tse) /
+                 model.inertia_kgm2());
     return std::pair<double, double>(joint, CeAccel(model, se, tse, x[2], x[3], activation));
   };
   const auto rhs = [&](double /*t*/, const State& x, double activation) {
@@ -148,8 +147,8 @@ SeriesElasticResult SimulateSeriesElasticIsometric(const ParameterSet& params,
   };
   const IntegratorSettings settings{options.integrator, options.step_s, options.tolerances};
   IntegratorWorkspace ws;
-  detail::RunPulseDriven(rhs, record, State(angle_deg, 0.0), params.contraction, params.irc,
-                         pulses, options.pulse_rate_hz, options.output_rate_hz, n, settings, ws);
+  detail::RunPulseDriven(rhs, record, State(angle_deg, 0.0), params.contraction, params.irc, pulses,
+                         options.pulse_rate_hz, options.output_rate_hz, n, settings, ws);
   r.joint.stats = ws.stats;
   return r;
 }

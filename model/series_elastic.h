@@ -33,9 +33,9 @@ namespace fesbench::model {
 
 /// Series-elastic element and CE mass.
 struct SeriesElasticParams {
-  double kse_nm_per_deg = 35.0;            ///< K_se > 0, N·m/deg (§6.4: 4, 35, 1000).
-  double ce_inertia_kgm2 = 1e-3;           ///< m > 0, kg·m², small against J.
-  double se_damping_nm_s_per_deg = 0.0;    ///< B_se ≥ 0, N·m·s/deg.
+  double kse_nm_per_deg = 35.0;          ///< K_se > 0, N·m/deg (§6.4: 4, 35, 1000).
+  double ce_inertia_kgm2 = 1e-3;         ///< m > 0, kg·m², small against J.
+  double se_damping_nm_s_per_deg = 0.0;  ///< B_se ≥ 0, N·m·s/deg.
 };
 
 /// A series-elastic simulation: the joint columns as in SimulationResult

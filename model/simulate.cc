@@ -1,10 +1,9 @@
 #include "model/simulate.h"
 
+#include <Eigen/Core>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "model/units.h"
 
@@ -103,7 +102,8 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
   };
   const IntegratorSettings settings{options.integrator, options.step_s, options.tolerances};
   IntegratorWorkspace ws;
-  detail::RunPulseDriven(rhs, record, State(options.initial_angle_deg, options.initial_velocity_deg_s),
+  detail::RunPulseDriven(rhs, record,
+                         State(options.initial_angle_deg, options.initial_velocity_deg_s),
                          params.contraction, params.irc, pulses, options.pulse_rate_hz,
                          options.output_rate_hz, n, settings, ws);
   r.stats = ws.stats;
@@ -131,7 +131,8 @@ SimulationResult SimulateIsometric(const ParameterSet& params, const PulseTrain&
 }
 
 SimulationResult SimulateTrajectory(const ParameterSet& params, const PulseTrain& pulses,
-                                    const Trajectory& trajectory, const SimulationOptions& options) {
+                                    const Trajectory& trajectory,
+                                    const SimulationOptions& options) {
   ValidatePulseTrain(pulses);
   const std::size_t n = detail::ValidateOptions(options, trajectory.duration_s());
   const JointModel model = PrepareModel(params, options);

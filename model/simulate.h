@@ -35,16 +35,17 @@ namespace fesbench::model {
 /// Options of every simulation mode.
 struct SimulationOptions {
   IntegratorKind integrator = IntegratorKind::kRk4;
-  double step_s = 1e-3;            ///< RK4 internal step (maximum), s, > 0.
-  double output_rate_hz = 200.0;   ///< output sample rate, Hz, > 0.
+  double step_s = 1e-3;           ///< RK4 internal step (maximum), s, > 0.
+  double output_rate_hz = 200.0;  ///< output sample rate, Hz, > 0.
   /// Simulated span, s, > 0. Unset: the trajectory's duration in trajectory
   /// mode, otherwise the last pulse's time + 1 s (1 s without pulses).
   std::optional<double> duration_s;
-  double initial_angle_deg = 90.0;       ///< free swing θ(0), deg, 0–180.
-  double initial_velocity_deg_s = 0.0;   ///< free swing θ̇(0), deg/s.
-  double pulse_rate_hz = kDefaultPulseRateHz;  ///< f_pulse of the pulse weight R(u)/f_pulse, Hz, > 0.
+  double initial_angle_deg = 90.0;      ///< free swing θ(0), deg, 0–180.
+  double initial_velocity_deg_s = 0.0;  ///< free swing θ̇(0), deg/s.
+  double pulse_rate_hz =
+      kDefaultPulseRateHz;  ///< f_pulse of the pulse weight R(u)/f_pulse, Hz, > 0.
   AdaptiveTolerances tolerances{1e-8, 1e-8, 1e-10, 0.01, 10'000'000};  ///< adaptive only.
-  std::optional<ModelKind> model_kind;   ///< overrides params.model when set.
+  std::optional<ModelKind> model_kind;  ///< overrides params.model when set.
 };
 
 /// Equal-length columns, one row per output sample.
@@ -62,7 +63,7 @@ struct SimulationResult {
   /// τ_pta(θ₀) + τ_ptv(0) + τ_act (raw, offset not removed); trajectory
   /// J·θ̈ + τ_pta(θ) + τ_ptv(θ̇) + τ_act (Eq. 4.9 plus the active term).
   std::vector<double> torque_nm;
-  std::vector<double> activation;  ///< f_stim (dimensionless).
+  std::vector<double> activation;      ///< f_stim (dimensionless).
   ModelKind model = ModelKind::kFull;  ///< the variant simulated.
   IntegrationStats stats;              ///< free swing only; zeros otherwise.
 

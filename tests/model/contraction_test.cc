@@ -1,11 +1,11 @@
 #include "model/contraction.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <stdexcept>
-#include <vector>
-
-#include <gtest/gtest.h>
 #include <unsupported/Eigen/MatrixFunctions>
+#include <vector>
 
 #include "model/parameter_set.h"
 
@@ -37,7 +37,8 @@ TEST(ContractionTest, ImpulseResponseHasUnitArea) {
     const ContractionParams c{n, 20.0};
     double area = 0.0;
     const double dt = 1e-5;
-    for (double t = 0.0; t < 3.0; t += dt) area += 0.5 * dt * (ImpulseResponse(c, t) + ImpulseResponse(c, t + dt));
+    for (double t = 0.0; t < 3.0; t += dt)
+      area += 0.5 * dt * (ImpulseResponse(c, t) + ImpulseResponse(c, t + dt));
     EXPECT_NEAR(area, 1.0, 1e-8);
     EXPECT_EQ(ImpulseResponse(c, -0.1), 0.0);
   }

@@ -1,10 +1,10 @@
 #include "model/integrators.h"
 
-#include <cmath>
-#include <stdexcept>
+#include <gtest/gtest.h>
 
 #include <Eigen/Core>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <stdexcept>
 
 namespace fesbench::model {
 namespace {

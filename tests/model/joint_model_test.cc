@@ -1,9 +1,9 @@
 #include "model/joint_model.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 #include "model/units.h"
 
@@ -14,8 +14,8 @@ TEST(JointModelTest, CurvePairTableMatchesPiecewiseLinear) {
   const PiecewiseLinear f({-400, -200, -50, 0, 10, 200}, {0.4, 0.7, 0.9, 1.0, 1.02, 1.3});
   const PiecewiseLinear g({-300, -100, 0, 100, 300}, {-1.0, 0.5, 0.0, 2.0, 2.5});
   const CurvePairTable table(f, g);
-  const auto check = [](const CurvePairTable& t, const PiecewiseLinear& a,
-                        const PiecewiseLinear& b, double x) {
+  const auto check = [](const CurvePairTable& t, const PiecewiseLinear& a, const PiecewiseLinear& b,
+                        double x) {
     double fa = 0.0, gb = 0.0;
     t.Evaluate(x, fa, gb);
     EXPECT_NEAR(fa, a(x), 1e-12) << x;
@@ -117,8 +117,8 @@ TEST(JointModelTest, ParametricFormulas) {
   EXPECT_NEAR(m.PassiveAngleTorque(40.0), 8.6 * std::sin(th) + 0.5 * std::exp(-3.0 * th) - 1.2,
               1e-12);
   EXPECT_NEAR(m.AngleGain(90.0), 1.0, 1e-15);
-  EXPECT_NEAR(m.AngleGain(65.0) / m.AngleGain(30.0),
-              std::exp(35.0 * 35.0 / (2 * 35.0 * 35.0)), 1e-12);
+  EXPECT_NEAR(m.AngleGain(65.0) / m.AngleGain(30.0), std::exp(35.0 * 35.0 / (2 * 35.0 * 35.0)),
+              1e-12);
   EXPECT_NEAR(m.VelocityGain(-200.0), 1.0 - 0.3, 1e-12);
   EXPECT_NEAR(m.VelocityGain(100.0), 1.08, 1e-12);
   EXPECT_EQ(m.VelocityGain(-1000.0), 0.0);  // clamped

@@ -1,10 +1,10 @@
 #include "model/series_elastic.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 namespace fesbench::model {
 namespace {
@@ -34,8 +34,8 @@ TEST(SeriesElasticTest, StiffSeriesElementApproachesRigidIsometric) {
   const SeriesElasticResult se =
       SimulateSeriesElasticIsometric(p, {1e4, 1e-4, 0.0}, pulses, 70.0, o);
   ASSERT_EQ(se.joint.size(), rigid.size());
-  const double peak = *std::max_element(rigid.torque_nm.begin(), rigid.torque_nm.end()) -
-                      rigid.torque_nm[0];
+  const double peak =
+      *std::max_element(rigid.torque_nm.begin(), rigid.torque_nm.end()) - rigid.torque_nm[0];
   double max_diff = 0.0;
   for (std::size_t i = 0; i < rigid.size(); ++i) {
     max_diff = std::max(max_diff, std::abs(se.joint.torque_nm[i] - rigid.torque_nm[i]));
@@ -96,8 +96,7 @@ TEST(SeriesElasticTest, RejectsBadParameters) {
                std::invalid_argument);
   EXPECT_THROW(SimulateSeriesElasticIsometric(p, {35.0, -1.0, 0.0}, {}, 90.0, o),
                std::invalid_argument);
-  EXPECT_THROW(SimulateSeriesElasticFreeSwing(p, {35.0, 1e-3, -0.1}, {}, o),
-               std::invalid_argument);
+  EXPECT_THROW(SimulateSeriesElasticFreeSwing(p, {35.0, 1e-3, -0.1}, {}, o), std::invalid_argument);
   EXPECT_THROW(SimulateSeriesElasticIsometric(p, {35.0, 1e-3, 0.0}, {}, 200.0, o),
                std::invalid_argument);
 }

@@ -1,12 +1,12 @@
 #include "model/simulate.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "model/units.h"
 
@@ -32,7 +32,8 @@ PulseTrain RandomBinaryPulses(double duration_s, double stim_ma, unsigned seed) 
 ParameterSet LinearPassive(double k_nm_per_deg, double c_nm_s_per_deg) {
   ParameterSet p = ExampleParameterSet();
   p.passive.inertia_kgm2 = 0.36;
-  p.passive.torque_angle = PiecewiseLinear({-1000.0, 1000.0}, {k_nm_per_deg * -1090.0, k_nm_per_deg * 910.0});
+  p.passive.torque_angle =
+      PiecewiseLinear({-1000.0, 1000.0}, {k_nm_per_deg * -1090.0, k_nm_per_deg * 910.0});
   p.passive.torque_velocity =
       PiecewiseLinear({-1e4, 1e4}, {-c_nm_s_per_deg * 1e4, c_nm_s_per_deg * 1e4});
   p.active.torque_scale_nm = 0.0;
@@ -87,7 +88,7 @@ TEST(SimulateTest, Rk4AndAdaptiveAgreeOnRandomBinaryFreeSwing) {
     range_hi = std::max(range_hi, rk4.angle_deg[i]);
   }
   EXPECT_LT(max_diff, 0.01);
-  EXPECT_GT(range_hi - range_lo, 20.0);  // the test exercises real motion
+  EXPECT_GT(range_hi - range_lo, 20.0);        // the test exercises real motion
   EXPECT_GE(rk4.stats.accepted_steps, 10000);  // 1 kHz plus pulse splits
 }
 
@@ -102,8 +103,8 @@ TEST(SimulateTest, FreeSwingColumnsSatisfyTheEquationOfMotion) {
     const double th = r.angle_deg[i], v = r.velocity_deg_s[i];
     EXPECT_NEAR(r.activation[i], act[i], 1e-12);
     // J·θ̈ + τ_pta + τ_ptv + τ_act = τ_motor = 0.
-    const double tau_act = act[i] * p.active.torque_scale_nm * p.active.torque_angle(th) *
-                           p.active.torque_velocity(v);
+    const double tau_act =
+        act[i] * p.active.torque_scale_nm * p.active.torque_angle(th) * p.active.torque_velocity(v);
     EXPECT_NEAR(0.36 * DegToRad(r.accel_deg_s2[i]) + p.passive.torque_angle(th) +
                     p.passive.torque_velocity(v) + tau_act,
                 0.0, 1e-9);
@@ -176,11 +177,11 @@ TEST(SimulateTest, TrajectoryTorqueFollowsEquation49WithActiveTerm) {
   const auto act = ActivationAt(p.contraction, p.irc, pulses, 33.0, r.t_s);
   for (std::size_t i = 0; i < r.size(); ++i) {
     const Kinematics k = traj.At(r.t_s[i]);
-    const double expected =
-        0.36 * DegToRad(k.accel_deg_s2) + p.passive.torque_velocity(k.velocity_deg_s) +
-        p.passive.torque_angle(k.angle_deg) +
-        act[i] * 40.0 * p.active.torque_angle(k.angle_deg) *
-            p.active.torque_velocity(k.velocity_deg_s);
+    const double expected = 0.36 * DegToRad(k.accel_deg_s2) +
+                            p.passive.torque_velocity(k.velocity_deg_s) +
+                            p.passive.torque_angle(k.angle_deg) +
+                            act[i] * 40.0 * p.active.torque_angle(k.angle_deg) *
+                                p.active.torque_velocity(k.velocity_deg_s);
     EXPECT_NEAR(r.torque_nm[i], expected, 1e-10);
     EXPECT_EQ(r.angle_deg[i], k.angle_deg);
   }
