@@ -23,7 +23,8 @@ namespace {
 
 TrialColumns Columns(const SimulationResult& sim, std::size_t n) {
   const auto cut = [n](const std::vector<double>& v) {
-    return std::vector<double>(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(std::min(n, v.size())));
+    return std::vector<double>(v.begin(),
+                               v.begin() + static_cast<std::ptrdiff_t>(std::min(n, v.size())));
   };
   TrialColumns tr;
   tr.t_s = cut(sim.t_s);
@@ -48,11 +49,16 @@ struct Data {
     SimulationOptions o;
     o.duration_s = traj.duration_s();
     motor = Columns(SimulateTrajectory(truth, {}, traj, o), 2000);
-    const SampledSignal ramp_env = MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 20}, {"max_ma", 45}});
+    const SampledSignal ramp_env =
+        MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 20}, {"max_ma", 45}});
     o.duration_s = ramp_env.EndTime();
-    ramp = Columns(SimulateIsometric(truth, PulsesFromEnvelope(ramp_env, kDefaultPulseRateHz), 90.0, o), 1u << 30);
-    const SampledSignal s_env = MakeStimulus("random_binary_sparse", {{"amplitude_ma", 26}, {"seed", 1}});
-    const SampledSignal d_env = MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 2}});
+    ramp = Columns(
+        SimulateIsometric(truth, PulsesFromEnvelope(ramp_env, kDefaultPulseRateHz), 90.0, o),
+        1u << 30);
+    const SampledSignal s_env =
+        MakeStimulus("random_binary_sparse", {{"amplitude_ma", 26}, {"seed", 1}});
+    const SampledSignal d_env =
+        MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 2}});
     sparse_pulses = PulsesFromEnvelope(s_env, kDefaultPulseRateHz);
     dense_pulses = PulsesFromEnvelope(d_env, kDefaultPulseRateHz);
     o.duration_s = s_env.EndTime();
@@ -69,14 +75,16 @@ const Data& GetData() {
 
 void BM_SimultaneousPassive2000(benchmark::State& state) {
   const Data& d = GetData();
-  for (auto _ : state) benchmark::DoNotOptimize(IdentifyPassiveSimultaneous(std::span(&d.motor, 1)));
+  for (auto _ : state)
+    benchmark::DoNotOptimize(IdentifyPassiveSimultaneous(std::span(&d.motor, 1)));
   state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(d.motor.size()));
 }
 BENCHMARK(BM_SimultaneousPassive2000)->Unit(benchmark::kMicrosecond);
 
 void BM_Active2000(benchmark::State& state) {
   const Data& d = GetData();
-  for (auto _ : state) benchmark::DoNotOptimize(IdentifyActive(std::span(&d.dense, 1), d.truth.passive));
+  for (auto _ : state)
+    benchmark::DoNotOptimize(IdentifyActive(std::span(&d.dense, 1), d.truth.passive));
   state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(d.dense.size()));
 }
 BENCHMARK(BM_Active2000)->Unit(benchmark::kMicrosecond);
@@ -112,11 +120,12 @@ void BM_RapidChain(benchmark::State& state) {
         tr->velocity_deg_s = fit.first;
         tr->accel_deg_s2 = fit.second;
       }
-      tr->activation = ActivationAt(est.contraction, est.irc,
-                                    tr == &sparse ? d.sparse_pulses : d.dense_pulses,
-                                    kDefaultPulseRateHz, tr->t_s);
+      tr->activation =
+          ActivationAt(est.contraction, est.irc, tr == &sparse ? d.sparse_pulses : d.dense_pulses,
+                       kDefaultPulseRateHz, tr->t_s);
     }
-    est.passive = IdentifyPassiveFreeSwing(std::span(&sparse, 1), d.truth.passive.torque_angle).passive;
+    est.passive =
+        IdentifyPassiveFreeSwing(std::span(&sparse, 1), d.truth.passive.torque_angle).passive;
     est.active = IdentifyActive(std::span(&dense, 1), est.passive).active;
     benchmark::DoNotOptimize(est);
   }

@@ -27,8 +27,7 @@ class ReinschSystem {
     if (n < 4) throw std::invalid_argument("smoothing spline: need at least 4 samples");
     if (y.size() != n) {
       throw std::invalid_argument("smoothing spline: wrong argument size: expected " +
-                                  std::to_string(n) + " values, got " +
-                                  std::to_string(y.size()));
+                                  std::to_string(n) + " values, got " + std::to_string(y.size()));
     }
     for (std::size_t i = 0; i < n; ++i) {
       if (!std::isfinite(t[i]) || !std::isfinite(y[i])) {
@@ -101,9 +100,9 @@ class ReinschSystem {
   // (Q·γ)_i.
   double QGamma(std::size_t i) const {
     double s = 0.0;
-    if (i >= 2) s += qc_[i - 2] * gamma_[i - 2];             // column of knot i−1
+    if (i >= 2) s += qc_[i - 2] * gamma_[i - 2];                // column of knot i−1
     if (i >= 1 && i - 1 < m_) s += qb_[i - 1] * gamma_[i - 1];  // knot i
-    if (i < m_) s += qa_[i] * gamma_[i];                      // knot i+1
+    if (i < m_) s += qa_[i] * gamma_[i];                        // knot i+1
     return s;
   }
 
@@ -156,7 +155,8 @@ class ReinschSystem {
     }
     fit.first.resize(n);
     for (std::size_t i = 0; i + 1 < n; ++i) {
-      fit.first[i] = (fit.value[i + 1] - fit.value[i]) / h_[i] - h_[i] * (2.0 * g[i] + g[i + 1]) / 6.0;
+      fit.first[i] =
+          (fit.value[i + 1] - fit.value[i]) / h_[i] - h_[i] * (2.0 * g[i] + g[i + 1]) / 6.0;
     }
     const double hl = h_[n - 2];
     fit.first[n - 1] =

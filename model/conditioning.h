@@ -22,22 +22,21 @@ namespace fesbench::model {
 double TorqueOffset(std::span<const double> torque_nm, std::size_t count = 50);
 
 /// torque − TorqueOffset(torque, count).
-std::vector<double> RemoveTorqueOffset(std::span<const double> torque_nm,
-                                       std::size_t count = 50);
+std::vector<double> RemoveTorqueOffset(std::span<const double> torque_nm, std::size_t count = 50);
 
 /// One static position hold found in a motor trial (§5.4.1).
 struct PositionHold {
-  std::size_t begin = 0;   ///< first sample of the hold.
-  std::size_t end = 0;     ///< one past its last sample.
-  double angle_deg = 0.0;  ///< mean of the last `average_samples` samples.
-  double torque_nm = 0.0;  ///< same window (NaN if no torque column).
+  std::size_t begin = 0;      ///< first sample of the hold.
+  std::size_t end = 0;        ///< one past its last sample.
+  double angle_deg = 0.0;     ///< mean of the last `average_samples` samples.
+  double torque_nm = 0.0;     ///< same window (NaN if no torque column).
   double accel_deg_s2 = 0.0;  ///< same window (NaN if no accel column).
 };
 
 /// Options of DetectHolds.
 struct HoldOptions {
-  double max_speed_deg_s = 0.5;    ///< |Δθ/Δt| below this counts as still.
-  double min_duration_s = 1.0;     ///< shorter still runs are not holds.
+  double max_speed_deg_s = 0.5;      ///< |Δθ/Δt| below this counts as still.
+  double min_duration_s = 1.0;       ///< shorter still runs are not holds.
   std::size_t average_samples = 50;  ///< §5.4.1: 50 samples averaged.
 };
 
@@ -81,13 +80,13 @@ std::vector<double> CorrectAcceleration(const PiecewiseLinear& calibration,
 /// A cubic (order 2m, m = 2) natural smoothing spline through noisy samples
 /// and its first two derivatives at the sample times.
 struct SmoothingSplineFit {
-  std::vector<double> value;       ///< smoothed samples, input unit.
-  std::vector<double> first;       ///< d/dt at each sample, unit/s.
-  std::vector<double> second;      ///< d²/dt² at each sample, unit/s².
-  double lambda = 0.0;             ///< smoothing parameter used.
-  double gcv = 0.0;                ///< GCV criterion at lambda.
-  double residual_rms = 0.0;       ///< rms(y − value).
-  double effective_dof = 0.0;      ///< tr(A(λ)), the fit's degrees of freedom.
+  std::vector<double> value;   ///< smoothed samples, input unit.
+  std::vector<double> first;   ///< d/dt at each sample, unit/s.
+  std::vector<double> second;  ///< d²/dt² at each sample, unit/s².
+  double lambda = 0.0;         ///< smoothing parameter used.
+  double gcv = 0.0;            ///< GCV criterion at lambda.
+  double residual_rms = 0.0;   ///< rms(y − value).
+  double effective_dof = 0.0;  ///< tr(A(λ)), the fit's degrees of freedom.
 };
 
 /// The cubic smoothing spline minimising Σ (y_i − f(t_i))² + λ ∫ f''(t)² dt

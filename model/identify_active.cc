@@ -104,9 +104,11 @@ ActiveResult IdentifyActive(std::span<const TrialColumns> trials, const PassiveP
                                   " stimulated samples with non-positive active torque skipped "
                                   "(passive set inconsistent with the trial?)");
   }
-  for (auto& w : SupportWarnings("f_ata", "deg", bp_a, BreakpointSupport(bp_a, angle), options.min_support))
+  for (auto& w :
+       SupportWarnings("f_ata", "deg", bp_a, BreakpointSupport(bp_a, angle), options.min_support))
     res.report.warnings.push_back(std::move(w));
-  for (auto& w : SupportWarnings("f_atv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
+  for (auto& w :
+       SupportWarnings("f_atv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
     res.report.warnings.push_back(std::move(w));
   const Coverage cov = PhasePlaneCoverage(angle, vel, bp_a, bp_v);
   res.report.values["coverage"] = cov.share;

@@ -58,7 +58,7 @@ std::vector<double> ResolveBreakpoints(const BreakpointSpec& spec, std::span<con
 /// coverage and human-readable warnings (e.g. under-determined fits).
 struct IdentifyReport {
   std::map<std::string, double> fit_rms;
-  std::map<std::string, double> values;   ///< other figures (rank, delay_s, …).
+  std::map<std::string, double> values;  ///< other figures (rank, delay_s, …).
   std::vector<std::string> warnings;
   /// Appends the other report's entries (its keys win on collision).
   void Merge(const IdentifyReport& other);

@@ -8,7 +8,6 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
-
 #include <unsupported/Eigen/FFT>
 
 namespace fesbench::model {
@@ -161,8 +160,9 @@ TwitchAverage AverageImpulseResponses(std::span<const TrialColumns> trials,
       }
       const std::size_t len = end - runs[k].begin;
       if (len < kMinTwitchSamples) continue;
-      const double stim = *std::max_element(trial.stim_ma.begin() + static_cast<std::ptrdiff_t>(runs[k].begin),
-                                            trial.stim_ma.begin() + static_cast<std::ptrdiff_t>(runs[k].end));
+      const double stim =
+          *std::max_element(trial.stim_ma.begin() + static_cast<std::ptrdiff_t>(runs[k].begin),
+                            trial.stim_ma.begin() + static_cast<std::ptrdiff_t>(runs[k].end));
       pieces.push_back({&trial, runs[k].begin, len,
                         Baseline(trial, runs[k].begin, options.baseline_samples), stim});
     }
@@ -313,11 +313,16 @@ ContractionResult IdentifyContraction(std::span<const TrialColumns> trials,
 
 std::string_view IrcMethodName(IrcMethod method) {
   switch (method) {
-    case IrcMethod::kStep: return "step";
-    case IrcMethod::kImpulse: return "impulse";
-    case IrcMethod::kRampCorrelation: return "ramp_correlation";
-    case IrcMethod::kRampDeconvolutionIdeal: return "ramp_deconvolution_ideal";
-    case IrcMethod::kRampDeconvolutionMeasured: return "ramp_deconvolution_measured";
+    case IrcMethod::kStep:
+      return "step";
+    case IrcMethod::kImpulse:
+      return "impulse";
+    case IrcMethod::kRampCorrelation:
+      return "ramp_correlation";
+    case IrcMethod::kRampDeconvolutionIdeal:
+      return "ramp_deconvolution_ideal";
+    case IrcMethod::kRampDeconvolutionMeasured:
+      return "ramp_deconvolution_measured";
   }
   return "unknown";
 }
@@ -355,8 +360,8 @@ double CorrelationDelay(std::span<const double> u, std::span<const double> r, do
   return lag / rate_hz;
 }
 
-std::vector<double> Deconvolve(std::span<const double> r, std::span<const double> g,
-                               double rate_hz, double lowpass_hz, double guard) {
+std::vector<double> Deconvolve(std::span<const double> r, std::span<const double> g, double rate_hz,
+                               double lowpass_hz, double guard) {
   if (r.empty() || g.empty() || !(rate_hz > 0.0) || !(guard > 0.0) || !(lowpass_hz > 0.0)) {
     throw std::invalid_argument("Deconvolve: need non-empty signals, rate, lowpass, guard > 0");
   }
@@ -378,11 +383,12 @@ std::vector<double> Deconvolve(std::span<const double> r, std::span<const double
     if (f >= lowpass_hz) {
       taper = 0.0;
     } else if (f > 0.7 * lowpass_hz) {
-      taper = 0.5 * (1.0 + std::cos(std::numbers::pi * (f - 0.7 * lowpass_hz) / (0.3 * lowpass_hz)));
+      taper =
+          0.5 * (1.0 + std::cos(std::numbers::pi * (f - 0.7 * lowpass_hz) / (0.3 * lowpass_hz)));
     }
     // Eq. 4.8, guarded: no division by a near-zero |G|.
     rf[k] = (std::abs(gf[k]) >= guard * gmax && taper > 0.0) ? taper * rf[k] / gf[k]
-                                                              : std::complex<double>(0.0, 0.0);
+                                                             : std::complex<double>(0.0, 0.0);
   }
   std::vector<double> s;
   fft.inv(s, rf);
@@ -462,7 +468,8 @@ IrcResult IdentifyIrc(IrcMethod method, const TrialColumns& trial, const IrcOpti
         }
         report.values["ideal_pole_per_s"] = ideal.pole_per_s;
         report.values["ideal_order"] = ideal.order;
-        const std::size_t len = static_cast<std::size_t>(std::ceil(12.0 / ideal.pole_per_s * rate)) + 1;
+        const std::size_t len =
+            static_cast<std::size_t>(std::ceil(12.0 / ideal.pole_per_s * rate)) + 1;
         for (std::size_t i = 0; i < len; ++i) {
           kernel.push_back(IdealKernelValue(ideal, static_cast<double>(i) / rate));
         }
@@ -481,7 +488,8 @@ IrcResult IdentifyIrc(IrcMethod method, const TrialColumns& trial, const IrcOpti
     }
     std::vector<double> grid(static_cast<std::size_t>(options.ramp_points));
     for (std::size_t g = 0; g < grid.size(); ++g) {
-      grid[g] = u_lo + (u_hi - u_lo) * static_cast<double>(g) / static_cast<double>(grid.size() - 1);
+      grid[g] =
+          u_lo + (u_hi - u_lo) * static_cast<double>(g) / static_cast<double>(grid.size() - 1);
     }
     std::vector<double> acc(grid.size(), 0.0);
     double delay_sum = 0.0;
@@ -490,8 +498,8 @@ IrcResult IdentifyIrc(IrcMethod method, const TrialColumns& trial, const IrcOpti
       const StimulusRun& run = runs[k];
       const std::size_t limit = k + 1 < runs.size() ? runs[k + 1].begin : n;
       const double base = Baseline(trial, run.begin, options.twitch.baseline_samples);
-      const double tail_s = method == IrcMethod::kRampCorrelation ? options.max_lag_s
-                                                                  : options.deconvolution_tail_s;
+      const double tail_s =
+          method == IrcMethod::kRampCorrelation ? options.max_lag_s : options.deconvolution_tail_s;
       const std::size_t end =
           std::min(limit, run.end + static_cast<std::size_t>(std::ceil(tail_s * rate)));
       std::vector<double> useg(end - run.begin, 0.0), rseg(end - run.begin);
@@ -516,7 +524,8 @@ IrcResult IdentifyIrc(IrcMethod method, const TrialColumns& trial, const IrcOpti
         std::copy(dec.begin(), dec.begin() + static_cast<std::ptrdiff_t>(run.size()), s.begin());
       }
       const auto legs = AverageLegs(std::span(useg).first(run.size()), s, grid);
-      for (std::size_t g = 0; g < grid.size(); ++g) acc[g] += legs[g] / static_cast<double>(ramps.size());
+      for (std::size_t g = 0; g < grid.size(); ++g)
+        acc[g] += legs[g] / static_cast<double>(ramps.size());
     }
     if (method == IrcMethod::kRampCorrelation) {
       report.values["correlation_delay_s"] = delay_sum / static_cast<double>(ramps.size());

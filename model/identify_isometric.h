@@ -44,8 +44,8 @@ struct TwitchOptions {
 struct TwitchAverage {
   std::vector<double> t_s;
   std::vector<double> torque_nm;
-  int count = 0;           ///< impulses averaged.
-  double stim_ma = 0.0;    ///< mean pulse amplitude.
+  int count = 0;         ///< impulses averaged.
+  double stim_ma = 0.0;  ///< mean pulse amplitude.
 };
 
 /// Averages the single-pulse responses of the trials.
@@ -69,20 +69,20 @@ double PoleFromPeak(int order, double t_peak_s);
 struct TwitchFit {
   int order = 3;
   double pole_per_s = 0.0;
-  double gain = 0.0;   ///< K, N·m·s^(1−n).
-  double rms_nm = 0.0; ///< Eq. 6.4 between fit and data.
+  double gain = 0.0;    ///< K, N·m·s^(1−n).
+  double rms_nm = 0.0;  ///< Eq. 6.4 between fit and data.
 };
 
 /// Best gain K for a fixed pole (linear least squares) and its RMS error.
-TwitchFit FitTwitchGain(std::span<const double> t_s, std::span<const double> torque_nm,
-                        int order, double pole_per_s);
+TwitchFit FitTwitchGain(std::span<const double> t_s, std::span<const double> torque_nm, int order,
+                        double pole_per_s);
 
 /// Least-squares fit of the pole (and gain) to the whole twitch: the RMS
 /// of Eq. 6.4 minimised over a (gain eliminated), searched over
 /// [initial/4, 4·initial] in log a.
 /// @throws std::invalid_argument on order ∉ {2, 3}, initial <= 0, or sizes.
-TwitchFit FitTwitchPole(std::span<const double> t_s, std::span<const double> torque_nm,
-                        int order, double initial_pole_per_s);
+TwitchFit FitTwitchPole(std::span<const double> t_s, std::span<const double> torque_nm, int order,
+                        double initial_pole_per_s);
 
 /// Which pole estimate IdentifyContraction returns.
 enum class PoleMethod { kPeak, kLeastSquares };
@@ -90,7 +90,7 @@ enum class PoleMethod { kPeak, kLeastSquares };
 /// Options of IdentifyContraction.
 struct ContractionOptions {
   TwitchOptions twitch;
-  int order = 3;            ///< 2 or 3, or 0 for the order with the lower LS RMS.
+  int order = 3;  ///< 2 or 3, or 0 for the order with the lower LS RMS.
   PoleMethod method = PoleMethod::kPeak;
 };
 
@@ -99,7 +99,7 @@ struct ContractionOptions {
 /// error in fit_rms ("twitch_order2_peak", "twitch_order3_peak",
 /// "twitch_order2_ls", "twitch_order3_ls"), the peak time in values.
 struct ContractionResult {
-  ContractionParams contraction;   ///< the chosen order and method.
+  ContractionParams contraction;  ///< the chosen order and method.
   TwitchFit order2_peak, order3_peak, order2_ls, order3_ls;
   double peak_time_s = 0.0;
   TwitchAverage twitch;
@@ -113,11 +113,11 @@ ContractionResult IdentifyContraction(std::span<const TrialColumns> trials,
 
 /// The five IRC methods of §4.1 (DESIGN.md §4).
 enum class IrcMethod {
-  kStep,                        ///< §4.1.1, §5.3.1.
-  kImpulse,                     ///< §4.1.2, §5.3.2.
-  kRampCorrelation,             ///< §4.1.3 Eq. 4.5.
-  kRampDeconvolutionIdeal,      ///< §4.1.3 Eqs. 4.6–4.8, ideal impulse.
-  kRampDeconvolutionMeasured,   ///< §4.1.3, averaged measured impulse.
+  kStep,                       ///< §4.1.1, §5.3.1.
+  kImpulse,                    ///< §4.1.2, §5.3.2.
+  kRampCorrelation,            ///< §4.1.3 Eq. 4.5.
+  kRampDeconvolutionIdeal,     ///< §4.1.3 Eqs. 4.6–4.8, ideal impulse.
+  kRampDeconvolutionMeasured,  ///< §4.1.3, averaged measured impulse.
 };
 
 /// "step", "impulse", "ramp_correlation", "ramp_deconvolution_ideal",
@@ -127,13 +127,13 @@ std::string_view IrcMethodName(IrcMethod method);
 /// Options of IdentifyIrc.
 struct IrcOptions {
   TwitchOptions twitch;
-  double min_burst_s = 1.0;        ///< shorter non-impulse runs are ignored.
-  double step_average_s = 0.5;     ///< §5.3.1: mean of the last 0.5 s.
-  int ramp_points = 41;            ///< IRC breakpoints of the ramp methods.
-  double max_lag_s = 0.5;          ///< correlation lags searched, 0..max.
+  double min_burst_s = 1.0;           ///< shorter non-impulse runs are ignored.
+  double step_average_s = 0.5;        ///< §5.3.1: mean of the last 0.5 s.
+  int ramp_points = 41;               ///< IRC breakpoints of the ramp methods.
+  double max_lag_s = 0.5;             ///< correlation lags searched, 0..max.
   double deconvolution_tail_s = 1.0;  ///< response kept after a ramp, s.
-  double lowpass_hz = 10.0;        ///< deconvolution band (below the pulse rate).
-  double guard = 1e-3;             ///< |H(f)| below guard·max|H| is not divided.
+  double lowpass_hz = 10.0;           ///< deconvolution band (below the pulse rate).
+  double guard = 1e-3;                ///< |H(f)| below guard·max|H| is not divided.
   /// Ideal impulse of the ideal deconvolution: order (thesis: 2) and pole;
   /// pole_per_s <= 0 takes it from the trial's impulses (Eqs. 4.2, 4.4).
   ContractionParams ideal{2, 0.0};
@@ -141,8 +141,8 @@ struct IrcOptions {
 
 /// A normalised IRC R(u) ∈ [0, 1] and the torque it is normalised by.
 struct IrcResult {
-  PiecewiseLinear irc;             ///< stim_ma → activation.
-  double torque_scale_nm = 0.0;    ///< torque at R = 1 (full scale).
+  PiecewiseLinear irc;           ///< stim_ma → activation.
+  double torque_scale_nm = 0.0;  ///< torque at R = 1 (full scale).
   IdentifyReport report;
 };
 
@@ -167,7 +167,7 @@ double CorrelationDelay(std::span<const double> u, std::span<const double> r, do
 /// frequency is below lowpass_hz (cosine taper from 0.7·lowpass_hz), 0
 /// elsewhere. Zero-padded, so no wrap-around.
 /// @throws std::invalid_argument on empty inputs, rate <= 0 or guard <= 0.
-std::vector<double> Deconvolve(std::span<const double> r, std::span<const double> g,
-                               double rate_hz, double lowpass_hz, double guard);
+std::vector<double> Deconvolve(std::span<const double> r, std::span<const double> g, double rate_hz,
+                               double lowpass_hz, double guard);
 
 }  // namespace fesbench::model

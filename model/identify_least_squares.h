@@ -5,21 +5,20 @@
 /// (Eqs. 4.14–4.26, §4.2.2) and the piecewise-linear design columns of
 /// Eq. 4.30 used by the passive and active fits.
 
+#include <Eigen/Dense>
 #include <cstddef>
 #include <span>
 #include <string>
 #include <vector>
 
-#include <Eigen/Dense>
-
 namespace fesbench::model {
 
 /// The solution of min |A·c − b|² (Eq. 4.18).
 struct LeastSquaresSolution {
-  Eigen::VectorXd c;                   ///< parameters (Eq. 4.24).
-  int rank = 0;                        ///< singular values kept.
-  double rms = 0.0;                    ///< sqrt(mean residual²), in b's unit.
-  Eigen::VectorXd singular_values;     ///< of the column-scaled A, descending.
+  Eigen::VectorXd c;                ///< parameters (Eq. 4.24).
+  int rank = 0;                     ///< singular values kept.
+  double rms = 0.0;                 ///< sqrt(mean residual²), in b's unit.
+  Eigen::VectorXd singular_values;  ///< of the column-scaled A, descending.
 };
 
 /// Solves min |A·c − b|² by SVD with small singular values zeroed

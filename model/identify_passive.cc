@@ -85,10 +85,12 @@ PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
     const double sign = v[i] > 0 ? 1.0 : -1.0;
     std::size_t j = i;
     double peak = 0.0;
-    while (j < n && sign * v[j] >= options.min_move_speed_deg_s) peak = std::max(peak, sign * v[j++]);
+    while (j < n && sign * v[j] >= options.min_move_speed_deg_s)
+      peak = std::max(peak, sign * v[j++]);
     // Constant part: |θ̇| within tolerance of the peak; its last use_last_s.
     std::size_t last = j;
-    while (last > i && sign * v[last - 1] < (1.0 - options.constant_velocity_tolerance) * peak) --last;
+    while (last > i && sign * v[last - 1] < (1.0 - options.constant_velocity_tolerance) * peak)
+      --last;
     std::size_t first = last;
     while (first > i && sign * v[first - 1] >= (1.0 - options.constant_velocity_tolerance) * peak &&
            velocities.t_s[last - 1] - velocities.t_s[first - 1] < options.use_last_s - 1e-9) {
@@ -111,7 +113,8 @@ PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
     }
     i = j;
   }
-  if (vx.size() < 2) throw std::invalid_argument(std::string(what) + ": no constant-velocity move found");
+  if (vx.size() < 2)
+    throw std::invalid_argument(std::string(what) + ": no constant-velocity move found");
   // Sort; equal velocities (repeated moves) are averaged.
   std::vector<std::size_t> idx(vx.size());
   for (std::size_t k = 0; k < idx.size(); ++k) idx[k] = k;
@@ -120,13 +123,15 @@ PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
   for (std::size_t k = 0; k < idx.size();) {
     std::size_t m = k;
     double sx = 0.0, sy = 0.0;
-    while (m < idx.size() && vx[idx[m]] - vx[idx[k]] < 0.05) sx += vx[idx[m]], sy += vy[idx[m]], ++m;
+    while (m < idx.size() && vx[idx[m]] - vx[idx[k]] < 0.05)
+      sx += vx[idx[m]], sy += vy[idx[m]], ++m;
     x.push_back(sx / static_cast<double>(m - k));
     y.push_back(sy / static_cast<double>(m - k));
     k = m;
   }
   res.report.values["velocity_moves"] = static_cast<double>(vx.size() - 1);
-  res.report.fit_rms["tau_ptv_window_nm"] = used > 0 ? std::sqrt(ss / static_cast<double>(used)) : 0.0;
+  res.report.fit_rms["tau_ptv_window_nm"] =
+      used > 0 ? std::sqrt(ss / static_cast<double>(used)) : 0.0;
 
   PassiveParams p;
   p.torque_angle = pta;
@@ -136,7 +141,8 @@ PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
   } else {
     p.inertia_kgm2 = options.inertia_kgm2;
     res.report.warnings.push_back(
-        "sequential: no body mass / leg length, inertia taken from the options (Eq. 4.13 not used)");
+        "sequential: no body mass / leg length, inertia taken from the options (Eq. 4.13 not "
+        "used)");
   }
   res.passive = ReferencePassive(p);  // §6.5
   return res;
@@ -190,18 +196,22 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
   res.report.values["passive_samples"] = static_cast<double>(total);
   // One null direction is inherent (the constant shared by τ_pta and τ_ptv).
   if (sol.rank < ma + mv) {
-    res.report.warnings.push_back("simultaneous passive: rank " + std::to_string(sol.rank) + " of " +
-                                  std::to_string(ma + mv + 1) +
+    res.report.warnings.push_back("simultaneous passive: rank " + std::to_string(sol.rank) +
+                                  " of " + std::to_string(ma + mv + 1) +
                                   " parameters (under-determined; shortest solution used)");
   }
-  for (auto& w : SupportWarnings("tau_pta", "deg", bp_a, BreakpointSupport(bp_a, angle), options.min_support))
+  for (auto& w :
+       SupportWarnings("tau_pta", "deg", bp_a, BreakpointSupport(bp_a, angle), options.min_support))
     res.report.warnings.push_back(std::move(w));
-  for (auto& w : SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
+  for (auto& w :
+       SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
     res.report.warnings.push_back(std::move(w));
-  if (!(p.inertia_kgm2 > 0.0)) res.report.warnings.push_back("simultaneous passive: inertia not positive");
+  if (!(p.inertia_kgm2 > 0.0))
+    res.report.warnings.push_back("simultaneous passive: inertia not positive");
   const Coverage cov = PhasePlaneCoverage(angle, vel, bp_a, bp_v);
   res.report.values["coverage"] = cov.share;
-  if (auto w = CoverageWarning("simultaneous passive", cov, options.coverage_warn_below); !w.empty()) {
+  if (auto w = CoverageWarning("simultaneous passive", cov, options.coverage_warn_below);
+      !w.empty()) {
     res.report.warnings.push_back(std::move(w));
   }
   return res;
@@ -252,9 +262,11 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
     res.report.warnings.push_back("free-swing passive: rank " + std::to_string(sol.rank) + " of " +
                                   std::to_string(mv + 1) + " parameters (under-determined)");
   }
-  for (auto& w : SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
+  for (auto& w :
+       SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
     res.report.warnings.push_back(std::move(w));
-  if (!(p.inertia_kgm2 > 0.0)) res.report.warnings.push_back("free-swing passive: inertia not positive");
+  if (!(p.inertia_kgm2 > 0.0))
+    res.report.warnings.push_back("free-swing passive: inertia not positive");
   return res;
 }
 

@@ -36,14 +36,14 @@ double AnthropometricInertia(double body_mass_kg, double leg_length_m);
 
 /// Options of the sequential method.
 struct SequentialPassiveOptions {
-  HoldOptions holds;                    ///< hold detection, 50-sample means.
-  double hold_tolerance_deg = 0.5;      ///< holds this close are one angle.
+  HoldOptions holds;                          ///< hold detection, 50-sample means.
+  double hold_tolerance_deg = 0.5;            ///< holds this close are one angle.
   double constant_velocity_tolerance = 0.03;  ///< |θ̇| within 3 % of the move's peak.
-  double min_move_speed_deg_s = 1.0;    ///< slower samples are not moving.
-  double use_last_s = 1.0;              ///< §5.4.1: last 1 s of each move.
-  std::optional<double> body_mass_kg;   ///< with leg_length_m: Eq. 4.13.
+  double min_move_speed_deg_s = 1.0;          ///< slower samples are not moving.
+  double use_last_s = 1.0;                    ///< §5.4.1: last 1 s of each move.
+  std::optional<double> body_mass_kg;         ///< with leg_length_m: Eq. 4.13.
   std::optional<double> leg_length_m;
-  double inertia_kgm2 = 0.36;           ///< used when mass/length are absent.
+  double inertia_kgm2 = 0.36;  ///< used when mass/length are absent.
 };
 
 /// Sequential identification (§4.2.1, §5.4.1): τ_pta from the position
@@ -59,10 +59,10 @@ PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
 
 /// Options of the simultaneous least-squares method.
 struct SimultaneousPassiveOptions {
-  BreakpointSpec angle{11, {}};      ///< τ_pta breakpoints (§7.4.4: 11).
-  BreakpointSpec velocity{9, {}};    ///< τ_ptv breakpoints.
-  double relative_tolerance = 1e-10; ///< SVD truncation (Eq. 4.26).
-  double min_support = 1.0;          ///< breakpoint support warning, samples.
+  BreakpointSpec angle{11, {}};       ///< τ_pta breakpoints (§7.4.4: 11).
+  BreakpointSpec velocity{9, {}};     ///< τ_ptv breakpoints.
+  double relative_tolerance = 1e-10;  ///< SVD truncation (Eq. 4.26).
+  double min_support = 1.0;           ///< breakpoint support warning, samples.
   double coverage_warn_below = 0.25;
 };
 
@@ -76,8 +76,8 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
 
 /// Options of the free-swing method.
 struct FreeSwingPassiveOptions {
-  BreakpointSpec velocity{4, {}};    ///< τ_ptv breakpoints (§7.4.4: 4).
-  double max_activation = 0.01;      ///< §5.4.3: passive samples only.
+  BreakpointSpec velocity{4, {}};  ///< τ_ptv breakpoints (§7.4.4: 4).
+  double max_activation = 0.01;    ///< §5.4.3: passive samples only.
   double relative_tolerance = 1e-10;
   double min_support = 1.0;
 };

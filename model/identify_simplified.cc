@@ -95,7 +95,10 @@ ParametricParams FitParametricTorqueAngle(const PiecewiseLinear& torque_angle, d
   double lo = best_k - 0.25, hi = best_k + 0.25;
   for (int it = 0; it < 40; ++it) {
     const double m1 = lo + (hi - lo) / 3.0, m2 = hi - (hi - lo) / 3.0;
-    if (solve(m1, nullptr) < solve(m2, nullptr)) hi = m2; else lo = m1;
+    if (solve(m1, nullptr) < solve(m2, nullptr))
+      hi = m2;
+    else
+      lo = m1;
   }
   const double k2 = solve(0.5 * (lo + hi), nullptr) < best ? 0.5 * (lo + hi) : best_k;
   Eigen::VectorXd c;
@@ -134,7 +137,7 @@ SimplifiedResult IdentifySimplified(ModelKind kind, std::span<const TrialColumns
     const double k = act.torque_scale_nm;
     rms = Rms(s, [&](double, double) { return k; });
   } else if (kind == ModelKind::kSingleSegment) {  // Eqs. 5.1–5.2
-    double a = 0.0, b = 1.0, c = 0.0, d = 1.0;  // τ_scale absorbed in (a, b)
+    double a = 0.0, b = 1.0, c = 0.0, d = 1.0;     // τ_scale absorbed in (a, b)
     for (int it = 0; it < options.iterations; ++it) {
       Eigen::MatrixXd m(n, 2);
       Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(s.tau.data(), n);
@@ -172,12 +175,14 @@ SimplifiedResult IdentifySimplified(ModelKind kind, std::span<const TrialColumns
     Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, mv);
     Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(s.tau.data(), n);
     for (Eigen::Index i = 0; i < n; ++i) {
-      SetPwlBasisRow(m, i, 0, bp, s.vel[static_cast<std::size_t>(i)], s.act[static_cast<std::size_t>(i)]);
+      SetPwlBasisRow(m, i, 0, bp, s.vel[static_cast<std::size_t>(i)],
+                     s.act[static_cast<std::size_t>(i)]);
     }
     const Eigen::VectorXd c = Lsq(m, y);
     const PiecewiseLinear curve(bp, std::vector<double>(c.data(), c.data() + mv));
     const double k = curve(kReferenceVelocityDegS);
-    if (!(k > 0.0)) throw std::invalid_argument("IdentifySimplified(static_gain): gain at 0 deg/s not positive");
+    if (!(k > 0.0))
+      throw std::invalid_argument("IdentifySimplified(static_gain): gain at 0 deg/s not positive");
     act.torque_scale_nm = k;
     act.torque_velocity = curve.Scaled(1.0 / k);
     act.torque_angle = PiecewiseLinear::Constant(1.0, kReferenceAngleDeg);
@@ -220,7 +225,8 @@ SimplifiedResult IdentifySimplified(ModelKind kind, std::span<const TrialColumns
         y2(i) = s.tau[k];
       }
       const Eigen::VectorXd w = Lsq(m2, y2);
-      if (!(w(0) > 0.0)) throw std::invalid_argument("IdentifySimplified(parametric): scale not positive");
+      if (!(w(0) > 0.0))
+        throw std::invalid_argument("IdentifySimplified(parametric): scale not positive");
       scale = w(0);
       p.atv_slope_neg_per_deg_s = w(1) / w(0);
       p.atv_slope_pos_per_deg_s = w(2) / w(0);

@@ -10,7 +10,8 @@ namespace fesbench::model {
 namespace {
 
 double RmsAboutMean(std::span<const double> x, const char* which) {
-  if (x.size() < 2) throw std::invalid_argument(std::string("CompareEmg: ") + which + " window has < 2 samples");
+  if (x.size() < 2)
+    throw std::invalid_argument(std::string("CompareEmg: ") + which + " window has < 2 samples");
   double mean = 0.0;
   for (double v : x) {
     if (!std::isfinite(v)) throw std::invalid_argument("CompareEmg: non-finite EMG sample");
@@ -23,10 +24,12 @@ double RmsAboutMean(std::span<const double> x, const char* which) {
 }
 
 void CheckEdges(std::span<const double> e, const char* what) {
-  if (e.size() < 2) throw std::invalid_argument(std::string("PhasePlaneCoverage: ") + what + " needs >= 2 edges");
+  if (e.size() < 2)
+    throw std::invalid_argument(std::string("PhasePlaneCoverage: ") + what + " needs >= 2 edges");
   for (std::size_t i = 1; i < e.size(); ++i) {
     if (!(e[i] > e[i - 1])) {
-      throw std::invalid_argument(std::string("PhasePlaneCoverage: ") + what + " not strictly increasing");
+      throw std::invalid_argument(std::string("PhasePlaneCoverage: ") + what +
+                                  " not strictly increasing");
     }
   }
 }
@@ -42,7 +45,8 @@ int Bin(std::span<const double> edges, double x) {
 
 EmgComparison CompareEmg(std::span<const double> pre, std::span<const double> post,
                          double ratio_threshold) {
-  if (!(ratio_threshold > 1.0)) throw std::invalid_argument("CompareEmg: ratio_threshold must be > 1");
+  if (!(ratio_threshold > 1.0))
+    throw std::invalid_argument("CompareEmg: ratio_threshold must be > 1");
   EmgComparison c;
   c.pre_rms = RmsAboutMean(pre, "pre");
   c.post_rms = RmsAboutMean(post, "post");

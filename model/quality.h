@@ -14,9 +14,9 @@ namespace fesbench::model {
 
 /// Result of comparing EMG recorded before and after a trial section.
 struct EmgComparison {
-  double pre_rms = 0.0;    ///< RMS about the mean, EMG units.
+  double pre_rms = 0.0;  ///< RMS about the mean, EMG units.
   double post_rms = 0.0;
-  double ratio = 0.0;      ///< post_rms / pre_rms (∞ if pre_rms is 0 and post is not).
+  double ratio = 0.0;  ///< post_rms / pre_rms (∞ if pre_rms is 0 and post is not).
   bool voluntary_contraction = false;  ///< ratio outside [1/threshold, threshold].
 };
 
@@ -33,15 +33,15 @@ EmgComparison CompareEmg(std::span<const double> pre, std::span<const double> po
 /// the first and last tenth of a second) at rate_hz.
 /// @throws std::invalid_argument as CompareEmg, or if the recording is
 ///   shorter than two windows or rate_hz <= 0.
-EmgComparison CompareEmgPrePost(std::span<const double> emg, double rate_hz,
-                                double window_s = 0.1, double ratio_threshold = 1.5);
+EmgComparison CompareEmgPrePost(std::span<const double> emg, double rate_hz, double window_s = 0.1,
+                                double ratio_threshold = 1.5);
 
 /// Phase-plane coverage of a trial on a grid of angle × velocity cells.
 struct Coverage {
-  double share = 0.0;          ///< visited cells / all cells, 0–1.
+  double share = 0.0;  ///< visited cells / all cells, 0–1.
   int cells_visited = 0;
   int cells_total = 0;
-  std::vector<int> counts;     ///< samples per cell, angle-major.
+  std::vector<int> counts;  ///< samples per cell, angle-major.
 };
 
 /// Counts samples in the cells between consecutive angle edges and velocity

@@ -3,10 +3,9 @@
 #include <charconv>
 #include <cmath>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <stdexcept>
-
-#include <nlohmann/json.hpp>
 
 #include "api/parameter_set_json.h"
 #include "api/trial.h"
@@ -47,7 +46,8 @@ class Options {
     if (!text) return;
     if (text->find(',') == std::string::npos) {
       const double n = ParseNumber(key, *text);
-      if (n < 2 || n != std::floor(n)) throw CliError::Usage("--option " + key + ": count must be an integer >= 2");
+      if (n < 2 || n != std::floor(n))
+        throw CliError::Usage("--option " + key + ": count must be an integer >= 2");
       spec.count = static_cast<int>(n);
       spec.explicit_x.clear();
       return;
@@ -56,19 +56,22 @@ class Options {
     std::size_t start = 0;
     while (start <= text->size()) {
       const std::size_t comma = text->find(',', start);
-      const std::string part = text->substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      const std::string part =
+          text->substr(start, comma == std::string::npos ? std::string::npos : comma - start);
       xs.push_back(ParseNumber(key, part));
       if (comma == std::string::npos) break;
       start = comma + 1;
     }
     for (std::size_t i = 1; i < xs.size(); ++i) {
-      if (!(xs[i] > xs[i - 1])) throw CliError::Usage("--option " + key + ": breakpoints must increase");
+      if (!(xs[i] > xs[i - 1]))
+        throw CliError::Usage("--option " + key + ": breakpoints must increase");
     }
     spec.explicit_x = std::move(xs);
   }
   void RequireAllUsed() const {
     for (const auto& [k, v] : values_) {
-      if (!used_.count(k)) throw CliError::Usage("--option " + k + ": not an option of this method");
+      if (!used_.count(k))
+        throw CliError::Usage("--option " + k + ": not an option of this method");
     }
   }
 
@@ -92,23 +95,29 @@ void RequireTrials(std::string_view method, const std::vector<model::TrialColumn
   }
 }
 
-void Condition(std::vector<model::TrialColumns>& trials, Options& opt, model::IdentifyReport& report) {
+void Condition(std::vector<model::TrialColumns>& trials, Options& opt,
+               model::IdentifyReport& report) {
   if (const auto n = opt.Number("offset_samples")) {
     for (auto& tr : trials) {
-      if (!tr.torque_nm.empty()) tr.torque_nm = model::RemoveTorqueOffset(tr.torque_nm, static_cast<std::size_t>(*n));
+      if (!tr.torque_nm.empty())
+        tr.torque_nm = model::RemoveTorqueOffset(tr.torque_nm, static_cast<std::size_t>(*n));
     }
   }
   if (const auto idx = opt.Number("accel_calibration_trial")) {
     const auto k = static_cast<std::size_t>(*idx);
-    if (k >= trials.size()) throw CliError::Usage("--option accel_calibration_trial: no such trial");
-    const auto table = model::AccelerometerCalibration(trials[k].t_s, trials[k].angle_deg, trials[k].accel_deg_s2);
+    if (k >= trials.size())
+      throw CliError::Usage("--option accel_calibration_trial: no such trial");
+    const auto table =
+        model::AccelerometerCalibration(trials[k].t_s, trials[k].angle_deg, trials[k].accel_deg_s2);
     for (auto& tr : trials) {
-      if (tr.accel_deg_s2.size() == tr.size()) tr.accel_deg_s2 = model::CorrectAcceleration(table, tr.angle_deg, tr.accel_deg_s2);
+      if (tr.accel_deg_s2.size() == tr.size())
+        tr.accel_deg_s2 = model::CorrectAcceleration(table, tr.angle_deg, tr.accel_deg_s2);
     }
     report.values["accel_calibration_points"] = static_cast<double>(table.size());
   }
   if (const auto mode = opt.Text("derive_kinematics")) {
-    if (*mode != "gcv") throw CliError::Usage("--option derive_kinematics: only 'gcv' is supported");
+    if (*mode != "gcv")
+      throw CliError::Usage("--option derive_kinematics: only 'gcv' is supported");
     for (auto& tr : trials) {
       const auto fit = model::GcvSmoothingSpline(tr.t_s, tr.angle_deg);
       tr.velocity_deg_s = fit.first;
@@ -148,9 +157,12 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
     o.twitch = twitch;
     o.order = static_cast<int>(opt.Number("order", 3));
     if (const auto m = opt.Text("pole_method")) {
-      if (*m == "peak") o.method = PoleMethod::kPeak;
-      else if (*m == "least_squares") o.method = PoleMethod::kLeastSquares;
-      else throw CliError::Usage("--option pole_method: peak or least_squares");
+      if (*m == "peak")
+        o.method = PoleMethod::kPeak;
+      else if (*m == "least_squares")
+        o.method = PoleMethod::kLeastSquares;
+      else
+        throw CliError::Usage("--option pole_method: peak or least_squares");
     }
     const ContractionResult r = IdentifyContraction(trials, o);
     out.contraction = r.contraction;
@@ -233,7 +245,8 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
     return out;
   }
   const auto kind = ParseModelKind(method);
-  if (!kind || *kind == ModelKind::kFull) throw CliError::Usage("unknown identification method " + std::string(method));
+  if (!kind || *kind == ModelKind::kFull)
+    throw CliError::Usage("unknown identification method " + std::string(method));
   RequireTrials(method, trials, 1);
   EnsureActivation(trials, in, pulse_rate);
   SimplifiedOptions so;
@@ -274,7 +287,8 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
   std::map<std::string, std::string> options;
   for (const std::string& kv : args.options) {
     const auto eq = kv.find('=');
-    if (eq == std::string::npos || eq == 0) throw CliError::Usage("--option " + kv + ": expected k=v");
+    if (eq == std::string::npos || eq == 0)
+      throw CliError::Usage("--option " + kv + ": expected k=v");
     options[kv.substr(0, eq)] = kv.substr(eq + 1);
   }
   model::ParameterSet params_in;
@@ -283,7 +297,8 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
     params_in = ReadParameterSetFile(args.params_in);
   } else {
     params_in = model::ExampleParameterSet();
-    report.warnings.push_back("no --params-in: fields this method does not identify are the example parameter set's");
+    report.warnings.push_back(
+        "no --params-in: fields this method does not identify are the example parameter set's");
   }
   std::vector<model::TrialColumns> trials;
   for (const std::string& path : args.trials) {
@@ -294,7 +309,8 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
     trials.push_back(ToColumns(*table));
     if (table->emg && table->emg->Values("emg")) {
       try {
-        const auto c = model::CompareEmgPrePost(*table->emg->Values("emg"), table->emg->sample_rate_hz);
+        const auto c =
+            model::CompareEmgPrePost(*table->emg->Values("emg"), table->emg->sample_rate_hz);
         if (c.voluntary_contraction) {
           report.warnings.push_back("trial " + path + ": EMG differs before and after (ratio " +
                                     std::to_string(c.ratio) + "): voluntary contraction? (§5.2.1)");
@@ -304,7 +320,8 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
       }
     }
   }
-  model::ParameterSet out = RunIdentify(args.method, std::move(trials), params_in, options, &report);
+  model::ParameterSet out =
+      RunIdentify(args.method, std::move(trials), params_in, options, &report);
   const nlohmann::json json = api::ParameterSetToJson(out);
   if (api::Status s = api::WriteTextFile(args.out_path, json.dump(2) + "\n"); !s.ok()) {
     throw CliError::BadInput(s.message());
@@ -320,11 +337,20 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
 }  // namespace
 
 const std::vector<std::string>& IdentifyMethodNames() {
-  static const std::vector<std::string> kNames = {
-      "contraction", "irc_step", "irc_impulse", "irc_ramp_correlation",
-      "irc_ramp_deconvolution_ideal", "irc_ramp_deconvolution_measured", "passive_sequential",
-      "passive_simultaneous", "passive_free_swing", "active", "torque_generator",
-      "single_segment", "static_gain_pwl_velocity", "parametric"};
+  static const std::vector<std::string> kNames = {"contraction",
+                                                  "irc_step",
+                                                  "irc_impulse",
+                                                  "irc_ramp_correlation",
+                                                  "irc_ramp_deconvolution_ideal",
+                                                  "irc_ramp_deconvolution_measured",
+                                                  "passive_sequential",
+                                                  "passive_simultaneous",
+                                                  "passive_free_swing",
+                                                  "active",
+                                                  "torque_generator",
+                                                  "single_segment",
+                                                  "static_gain_pwl_velocity",
+                                                  "parametric"};
   return kNames;
 }
 
@@ -344,7 +370,8 @@ model::ParameterSet RunIdentify(std::string_view method, std::vector<model::Tria
   }
   opt.RequireAllUsed();
   for (const auto& [k, v] : rep.fit_rms) out.provenance.fit_rms[k] = v;
-  out.provenance.warnings.insert(out.provenance.warnings.end(), rep.warnings.begin(), rep.warnings.end());
+  out.provenance.warnings.insert(out.provenance.warnings.end(), rep.warnings.begin(),
+                                 rep.warnings.end());
   return out;
 }
 

@@ -6,11 +6,10 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "api/parameter_set_json.h"
 #include "api/trial.h"
@@ -72,7 +71,8 @@ class IdentifyCliTest : public ::testing::Test {
 
 TEST_F(IdentifyCliTest, IsometricRampGivesPoleAndIrc) {
   const model::ParameterSet truth = model::ExampleParameterSet();
-  const auto env = model::MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 20}, {"max_ma", 45}});
+  const auto env =
+      model::MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 20}, {"max_ma", 45}});
   model::SimulationOptions opt;
   opt.duration_s = env.EndTime();
   const std::string trial = WriteTrial(
@@ -83,8 +83,8 @@ TEST_F(IdentifyCliTest, IsometricRampGivesPoleAndIrc) {
   const auto report = nlohmann::json::parse(out_.str());
   EXPECT_TRUE(report["fit_rms"].contains("twitch_order3_ls"));
 
-  ASSERT_EQ(Run({"identify", "irc_ramp_correlation", "--trial", trial, "--params-in", Path("c.json"),
-                 "--option", "ramp_points=31", "--out", Path("i.json")}),
+  ASSERT_EQ(Run({"identify", "irc_ramp_correlation", "--trial", trial, "--params-in",
+                 Path("c.json"), "--option", "ramp_points=31", "--out", Path("i.json")}),
             kExitOk)
       << err_.str();
   const model::ParameterSet p = ReadParams(Path("i.json"));
@@ -99,13 +99,13 @@ TEST_F(IdentifyCliTest, FreeSwingActiveWithPassiveFromParamsIn) {
   const auto env = model::MakeStimulus("random_binary_dense", {{"amplitude_ma", 40}, {"seed", 2}});
   model::SimulationOptions opt;
   opt.duration_s = env.EndTime();
-  const std::string trial =
-      WriteTrial("rb.csv", model::SimulateFreeSwing(truth, model::PulsesFromEnvelope(env, 33.0), opt));
+  const std::string trial = WriteTrial(
+      "rb.csv", model::SimulateFreeSwing(truth, model::PulsesFromEnvelope(env, 33.0), opt));
   const std::string params = (dir_ / "truth.json").string();
   ASSERT_TRUE(api::WriteTextFile(params, api::ParameterSetToJson(truth).dump()).ok());
-  ASSERT_EQ(Run({"identify", "active", "--trial", trial, "--params-in", params, "--out",
-                 Path("a.json")}),
-            kExitOk)
+  ASSERT_EQ(
+      Run({"identify", "active", "--trial", trial, "--params-in", params, "--out", Path("a.json")}),
+      kExitOk)
       << err_.str();
   const model::ParameterSet p = ReadParams(Path("a.json"));
   EXPECT_NEAR(p.active.torque_scale_nm, 40.0, 1.0);
@@ -131,7 +131,8 @@ TEST_F(IdentifyCliTest, UsageErrors) {
             kExitUsage);
   EXPECT_NE(err_.str().find("bogus"), std::string::npos);
   // Data the method cannot use: bad input, one line.
-  EXPECT_EQ(Run({"identify", "irc_step", "--trial", trial, "--out", Path("o.json")}), kExitBadInput);
+  EXPECT_EQ(Run({"identify", "irc_step", "--trial", trial, "--out", Path("o.json")}),
+            kExitBadInput);
   EXPECT_NE(err_.str().find("burst"), std::string::npos);
 }
 

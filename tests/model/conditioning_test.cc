@@ -1,10 +1,10 @@
 #include "model/conditioning.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace fesbench::model {
 namespace {
@@ -30,8 +30,11 @@ TEST(AccelerometerCalibration, TableFromHoldsRemovesGravity) {
   for (std::size_t k = 0; k < levels.size(); ++k) {
     // Direction-dependent bias, averaged out (30 deg is one merged hold).
     const double bias = levels[k] == 30.0 ? 0.0 : (k < 5 ? 2.0 : -2.0);
-    for (int i = 0; i < 400; ++i) {          // 0.5 s move, 1.5 s hold
-      if (i < 100) th += (levels[k] - th) * 0.05; else th = levels[k];
+    for (int i = 0; i < 400; ++i) {  // 0.5 s move, 1.5 s hold
+      if (i < 100)
+        th += (levels[k] - th) * 0.05;
+      else
+        th = levels[k];
       t.push_back(static_cast<double>(t.size()) / rate);
       ang.push_back(th);
       acc.push_back(gravity(th) + (i >= 100 ? bias : 50.0));
@@ -101,9 +104,9 @@ TEST(GcvSmoothingSpline, DifferentiatesNoisyPositionNearTheTruth) {
     ++cnt;
   }
   // Velocity amplitude ≈ 201 deg/s, acceleration ≈ 1011 deg/s².
-  EXPECT_LT(std::sqrt(e0 / cnt), 0.1);   // below the 0.2 deg noise
-  EXPECT_LT(std::sqrt(e1 / cnt), 2.0);   // < 1 % of amplitude
-  EXPECT_LT(std::sqrt(e2 / cnt), 50.0);  // < 5 % of amplitude
+  EXPECT_LT(std::sqrt(e0 / cnt), 0.1);       // below the 0.2 deg noise
+  EXPECT_LT(std::sqrt(e1 / cnt), 2.0);       // < 1 % of amplitude
+  EXPECT_LT(std::sqrt(e2 / cnt), 50.0);      // < 5 % of amplitude
   EXPECT_NEAR(fit.residual_rms, 0.2, 0.02);  // GCV leaves the noise out
   EXPECT_GT(fit.effective_dof, 4.0);
   EXPECT_LT(fit.effective_dof, 250.0);

@@ -1,10 +1,10 @@
 #include "model/identify_active.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "model/contraction.h"
 #include "model/identify_simplified.h"
@@ -16,9 +16,10 @@
 namespace fesbench::model {
 namespace {
 
-TrialColumns FreeSwing(const ParameterSet& p, std::uint64_t seed, std::optional<ModelKind> kind = {}) {
-  const SampledSignal env =
-      MakeStimulus("random_binary_dense", {{"amplitude_ma", 40}, {"seed", static_cast<double>(seed)}});
+TrialColumns FreeSwing(const ParameterSet& p, std::uint64_t seed,
+                       std::optional<ModelKind> kind = {}) {
+  const SampledSignal env = MakeStimulus(
+      "random_binary_dense", {{"amplitude_ma", 26}, {"seed", static_cast<double>(seed)}});
   SimulationOptions opt;
   opt.duration_s = env.EndTime();
   opt.model_kind = kind;
@@ -43,7 +44,8 @@ std::pair<double, double> ActiveRange(const TrialColumns& tr, const std::vector<
   return {lo, hi};
 }
 
-double MaxRelDiff(const PiecewiseLinear& a, const PiecewiseLinear& b, double lo, double hi, double step) {
+double MaxRelDiff(const PiecewiseLinear& a, const PiecewiseLinear& b, double lo, double hi,
+                  double step) {
   double e = 0.0;
   for (double x = lo; x <= hi + 1e-9; x += step) e = std::max(e, std::abs(a(x) / b(x) - 1.0));
   return e;
@@ -57,8 +59,10 @@ TEST(ActiveTorque, IsMinusThePassiveTorqueInFreeSwing) {
   tr.velocity_deg_s = {10.0, 0.0};
   tr.accel_deg_s2 = {100.0, 0.0};
   const auto t = ActiveTorque(tr, p.passive);
-  EXPECT_NEAR(t[0], -(p.passive.inertia_kgm2 * DegToRad(100.0) + p.passive.torque_velocity(10.0) +
-                      p.passive.torque_angle(60.0)), 1e-12);
+  EXPECT_NEAR(t[0],
+              -(p.passive.inertia_kgm2 * DegToRad(100.0) + p.passive.torque_velocity(10.0) +
+                p.passive.torque_angle(60.0)),
+              1e-12);
   EXPECT_NEAR(t[1], -p.passive.torque_velocity(0.0), 1e-12);
 }
 
@@ -87,7 +91,8 @@ TEST(IdentifyActive, LogDomainFitRecoversCurvesWithin2Percent) {
 TEST(IdentifyActive, RejectsTrialWithoutActivation) {
   TrialColumns tr = FreeSwing(ExampleParameterSet(), 1);
   tr.activation.clear();
-  EXPECT_THROW(IdentifyActive(std::span(&tr, 1), ExampleParameterSet().passive), std::invalid_argument);
+  EXPECT_THROW(IdentifyActive(std::span(&tr, 1), ExampleParameterSet().passive),
+               std::invalid_argument);
 }
 
 TEST(IdentifySimplified, TorqueGeneratorRecoversScale) {
@@ -117,11 +122,13 @@ TEST(IdentifySimplified, StaticGainPwlVelocityRecoversCurve) {
   const TrialColumns tr = FreeSwing(p, 5, ModelKind::kStaticGainPwlVelocity);
   SimplifiedOptions o;
   o.velocity.explicit_x = p.active.torque_velocity.x();
-  const SimplifiedResult r = IdentifySimplified(ModelKind::kStaticGainPwlVelocity, std::span(&tr, 1), p, o);
+  const SimplifiedResult r =
+      IdentifySimplified(ModelKind::kStaticGainPwlVelocity, std::span(&tr, 1), p, o);
   EXPECT_NEAR(r.params.active.torque_scale_nm, 40.0, 0.02 * 40.0);
   const auto [v_lo, v_hi] = ActiveRange(tr, tr.velocity_deg_s);
   EXPECT_LT(MaxRelDiff(r.params.active.torque_velocity, p.active.torque_velocity,
-                       std::ceil(v_lo / 100) * 100, std::floor(v_hi / 100) * 100, 5.0), 0.02);
+                       std::ceil(v_lo / 100) * 100, std::floor(v_hi / 100) * 100, 5.0),
+            0.02);
 }
 
 TEST(IdentifySimplified, ParametricRecoversGaussianAndSlopes) {

@@ -2,10 +2,10 @@
 // trials of a known leg with the thesis's protocol (§5.3–5.4), then predict
 // that leg's response to a random-binary train it was not identified on.
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "model/contraction.h"
 #include "model/evaluation.h"
@@ -70,7 +70,8 @@ TEST(IdentifyEndToEnd, IdentifiedLegPredictsRandomBinaryResponseWithin1Degree) {
   // IRC and dynamics (§5.4.4).
   std::vector<TrialColumns> active;
   for (double seed : {11.0, 12.0}) {
-    const SampledSignal env = MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", seed}});
+    const SampledSignal env =
+        MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", seed}});
     const PulseTrain pulses = PulsesFromEnvelope(env, kDefaultPulseRateHz);
     TrialColumns tr = Columns(SimulateFreeSwing(truth, pulses, For(env)));
     tr.activation = ActivationAt(est.contraction, est.irc, pulses, kDefaultPulseRateHz, tr.t_s);
@@ -80,7 +81,8 @@ TEST(IdentifyEndToEnd, IdentifiedLegPredictsRandomBinaryResponseWithin1Degree) {
   est.active = act.active;
 
   // Prediction of an unseen random-binary response (§5.4.5, §6.9).
-  const SampledSignal test_env = MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 99}});
+  const SampledSignal test_env =
+      MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 99}});
   const PulseTrain test_pulses = PulsesFromEnvelope(test_env, kDefaultPulseRateHz);
   const auto measured = SimulateFreeSwing(truth, test_pulses, For(test_env));
   const auto predicted = SimulateFreeSwing(est, test_pulses, For(test_env));

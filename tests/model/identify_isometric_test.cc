@@ -1,11 +1,11 @@
 #include "model/identify_isometric.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "model/contraction.h"
 #include "model/parameter_set.h"
@@ -105,7 +105,8 @@ double MaxIrcError(const PiecewiseLinear& est, const PiecewiseLinear& truth, dou
 
 TEST(IdentifyContraction, RecoversThirdOrderPoleFromSimulatedImpulses) {
   ParameterSet p = ExampleParameterSet();  // order 3, pole 25 s⁻¹
-  const TrialColumns tr = Isometric(p, MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 20}, {"max_ma", 45}}));
+  const TrialColumns tr =
+      Isometric(p, MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 20}, {"max_ma", 45}}));
   const ContractionResult r = IdentifyContraction(std::span(&tr, 1));
   EXPECT_EQ(r.twitch.count, 2);
   EXPECT_EQ(r.contraction.order, 3);
@@ -131,8 +132,8 @@ TEST(IdentifyContraction, RecoversSecondOrderPole) {
 
 TEST(IdentifyIrc, StepImpulseAndMeasuredDeconvolutionRecoverTheIrc) {
   const ParameterSet p = ExampleParameterSet();
-  const TrialColumns steps =
-      Isometric(p, MakeStimulus("step_bursts", {{"threshold_ma", 20}, {"max_ma", 45}, {"rest_s", 2}}));
+  const TrialColumns steps = Isometric(
+      p, MakeStimulus("step_bursts", {{"threshold_ma", 20}, {"max_ma", 45}, {"rest_s", 2}}));
   const IrcResult step = IdentifyIrc(IrcMethod::kStep, steps);
   EXPECT_NEAR(step.torque_scale_nm, 40.0, 0.02 * 40.0);
   EXPECT_LT(MaxIrcError(step.irc, p.irc, 20.0, 45.0), 0.02);
@@ -142,8 +143,8 @@ TEST(IdentifyIrc, StepImpulseAndMeasuredDeconvolutionRecoverTheIrc) {
   const IrcResult imp = IdentifyIrc(IrcMethod::kImpulse, pulses);
   EXPECT_LT(MaxIrcError(imp.irc, p.irc, 20.0, 45.0), 0.02);
 
-  const TrialColumns ramp = Isometric(
-      p, MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 20}, {"max_ma", 45}}));
+  const TrialColumns ramp =
+      Isometric(p, MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 20}, {"max_ma", 45}}));
   const IrcResult dec = IdentifyIrc(IrcMethod::kRampDeconvolutionMeasured, ramp);
   EXPECT_LT(MaxIrcError(dec.irc, p.irc, 27.0, 45.0), 0.02);  // away from threshold
   IrcOptions ideal3;
@@ -169,7 +170,8 @@ TEST(IdentifyIrc, RampCorrelationUnderestimatesSharpThresholdAndFitsSmoothIrc) {
                         {{"threshold_ma", 20}, {"max_ma", 45}, {"ramp_duration_s", ramp_s}});
   };
   const auto threshold = [](const PiecewiseLinear& irc) {
-    for (double x = 0; x <= 45; x += 0.05) if (irc(x) >= 0.02) return x;
+    for (double x = 0; x <= 45; x += 0.05)
+      if (irc(x) >= 0.02) return x;
     return 45.0;
   };
   const IrcResult s4 = IdentifyIrc(IrcMethod::kRampCorrelation, Isometric(sharp, stim(4)));

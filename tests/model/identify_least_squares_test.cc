@@ -1,10 +1,10 @@
 #include "model/identify_least_squares.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "model/piecewise_linear.h"
 

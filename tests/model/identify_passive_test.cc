@@ -1,11 +1,11 @@
 #include "model/identify_passive.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "model/contraction.h"
 #include "model/parameter_set.h"
@@ -39,7 +39,8 @@ TrialColumns MotorTrial(const ParameterSet& p, const Trajectory& traj) {
 // reach, so every ordinate is identifiable.
 ParameterSet Truth() {
   ParameterSet p = ExampleParameterSet();
-  p.passive.torque_velocity = p.passive.torque_velocity.Resampled({-200, -100, -50, 0, 50, 100, 200});
+  p.passive.torque_velocity =
+      p.passive.torque_velocity.Resampled({-200, -100, -50, 0, 50, 100, 200});
   p.passive = ReferencePassive(p.passive);
   return p;
 }
@@ -56,7 +57,8 @@ std::vector<TrialColumns> SumOfSinesTrials(const ParameterSet& p) {
   return trials;
 }
 
-double MaxDiff(const PiecewiseLinear& a, const PiecewiseLinear& b, double lo, double hi, double step) {
+double MaxDiff(const PiecewiseLinear& a, const PiecewiseLinear& b, double lo, double hi,
+               double step) {
   double e = 0.0;
   for (double x = lo; x <= hi + 1e-9; x += step) e = std::max(e, std::abs(a(x) - b(x)));
   return e;
@@ -161,7 +163,8 @@ TEST(IdentifyPassiveFreeSwing, RecoversTorqueVelocityAndInertia) {
   ParameterSet p = Truth();
   p.passive.torque_velocity = PiecewiseLinear({-300, -100, 100, 300}, {-2.2, -0.9, 0.9, 2.2});
   p.passive = ReferencePassive(p.passive);
-  const SampledSignal env = MakeStimulus("random_binary_sparse", {{"amplitude_ma", 40}, {"seed", 5}});
+  const SampledSignal env =
+      MakeStimulus("random_binary_sparse", {{"amplitude_ma", 40}, {"seed", 5}});
   SimulationOptions opt;
   opt.duration_s = env.EndTime();
   const TrialColumns tr =
@@ -171,8 +174,9 @@ TEST(IdentifyPassiveFreeSwing, RecoversTorqueVelocityAndInertia) {
   const PassiveResult r = IdentifyPassiveFreeSwing(std::span(&tr, 1), p.passive.torque_angle, o);
   EXPECT_NEAR(r.passive.inertia_kgm2, p.passive.inertia_kgm2, 0.01 * p.passive.inertia_kgm2);
   const auto [vmin, vmax] = std::minmax_element(tr.velocity_deg_s.begin(), tr.velocity_deg_s.end());
-  EXPECT_LT(MaxDiff(r.passive.torque_velocity, p.passive.torque_velocity,
-                    std::max(*vmin, -300.0), std::min(*vmax, 300.0), 1.0), 0.05);
+  EXPECT_LT(MaxDiff(r.passive.torque_velocity, p.passive.torque_velocity, std::max(*vmin, -300.0),
+                    std::min(*vmax, 300.0), 1.0),
+            0.05);
   EXPECT_THROW(IdentifyPassiveFreeSwing(std::span(&tr, 1), PiecewiseLinear(), o),
                std::invalid_argument);
 }

@@ -1,10 +1,10 @@
 #include "model/quality.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace fesbench::model {
 namespace {
@@ -31,7 +31,8 @@ TEST(CompareEmg, FlagsAVoluntaryContraction) {
 
 TEST(CompareEmgPrePost, UsesFirstAndLastTenthOfASecond) {
   std::vector<double> emg(1000, 0.0);
-  for (std::size_t i = 0; i < emg.size(); ++i) emg[i] = (i % 2 ? 1.0 : -1.0) * (i >= 900 ? 3.0 : 1.0);
+  for (std::size_t i = 0; i < emg.size(); ++i)
+    emg[i] = (i % 2 ? 1.0 : -1.0) * (i >= 900 ? 3.0 : 1.0);
   const EmgComparison c = CompareEmgPrePost(emg, 1000.0);
   EXPECT_NEAR(c.pre_rms, 1.0, 1e-12);
   EXPECT_NEAR(c.post_rms, 3.0, 1e-12);
