@@ -50,8 +50,8 @@ struct BenchDb {
     SubjectRepository subjects(*db);
     auto subject = subjects.Create(code, SubjectDetails{});
     auto leg = subjects.AddLeg(subject->id, Side::kRight);
-    auto session = SessionRepository(*db).Create(subject->id, leg->id,
-                                                 {"2026-01-02", "shank", {}, {}, ""});
+    auto session =
+        SessionRepository(*db).Create(subject->id, leg->id, {"2026-01-02", "shank", {}, {}, ""});
     return {subject->id, leg->id, session->id};
   }
 };
@@ -131,8 +131,8 @@ BENCHMARK(BM_InsertAndReadTrial10s)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecon
 BenchDb& HistoryDb() {
   static BenchDb* bench = [] {
     auto* b = new BenchDb("history", Synchronous::kFull);
-    const UtcTime start = std::chrono::sys_days{std::chrono::year{2025} / 1 / 1} +
-                          std::chrono::microseconds(0);
+    const UtcTime start =
+        std::chrono::sys_days{std::chrono::year{2025} / 1 / 1} + std::chrono::microseconds(0);
     auto status = b->db->Write([&](Connection&) -> api::Status {
       ParameterSetRepository sets(*b->db);
       model::ParameterSet params = model::ExampleParameterSet();
@@ -173,11 +173,11 @@ void BM_HistoryQueryDateRangeAndMethod(benchmark::State& state) {
   BenchDb& bench = HistoryDb();
   ParameterSetRepository sets(*bench.db);
   const std::int64_t subject = bench.subject_ids[57];
-  const UtcTime from = std::chrono::sys_days{std::chrono::year{2025} / 2 / 1} +
-                       std::chrono::microseconds(0);
+  const UtcTime from =
+      std::chrono::sys_days{std::chrono::year{2025} / 2 / 1} + std::chrono::microseconds(0);
   for (auto _ : state) {
-    auto history = sets.History({subject, std::nullopt, std::string("free_swing"), from,
-                                 from + std::chrono::days(30)});
+    auto history = sets.History(
+        {subject, std::nullopt, std::string("free_swing"), from, from + std::chrono::days(30)});
     if (!history.ok() || history->size() != 30) state.SkipWithError("history failed");
     benchmark::DoNotOptimize(history);
   }

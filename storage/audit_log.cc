@@ -10,8 +10,8 @@ api::Result<std::int64_t> AuditLog::Append(const NewAuditEntry& entry) {
   }
   return db_.Write([&](Connection& c) -> api::Result<std::int64_t> {
     if (entry.user_id) {
-      if (auto s = internal::RequireRow(c, "SELECT 1 FROM users WHERE id = ?1", *entry.user_id,
-                                        "user");
+      if (auto s =
+              internal::RequireRow(c, "SELECT 1 FROM users WHERE id = ?1", *entry.user_id, "user");
           !s.ok()) {
         return s;
       }
@@ -20,8 +20,12 @@ api::Result<std::int64_t> AuditLog::Append(const NewAuditEntry& entry) {
         "INSERT INTO audit_log (at_utc, user_id, actor, action, target, request_summary, outcome)"
         " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)");
     if (!insert.ok()) return insert.status();
-    insert->Bind(1, FormatUtc(db_.Now())).Bind(2, entry.user_id).Bind(3, entry.actor)
-        .Bind(4, entry.action).Bind(5, entry.target).Bind(6, entry.request_summary)
+    insert->Bind(1, FormatUtc(db_.Now()))
+        .Bind(2, entry.user_id)
+        .Bind(3, entry.actor)
+        .Bind(4, entry.action)
+        .Bind(5, entry.target)
+        .Bind(6, entry.request_summary)
         .Bind(7, entry.outcome);
     if (auto s = insert->Run(); !s.ok()) return s;
     return c.LastInsertRowId();
@@ -39,7 +43,9 @@ api::Result<std::vector<AuditEntry>> AuditLog::List(const AuditQuery& query) {
     std::optional<std::string> to;
     if (query.from) from = FormatUtc(*query.from);
     if (query.to) to = FormatUtc(*query.to);
-    statement->Bind(1, from).Bind(2, to).Bind(3, query.user_id)
+    statement->Bind(1, from)
+        .Bind(2, to)
+        .Bind(3, query.user_id)
         .Bind(4, static_cast<std::int64_t>(query.limit));
     std::vector<AuditEntry> entries;
     while (true) {

@@ -18,11 +18,11 @@ namespace fesbench::storage {
 
 struct NewAuditEntry {
   std::optional<std::int64_t> user_id;  ///< the authenticated user, if any.
-  std::string actor;            ///< e.g. the user name, "system", a client address.
-  std::string action;           ///< e.g. "POST /api/v1/subjects"; must not be empty.
-  std::string target;           ///< e.g. "subjects/12".
-  std::string request_summary;  ///< short summary; never secrets or tokens.
-  std::string outcome;          ///< e.g. "201", "409 already_exists".
+  std::string actor;                    ///< e.g. the user name, "system", a client address.
+  std::string action;                   ///< e.g. "POST /api/v1/subjects"; must not be empty.
+  std::string target;                   ///< e.g. "subjects/12".
+  std::string request_summary;          ///< short summary; never secrets or tokens.
+  std::string outcome;                  ///< e.g. "201", "409 already_exists".
 };
 
 struct AuditEntry {
@@ -32,10 +32,10 @@ struct AuditEntry {
 };
 
 struct AuditQuery {
-  std::optional<UtcTime> from;          ///< inclusive.
-  std::optional<UtcTime> to;            ///< exclusive.
+  std::optional<UtcTime> from;  ///< inclusive.
+  std::optional<UtcTime> to;    ///< exclusive.
   std::optional<std::int64_t> user_id;
-  std::size_t limit = 1000;             ///< at most this many, newest first.
+  std::size_t limit = 1000;  ///< at most this many, newest first.
 };
 
 class AuditLog {

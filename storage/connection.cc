@@ -13,7 +13,9 @@ Statement::Statement(sqlite3_stmt* stmt, Connection* connection, bool owned)
     : stmt_(stmt), connection_(connection), owned_(owned) {}
 
 Statement::Statement(Statement&& other) noexcept
-    : stmt_(other.stmt_), connection_(other.connection_), owned_(other.owned_),
+    : stmt_(other.stmt_),
+      connection_(other.connection_),
+      owned_(other.owned_),
       bind_error_(other.bind_error_) {
   other.stmt_ = nullptr;
 }
@@ -45,8 +47,8 @@ Statement& Statement::Bind(int index, std::string_view text) {
   // An empty view may have a null data pointer, which SQLite would bind as
   // NULL; an empty string must stay an empty TEXT.
   const char* data = text.data() != nullptr ? text.data() : "";
-  const int rc = sqlite3_bind_text64(stmt_, index, data, text.size(), SQLITE_TRANSIENT,
-                                     SQLITE_UTF8);
+  const int rc =
+      sqlite3_bind_text64(stmt_, index, data, text.size(), SQLITE_TRANSIENT, SQLITE_UTF8);
   if (rc != SQLITE_OK && bind_error_ == 0) bind_error_ = rc;
   return *this;
 }
@@ -90,8 +92,9 @@ double Statement::Double(int column) const { return sqlite3_column_double(stmt_,
 std::string Statement::Text(int column) const {
   const auto* text = sqlite3_column_text(stmt_, column);
   const int size = sqlite3_column_bytes(stmt_, column);
-  return text == nullptr ? std::string() : std::string(reinterpret_cast<const char*>(text),
-                                                       static_cast<std::size_t>(size));
+  return text == nullptr
+             ? std::string()
+             : std::string(reinterpret_cast<const char*>(text), static_cast<std::size_t>(size));
 }
 std::optional<std::int64_t> Statement::OptionalInt64(int column) const {
   if (IsNull(column)) return std::nullopt;
@@ -222,7 +225,8 @@ std::vector<std::byte> PackFloat64Le(std::span<const double> samples) {
     for (std::size_t i = 0; i < samples.size(); ++i) {
       const auto bits = std::bit_cast<std::uint64_t>(samples[i]);
       for (int b = 0; b < 8; ++b) {
-        blob[i * 8 + static_cast<std::size_t>(b)] = static_cast<std::byte>((bits >> (8 * b)) & 0xff);
+        blob[i * 8 + static_cast<std::size_t>(b)] =
+            static_cast<std::byte>((bits >> (8 * b)) & 0xff);
       }
     }
   }

@@ -101,9 +101,8 @@ api::Result<std::unique_ptr<Database>> Database::Open(DatabaseOptions options) {
   if (options.reader_count < 1) {
     return api::Status::InvalidArgument("reader_count must be at least 1", "reader_count");
   }
-  if (options.target_schema_version &&
-      (*options.target_schema_version < 0 ||
-       *options.target_schema_version > LatestSchemaVersion())) {
+  if (options.target_schema_version && (*options.target_schema_version < 0 ||
+                                        *options.target_schema_version > LatestSchemaVersion())) {
     return api::Status::InvalidArgument(
         "target_schema_version must be in [0, " + std::to_string(LatestSchemaVersion()) + "]",
         "target_schema_version");
@@ -129,9 +128,9 @@ api::Status Database::Initialise() {
     return api::Status::Unavailable("cannot switch '" + path + "' to WAL (journal_mode " + *mode +
                                     ")");
   }
-  const char* synchronous =
-      options_.synchronous == Synchronous::kFull ? "PRAGMA synchronous = FULL"
-                                                 : "PRAGMA synchronous = NORMAL";
+  const char* synchronous = options_.synchronous == Synchronous::kFull
+                                ? "PRAGMA synchronous = FULL"
+                                : "PRAGMA synchronous = NORMAL";
   if (auto status = writer_->ExecScript(synchronous); !status.ok()) return status;
 
   if (options_.check_integrity) {
@@ -146,8 +145,7 @@ api::Status Database::Initialise() {
     }
   }
 
-  if (auto status = CheckedOpenStep(Migrate(options_.target_schema_version), path);
-      !status.ok()) {
+  if (auto status = CheckedOpenStep(Migrate(options_.target_schema_version), path); !status.ok()) {
     return status;
   }
 
@@ -175,9 +173,9 @@ api::Status Database::Migrate(std::optional<int> target) {
   });
   if (!read.ok()) return read;
   if (version > latest) {
-    return api::Status::FailedPrecondition(
-        "database schema version " + std::to_string(version) +
-        " is newer than this software's (" + std::to_string(latest) + ")");
+    return api::Status::FailedPrecondition("database schema version " + std::to_string(version) +
+                                           " is newer than this software's (" +
+                                           std::to_string(latest) + ")");
   }
   for (const Migration& migration : AllMigrations()) {
     if (migration.version <= version || migration.version > goal) continue;
@@ -221,7 +219,8 @@ api::Status Database::RunOnWriter(const std::function<api::Status(Connection&)>&
       try {
         status = fn(*writer_);
       } catch (const std::exception& e) {
-        status = api::Status::Internal(std::string("exception in a write transaction: ") + e.what());
+        status =
+            api::Status::Internal(std::string("exception in a write transaction: ") + e.what());
       }
       writer_owner_.store(std::thread::id());
       if (status.ok()) status = writer_->ExecScript("COMMIT");
@@ -354,7 +353,8 @@ api::Status Database::RestoreFrom(const std::string& backup_path) {
   if (!source.ok()) return CheckedOpenStep(source.status(), backup_path);
   auto problems = IntegrityProblems(**source, 5);
   if (!problems.ok()) return CheckedOpenStep(problems.status(), backup_path);
-  if (!problems->empty()) return CorruptStatus(backup_path, "integrity_check: " + problems->front());
+  if (!problems->empty())
+    return CorruptStatus(backup_path, "integrity_check: " + problems->front());
   auto version = UserVersion(**source);
   if (!version.ok()) return version.status();
   if (*version > LatestSchemaVersion()) {

@@ -37,12 +37,12 @@ namespace fesbench::storage {
 enum class Synchronous { kNormal, kFull };
 
 struct DatabaseOptions {
-  std::string path;                        ///< database file; created if missing.
+  std::string path;  ///< database file; created if missing.
   Synchronous synchronous = Synchronous::kFull;
-  int reader_count = 4;                    ///< reader connections, ≥ 1.
-  std::chrono::milliseconds busy_timeout{2000};  ///< SQLite's own wait per attempt.
-  std::chrono::milliseconds retry_budget{30000}; ///< total wait before kUnavailable.
-  bool check_integrity = true;             ///< PRAGMA integrity_check at open.
+  int reader_count = 4;                           ///< reader connections, ≥ 1.
+  std::chrono::milliseconds busy_timeout{2000};   ///< SQLite's own wait per attempt.
+  std::chrono::milliseconds retry_budget{30000};  ///< total wait before kUnavailable.
+  bool check_integrity = true;                    ///< PRAGMA integrity_check at open.
   /// Apply migrations up to this version only (tests of upgrades); nullopt
   /// applies all of them.
   std::optional<int> target_schema_version;

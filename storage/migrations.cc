@@ -247,10 +247,10 @@ const std::vector<Migration>& AllMigrations() {
       {1, "subjects, legs, sessions, runs, users, tokens, audit log",
        std::string(kMigration1) +
            AppendOnly({"schema_migrations", "subjects", "subject_revisions", "legs", "sessions",
-                       "session_revisions", "runs", "run_events", "users",
-                       "user_deactivations", "tokens", "token_revocations", "audit_log"})},
-      {2, "trials and their channels", std::string(kMigration2) +
-                                           AppendOnly({"trials", "trial_channels"})},
+                       "session_revisions", "runs", "run_events", "users", "user_deactivations",
+                       "tokens", "token_revocations", "audit_log"})},
+      {2, "trials and their channels",
+       std::string(kMigration2) + AppendOnly({"trials", "trial_channels"})},
       {3, "parameter sets and their provenance trials",
        std::string(kMigration3) + AppendOnly({"parameter_sets", "parameter_set_trials"})},
       {4, "predictions and evaluations",

@@ -1,9 +1,8 @@
 #include "storage/parameter_sets.h"
 
 #include <algorithm>
-#include <set>
-
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "api/parameter_set_json.h"
 #include "storage/row_helpers.h"
@@ -122,7 +121,8 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
     leg->Bind(1, set.leg_id);
     auto leg_found = leg->Step();
     if (!leg_found.ok()) return leg_found.status();
-    if (!*leg_found) return api::Status::NotFound("leg " + std::to_string(set.leg_id) + " not found");
+    if (!*leg_found)
+      return api::Status::NotFound("leg " + std::to_string(set.leg_id) + " not found");
     if (leg->Int64(0) != set.subject_id) {
       return api::Status::InvalidArgument(
           "leg " + std::to_string(set.leg_id) + " belongs to another subject", "leg_id");
@@ -172,11 +172,17 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
         " passive_method, active_method, software_version, supersedes_id, created_at_utc,"
         " params_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
     if (!insert.ok()) return insert.status();
-    insert->Bind(1, set.subject_id).Bind(2, set.leg_id).Bind(3, version)
-        .Bind(4, model::ModelKindName(params.model)).Bind(5, params.provenance.irc_method)
-        .Bind(6, params.provenance.passive_method).Bind(7, params.provenance.active_method)
-        .Bind(8, params.provenance.software_version).Bind(9, set.supersedes_id)
-        .Bind(10, FormatUtc(created_at)).Bind(11, json_text);
+    insert->Bind(1, set.subject_id)
+        .Bind(2, set.leg_id)
+        .Bind(3, version)
+        .Bind(4, model::ModelKindName(params.model))
+        .Bind(5, params.provenance.irc_method)
+        .Bind(6, params.provenance.passive_method)
+        .Bind(7, params.provenance.active_method)
+        .Bind(8, params.provenance.software_version)
+        .Bind(9, set.supersedes_id)
+        .Bind(10, FormatUtc(created_at))
+        .Bind(11, json_text);
     if (auto s = insert->Run(); !s.ok()) return s;
     const std::int64_t id = c.LastInsertRowId();
     for (std::int64_t trial_id : trial_ids) {
@@ -226,7 +232,9 @@ api::Result<std::vector<ParameterSetSummary>> ParameterSetRepository::History(
     }
     auto statement = c.Prepare(sql);
     if (!statement.ok()) return statement.status();
-    statement->Bind(1, query.subject_id).Bind(2, from).Bind(3, to)
+    statement->Bind(1, query.subject_id)
+        .Bind(2, from)
+        .Bind(3, to)
         .Bind(6, static_cast<std::int64_t>(query.limit));
     if (query.leg_id) statement->Bind(4, *query.leg_id);
     if (query.method) statement->Bind(5, *query.method);

@@ -1,7 +1,6 @@
 #include "storage/predictions.h"
 
 #include <cmath>
-
 #include <nlohmann/json.hpp>
 
 #include "storage/row_helpers.h"
@@ -20,7 +19,8 @@ api::Result<std::vector<Prediction>> QueryPredictions(Connection& c, std::string
                                                       std::int64_t id) {
   auto statement = c.Prepare(
       "SELECT id, parameter_set_id, trial_id, input_json, output_json, created_at_utc"
-      " FROM predictions " + std::string(where) + " ORDER BY id");
+      " FROM predictions " +
+      std::string(where) + " ORDER BY id");
   if (!statement.ok()) return statement.status();
   statement->Bind(1, id);
   std::vector<Prediction> out;
@@ -46,8 +46,8 @@ api::Result<std::vector<Evaluation>> QueryEvaluations(Connection& c, std::string
                                                       std::int64_t id) {
   auto statement = c.Prepare(
       "SELECT id, parameter_set_id, trial_id, prediction_id, channel, unit, rms_error,"
-      " max_abs_error, details_json, created_at_utc FROM evaluations " + std::string(where) +
-      " ORDER BY id");
+      " max_abs_error, details_json, created_at_utc FROM evaluations " +
+      std::string(where) + " ORDER BY id");
   if (!statement.ok()) return statement.status();
   statement->Bind(1, id);
   std::vector<Evaluation> out;
@@ -108,8 +108,11 @@ api::Result<Prediction> PredictionRepository::InsertPrediction(const NewPredicti
         "INSERT INTO predictions (parameter_set_id, trial_id, input_json, output_json,"
         " created_at_utc) VALUES (?1, ?2, ?3, ?4, ?5)");
     if (!insert.ok()) return insert.status();
-    insert->Bind(1, p.parameter_set_id).Bind(2, p.trial_id).Bind(3, p.input_json)
-        .Bind(4, p.output_json).Bind(5, FormatUtc(db_.Now()));
+    insert->Bind(1, p.parameter_set_id)
+        .Bind(2, p.trial_id)
+        .Bind(3, p.input_json)
+        .Bind(4, p.output_json)
+        .Bind(5, FormatUtc(db_.Now()));
     if (auto s = insert->Run(); !s.ok()) return s;
     const std::int64_t id = c.LastInsertRowId();
     return One(QueryPredictions(c, "WHERE id = ?1", id), "prediction", id);
@@ -135,7 +138,8 @@ api::Result<std::vector<Prediction>> PredictionRepository::PredictionsFor(
 }
 
 api::Result<Evaluation> PredictionRepository::InsertEvaluation(const NewEvaluation& e) {
-  if (e.channel.empty()) return api::Status::InvalidArgument("channel must not be empty", "channel");
+  if (e.channel.empty())
+    return api::Status::InvalidArgument("channel must not be empty", "channel");
   if (!std::isfinite(e.rms_error) || e.rms_error < 0) {
     return api::Status::InvalidArgument("rms_error must be finite and >= 0", "rms_error");
   }
@@ -151,8 +155,8 @@ api::Result<Evaluation> PredictionRepository::InsertEvaluation(const NewEvaluati
         !s.ok()) {
       return s;
     }
-    if (auto s = RequireField(c, "SELECT 1 FROM trials WHERE id = ?1", e.trial_id, "trial",
-                              "trial_id");
+    if (auto s =
+            RequireField(c, "SELECT 1 FROM trials WHERE id = ?1", e.trial_id, "trial", "trial_id");
         !s.ok()) {
       return s;
     }
@@ -174,9 +178,15 @@ api::Result<Evaluation> PredictionRepository::InsertEvaluation(const NewEvaluati
         " rms_error, max_abs_error, details_json, created_at_utc)"
         " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)");
     if (!insert.ok()) return insert.status();
-    insert->Bind(1, e.parameter_set_id).Bind(2, e.trial_id).Bind(3, e.prediction_id)
-        .Bind(4, e.channel).Bind(5, e.unit).Bind(6, e.rms_error).Bind(7, e.max_abs_error)
-        .Bind(8, e.details_json).Bind(9, FormatUtc(db_.Now()));
+    insert->Bind(1, e.parameter_set_id)
+        .Bind(2, e.trial_id)
+        .Bind(3, e.prediction_id)
+        .Bind(4, e.channel)
+        .Bind(5, e.unit)
+        .Bind(6, e.rms_error)
+        .Bind(7, e.max_abs_error)
+        .Bind(8, e.details_json)
+        .Bind(9, FormatUtc(db_.Now()));
     if (auto s = insert->Run(); !s.ok()) return s;
     const std::int64_t id = c.LastInsertRowId();
     return One(QueryEvaluations(c, "WHERE id = ?1", id), "evaluation", id);

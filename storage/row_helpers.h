@@ -25,8 +25,8 @@ inline api::Status RequireRow(Connection& c, std::string_view sql, std::int64_t 
                               std::string_view what) {
   auto exists = RowExists(c, sql, id);
   if (!exists.ok()) return exists.status();
-  if (!*exists) return api::Status::NotFound(std::string(what) + " " + std::to_string(id) +
-                                             " not found");
+  if (!*exists)
+    return api::Status::NotFound(std::string(what) + " " + std::to_string(id) + " not found");
   return api::Status::Ok();
 }
 

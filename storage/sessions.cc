@@ -2,7 +2,6 @@
 
 #include <cmath>
 #include <functional>
-
 #include <nlohmann/json.hpp>
 
 #include "storage/row_helpers.h"
@@ -64,7 +63,8 @@ api::Result<std::vector<Session>> QuerySessions(Connection& c, std::string_view 
 api::Result<Session> GetSession(Connection& c, std::int64_t id) {
   auto sessions = QuerySessions(c, "WHERE s.id = ?1", [&](Statement& s) { s.Bind(1, id); });
   if (!sessions.ok()) return sessions.status();
-  if (sessions->empty()) return api::Status::NotFound("session " + std::to_string(id) + " not found");
+  if (sessions->empty())
+    return api::Status::NotFound("session " + std::to_string(id) + " not found");
   return std::move(sessions->front());
 }
 
@@ -76,9 +76,16 @@ api::Status InsertRevision(Connection& c, std::int64_t session_id, int revision,
       " accelerometer_placement, threshold_ma, max_tolerated_ma, notes, corrects_id, reason,"
       " recorded_at_utc) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)");
   if (!insert.ok()) return insert.status();
-  insert->Bind(1, session_id).Bind(2, revision).Bind(3, d.date).Bind(4, d.accelerometer_placement)
-      .Bind(5, d.threshold_ma).Bind(6, d.max_tolerated_ma).Bind(7, d.notes).Bind(8, corrects_id)
-      .Bind(9, reason).Bind(10, FormatUtc(now));
+  insert->Bind(1, session_id)
+      .Bind(2, revision)
+      .Bind(3, d.date)
+      .Bind(4, d.accelerometer_placement)
+      .Bind(5, d.threshold_ma)
+      .Bind(6, d.max_tolerated_ma)
+      .Bind(7, d.notes)
+      .Bind(8, corrects_id)
+      .Bind(9, reason)
+      .Bind(10, FormatUtc(now));
   return insert->Run();
 }
 
@@ -136,8 +143,8 @@ api::Result<Run> GetRunIn(Connection& c, std::int64_t id) {
 
 api::Status AppendRunEvent(Connection& c, std::int64_t run_id, RunState state,
                            std::string_view message, UtcTime now) {
-  auto insert = c.Prepare(
-      "INSERT INTO run_events (run_id, state, message, at_utc) VALUES (?1, ?2, ?3, ?4)");
+  auto insert =
+      c.Prepare("INSERT INTO run_events (run_id, state, message, at_utc) VALUES (?1, ?2, ?3, ?4)");
   if (!insert.ok()) return insert.status();
   insert->Bind(1, run_id).Bind(2, RunStateName(state)).Bind(3, message).Bind(4, FormatUtc(now));
   return insert->Run();
@@ -147,11 +154,16 @@ api::Status AppendRunEvent(Connection& c, std::int64_t run_id, RunState state,
 
 std::string_view RunStateName(RunState state) {
   switch (state) {
-    case RunState::kQueued: return "queued";
-    case RunState::kRunning: return "running";
-    case RunState::kCompleted: return "completed";
-    case RunState::kFailed: return "failed";
-    case RunState::kCancelled: return "cancelled";
+    case RunState::kQueued:
+      return "queued";
+    case RunState::kRunning:
+      return "running";
+    case RunState::kCompleted:
+      return "completed";
+    case RunState::kFailed:
+      return "failed";
+    case RunState::kCancelled:
+      return "cancelled";
   }
   return "failed";
 }
@@ -186,8 +198,8 @@ api::Result<Session> SessionRepository::Create(std::int64_t subject_id, std::int
                                                const SessionDetails& details) {
   if (auto s = ValidateSessionDetails(details); !s.ok()) return s;
   return db_.Write([&](Connection& c) -> api::Result<Session> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id,
-                                      "subject");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id, "subject");
         !s.ok()) {
       return s;
     }
@@ -198,13 +210,12 @@ api::Result<Session> SessionRepository::Create(std::int64_t subject_id, std::int
     if (!found.ok()) return found.status();
     if (!*found) return api::Status::NotFound("leg " + std::to_string(leg_id) + " not found");
     if (leg->Int64(0) != subject_id) {
-      return api::Status::InvalidArgument("leg " + std::to_string(leg_id) +
-                                              " belongs to another subject",
-                                          "leg_id");
+      return api::Status::InvalidArgument(
+          "leg " + std::to_string(leg_id) + " belongs to another subject", "leg_id");
     }
     const UtcTime now = db_.Now();
-    auto insert = c.Prepare(
-        "INSERT INTO sessions (subject_id, leg_id, created_at_utc) VALUES (?1, ?2, ?3)");
+    auto insert =
+        c.Prepare("INSERT INTO sessions (subject_id, leg_id, created_at_utc) VALUES (?1, ?2, ?3)");
     if (!insert.ok()) return insert.status();
     insert->Bind(1, subject_id).Bind(2, leg_id).Bind(3, FormatUtc(now));
     if (auto s = insert->Run(); !s.ok()) return s;
@@ -220,8 +231,8 @@ api::Result<Session> SessionRepository::Get(std::int64_t session_id) {
 
 api::Result<std::vector<Session>> SessionRepository::ListForSubject(std::int64_t subject_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<Session>> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id,
-                                      "subject");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id, "subject");
         !s.ok()) {
       return s;
     }
@@ -249,8 +260,8 @@ api::Result<Session> SessionRepository::Correct(std::int64_t session_id,
 
 api::Result<std::vector<SessionRevision>> SessionRepository::Revisions(std::int64_t session_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<SessionRevision>> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id,
-                                      "session");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id, "session");
         !s.ok()) {
       return s;
     }
@@ -283,8 +294,8 @@ api::Result<Run> SessionRepository::CreateRun(std::int64_t session_id, const New
     return api::Status::InvalidArgument("parameters_json is not valid JSON", "parameters_json");
   }
   return db_.Write([&](Connection& c) -> api::Result<Run> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id,
-                                      "session");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id, "session");
         !s.ok()) {
       return s;
     }
@@ -293,8 +304,11 @@ api::Result<Run> SessionRepository::CreateRun(std::int64_t session_id, const New
         "INSERT INTO runs (session_id, protocol_name, protocol_version, parameters_json,"
         " created_at_utc) VALUES (?1, ?2, ?3, ?4, ?5)");
     if (!insert.ok()) return insert.status();
-    insert->Bind(1, session_id).Bind(2, run.protocol_name).Bind(3, run.protocol_version)
-        .Bind(4, run.parameters_json).Bind(5, FormatUtc(now));
+    insert->Bind(1, session_id)
+        .Bind(2, run.protocol_name)
+        .Bind(3, run.protocol_version)
+        .Bind(4, run.parameters_json)
+        .Bind(5, FormatUtc(now));
     if (auto s = insert->Run(); !s.ok()) return s;
     const std::int64_t id = c.LastInsertRowId();
     if (auto s = AppendRunEvent(c, id, RunState::kQueued, "", now); !s.ok()) return s;
@@ -308,8 +322,8 @@ api::Result<Run> SessionRepository::GetRun(std::int64_t run_id) {
 
 api::Result<std::vector<Run>> SessionRepository::ListRuns(std::int64_t session_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<Run>> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id,
-                                      "session");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id, "session");
         !s.ok()) {
       return s;
     }

@@ -51,8 +51,8 @@ std::optional<RunState> ParseRunState(std::string_view name);
 bool IsTerminal(RunState state);
 
 struct NewRun {
-  std::string protocol_name;     ///< e.g. "irc_ramp".
-  std::string protocol_version;  ///< e.g. "1.0".
+  std::string protocol_name;           ///< e.g. "irc_ramp".
+  std::string protocol_version;        ///< e.g. "1.0".
   std::string parameters_json = "{}";  ///< the protocol's parameters, valid JSON.
 };
 
@@ -63,10 +63,10 @@ struct Run {
   std::string protocol_version;
   std::string parameters_json;
   RunState state = RunState::kQueued;
-  std::string message;                ///< of the last state event.
+  std::string message;  ///< of the last state event.
   UtcTime created_at;
-  std::optional<UtcTime> started_at;  ///< first "running" event.
-  std::optional<UtcTime> finished_at; ///< the terminal event.
+  std::optional<UtcTime> started_at;   ///< first "running" event.
+  std::optional<UtcTime> finished_at;  ///< the terminal event.
 };
 
 /// Checks SessionDetails (field names the member): a valid date, currents in

@@ -64,7 +64,8 @@ api::Result<std::vector<Subject>> QuerySubjects(Connection& c, std::string_view 
 api::Result<Subject> GetById(Connection& c, std::int64_t id) {
   auto subjects = QuerySubjects(c, "WHERE s.id = ?1", [&](Statement& s) { s.Bind(1, id); });
   if (!subjects.ok()) return subjects.status();
-  if (subjects->empty()) return api::Status::NotFound("subject " + std::to_string(id) + " not found");
+  if (subjects->empty())
+    return api::Status::NotFound("subject " + std::to_string(id) + " not found");
   return std::move(subjects->front());
 }
 
@@ -78,9 +79,16 @@ api::Status InsertRevision(Connection& c, std::int64_t subject_id, int revision,
   if (!insert.ok()) return insert.status();
   std::optional<std::int64_t> age;
   if (d.age_years) age = *d.age_years;
-  insert->Bind(1, subject_id).Bind(2, revision).Bind(3, age).Bind(4, SexName(d.sex))
-      .Bind(5, d.height_cm).Bind(6, d.weight_kg).Bind(7, d.shank_length_cm)
-      .Bind(8, d.calf_circumference_cm).Bind(9, corrects_id).Bind(10, reason)
+  insert->Bind(1, subject_id)
+      .Bind(2, revision)
+      .Bind(3, age)
+      .Bind(4, SexName(d.sex))
+      .Bind(5, d.height_cm)
+      .Bind(6, d.weight_kg)
+      .Bind(7, d.shank_length_cm)
+      .Bind(8, d.calf_circumference_cm)
+      .Bind(9, corrects_id)
+      .Bind(10, reason)
       .Bind(11, FormatUtc(now));
   return insert->Run();
 }
@@ -89,8 +97,8 @@ api::Status CheckRange(const std::optional<double>& value, double low, double hi
                        const char* field) {
   if (!value) return api::Status::Ok();
   if (!std::isfinite(*value) || *value <= low || *value > high) {
-    return api::Status::InvalidArgument(std::string(field) + " must be in (" +
-                                            std::to_string(low) + ", " + std::to_string(high) + "]",
+    return api::Status::InvalidArgument(std::string(field) + " must be in (" + std::to_string(low) +
+                                            ", " + std::to_string(high) + "]",
                                         field);
   }
   return api::Status::Ok();
@@ -112,10 +120,14 @@ api::Result<Leg> ReadLeg(const Statement& s) {
 
 std::string_view SexName(Sex sex) {
   switch (sex) {
-    case Sex::kFemale: return "female";
-    case Sex::kMale: return "male";
-    case Sex::kOther: return "other";
-    case Sex::kUndisclosed: return "undisclosed";
+    case Sex::kFemale:
+      return "female";
+    case Sex::kMale:
+      return "male";
+    case Sex::kOther:
+      return "other";
+    case Sex::kUndisclosed:
+      return "undisclosed";
   }
   return "undisclosed";
 }
@@ -225,8 +237,8 @@ api::Result<Subject> SubjectRepository::Correct(std::int64_t subject_id,
 
 api::Result<std::vector<SubjectRevision>> SubjectRepository::Revisions(std::int64_t subject_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<SubjectRevision>> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id,
-                                      "subject");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id, "subject");
         !s.ok()) {
       return s;
     }
@@ -250,8 +262,8 @@ api::Result<std::vector<SubjectRevision>> SubjectRepository::Revisions(std::int6
 
 api::Result<Leg> SubjectRepository::AddLeg(std::int64_t subject_id, Side side) {
   return db_.Write([&](Connection& c) -> api::Result<Leg> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id,
-                                      "subject");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id, "subject");
         !s.ok()) {
       return s;
     }
@@ -261,8 +273,9 @@ api::Result<Leg> SubjectRepository::AddLeg(std::int64_t subject_id, Side side) {
     auto found = existing->Step();
     if (!found.ok()) return found.status();
     if (*found) {
-      return api::Status::AlreadyExists("subject " + std::to_string(subject_id) + " already has a " +
-                                            std::string(SideName(side)) + " leg",
+      return api::Status::AlreadyExists("subject " + std::to_string(subject_id) +
+                                            " already has a " + std::string(SideName(side)) +
+                                            " leg",
                                         "side");
     }
     auto insert =
@@ -290,8 +303,8 @@ api::Result<Leg> SubjectRepository::GetLeg(std::int64_t leg_id) {
 
 api::Result<std::vector<Leg>> SubjectRepository::Legs(std::int64_t subject_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<Leg>> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id,
-                                      "subject");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", subject_id, "subject");
         !s.ok()) {
       return s;
     }

@@ -28,19 +28,19 @@ std::optional<Side> ParseSide(std::string_view name);
 
 /// Anthropometrics; absent values were not measured.
 struct SubjectDetails {
-  std::optional<int> age_years;                  ///< 0–130.
+  std::optional<int> age_years;  ///< 0–130.
   Sex sex = Sex::kUndisclosed;
-  std::optional<double> height_cm;               ///< (30, 250].
-  std::optional<double> weight_kg;               ///< (1, 400].
-  std::optional<double> shank_length_cm;         ///< (10, 80].
-  std::optional<double> calf_circumference_cm;   ///< (10, 100].
+  std::optional<double> height_cm;              ///< (30, 250].
+  std::optional<double> weight_kg;              ///< (1, 400].
+  std::optional<double> shank_length_cm;        ///< (10, 80].
+  std::optional<double> calf_circumference_cm;  ///< (10, 100].
   friend bool operator==(const SubjectDetails&, const SubjectDetails&) = default;
 };
 
 /// One recorded version of a subject's details.
 struct SubjectRevision {
   std::int64_t id = 0;
-  int revision = 1;                     ///< 1 for the original, then 2, 3, …
+  int revision = 1;  ///< 1 for the original, then 2, 3, …
   SubjectDetails details;
   std::optional<std::int64_t> corrects_id;  ///< the revision this one corrects.
   std::string reason;
@@ -50,7 +50,7 @@ struct SubjectRevision {
 /// A subject with its current (latest) details.
 struct Subject {
   std::int64_t id = 0;
-  std::string code;           ///< pseudonymous: [A-Za-z0-9_-], 1–32 characters.
+  std::string code;  ///< pseudonymous: [A-Za-z0-9_-], 1–32 characters.
   UtcTime created_at;
   SubjectRevision current;
 };

@@ -35,9 +35,7 @@ std::optional<std::chrono::year_month_day> ParseDate(std::string_view text) {
 
 }  // namespace
 
-UtcTime NowUtc() {
-  return std::chrono::floor<microseconds>(std::chrono::system_clock::now());
-}
+UtcTime NowUtc() { return std::chrono::floor<microseconds>(std::chrono::system_clock::now()); }
 
 std::string FormatUtc(UtcTime t) {
   const auto day = std::chrono::floor<days>(t);
@@ -69,8 +67,6 @@ std::optional<UtcTime> ParseUtc(std::string_view text) {
          std::chrono::seconds(*s) + microseconds(*us);
 }
 
-bool IsIsoDate(std::string_view text) {
-  return text.size() == 10 && ParseDate(text).has_value();
-}
+bool IsIsoDate(std::string_view text) { return text.size() == 10 && ParseDate(text).has_value(); }
 
 }  // namespace fesbench::storage

@@ -14,9 +14,14 @@ api::Status InsertChannels(Connection& c, std::int64_t trial_id, std::string_vie
         " sample_count, samples_f64le) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
     if (!insert.ok()) return insert.status();
     const std::vector<std::byte> blob = PackFloat64Le(channel.values);
-    insert->Bind(1, trial_id).Bind(2, group).Bind(3, static_cast<std::int64_t>(i))
-        .Bind(4, channel.name).Bind(5, channel.unit).Bind(6, rate_hz)
-        .Bind(7, static_cast<std::int64_t>(channel.values.size())).BindBlob(8, blob);
+    insert->Bind(1, trial_id)
+        .Bind(2, group)
+        .Bind(3, static_cast<std::int64_t>(i))
+        .Bind(4, channel.name)
+        .Bind(5, channel.unit)
+        .Bind(6, rate_hz)
+        .Bind(7, static_cast<std::int64_t>(channel.values.size()))
+        .BindBlob(8, blob);
     if (auto s = insert->Run(); !s.ok()) return s;
   }
   return api::Status::Ok();
@@ -78,19 +83,22 @@ api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner,
       run->Bind(1, *owner.run_id);
       auto found = run->Step();
       if (!found.ok()) return found.status();
-      if (!*found) return api::Status::NotFound("run " + std::to_string(*owner.run_id) + " not found");
+      if (!*found)
+        return api::Status::NotFound("run " + std::to_string(*owner.run_id) + " not found");
       if (run->Int64(0) != owner.session_id) {
-        return api::Status::InvalidArgument("run " + std::to_string(*owner.run_id) +
-                                                " belongs to another session",
-                                            "run_id");
+        return api::Status::InvalidArgument(
+            "run " + std::to_string(*owner.run_id) + " belongs to another session", "run_id");
       }
     }
     auto insert = c.Prepare(
         "INSERT INTO trials (session_id, run_id, name, start_time_unix_ms, created_at_utc)"
         " VALUES (?1, ?2, ?3, ?4, ?5)");
     if (!insert.ok()) return insert.status();
-    insert->Bind(1, owner.session_id).Bind(2, owner.run_id).Bind(3, trial.name)
-        .Bind(4, trial.start_time_unix_ms).Bind(5, FormatUtc(db_.Now()));
+    insert->Bind(1, owner.session_id)
+        .Bind(2, owner.run_id)
+        .Bind(3, trial.name)
+        .Bind(4, trial.start_time_unix_ms)
+        .Bind(5, FormatUtc(db_.Now()));
     if (auto s = insert->Run(); !s.ok()) return s;
     const std::int64_t id = c.LastInsertRowId();
     if (auto s = InsertChannels(c, id, "main", trial.sample_rate_hz, trial.channels); !s.ok()) {
@@ -124,8 +132,8 @@ api::Result<TrialOwner> TrialRepository::Owner(std::int64_t trial_id) {
 
 api::Result<std::vector<TrialSummary>> TrialRepository::ListForSession(std::int64_t session_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<TrialSummary>> {
-    if (auto s = internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id,
-                                      "session");
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id, "session");
         !s.ok()) {
       return s;
     }

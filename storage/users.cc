@@ -63,9 +63,12 @@ api::Result<std::string> NewTokenText() {
 
 std::string_view RoleName(Role role) {
   switch (role) {
-    case Role::kClinician: return "clinician";
-    case Role::kAnalyst: return "analyst";
-    case Role::kAdmin: return "admin";
+    case Role::kClinician:
+      return "clinician";
+    case Role::kAnalyst:
+      return "analyst";
+    case Role::kAdmin:
+      return "admin";
   }
   return "analyst";
 }
@@ -150,8 +153,7 @@ api::Result<IssuedToken> UserRepository::IssueToken(std::int64_t user_id, std::s
     auto user = GetUserIn(c, user_id);
     if (!user.ok()) return user.status();
     if (!user->active) {
-      return api::Status::FailedPrecondition("user " + std::to_string(user_id) +
-                                             " is deactivated");
+      return api::Status::FailedPrecondition("user " + std::to_string(user_id) + " is deactivated");
     }
     auto insert = c.Prepare(
         "INSERT INTO tokens (user_id, token_sha256, label, created_at_utc, expires_at_utc)"
@@ -159,7 +161,10 @@ api::Result<IssuedToken> UserRepository::IssueToken(std::int64_t user_id, std::s
     if (!insert.ok()) return insert.status();
     std::optional<std::string> expires;
     if (expires_at) expires = FormatUtc(*expires_at);
-    insert->Bind(1, user_id).BindBlob(2, digest).Bind(3, label).Bind(4, FormatUtc(db_.Now()))
+    insert->Bind(1, user_id)
+        .BindBlob(2, digest)
+        .Bind(3, label)
+        .Bind(4, FormatUtc(db_.Now()))
         .Bind(5, expires);
     if (auto s = insert->Run(); !s.ok()) return s;
     return IssuedToken{c.LastInsertRowId(), *token, expires_at};
@@ -191,8 +196,8 @@ api::Status UserRepository::RevokeToken(std::int64_t token_id) {
         !s.ok()) {
       return s;
     }
-    auto revoked = internal::RowExists(
-        c, "SELECT 1 FROM token_revocations WHERE token_id = ?1", token_id);
+    auto revoked =
+        internal::RowExists(c, "SELECT 1 FROM token_revocations WHERE token_id = ?1", token_id);
     if (!revoked.ok()) return revoked.status();
     if (*revoked) {
       return api::Status::FailedPrecondition("token " + std::to_string(token_id) +

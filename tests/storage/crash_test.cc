@@ -53,8 +53,8 @@ bool SendLine(int fd, const std::string& line) {
   TrialRepository trials(**db);
   ParameterSetRepository sets(**db);
   while (true) {
-    auto trial_id = trials.Insert({session_id, std::nullopt}, testing::MakeTrial(kSamples,
-                                                                                 PhaseOf(seq)));
+    auto trial_id =
+        trials.Insert({session_id, std::nullopt}, testing::MakeTrial(kSamples, PhaseOf(seq)));
     if (!trial_id.ok()) {
       SendLine(fd, "E " + trial_id.status().ToString() + "\n");
       ::_exit(3);
@@ -94,8 +94,8 @@ TEST(StorageCrash, AcknowledgedWritesSurviveSigkill) {
     ASSERT_TRUE(subject.ok());
     auto leg = SubjectRepository(**db).AddLeg(subject->id, Side::kRight);
     ASSERT_TRUE(leg.ok());
-    auto session = SessionRepository(**db).Create(subject->id, leg->id,
-                                                  {"2026-05-06", "shank", {}, {}, ""});
+    auto session =
+        SessionRepository(**db).Create(subject->id, leg->id, {"2026-05-06", "shank", {}, {}, ""});
     ASSERT_TRUE(session.ok());
     subject_id = subject->id;
     leg_id = leg->id;
@@ -128,7 +128,8 @@ TEST(StorageCrash, AcknowledgedWritesSurviveSigkill) {
     std::string text;
     char buffer[4096];
     ssize_t n = 0;
-    while ((n = ::read(fds[0], buffer, sizeof buffer)) > 0) text.append(buffer, static_cast<std::size_t>(n));
+    while ((n = ::read(fds[0], buffer, sizeof buffer)) > 0)
+      text.append(buffer, static_cast<std::size_t>(n));
     ::close(fds[0]);
     std::istringstream lines(text);
     std::string kind;
@@ -178,15 +179,16 @@ TEST(StorageCrash, AcknowledgedWritesSurviveSigkill) {
   for (const auto& [id, seq] : acked_trials) {
     auto trial = trials.Get(id);
     ASSERT_TRUE(trial.ok()) << "trial " << id;
-    EXPECT_EQ(trial->channels[1].values, testing::MakeTrial(kSamples, PhaseOf(seq)).channels[1].values);
+    EXPECT_EQ(trial->channels[1].values,
+              testing::MakeTrial(kSamples, PhaseOf(seq)).channels[1].values);
   }
   for (const auto& [id, seq] : acked_sets) {
     auto set = sets.Get(id);
     ASSERT_TRUE(set.ok()) << "parameter set " << id;
     EXPECT_EQ(set->params.contraction.pole_per_s, PoleOf(seq));
   }
-  auto history = sets.History({subject_id, leg_id, std::nullopt, std::nullopt, std::nullopt,
-                               1000000});
+  auto history =
+      sets.History({subject_id, leg_id, std::nullopt, std::nullopt, std::nullopt, 1000000});
   ASSERT_TRUE(history.ok());
   EXPECT_GE(history->size(), acked_sets.size());
   // Versions stay a gap-free sequence 1..N: no half-written set survived.

@@ -47,9 +47,8 @@ TEST_F(StorageTest, ReopeningAppliesNothingTwice) {
   db_.reset();
   auto db = Database::Open(Options());
   ASSERT_TRUE(db.ok()) << db.status().ToString();
-  auto count = (*db)->Read([](Connection& c) {
-    return c.QueryText("SELECT count(*) FROM schema_migrations");
-  });
+  auto count = (*db)->Read(
+      [](Connection& c) { return c.QueryText("SELECT count(*) FROM schema_migrations"); });
   ASSERT_TRUE(count.ok());
   EXPECT_EQ(*count, "4");
 }
@@ -95,9 +94,10 @@ TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
     auto user = UserRepository(**db).CreateUser("alice", Role::kClinician);
     ASSERT_TRUE(user.ok());
     user_id = user->id;
-    ASSERT_TRUE(AuditLog(**db).Append({user_id, "alice", "POST /api/v1/subjects", "subjects/1",
-                                       "{code: P07}", "201"})
-                    .ok());
+    ASSERT_TRUE(
+        AuditLog(**db)
+            .Append({user_id, "alice", "POST /api/v1/subjects", "subjects/1", "{code: P07}", "201"})
+            .ok());
   }
   auto db = Database::Open(Options());
   ASSERT_TRUE(db.ok()) << db.status().ToString();
@@ -129,16 +129,15 @@ TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
   EXPECT_EQ((*audit)[0].entry.request_summary, "{code: P07}");
 
   // The tables of migrations 2-4 exist and are empty on the upgraded file.
-  auto count = (*db)->Read([](Connection& c) {
-    return c.QueryText("SELECT count(*) FROM trials");
-  });
+  auto count =
+      (*db)->Read([](Connection& c) { return c.QueryText("SELECT count(*) FROM trials"); });
   ASSERT_TRUE(count.ok());
   EXPECT_EQ(*count, "0");
 }
 
 TEST_F(StorageTest, RefusesSchemaNewerThanSoftware) {
-  ASSERT_TRUE(db_->Write([](Connection& c) { return c.ExecScript("PRAGMA user_version = 99"); })
-                  .ok());
+  ASSERT_TRUE(
+      db_->Write([](Connection& c) { return c.ExecScript("PRAGMA user_version = 99"); }).ok());
   db_.reset();
   auto db = Database::Open(Options());
   ASSERT_FALSE(db.ok());
@@ -362,7 +361,8 @@ TEST_F(StorageTest, ConcurrentReadersAndWritersNeverSeeLocked) {
   }
   for (auto& t : threads) t.join();
   std::string first;
-  for (const auto& e : first_errors) if (!e.empty()) first = e;
+  for (const auto& e : first_errors)
+    if (!e.empty()) first = e;
   EXPECT_EQ(errors.load(), 0) << first;
   auto list = subjects.List();
   ASSERT_TRUE(list.ok());

@@ -35,9 +35,9 @@ TEST_F(StorageTest, ExportsTrialAsCsvAndStoAndParameterSetAsJson) {
   EXPECT_NE(sto->find("nColumns=4\n"), std::string::npos);
   EXPECT_NE(sto->find("endheader\ntime\tangle_deg\ttorque_nm\tstim_ma\n"), std::string::npos);
 
-  auto set = ParameterSetRepository(*db_).Insert(
-      {session.subject_id, session.leg_id, model::ExampleParameterSet(), std::nullopt,
-       std::nullopt});
+  auto set = ParameterSetRepository(*db_).Insert({session.subject_id, session.leg_id,
+                                                  model::ExampleParameterSet(), std::nullopt,
+                                                  std::nullopt});
   ASSERT_TRUE(set.ok());
   auto json = ExportParameterSetJson(*db_, set->id);
   ASSERT_TRUE(json.ok());

@@ -35,7 +35,8 @@ TEST_F(StorageTest, ParameterSetRoundTripWithProvenance) {
   params.contraction.pole_per_s = 23.5;
 
   ParameterSetRepository sets(*db_);
-  auto stored = sets.Insert({session.subject_id, session.leg_id, params, std::nullopt, std::nullopt});
+  auto stored =
+      sets.Insert({session.subject_id, session.leg_id, params, std::nullopt, std::nullopt});
   ASSERT_TRUE(stored.ok()) << stored.status().ToString();
   EXPECT_EQ(stored->version, 1);
   EXPECT_EQ(stored->model, "full");
@@ -78,8 +79,7 @@ TEST_F(StorageTest, HistoryFiltersBySubjectLegMethodAndDate) {
   // Subject a: day 0..9 alternating methods on the right leg, days 10, 11 on the left.
   for (int day = 0; day < 12; ++day) {
     const bool right = day < 10;
-    auto params = Params(day % 2 == 0 ? "ramp_correlation" : "twitch_deconvolution",
-                         "free_swing");
+    auto params = Params(day % 2 == 0 ? "ramp_correlation" : "twitch_deconvolution", "free_swing");
     NewParameterSet set{a.subject_id, right ? a.leg_id : left->id, params, std::nullopt,
                         Epoch2026() + std::chrono::days(day)};
     ASSERT_TRUE(sets.Insert(set).ok());
@@ -99,19 +99,19 @@ TEST_F(StorageTest, HistoryFiltersBySubjectLegMethodAndDate) {
   EXPECT_EQ(right_leg->size(), 10u);
   EXPECT_EQ(right_leg->back().version, 10);
 
-  auto twitch = sets.History({a.subject_id, a.leg_id, "twitch_deconvolution", std::nullopt,
-                              std::nullopt});
+  auto twitch =
+      sets.History({a.subject_id, a.leg_id, "twitch_deconvolution", std::nullopt, std::nullopt});
   ASSERT_TRUE(twitch.ok());
   EXPECT_EQ(twitch->size(), 5u);
-  auto passive = sets.History({a.subject_id, std::nullopt, "free_swing", std::nullopt,
-                               std::nullopt});
+  auto passive =
+      sets.History({a.subject_id, std::nullopt, "free_swing", std::nullopt, std::nullopt});
   ASSERT_TRUE(passive.ok());
   EXPECT_EQ(passive->size(), 12u);
 
   // [day 3, day 7): days 3, 4, 5, 6.
-  auto range = sets.History({a.subject_id, std::nullopt, std::nullopt,
-                             Epoch2026() + std::chrono::days(3),
-                             Epoch2026() + std::chrono::days(7)});
+  auto range =
+      sets.History({a.subject_id, std::nullopt, std::nullopt, Epoch2026() + std::chrono::days(3),
+                    Epoch2026() + std::chrono::days(7)});
   ASSERT_TRUE(range.ok());
   ASSERT_EQ(range->size(), 4u);
   EXPECT_EQ(range->front().version, 4);
@@ -122,9 +122,9 @@ TEST_F(StorageTest, HistoryFiltersBySubjectLegMethodAndDate) {
   ASSERT_TRUE(first3.ok());
   EXPECT_EQ(first3->size(), 3u);
 
-  EXPECT_EQ(sets.History({999, std::nullopt, std::nullopt, std::nullopt, std::nullopt})
-                .status().code(),
-            api::ErrorCode::kNotFound);
+  EXPECT_EQ(
+      sets.History({999, std::nullopt, std::nullopt, std::nullopt, std::nullopt}).status().code(),
+      api::ErrorCode::kNotFound);
 
   // The history query is an index range scan, not a table scan.
   auto plan = db_->Read([](Connection& c) -> api::Result<std::string> {
@@ -152,9 +152,9 @@ TEST_F(StorageTest, ParameterSetBadInputNamesTheProblem) {
   auto params = Params("ramp_correlation", "free_swing");
   EXPECT_EQ(sets.Insert({999, a.leg_id, params, std::nullopt, std::nullopt}).status().message(),
             "subject 999 not found");
-  EXPECT_EQ(sets.Insert({a.subject_id, b.leg_id, params, std::nullopt, std::nullopt})
-                .status().field(),
-            "leg_id");
+  EXPECT_EQ(
+      sets.Insert({a.subject_id, b.leg_id, params, std::nullopt, std::nullopt}).status().field(),
+      "leg_id");
   auto trial_b = TrialRepository(*db_).Insert({b.id, std::nullopt}, MakeTrial(5));
   ASSERT_TRUE(trial_b.ok());
   auto with_b = params;
@@ -178,8 +178,7 @@ TEST_F(StorageTest, ParameterSetBadInputNamesTheProblem) {
   EXPECT_EQ(refused.status().code(), api::ErrorCode::kInvalidArgument);
   auto other = sets.Insert({b.subject_id, b.leg_id, params, std::nullopt, std::nullopt});
   ASSERT_TRUE(other.ok());
-  EXPECT_EQ(sets.Insert({a.subject_id, a.leg_id, params, other->id, std::nullopt})
-                .status().field(),
+  EXPECT_EQ(sets.Insert({a.subject_id, a.leg_id, params, other->id, std::nullopt}).status().field(),
             "supersedes_id");
   EXPECT_EQ(sets.Get(999).status().code(), api::ErrorCode::kNotFound);
   EXPECT_EQ(sets.ExportJson(999).status().code(), api::ErrorCode::kNotFound);

@@ -50,15 +50,17 @@ TEST_F(StorageTest, PredictionsAndEvaluations) {
   EXPECT_EQ(repo.InsertPrediction({set->id, std::nullopt, "{", "{}"}).status().field(),
             "input_json");
   EXPECT_EQ(repo.InsertEvaluation({set->id, *trial, std::nullopt, "angle_deg", "deg", -1, 0, "{}"})
-                .status().field(),
+                .status()
+                .field(),
             "rms_error");
   EXPECT_EQ(repo.InsertEvaluation({set->id, *trial, std::nullopt, "angle_deg", "deg", 1,
                                    std::numeric_limits<double>::quiet_NaN(), "{}"})
-                .status().field(),
+                .status()
+                .field(),
             "max_abs_error");
-  EXPECT_EQ(repo.InsertEvaluation({set->id, *trial, 999, "angle_deg", "deg", 1, 1, "{}"})
-                .status().code(),
-            api::ErrorCode::kNotFound);
+  EXPECT_EQ(
+      repo.InsertEvaluation({set->id, *trial, 999, "angle_deg", "deg", 1, 1, "{}"}).status().code(),
+      api::ErrorCode::kNotFound);
   EXPECT_EQ(repo.GetPrediction(999).status().message(), "prediction 999 not found");
 }
 

@@ -86,7 +86,8 @@ TEST_F(StorageTest, SubjectBadInputNamesTheProblem) {
   EXPECT_EQ(missing.status().code(), api::ErrorCode::kNotFound);
   EXPECT_EQ(missing.status().message(), "subject 999 not found");
   EXPECT_EQ(subjects.GetByCode("NOPE").status().code(), api::ErrorCode::kNotFound);
-  EXPECT_EQ(subjects.Correct(999, SubjectDetails{}, "x").status().code(), api::ErrorCode::kNotFound);
+  EXPECT_EQ(subjects.Correct(999, SubjectDetails{}, "x").status().code(),
+            api::ErrorCode::kNotFound);
   EXPECT_EQ(subjects.Revisions(999).status().code(), api::ErrorCode::kNotFound);
 }
 
