@@ -117,6 +117,34 @@ TEST_F(IdentifyCliTest, FreeSwingActiveWithPassiveFromParamsIn) {
   EXPECT_EQ(ReadParams(Path("s.json")).model, model::ModelKind::kSingleSegment);
 }
 
+TEST_F(IdentifyCliTest, FreeSwingFromPositionAndEnvelopeOnly) {
+  // A recording without accelerometer or activation: kinematics by GCV
+  // spline (§5.1, §7.4.1), f_stim from the envelope and --params-in.
+  const model::ParameterSet truth = model::ExampleParameterSet();
+  const auto env = model::MakeStimulus("random_binary_sparse", {{"amplitude_ma", 26}, {"seed", 4}});
+  model::SimulationOptions opt;
+  opt.duration_s = env.EndTime();
+  const auto sim = model::SimulateFreeSwing(truth, model::PulsesFromEnvelope(env, 33.0), opt);
+  api::Trial t;
+  t.sample_rate_hz = 200.0;
+  t.SetChannel("t_s", sim.t_s);
+  t.SetChannel("stim_ma",
+               std::vector<double>(env.values.begin(),
+                                   env.values.begin() + static_cast<std::ptrdiff_t>(sim.size())));
+  t.SetChannel("angle_deg", sim.angle_deg);
+  ASSERT_TRUE(api::WriteTextFile(dir_ / "fs.csv", api::TrialToCsv(t)).ok());
+  const std::string params = Path("truth.json");
+  ASSERT_TRUE(api::WriteTextFile(params, api::ParameterSetToJson(truth).dump()).ok());
+  ASSERT_EQ(Run({"identify", "passive_free_swing", "--trial", Path("fs.csv"), "--params-in", params,
+                 "--option", "derive_kinematics=gcv", "--out", Path("p.json")}),
+            kExitOk)
+      << err_.str();
+  const model::ParameterSet p = ReadParams(Path("p.json"));
+  EXPECT_NEAR(p.passive.inertia_kgm2, truth.passive.inertia_kgm2,
+              0.05 * truth.passive.inertia_kgm2);
+  EXPECT_EQ(p.provenance.passive_method, "free_swing");
+}
+
 TEST_F(IdentifyCliTest, UsageErrors) {
   EXPECT_EQ(Run({"identify", "no_such_method", "--trial", "x.csv", "--out", Path("o.json")}),
             kExitUsage);

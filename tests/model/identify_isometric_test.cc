@@ -158,9 +158,9 @@ TEST(IdentifyIrc, IdealSecondOrderDeconvolutionOfThirdOrderMuscleErrsMost) {
   // Fig. 6-4 / §6.1.1: the thesis's ideal (2nd-order) impulse does not match
   // the 3rd-order twitch; deconvolution with the measured impulse does.
   const ParameterSet p = ExampleParameterSet();
-  const TrialColumns ramp = Isometric(
-      p, MakeStimulus("isometric_ramp_irc",
-                      {{"threshold_ma", 20}, {"max_ma", 45}, {"ramp_duration_s", 2}}));
+  const TrialColumns ramp =
+      Isometric(p, MakeStimulus("isometric_ramp_irc",
+                                {{"threshold_ma", 20}, {"max_ma", 45}, {"ramp_duration_s", 2}}));
   const IrcResult ideal2 = IdentifyIrc(IrcMethod::kRampDeconvolutionIdeal, ramp);
   const IrcResult measured = IdentifyIrc(IrcMethod::kRampDeconvolutionMeasured, ramp);
   EXPECT_NEAR(ideal2.report.values.at("ideal_pole_per_s"), 12.5, 0.3);  // Eq. 4.2
