@@ -146,10 +146,8 @@ TwitchAverage AverageImpulseResponses(std::span<const TrialColumns> trials,
     double baseline, stim;
   };
   std::vector<Piece> pieces;
-  double dt = 0.0;
   for (const TrialColumns& trial : trials) {
     const std::size_t n = CheckIsometricTrial("AverageImpulseResponses", trial);
-    dt = 1.0 / trial.SampleRateHz();
     const auto runs = FindStimulusRuns(trial.stim_ma);
     for (std::size_t k = 0; k < runs.size(); ++k) {
       if (runs[k].size() > options.max_impulse_samples) continue;
@@ -185,7 +183,6 @@ TwitchAverage AverageImpulseResponses(std::span<const TrialColumns> trials,
     avg.t_s[i] = pieces.front().trial->t_s[pieces.front().begin + i] -
                  pieces.front().trial->t_s[pieces.front().begin];
   }
-  (void)dt;
   avg.count = static_cast<int>(pieces.size());
   avg.stim_ma /= cnt;
   return avg;
