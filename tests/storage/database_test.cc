@@ -189,9 +189,16 @@ TEST(DatabaseOpen, DamagedPageIsDataLoss) {
     auto db = Database::Open(options);
     ASSERT_TRUE(db.ok());
     SubjectRepository subjects(**db);
-    for (int i = 0; i < 400; ++i) {
-      ASSERT_TRUE(subjects.Create("S" + std::to_string(i), SubjectDetails{}).ok());
-    }
+    // One transaction: the nested Creates join it.
+    auto filled = (*db)->Write([&](Connection&) -> api::Status {
+      for (int i = 0; i < 400; ++i) {
+        if (auto s = subjects.Create("S" + std::to_string(i), SubjectDetails{}); !s.ok()) {
+          return s.status();
+        }
+      }
+      return api::Status::Ok();
+    });
+    ASSERT_TRUE(filled.ok()) << filled.ToString();
   }  // closing the last connection checkpoints the WAL into the file
   ASSERT_FALSE(std::filesystem::exists(path + "-wal"));
   const auto size = std::filesystem::file_size(path);
