@@ -299,6 +299,11 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, Plan& plan, Builder
   b.EnvelopeTrial(active, RandomBinary(true, amp, v.at("duration_s"), v.at("active_seed")),
                   MotorMode::kDecoupled, lock, 0.0);
   plan.rapid = RapidSettings{ramp, passive, active};
+  if (v.at("rb_torque_nm") > 0.0) {
+    plan.adaptive_amplitude = AdaptiveAmplitude{ramp,       v.at("rb_torque_nm"), amp,
+                                                v.at("threshold_ma"), v.at("max_ma"),
+                                                {passive, active}};
+  }
 }
 
 }  // namespace

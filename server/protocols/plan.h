@@ -83,6 +83,21 @@ struct RapidSettings {
   int active_trial = 2;
 };
 
+/// Random-binary amplitude chosen during the run (rapid_parameterisation):
+/// after `source_trial` (an isometric ramp trial) the engine identifies the
+/// IRC by ramp correlation and scales the envelopes of `trials` so their ON
+/// amplitude gives `target_torque_nm` of isometric torque at the lock angle
+/// (the thesis's "lowest level to produce full extension", §5.4.3, found
+/// from the measured IRC instead of by trial and error).
+struct AdaptiveAmplitude {
+  int source_trial = 0;
+  double target_torque_nm = 6.0;
+  double planned_ma = 0.0;       ///< the envelopes' ON amplitude as planned.
+  double min_ma = 0.0;           ///< bounds of the chosen amplitude.
+  double max_ma = 0.0;
+  std::vector<int> trials;
+};
+
 /// Steps, trials and what follows them.
 struct Plan {
   std::string protocol;
@@ -96,6 +111,7 @@ struct Plan {
   double max_stim_ma = 0.0;
   std::optional<ToleranceSettings> tolerance;
   std::optional<RapidSettings> rapid;
+  std::optional<AdaptiveAmplitude> adaptive_amplitude;
 
   std::int64_t total_ticks() const;
   double duration_s() const { return static_cast<double>(total_ticks()) / kTicksPerSecond; }

@@ -218,6 +218,10 @@ std::vector<ProtocolDescription> MakeCatalog() {
                 {"swing_settle_s", "swing after decoupling before recording, s", 0.5, 0.2, 30.0,
                  false},
                 AmplitudeMa(0.6),
+                {"rb_torque_nm",
+                 "if > 0, the random-binary amplitude is chosen after the ramp trial to give this "
+                 "isometric torque at the lock angle (else amplitude_ma is used), N·m",
+                 6.0, 0.0, 60.0, false},
                 {"duration_s", "length of each random-binary trial, s", 10.0, 3.0, 60.0, false},
                 {"passive_seed", "seed of the passive (sparse) train", 1.0, 0.0, 4294967295.0,
                  true},

@@ -7,6 +7,7 @@
 #include <limits>
 #include <numeric>
 
+#include "model/identify_isometric.h"
 #include "server/protocols/rapid_identification.h"
 
 namespace fesbench::server::protocols {
@@ -137,6 +138,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   double last_stim = -1.0;
   std::optional<Recorder> rec;
   int rec_trial = -1;
+  std::vector<double> stim_scale(plan.trials.size(), 1.0);
 
   // Tolerance test state.
   ToleranceResult tol;
@@ -189,6 +191,15 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     }
     rec->rec.complete = complete;
     result.trials.push_back(std::move(rec->rec));
+    const AdaptiveAmplitude* adapt = plan.adaptive_amplitude ? &*plan.adaptive_amplitude : nullptr;
+    if (complete && adapt != nullptr && adapt->source_trial == rec_trial && adapt->planned_ma > 0.0) {
+      const api::Result<double> u = AmplitudeForTorque(result.trials.back().trial,
+                                                       adapt->target_torque_nm, adapt->min_ma,
+                                                       adapt->max_ma);
+      const double chosen = u.ok() ? *u : adapt->planned_ma;
+      result.values["rb_amplitude_ma"] = chosen;
+      for (int t : adapt->trials) stim_scale[static_cast<std::size_t>(t)] = chosen / adapt->planned_ma;
+    }
     if (observer_ != nullptr) observer_->OnTrial(result.trials.back());
     rec.reset();
     rec_trial = -1;
@@ -267,6 +278,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         if (idx >= 0 && idx < static_cast<std::int64_t>(step.envelope->values.size())) {
           u = step.envelope->values[static_cast<std::size_t>(idx)];
         }
+        if (step.trial >= 0) u *= stim_scale[static_cast<std::size_t>(step.trial)];
       }
       if (u != last_stim) {
         bench_.SetStimAmplitude(u);
@@ -378,6 +390,20 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   }
   Transition(RunTransition::kComplete, "");
   return finish();
+}
+
+api::Result<double> AmplitudeForTorque(const api::Trial& ramp_trial, double target_torque_nm,
+                                       double min_ma, double max_ma) {
+  try {
+    const model::IrcResult irc =
+        model::IdentifyIrc(model::IrcMethod::kRampCorrelation, ToColumns(ramp_trial));
+    for (double u = min_ma; u <= max_ma; u += 0.1) {
+      if (irc.torque_scale_nm * irc.irc(u) >= target_torque_nm) return u;
+    }
+    return max_ma;
+  } catch (const std::exception& e) {
+    return api::Status::FailedPrecondition(std::string("IRC of the ramp trial: ") + e.what());
+  }
 }
 
 model::TrialColumns ToColumns(const api::Trial& trial) {

@@ -16,6 +16,7 @@
 /// 0. The run's states are those of run_state.h.
 
 #include <atomic>
+#include <map>
 #include <cstdint>
 #include <mutex>
 #include <optional>
@@ -76,6 +77,8 @@ struct RunResult {
   std::optional<model::ParameterSet> parameter_set;  ///< rapid_parameterisation.
   std::optional<ToleranceResult> tolerance;           ///< tolerance_test.
   std::vector<SafetyEvent> safety_events;
+  /// Figures decided during the run, e.g. "rb_amplitude_ma".
+  std::map<std::string, double> values;
   double bench_duration_s = 0.0;
   double wall_duration_s = 0.0;
 };
@@ -156,6 +159,13 @@ class ProtocolRunner {
   std::string cancel_reason_;
   RunResult* result_ = nullptr;
 };
+
+/// The amplitude (mA, in [min_ma, max_ma], 0.1 mA steps) whose isometric
+/// torque τ_scale·R(u) from an IRC identified by ramp correlation on
+/// `ramp_trial` first reaches target_torque_nm (max_ma if never);
+/// kFailedPrecondition if the IRC cannot be identified.
+api::Result<double> AmplitudeForTorque(const api::Trial& ramp_trial, double target_torque_nm,
+                                       double min_ma, double max_ma);
 
 /// Converts a recorded trial to identification columns: t_s, stim_ma,
 /// angle_deg, torque_nm (empty columns for channels the trial lacks).
