@@ -219,6 +219,10 @@ void BuildSequential(const ParameterValues& v, double min_rest_s, Builder& b) {
 }
 
 void BuildSimultaneous(const ParameterValues& v, Builder& b) {
+  if (v.at("min_angle_deg") > 90.0 || v.at("max_angle_deg") < 90.0) {
+    // §5.4.2: the reference torque is measured at 90° of flexion.
+    throw std::invalid_argument("min_angle_deg..max_angle_deg must include the 90° reference");
+  }
   const int n = static_cast<int>(v.at("trajectories"));
   for (int k = 0; k < n; ++k) {
     model::SumOfSinesOptions o;

@@ -359,7 +359,8 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
                                               Format(subject.max_tolerated_ma) + " mA",
                                           field);
     }
-    const bool angle = p.scaling == Scaling::kRangeMin || p.scaling == Scaling::kRangeMax;
+    // Every angle (lock, reference, trajectory limits) inside the range of motion.
+    const bool angle = p.name.ends_with("_deg");
     if (angle && (v < subject.min_angle_deg || v > subject.max_angle_deg)) {
       return api::Status::InvalidArgument("outside the subject's range of motion [" +
                                               Format(subject.min_angle_deg) + ", " +

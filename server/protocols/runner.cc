@@ -115,16 +115,26 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     Transition(RunTransition::kError, st.ToString());
     return finish();
   }
+  const BenchLimits& hw = bench_.bench_limits();
+  if (std::max(subject.min_angle_deg, hw.min_angle_deg) >= std::min(subject.max_angle_deg, hw.max_angle_deg)) {
+    Transition(RunTransition::kError, "the subject's range of motion lies outside the bench's");
+    return finish();
+  }
   Transition(RunTransition::kStart, "");
 
-  // Interlock limits of this run (DESIGN.md §6).
+  // Interlock limits of this run (DESIGN.md §6): the session's max tolerated
+  // amplitude, whatever the plan says, except in the tolerance test, whose
+  // ceiling is what it measures against.
   SafetyLimits limits;
-  limits.max_stim_ma = plan.max_stim_ma;
+  const double plan_max_ma = std::isfinite(plan.max_stim_ma) ? std::max(plan.max_stim_ma, 0.0) : 0.0;
+  limits.max_stim_ma = plan.kind == ProtocolKind::kTolerance
+                           ? plan_max_ma
+                           : std::min(plan_max_ma, subject.max_tolerated_ma);
   limits.min_angle_deg = subject.min_angle_deg;
   limits.max_angle_deg = subject.max_angle_deg;
   limits.heartbeat_timeout_s = options_.heartbeat_timeout_s;
   bench_.Configure(limits);
-  const double max_applied_ma = std::max(0.0, std::min(plan.max_stim_ma, bench_.bench_limits().max_stim_ma));
+  const double max_applied_ma = std::max(0.0, std::min(limits.max_stim_ma, hw.max_stim_ma));
   if (options_.arm_watchdog) bench_.ArmWatchdog();
 
   const double t0 = bench_.Now_s();
@@ -294,7 +304,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         const SensorFrame f = bench_.ReadSensors();
         const double applied = bench_.estopped() || bench_.watchdog_fired()
                                    ? 0.0
-                                   : std::clamp(u, 0.0, max_applied_ma);
+                                   : std::isfinite(u) ? std::clamp(u, 0.0, max_applied_ma) : 0.0;
         const double torque = f.torque_nm - rec->offset_nm;
         rec->t_s.push_back(static_cast<double>(n - rec->start_tick) / kTicksPerSecond);
         rec->stim_ma.push_back(applied);
@@ -347,6 +357,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     if (step.tolerance_ramp && stop_.load()) tol.stopped_by_clinician = true;
   }
 
+  // An e-stop, watchdog or cancel during the very last tick still counts.
+  if (!aborted) aborted = abort_reason();
   // Stop stimulation whatever happened; a cancelled motor holds where it is.
   bench_.SetStimAmplitude(0.0);
   close_trial(!aborted);
