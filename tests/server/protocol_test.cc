@@ -148,6 +148,19 @@ TEST(ResolveParameters, RejectsBadValuesNamingTheParameter) {
   ASSERT_FALSE(angle.ok());
   EXPECT_EQ(angle.status().field(), "parameters.min_angle_deg");
 
+  // Implicit and explicit angles stay inside the range of motion.
+  auto lock = ResolveParameters(*FindProtocol("isometric_ramp_irc"), {{"lock_angle_deg", 107.0}}, s);
+  ASSERT_FALSE(lock.ok());
+  EXPECT_EQ(lock.status().field(), "parameters.lock_angle_deg");
+  SubjectContext low = s;
+  low.max_angle_deg = 80.0;  // the 90° lock of the defaults is outside
+  auto iso = ResolveParameters(*FindProtocol("isometric_step_irc"), {}, low);
+  ASSERT_FALSE(iso.ok());
+  EXPECT_EQ(iso.status().field(), "parameters.lock_angle_deg");
+  auto sim90 = MakePlan("passive_simultaneous", {}, low);
+  ASSERT_FALSE(sim90.ok());
+  EXPECT_NE(sim90.status().message().find("90"), std::string::npos);
+
   SubjectContext bad = s;
   bad.max_tolerated_ma = 10.0;  // below threshold
   auto subj = ResolveParameters(step, {}, bad);
