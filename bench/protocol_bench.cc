@@ -94,7 +94,8 @@ void BM_EngineTicksOnly(benchmark::State& state) {
     benchmark::DoNotOptimize(r.trials);
     ticks += plan->total_ticks();
   }
-  state.counters["ticks_per_s"] = benchmark::Counter(static_cast<double>(ticks), benchmark::Counter::kIsRate);
+  state.counters["ticks_per_s"] =
+      benchmark::Counter(static_cast<double>(ticks), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_EngineTicksOnly)->Unit(benchmark::kMillisecond);
 

@@ -1,9 +1,8 @@
 #include "model/identify_rapid.h"
 
+#include <Eigen/Core>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "model/conditioning.h"
 #include "model/contraction.h"
@@ -32,8 +31,8 @@ void AddKinematics(TrialColumns& trial) {
   trial.accel_deg_s2 = fit.second;
 }
 
-PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials,
-                                          double inertia_kgm2, const BreakpointSpec& angle,
+PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, double inertia_kgm2,
+                                          const BreakpointSpec& angle,
                                           const BreakpointSpec& velocity, double max_activation,
                                           double relative_tolerance) {
   const char* what = "IdentifyPassiveKnownInertia";
@@ -117,13 +116,13 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& pas
   TrialColumns swing[] = {passive, active};
   for (TrialColumns& tr : swing) {
     AddKinematics(tr);
-    tr.activation =
-        ActivationAt(ps.contraction, ps.irc, TrialPulses(tr, options.pulse_rate_hz),
-                     options.pulse_rate_hz, [&] {
-                       std::vector<double> t(tr.t_s.size());
-                       for (std::size_t i = 0; i < t.size(); ++i) t[i] = tr.t_s[i] - tr.t_s.front();
-                       return t;
-                     }());
+    tr.activation = ActivationAt(ps.contraction, ps.irc, TrialPulses(tr, options.pulse_rate_hz),
+                                 options.pulse_rate_hz, [&] {
+                                   std::vector<double> t(tr.t_s.size());
+                                   for (std::size_t i = 0; i < t.size(); ++i)
+                                     t[i] = tr.t_s[i] - tr.t_s.front();
+                                   return t;
+                                 }());
   }
 
   // 3. Passive with known inertia (§7.4.1), then active (Eq. 4.40).

@@ -40,8 +40,8 @@ struct RapidOptions {
   BreakpointSpec passive_velocity{7, {}};
   BreakpointSpec active_angle{7, {}};
   BreakpointSpec active_velocity{7, {}};
-  double max_passive_activation = 0.01; ///< §5.4.3.
-  double relative_tolerance = 1e-8;     ///< SVD truncation (Eq. 4.26).
+  double max_passive_activation = 0.01;  ///< §5.4.3.
+  double relative_tolerance = 1e-8;      ///< SVD truncation (Eq. 4.26).
 };
 
 /// A parameter set and what the fits reported.
@@ -67,8 +67,7 @@ void AddKinematics(TrialColumns& trial);
 /// accel_deg_s2, activation. Result referenced (§6.5, ReferencePassive).
 /// @throws std::invalid_argument if inertia_kgm2 is not > 0, a column is
 ///   missing, or there are fewer passive samples than parameters.
-PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials,
-                                          double inertia_kgm2,
+PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, double inertia_kgm2,
                                           const BreakpointSpec& angle = {9, {}},
                                           const BreakpointSpec& velocity = {7, {}},
                                           double max_activation = 0.01,

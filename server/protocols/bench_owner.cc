@@ -99,7 +99,8 @@ std::string BenchOwner::owner() const {
 }
 
 api::Status BenchOwner::ClearEStop(const std::string& source) {
-  if (busy()) return api::Status::Conflict("a run is still stopping; clear the e-stop after it ends");
+  if (busy())
+    return api::Status::Conflict("a run is still stopping; clear the e-stop after it ends");
   safe_.ClearEStop(source);
   return api::Status::Ok();
 }

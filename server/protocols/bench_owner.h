@@ -24,14 +24,14 @@ namespace fesbench::server::protocols {
 /// A client's request to run a protocol.
 struct StartRequest {
   std::string protocol;
-  ParameterValues parameters;   ///< client values; the rest take defaults.
+  ParameterValues parameters;  ///< client values; the rest take defaults.
   SubjectContext subject;
   std::string client = "client";  ///< the controlling client (heart-beats).
 };
 
 struct BenchOwnerOptions {
-  RunnerOptions runner;            ///< time_scale, watchdog, batching.
-  SafeBench::WallClock wall_clock; ///< heartbeat clock; empty = steady clock.
+  RunnerOptions runner;             ///< time_scale, watchdog, batching.
+  SafeBench::WallClock wall_clock;  ///< heartbeat clock; empty = steady clock.
 };
 
 class BenchOwner {

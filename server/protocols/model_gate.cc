@@ -28,7 +28,8 @@ double ModelRestAngleDeg(const model::ParameterSet& params) {
   return best;
 }
 
-api::Result<PredictedExcursion> PredictExcursion(const Plan& plan, const model::ParameterSet& params,
+api::Result<PredictedExcursion> PredictExcursion(const Plan& plan,
+                                                 const model::ParameterSet& params,
                                                  double pulse_rate_hz) {
   PredictedExcursion out;
   out.rest_angle_deg = ModelRestAngleDeg(params);
@@ -57,7 +58,8 @@ api::Result<PredictedExcursion> PredictExcursion(const Plan& plan, const model::
 
 api::Status CheckModelGate(const Plan& plan, const SubjectContext& subject, double pulse_rate_hz) {
   if (plan.kind != ProtocolKind::kPrediction || !subject.parameter_set) return api::Status::Ok();
-  const api::Result<PredictedExcursion> ex = PredictExcursion(plan, *subject.parameter_set, pulse_rate_hz);
+  const api::Result<PredictedExcursion> ex =
+      PredictExcursion(plan, *subject.parameter_set, pulse_rate_hz);
   if (!ex.ok()) return ex.status();
   if (ex->min_angle_deg < subject.min_angle_deg || ex->max_angle_deg > subject.max_angle_deg) {
     std::ostringstream os;

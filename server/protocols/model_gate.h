@@ -15,7 +15,7 @@ namespace fesbench::server::protocols {
 
 /// The predicted knee-angle excursion of a plan's free-swing trials.
 struct PredictedExcursion {
-  double rest_angle_deg = 90.0;   ///< start: τ_pta(θ) + τ_ptv(0) = 0 (90° if none in 10–110°).
+  double rest_angle_deg = 90.0;  ///< start: τ_pta(θ) + τ_ptv(0) = 0 (90° if none in 10–110°).
   double min_angle_deg = 0.0;
   double max_angle_deg = 0.0;
 };
@@ -26,7 +26,8 @@ double ModelRestAngleDeg(const model::ParameterSet& params);
 /// Simulates every decoupled trial of plan (envelope clamped to
 /// plan.max_stim_ma) with params. kFailedPrecondition if the simulation
 /// fails (invalid parameter set).
-api::Result<PredictedExcursion> PredictExcursion(const Plan& plan, const model::ParameterSet& params,
+api::Result<PredictedExcursion> PredictExcursion(const Plan& plan,
+                                                 const model::ParameterSet& params,
                                                  double pulse_rate_hz = 33.0);
 
 /// OK unless the plan is a prediction protocol, the subject has a parameter

@@ -10,7 +10,9 @@
 namespace fesbench::server::protocols {
 namespace {
 
-std::int64_t Ticks(double s) { return static_cast<std::int64_t>(std::llround(s * kTicksPerSecond)); }
+std::int64_t Ticks(double s) {
+  return static_cast<std::int64_t>(std::llround(s * kTicksPerSecond));
+}
 
 model::GeneratorParams Pick(const ParameterValues& v, std::initializer_list<const char*> names) {
   model::GeneratorParams out;
@@ -175,16 +177,17 @@ void BuildIsometric(const std::string& name, const ParameterValues& v, double mi
   b.Prepare("lock", MotorMode::kLocked, lock, v.at("settle_s"));
   model::SampledSignal env;
   if (name == "isometric_ramp_irc") {
-    env = Stimulus("isometric_ramp_irc",
-                   Pick(v, {"threshold_ma", "max_ma", "conditioning_s", "conditioning_fraction",
-                            "impulses", "ramps", "below_threshold_ma", "ramp_duration_s",
-                            "rest_s"}));
+    env =
+        Stimulus("isometric_ramp_irc",
+                 Pick(v, {"threshold_ma", "max_ma", "conditioning_s", "conditioning_fraction",
+                          "impulses", "ramps", "below_threshold_ma", "ramp_duration_s", "rest_s"}));
   } else if (name == "isometric_step_irc") {
     env = Stimulus("step_bursts",
                    Pick(v, {"threshold_ma", "max_ma", "levels", "burst_s", "ramp_s", "rest_s"}));
   } else if (name == "isometric_impulse_irc") {
-    env = Stimulus("impulse_series",
-                   Pick(v, {"threshold_ma", "max_ma", "count", "below_threshold_ma", "interval_s"}));
+    env =
+        Stimulus("impulse_series",
+                 Pick(v, {"threshold_ma", "max_ma", "count", "below_threshold_ma", "interval_s"}));
   } else {
     env = Stimulus("plateau_profile", Pick(v, {"threshold_ma", "max_ma", "above_threshold_ma",
                                                "lead_s", "ramp_s", "hold_s", "tail_s"}));
@@ -197,8 +200,8 @@ void BuildSequential(const ParameterValues& v, double min_rest_s, Builder& b) {
   const double ref = v.at("reference_deg");
   auto positions = std::make_shared<model::PiecewisePolynomialTrajectory>(
       model::PassivePositions({ref, v.at("max_angle_deg"), v.at("min_angle_deg"),
-                               static_cast<int>(v.at("positions")), v.at("hold_s"),
-                               v.at("move_s"), 10.0})
+                               static_cast<int>(v.at("positions")), v.at("hold_s"), v.at("move_s"),
+                               10.0})
           .trajectory);
   model::PassiveVelocitiesOptions pv;
   pv.reference_deg = ref;
@@ -232,8 +235,8 @@ void BuildSimultaneous(const ParameterValues& v, Builder& b) {
     o.duration_s = v.at("duration_s");
     o.seed = static_cast<std::uint64_t>(v.at("seed")) + static_cast<std::uint64_t>(k);
     auto traj = std::make_shared<model::SumOfSinesTrajectory>(o);
-    const int t = b.AddTrial("passive_simultaneous_" + std::to_string(k + 1),
-                             MotorMode::kPosition, true);
+    const int t =
+        b.AddTrial("passive_simultaneous_" + std::to_string(k + 1), MotorMode::kPosition, true);
     b.Prepare("move to reference", MotorMode::kPosition, 90.0, v.at("settle_s"), true);
     b.Offset(t, MotorMode::kPosition, 90.0);
     b.MoveTo("move to start", traj->centre_deg(), v.at("settle_s"), t);
@@ -241,8 +244,7 @@ void BuildSimultaneous(const ParameterValues& v, Builder& b) {
   }
 }
 
-model::SampledSignal RandomBinary(bool dense, double amplitude_ma, double duration_s,
-                                  double seed) {
+model::SampledSignal RandomBinary(bool dense, double amplitude_ma, double duration_s, double seed) {
   return Stimulus(dense ? "random_binary_dense" : "random_binary_sparse",
                   {{"amplitude_ma", amplitude_ma}, {"duration_s", duration_s}, {"seed", seed}});
 }
@@ -270,16 +272,17 @@ void BuildPrediction(const std::string& name, const ParameterValues& v, Builder&
   b.Prepare("decouple", MotorMode::kDecoupled, 90.0, v.at("settle_s"));
   model::SampledSignal env;
   if (name == "prediction_step") {
-    env = Stimulus("prediction_step",
-                   Pick(v, {"threshold_ma", "max_ma", "level_fraction", "onset_s", "on_s", "off_s"}));
+    env =
+        Stimulus("prediction_step",
+                 Pick(v, {"threshold_ma", "max_ma", "level_fraction", "onset_s", "on_s", "off_s"}));
   } else if (name == "prediction_ramp") {
     env = Stimulus("prediction_ramp", Pick(v, {"max_ma", "up_s", "down_s"}));
   } else if (name == "prediction_sine") {
-    env = Stimulus("prediction_sine", Pick(v, {"threshold_ma", "max_ma", "above_threshold_ma",
-                                               "tail_s"}));
+    env = Stimulus("prediction_sine",
+                   Pick(v, {"threshold_ma", "max_ma", "above_threshold_ma", "tail_s"}));
   } else {
-    env = RandomBinary(v.at("dense") != 0.0, v.at("amplitude_ma"), v.at("duration_s"),
-                       v.at("seed"));
+    env =
+        RandomBinary(v.at("dense") != 0.0, v.at("amplitude_ma"), v.at("duration_s"), v.at("seed"));
   }
   const int t = b.AddTrial(name, MotorMode::kDecoupled);
   b.EnvelopeTrial(t, env, MotorMode::kDecoupled, 90.0, 0.0);
@@ -291,8 +294,8 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, Plan& plan, Builder
   const int ramp = b.AddTrial("rapid_isometric_ramp_irc", MotorMode::kLocked);
   b.EnvelopeTrial(ramp,
                   Stimulus("isometric_ramp_irc",
-                           Pick(v, {"threshold_ma", "max_ma", "conditioning_s", "impulses",
-                                    "ramps", "below_threshold_ma", "ramp_duration_s", "rest_s"})),
+                           Pick(v, {"threshold_ma", "max_ma", "conditioning_s", "impulses", "ramps",
+                                    "below_threshold_ma", "ramp_duration_s", "rest_s"})),
                   MotorMode::kLocked, lock, min_rest_s);
   b.Prepare("decouple", MotorMode::kDecoupled, lock, v.at("swing_settle_s"));
   const double amp = v.at("amplitude_ma");
@@ -304,9 +307,8 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, Plan& plan, Builder
                   MotorMode::kDecoupled, lock, 0.0);
   plan.rapid = RapidSettings{ramp, passive, active};
   if (v.at("rb_torque_nm") > 0.0) {
-    plan.adaptive_amplitude = AdaptiveAmplitude{ramp,       v.at("rb_torque_nm"), amp,
-                                                v.at("threshold_ma"), v.at("max_ma"),
-                                                {passive, active}};
+    plan.adaptive_amplitude = AdaptiveAmplitude{
+        ramp, v.at("rb_torque_nm"), amp, v.at("threshold_ma"), v.at("max_ma"), {passive, active}};
   }
 }
 
@@ -314,12 +316,18 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, Plan& plan, Builder
 
 std::string_view StepPhaseName(StepPhase phase) {
   switch (phase) {
-    case StepPhase::kPrepare: return "prepare";
-    case StepPhase::kOffset: return "offset";
-    case StepPhase::kStimulate: return "stimulate";
-    case StepPhase::kRest: return "rest";
-    case StepPhase::kMove: return "move";
-    case StepPhase::kIdentify: return "identify";
+    case StepPhase::kPrepare:
+      return "prepare";
+    case StepPhase::kOffset:
+      return "offset";
+    case StepPhase::kStimulate:
+      return "stimulate";
+    case StepPhase::kRest:
+      return "rest";
+    case StepPhase::kMove:
+      return "move";
+    case StepPhase::kIdentify:
+      return "identify";
   }
   return "rest";
 }

@@ -38,7 +38,7 @@ std::string_view StepPhaseName(StepPhase phase);
 struct Step {
   StepPhase phase = StepPhase::kRest;
   std::string label;
-  std::int64_t ticks = 0;                ///< duration, 1 ms ticks.
+  std::int64_t ticks = 0;  ///< duration, 1 ms ticks.
   MotorMode motor_mode = MotorMode::kLocked;
   /// Set-points: trajectory(t − step start + trajectory_offset_s) if set,
   /// else a minimum-jerk move from the angle at the step's start to
@@ -65,7 +65,7 @@ struct Step {
 
 /// A trial the plan records.
 struct TrialPlan {
-  std::string name;              ///< e.g. "active_random_binary_rb1".
+  std::string name;  ///< e.g. "active_random_binary_rb1".
   MotorMode mode = MotorMode::kLocked;
   bool record_setpoint = false;  ///< motor trials add a setpoint_deg channel.
 };
@@ -92,8 +92,8 @@ struct RapidSettings {
 struct AdaptiveAmplitude {
   int source_trial = 0;
   double target_torque_nm = 6.0;
-  double planned_ma = 0.0;       ///< the envelopes' ON amplitude as planned.
-  double min_ma = 0.0;           ///< bounds of the chosen amplitude.
+  double planned_ma = 0.0;  ///< the envelopes' ON amplitude as planned.
+  double min_ma = 0.0;      ///< bounds of the chosen amplitude.
   double max_ma = 0.0;
   std::vector<int> trials;
 };

@@ -11,12 +11,18 @@ namespace {
 // Parameters shared by several protocols (Appendix F: the clinician sets
 // the maximum to the subject's tolerance and the minimum from threshold).
 ParameterSpec ThresholdMa() {
-  return {"threshold_ma", "subject's stimulation threshold for torque, mA", 20.0, 0.0, 100.0,
-          false, Scaling::kThreshold};
+  return {
+      "threshold_ma",     "subject's stimulation threshold for torque, mA", 20.0, 0.0, 100.0, false,
+      Scaling::kThreshold};
 }
 ParameterSpec MaxMa() {
-  return {"max_ma", "maximum stimulation (the subject's max tolerated), mA", 45.0, 1.0, 100.0,
-          false, Scaling::kMaxTolerated};
+  return {"max_ma",
+          "maximum stimulation (the subject's max tolerated), mA",
+          45.0,
+          1.0,
+          100.0,
+          false,
+          Scaling::kMaxTolerated};
 }
 ParameterSpec LockAngleDeg() {
   return {"lock_angle_deg", "knee angle the brace is locked at, deg", 90.0, 10.0, 110.0, false};
@@ -28,7 +34,11 @@ ParameterSpec AmplitudeMa(double fraction) {
   return {"amplitude_ma",
           "random-binary ON amplitude (the lowest level giving full extension, §5.4.3); "
           "default a fraction of threshold→max",
-          fraction, 0.0, 100.0, false, Scaling::kStimRange};
+          fraction,
+          0.0,
+          100.0,
+          false,
+          Scaling::kStimRange};
 }
 ParameterSpec Rest(std::string name, std::string description, double default_s, double min_s,
                    double max_s) {
@@ -40,29 +50,40 @@ ParameterSpec Rest(std::string name, std::string description, double default_s, 
 std::vector<ProtocolDescription> MakeCatalog() {
   std::vector<ProtocolDescription> c;
 
-  c.push_back({"tolerance_test", 1, "Stimulation tolerance test",
-               "Knee locked at 90°; the amplitude rises slowly from start_ma at rate_ma_per_s "
-               "until the clinician stops (or ceiling_ma). Records the threshold (first torque "
-               "above the offset's noise band) and the max tolerated amplitude (where it was "
-               "stopped). Appendix F part II.K, §5.2.1.",
-               BenchMode::kLocked, ProtocolKind::kTolerance, 0.0,
-               {LockAngleDeg(), SettleS(1.5, "time to move to and lock the angle, s"),
-                {"start_ma", "amplitude at the start of the ramp, mA", 0.0, 0.0, 100.0, false},
-                {"rate_ma_per_s", "amplitude rise rate, mA/s", 0.5, 0.05, 5.0, false},
-                {"ceiling_ma", "amplitude where the ramp ends if not stopped, mA", 60.0, 1.0,
-                 100.0, false},
-                {"threshold_torque_nm", "torque above the offset taken as a response, N·m", 0.5,
-                 0.05, 10.0, false},
-                {"min_torque_at_max_nm", "torque the subject must produce at max (warning), N·m",
-                 6.0, 0.0, 60.0, false}}});
+  c.push_back(
+      {"tolerance_test",
+       1,
+       "Stimulation tolerance test",
+       "Knee locked at 90°; the amplitude rises slowly from start_ma at rate_ma_per_s "
+       "until the clinician stops (or ceiling_ma). Records the threshold (first torque "
+       "above the offset's noise band) and the max tolerated amplitude (where it was "
+       "stopped). Appendix F part II.K, §5.2.1.",
+       BenchMode::kLocked,
+       ProtocolKind::kTolerance,
+       0.0,
+       {LockAngleDeg(),
+        SettleS(1.5, "time to move to and lock the angle, s"),
+        {"start_ma", "amplitude at the start of the ramp, mA", 0.0, 0.0, 100.0, false},
+        {"rate_ma_per_s", "amplitude rise rate, mA/s", 0.5, 0.05, 5.0, false},
+        {"ceiling_ma", "amplitude where the ramp ends if not stopped, mA", 60.0, 1.0, 100.0, false},
+        {"threshold_torque_nm", "torque above the offset taken as a response, N·m", 0.5, 0.05, 10.0,
+         false},
+        {"min_torque_at_max_nm", "torque the subject must produce at max (warning), N·m", 6.0, 0.0,
+         60.0, false}}});
 
-  c.push_back({"isometric_ramp_irc", 1, "Isometric ramp IRC",
+  c.push_back({"isometric_ramp_irc",
+               1,
+               "Isometric ramp IRC",
                "Knee locked at 90°: a 3 s conditioning burst at 75 % of the range, 2 impulses at "
                "max, 2 cosine ramps (2 s up, 2 s down) from threshold − 5 mA to max, 1 s rest "
                "between, 200 Hz (§5.3.3, Fig. 5-7, Appendix F part II).",
-               BenchMode::kLocked, ProtocolKind::kIsometric, 1.0,
-               {LockAngleDeg(), SettleS(1.5, "time to move to and lock the angle, s"),
-                ThresholdMa(), MaxMa(),
+               BenchMode::kLocked,
+               ProtocolKind::kIsometric,
+               1.0,
+               {LockAngleDeg(),
+                SettleS(1.5, "time to move to and lock the angle, s"),
+                ThresholdMa(),
+                MaxMa(),
                 {"conditioning_s", "conditioning burst length, s", 3.0, 0.0, 10.0, false},
                 {"conditioning_fraction", "conditioning level, fraction of threshold→max", 0.75,
                  0.0, 1.0, false},
@@ -72,52 +93,72 @@ std::vector<ProtocolDescription> MakeCatalog() {
                 {"ramp_duration_s", "whole ramp (half up, half down), s", 4.0, 0.5, 30.0, false},
                 Rest("rest_s", "zero stimulation after each element, s", 1.0, 1.0, 60.0)}});
 
-  c.push_back({"isometric_step_irc", 1, "Isometric step IRC",
+  c.push_back({"isometric_step_irc",
+               1,
+               "Isometric step IRC",
                "Knee locked at 90°: 10 levels threshold→max, each a 3 s burst (0.5 s ramp, "
                "2.5 s hold) followed by 30 s rest; the mean of the last 0.5 s is the level's "
                "torque (§5.3.1, Appendix F part III).",
-               BenchMode::kLocked, ProtocolKind::kIsometric, 10.0,
-               {LockAngleDeg(), SettleS(1.5, "time to move to and lock the angle, s"),
-                ThresholdMa(), MaxMa(),
+               BenchMode::kLocked,
+               ProtocolKind::kIsometric,
+               10.0,
+               {LockAngleDeg(),
+                SettleS(1.5, "time to move to and lock the angle, s"),
+                ThresholdMa(),
+                MaxMa(),
                 {"levels", "number of amplitudes", 10.0, 2.0, 50.0, true},
                 {"burst_s", "burst length incl. ramp, s", 3.0, 0.5, 20.0, false},
                 {"ramp_s", "linear ramp at burst start, s", 0.5, 0.0, 10.0, false},
                 Rest("rest_s", "relaxation after each burst, s", 30.0, 10.0, 300.0)}});
 
-  c.push_back({"isometric_impulse_irc", 1, "Isometric impulse IRC",
+  c.push_back({"isometric_impulse_irc",
+               1,
+               "Isometric impulse IRC",
                "Knee locked at 90°: 30 single pulses from below threshold to max, 1 s apart; "
                "the peak torque after each is the level's response (§5.3.2).",
-               BenchMode::kLocked, ProtocolKind::kIsometric, 0.5,
-               {LockAngleDeg(), SettleS(1.5, "time to move to and lock the angle, s"),
-                ThresholdMa(), MaxMa(),
+               BenchMode::kLocked,
+               ProtocolKind::kIsometric,
+               0.5,
+               {LockAngleDeg(),
+                SettleS(1.5, "time to move to and lock the angle, s"),
+                ThresholdMa(),
+                MaxMa(),
                 {"count", "number of pulses", 30.0, 2.0, 200.0, true},
                 {"below_threshold_ma", "first pulse below threshold, mA", 5.0, 0.0, 50.0, false},
                 Rest("interval_s", "time between pulses, s", 1.0, 0.5, 10.0)}});
 
-  c.push_back({"isometric_prediction", 1, "Isometric torque prediction",
+  c.push_back({"isometric_prediction",
+               1,
+               "Isometric torque prediction",
                "Knee locked at 90°: the 11 s plateau profile of Fig. 5-8 (levels at threshold "
                "+ 5 mA and 25/50/75/100 % of the range), 200 Hz (§5.3.4, Appendix F part IV).",
-               BenchMode::kLocked, ProtocolKind::kIsometric, 0.0,
-               {LockAngleDeg(), SettleS(1.5, "time to move to and lock the angle, s"),
-                ThresholdMa(), MaxMa(),
-                {"above_threshold_ma", "lowest plateau above threshold, mA", 5.0, 0.0, 50.0,
-                 false},
+               BenchMode::kLocked,
+               ProtocolKind::kIsometric,
+               0.0,
+               {LockAngleDeg(),
+                SettleS(1.5, "time to move to and lock the angle, s"),
+                ThresholdMa(),
+                MaxMa(),
+                {"above_threshold_ma", "lowest plateau above threshold, mA", 5.0, 0.0, 50.0, false},
                 {"lead_s", "zero stimulation before the first ramp, s", 0.5, 0.0, 10.0, false},
                 {"ramp_s", "linear ramp between plateaus, s", 0.25, 0.005, 5.0, false},
                 {"hold_s", "plateau hold, s", 0.75, 0.0, 10.0, false},
                 {"tail_s", "zero stimulation at the end, s", 1.25, 0.0, 10.0, false}}});
 
-  c.push_back({"passive_sequential", 1, "Sequential passive identification",
+  c.push_back({"passive_sequential",
+               1,
+               "Sequential passive identification",
                "Motor: 20 positions from max_angle_deg to full extension and back, each held "
                "10 s (50-sample means); then 8 speeds × 2 directions of 2 s moves with 10 s "
                "pauses, the last 1 s used (§5.4.1).",
-               BenchMode::kMotor, ProtocolKind::kPassive, 2.0,
+               BenchMode::kMotor,
+               ProtocolKind::kPassive,
+               2.0,
                {{"min_angle_deg", "full extension for the subject, deg", 30.0, 10.0, 110.0, false,
                  Scaling::kRangeMin},
                 {"max_angle_deg", "first (largest flexion) angle, deg", 110.0, 10.0, 110.0, false,
                  Scaling::kRangeMax},
-                {"reference_deg", "reference angle (offset torque), deg", 90.0, 10.0, 110.0,
-                 false},
+                {"reference_deg", "reference angle (offset torque), deg", 90.0, 10.0, 110.0, false},
                 {"positions", "angles per pass", 20.0, 2.0, 100.0, true},
                 {"hold_s", "hold at each angle, s", 10.0, 0.5, 120.0, false},
                 {"move_s", "move between angles, s", 1.0, 0.1, 10.0, false},
@@ -126,107 +167,148 @@ std::vector<ProtocolDescription> MakeCatalog() {
                 Rest("pause_s", "pause before each constant-velocity move, s", 10.0, 2.0, 120.0),
                 SettleS(2.0, "move to the reference angle before each part, s")}});
 
-  c.push_back({"passive_simultaneous", 1, "Simultaneous passive identification",
-               "Motor: two 10 s pseudo-random sum-of-six-sines trajectories scaled to the "
-               "subject's range, set-points at 1 kHz, 200 Hz sampling; reference torque at 90° "
-               "before each (§4.2.2, §5.4.2, Fig. 5-9).",
-               BenchMode::kMotor, ProtocolKind::kPassive, 0.0,
-               {{"min_angle_deg", "lower angle of the trajectories, deg", 30.0, 10.0, 110.0, false,
-                 Scaling::kRangeMin},
-                {"max_angle_deg", "upper angle of the trajectories, deg", 100.0, 10.0, 110.0,
-                 false, Scaling::kRangeMax},
-                {"max_velocity_deg_s", "velocity limit, deg/s", 200.0, 10.0, 400.0, false},
-                {"duration_s", "length of each trajectory, s", 10.0, 2.5, 60.0, false},
-                {"trajectories", "number of trajectories", 2.0, 1.0, 10.0, true},
-                {"seed", "seed of the first trajectory (then seed + 1, …)", 1.0, 0.0, 4294967295.0,
-                 true},
-                SettleS(2.0, "each move to the reference or start angle, s")}});
+  c.push_back(
+      {"passive_simultaneous",
+       1,
+       "Simultaneous passive identification",
+       "Motor: two 10 s pseudo-random sum-of-six-sines trajectories scaled to the "
+       "subject's range, set-points at 1 kHz, 200 Hz sampling; reference torque at 90° "
+       "before each (§4.2.2, §5.4.2, Fig. 5-9).",
+       BenchMode::kMotor,
+       ProtocolKind::kPassive,
+       0.0,
+       {{"min_angle_deg", "lower angle of the trajectories, deg", 30.0, 10.0, 110.0, false,
+         Scaling::kRangeMin},
+        {"max_angle_deg", "upper angle of the trajectories, deg", 100.0, 10.0, 110.0, false,
+         Scaling::kRangeMax},
+        {"max_velocity_deg_s", "velocity limit, deg/s", 200.0, 10.0, 400.0, false},
+        {"duration_s", "length of each trajectory, s", 10.0, 2.5, 60.0, false},
+        {"trajectories", "number of trajectories", 2.0, 1.0, 10.0, true},
+        {"seed", "seed of the first trajectory (then seed + 1, …)", 1.0, 0.0, 4294967295.0, true},
+        SettleS(2.0, "each move to the reference or start angle, s")}});
 
-  c.push_back({"free_swing_passive", 1, "Free-swing passive identification",
+  c.push_back({"free_swing_passive",
+               1,
+               "Free-swing passive identification",
                "Decoupled: a 10 s sparse random-binary train at the amplitude that just reaches "
                "full extension; position and acceleration at 200 Hz (§5.4.3, Fig. 5-10).",
-               BenchMode::kDecoupled, ProtocolKind::kFreeSwing, 0.0,
-               {ThresholdMa(), MaxMa(), AmplitudeMa(0.6),
+               BenchMode::kDecoupled,
+               ProtocolKind::kFreeSwing,
+               0.0,
+               {ThresholdMa(),
+                MaxMa(),
+                AmplitudeMa(0.6),
                 {"duration_s", "train length, s", 10.0, 3.0, 120.0, false},
                 {"seed", "random seed of the train", 1.0, 0.0, 4294967295.0, true},
                 SettleS(2.0, "swing after decoupling before recording, s")}});
 
-  c.push_back({"active_random_binary", 1, "Active identification (RB1, RB2)",
+  c.push_back({"active_random_binary",
+               1,
+               "Active identification (RB1, RB2)",
                "Decoupled: two denser 10 s random-binary trains (RB1, RB2) with a rest between "
                "(§5.4.4, Fig. 5-11).",
-               BenchMode::kDecoupled, ProtocolKind::kFreeSwing, 2.0,
-               {ThresholdMa(), MaxMa(), AmplitudeMa(0.6),
+               BenchMode::kDecoupled,
+               ProtocolKind::kFreeSwing,
+               2.0,
+               {ThresholdMa(),
+                MaxMa(),
+                AmplitudeMa(0.6),
                 {"duration_s", "length of each train, s", 10.0, 2.0, 120.0, false},
                 {"rb1_seed", "seed of RB1", 1.0, 0.0, 4294967295.0, true},
                 {"rb2_seed", "seed of RB2", 2.0, 0.0, 4294967295.0, true},
                 Rest("rest_s", "rest between the trains, s", 10.0, 2.0, 300.0),
                 SettleS(2.0, "swing after decoupling before recording, s")}});
 
-  c.push_back({"prediction_step", 1, "Knee angle prediction: step",
+  c.push_back({"prediction_step",
+               1,
+               "Knee angle prediction: step",
                "Decoupled: step at 75 % of the threshold→max range from 0.5 s for 3 s, then "
                "1.5 s without stimulation (§5.4.5, Fig. 5-12).",
-               BenchMode::kDecoupled, ProtocolKind::kPrediction, 0.0,
-               {ThresholdMa(), MaxMa(),
+               BenchMode::kDecoupled,
+               ProtocolKind::kPrediction,
+               0.0,
+               {ThresholdMa(),
+                MaxMa(),
                 {"level_fraction", "level as fraction of threshold→max", 0.75, 0.0, 1.0, false},
                 {"onset_s", "zero stimulation before the step, s", 0.5, 0.0, 10.0, false},
                 {"on_s", "step length, s", 3.0, 0.1, 30.0, false},
                 {"off_s", "zero stimulation after the step, s", 1.5, 0.0, 30.0, false},
                 SettleS(2.0, "swing after decoupling before recording, s")}});
 
-  c.push_back({"prediction_ramp", 1, "Knee angle prediction: ramp",
+  c.push_back({"prediction_ramp",
+               1,
+               "Knee angle prediction: ramp",
                "Decoupled: amplitude 0→max in 5 s and back to 0 in 5 s (§5.4.5).",
-               BenchMode::kDecoupled, ProtocolKind::kPrediction, 0.0,
-               {MaxMa(), {"up_s", "ramp-up time, s", 5.0, 0.1, 60.0, false},
+               BenchMode::kDecoupled,
+               ProtocolKind::kPrediction,
+               0.0,
+               {MaxMa(),
+                {"up_s", "ramp-up time, s", 5.0, 0.1, 60.0, false},
                 {"down_s", "ramp-down time, s", 5.0, 0.1, 60.0, false},
                 SettleS(2.0, "swing after decoupling before recording, s")}});
 
-  c.push_back({"prediction_sine", 1, "Knee angle prediction: swept sine",
+  c.push_back({"prediction_sine",
+               1,
+               "Knee angle prediction: swept sine",
                "Decoupled: cosine cycles of period 5, 2 and 1 s between threshold + 5 mA and "
                "max, then 1 s without stimulation (§5.4.5).",
-               BenchMode::kDecoupled, ProtocolKind::kPrediction, 0.0,
-               {ThresholdMa(), MaxMa(),
+               BenchMode::kDecoupled,
+               ProtocolKind::kPrediction,
+               0.0,
+               {ThresholdMa(),
+                MaxMa(),
                 {"above_threshold_ma", "lower level above threshold, mA", 5.0, 0.0, 50.0, false},
                 {"tail_s", "zero stimulation at the end, s", 1.0, 0.0, 10.0, false},
                 SettleS(2.0, "swing after decoupling before recording, s")}});
 
-  c.push_back({"prediction_random_binary", 1, "Knee angle prediction: random binary",
-               "Decoupled: a random-binary train like the active identification's (§5.4.5: "
-               "\"the random binary stimulation patterns … were also used\").",
-               BenchMode::kDecoupled, ProtocolKind::kPrediction, 0.0,
-               {ThresholdMa(), MaxMa(), AmplitudeMa(0.6),
-                {"duration_s", "train length, s", 10.0, 2.0, 120.0, false},
-                {"seed", "random seed of the train", 3.0, 0.0, 4294967295.0, true},
-                {"dense", "1 = dense (active) train, 0 = sparse (passive) train", 1.0, 0.0, 1.0,
-                 true},
-                SettleS(2.0, "swing after decoupling before recording, s")}});
+  c.push_back(
+      {"prediction_random_binary",
+       1,
+       "Knee angle prediction: random binary",
+       "Decoupled: a random-binary train like the active identification's (§5.4.5: "
+       "\"the random binary stimulation patterns … were also used\").",
+       BenchMode::kDecoupled,
+       ProtocolKind::kPrediction,
+       0.0,
+       {ThresholdMa(),
+        MaxMa(),
+        AmplitudeMa(0.6),
+        {"duration_s", "train length, s", 10.0, 2.0, 120.0, false},
+        {"seed", "random seed of the train", 3.0, 0.0, 4294967295.0, true},
+        {"dense", "1 = dense (active) train, 0 = sparse (passive) train", 1.0, 0.0, 1.0, true},
+        SettleS(2.0, "swing after decoupling before recording, s")}});
 
-  c.push_back({"rapid_parameterisation", 1, "Rapid parameterisation",
-               "The < 30 s routine of §7.4.1: a 7 s isometric ramp IRC trial (2 impulses, one "
-               "4 s cosine ramp) → contraction pole and IRC by ramp correlation; a 10 s "
-               "free-swing sparse random-binary trial and a 10 s dense active random-binary "
-               "trial → τ_pta and τ_ptv with known inertia, then the active curves (Eq. 4.40); "
-               "ends with a complete parameter set.",
-               BenchMode::kMixed, ProtocolKind::kRapid, 1.0,
-               {LockAngleDeg(), SettleS(0.8, "time to move to and lock the angle, s"),
-                ThresholdMa(), MaxMa(),
-                {"conditioning_s", "conditioning burst length, s", 0.0, 0.0, 10.0, false},
-                {"impulses", "number of impulses at max", 2.0, 1.0, 20.0, true},
-                {"ramps", "number of cosine ramps", 1.0, 1.0, 10.0, true},
-                {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0, false},
-                {"ramp_duration_s", "whole ramp (half up, half down), s", 4.0, 0.5, 30.0, false},
-                Rest("rest_s", "zero stimulation after each isometric element, s", 1.0, 1.0, 60.0),
-                {"swing_settle_s", "swing after decoupling before recording, s", 0.5, 0.2, 30.0,
-                 false},
-                AmplitudeMa(0.6),
-                {"rb_torque_nm",
-                 "if > 0, the random-binary amplitude is chosen after the ramp trial to give this "
-                 "isometric torque at the lock angle (else amplitude_ma is used), N·m",
-                 6.0, 0.0, 60.0, false},
-                {"duration_s", "length of each random-binary trial, s", 10.0, 3.0, 60.0, false},
-                {"passive_seed", "seed of the passive (sparse) train", 1.0, 0.0, 4294967295.0,
-                 true},
-                {"active_seed", "seed of the active (dense) train", 2.0, 0.0, 4294967295.0,
-                 true}}});
+  c.push_back(
+      {"rapid_parameterisation",
+       1,
+       "Rapid parameterisation",
+       "The < 30 s routine of §7.4.1: a 7 s isometric ramp IRC trial (2 impulses, one "
+       "4 s cosine ramp) → contraction pole and IRC by ramp correlation; a 10 s "
+       "free-swing sparse random-binary trial and a 10 s dense active random-binary "
+       "trial → τ_pta and τ_ptv with known inertia, then the active curves (Eq. 4.40); "
+       "ends with a complete parameter set.",
+       BenchMode::kMixed,
+       ProtocolKind::kRapid,
+       1.0,
+       {LockAngleDeg(),
+        SettleS(0.8, "time to move to and lock the angle, s"),
+        ThresholdMa(),
+        MaxMa(),
+        {"conditioning_s", "conditioning burst length, s", 0.0, 0.0, 10.0, false},
+        {"impulses", "number of impulses at max", 2.0, 1.0, 20.0, true},
+        {"ramps", "number of cosine ramps", 1.0, 1.0, 10.0, true},
+        {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0, false},
+        {"ramp_duration_s", "whole ramp (half up, half down), s", 4.0, 0.5, 30.0, false},
+        Rest("rest_s", "zero stimulation after each isometric element, s", 1.0, 1.0, 60.0),
+        {"swing_settle_s", "swing after decoupling before recording, s", 0.5, 0.2, 30.0, false},
+        AmplitudeMa(0.6),
+        {"rb_torque_nm",
+         "if > 0, the random-binary amplitude is chosen after the ramp trial to give this "
+         "isometric torque at the lock angle (else amplitude_ma is used), N·m",
+         6.0, 0.0, 60.0, false},
+        {"duration_s", "length of each random-binary trial, s", 10.0, 3.0, 60.0, false},
+        {"passive_seed", "seed of the passive (sparse) train", 1.0, 0.0, 4294967295.0, true},
+        {"active_seed", "seed of the active (dense) train", 2.0, 0.0, 4294967295.0, true}}});
   return c;
 }
 
@@ -246,22 +328,32 @@ std::string Format(double v) {
 
 std::string_view ScalingName(Scaling scaling) {
   switch (scaling) {
-    case Scaling::kNone: return "none";
-    case Scaling::kThreshold: return "threshold";
-    case Scaling::kMaxTolerated: return "max_tolerated";
-    case Scaling::kStimRange: return "stim_range";
-    case Scaling::kRangeMin: return "range_min";
-    case Scaling::kRangeMax: return "range_max";
+    case Scaling::kNone:
+      return "none";
+    case Scaling::kThreshold:
+      return "threshold";
+    case Scaling::kMaxTolerated:
+      return "max_tolerated";
+    case Scaling::kStimRange:
+      return "stim_range";
+    case Scaling::kRangeMin:
+      return "range_min";
+    case Scaling::kRangeMax:
+      return "range_max";
   }
   return "none";
 }
 
 std::string_view BenchModeName(BenchMode mode) {
   switch (mode) {
-    case BenchMode::kLocked: return "locked";
-    case BenchMode::kMotor: return "motor";
-    case BenchMode::kDecoupled: return "decoupled";
-    case BenchMode::kMixed: return "mixed";
+    case BenchMode::kLocked:
+      return "locked";
+    case BenchMode::kMotor:
+      return "motor";
+    case BenchMode::kDecoupled:
+      return "decoupled";
+    case BenchMode::kMixed:
+      return "mixed";
   }
   return "mixed";
 }
@@ -290,7 +382,8 @@ api::Status ValidateSubject(const SubjectContext& s) {
     return api::Status::InvalidArgument(std::move(message), "subject." + field);
   };
   for (const auto& [field, v] :
-       {std::pair{"threshold_ma", s.threshold_ma}, std::pair{"max_tolerated_ma", s.max_tolerated_ma},
+       {std::pair{"threshold_ma", s.threshold_ma},
+        std::pair{"max_tolerated_ma", s.max_tolerated_ma},
         std::pair{"min_angle_deg", s.min_angle_deg}, std::pair{"max_angle_deg", s.max_angle_deg}}) {
     if (!std::isfinite(v)) return bad(field, "must be finite");
   }
@@ -310,13 +403,18 @@ api::Status ValidateSubject(const SubjectContext& s) {
 
 double DefaultFor(const ParameterSpec& spec, const SubjectContext& s) {
   switch (spec.scaling) {
-    case Scaling::kNone: return spec.default_value;
-    case Scaling::kThreshold: return s.threshold_ma;
-    case Scaling::kMaxTolerated: return s.max_tolerated_ma;
+    case Scaling::kNone:
+      return spec.default_value;
+    case Scaling::kThreshold:
+      return s.threshold_ma;
+    case Scaling::kMaxTolerated:
+      return s.max_tolerated_ma;
     case Scaling::kStimRange:
       return s.threshold_ma + spec.default_value * (s.max_tolerated_ma - s.threshold_ma);
-    case Scaling::kRangeMin: return s.min_angle_deg;
-    case Scaling::kRangeMax: return s.max_angle_deg;
+    case Scaling::kRangeMin:
+      return s.min_angle_deg;
+    case Scaling::kRangeMax:
+      return s.max_angle_deg;
   }
   return spec.default_value;
 }
@@ -327,8 +425,8 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
   if (api::Status st = ValidateSubject(subject); !st.ok()) return st;
   for (const auto& [name, v] : values) {
     if (protocol.FindParameter(name) == nullptr) {
-      return api::Status::InvalidArgument(
-          "unknown parameter of protocol " + protocol.name, "parameters." + name);
+      return api::Status::InvalidArgument("unknown parameter of protocol " + protocol.name,
+                                          "parameters." + name);
     }
   }
   ParameterValues out;
@@ -355,9 +453,9 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
     const bool stim = p.scaling == Scaling::kThreshold || p.scaling == Scaling::kMaxTolerated ||
                       p.scaling == Scaling::kStimRange;
     if (stim && v > subject.max_tolerated_ma) {
-      return api::Status::InvalidArgument("above the session's max tolerated amplitude " +
-                                              Format(subject.max_tolerated_ma) + " mA",
-                                          field);
+      return api::Status::InvalidArgument(
+          "above the session's max tolerated amplitude " + Format(subject.max_tolerated_ma) + " mA",
+          field);
     }
     // Every angle (lock, reference, trajectory limits) inside the range of motion.
     const bool angle = p.name.ends_with("_deg");

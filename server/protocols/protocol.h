@@ -10,12 +10,11 @@
 
 #include <cstdint>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "api/status.h"
 #include "model/parameter_set.h"
@@ -34,8 +33,8 @@ enum class Scaling {
   /// default = threshold + default_value·(max tolerated − threshold), mA
   /// (default_value is the fraction of the range).
   kStimRange,
-  kRangeMin,      ///< default = the subject's range-of-motion minimum, deg.
-  kRangeMax,      ///< default = the subject's range-of-motion maximum, deg.
+  kRangeMin,  ///< default = the subject's range-of-motion minimum, deg.
+  kRangeMax,  ///< default = the subject's range-of-motion maximum, deg.
 };
 
 /// "none", "threshold", "max_tolerated", "stim_range", "range_min", "range_max".
@@ -71,13 +70,13 @@ enum class ProtocolKind { kTolerance, kIsometric, kPassive, kFreeSwing, kPredict
 
 /// A protocol description: pure data.
 struct ProtocolDescription {
-  std::string name;       ///< e.g. "isometric_ramp_irc".
+  std::string name;  ///< e.g. "isometric_ramp_irc".
   int version = 1;
   std::string title;
-  std::string description;   ///< what it does and the thesis section.
+  std::string description;  ///< what it does and the thesis section.
   BenchMode bench_mode = BenchMode::kLocked;
   ProtocolKind kind = ProtocolKind::kIsometric;
-  double min_rest_s = 0.0;   ///< shortest allowed rest period, s.
+  double min_rest_s = 0.0;  ///< shortest allowed rest period, s.
   std::vector<ParameterSpec> parameters;
 
   const ParameterSpec* FindParameter(std::string_view name) const;
@@ -90,9 +89,9 @@ const ProtocolDescription* FindProtocol(std::string_view name);
 
 /// The session and subject a run is scaled to (DESIGN.md §7 sessions).
 struct SubjectContext {
-  double threshold_ma = 20.0;       ///< lowest amplitude giving torque.
-  double max_tolerated_ma = 45.0;   ///< highest amplitude the subject accepts.
-  double min_angle_deg = 10.0;      ///< subject's range of motion.
+  double threshold_ma = 20.0;      ///< lowest amplitude giving torque.
+  double max_tolerated_ma = 45.0;  ///< highest amplitude the subject accepts.
+  double min_angle_deg = 10.0;     ///< subject's range of motion.
   double max_angle_deg = 110.0;
   /// Limb inertia known from elsewhere (a slow accurate method, §7.4.1, or a
   /// prior parameter set), kg·m². Unset: Eq. 4.13 from body_mass_kg and

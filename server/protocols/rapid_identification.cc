@@ -15,9 +15,11 @@ api::Result<double> KnownInertia(const SubjectContext& subject) {
   }
   if (subject.body_mass_kg && subject.leg_length_m) {
     try {
-      return model::AnthropometricInertia(*subject.body_mass_kg, *subject.leg_length_m);  // Eq. 4.13
+      return model::AnthropometricInertia(*subject.body_mass_kg,
+                                          *subject.leg_length_m);  // Eq. 4.13
     } catch (const std::invalid_argument& e) {
-      return api::Status::FailedPrecondition(std::string("inertia from anthropometrics: ") + e.what());
+      return api::Status::FailedPrecondition(std::string("inertia from anthropometrics: ") +
+                                             e.what());
     }
   }
   return api::Status::FailedPrecondition(
@@ -43,8 +45,8 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
   model::RapidOptions options;
   options.inertia_kgm2 = *inertia;
   try {
-    model::RapidResult r =
-        model::IdentifyRapid(ToColumns(iso->trial), ToColumns(pas->trial), ToColumns(act->trial), options);
+    model::RapidResult r = model::IdentifyRapid(ToColumns(iso->trial), ToColumns(pas->trial),
+                                                ToColumns(act->trial), options);
     r.parameters.provenance.software_version = "fesbench 0.1.0";
     return r.parameters;
   } catch (const std::exception& e) {

@@ -4,23 +4,34 @@ namespace fesbench::server::protocols {
 
 std::string_view RunStateName(RunState state) {
   switch (state) {
-    case RunState::kQueued: return "queued";
-    case RunState::kRunning: return "running";
-    case RunState::kDone: return "done";
-    case RunState::kFailed: return "failed";
-    case RunState::kAborted: return "aborted";
+    case RunState::kQueued:
+      return "queued";
+    case RunState::kRunning:
+      return "running";
+    case RunState::kDone:
+      return "done";
+    case RunState::kFailed:
+      return "failed";
+    case RunState::kAborted:
+      return "aborted";
   }
   return "failed";
 }
 
 std::string_view RunTransitionName(RunTransition transition) {
   switch (transition) {
-    case RunTransition::kStart: return "start";
-    case RunTransition::kComplete: return "complete";
-    case RunTransition::kCancel: return "cancel";
-    case RunTransition::kEStop: return "estop";
-    case RunTransition::kWatchdog: return "watchdog";
-    case RunTransition::kError: return "error";
+    case RunTransition::kStart:
+      return "start";
+    case RunTransition::kComplete:
+      return "complete";
+    case RunTransition::kCancel:
+      return "cancel";
+    case RunTransition::kEStop:
+      return "estop";
+    case RunTransition::kWatchdog:
+      return "watchdog";
+    case RunTransition::kError:
+      return "error";
   }
   return "error";
 }
@@ -38,17 +49,22 @@ std::optional<RunState> NextState(RunState state, RunTransition transition) {
       return std::nullopt;
     case RunState::kRunning:
       switch (transition) {
-        case RunTransition::kComplete: return RunState::kDone;
+        case RunTransition::kComplete:
+          return RunState::kDone;
         case RunTransition::kCancel:
         case RunTransition::kEStop:
-        case RunTransition::kWatchdog: return RunState::kAborted;
-        case RunTransition::kError: return RunState::kFailed;
-        case RunTransition::kStart: return std::nullopt;
+        case RunTransition::kWatchdog:
+          return RunState::kAborted;
+        case RunTransition::kError:
+          return RunState::kFailed;
+        case RunTransition::kStart:
+          return std::nullopt;
       }
       return std::nullopt;
     case RunState::kDone:
     case RunState::kFailed:
-    case RunState::kAborted: return std::nullopt;
+    case RunState::kAborted:
+      return std::nullopt;
   }
   return std::nullopt;
 }

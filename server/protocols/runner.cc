@@ -89,6 +89,13 @@ bool ProtocolRunner::Transition(RunTransition transition, const std::string& rea
 }
 
 RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
+  if (state_.load() != RunState::kQueued) {
+    RunResult used;
+    used.state = RunState::kFailed;
+    used.reason = "a ProtocolRunner runs one plan; this one has run already";
+    used.protocol = plan.protocol;
+    return used;
+  }
   RunResult result;
   result_ = &result;
   result.protocol = plan.protocol;
@@ -116,7 +123,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     return finish();
   }
   const BenchLimits& hw = bench_.bench_limits();
-  if (std::max(subject.min_angle_deg, hw.min_angle_deg) >= std::min(subject.max_angle_deg, hw.max_angle_deg)) {
+  if (std::max(subject.min_angle_deg, hw.min_angle_deg) >=
+      std::min(subject.max_angle_deg, hw.max_angle_deg)) {
     Transition(RunTransition::kError, "the subject's range of motion lies outside the bench's");
     return finish();
   }
@@ -126,7 +134,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   // amplitude, whatever the plan says, except in the tolerance test, whose
   // ceiling is what it measures against.
   SafetyLimits limits;
-  const double plan_max_ma = std::isfinite(plan.max_stim_ma) ? std::max(plan.max_stim_ma, 0.0) : 0.0;
+  const double plan_max_ma =
+      std::isfinite(plan.max_stim_ma) ? std::max(plan.max_stim_ma, 0.0) : 0.0;
   limits.max_stim_ma = plan.kind == ProtocolKind::kTolerance
                            ? plan_max_ma
                            : std::min(plan_max_ma, subject.max_tolerated_ma);
@@ -166,7 +175,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     b.trial = rec_trial;
     b.trial_name = plan.trials[static_cast<std::size_t>(rec_trial)].name;
     const auto slice = [&](const std::vector<double>& v) {
-      return std::vector<double>(v.begin() + static_cast<std::ptrdiff_t>(rec->batch_begin), v.end());
+      return std::vector<double>(v.begin() + static_cast<std::ptrdiff_t>(rec->batch_begin),
+                                 v.end());
     };
     b.t_s = slice(rec->t_s);
     b.stim_ma = slice(rec->stim_ma);
@@ -194,7 +204,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       api::ChannelGroup emg;
       emg.sample_rate_hz = bench_.bench_limits().emg_rate_hz;
       std::vector<double> et(rec->emg_mv.size());
-      for (std::size_t i = 0; i < et.size(); ++i) et[i] = static_cast<double>(i) / emg.sample_rate_hz;
+      for (std::size_t i = 0; i < et.size(); ++i)
+        et[i] = static_cast<double>(i) / emg.sample_rate_hz;
       emg.Set("t_s", std::move(et));
       emg.Set("emg_mv", std::move(rec->emg_mv));
       t.emg = std::move(emg);
@@ -202,13 +213,14 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     rec->rec.complete = complete;
     result.trials.push_back(std::move(rec->rec));
     const AdaptiveAmplitude* adapt = plan.adaptive_amplitude ? &*plan.adaptive_amplitude : nullptr;
-    if (complete && adapt != nullptr && adapt->source_trial == rec_trial && adapt->planned_ma > 0.0) {
-      const api::Result<double> u = AmplitudeForTorque(result.trials.back().trial,
-                                                       adapt->target_torque_nm, adapt->min_ma,
-                                                       adapt->max_ma);
+    if (complete && adapt != nullptr && adapt->source_trial == rec_trial &&
+        adapt->planned_ma > 0.0) {
+      const api::Result<double> u = AmplitudeForTorque(
+          result.trials.back().trial, adapt->target_torque_nm, adapt->min_ma, adapt->max_ma);
       const double chosen = u.ok() ? *u : adapt->planned_ma;
       result.values["rb_amplitude_ma"] = chosen;
-      for (int t : adapt->trials) stim_scale[static_cast<std::size_t>(t)] = chosen / adapt->planned_ma;
+      for (int t : adapt->trials)
+        stim_scale[static_cast<std::size_t>(t)] = chosen / adapt->planned_ma;
     }
     if (observer_ != nullptr) observer_->OnTrial(result.trials.back());
     rec.reset();
@@ -247,7 +259,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     if (!mode || *mode != step.motor_mode) {
       bench_.SetMotorMode(step.motor_mode);
       mode = step.motor_mode;
-      if (step.motor_mode != MotorMode::kPosition) last_setpoint = std::numeric_limits<double>::quiet_NaN();
+      if (step.motor_mode != MotorMode::kPosition)
+        last_setpoint = std::numeric_limits<double>::quiet_NaN();
     }
     double move_from = step.setpoint_deg;
     if (step.move_from_current) {
@@ -267,7 +280,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       if (step.motor_mode == MotorMode::kPosition || step.motor_mode == MotorMode::kLocked) {
         double sp = step.setpoint_deg;
         if (step.trajectory) {
-          sp = step.trajectory->At(static_cast<double>(k) / kTicksPerSecond + step.trajectory_offset_s)
+          sp = step.trajectory
+                   ->At(static_cast<double>(k) / kTicksPerSecond + step.trajectory_offset_s)
                    .angle_deg;
         } else if (step.move_from_current) {
           sp = move_from + (step.setpoint_deg - move_from) *
@@ -302,9 +316,9 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       }
       if (rec && (n - rec->start_tick) % kTicksPerSample == 0) {
         const SensorFrame f = bench_.ReadSensors();
-        const double applied = bench_.estopped() || bench_.watchdog_fired()
-                                   ? 0.0
-                                   : std::isfinite(u) ? std::clamp(u, 0.0, max_applied_ma) : 0.0;
+        const double applied = bench_.estopped() || bench_.watchdog_fired() ? 0.0
+                               : std::isfinite(u) ? std::clamp(u, 0.0, max_applied_ma)
+                                                  : 0.0;
         const double torque = f.torque_nm - rec->offset_nm;
         rec->t_s.push_back(static_cast<double>(n - rec->start_tick) / kTicksPerSecond);
         rec->stim_ma.push_back(applied);
@@ -348,7 +362,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     if (step.phase == StepPhase::kOffset && offset_count > 0 && rec) {
       rec->offset_nm = offset_sum / static_cast<double>(offset_count);
       rec->rec.offsets_nm.push_back(rec->offset_nm);
-      const double var = offset_sq / static_cast<double>(offset_count) - rec->offset_nm * rec->offset_nm;
+      const double var =
+          offset_sq / static_cast<double>(offset_count) - rec->offset_nm * rec->offset_nm;
       offset_sd_nm = std::sqrt(std::max(0.0, var));
       if (plan.tolerance) {
         tol.noise_band_nm = std::max(plan.tolerance->threshold_torque_nm, 4.0 * offset_sd_nm);
@@ -385,7 +400,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       identify.label = "identify";
       observer_->OnStep(plan.steps.size(), identify);
     }
-    api::Result<model::ParameterSet> params = IdentifyRapidTrials(result.trials, *plan.rapid, subject);
+    api::Result<model::ParameterSet> params =
+        IdentifyRapidTrials(result.trials, *plan.rapid, subject);
     if (!params.ok()) {
       Transition(RunTransition::kError, "identification failed: " + params.status().message());
       return finish();

@@ -16,8 +16,8 @@
 /// 0. The run's states are those of run_state.h.
 
 #include <atomic>
-#include <map>
 #include <cstdint>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -50,10 +50,10 @@ class SafetyEventLog {
 
 /// A trial as recorded, with what the engine knows about it.
 struct RecordedTrial {
-  api::Trial trial;                 ///< name = plan's trial name; t_s from 0.
-  double bench_start_s = 0.0;       ///< bench time of its first sample.
-  std::vector<double> offsets_nm;   ///< torque offsets measured (raw N·m), in order.
-  bool complete = true;             ///< false if the run ended inside it.
+  api::Trial trial;                ///< name = plan's trial name; t_s from 0.
+  double bench_start_s = 0.0;      ///< bench time of its first sample.
+  std::vector<double> offsets_nm;  ///< torque offsets measured (raw N·m), in order.
+  bool complete = true;            ///< false if the run ended inside it.
 };
 
 /// The tolerance test's outcome (Appendix F part II.K).
@@ -69,13 +69,13 @@ struct ToleranceResult {
 /// What a run produced.
 struct RunResult {
   RunState state = RunState::kQueued;
-  std::string reason;                ///< why failed or aborted; empty when done.
+  std::string reason;  ///< why failed or aborted; empty when done.
   std::string protocol;
   int protocol_version = 1;
   ParameterValues parameters;
   std::vector<RecordedTrial> trials;
   std::optional<model::ParameterSet> parameter_set;  ///< rapid_parameterisation.
-  std::optional<ToleranceResult> tolerance;           ///< tolerance_test.
+  std::optional<ToleranceResult> tolerance;          ///< tolerance_test.
   std::vector<SafetyEvent> safety_events;
   /// Figures decided during the run, e.g. "rb_amplitude_ma".
   std::map<std::string, double> values;
@@ -92,8 +92,8 @@ struct SampleBatch {
 
 /// Progress of a run: bench-time fraction and an ETA in wall seconds.
 struct Progress {
-  double fraction = 0.0;      ///< 0–1.
-  double eta_s = 0.0;         ///< wall seconds left (bench s / time scale, or measured).
+  double fraction = 0.0;  ///< 0–1.
+  double eta_s = 0.0;     ///< wall seconds left (bench s / time scale, or measured).
   double bench_elapsed_s = 0.0;
   double bench_total_s = 0.0;
   std::size_t step = 0;
@@ -116,15 +116,17 @@ struct RunnerOptions {
   /// Bench seconds per wall second the bench is paced at (0 = as fast as
   /// possible); for the ETA only.
   double time_scale = 0.0;
-  double progress_interval_s = 0.1;   ///< bench seconds between OnProgress.
-  std::size_t batch_samples = 40;     ///< samples per OnSamples batch.
-  bool arm_watchdog = true;           ///< arm SafeBench's heartbeat watchdog.
+  double progress_interval_s = 0.1;  ///< bench seconds between OnProgress.
+  std::size_t batch_samples = 40;    ///< samples per OnSamples batch.
+  bool arm_watchdog = true;          ///< arm SafeBench's heartbeat watchdog.
   double heartbeat_timeout_s = 1.0;
-  SafeBench::WallClock wall_clock;    ///< for wall durations; empty = steady clock.
+  SafeBench::WallClock wall_clock;  ///< for wall durations; empty = steady clock.
 };
 
-/// The engine. One Run at a time per object (BenchOwner enforces one run
-/// per bench); Cancel and Stop may be called from any thread.
+/// The engine. Each object runs one plan (a second Run returns failed
+/// without touching the bench; BenchOwner makes one per run and enforces one
+/// run per bench). Cancel and Stop may be called from any thread, also
+/// before Run starts (the run then aborts at once).
 class ProtocolRunner {
  public:
   /// @param bench must outlive the runner. @param log may be null.

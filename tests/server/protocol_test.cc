@@ -1,4 +1,6 @@
 // Protocol descriptions, parameter validation and plans (DESIGN.md §5).
+#include "server/protocols/protocol.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -7,7 +9,6 @@
 
 #include "model/stimulus_generators.h"
 #include "server/protocols/plan.h"
-#include "server/protocols/protocol.h"
 #include "server/protocols/run_state.h"
 
 namespace fesbench::server::protocols {
@@ -40,10 +41,10 @@ std::vector<std::pair<std::size_t, std::size_t>> Runs(const std::vector<double>&
 
 TEST(ProtocolCatalog, HoldsEveryProtocolOfDesignTable) {
   const std::set<std::string> want = {
-      "tolerance_test",        "isometric_ramp_irc",      "isometric_step_irc",
-      "isometric_impulse_irc", "isometric_prediction",    "passive_sequential",
-      "passive_simultaneous",  "free_swing_passive",      "active_random_binary",
-      "prediction_step",       "prediction_ramp",         "prediction_sine",
+      "tolerance_test",           "isometric_ramp_irc",    "isometric_step_irc",
+      "isometric_impulse_irc",    "isometric_prediction",  "passive_sequential",
+      "passive_simultaneous",     "free_swing_passive",    "active_random_binary",
+      "prediction_step",          "prediction_ramp",       "prediction_sine",
       "prediction_random_binary", "rapid_parameterisation"};
   std::set<std::string> have;
   for (const ProtocolDescription& p : ProtocolCatalog()) have.insert(p.name);
@@ -53,10 +54,21 @@ TEST(ProtocolCatalog, HoldsEveryProtocolOfDesignTable) {
 }
 
 TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
-  const std::set<std::string> unitless = {"conditioning_fraction", "impulses", "ramps", "levels",
-                                          "count",  "positions", "speeds", "trajectories",
-                                          "seed", "rb1_seed", "rb2_seed", "passive_seed",
-                                          "active_seed", "level_fraction", "dense"};
+  const std::set<std::string> unitless = {"conditioning_fraction",
+                                          "impulses",
+                                          "ramps",
+                                          "levels",
+                                          "count",
+                                          "positions",
+                                          "speeds",
+                                          "trajectories",
+                                          "seed",
+                                          "rb1_seed",
+                                          "rb2_seed",
+                                          "passive_seed",
+                                          "active_seed",
+                                          "level_fraction",
+                                          "dense"};
   for (const ProtocolDescription& p : ProtocolCatalog()) {
     std::set<std::string> names;
     for (const ParameterSpec& s : p.parameters) {
@@ -144,12 +156,14 @@ TEST(ResolveParameters, RejectsBadValuesNamingTheParameter) {
   EXPECT_EQ(stim.status().field(), "parameters.max_ma");
   EXPECT_NE(stim.status().message().find("max tolerated"), std::string::npos);
 
-  auto angle = ResolveParameters(*FindProtocol("passive_simultaneous"), {{"min_angle_deg", 15.0}}, s);
+  auto angle =
+      ResolveParameters(*FindProtocol("passive_simultaneous"), {{"min_angle_deg", 15.0}}, s);
   ASSERT_FALSE(angle.ok());
   EXPECT_EQ(angle.status().field(), "parameters.min_angle_deg");
 
   // Implicit and explicit angles stay inside the range of motion.
-  auto lock = ResolveParameters(*FindProtocol("isometric_ramp_irc"), {{"lock_angle_deg", 107.0}}, s);
+  auto lock =
+      ResolveParameters(*FindProtocol("isometric_ramp_irc"), {{"lock_angle_deg", 107.0}}, s);
   ASSERT_FALSE(lock.ok());
   EXPECT_EQ(lock.status().field(), "parameters.lock_angle_deg");
   SubjectContext low = s;
@@ -185,12 +199,12 @@ TEST(Plan, RampIrcFollowsFigure57) {
   const auto runs = Runs(env.values);
   ASSERT_EQ(runs.size(), 5u);  // conditioning, 2 impulses, 2 ramps
   EXPECT_EQ(runs[0], (std::pair<std::size_t, std::size_t>{10, 600}));  // 3 s burst
-  EXPECT_NEAR(env.values[10], 22.0 + 0.75 * 20.0, 1e-9);              // 75 % of range
-  EXPECT_EQ(runs[1].first, 10u + 800u);                                 // impulse at 4 s
+  EXPECT_NEAR(env.values[10], 22.0 + 0.75 * 20.0, 1e-9);               // 75 % of range
+  EXPECT_EQ(runs[1].first, 10u + 800u);                                // impulse at 4 s
   EXPECT_EQ(runs[1].second, 1u);
-  EXPECT_DOUBLE_EQ(env.values[runs[1].first], 42.0);                    // at max
-  EXPECT_EQ(runs[2].first, 10u + 1000u);                                // impulse at 5 s
-  EXPECT_EQ(runs[3].first, 10u + 1200u);                                // ramp at 6 s
+  EXPECT_DOUBLE_EQ(env.values[runs[1].first], 42.0);  // at max
+  EXPECT_EQ(runs[2].first, 10u + 1000u);              // impulse at 5 s
+  EXPECT_EQ(runs[3].first, 10u + 1200u);              // ramp at 6 s
   const double ramp_max = *std::max_element(env.values.begin() + 1210, env.values.begin() + 2010);
   EXPECT_NEAR(ramp_max, 42.0, 1e-9);
   EXPECT_NEAR(env.values[runs[3].first], 17.0, 0.05);  // threshold − 5 mA
@@ -220,7 +234,7 @@ TEST(Plan, StepIrcHasTenBurstsWithThirtySecondRests) {
     }
     if (s.phase == StepPhase::kOffset) ++offsets;
   }
-  EXPECT_EQ(offsets, 10);  // one 50-sample offset before every burst (§5.3)
+  EXPECT_EQ(offsets, 10);                   // one 50-sample offset before every burst (§5.3)
   EXPECT_NEAR(shortest_rest, 29.95, 1e-9);  // 30 s minus the 50 ms offset
 }
 
@@ -261,7 +275,7 @@ TEST(Plan, PredictionStepRampSineTimings) {
   auto sine = MakePlan("prediction_sine", {}, s);
   ASSERT_TRUE(sine.ok());
   env = TrialEnvelope(*sine, 0);
-  EXPECT_EQ(env.size(), 10u + 1800u);  // 5 + 2 + 1 + 1 s
+  EXPECT_EQ(env.size(), 10u + 1800u);       // 5 + 2 + 1 + 1 s
   EXPECT_NEAR(env.values[10], 27.0, 1e-9);  // threshold + 5 mA
 }
 
@@ -327,8 +341,9 @@ TEST(RunState, TransitionTable) {
   EXPECT_EQ(NextState(RunState::kQueued, RunTransition::kComplete), std::nullopt);
   for (RunState final : {RunState::kDone, RunState::kFailed, RunState::kAborted}) {
     EXPECT_TRUE(IsFinal(final));
-    for (RunTransition t : {RunTransition::kStart, RunTransition::kComplete, RunTransition::kCancel,
-                            RunTransition::kEStop, RunTransition::kWatchdog, RunTransition::kError}) {
+    for (RunTransition t :
+         {RunTransition::kStart, RunTransition::kComplete, RunTransition::kCancel,
+          RunTransition::kEStop, RunTransition::kWatchdog, RunTransition::kError}) {
       EXPECT_EQ(NextState(final, t), std::nullopt);
     }
   }

@@ -147,8 +147,9 @@ struct Limits {
 };
 
 Limits Expected(const Plan& plan, const SubjectContext& s) {
-  double stim = plan.kind == ProtocolKind::kTolerance ? plan.max_stim_ma
-                                                      : std::min(plan.max_stim_ma, s.max_tolerated_ma);
+  double stim = plan.kind == ProtocolKind::kTolerance
+                    ? plan.max_stim_ma
+                    : std::min(plan.max_stim_ma, s.max_tolerated_ma);
   if (!std::isfinite(plan.max_stim_ma)) stim = 0.0;  // a broken plan stimulates not at all
   return {std::clamp(stim, 0.0, 100.0), std::max(s.min_angle_deg, 10.0),
           std::min(s.max_angle_deg, 110.0)};
@@ -189,7 +190,8 @@ TEST(SafetyFuzz, TenThousandRandomPlansAndCommandSequences) {
         continue;
       }
       ++catalog_plans;
-      const double cap = plan->kind == ProtocolKind::kTolerance ? plan->max_stim_ma : s.max_tolerated_ma;
+      const double cap =
+          plan->kind == ProtocolKind::kTolerance ? plan->max_stim_ma : s.max_tolerated_ma;
       for (std::size_t k = 0; k < plan->trials.size(); ++k) {
         for (double v : TrialEnvelope(*plan, static_cast<int>(k)).values) ASSERT_LE(v, cap + 1e-9);
       }
@@ -208,7 +210,8 @@ TEST(SafetyFuzz, TenThousandRandomPlansAndCommandSequences) {
     const Plan plan = RandomPlan(rng, s);
     const std::int64_t total = plan.total_ticks();
     const int action = std::uniform_int_distribution<int>(0, 3)(rng);
-    const std::int64_t at = std::uniform_int_distribution<std::int64_t>(0, std::max<std::int64_t>(total, 1))(rng);
+    const std::int64_t at =
+        std::uniform_int_distribution<std::int64_t>(0, std::max<std::int64_t>(total, 1))(rng);
     RunnerOptions ro;
     ro.arm_watchdog = false;
     ProtocolRunner runner(safe, &log, nullptr, ro);
@@ -272,7 +275,8 @@ TEST(SafetyFuzz, TenThousandRandomPlansAndCommandSequences) {
   }
   // The fuzz exercised every branch.
   std::cout << "fuzz: ran " << ran << ", refused " << refused << ", e-stops " << estops
-            << ", catalog plans " << catalog_plans << ", catalog refused " << catalog_refused << "\n";
+            << ", catalog plans " << catalog_plans << ", catalog refused " << catalog_refused
+            << "\n";
   EXPECT_GT(ran, 3000);
   EXPECT_GT(refused, 5);  // ranges of motion outside 10–110°
   EXPECT_GT(estops, 500);

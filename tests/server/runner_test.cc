@@ -3,6 +3,8 @@
 // time and records the thesis's trials; tolerance test; rapid
 // parameterisation recovers the subject; e-stop, watchdog, cancel, one run
 // at a time, model-gated stimulation.
+#include "server/protocols/runner.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -18,7 +20,6 @@
 #include "server/protocols/bench_owner.h"
 #include "server/protocols/model_gate.h"
 #include "server/protocols/rapid_identification.h"
-#include "server/protocols/runner.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -115,7 +116,8 @@ TEST_P(EveryProtocol, RunsToCompletionAndRecordsThePlannedTrials) {
     EXPECT_NEAR(static_cast<double>(t.emg->num_samples()), 5.0 * stim.size(), 5.0);
     // One 50-sample torque offset before each stimulation segment.
     std::size_t offsets = 0;
-    for (const Step& s : plan->steps) offsets += s.trial == static_cast<int>(k) && s.phase == StepPhase::kOffset;
+    for (const Step& s : plan->steps)
+      offsets += s.trial == static_cast<int>(k) && s.phase == StepPhase::kOffset;
     EXPECT_EQ(r.trials[k].offsets_nm.size(), offsets);
     const std::vector<double>& angle = *t.Values("angle_deg");
     if (plan->trials[k].mode == MotorMode::kLocked) {
@@ -251,8 +253,9 @@ RapidOutcome RunRapidAndPredict(std::uint64_t seed) {
   // A fresh random-binary response of the same leg (another seed), gated by
   // the new parameter set, predicted from its measured initial state.
   ctx.parameter_set = out.run.parameter_set;
-  auto predict = MakePlan("prediction_random_binary",
-                          {{"seed", 11.0}, {"amplitude_ma", out.run.values.at("rb_amplitude_ma")}}, ctx);
+  auto predict =
+      MakePlan("prediction_random_binary",
+               {{"seed", 11.0}, {"amplitude_ma", out.run.values.at("rb_amplitude_ma")}}, ctx);
   EXPECT_TRUE(predict.ok());
   EXPECT_TRUE(CheckModelGate(*predict, ctx).ok());
   ProtocolRunner runner2(rig.safe, &rig.log, nullptr, NoWatchdog());
@@ -335,7 +338,8 @@ TEST(Runner, RapidWithoutInertiaFailsWithTheReason) {
   ctx.leg_length_m = rig.subject.anthropometrics.shank_length_m;
   auto j = KnownInertia(ctx);
   ASSERT_TRUE(j.ok());
-  EXPECT_NEAR(*j, 0.061 * ctx.body_mass_kg.value() * std::pow(0.735 * ctx.leg_length_m.value(), 2), 1e-12);
+  EXPECT_NEAR(*j, 0.061 * ctx.body_mass_kg.value() * std::pow(0.735 * ctx.leg_length_m.value(), 2),
+              1e-12);
 }
 
 // --- e-stop, watchdog, cancel, one run at a time, model gate -----------------------------
@@ -570,6 +574,25 @@ TEST(Runner, ReportsStatesProgressWithEtaSamplesAndTrials) {
   EXPECT_EQ(obs.samples, r.trials[0].trial.num_samples());
   EXPECT_EQ(obs.trials, 1);
   EXPECT_EQ(obs.finished, 1);
+  // One plan per runner.
+  const double t_before = rig.bench.Now_s();
+  const RunResult again = runner.Run(*plan, ctx);
+  EXPECT_EQ(again.state, RunState::kFailed);
+  EXPECT_EQ(rig.bench.Now_s(), t_before);
+}
+
+TEST(Runner, CancelBeforeStartAbortsAtOnce) {
+  Rig rig(7);
+  const SubjectContext ctx = Context(rig.subject);
+  auto plan = MakePlan("prediction_step", {}, ctx);
+  ASSERT_TRUE(plan.ok());
+  ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+  runner.Cancel("changed my mind");
+  const RunResult r = runner.Run(*plan, ctx);
+  EXPECT_EQ(r.state, RunState::kAborted);
+  EXPECT_EQ(r.reason, "changed my mind");
+  EXPECT_LE(r.bench_duration_s, 1e-3);
+  EXPECT_TRUE(rig.bench.DeliveredPulses().empty());
 }
 
 }  // namespace
