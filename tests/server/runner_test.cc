@@ -14,12 +14,14 @@
 #include <mutex>
 #include <numeric>
 
+#include "api/parameter_set_json.h"
 #include "model/identify_rapid.h"
 #include "model/simulate.h"
 #include "server/bench/simulated_bench.h"
 #include "server/protocols/bench_owner.h"
 #include "server/protocols/model_gate.h"
 #include "server/protocols/rapid_identification.h"
+#include "server/protocols/run_json.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -221,6 +223,37 @@ TEST(Runner, ToleranceTestFindsThresholdAndStopsWhereTheClinicianStops) {
   EXPECT_LT(r.bench_duration_s, plan->duration_s());
 }
 
+TEST(RunJson, SummarisesTheRunWithUnitsInKeys) {
+  Rig rig(7);
+  const SubjectContext ctx = Context(rig.subject);
+  auto plan = MakePlan("tolerance_test", {{"ceiling_ma", 30.0}, {"rate_ma_per_s", 5.0}}, ctx);
+  ASSERT_TRUE(plan.ok());
+  ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+  const RunResult r = runner.Run(*plan, ctx);
+  const nlohmann::json j = RunResultToJson(r);
+  EXPECT_EQ(j.at("state"), "done");
+  EXPECT_EQ(j.at("protocol"), "tolerance_test");
+  EXPECT_DOUBLE_EQ(j.at("parameters").at("ceiling_ma").get<double>(), 30.0);
+  ASSERT_EQ(j.at("trials").size(), 1u);
+  EXPECT_EQ(j.at("trials")[0].at("samples").get<std::size_t>(), r.trials[0].trial.num_samples());
+  EXPECT_NEAR(j.at("tolerance").at("max_tolerated_ma").get<double>(), 30.0, 0.05);
+  EXPECT_FALSE(j.contains("parameter_set"));
+  SafetyEvent e{SafetyEvent::Kind::kStimClamped, 1.5, 120.0, 45.0, "limited"};
+  const nlohmann::json ej = SafetyEventToJson(e);
+  EXPECT_EQ(ej.at("kind"), "stim_clamped");
+  EXPECT_DOUBLE_EQ(ej.at("requested").get<double>(), 120.0);
+  e.requested = std::nan("");
+  EXPECT_TRUE(SafetyEventToJson(e).at("requested").is_null());
+  Progress p;
+  p.fraction = 0.25;
+  p.phase = StepPhase::kStimulate;
+  EXPECT_EQ(ProgressToJson(p).at("phase"), "stimulate");
+  SampleBatch b;
+  b.t_s = {0.0, 0.005};
+  b.angle_deg = {90.0, 90.1};
+  EXPECT_EQ(SampleBatchToJson(b).at("angle_deg").size(), 2u);
+}
+
 TEST(Runner, ToleranceTestRunsToTheCeilingWithoutStop) {
   Rig rig(7);
   const SubjectContext ctx = Context(rig.subject);
@@ -285,6 +318,9 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinaryUnderThreeDegrees)
   const model::ParameterSet& p = *out.run.parameter_set;
   EXPECT_EQ(p.provenance.irc_method, "ramp_correlation");
   EXPECT_EQ(p.provenance.passive_method, "free_swing_known_inertia");
+  // A valid wire parameter set (DESIGN.md §3 JSON), as the run summary carries it.
+  const auto wire = api::ParameterSetFromJson(RunResultToJson(out.run).at("parameter_set"));
+  EXPECT_TRUE(wire.ok()) << wire.status().ToString();
   // Contraction pole (3rd order): series elasticity delays the twitch peak
   // (Fig. 6-13), so the estimate runs low; within 10 % (seeds 2–7: ≤ 8 %).
   EXPECT_EQ(p.contraction.order, 3);
