@@ -37,16 +37,21 @@ api::Result<ParameterSetSummary> ReadSummary(const Statement& s) {
 }
 
 api::Result<StoredParameterSet> GetIn(Connection& c, std::int64_t id) {
-  auto statement = c.Prepare("SELECT " + std::string(kSummaryColumns) +
-                             ", params_json FROM parameter_sets WHERE id = ?1");
-  if (!statement.ok()) return statement.status();
-  statement->Bind(1, id);
-  auto found = statement->Step();
-  if (!found.ok()) return found.status();
-  if (!*found) return api::Status::NotFound("parameter set " + std::to_string(id) + " not found");
-  auto summary = ReadSummary(*statement);
-  if (!summary.ok()) return summary.status();
-  const nlohmann::json json = nlohmann::json::parse(statement->Text(11), nullptr,
+  auto head = internal::One(
+      internal::QueryRows(
+          c,
+          "SELECT " + std::string(kSummaryColumns) +
+              ", params_json FROM parameter_sets WHERE id = ?1",
+          [](const Statement& s) -> api::Result<std::pair<ParameterSetSummary, std::string>> {
+            auto summary = ReadSummary(s);
+            if (!summary.ok()) return summary.status();
+            return std::pair{std::move(*summary), s.Text(11)};
+          },
+          id),
+      "parameter set", id);
+  if (!head.ok()) return head.status();
+  auto& [summary, json_text] = *head;
+  const nlohmann::json json = nlohmann::json::parse(json_text, nullptr,
                                                     /*allow_exceptions=*/false);
   if (json.is_discarded()) return internal::BadStoredValue("parameter set JSON");
   auto params = api::ParameterSetFromJson(json);
@@ -54,34 +59,21 @@ api::Result<StoredParameterSet> GetIn(Connection& c, std::int64_t id) {
     return api::Status::DataLoss("stored parameter set " + std::to_string(id) +
                                  " no longer validates: " + params.status().ToString());
   }
-  StoredParameterSet stored{std::move(*summary), std::move(*params), {}};
-  auto trials = c.Prepare(
-      "SELECT trial_id FROM parameter_set_trials WHERE parameter_set_id = ?1 ORDER BY trial_id");
-  if (!trials.ok()) return trials.status();
-  trials->Bind(1, id);
-  while (true) {
-    auto row = trials->Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    stored.trial_ids.push_back(trials->Int64(0));
-  }
-  return stored;
+  auto trial_ids = internal::QueryRows(
+      c, "SELECT trial_id FROM parameter_set_trials WHERE parameter_set_id = ?1 ORDER BY trial_id",
+      [](const Statement& s) { return s.Int64(0); }, id);
+  if (!trial_ids.ok()) return trial_ids.status();
+  return StoredParameterSet{std::move(summary), std::move(*params), std::move(*trial_ids)};
 }
 
 // Checks that trial `trial_id` exists and belongs to `subject_id`.
 api::Status CheckTrial(Connection& c, std::int64_t trial_id, std::int64_t subject_id,
                        const std::string& field) {
-  auto statement = c.Prepare(
-      "SELECT s.subject_id FROM trials t JOIN sessions s ON s.id = t.session_id WHERE t.id = ?1");
-  if (!statement.ok()) return statement.status();
-  statement->Bind(1, trial_id);
-  auto found = statement->Step();
-  if (!found.ok()) return found.status();
-  if (!*found) {
-    return api::Status(api::ErrorCode::kNotFound,
-                       "trial " + std::to_string(trial_id) + " not found", field);
-  }
-  if (statement->Int64(0) != subject_id) {
+  auto owner = internal::LookupInt64(
+      c, "SELECT s.subject_id FROM trials t JOIN sessions s ON s.id = t.session_id WHERE t.id = ?1",
+      trial_id, "trial");
+  if (!owner.ok()) return internal::WithField(owner.status(), field);
+  if (*owner != subject_id) {
     return api::Status::InvalidArgument(
         "trial " + std::to_string(trial_id) + " belongs to another subject", field);
   }
@@ -116,17 +108,7 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
         !s.ok()) {
       return s;
     }
-    auto leg = c.Prepare("SELECT subject_id FROM legs WHERE id = ?1");
-    if (!leg.ok()) return leg.status();
-    leg->Bind(1, set.leg_id);
-    auto leg_found = leg->Step();
-    if (!leg_found.ok()) return leg_found.status();
-    if (!*leg_found)
-      return api::Status::NotFound("leg " + std::to_string(set.leg_id) + " not found");
-    if (leg->Int64(0) != set.subject_id) {
-      return api::Status::InvalidArgument(
-          "leg " + std::to_string(set.leg_id) + " belongs to another subject", "leg_id");
-    }
+    if (auto s = internal::RequireLegOfSubject(c, set.leg_id, set.subject_id); !s.ok()) return s;
     for (std::size_t i = 0; i < params.provenance.trial_ids.size(); ++i) {
       if (auto s = CheckTrial(c, params.provenance.trial_ids[i], set.subject_id,
                               "provenance.trial_ids[" + std::to_string(i) + "]");
@@ -142,55 +124,46 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
       }
     }
     if (set.supersedes_id) {
-      auto old = c.Prepare("SELECT subject_id, leg_id FROM parameter_sets WHERE id = ?1");
-      if (!old.ok()) return old.status();
-      old->Bind(1, *set.supersedes_id);
-      auto found = old->Step();
-      if (!found.ok()) return found.status();
-      if (!*found) {
-        return api::Status(api::ErrorCode::kNotFound,
-                           "parameter set " + std::to_string(*set.supersedes_id) + " not found",
-                           "supersedes_id");
-      }
-      if (old->Int64(0) != set.subject_id || old->Int64(1) != set.leg_id) {
+      auto old = internal::One(internal::QueryRows(
+                                   c, "SELECT subject_id, leg_id FROM parameter_sets WHERE id = ?1",
+                                   [](const Statement& s) {
+                                     return std::pair{s.Int64(0), s.Int64(1)};
+                                   },
+                                   *set.supersedes_id),
+                               "parameter set", *set.supersedes_id);
+      if (!old.ok()) return internal::WithField(old.status(), "supersedes_id");
+      if (old->first != set.subject_id || old->second != set.leg_id) {
         return api::Status::InvalidArgument(
             "a set can only supersede one of the same subject and leg", "supersedes_id");
       }
     }
-    auto next = c.Prepare(
+    auto next = internal::QueryRows(
+        c,
         "SELECT COALESCE(MAX(version), 0) + 1 FROM parameter_sets WHERE subject_id = ?1"
-        " AND leg_id = ?2");
+        " AND leg_id = ?2",
+        [](const Statement& s) { return s.Int64(0); }, set.subject_id, set.leg_id);
     if (!next.ok()) return next.status();
-    next->Bind(1, set.subject_id).Bind(2, set.leg_id);
-    auto next_row = next->Step();
-    if (!next_row.ok()) return next_row.status();
-    const std::int64_t version = next->Int64(0);
+    const std::int64_t version = next->front();
 
     const UtcTime created_at = set.created_at.value_or(db_.Now());
-    auto insert = c.Prepare(
+    auto inserted = internal::InsertRow(
+        c,
         "INSERT INTO parameter_sets (subject_id, leg_id, version, model, irc_method,"
         " passive_method, active_method, software_version, supersedes_id, created_at_utc,"
-        " params_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, set.subject_id)
-        .Bind(2, set.leg_id)
-        .Bind(3, version)
-        .Bind(4, model::ModelKindName(params.model))
-        .Bind(5, params.provenance.irc_method)
-        .Bind(6, params.provenance.passive_method)
-        .Bind(7, params.provenance.active_method)
-        .Bind(8, params.provenance.software_version)
-        .Bind(9, set.supersedes_id)
-        .Bind(10, FormatUtc(created_at))
-        .Bind(11, json_text);
-    if (auto s = insert->Run(); !s.ok()) return s;
-    const std::int64_t id = c.LastInsertRowId();
+        " params_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+        set.subject_id, set.leg_id, version, model::ModelKindName(params.model),
+        params.provenance.irc_method, params.provenance.passive_method,
+        params.provenance.active_method, params.provenance.software_version, set.supersedes_id,
+        FormatUtc(created_at), json_text);
+    if (!inserted.ok()) return inserted.status();
+    const std::int64_t id = *inserted;
     for (std::int64_t trial_id : trial_ids) {
-      auto link = c.Prepare(
-          "INSERT INTO parameter_set_trials (parameter_set_id, trial_id) VALUES (?1, ?2)");
-      if (!link.ok()) return link.status();
-      link->Bind(1, id).Bind(2, trial_id);
-      if (auto s = link->Run(); !s.ok()) return s;
+      if (auto s = internal::Execute(
+              c, "INSERT INTO parameter_set_trials (parameter_set_id, trial_id) VALUES (?1, ?2)",
+              id, trial_id);
+          !s.ok()) {
+        return s;
+      }
     }
     ParameterSetSummary summary;
     summary.id = id;
@@ -238,46 +211,35 @@ api::Result<std::vector<ParameterSetSummary>> ParameterSetRepository::History(
         .Bind(6, static_cast<std::int64_t>(query.limit));
     if (query.leg_id) statement->Bind(4, *query.leg_id);
     if (query.method) statement->Bind(5, *query.method);
-    std::vector<ParameterSetSummary> history;
-    while (true) {
-      auto row = statement->Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      auto summary = ReadSummary(*statement);
-      if (!summary.ok()) return summary.status();
-      history.push_back(std::move(*summary));
-    }
-    return history;
+    return internal::ReadAll(*statement, ReadSummary);
   });
 }
 
 api::Result<StoredParameterSet> ParameterSetRepository::Latest(std::int64_t subject_id,
                                                                std::int64_t leg_id) {
   return db_.Read([&](Connection& c) -> api::Result<StoredParameterSet> {
-    auto statement = c.Prepare(
+    auto latest = internal::QueryRows(
+        c,
         "SELECT id FROM parameter_sets WHERE subject_id = ?1 AND leg_id = ?2"
-        " ORDER BY version DESC LIMIT 1");
-    if (!statement.ok()) return statement.status();
-    statement->Bind(1, subject_id).Bind(2, leg_id);
-    auto found = statement->Step();
-    if (!found.ok()) return found.status();
-    if (!*found) {
+        " ORDER BY version DESC LIMIT 1",
+        [](const Statement& s) { return s.Int64(0); }, subject_id, leg_id);
+    if (!latest.ok()) return latest.status();
+    if (latest->empty()) {
       return api::Status::NotFound("no parameter set for subject " + std::to_string(subject_id) +
                                    ", leg " + std::to_string(leg_id));
     }
-    return GetIn(c, statement->Int64(0));
+    return GetIn(c, latest->front());
   });
 }
 
 api::Result<std::string> ParameterSetRepository::ExportJson(std::int64_t id) {
   return db_.Read([&](Connection& c) -> api::Result<std::string> {
-    auto statement = c.Prepare("SELECT params_json FROM parameter_sets WHERE id = ?1");
-    if (!statement.ok()) return statement.status();
-    statement->Bind(1, id);
-    auto found = statement->Step();
-    if (!found.ok()) return found.status();
-    if (!*found) return api::Status::NotFound("parameter set " + std::to_string(id) + " not found");
-    const nlohmann::json json = nlohmann::json::parse(statement->Text(0), nullptr, false);
+    auto text = internal::One(internal::QueryRows(
+                                  c, "SELECT params_json FROM parameter_sets WHERE id = ?1",
+                                  [](const Statement& s) { return s.Text(0); }, id),
+                              "parameter set", id);
+    if (!text.ok()) return text.status();
+    const nlohmann::json json = nlohmann::json::parse(*text, nullptr, false);
     if (json.is_discarded()) return internal::BadStoredValue("parameter set JSON");
     return json.dump(2) + "\n";
   });

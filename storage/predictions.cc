@@ -10,77 +10,58 @@ namespace {
 
 api::Status RequireField(Connection& c, std::string_view sql, std::int64_t id,
                          std::string_view what, std::string field) {
-  auto status = internal::RequireRow(c, sql, id, what);
-  if (status.ok()) return status;
-  return api::Status(status.code(), status.message(), std::move(field));
+  return internal::WithField(internal::RequireRow(c, sql, id, what), std::move(field));
 }
 
 api::Result<std::vector<Prediction>> QueryPredictions(Connection& c, std::string_view where,
                                                       std::int64_t id) {
-  auto statement = c.Prepare(
+  return internal::QueryRows(
+      c,
       "SELECT id, parameter_set_id, trial_id, input_json, output_json, created_at_utc"
       " FROM predictions " +
-      std::string(where) + " ORDER BY id");
-  if (!statement.ok()) return statement.status();
-  statement->Bind(1, id);
-  std::vector<Prediction> out;
-  while (true) {
-    auto row = statement->Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    Prediction p;
-    p.id = statement->Int64(0);
-    p.prediction.parameter_set_id = statement->Int64(1);
-    p.prediction.trial_id = statement->OptionalInt64(2);
-    p.prediction.input_json = statement->Text(3);
-    p.prediction.output_json = statement->Text(4);
-    const auto created = ParseUtc(statement->Text(5));
-    if (!created) return internal::BadStoredValue("prediction");
-    p.created_at = *created;
-    out.push_back(std::move(p));
-  }
-  return out;
+          std::string(where) + " ORDER BY id",
+      [](const Statement& s) -> api::Result<Prediction> {
+        Prediction p;
+        p.id = s.Int64(0);
+        p.prediction.parameter_set_id = s.Int64(1);
+        p.prediction.trial_id = s.OptionalInt64(2);
+        p.prediction.input_json = s.Text(3);
+        p.prediction.output_json = s.Text(4);
+        const auto created = ParseUtc(s.Text(5));
+        if (!created) return internal::BadStoredValue("prediction");
+        p.created_at = *created;
+        return p;
+      },
+      id);
 }
 
 api::Result<std::vector<Evaluation>> QueryEvaluations(Connection& c, std::string_view where,
                                                       std::int64_t id) {
-  auto statement = c.Prepare(
+  return internal::QueryRows(
+      c,
       "SELECT id, parameter_set_id, trial_id, prediction_id, channel, unit, rms_error,"
       " max_abs_error, details_json, created_at_utc FROM evaluations " +
-      std::string(where) + " ORDER BY id");
-  if (!statement.ok()) return statement.status();
-  statement->Bind(1, id);
-  std::vector<Evaluation> out;
-  while (true) {
-    auto row = statement->Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    Evaluation e;
-    e.id = statement->Int64(0);
-    e.evaluation.parameter_set_id = statement->Int64(1);
-    e.evaluation.trial_id = statement->Int64(2);
-    e.evaluation.prediction_id = statement->OptionalInt64(3);
-    e.evaluation.channel = statement->Text(4);
-    e.evaluation.unit = statement->Text(5);
-    e.evaluation.rms_error = statement->Double(6);
-    e.evaluation.max_abs_error = statement->Double(7);
-    e.evaluation.details_json = statement->Text(8);
-    const auto created = ParseUtc(statement->Text(9));
-    if (!created) return internal::BadStoredValue("evaluation");
-    e.created_at = *created;
-    out.push_back(std::move(e));
-  }
-  return out;
+          std::string(where) + " ORDER BY id",
+      [](const Statement& s) -> api::Result<Evaluation> {
+        Evaluation e;
+        e.id = s.Int64(0);
+        e.evaluation.parameter_set_id = s.Int64(1);
+        e.evaluation.trial_id = s.Int64(2);
+        e.evaluation.prediction_id = s.OptionalInt64(3);
+        e.evaluation.channel = s.Text(4);
+        e.evaluation.unit = s.Text(5);
+        e.evaluation.rms_error = s.Double(6);
+        e.evaluation.max_abs_error = s.Double(7);
+        e.evaluation.details_json = s.Text(8);
+        const auto created = ParseUtc(s.Text(9));
+        if (!created) return internal::BadStoredValue("evaluation");
+        e.created_at = *created;
+        return e;
+      },
+      id);
 }
 
-template <typename T>
-api::Result<T> One(api::Result<std::vector<T>> rows, std::string_view what, std::int64_t id) {
-  if (!rows.ok()) return rows.status();
-  if (rows->empty()) {
-    return api::Status::NotFound(std::string(what) + " " + std::to_string(id) + " not found");
-  }
-  return std::move(rows->front());
-}
+using internal::One;
 
 }  // namespace
 
@@ -104,18 +85,13 @@ api::Result<Prediction> PredictionRepository::InsertPrediction(const NewPredicti
         return s;
       }
     }
-    auto insert = c.Prepare(
+    auto id = internal::InsertRow(
+        c,
         "INSERT INTO predictions (parameter_set_id, trial_id, input_json, output_json,"
-        " created_at_utc) VALUES (?1, ?2, ?3, ?4, ?5)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, p.parameter_set_id)
-        .Bind(2, p.trial_id)
-        .Bind(3, p.input_json)
-        .Bind(4, p.output_json)
-        .Bind(5, FormatUtc(db_.Now()));
-    if (auto s = insert->Run(); !s.ok()) return s;
-    const std::int64_t id = c.LastInsertRowId();
-    return One(QueryPredictions(c, "WHERE id = ?1", id), "prediction", id);
+        " created_at_utc) VALUES (?1, ?2, ?3, ?4, ?5)",
+        p.parameter_set_id, p.trial_id, p.input_json, p.output_json, FormatUtc(db_.Now()));
+    if (!id.ok()) return id.status();
+    return One(QueryPredictions(c, "WHERE id = ?1", *id), "prediction", *id);
   });
 }
 
@@ -163,33 +139,22 @@ api::Result<Evaluation> PredictionRepository::InsertEvaluation(const NewEvaluati
     if (e.prediction_id) {
       auto prediction = One(QueryPredictions(c, "WHERE id = ?1", *e.prediction_id), "prediction",
                             *e.prediction_id);
-      if (!prediction.ok()) {
-        return api::Status(prediction.status().code(), prediction.status().message(),
-                           "prediction_id");
-      }
+      if (!prediction.ok()) return internal::WithField(prediction.status(), "prediction_id");
       if (prediction->prediction.parameter_set_id != e.parameter_set_id) {
         return api::Status::InvalidArgument(
             "prediction " + std::to_string(*e.prediction_id) + " is of another parameter set",
             "prediction_id");
       }
     }
-    auto insert = c.Prepare(
+    auto id = internal::InsertRow(
+        c,
         "INSERT INTO evaluations (parameter_set_id, trial_id, prediction_id, channel, unit,"
         " rms_error, max_abs_error, details_json, created_at_utc)"
-        " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, e.parameter_set_id)
-        .Bind(2, e.trial_id)
-        .Bind(3, e.prediction_id)
-        .Bind(4, e.channel)
-        .Bind(5, e.unit)
-        .Bind(6, e.rms_error)
-        .Bind(7, e.max_abs_error)
-        .Bind(8, e.details_json)
-        .Bind(9, FormatUtc(db_.Now()));
-    if (auto s = insert->Run(); !s.ok()) return s;
-    const std::int64_t id = c.LastInsertRowId();
-    return One(QueryEvaluations(c, "WHERE id = ?1", id), "evaluation", id);
+        " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+        e.parameter_set_id, e.trial_id, e.prediction_id, e.channel, e.unit, e.rms_error,
+        e.max_abs_error, e.details_json, FormatUtc(db_.Now()));
+    if (!id.ok()) return id.status();
+    return One(QueryEvaluations(c, "WHERE id = ?1", *id), "evaluation", *id);
   });
 }
 

@@ -1,7 +1,6 @@
 #include "storage/sessions.h"
 
 #include <cmath>
-#include <functional>
 #include <nlohmann/json.hpp>
 
 #include "storage/row_helpers.h"
@@ -30,63 +29,46 @@ api::Result<SessionRevision> ReadRevision(const Statement& s, int first) {
   return revision;
 }
 
+// The sessions with their latest revision: `where` selects on s.
 api::Result<std::vector<Session>> QuerySessions(Connection& c, std::string_view where,
-                                                const std::function<void(Statement&)>& bind) {
+                                                std::int64_t id) {
   const std::string sql =
       "SELECT s.id, s.subject_id, s.leg_id, s.created_at_utc, " + std::string(kRevisionColumns) +
       " FROM sessions s JOIN session_revisions r ON r.session_id = s.id"
       " AND r.revision = (SELECT MAX(revision) FROM session_revisions WHERE session_id = s.id) " +
       std::string(where) + " ORDER BY s.id";
-  auto statement = c.Prepare(sql);
-  if (!statement.ok()) return statement.status();
-  bind(*statement);
-  std::vector<Session> sessions;
-  while (true) {
-    auto row = statement->Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    Session session;
-    session.id = statement->Int64(0);
-    session.subject_id = statement->Int64(1);
-    session.leg_id = statement->Int64(2);
-    const auto created = ParseUtc(statement->Text(3));
-    auto revision = ReadRevision(*statement, 4);
-    if (!created) return internal::BadStoredValue("session");
-    if (!revision.ok()) return revision.status();
-    session.created_at = *created;
-    session.current = std::move(*revision);
-    sessions.push_back(std::move(session));
-  }
-  return sessions;
+  return internal::QueryRows(
+      c, sql,
+      [](const Statement& s) -> api::Result<Session> {
+        Session session;
+        session.id = s.Int64(0);
+        session.subject_id = s.Int64(1);
+        session.leg_id = s.Int64(2);
+        const auto created = ParseUtc(s.Text(3));
+        auto revision = ReadRevision(s, 4);
+        if (!created) return internal::BadStoredValue("session");
+        if (!revision.ok()) return revision.status();
+        session.created_at = *created;
+        session.current = std::move(*revision);
+        return session;
+      },
+      id);
 }
 
 api::Result<Session> GetSession(Connection& c, std::int64_t id) {
-  auto sessions = QuerySessions(c, "WHERE s.id = ?1", [&](Statement& s) { s.Bind(1, id); });
-  if (!sessions.ok()) return sessions.status();
-  if (sessions->empty())
-    return api::Status::NotFound("session " + std::to_string(id) + " not found");
-  return std::move(sessions->front());
+  return internal::One(QuerySessions(c, "WHERE s.id = ?1", id), "session", id);
 }
 
 api::Status InsertRevision(Connection& c, std::int64_t session_id, int revision,
                            const SessionDetails& d, std::optional<std::int64_t> corrects_id,
                            std::string_view reason, UtcTime now) {
-  auto insert = c.Prepare(
+  return internal::Execute(
+      c,
       "INSERT INTO session_revisions (session_id, revision, session_date,"
       " accelerometer_placement, threshold_ma, max_tolerated_ma, notes, corrects_id, reason,"
-      " recorded_at_utc) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)");
-  if (!insert.ok()) return insert.status();
-  insert->Bind(1, session_id)
-      .Bind(2, revision)
-      .Bind(3, d.date)
-      .Bind(4, d.accelerometer_placement)
-      .Bind(5, d.threshold_ma)
-      .Bind(6, d.max_tolerated_ma)
-      .Bind(7, d.notes)
-      .Bind(8, corrects_id)
-      .Bind(9, reason)
-      .Bind(10, FormatUtc(now));
-  return insert->Run();
+      " recorded_at_utc) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+      session_id, revision, d.date, d.accelerometer_placement, d.threshold_ma, d.max_tolerated_ma,
+      d.notes, corrects_id, reason, FormatUtc(now));
 }
 
 api::Status CheckCurrent(const std::optional<double>& value, const char* field) {
@@ -107,47 +89,37 @@ constexpr std::string_view kRunSql =
     " FROM runs r ";
 
 api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where, std::int64_t id) {
-  auto statement = c.Prepare(std::string(kRunSql) + std::string(where) + " ORDER BY r.id");
-  if (!statement.ok()) return statement.status();
-  statement->Bind(1, id);
-  std::vector<Run> runs;
-  while (true) {
-    auto row = statement->Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    Run run;
-    run.id = statement->Int64(0);
-    run.session_id = statement->Int64(1);
-    run.protocol_name = statement->Text(2);
-    run.protocol_version = statement->Text(3);
-    run.parameters_json = statement->Text(4);
-    const auto created = ParseUtc(statement->Text(5));
-    const auto state = ParseRunState(statement->Text(6));
-    if (!created || !state) return internal::BadStoredValue("run");
-    run.created_at = *created;
-    run.state = *state;
-    run.message = statement->Text(7);
-    if (!statement->IsNull(8)) run.started_at = ParseUtc(statement->Text(8));
-    if (!statement->IsNull(9)) run.finished_at = ParseUtc(statement->Text(9));
-    runs.push_back(std::move(run));
-  }
-  return runs;
+  return internal::QueryRows(
+      c, std::string(kRunSql) + std::string(where) + " ORDER BY r.id",
+      [](const Statement& s) -> api::Result<Run> {
+        Run run;
+        run.id = s.Int64(0);
+        run.session_id = s.Int64(1);
+        run.protocol_name = s.Text(2);
+        run.protocol_version = s.Text(3);
+        run.parameters_json = s.Text(4);
+        const auto created = ParseUtc(s.Text(5));
+        const auto state = ParseRunState(s.Text(6));
+        if (!created || !state) return internal::BadStoredValue("run");
+        run.created_at = *created;
+        run.state = *state;
+        run.message = s.Text(7);
+        if (!s.IsNull(8)) run.started_at = ParseUtc(s.Text(8));
+        if (!s.IsNull(9)) run.finished_at = ParseUtc(s.Text(9));
+        return run;
+      },
+      id);
 }
 
 api::Result<Run> GetRunIn(Connection& c, std::int64_t id) {
-  auto runs = QueryRuns(c, "WHERE r.id = ?1", id);
-  if (!runs.ok()) return runs.status();
-  if (runs->empty()) return api::Status::NotFound("run " + std::to_string(id) + " not found");
-  return std::move(runs->front());
+  return internal::One(QueryRuns(c, "WHERE r.id = ?1", id), "run", id);
 }
 
 api::Status AppendRunEvent(Connection& c, std::int64_t run_id, RunState state,
                            std::string_view message, UtcTime now) {
-  auto insert =
-      c.Prepare("INSERT INTO run_events (run_id, state, message, at_utc) VALUES (?1, ?2, ?3, ?4)");
-  if (!insert.ok()) return insert.status();
-  insert->Bind(1, run_id).Bind(2, RunStateName(state)).Bind(3, message).Bind(4, FormatUtc(now));
-  return insert->Run();
+  return internal::Execute(
+      c, "INSERT INTO run_events (run_id, state, message, at_utc) VALUES (?1, ?2, ?3, ?4)", run_id,
+      RunStateName(state), message, FormatUtc(now));
 }
 
 }  // namespace
@@ -203,25 +175,14 @@ api::Result<Session> SessionRepository::Create(std::int64_t subject_id, std::int
         !s.ok()) {
       return s;
     }
-    auto leg = c.Prepare("SELECT subject_id FROM legs WHERE id = ?1");
-    if (!leg.ok()) return leg.status();
-    leg->Bind(1, leg_id);
-    auto found = leg->Step();
-    if (!found.ok()) return found.status();
-    if (!*found) return api::Status::NotFound("leg " + std::to_string(leg_id) + " not found");
-    if (leg->Int64(0) != subject_id) {
-      return api::Status::InvalidArgument(
-          "leg " + std::to_string(leg_id) + " belongs to another subject", "leg_id");
-    }
+    if (auto s = internal::RequireLegOfSubject(c, leg_id, subject_id); !s.ok()) return s;
     const UtcTime now = db_.Now();
-    auto insert =
-        c.Prepare("INSERT INTO sessions (subject_id, leg_id, created_at_utc) VALUES (?1, ?2, ?3)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, subject_id).Bind(2, leg_id).Bind(3, FormatUtc(now));
-    if (auto s = insert->Run(); !s.ok()) return s;
-    const std::int64_t id = c.LastInsertRowId();
-    if (auto s = InsertRevision(c, id, 1, details, std::nullopt, "", now); !s.ok()) return s;
-    return GetSession(c, id);
+    auto id = internal::InsertRow(
+        c, "INSERT INTO sessions (subject_id, leg_id, created_at_utc) VALUES (?1, ?2, ?3)",
+        subject_id, leg_id, FormatUtc(now));
+    if (!id.ok()) return id.status();
+    if (auto s = InsertRevision(c, *id, 1, details, std::nullopt, "", now); !s.ok()) return s;
+    return GetSession(c, *id);
   });
 }
 
@@ -236,8 +197,7 @@ api::Result<std::vector<Session>> SessionRepository::ListForSubject(std::int64_t
         !s.ok()) {
       return s;
     }
-    return QuerySessions(c, "WHERE s.subject_id = ?1",
-                         [&](Statement& s) { s.Bind(1, subject_id); });
+    return QuerySessions(c, "WHERE s.subject_id = ?1", subject_id);
   });
 }
 
@@ -246,15 +206,11 @@ api::Result<Session> SessionRepository::Correct(std::int64_t session_id,
                                                 std::string_view reason) {
   if (auto s = ValidateSessionDetails(details); !s.ok()) return s;
   if (reason.empty()) return api::Status::InvalidArgument("a correction needs a reason", "reason");
-  return db_.Write([&](Connection& c) -> api::Result<Session> {
-    auto session = GetSession(c, session_id);
-    if (!session.ok()) return session.status();
-    if (auto s = InsertRevision(c, session_id, session->current.revision + 1, details,
-                                session->current.id, reason, db_.Now());
-        !s.ok()) {
-      return s;
-    }
-    return GetSession(c, session_id);
+  return db_.Write([&](Connection& c) {
+    return internal::AppendCorrection(
+        c, session_id, GetSession, [&](int revision, std::int64_t corrects_id) {
+          return InsertRevision(c, session_id, revision, details, corrects_id, reason, db_.Now());
+        });
   });
 }
 
@@ -265,21 +221,12 @@ api::Result<std::vector<SessionRevision>> SessionRepository::Revisions(std::int6
         !s.ok()) {
       return s;
     }
-    auto statement = c.Prepare("SELECT " + std::string(kRevisionColumns) +
-                               " FROM session_revisions r WHERE r.session_id = ?1"
-                               " ORDER BY r.revision");
-    if (!statement.ok()) return statement.status();
-    statement->Bind(1, session_id);
-    std::vector<SessionRevision> revisions;
-    while (true) {
-      auto row = statement->Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      auto revision = ReadRevision(*statement, 0);
-      if (!revision.ok()) return revision.status();
-      revisions.push_back(std::move(*revision));
-    }
-    return revisions;
+    return internal::QueryRows(
+        c,
+        "SELECT " + std::string(kRevisionColumns) +
+            " FROM session_revisions r WHERE r.session_id = ?1"
+            " ORDER BY r.revision",
+        [](const Statement& s) { return ReadRevision(s, 0); }, session_id);
   });
 }
 
@@ -300,19 +247,14 @@ api::Result<Run> SessionRepository::CreateRun(std::int64_t session_id, const New
       return s;
     }
     const UtcTime now = db_.Now();
-    auto insert = c.Prepare(
+    auto id = internal::InsertRow(
+        c,
         "INSERT INTO runs (session_id, protocol_name, protocol_version, parameters_json,"
-        " created_at_utc) VALUES (?1, ?2, ?3, ?4, ?5)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, session_id)
-        .Bind(2, run.protocol_name)
-        .Bind(3, run.protocol_version)
-        .Bind(4, run.parameters_json)
-        .Bind(5, FormatUtc(now));
-    if (auto s = insert->Run(); !s.ok()) return s;
-    const std::int64_t id = c.LastInsertRowId();
-    if (auto s = AppendRunEvent(c, id, RunState::kQueued, "", now); !s.ok()) return s;
-    return GetRunIn(c, id);
+        " created_at_utc) VALUES (?1, ?2, ?3, ?4, ?5)",
+        session_id, run.protocol_name, run.protocol_version, run.parameters_json, FormatUtc(now));
+    if (!id.ok()) return id.status();
+    if (auto s = AppendRunEvent(c, *id, RunState::kQueued, "", now); !s.ok()) return s;
+    return GetRunIn(c, *id);
   });
 }
 

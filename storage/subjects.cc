@@ -31,66 +31,49 @@ api::Result<SubjectRevision> ReadRevision(const Statement& s, int first) {
   return revision;
 }
 
-// The subject with its latest revision: `where` selects on s.
+// The subjects with their latest revision: `where` selects on s with the
+// `key` values bound to ?1, ...
+template <typename... Key>
 api::Result<std::vector<Subject>> QuerySubjects(Connection& c, std::string_view where,
-                                                const std::function<void(Statement&)>& bind) {
+                                                const Key&... key) {
   const std::string sql =
       "SELECT s.id, s.code, s.created_at_utc, " + std::string(kRevisionColumns) +
       " FROM subjects s JOIN subject_revisions r ON r.subject_id = s.id"
       " AND r.revision = (SELECT MAX(revision) FROM subject_revisions WHERE subject_id = s.id) " +
       std::string(where) + " ORDER BY s.id";
-  auto statement = c.Prepare(sql);
-  if (!statement.ok()) return statement.status();
-  bind(*statement);
-  std::vector<Subject> subjects;
-  while (true) {
-    auto row = statement->Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    Subject subject;
-    subject.id = statement->Int64(0);
-    subject.code = statement->Text(1);
-    const auto created = ParseUtc(statement->Text(2));
-    auto revision = ReadRevision(*statement, 3);
-    if (!created) return internal::BadStoredValue("subject");
-    if (!revision.ok()) return revision.status();
-    subject.created_at = *created;
-    subject.current = std::move(*revision);
-    subjects.push_back(std::move(subject));
-  }
-  return subjects;
+  return internal::QueryRows(
+      c, sql,
+      [](const Statement& s) -> api::Result<Subject> {
+        Subject subject;
+        subject.id = s.Int64(0);
+        subject.code = s.Text(1);
+        const auto created = ParseUtc(s.Text(2));
+        auto revision = ReadRevision(s, 3);
+        if (!created) return internal::BadStoredValue("subject");
+        if (!revision.ok()) return revision.status();
+        subject.created_at = *created;
+        subject.current = std::move(*revision);
+        return subject;
+      },
+      key...);
 }
 
 api::Result<Subject> GetById(Connection& c, std::int64_t id) {
-  auto subjects = QuerySubjects(c, "WHERE s.id = ?1", [&](Statement& s) { s.Bind(1, id); });
-  if (!subjects.ok()) return subjects.status();
-  if (subjects->empty())
-    return api::Status::NotFound("subject " + std::to_string(id) + " not found");
-  return std::move(subjects->front());
+  return internal::One(QuerySubjects(c, "WHERE s.id = ?1", id), "subject", id);
 }
 
 api::Status InsertRevision(Connection& c, std::int64_t subject_id, int revision,
                            const SubjectDetails& d, std::optional<std::int64_t> corrects_id,
                            std::string_view reason, UtcTime now) {
-  auto insert = c.Prepare(
-      "INSERT INTO subject_revisions (subject_id, revision, age_years, sex, height_cm, weight_kg,"
-      " shank_length_cm, calf_circumference_cm, corrects_id, reason, recorded_at_utc)"
-      " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
-  if (!insert.ok()) return insert.status();
   std::optional<std::int64_t> age;
   if (d.age_years) age = *d.age_years;
-  insert->Bind(1, subject_id)
-      .Bind(2, revision)
-      .Bind(3, age)
-      .Bind(4, SexName(d.sex))
-      .Bind(5, d.height_cm)
-      .Bind(6, d.weight_kg)
-      .Bind(7, d.shank_length_cm)
-      .Bind(8, d.calf_circumference_cm)
-      .Bind(9, corrects_id)
-      .Bind(10, reason)
-      .Bind(11, FormatUtc(now));
-  return insert->Run();
+  return internal::Execute(
+      c,
+      "INSERT INTO subject_revisions (subject_id, revision, age_years, sex, height_cm, weight_kg,"
+      " shank_length_cm, calf_circumference_cm, corrects_id, reason, recorded_at_utc)"
+      " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+      subject_id, revision, age, SexName(d.sex), d.height_cm, d.weight_kg, d.shank_length_cm,
+      d.calf_circumference_cm, corrects_id, reason, FormatUtc(now));
 }
 
 api::Status CheckRange(const std::optional<double>& value, double low, double high,
@@ -177,23 +160,18 @@ api::Result<Subject> SubjectRepository::Create(std::string_view code,
   if (auto s = ValidateSubjectCode(code); !s.ok()) return s;
   if (auto s = ValidateSubjectDetails(details); !s.ok()) return s;
   return db_.Write([&](Connection& c) -> api::Result<Subject> {
-    auto existing = c.Prepare("SELECT id FROM subjects WHERE code = ?1");
+    auto existing = internal::RowExists(c, "SELECT 1 FROM subjects WHERE code = ?1", code);
     if (!existing.ok()) return existing.status();
-    existing->Bind(1, code);
-    auto found = existing->Step();
-    if (!found.ok()) return found.status();
-    if (*found) {
+    if (*existing) {
       return api::Status::AlreadyExists("subject code '" + std::string(code) + "' already exists",
                                         "code");
     }
     const UtcTime now = db_.Now();
-    auto insert = c.Prepare("INSERT INTO subjects (code, created_at_utc) VALUES (?1, ?2)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, code).Bind(2, FormatUtc(now));
-    if (auto s = insert->Run(); !s.ok()) return s;
-    const std::int64_t id = c.LastInsertRowId();
-    if (auto s = InsertRevision(c, id, 1, details, std::nullopt, "", now); !s.ok()) return s;
-    return GetById(c, id);
+    auto id = internal::InsertRow(c, "INSERT INTO subjects (code, created_at_utc) VALUES (?1, ?2)",
+                                  code, FormatUtc(now));
+    if (!id.ok()) return id.status();
+    if (auto s = InsertRevision(c, *id, 1, details, std::nullopt, "", now); !s.ok()) return s;
+    return GetById(c, *id);
   });
 }
 
@@ -203,7 +181,7 @@ api::Result<Subject> SubjectRepository::Get(std::int64_t subject_id) {
 
 api::Result<Subject> SubjectRepository::GetByCode(std::string_view code) {
   return db_.Read([&](Connection& c) -> api::Result<Subject> {
-    auto subjects = QuerySubjects(c, "WHERE s.code = ?1", [&](Statement& s) { s.Bind(1, code); });
+    auto subjects = QuerySubjects(c, "WHERE s.code = ?1", code);
     if (!subjects.ok()) return subjects.status();
     if (subjects->empty()) {
       return api::Status::NotFound("subject code '" + std::string(code) + "' not found");
@@ -213,7 +191,7 @@ api::Result<Subject> SubjectRepository::GetByCode(std::string_view code) {
 }
 
 api::Result<std::vector<Subject>> SubjectRepository::List() {
-  return db_.Read([&](Connection& c) { return QuerySubjects(c, "", [](Statement&) {}); });
+  return db_.Read([&](Connection& c) { return QuerySubjects(c, ""); });
 }
 
 api::Result<Subject> SubjectRepository::Correct(std::int64_t subject_id,
@@ -223,15 +201,11 @@ api::Result<Subject> SubjectRepository::Correct(std::int64_t subject_id,
   if (reason.empty()) {
     return api::Status::InvalidArgument("a correction needs a reason", "reason");
   }
-  return db_.Write([&](Connection& c) -> api::Result<Subject> {
-    auto subject = GetById(c, subject_id);
-    if (!subject.ok()) return subject.status();
-    if (auto s = InsertRevision(c, subject_id, subject->current.revision + 1, details,
-                                subject->current.id, reason, db_.Now());
-        !s.ok()) {
-      return s;
-    }
-    return GetById(c, subject_id);
+  return db_.Write([&](Connection& c) {
+    return internal::AppendCorrection(
+        c, subject_id, GetById, [&](int revision, std::int64_t corrects_id) {
+          return InsertRevision(c, subject_id, revision, details, corrects_id, reason, db_.Now());
+        });
   });
 }
 
@@ -242,21 +216,12 @@ api::Result<std::vector<SubjectRevision>> SubjectRepository::Revisions(std::int6
         !s.ok()) {
       return s;
     }
-    auto statement = c.Prepare("SELECT " + std::string(kRevisionColumns) +
-                               " FROM subject_revisions r WHERE r.subject_id = ?1"
-                               " ORDER BY r.revision");
-    if (!statement.ok()) return statement.status();
-    statement->Bind(1, subject_id);
-    std::vector<SubjectRevision> revisions;
-    while (true) {
-      auto row = statement->Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      auto revision = ReadRevision(*statement, 0);
-      if (!revision.ok()) return revision.status();
-      revisions.push_back(std::move(*revision));
-    }
-    return revisions;
+    return internal::QueryRows(
+        c,
+        "SELECT " + std::string(kRevisionColumns) +
+            " FROM subject_revisions r WHERE r.subject_id = ?1"
+            " ORDER BY r.revision",
+        [](const Statement& s) { return ReadRevision(s, 0); }, subject_id);
   });
 }
 
@@ -267,37 +232,31 @@ api::Result<Leg> SubjectRepository::AddLeg(std::int64_t subject_id, Side side) {
         !s.ok()) {
       return s;
     }
-    auto existing = c.Prepare("SELECT 1 FROM legs WHERE subject_id = ?1 AND side = ?2");
+    auto existing = internal::RowExists(c, "SELECT 1 FROM legs WHERE subject_id = ?1 AND side = ?2",
+                                        subject_id, SideName(side));
     if (!existing.ok()) return existing.status();
-    existing->Bind(1, subject_id).Bind(2, SideName(side));
-    auto found = existing->Step();
-    if (!found.ok()) return found.status();
-    if (*found) {
+    if (*existing) {
       return api::Status::AlreadyExists("subject " + std::to_string(subject_id) +
                                             " already has a " + std::string(SideName(side)) +
                                             " leg",
                                         "side");
     }
-    auto insert =
-        c.Prepare("INSERT INTO legs (subject_id, side, created_at_utc) VALUES (?1, ?2, ?3)");
-    if (!insert.ok()) return insert.status();
     const UtcTime now = db_.Now();
-    insert->Bind(1, subject_id).Bind(2, SideName(side)).Bind(3, FormatUtc(now));
-    if (auto s = insert->Run(); !s.ok()) return s;
-    return Leg{c.LastInsertRowId(), subject_id, side, now};
+    auto id = internal::InsertRow(
+        c, "INSERT INTO legs (subject_id, side, created_at_utc) VALUES (?1, ?2, ?3)", subject_id,
+        SideName(side), FormatUtc(now));
+    if (!id.ok()) return id.status();
+    return Leg{*id, subject_id, side, now};
   });
 }
 
 api::Result<Leg> SubjectRepository::GetLeg(std::int64_t leg_id) {
-  return db_.Read([&](Connection& c) -> api::Result<Leg> {
-    auto statement =
-        c.Prepare("SELECT id, subject_id, side, created_at_utc FROM legs WHERE id = ?1");
-    if (!statement.ok()) return statement.status();
-    statement->Bind(1, leg_id);
-    auto row = statement->Step();
-    if (!row.ok()) return row.status();
-    if (!*row) return api::Status::NotFound("leg " + std::to_string(leg_id) + " not found");
-    return ReadLeg(*statement);
+  return db_.Read([&](Connection& c) {
+    return internal::One(
+        internal::QueryRows(c,
+                            "SELECT id, subject_id, side, created_at_utc FROM legs WHERE id = ?1",
+                            ReadLeg, leg_id),
+        "leg", leg_id);
   });
 }
 
@@ -308,20 +267,10 @@ api::Result<std::vector<Leg>> SubjectRepository::Legs(std::int64_t subject_id) {
         !s.ok()) {
       return s;
     }
-    auto statement = c.Prepare(
-        "SELECT id, subject_id, side, created_at_utc FROM legs WHERE subject_id = ?1 ORDER BY id");
-    if (!statement.ok()) return statement.status();
-    statement->Bind(1, subject_id);
-    std::vector<Leg> legs;
-    while (true) {
-      auto row = statement->Step();
-      if (!row.ok()) return row.status();
-      if (!*row) break;
-      auto leg = ReadLeg(*statement);
-      if (!leg.ok()) return leg.status();
-      legs.push_back(*leg);
-    }
-    return legs;
+    return internal::QueryRows(
+        c,
+        "SELECT id, subject_id, side, created_at_utc FROM legs WHERE subject_id = ?1 ORDER BY id",
+        ReadLeg, subject_id);
   });
 }
 

@@ -14,35 +14,28 @@ constexpr std::string_view kUserSql =
     "SELECT u.id, u.name, u.role, u.created_at_utc,"
     " NOT EXISTS (SELECT 1 FROM user_deactivations d WHERE d.user_id = u.id) FROM users u ";
 
+template <typename... Key>
 api::Result<std::vector<User>> QueryUsers(Connection& c, std::string_view where,
-                                          const std::function<void(Statement&)>& bind) {
-  auto statement = c.Prepare(std::string(kUserSql) + std::string(where) + " ORDER BY u.id");
-  if (!statement.ok()) return statement.status();
-  bind(*statement);
-  std::vector<User> users;
-  while (true) {
-    auto row = statement->Step();
-    if (!row.ok()) return row.status();
-    if (!*row) break;
-    User user;
-    user.id = statement->Int64(0);
-    user.name = statement->Text(1);
-    const auto role = ParseRole(statement->Text(2));
-    const auto created = ParseUtc(statement->Text(3));
-    if (!role || !created) return internal::BadStoredValue("user");
-    user.role = *role;
-    user.created_at = *created;
-    user.active = statement->Int64(4) != 0;
-    users.push_back(std::move(user));
-  }
-  return users;
+                                          const Key&... key) {
+  return internal::QueryRows(
+      c, std::string(kUserSql) + std::string(where) + " ORDER BY u.id",
+      [](const Statement& s) -> api::Result<User> {
+        User user;
+        user.id = s.Int64(0);
+        user.name = s.Text(1);
+        const auto role = ParseRole(s.Text(2));
+        const auto created = ParseUtc(s.Text(3));
+        if (!role || !created) return internal::BadStoredValue("user");
+        user.role = *role;
+        user.created_at = *created;
+        user.active = s.Int64(4) != 0;
+        return user;
+      },
+      key...);
 }
 
 api::Result<User> GetUserIn(Connection& c, std::int64_t id) {
-  auto users = QueryUsers(c, "WHERE u.id = ?1", [&](Statement& s) { s.Bind(1, id); });
-  if (!users.ok()) return users.status();
-  if (users->empty()) return api::Status::NotFound("user " + std::to_string(id) + " not found");
-  return std::move(users->front());
+  return internal::One(QueryUsers(c, "WHERE u.id = ?1", id), "user", id);
 }
 
 api::Result<std::string> NewTokenText() {
@@ -94,19 +87,16 @@ api::Result<User> UserRepository::CreateUser(std::string_view name, Role role) {
     return api::Status::InvalidArgument("user name must have 1 to 64 characters", "name");
   }
   return db_.Write([&](Connection& c) -> api::Result<User> {
-    auto existing = c.Prepare("SELECT 1 FROM users WHERE name = ?1");
+    auto existing = internal::RowExists(c, "SELECT 1 FROM users WHERE name = ?1", name);
     if (!existing.ok()) return existing.status();
-    existing->Bind(1, name);
-    auto found = existing->Step();
-    if (!found.ok()) return found.status();
-    if (*found) {
+    if (*existing) {
       return api::Status::AlreadyExists("user '" + std::string(name) + "' already exists", "name");
     }
-    auto insert = c.Prepare("INSERT INTO users (name, role, created_at_utc) VALUES (?1, ?2, ?3)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, name).Bind(2, RoleName(role)).Bind(3, FormatUtc(db_.Now()));
-    if (auto s = insert->Run(); !s.ok()) return s;
-    return GetUserIn(c, c.LastInsertRowId());
+    auto id =
+        internal::InsertRow(c, "INSERT INTO users (name, role, created_at_utc) VALUES (?1, ?2, ?3)",
+                            name, RoleName(role), FormatUtc(db_.Now()));
+    if (!id.ok()) return id.status();
+    return GetUserIn(c, *id);
   });
 }
 
@@ -116,7 +106,7 @@ api::Result<User> UserRepository::GetUser(std::int64_t user_id) {
 
 api::Result<User> UserRepository::GetUserByName(std::string_view name) {
   return db_.Read([&](Connection& c) -> api::Result<User> {
-    auto users = QueryUsers(c, "WHERE u.name = ?1", [&](Statement& s) { s.Bind(1, name); });
+    auto users = QueryUsers(c, "WHERE u.name = ?1", name);
     if (!users.ok()) return users.status();
     if (users->empty()) return api::Status::NotFound("user '" + std::string(name) + "' not found");
     return std::move(users->front());
@@ -124,7 +114,7 @@ api::Result<User> UserRepository::GetUserByName(std::string_view name) {
 }
 
 api::Result<std::vector<User>> UserRepository::ListUsers() {
-  return db_.Read([&](Connection& c) { return QueryUsers(c, "", [](Statement&) {}); });
+  return db_.Read([&](Connection& c) { return QueryUsers(c, ""); });
 }
 
 api::Status UserRepository::DeactivateUser(std::int64_t user_id, std::string_view reason) {
@@ -135,11 +125,9 @@ api::Status UserRepository::DeactivateUser(std::int64_t user_id, std::string_vie
       return api::Status::FailedPrecondition("user " + std::to_string(user_id) +
                                              " is already deactivated");
     }
-    auto insert =
-        c.Prepare("INSERT INTO user_deactivations (user_id, reason, at_utc) VALUES (?1, ?2, ?3)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, user_id).Bind(2, reason).Bind(3, FormatUtc(db_.Now()));
-    return insert->Run();
+    return internal::Execute(
+        c, "INSERT INTO user_deactivations (user_id, reason, at_utc) VALUES (?1, ?2, ?3)", user_id,
+        reason, FormatUtc(db_.Now()));
   });
 }
 
@@ -155,19 +143,15 @@ api::Result<IssuedToken> UserRepository::IssueToken(std::int64_t user_id, std::s
     if (!user->active) {
       return api::Status::FailedPrecondition("user " + std::to_string(user_id) + " is deactivated");
     }
-    auto insert = c.Prepare(
-        "INSERT INTO tokens (user_id, token_sha256, label, created_at_utc, expires_at_utc)"
-        " VALUES (?1, ?2, ?3, ?4, ?5)");
-    if (!insert.ok()) return insert.status();
     std::optional<std::string> expires;
     if (expires_at) expires = FormatUtc(*expires_at);
-    insert->Bind(1, user_id)
-        .BindBlob(2, digest)
-        .Bind(3, label)
-        .Bind(4, FormatUtc(db_.Now()))
-        .Bind(5, expires);
-    if (auto s = insert->Run(); !s.ok()) return s;
-    return IssuedToken{c.LastInsertRowId(), *token, expires_at};
+    auto id = internal::InsertRow(
+        c,
+        "INSERT INTO tokens (user_id, token_sha256, label, created_at_utc, expires_at_utc)"
+        " VALUES (?1, ?2, ?3, ?4, ?5)",
+        user_id, digest, label, FormatUtc(db_.Now()), expires);
+    if (!id.ok()) return id.status();
+    return IssuedToken{*id, *token, expires_at};
   });
 }
 
@@ -203,10 +187,8 @@ api::Status UserRepository::RevokeToken(std::int64_t token_id) {
       return api::Status::FailedPrecondition("token " + std::to_string(token_id) +
                                              " is already revoked");
     }
-    auto insert = c.Prepare("INSERT INTO token_revocations (token_id, at_utc) VALUES (?1, ?2)");
-    if (!insert.ok()) return insert.status();
-    insert->Bind(1, token_id).Bind(2, FormatUtc(db_.Now()));
-    return insert->Run();
+    return internal::Execute(c, "INSERT INTO token_revocations (token_id, at_utc) VALUES (?1, ?2)",
+                             token_id, FormatUtc(db_.Now()));
   });
 }
 
