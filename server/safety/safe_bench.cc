@@ -33,6 +33,27 @@ SafetyLimits SafeBench::limits() const {
   return limits_;
 }
 
+double SafeBench::StimCeiling() const {
+  const double bench_max = bench_.limits().max_stim_ma;
+  std::lock_guard lock(mu_);
+  // A missing or non-finite session maximum means no stimulation at all.
+  if (!configured_ || !std::isfinite(limits_.max_stim_ma)) return 0.0;
+  return std::clamp(limits_.max_stim_ma, 0.0, std::max(bench_max, 0.0));
+}
+
+std::pair<double, double> SafeBench::AngleRange() const {
+  const double bench_lo = bench_.limits().min_angle_deg;
+  const double bench_hi = bench_.limits().max_angle_deg;
+  std::lock_guard lock(mu_);
+  // The subject's range, always inside the bench's; a non-finite or empty
+  // range shrinks to a point that is still inside the bench's range.
+  const double lo = std::isfinite(limits_.min_angle_deg)
+                        ? std::clamp(limits_.min_angle_deg, bench_lo, bench_hi) : bench_lo;
+  const double hi = std::isfinite(limits_.max_angle_deg)
+                        ? std::clamp(limits_.max_angle_deg, bench_lo, bench_hi) : bench_lo;
+  return {lo, std::max(lo, hi)};
+}
+
 void SafeBench::Emit(SafetyEvent event) const {
   if (sink_) sink_(event);
 }
@@ -42,12 +63,7 @@ void SafeBench::SetStimAmplitude(double stim_ma) {
     bench_.SetStimAmplitude(0.0);
     return;
   }
-  double max_ma;
-  {
-    std::lock_guard lock(mu_);
-    max_ma = configured_ ? std::min(limits_.max_stim_ma, bench_.limits().max_stim_ma) : 0.0;
-  }
-  max_ma = std::max(max_ma, 0.0);
+  const double max_ma = StimCeiling();
   double applied = stim_ma;
   if (!std::isfinite(stim_ma) || stim_ma < 0.0) applied = 0.0;
   if (applied > max_ma) applied = max_ma;
@@ -60,12 +76,8 @@ void SafeBench::SetStimAmplitude(double stim_ma) {
 
 void SafeBench::TriggerPulse(double stim_ma) {
   if (estop_.load() || watchdog_fired_.load()) return;
-  double max_ma;
-  {
-    std::lock_guard lock(mu_);
-    max_ma = configured_ ? std::min(limits_.max_stim_ma, bench_.limits().max_stim_ma) : 0.0;
-  }
-  double applied = std::isfinite(stim_ma) ? std::clamp(stim_ma, 0.0, std::max(max_ma, 0.0)) : 0.0;
+  const double max_ma = StimCeiling();
+  double applied = std::isfinite(stim_ma) ? std::clamp(stim_ma, 0.0, max_ma) : 0.0;
   if (applied != stim_ma) {
     Emit({SafetyEvent::Kind::kStimClamped, bench_.Now_s(), stim_ma, applied,
           "pulse limited to " + std::to_string(max_ma) + " mA"});
@@ -79,18 +91,12 @@ void SafeBench::SetMotorMode(MotorMode mode) {
 }
 
 void SafeBench::SetMotorSetpoint(double angle_deg) {
-  double lo, hi;
-  {
-    std::lock_guard lock(mu_);
-    lo = std::max(limits_.min_angle_deg, bench_.limits().min_angle_deg);
-    hi = std::min(limits_.max_angle_deg, bench_.limits().max_angle_deg);
-  }
+  const auto [lo, hi] = AngleRange();
   if (!std::isfinite(angle_deg)) {
     Emit({SafetyEvent::Kind::kSetpointClamped, bench_.Now_s(), angle_deg, kNaN,
           "non-finite set-point ignored"});
     return;
   }
-  if (lo > hi) hi = lo;  // an empty range collapses to its lower edge
   const double applied = std::clamp(angle_deg, lo, hi);
   if (applied != angle_deg) {
     Emit({SafetyEvent::Kind::kSetpointClamped, bench_.Now_s(), angle_deg, applied,

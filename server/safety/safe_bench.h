@@ -17,6 +17,7 @@
 #include <functional>
 #include <mutex>
 #include <string>
+#include <utility>
 
 #include "server/bench/bench.h"
 
@@ -87,6 +88,10 @@ class SafeBench {
 
  private:
   void Emit(SafetyEvent event) const;
+  /// min(session max, bench max), 0 when unconfigured or non-finite.
+  double StimCeiling() const;
+  /// The subject's range of motion intersected with the bench's, never empty.
+  std::pair<double, double> AngleRange() const;
   void CheckWatchdog();
   void MakeSafe();
 

@@ -90,6 +90,21 @@ TEST(SafeBench, ClampsSetpointsToRangeOfMotion) {
   EXPECT_EQ(f.hw.setpoints_.size(), 3u);  // ignored
 }
 
+TEST(SafeBench, NonsenseLimitsFailSafe) {
+  Fixture f;
+  f.safe.Configure({.max_stim_ma = std::numeric_limits<double>::quiet_NaN(),
+                    .min_angle_deg = 130.0, .max_angle_deg = 150.0});
+  f.safe.SetStimAmplitude(20.0);
+  EXPECT_EQ(f.hw.stim_history_.back(), 0.0);
+  f.safe.SetMotorSetpoint(140.0);
+  EXPECT_EQ(f.hw.setpoints_.back(), 110.0);  // never outside the bench's range
+  f.safe.Configure({.max_stim_ma = 40.0, .min_angle_deg = 80.0, .max_angle_deg = 60.0});
+  f.safe.SetMotorSetpoint(20.0);
+  EXPECT_EQ(f.hw.setpoints_.back(), 80.0);   // an empty range is a single point
+  f.safe.SetMotorSetpoint(100.0);
+  EXPECT_EQ(f.hw.setpoints_.back(), 80.0);
+}
+
 TEST(SafeBench, EStopLatchesUntilCleared) {
   Fixture f;
   f.safe.Configure({.max_stim_ma = 40.0});
