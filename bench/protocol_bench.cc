@@ -17,8 +17,7 @@ using namespace fesbench::server;
 using namespace fesbench::server::protocols;
 
 void BM_RapidParameterisation(benchmark::State& state) {
-  VirtualSubject vs = DrawVirtualSubject(7);
-  vs.fidelity.quantise_adc = false;  // see tests/server/runner_test.cc
+  const VirtualSubject vs = DrawVirtualSubject(7);
   SubjectContext ctx;
   ctx.threshold_ma = vs.threshold_ma;
   ctx.max_tolerated_ma = vs.max_tolerated_ma;

@@ -21,6 +21,8 @@ constexpr double kTorqueLsbNm = 0.0381;
 constexpr double kAdcMinCode = -2048.0, kAdcMaxCode = 2047.0;
 constexpr double kPotTurnDeg = 120.0;               // one potentiometer turn of knee rotation.
 constexpr double kAngleLsbDeg = kPotTurnDeg / 4096.0;
+// The potentiometer's turn spans 0–120° of flexion: mid-scale (code 0) is 60°.
+constexpr double kAngleMidScaleDeg = kPotTurnDeg / 2.0;
 constexpr double kAccelLsbM_s2 = 20.0 * kStandardGravity_m_s2 / 4096.0;  // ±10 g.
 
 // Motor (§5.1): PD servo at the knee, gearbox drag when unpowered.
@@ -30,7 +32,9 @@ constexpr double kDragNmPerDegS = 0.02;
 constexpr double kDragCoulombNm = 1.0;
 constexpr double kDragVelocityDegS = 1.0;
 constexpr double kLimitSwitchMarginDeg = 2.0;
-constexpr double kLockToleranceDeg = 0.05;
+// The lock engages once the servo has brought the brace near its set-point
+// and nearly still; gravity leaves the servo a droop of ~0.1–0.2°.
+constexpr double kLockToleranceDeg = 0.5;
 constexpr double kLockVelocityDegS = 5.0;
 
 // Hard stops: stiff one-sided spring–damper.
@@ -56,9 +60,10 @@ std::uint64_t SplitMix64(std::uint64_t x) {
 
 double UnitUniform(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1.0p-53; }
 
-double Quantise(double value, double lsb) {
-  const double code = std::clamp(std::round(value / lsb), kAdcMinCode, kAdcMaxCode);
-  return code * lsb;
+// The 12-bit A/D reading of value, for a channel whose code 0 is mid_scale.
+double Quantise(double value, double lsb, double mid_scale = 0.0) {
+  const double code = std::clamp(std::round((value - mid_scale) / lsb), kAdcMinCode, kAdcMaxCode);
+  return mid_scale + code * lsb;
 }
 
 model::ContractionParams AlternateContraction(const model::ContractionParams& c) {
@@ -499,7 +504,7 @@ SensorFrame SimulatedBench::ReadSensors() {
                  fid.pot_nonlinearity * kPotTurnDeg *
                      std::sin(2.0 * model::kPi * (truth.angle_deg - 90.0) / kPotTurnDeg) +
                  fid.angle_noise_deg * Noise(kNoiseAngle, t_);
-  if (fid.quantise_adc) angle = Quantise(angle, kAngleLsbDeg);
+  if (fid.quantise_adc) angle = Quantise(angle, kAngleLsbDeg, kAngleMidScaleDeg);
   frame.angle_deg = angle;
   // Strain gauge, always through the 12-bit A/D (0.0381 N·m/LSB, ±78 N·m).
   frame.torque_nm =

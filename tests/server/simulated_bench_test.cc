@@ -338,6 +338,34 @@ TEST(SimulatedBench, PotentiometerNonLinearityIsOnePercentOfATurn) {
   EXPECT_NEAR(bench.ReadSensors().angle_deg, 60.0 - 1.2, 1e-9);
 }
 
+TEST(SimulatedBench, AngleChannelCoversTheRangeInTwelveBits) {
+  // One potentiometer turn (120°) over 4096 codes, mid-scale at 60°: every
+  // angle of the bench's 10–110° range reads within half an LSB.
+  Fidelity fid = Fidelity::Off();
+  fid.quantise_adc = true;
+  for (double angle : {10.0, 33.3, 60.0, 90.0, 110.0}) {
+    SimulatedBench bench(ExampleSubject(fid), Options(angle, MotorMode::kLocked));
+    bench.AdvanceTo(0.01);
+    EXPECT_NEAR(bench.ReadSensors().angle_deg, angle, 120.0 / 4096 / 2 + 1e-9) << angle;
+  }
+}
+
+TEST(SimulatedBench, LockEngagesDespiteServoDroopUnderGravity) {
+  // Start the servo off its set-point: it must carry the leg there and the
+  // lock must then hold it rigidly (θ̈ = 0), however strong the muscle.
+  SimulatedBenchOptions o = Options(90.0, MotorMode::kLocked);
+  o.initial_angle_deg = 70.0;
+  SimulatedBench bench(ExampleSubject(Fidelity::Off()), o);
+  bench.AdvanceTo(1.0);
+  ASSERT_TRUE(bench.Truth().lock_engaged);
+  const double held = bench.Truth().angle_deg;
+  EXPECT_NEAR(held, 90.0, 0.5);
+  bench.SetStimAmplitude(45.0);  // 40 N·m of quadriceps torque against the lock
+  bench.AdvanceTo(3.0);
+  EXPECT_EQ(bench.Truth().angle_deg, held);
+  EXPECT_GT(bench.ReadSensors().torque_nm, 30.0);
+}
+
 TEST(SimulatedBench, EmgHasOneSamplePerMillisecondAndVoluntaryBursts) {
   Fidelity fid = Fidelity::Default();
   fid.cocontraction_per_min = 30.0;
