@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "model/grid_golden_search.h"
+
 namespace fesbench::model {
 namespace {
 
@@ -319,30 +321,10 @@ SmoothingSplineFit GcvSmoothingSpline(std::span<const double> t_s, std::span<con
     sys.Solve(unit * std::pow(10.0, log10_rho));
     return sys.Gcv();
   };
-  constexpr double kLo = -4.0, kHi = 16.0, kStep = 1.0;
-  double best_x = kLo, best_g = std::numeric_limits<double>::infinity();
-  for (double x = kLo; x <= kHi + 1e-9; x += kStep) {
-    const double g = gcv_at(x);
-    if (g < best_g) best_g = g, best_x = x;
-  }
-  // Golden-section refinement within one grid step either side.
-  double a = best_x - kStep, b = best_x + kStep;
-  const double r = (std::sqrt(5.0) - 1.0) / 2.0;
-  double c = b - r * (b - a), d = a + r * (b - a);
-  double gc = gcv_at(c), gd = gcv_at(d);
-  for (int it = 0; it < 20; ++it) {
-    if (gc < gd) {
-      b = d, d = c, gd = gc;
-      c = b - r * (b - a);
-      gc = gcv_at(c);
-    } else {
-      a = c, c = d, gc = gd;
-      d = a + r * (b - a);
-      gd = gcv_at(d);
-    }
-  }
-  double x = gc < gd ? c : d;
-  if (std::min(gc, gd) > best_g) x = best_x;
+  // log10 ρ on a grid of step 1 over [-4, 16], then golden-section
+  // refinement within one grid step either side.
+  const GridGoldenResult search = GridGoldenSearch(gcv_at, -4.0, 16.0, 20, 20);
+  const double x = search.golden.cost > search.grid.cost ? search.grid.x : search.golden.x;
   sys.Solve(unit * std::pow(10.0, x));
   return sys.Result();
 }

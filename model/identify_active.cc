@@ -62,14 +62,11 @@ ActiveResult IdentifyActive(std::span<const TrialColumns> trials, const PassiveP
     throw std::invalid_argument(std::string(what) + ": fewer active samples than parameters");
   }
   // Eq. 4.40.
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(total), ma + mv + 1);
+  Eigen::MatrixXd a = AngleVelocityDesign(bp_a, angle, bp_v, vel, 1);
+  a.col(ma + mv).setOnes();
   Eigen::VectorXd b(static_cast<Eigen::Index>(total));
   for (std::size_t i = 0; i < total; ++i) {
-    const auto r = static_cast<Eigen::Index>(i);
-    SetPwlBasisRow(a, r, 0, bp_a, angle[i]);
-    SetPwlBasisRow(a, r, ma, bp_v, vel[i]);
-    a(r, ma + mv) = 1.0;
-    b(r) = std::log(tau[i] / act[i]);  // Eq. 4.39
+    b(static_cast<Eigen::Index>(i)) = std::log(tau[i] / act[i]);  // Eq. 4.39
   }
   const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, options.relative_tolerance);
   std::vector<double> fata(static_cast<std::size_t>(ma)), fatv(static_cast<std::size_t>(mv));

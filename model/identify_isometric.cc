@@ -10,6 +10,8 @@
 #include <string>
 #include <unsupported/Eigen/FFT>
 
+#include "model/grid_golden_search.h"
+
 namespace fesbench::model {
 namespace {
 
@@ -245,31 +247,9 @@ TwitchFit FitTwitchPole(std::span<const double> t_s, std::span<const double> tor
     return FitTwitchGain(t_s, torque_nm, order, std::exp(log_a)).rms_nm;
   };
   const double lo = std::log(initial_pole_per_s / 4.0), hi = std::log(initial_pole_per_s * 4.0);
-  constexpr int kGrid = 24;
-  double best = lo, best_c = std::numeric_limits<double>::infinity();
-  const double step = (hi - lo) / kGrid;
-  for (int i = 0; i <= kGrid; ++i) {
-    const double x = lo + step * i;
-    const double c = cost(x);
-    if (c < best_c) best_c = c, best = x;
-  }
-  double a = best - step, b = best + step;
-  const double r = (std::sqrt(5.0) - 1.0) / 2.0;
-  double c = b - r * (b - a), d = a + r * (b - a);
-  double fc = cost(c), fd = cost(d);
-  for (int it = 0; it < 40; ++it) {
-    if (fc < fd) {
-      b = d, d = c, fd = fc;
-      c = b - r * (b - a);
-      fc = cost(c);
-    } else {
-      a = c, c = d, fc = fd;
-      d = a + r * (b - a);
-      fd = cost(d);
-    }
-  }
-  const double x = fc < fd ? c : d;
-  return FitTwitchGain(t_s, torque_nm, order, std::exp(std::min(fc, fd) < best_c ? x : best));
+  const GridGoldenResult search = GridGoldenSearch(cost, lo, hi, 24, 40);
+  const double x = search.golden.cost < search.grid.cost ? search.golden.x : search.grid.x;
+  return FitTwitchGain(t_s, torque_nm, order, std::exp(x));
 }
 
 ContractionResult IdentifyContraction(std::span<const TrialColumns> trials,

@@ -173,12 +173,10 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
     throw std::invalid_argument(std::string(what) + ": fewer samples than parameters");
   }
   // Eq. 4.31: [X(θ) | X(θ̇) | θ̈] · c = τ.
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(total), ma + mv + 1);
+  Eigen::MatrixXd a = AngleVelocityDesign(bp_a, angle, bp_v, vel, 1);
   Eigen::VectorXd b(static_cast<Eigen::Index>(total));
   for (std::size_t i = 0; i < total; ++i) {
     const auto r = static_cast<Eigen::Index>(i);
-    SetPwlBasisRow(a, r, 0, bp_a, angle[i]);
-    SetPwlBasisRow(a, r, ma, bp_v, vel[i]);
     a(r, ma + mv) = DegToRad(acc[i]);
     b(r) = tq[i];
   }

@@ -138,24 +138,24 @@ SimplifiedResult IdentifySimplified(ModelKind kind, std::span<const TrialColumns
     rms = Rms(s, [&](double, double) { return k; });
   } else if (kind == ModelKind::kSingleSegment) {  // Eqs. 5.1–5.2
     double a = 0.0, b = 1.0, c = 0.0, d = 1.0;     // τ_scale absorbed in (a, b)
-    for (int it = 0; it < options.iterations; ++it) {
+    const Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(s.tau.data(), n);
+    // One half-step of the alternating fit: τ ≈ act·(p·x + q)·(slope·z +
+    // offset) solved for (p, q) with the other line held fixed.
+    const auto fit_line = [&](const std::vector<double>& x, const std::vector<double>& z,
+                              double slope, double offset) {
       Eigen::MatrixXd m(n, 2);
-      Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(s.tau.data(), n);
       for (Eigen::Index i = 0; i < n; ++i) {
         const auto k = static_cast<std::size_t>(i);
-        const double g = s.act[k] * (c * s.vel[k] + d);
-        m(i, 0) = g * s.angle[k];
+        const double g = s.act[k] * (slope * z[k] + offset);
+        m(i, 0) = g * x[k];
         m(i, 1) = g;
       }
-      Eigen::VectorXd ab = Lsq(m, y);
+      return Lsq(m, y);
+    };
+    for (int it = 0; it < options.iterations; ++it) {
+      const Eigen::VectorXd ab = fit_line(s.angle, s.vel, c, d);
       a = ab(0), b = ab(1);
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const auto k = static_cast<std::size_t>(i);
-        const double h = s.act[k] * (a * s.angle[k] + b);
-        m(i, 0) = h * s.vel[k];
-        m(i, 1) = h;
-      }
-      Eigen::VectorXd cd = Lsq(m, y);
+      const Eigen::VectorXd cd = fit_line(s.vel, s.angle, a, b);
       c = cd(0), d = cd(1);
     }
     const double ka = a * kReferenceAngleDeg + b;
