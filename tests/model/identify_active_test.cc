@@ -12,6 +12,7 @@
 #include "model/simulate.h"
 #include "model/stimulus_generators.h"
 #include "model/units.h"
+#include "tests/model/identify_test_helpers.h"
 
 namespace fesbench::model {
 namespace {
@@ -20,19 +21,7 @@ TrialColumns FreeSwing(const ParameterSet& p, std::uint64_t seed,
                        std::optional<ModelKind> kind = {}) {
   const SampledSignal env = MakeStimulus(
       "random_binary_dense", {{"amplitude_ma", 26}, {"seed", static_cast<double>(seed)}});
-  SimulationOptions opt;
-  opt.duration_s = env.EndTime();
-  opt.model_kind = kind;
-  const auto sim = SimulateFreeSwing(p, PulsesFromEnvelope(env, kDefaultPulseRateHz), opt);
-  TrialColumns tr;
-  tr.t_s = sim.t_s;
-  tr.stim_ma = sim.stim_ma;
-  tr.angle_deg = sim.angle_deg;
-  tr.velocity_deg_s = sim.velocity_deg_s;
-  tr.accel_deg_s2 = sim.accel_deg_s2;
-  tr.torque_nm = sim.torque_nm;
-  tr.activation = sim.activation;
-  return tr;
+  return test_helpers::SimulatedFreeSwing(p, env, kind);
 }
 
 // Range of the samples the active fit uses.

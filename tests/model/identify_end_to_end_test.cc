@@ -16,26 +16,17 @@
 #include "model/simulate.h"
 #include "model/stimulus_generators.h"
 #include "model/trajectory.h"
+#include "tests/model/identify_test_helpers.h"
 
 namespace fesbench::model {
 namespace {
 
+// Activation deliberately left out: it is recomputed from the identified model.
 TrialColumns Columns(const SimulationResult& sim) {
-  TrialColumns tr;
-  tr.t_s = sim.t_s;
-  tr.stim_ma = sim.stim_ma;
-  tr.angle_deg = sim.angle_deg;
-  tr.velocity_deg_s = sim.velocity_deg_s;
-  tr.accel_deg_s2 = sim.accel_deg_s2;
-  tr.torque_nm = sim.torque_nm;
-  return tr;  // activation deliberately left out: it is recomputed
+  return test_helpers::ColumnsOf(sim, test_helpers::Activation::kLeaveOut);
 }
 
-SimulationOptions For(const SampledSignal& env) {
-  SimulationOptions o;
-  o.duration_s = env.EndTime();
-  return o;
-}
+using test_helpers::WholeEnvelope;
 
 TEST(IdentifyEndToEnd, IdentifiedLegPredictsRandomBinaryResponseWithin1Degree) {
   const ParameterSet truth = ExampleParameterSet();
@@ -45,7 +36,7 @@ TEST(IdentifyEndToEnd, IdentifiedLegPredictsRandomBinaryResponseWithin1Degree) {
   // Isometric: contraction dynamics and IRC (§5.3).
   const SampledSignal ramp_env = MakeStimulus("isometric_ramp_irc", range);
   const TrialColumns ramp = Columns(SimulateIsometric(
-      truth, PulsesFromEnvelope(ramp_env, kDefaultPulseRateHz), 90.0, For(ramp_env)));
+      truth, PulsesFromEnvelope(ramp_env, kDefaultPulseRateHz), 90.0, WholeEnvelope(ramp_env)));
   ParameterSet est;
   est.contraction = IdentifyContraction(std::span(&ramp, 1)).contraction;
   const IrcResult irc = IdentifyIrc(IrcMethod::kRampCorrelation, ramp);
@@ -73,7 +64,7 @@ TEST(IdentifyEndToEnd, IdentifiedLegPredictsRandomBinaryResponseWithin1Degree) {
     const SampledSignal env =
         MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", seed}});
     const PulseTrain pulses = PulsesFromEnvelope(env, kDefaultPulseRateHz);
-    TrialColumns tr = Columns(SimulateFreeSwing(truth, pulses, For(env)));
+    TrialColumns tr = Columns(SimulateFreeSwing(truth, pulses, WholeEnvelope(env)));
     tr.activation = ActivationAt(est.contraction, est.irc, pulses, kDefaultPulseRateHz, tr.t_s);
     active.push_back(std::move(tr));
   }
@@ -84,8 +75,8 @@ TEST(IdentifyEndToEnd, IdentifiedLegPredictsRandomBinaryResponseWithin1Degree) {
   const SampledSignal test_env =
       MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 99}});
   const PulseTrain test_pulses = PulsesFromEnvelope(test_env, kDefaultPulseRateHz);
-  const auto measured = SimulateFreeSwing(truth, test_pulses, For(test_env));
-  const auto predicted = SimulateFreeSwing(est, test_pulses, For(test_env));
+  const auto measured = SimulateFreeSwing(truth, test_pulses, WholeEnvelope(test_env));
+  const auto predicted = SimulateFreeSwing(est, test_pulses, WholeEnvelope(test_env));
   const double rms_deg = RmsError(predicted.angle_deg, measured.angle_deg);
   EXPECT_LT(rms_deg, 1.0);
   RecordProperty("knee_angle_rms_deg", std::to_string(rms_deg));

@@ -13,26 +13,17 @@
 #include "model/stimulus_generators.h"
 #include "model/trajectory.h"
 #include "model/units.h"
+#include "tests/model/identify_test_helpers.h"
 
 namespace fesbench::model {
 namespace {
 
-TrialColumns FromSimulation(const SimulationResult& sim) {
-  TrialColumns tr;
-  tr.t_s = sim.t_s;
-  tr.stim_ma = sim.stim_ma;
-  tr.angle_deg = sim.angle_deg;
-  tr.velocity_deg_s = sim.velocity_deg_s;
-  tr.accel_deg_s2 = sim.accel_deg_s2;
-  tr.torque_nm = sim.torque_nm;
-  tr.activation = sim.activation;
-  return tr;
-}
+using test_helpers::ColumnsOf;
 
 TrialColumns MotorTrial(const ParameterSet& p, const Trajectory& traj) {
   SimulationOptions opt;
   opt.duration_s = traj.duration_s();
-  return FromSimulation(SimulateTrajectory(p, {}, traj, opt));
+  return ColumnsOf(SimulateTrajectory(p, {}, traj, opt));
 }
 
 // Truth whose τ_ptv breakpoints lie inside the ±200 deg/s the trajectories
@@ -165,10 +156,7 @@ TEST(IdentifyPassiveFreeSwing, RecoversTorqueVelocityAndInertia) {
   p.passive = ReferencePassive(p.passive);
   const SampledSignal env =
       MakeStimulus("random_binary_sparse", {{"amplitude_ma", 40}, {"seed", 5}});
-  SimulationOptions opt;
-  opt.duration_s = env.EndTime();
-  const TrialColumns tr =
-      FromSimulation(SimulateFreeSwing(p, PulsesFromEnvelope(env, kDefaultPulseRateHz), opt));
+  const TrialColumns tr = test_helpers::SimulatedFreeSwing(p, env);
   FreeSwingPassiveOptions o;
   o.velocity.explicit_x = p.passive.torque_velocity.x();
   const PassiveResult r = IdentifyPassiveFreeSwing(std::span(&tr, 1), p.passive.torque_angle, o);
