@@ -15,6 +15,7 @@ constexpr CommandRegistrar kCommands[] = {
     RegisterSimulateCommand,
     RegisterStimulusCommand,
     RegisterIdentifyCommand,
+    RegisterExampleCommand,
 };
 
 // One line: CLI11 and library messages may carry newlines.
@@ -37,7 +38,7 @@ int RunModelCli(int argc, const char* const* argv, std::ostream& out, std::ostre
   try {
     CliContext context{out, err};
     CLI::App app(
-        "fesbench-model: offline muscle-joint model tools (simulate, generate stimuli).\n"
+        "fesbench-model: offline muscle-joint model tools (simulate, generate stimuli, identify).\n"
         "Exit codes: 0 ok, 1 bad input data, 2 usage error.",
         "fesbench-model");
     app.require_subcommand(1);

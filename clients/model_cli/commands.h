@@ -20,4 +20,7 @@ void RegisterStimulusCommand(CLI::App& app, CliContext& context);
 /// (identify_command.cc).
 void RegisterIdentifyCommand(CLI::App& app, CliContext& context);
 
+/// `example`: writes the example parameter set JSON (example_command.cc).
+void RegisterExampleCommand(CLI::App& app, CliContext& context);
+
 }  // namespace fesbench::cli

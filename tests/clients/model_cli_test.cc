@@ -222,8 +222,21 @@ TEST_F(ModelCliTest, StimulusParamsListAndStdout) {
   EXPECT_THAT(r.out, HasSubstr("max_velocity_deg_s  unit deg/s"));
 }
 
+TEST_F(ModelCliTest, ExampleParameterSetIsAValidStartingPoint) {
+  const std::string params = Path("example.json");
+  ASSERT_EQ(Run("example --out '" + params + "'").exit_code, 0);
+  const auto parsed = api::ParameterSetFromJson(nlohmann::json::parse(Read(params)));
+  ASSERT_TRUE(parsed.ok()) << parsed.status().ToString();
+  EXPECT_EQ(*parsed, model::ExampleParameterSet());
+  const RunResult to_stdout = Run("example");
+  EXPECT_EQ(to_stdout.exit_code, 0);
+  EXPECT_EQ(to_stdout.out, Read(params));
+  EXPECT_EQ(Run("example --out /nonexistent-dir/p.json").exit_code, 1);
+}
+
 TEST_F(ModelCliTest, HelpOnEveryCommand) {
-  for (const std::string args : {"--help", "simulate --help", "stimulus --help"}) {
+  for (const std::string args :
+       {"--help", "simulate --help", "stimulus --help", "identify --help", "example --help"}) {
     const RunResult r = Run(args);
     EXPECT_EQ(r.exit_code, 0) << args;
     EXPECT_THAT(r.out, HasSubstr("Usage")) << args;
