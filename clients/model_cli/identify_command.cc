@@ -331,7 +331,8 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
   rep["fit_rms"] = report.fit_rms;
   rep["values"] = report.values;
   rep["warnings"] = report.warnings;
-  context.out << rep.dump(2) << "\n";
+  // One line: the summary, and easy to grep or parse in scripts.
+  context.out << rep.dump() << "\n";
 }
 
 }  // namespace

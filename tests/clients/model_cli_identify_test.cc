@@ -3,6 +3,8 @@
 // command line, and the parameter set read back.
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
 #include <unistd.h>
 
 #include <filesystem>
@@ -80,7 +82,9 @@ TEST_F(IdentifyCliTest, IsometricRampGivesPoleAndIrc) {
   ASSERT_EQ(Run({"identify", "contraction", "--trial", trial, "--out", Path("c.json")}), kExitOk)
       << err_.str();
   EXPECT_NEAR(ReadParams(Path("c.json")).contraction.pole_per_s, 25.0, 0.5);
-  const auto report = nlohmann::json::parse(out_.str());
+  const std::string summary = out_.str();
+  EXPECT_EQ(std::count(summary.begin(), summary.end(), '\n'), 1);  // a one-line summary
+  const auto report = nlohmann::json::parse(summary);
   EXPECT_TRUE(report["fit_rms"].contains("twitch_order3_ls"));
 
   ASSERT_EQ(Run({"identify", "irc_ramp_correlation", "--trial", trial, "--params-in",
