@@ -1,0 +1,42 @@
+#pragma once
+
+/// @file
+/// The acting principal of every state-changing service call (server plan,
+/// issue 6): who did it and with which role. Services write it into the audit
+/// log (storage::AuditLog) in the same transaction as the change.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace fesbench::server::services {
+
+/// What a user may do (DESIGN.md §8): clinicians run protocols on the bench,
+/// analysts fit and compare models, admins do everything incl. users and the
+/// simulated subject.
+enum class Role { kClinician, kAnalyst, kAdmin };
+
+/// The wire name: "clinician", "analyst", "admin".
+std::string_view RoleName(Role role);
+
+/// The role named `name` (exact, lower case), or nullopt for any other text.
+std::optional<Role> ParseRole(std::string_view name);
+
+/// The acting principal. `user_id` is the storage users.id (0 for the
+/// server itself, e.g. a shutdown or the heartbeat watchdog).
+struct Actor {
+  std::int64_t user_id = 0;
+  std::string user_name;
+  Role role = Role::kClinician;
+};
+
+/// The server acting on its own behalf (shutdown, watchdog): user id 0,
+/// name "system", role admin.
+Actor SystemActor();
+
+/// True when `actor` may drive the bench (start/cancel runs, clear an
+/// e-stop): clinicians and admins.
+bool MayOperateBench(const Actor& actor);
+
+}  // namespace fesbench::server::services
