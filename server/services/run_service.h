@@ -1,0 +1,244 @@
+#pragma once
+
+/// @file
+/// Protocol runs on the bench for stored sessions (DESIGN.md §5–§8; server
+/// plan, issue 6), transport-agnostic: HTTP today, DDS tomorrow call the
+/// same methods.
+///
+/// Start loads the session and subject from storage and builds the
+/// protocols::SubjectContext (threshold, max tolerated, range of motion,
+/// anthropometrics for Eq. 4.13, the leg's latest parameter set for the
+/// model gate), stores the run (state queued) with an audit entry in one
+/// transaction and hands it to the BenchOwner (one run at a time). While it
+/// runs, the runner's observer only copies events into a queue and the hub:
+/// a recorder thread stores the state events, each finished trial, and at
+/// the end the rapid protocol's parameter set (provenance trial ids = the
+/// stored trials) and the final state, each in one transaction with an
+/// audit entry. A run's view turns final only once all of that is stored.
+///
+/// Heartbeats: while a run is going, its controlling user must call
+/// Heartbeat at least once per second (RunServiceConfig::heartbeat_timeout_s);
+/// otherwise the watchdog stops the run (state aborted, stimulation 0).
+///
+/// Errors are api::Status values; nothing a client sends can crash the
+/// server. Exceptions from lower layers are caught here, logged and returned
+/// as kInternal. Thread-safe.
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "api/status.h"
+#include "server/bench/bench.h"
+#include "server/protocols/bench_owner.h"
+#include "server/protocols/protocol.h"
+#include "server/protocols/runner.h"
+#include "server/services/actor.h"
+#include "server/services/sample_hub.h"
+#include "storage/database.h"
+#include "storage/sessions.h"
+
+namespace fesbench::server::services {
+
+struct RunServiceConfig {
+  /// Bench seconds per wall second the bench is paced at (0 = as fast as
+  /// possible): only for the ETA.
+  double time_scale = 1.0;
+  /// The controlling user must heartbeat within this many wall seconds
+  /// during a run (DESIGN.md §6).
+  double heartbeat_timeout_s = 1.0;
+  bool arm_watchdog = true;          ///< false only in tests and offline replays.
+  double progress_interval_s = 0.1;  ///< bench seconds between progress events.
+  std::size_t batch_samples = 40;    ///< samples per live batch.
+  std::size_t finished_runs_kept = 64;  ///< finished run views kept in memory.
+  SafeBench::WallClock wall_clock;  ///< empty = steady clock.
+  /// Where unexpected errors are logged; empty = std::cerr.
+  std::function<void(std::string_view)> log;
+};
+
+/// The live or stored view of a run (GET runs/{id}).
+struct RunView {
+  std::int64_t run_id = 0;
+  std::int64_t session_id = 0;
+  std::string protocol;
+  int protocol_version = 1;
+  protocols::ParameterValues parameters;  ///< resolved values (defaults filled in).
+  protocols::RunState state = protocols::RunState::kQueued;
+  std::string reason;  ///< why failed or aborted; empty otherwise.
+  std::string owner;   ///< user name of the actor who started it.
+  std::optional<std::int64_t> owner_user_id;
+  storage::UtcTime created_at;
+  std::optional<storage::UtcTime> started_at;
+  std::optional<storage::UtcTime> finished_at;
+  protocols::Progress progress;  ///< fraction 0–1 and ETA (wall s).
+  std::vector<std::int64_t> trial_ids;  ///< stored trials, in recording order.
+  std::optional<std::int64_t> parameter_set_id;  ///< rapid_parameterisation's stored set.
+  std::vector<SafetyEvent> safety_events;  ///< of this run (live/in-memory views only).
+  std::optional<protocols::ToleranceResult> tolerance;  ///< tolerance_test.
+  std::map<std::string, double> values;  ///< figures decided during the run.
+  bool live = false;  ///< from memory (this process ran it) rather than storage.
+};
+
+/// {"run_id", "session_id", "protocol", "protocol_version", "parameters",
+///  "state", "reason", "owner", "owner_user_id", "created_at",
+///  "started_at", "finished_at" (ISO-8601 UTC or null), "progress"
+///  (protocols::ProgressToJson), "trial_ids", "parameter_set_id",
+///  "safety_events", "tolerance" (if any), "values", "live"}.
+nlohmann::json RunViewToJson(const RunView& view);
+
+/// What the bench is doing (GET bench, DDS fesbench/bench/state).
+struct BenchState {
+  std::string kind;        ///< "sim", "replay", …
+  std::string mode = "idle";  ///< the current run's bench mode, or "idle".
+  bool busy = false;
+  bool estopped = false;
+  std::string estop_source;  ///< who latched it (last e-stop through this service).
+  std::string owner;         ///< controlling user name, empty when idle.
+  std::optional<std::int64_t> owner_user_id;
+  std::optional<std::int64_t> run_id;  ///< the current run, or the last one.
+  std::string protocol;
+  protocols::RunState run_state = protocols::RunState::kQueued;
+  protocols::Progress progress;
+};
+
+/// {"kind", "mode", "busy", "estopped", "estop_source", "owner",
+///  "owner_user_id", "run_id", "protocol", "run_state", "progress"}.
+nlohmann::json BenchStateToJson(const BenchState& state);
+
+/// A session with the context its runs are scaled to.
+struct SessionContext {
+  storage::Session session;
+  protocols::SubjectContext subject;
+  /// The leg's latest stored parameter set (model gate, rapid inertia).
+  std::optional<std::int64_t> parameter_set_id;
+  bool has_stimulation_limits = false;  ///< the session records threshold and max tolerated.
+};
+
+/// Builds the context of `session_id`: threshold and max tolerated from the
+/// session (absent: 0 and the bench's max, usable by tolerance_test only),
+/// range of motion = the bench's mechanical range (storage keeps none),
+/// body mass and leg length (shank length) from the subject's current
+/// anthropometrics for Eq. 4.13 (§4.2.1), and the leg's latest parameter
+/// set. kNotFound for an unknown session; kDataLoss for unreadable stored
+/// data.
+api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64_t session_id,
+                                               const BenchLimits& limits);
+
+class RunService {
+ public:
+  /// @param db, bench and hub must outlive the service.
+  RunService(storage::Database& db, Bench& bench, SampleHub& hub, RunServiceConfig config = {});
+  /// Shutdown().
+  ~RunService();
+  RunService(const RunService&) = delete;
+  RunService& operator=(const RunService&) = delete;
+
+  /// Starts `protocol` for the session. Errors: kPermissionDenied unless a
+  /// clinician or admin; kNotFound for an unknown session or protocol;
+  /// kInvalidArgument naming the parameter ("parameters.<name>");
+  /// kFailedPrecondition when the session has no threshold/max tolerated
+  /// (any protocol but tolerance_test), the model gate refuses, or the rapid
+  /// protocol has no inertia source; kConflict while another run holds the
+  /// bench or an e-stop is latched; kUnavailable after Shutdown.
+  api::Result<RunView> Start(const Actor& actor, std::int64_t session_id,
+                             const std::string& protocol,
+                             const protocols::ParameterValues& parameters);
+
+  /// The run's view: live (this process) or from storage. kNotFound.
+  api::Result<RunView> Get(std::int64_t run_id);
+  /// Blocks until the run's view is final (everything stored) or `timeout`
+  /// passes, then returns the view. kNotFound for unknown ids.
+  api::Result<RunView> Wait(std::int64_t run_id, std::chrono::milliseconds timeout);
+
+  /// Cancels the current run (aborted, stimulation 0). kPermissionDenied
+  /// unless clinician/admin; kNotFound for an unknown run; kConflict if the
+  /// run is not the one in progress (already finished). Audited.
+  api::Status Cancel(const Actor& actor, std::int64_t run_id);
+  /// "Stop with result" (tolerance_test ends its ramp at the current
+  /// amplitude; other protocols: cancel). Errors as Cancel. Audited.
+  api::Status StopWithResult(const Actor& actor, std::int64_t run_id);
+  /// Heartbeat of the controlling user (at least once per second during a
+  /// run). kNotFound for an unknown run; kConflict if it is not in progress;
+  /// kPermissionDenied for another user than the one who started it.
+  api::Status Heartbeat(const Actor& actor, std::int64_t run_id);
+
+  /// E-stop from any source ("http", "dds", "button", …) and any role: acts
+  /// at once (BenchOwner::EStop, before anything else), latches, then is
+  /// audited. A running protocol aborts within one control period.
+  api::Status EStop(const Actor& actor, std::string_view source);
+  /// Clears a latched e-stop. kPermissionDenied unless clinician/admin;
+  /// kConflict while a run is still winding down. Audited.
+  api::Status ClearEStop(const Actor& actor);
+
+  BenchState State() const;
+
+  /// Runs `fn` while no run holds the bench and none can start (BenchService
+  /// replaces the virtual subject this way); kConflict if a run is going.
+  api::Status WithIdleBench(const std::function<api::Status()>& fn);
+
+  /// Refuses new runs, cancels a run in progress (stimulation 0, state
+  /// aborted "server shutting down"), waits for it and for its records to be
+  /// stored, and stops the recorder thread. Idempotent; safe from a signal
+  /// handler's helper thread (not from the signal handler itself).
+  void Shutdown();
+
+  const RunServiceConfig& config() const { return config_; }
+  Bench& bench() { return bench_; }
+  protocols::BenchOwner& bench_owner() { return owner_; }
+
+ private:
+  struct LiveRun;
+  class Observer;
+
+  void Enqueue(std::function<void()> task);
+  void RecorderLoop();
+  void RecordState(const std::shared_ptr<LiveRun>& run, protocols::RunState state,
+                   const std::string& reason);
+  void RecordTrial(const std::shared_ptr<LiveRun>& run, const protocols::RecordedTrial& trial);
+  void RecordFinish(const std::shared_ptr<LiveRun>& run, const protocols::RunResult& result);
+  api::Status Audit(const Actor& actor, const std::string& action, const std::string& target,
+                    const std::string& summary, const std::string& outcome);
+  std::shared_ptr<LiveRun> FindLive(std::int64_t run_id) const;
+  std::shared_ptr<LiveRun> Current() const;
+  api::Result<RunView> StoredView(std::int64_t run_id);
+  api::Status CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRun>* run);
+  api::Result<RunView> StartImpl(const Actor& actor, std::int64_t session_id,
+                                 const std::string& protocol,
+                                 const protocols::ParameterValues& parameters);
+  void Log(std::string_view message) const;
+  void Forget();
+
+  storage::Database& db_;
+  Bench& bench_;
+  SampleHub& hub_;
+  RunServiceConfig config_;
+  protocols::BenchOwner owner_;
+
+  std::mutex start_mu_;  // serialises Start, WithIdleBench and Shutdown
+  mutable std::mutex mu_;
+  std::condition_variable final_cv_;
+  std::map<std::int64_t, std::shared_ptr<LiveRun>> runs_;  // current + last finished
+  std::int64_t current_run_id_ = 0;
+  std::string estop_source_;
+  bool shutting_down_ = false;
+
+  std::mutex queue_mu_;
+  std::condition_variable queue_cv_;
+  std::deque<std::function<void()>> queue_;
+  bool queue_stop_ = false;
+  std::thread recorder_;
+};
+
+}  // namespace fesbench::server::services

@@ -1,0 +1,149 @@
+#pragma once
+
+/// @file
+/// Fan-out of a run's live events (DESIGN.md §8 runs/{id}/stream, §9
+/// fesbench/bench/samples): state changes, progress, sample batches, stored
+/// trials and the end of each run go to any number of subscribers (SSE
+/// viewers now, DDS later).
+///
+/// Publishing never blocks on a subscriber: each subscriber has a bounded
+/// queue; when it is full the oldest item is dropped and counted, so a slow
+/// or vanished subscriber costs the publisher (the run's control loop) one
+/// short lock per subscriber and nothing else. Items are immutable and shared
+/// between subscribers (published once, never copied per subscriber).
+/// Thread-safe.
+
+#include <chrono>
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "server/protocols/runner.h"
+
+namespace fesbench::server::services {
+
+/// One event of a run.
+struct HubItem {
+  enum class Kind {
+    kState,     ///< state (and reason) of the run; also the first item of a subscription.
+    kProgress,  ///< progress fraction 0–1 and ETA.
+    kSamples,   ///< a batch of samples.
+    kTrial,     ///< a trial was stored (trial index, name, stored id).
+    kEnd,       ///< the run ended and everything it produced is stored.
+  };
+  Kind kind = Kind::kState;
+  std::uint64_t seq = 0;     ///< hub-wide, strictly increasing in publish order (from 1).
+  std::int64_t run_id = 0;   ///< 0 when no run has started yet (initial state).
+  protocols::RunState state = protocols::RunState::kQueued;  ///< kState, kEnd.
+  std::string reason;                                        ///< kState, kEnd.
+  protocols::Progress progress;                              ///< kProgress (last known otherwise).
+  protocols::SampleBatch samples;                            ///< kSamples.
+  /// kSamples: index within the run of the batch's first sample (0, 40, 80,
+  /// … over all trials of the run): consecutive batches continue it without
+  /// gaps, so a subscriber can check it received every sample in order.
+  std::uint64_t first_sample = 0;
+  std::optional<std::int64_t> trial_id;          ///< kTrial: the stored trial.
+  std::optional<std::int64_t> parameter_set_id;  ///< kEnd: a stored parameter set.
+};
+
+using HubItemPtr = std::shared_ptr<const HubItem>;
+
+/// "state", "progress", "samples", "trial", "end" (the SSE event name).
+std::string_view HubItemKindName(HubItem::Kind kind);
+
+/// The JSON data of an item: {"seq", "run_id", "kind", …} plus, by kind,
+/// "state"/"reason", "progress" (protocols::ProgressToJson), "samples"
+/// (protocols::SampleBatchToJson) with "first_sample", "trial"/"trial_name"/
+/// "trial_id", or "state"/"reason"/"parameter_set_id".
+nlohmann::json HubItemToJson(const HubItem& item);
+
+struct SubscribeOptions {
+  /// Queue length in items (≥ 1); when full the oldest is dropped. At the
+  /// default batching (40 samples, 0.1 s progress) a real-time run makes
+  /// about 15 items/s, so 1024 items are over a minute of slack.
+  std::size_t capacity = 1024;
+  /// Only items of this run (plus the initial state item); nullopt = all.
+  std::optional<std::int64_t> run_id;
+};
+
+class SampleHub;
+
+/// A subscription (RAII: destroying it unsubscribes). Read it from one
+/// thread; Close may be called from any thread.
+class Subscription {
+ public:
+  ~Subscription();
+  Subscription(const Subscription&) = delete;
+  Subscription& operator=(const Subscription&) = delete;
+
+  /// The next item, waiting up to `timeout`; nullptr on timeout or once the
+  /// subscription is closed and drained.
+  HubItemPtr Next(std::chrono::milliseconds timeout);
+  /// Items dropped because the queue was full, since subscribing.
+  std::uint64_t dropped() const;
+  /// True once closed (by Close or the hub's Close): Next drains what is
+  /// queued, then returns nullptr at once.
+  bool closed() const;
+  /// Stops delivery and wakes a waiting Next.
+  void Close();
+
+ private:
+  friend class SampleHub;
+  struct Queue;
+  Subscription(std::shared_ptr<Queue> queue, std::weak_ptr<void> hub_alive, SampleHub* hub);
+
+  std::shared_ptr<Queue> queue_;
+  std::weak_ptr<void> hub_alive_;
+  SampleHub* hub_;
+};
+
+/// The hub. Publish* are called by the run service (on the run's thread for
+/// samples and progress: they copy the item once and return).
+class SampleHub {
+ public:
+  SampleHub();
+  /// Closes every subscription (their Next returns nullptr).
+  ~SampleHub();
+  SampleHub(const SampleHub&) = delete;
+  SampleHub& operator=(const SampleHub&) = delete;
+
+  /// A new subscription. Its first item is a kState item with the current
+  /// state: the current (or last) run's id, state, reason and last progress
+  /// (run_id 0 and kQueued before any run). With a run_id filter it is sent
+  /// only if that run is the current (or last) one; otherwise the caller
+  /// reports the run's stored state itself.
+  std::unique_ptr<Subscription> Subscribe(SubscribeOptions options = {});
+
+  /// Publishes `item` (its seq is assigned here) to every subscriber whose
+  /// filter matches, and records kState/kProgress/kEnd as the current state.
+  /// Returns the seq.
+  std::uint64_t Publish(HubItem item);
+
+  /// Closes every subscription and refuses new ones (they start closed).
+  void Close();
+  std::size_t subscriber_count() const;
+  /// Items dropped over all subscriptions so far.
+  std::uint64_t total_dropped() const;
+
+ private:
+  friend class Subscription;
+  void Remove(const Subscription::Queue* queue);
+
+  mutable std::mutex mu_;
+  std::vector<std::shared_ptr<Subscription::Queue>> queues_;
+  std::uint64_t next_seq_ = 1;
+  std::optional<HubItem> current_;  // last state, with last progress
+  bool closed_ = false;
+  std::uint64_t dropped_removed_ = 0;  // drops of subscriptions already gone
+  std::shared_ptr<int> alive_;         // subscriptions check it before Remove
+};
+
+}  // namespace fesbench::server::services
