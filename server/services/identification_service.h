@@ -1,0 +1,122 @@
+#pragma once
+
+/// @file
+/// Identification from stored trials (DESIGN.md §4; thesis ch. 4, §5.3–5.4,
+/// §7.4.1). Loads a session's trials (or explicit trial ids), recognises each
+/// by the name the protocol runner gives it (server/protocols/plan.cc), runs
+/// conditioning and the thesis's methods, and stores the new parameter-set
+/// version(s) with provenance and an audit entry in one transaction.
+///
+/// Trials by name (the protocol that records them):
+///  - isometric_ramp_irc, isometric_step_irc, isometric_impulse_irc: IRC by
+///    the chosen method (§4.1) and the contraction pole from the averaged
+///    impulse responses of the ramp and impulse trials (Eqs. 4.2, 4.4);
+///  - passive_positions + passive_velocities: sequential passive (§4.2.1);
+///  - passive_simultaneous_*: simultaneous least squares (Eq. 4.31);
+///  - free_swing_passive: free swing (Eq. 4.35) with τ_pta from the
+///    positions trial's holds or from a stored parameter set;
+///  - active_random_binary_*: active log least squares (Eq. 4.40) and the
+///    simplified variants (§5.5.1, §7.3, §7.4.4);
+///  - rapid_isometric_ramp_irc, rapid_free_swing_passive,
+///    rapid_active_random_binary: method "rapid" (§7.4.1).
+/// Conditioning (§5.1): velocity and acceleration of a trial without
+/// velocity_deg_s / accel_deg_s2 columns come from its angle by the GCV
+/// smoothing spline; f_stim from the identified IRC and dynamics driven by
+/// the recorded stim_ma envelope's pulses. Torque is used as recorded (the
+/// runner removes the offset; the isometric methods remove it per event).
+///
+/// Thread-safe (no mutable state besides the database).
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "api/status.h"
+#include "model/identify_common.h"
+#include "server/services/actor.h"
+#include "storage/database.h"
+
+namespace fesbench::server::services {
+
+struct IdentificationConfig {
+  double pulse_rate_hz = 33.0;  ///< stimulator pulse rate of the recorded trials, Hz.
+};
+
+/// Breakpoints of the fitted curves: a count over the visited range or
+/// explicit abscissae (model::BreakpointSpec); unset = the method's default
+/// (simultaneous τ_pta 11, τ_ptv 9; free swing τ_ptv 4; active 11 and 11;
+/// rapid 9, 7, 7, 7).
+struct IdentificationBreakpoints {
+  std::optional<model::BreakpointSpec> passive_angle;     ///< τ_pta, deg.
+  std::optional<model::BreakpointSpec> passive_velocity;  ///< τ_ptv, deg/s.
+  std::optional<model::BreakpointSpec> active_angle;      ///< f_ata, deg.
+  std::optional<model::BreakpointSpec> active_velocity;   ///< f_atv, deg/s.
+};
+
+struct IdentificationRequest {
+  /// Exactly one of session_id and trial_ids (all of one subject and leg).
+  std::optional<std::int64_t> session_id;
+  std::vector<std::int64_t> trial_ids;
+  /// "thesis" (the chapter 4 methods below) or "rapid" (§7.4.1, from the
+  /// rapid_* trials).
+  std::string method = "thesis";
+  /// "step", "impulse", "ramp_correlation", "ramp_deconvolution_ideal",
+  /// "ramp_deconvolution_measured".
+  std::string irc_method = "ramp_correlation";
+  /// "sequential", "simultaneous", "free_swing".
+  std::string passive_method = "simultaneous";
+  int contraction_order = 3;          ///< 2, 3, or 0 = the better-fitting order.
+  std::string pole_method = "peak";   ///< "peak" or "least_squares".
+  /// Model variants to fit and store, "full" and/or the simplified ones
+  /// (model::ModelKindName). One stored version each.
+  std::vector<std::string> models = {"full"};
+  IdentificationBreakpoints breakpoints;
+  /// Limb inertia, kg·m²: sequential and rapid. Unset: the subject's
+  /// anthropometrics (Eq. 4.13: weight, shank length), else (rapid) the
+  /// leg's latest parameter set.
+  std::optional<double> inertia_kgm2;
+  /// free_swing without a passive_positions trial: the stored set whose
+  /// τ_pta is used (default: the leg's latest).
+  std::optional<std::int64_t> torque_angle_parameter_set_id;
+};
+
+/// One stored version.
+struct StoredFit {
+  std::int64_t parameter_set_id = 0;
+  int version = 0;
+  std::string model;
+};
+
+struct IdentificationResult {
+  std::int64_t subject_id = 0;
+  std::int64_t leg_id = 0;
+  std::vector<StoredFit> stored;        ///< in request.models order.
+  std::vector<std::int64_t> trial_ids;  ///< the trials used, ascending.
+  model::IdentifyReport report;         ///< fit RMS, figures, warnings of all fits.
+  std::int64_t audit_id = 0;
+};
+
+class IdentificationService {
+ public:
+  /// `db` must outlive the service.
+  explicit IdentificationService(storage::Database& db, IdentificationConfig config = {});
+
+  /// Validates the request (kInvalidArgument naming the field), loads the
+  /// trials (kNotFound for an unknown session or trial), checks the needed
+  /// kinds are there (kFailedPrecondition naming what is missing), fits, and
+  /// stores. A fit that fails on the data is kFailedPrecondition naming it.
+  /// Analysts and admins only (kPermissionDenied).
+  api::Result<IdentificationResult> Fit(const Actor& actor, const IdentificationRequest& request);
+
+ private:
+  storage::Database& db_;
+  IdentificationConfig config_;
+};
+
+/// Checks the request's fields alone (no database): kInvalidArgument naming
+/// the field ("session_id", "trial_ids[2]", "irc_method", "models[1]", …).
+api::Status ValidateIdentificationRequest(const IdentificationRequest& request);
+
+}  // namespace fesbench::server::services
