@@ -14,15 +14,11 @@
 /// Thread-safe.
 
 #include <chrono>
-#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
-#include <deque>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
-#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -75,6 +71,9 @@ struct SubscribeOptions {
 };
 
 class SampleHub;
+namespace detail {
+struct HubCore;  // the hub's shared state; subscriptions keep it alive
+}
 
 /// A subscription (RAII: destroying it unsubscribes). Read it from one
 /// thread; Close may be called from any thread.
@@ -97,12 +96,12 @@ class Subscription {
 
  private:
   friend class SampleHub;
+  friend struct detail::HubCore;
   struct Queue;
-  Subscription(std::shared_ptr<Queue> queue, std::weak_ptr<void> hub_alive, SampleHub* hub);
+  Subscription(std::shared_ptr<Queue> queue, std::shared_ptr<detail::HubCore> core);
 
   std::shared_ptr<Queue> queue_;
-  std::weak_ptr<void> hub_alive_;
-  SampleHub* hub_;
+  std::shared_ptr<detail::HubCore> core_;
 };
 
 /// The hub. Publish* are called by the run service (on the run's thread for
@@ -134,16 +133,7 @@ class SampleHub {
   std::uint64_t total_dropped() const;
 
  private:
-  friend class Subscription;
-  void Remove(const Subscription::Queue* queue);
-
-  mutable std::mutex mu_;
-  std::vector<std::shared_ptr<Subscription::Queue>> queues_;
-  std::uint64_t next_seq_ = 1;
-  std::optional<HubItem> current_;  // last state, with last progress
-  bool closed_ = false;
-  std::uint64_t dropped_removed_ = 0;  // drops of subscriptions already gone
-  std::shared_ptr<int> alive_;         // subscriptions check it before Remove
+  std::shared_ptr<detail::HubCore> core_;
 };
 
 }  // namespace fesbench::server::services
