@@ -1,0 +1,81 @@
+#pragma once
+
+/// @file
+/// Comparison of parameter sets or models across subjects (DESIGN.md §4
+/// "Evaluation", §8 `comparisons`; thesis §6.1.2, Eq. 6.3, Tables 6.5–6.8):
+/// each pair is one subject's leg with two parameter sets (e.g. fitted by
+/// two methods, or two model variants) evaluated on the same stored trials
+/// of that leg; the per-pair errors (mean over its trials of the chosen
+/// metric) enter a paired Student's t-test (model::PairedTTest). Nothing is
+/// stored. Thread-safe.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "api/status.h"
+#include "model/evaluation.h"
+#include "server/services/prediction_service.h"
+#include "storage/database.h"
+
+namespace fesbench::server::services {
+
+/// One subject's (leg's) pair: the same trials predicted by set a and set b.
+struct ComparisonPair {
+  std::int64_t a_parameter_set_id = 0;
+  std::int64_t b_parameter_set_id = 0;
+  std::vector<std::int64_t> trial_ids;  ///< 1–50 trials of the sets' leg.
+};
+
+struct ComparisonRequest {
+  std::vector<ComparisonPair> pairs;  ///< ≥ 2 (t-test), ≤ 200.
+  /// "e_rms" (Eq. 6.9), "e_abs" (Eq. 6.10), "normalised_rms" (Eq. 6.1),
+  /// "e_ave" (Eq. 6.2).
+  std::string metric = "e_rms";
+  double confidence = 0.95;  ///< of the two-sided critical value, in (0, 1).
+};
+
+/// The errors of one trial under both sets.
+struct TrialComparison {
+  std::int64_t trial_id = 0;
+  double a_error = 0.0;
+  double b_error = 0.0;
+};
+
+struct PairComparison {
+  ComparisonPair pair;
+  std::int64_t subject_id = 0;
+  std::int64_t leg_id = 0;
+  std::vector<TrialComparison> trials;
+  double a_error = 0.0;  ///< mean over the trials, in the metric's unit.
+  double b_error = 0.0;
+};
+
+struct ComparisonResult {
+  std::string metric;
+  std::string unit;  ///< "deg", "N.m", or "1" (dimensionless metrics).
+  std::vector<PairComparison> pairs;
+  model::PairedTTestResult test;  ///< of a_error − b_error over the pairs.
+};
+
+/// Checks the request alone: kInvalidArgument naming the field ("pairs"
+/// when fewer than 2, "pairs[1].trial_ids[0]", "metric", "confidence").
+api::Status ValidateComparisonRequest(const ComparisonRequest& request);
+
+class ComparisonService {
+ public:
+  /// `db` must outlive the service; predictions use `config`.
+  explicit ComparisonService(storage::Database& db, PredictionConfig config = {});
+
+  /// kNotFound for an unknown set or trial; kInvalidArgument when a pair's
+  /// sets or trials belong to different legs, or a trial's mode differs
+  /// between pairs' channels; kFailedPrecondition when a metric is
+  /// undefined on a trial or all differences are equal (t undefined).
+  api::Result<ComparisonResult> Compare(const ComparisonRequest& request) const;
+
+ private:
+  storage::Database& db_;
+  PredictionService predictions_;
+};
+
+}  // namespace fesbench::server::services

@@ -1,0 +1,322 @@
+#include "server/services/prediction_service.h"
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <stdexcept>
+#include <vector>
+
+#include "model/conditioning.h"
+#include "model/evaluation.h"
+#include "model/identify_rapid.h"
+#include "model/signal.h"
+#include "server/services/analysis_json.h"
+#include "server/services/stored_trials.h"
+#include "storage/audit_log.h"
+#include "storage/parameter_sets.h"
+#include "storage/predictions.h"
+
+namespace fesbench::server::services {
+namespace {
+
+bool InRange(double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; }
+
+// Mean of the measured samples before the first stimulation (up to 50, §5.3),
+// or 0 when the trial starts stimulated (the runner already removed it).
+double MeasuredOffset(const model::TrialColumns& c) {
+  std::size_t n = 0;
+  while (n < c.size() && n < 50 && !(c.stim_ma.size() == c.size() && c.stim_ma[n] > 0.0)) ++n;
+  return n == 0 ? 0.0 : model::TorqueOffset(c.torque_nm, n);
+}
+
+PredictionErrors Errors(const std::vector<double>& predicted, const std::vector<double>& data,
+                        bool isometric, double exclude_fraction) {
+  PredictionErrors e;
+  e.channel = isometric ? "torque_nm" : "angle_deg";
+  e.unit = isometric ? "N.m" : "deg";
+  e.samples = data.size();
+  e.e_rms = model::RmsError(predicted, data);  // Eq. 6.9
+  e.e_abs = model::AbsError(predicted, data);  // Eq. 6.10
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    e.max_abs = std::max(e.max_abs, std::abs(predicted[i] - data[i]));
+  }
+  try {
+    const model::NormalisedRms n = model::NormalisedRmsError(predicted, data, exclude_fraction);
+    e.normalised_rms = n.value;  // Eq. 6.1
+    e.normalised_samples_used = n.samples_used;
+  } catch (const std::invalid_argument&) {
+    // Every sample excluded: Eq. 6.1 is undefined here.
+  }
+  try {
+    e.e_ave = model::AveragedRmsError(predicted, data);  // Eq. 6.2
+  } catch (const std::invalid_argument&) {
+    // Σ data = 0: Eq. 6.2 is undefined here.
+  }
+  return e;
+}
+
+}  // namespace
+
+std::string_view PredictionModeName(PredictionMode mode) {
+  return mode == PredictionMode::kIsometric ? "isometric" : "free_swing";
+}
+
+api::Status ValidatePredictionRequest(const PredictionRequest& r, const PredictionConfig& config) {
+  if (r.parameter_set_id <= 0) {
+    return api::Status::InvalidArgument("must be a positive id", "parameter_set_id");
+  }
+  if (r.trial_id.has_value() == r.stimulus.has_value()) {
+    return api::Status::InvalidArgument("give exactly one of trial_id and stimulus",
+                                        r.trial_id ? "stimulus" : "trial_id");
+  }
+  if (r.trial_id && *r.trial_id <= 0) {
+    return api::Status::InvalidArgument("must be a positive id", "trial_id");
+  }
+  if (r.trial_id) {
+    for (const auto& [set, field] :
+         {std::pair{r.initial_angle_deg.has_value(), "initial_angle_deg"},
+          std::pair{r.initial_velocity_deg_s != 0.0, "initial_velocity_deg_s"},
+          std::pair{r.duration_s.has_value(), "duration_s"}}) {
+      if (set) {
+        return api::Status::InvalidArgument(
+            "not with trial_id: the trial's measured state and length are used", field);
+      }
+    }
+  }
+  if (r.stimulus) {
+    const model::GeneratorDescription* g = model::FindStimulusGenerator(r.stimulus->generator);
+    if (g == nullptr) {
+      return api::Status::InvalidArgument(
+          "unknown stimulus generator \"" + r.stimulus->generator + "\"", "stimulus.generator");
+    }
+    for (const auto& [name, value] : r.stimulus->params) {
+      const std::string field = "stimulus.params." + name;
+      const model::GeneratorParameter* p = g->FindParameter(name);
+      if (p == nullptr) {
+        return api::Status::InvalidArgument("not a parameter of " + g->name, field);
+      }
+      if (!InRange(value, p->min_value, p->max_value)) {
+        return api::Status::InvalidArgument("must be in [" + std::to_string(p->min_value) + ", " +
+                                                std::to_string(p->max_value) + "]",
+                                            field);
+      }
+      if (p->integer && value != std::floor(value)) {
+        return api::Status::InvalidArgument("must be a whole number", field);
+      }
+    }
+  }
+  if (r.initial_angle_deg && !InRange(*r.initial_angle_deg, 0.0, 180.0)) {
+    return api::Status::InvalidArgument("must be in [0, 180] deg", "initial_angle_deg");
+  }
+  if (!InRange(r.initial_velocity_deg_s, -2000.0, 2000.0)) {
+    return api::Status::InvalidArgument("must be in [-2000, 2000] deg/s",
+                                        "initial_velocity_deg_s");
+  }
+  if (r.duration_s && !(std::isfinite(*r.duration_s) && *r.duration_s > 0.0 &&
+                        *r.duration_s <= config.max_duration_s)) {
+    return api::Status::InvalidArgument(
+        "must be in (0, " + std::to_string(config.max_duration_s) + "] s", "duration_s");
+  }
+  return api::Status::Ok();
+}
+
+PredictionService::PredictionService(storage::Database& db, PredictionConfig config)
+    : db_(db), config_(config) {}
+
+api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest& request) const {
+  if (api::Status s = ValidatePredictionRequest(request, config_); !s.ok()) return s;
+  api::Result<storage::StoredParameterSet> set =
+      storage::ParameterSetRepository(db_).Get(request.parameter_set_id);
+  if (!set.ok()) return set.status();
+  const model::ParameterSet& params = set->params;
+
+  PredictionResult out;
+  out.parameter_set_id = request.parameter_set_id;
+  out.trial_id = request.trial_id;
+  out.model = std::string(model::ModelKindName(params.model));
+
+  model::SimulationOptions options;
+  options.pulse_rate_hz = config_.pulse_rate_hz;
+  model::PulseTrain pulses;
+  std::optional<model::TrialColumns> measured;
+  std::string stage = "stimulus";
+  try {
+    if (request.stimulus) {
+      const model::SampledSignal env =
+          model::MakeStimulus(request.stimulus->generator, request.stimulus->params);
+      const double duration = request.duration_s.value_or(env.EndTime());
+      if (duration > config_.max_duration_s) {
+        return api::Status::InvalidArgument(
+            "the stimulus lasts " + std::to_string(duration) + " s, over the " +
+                std::to_string(config_.max_duration_s) + " s limit",
+            "stimulus");
+      }
+      pulses = model::PulsesFromEnvelope(env, config_.pulse_rate_hz);
+      options.duration_s = duration;
+      options.output_rate_hz = config_.output_rate_hz;
+      out.mode = request.mode.value_or(PredictionMode::kFreeSwing);
+      if (out.mode == PredictionMode::kIsometric) {
+        out.initial_angle_deg = request.initial_angle_deg.value_or(model::kReferenceAngleDeg);
+      } else if (request.initial_angle_deg) {
+        out.initial_angle_deg = *request.initial_angle_deg;
+      } else {
+        try {
+          out.initial_angle_deg = model::PassiveRestAngle(params.passive);
+        } catch (const std::invalid_argument&) {
+          out.initial_angle_deg = model::kReferenceAngleDeg;  // no stable rest angle
+        }
+      }
+      out.initial_velocity_deg_s = request.initial_velocity_deg_s;
+    } else {
+      api::Result<LoadedTrial> trial = LoadTrial(db_, *request.trial_id);
+      if (!trial.ok()) return trial.status();
+      const std::string name = trial->trial.name.value_or("");
+      if (name.starts_with("passive_")) {
+        return api::Status::FailedPrecondition(
+            "trial " + std::to_string(trial->id) + " (\"" + name +
+            "\") is a motor trial; predictions replay free-swing or isometric trials");
+      }
+      model::TrialColumns c = ColumnsOf(trial->trial);
+      if (c.size() < 2 || c.angle_deg.size() != c.size() || c.stim_ma.size() != c.size()) {
+        return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
+                                               " needs t_s, stim_ma and angle_deg channels");
+      }
+      const double rate = trial->trial.sample_rate_hz;
+      const double span = c.t_s.back() - c.t_s.front();
+      if (span > config_.max_duration_s) {
+        return api::Status::InvalidArgument("trial lasts " + std::to_string(span) +
+                                                " s, over the " +
+                                                std::to_string(config_.max_duration_s) +
+                                                " s limit",
+                                            "trial_id");
+      }
+      const auto [lo, hi] = std::minmax_element(c.angle_deg.begin(), c.angle_deg.end());
+      const bool locked = name.starts_with("isometric_") ||
+                          name.starts_with("rapid_isometric") || (*hi - *lo) < 0.5;
+      out.mode = request.mode.value_or(locked ? PredictionMode::kIsometric
+                                              : PredictionMode::kFreeSwing);
+      if (out.mode == PredictionMode::kIsometric && c.torque_nm.size() != c.size()) {
+        return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
+                                               " has no torque_nm channel to compare");
+      }
+      stage = "trial stimulation";
+      pulses = model::TrialPulses(c, config_.pulse_rate_hz);
+      const std::size_t n = c.size();
+      options.output_rate_hz = rate;
+      options.duration_s = std::max((static_cast<double>(n) + 0.5) / rate, span + 1.5 / rate);
+      if (out.mode == PredictionMode::kIsometric) {
+        double sum = 0.0;
+        for (double a : c.angle_deg) sum += a;
+        out.initial_angle_deg = sum / static_cast<double>(n);
+      } else {
+        out.initial_angle_deg = c.angle_deg.front();
+        if (c.velocity_deg_s.size() == n) {
+          out.initial_velocity_deg_s = c.velocity_deg_s.front();
+        } else {
+          stage = "initial velocity (GCV spline, §5.1)";
+          out.initial_velocity_deg_s = model::GcvSmoothingSpline(c.t_s, c.angle_deg).first.front();
+        }
+      }
+      measured = std::move(c);
+    }
+    if (!InRange(out.initial_angle_deg, 0.0, 180.0)) {
+      return api::Status::InvalidArgument("initial angle " + std::to_string(out.initial_angle_deg) +
+                                              " deg is outside 0–180",
+                                          request.trial_id ? "trial_id" : "initial_angle_deg");
+    }
+    options.initial_angle_deg = out.initial_angle_deg;
+    options.initial_velocity_deg_s = out.initial_velocity_deg_s;
+    stage = "simulation";
+    out.predicted = out.mode == PredictionMode::kIsometric
+                        ? model::SimulateIsometric(params, pulses, out.initial_angle_deg, options)
+                        : model::SimulateFreeSwing(params, pulses, options);
+    if (out.mode == PredictionMode::kIsometric && !out.predicted.torque_nm.empty()) {
+      // The torque before any activation is the offset the bench removes (§5.3).
+      const double offset = out.predicted.torque_nm.front();
+      for (double& v : out.predicted.torque_nm) v -= offset;
+    }
+    if (measured) {
+      stage = "errors";
+      const model::TrialColumns& c = *measured;
+      const bool iso = out.mode == PredictionMode::kIsometric;
+      model::SampledSignal sim;
+      sim.rate_hz = options.output_rate_hz;
+      sim.values = iso ? out.predicted.torque_nm : out.predicted.angle_deg;
+      std::vector<double> at(c.size()), data(c.size());
+      const double offset = iso ? MeasuredOffset(c) : 0.0;
+      for (std::size_t i = 0; i < c.size(); ++i) {
+        at[i] = sim.InterpolateAt(c.t_s[i] - c.t_s.front());
+        data[i] = iso ? c.torque_nm[i] - offset : c.angle_deg[i];
+      }
+      out.errors = Errors(at, data, iso, config_.normalised_exclude_fraction);
+    }
+  } catch (const std::exception& e) {
+    return ModelFailure(stage, e, stage == "simulation" || stage == "errors"
+                                      ? api::ErrorCode::kFailedPrecondition
+                                      : api::ErrorCode::kInvalidArgument);
+  }
+  return out;
+}
+
+api::Result<PredictionResult> PredictionService::Predict(const Actor& actor,
+                                                        const PredictionRequest& request) {
+  if (actor.role != Role::kAnalyst && actor.role != Role::kAdmin) {
+    return api::Status(api::ErrorCode::kPermissionDenied,
+                       "predictions need the analyst or admin role");
+  }
+  api::Result<PredictionResult> computed = Compute(request);
+  if (!computed.ok()) return computed.status();
+  PredictionResult result = std::move(computed).value();
+  try {
+    const std::string input = PredictionRequestToJson(request).dump();
+    const std::string output = PredictionResultToJson(result).dump();
+    api::Status stored = db_.Write([&](storage::Connection&) -> api::Status {
+      storage::PredictionRepository repo(db_);
+      storage::NewPrediction p;
+      p.parameter_set_id = request.parameter_set_id;
+      p.trial_id = request.trial_id;
+      p.input_json = input;
+      p.output_json = output;
+      api::Result<storage::Prediction> pred = repo.InsertPrediction(p);
+      if (!pred.ok()) return pred.status();
+      result.prediction_id = pred->id;
+      result.evaluation_id.reset();
+      std::string target = "predictions/" + std::to_string(pred->id);
+      if (result.errors) {
+        const PredictionErrors& e = *result.errors;
+        storage::NewEvaluation ev;
+        ev.parameter_set_id = request.parameter_set_id;
+        ev.trial_id = *request.trial_id;
+        ev.prediction_id = pred->id;
+        ev.channel = e.channel;
+        ev.unit = e.unit;
+        ev.rms_error = e.e_rms;
+        ev.max_abs_error = e.max_abs;
+        ev.details_json = PredictionErrorsToJson(e).dump();
+        api::Result<storage::Evaluation> eval = repo.InsertEvaluation(ev);
+        if (!eval.ok()) return eval.status();
+        result.evaluation_id = eval->id;
+        target += ",evaluations/" + std::to_string(eval->id);
+      }
+      storage::NewAuditEntry entry;
+      if (actor.user_id > 0) entry.user_id = actor.user_id;
+      entry.actor = actor.user_name;
+      entry.action = "prediction.create";
+      entry.target = target;
+      nlohmann::json summary = {{"parameter_set_id", request.parameter_set_id},
+                                {"mode", PredictionModeName(result.mode)}};
+      if (request.trial_id) summary["trial_id"] = *request.trial_id;
+      if (request.stimulus) summary["generator"] = request.stimulus->generator;
+      entry.request_summary = summary.dump();
+      entry.outcome = "ok";
+      api::Result<std::int64_t> audit = storage::AuditLog(db_).Append(entry);
+      return audit.ok() ? api::Status::Ok() : audit.status();
+    });
+    if (!stored.ok()) return stored;
+  } catch (const std::exception& e) {
+    return api::Status::Internal(std::string("storing the prediction: ") + e.what());
+  }
+  return result;
+}
+
+}  // namespace fesbench::server::services

@@ -1,0 +1,126 @@
+#pragma once
+
+/// @file
+/// Prediction (DESIGN.md §4 "Evaluation", §8 `predictions`; thesis §5.4.5,
+/// ch. 6): simulates a stored parameter set on a named stimulus generator
+/// or on a stored trial's stimulation and initial state, and — against a
+/// measured trial — reports E_RMS and E_ABS (Eqs. 6.9, 6.10), the
+/// normalised RMS (Eq. 6.1) and E_AVE (Eq. 6.2). Predict stores the
+/// prediction, its evaluation and an audit entry in one transaction
+/// (storage::PredictionRepository).
+///
+/// Modes: free swing (the angle is predicted and compared, deg) and
+/// isometric (the torque, N·m, offset removed at rest as the bench records
+/// it, §5.3: the prediction's value before any activation and the mean of
+/// the measured samples before the first stimulation are subtracted).
+/// A trial's mode is its protocol's (isometric_* and rapid_isometric_* are
+/// locked; a trial whose angle moves less than 0.5° is isometric too);
+/// motor trials (passive_*) are refused.
+///
+/// Thread-safe (no mutable state besides the database).
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "api/status.h"
+#include "model/parameter_set.h"
+#include "model/simulate.h"
+#include "model/stimulus_generators.h"
+#include "server/services/actor.h"
+#include "storage/database.h"
+
+namespace fesbench::server::services {
+
+struct PredictionConfig {
+  double max_duration_s = 600.0;  ///< longest prediction, s.
+  double pulse_rate_hz = 33.0;    ///< stimulator pulse rate, Hz.
+  double output_rate_hz = 200.0;  ///< sample rate of stimulus predictions, Hz.
+  double normalised_exclude_fraction = 0.05;  ///< Eq. 6.1 exclusion (evaluation.h).
+};
+
+enum class PredictionMode { kFreeSwing, kIsometric };
+/// "free_swing", "isometric".
+std::string_view PredictionModeName(PredictionMode mode);
+
+/// A named stimulus generator (model/stimulus_generators.h) and its values.
+struct StimulusSpec {
+  std::string generator;
+  model::GeneratorParams params;
+};
+
+struct PredictionRequest {
+  std::int64_t parameter_set_id = 0;
+  /// Exactly one of trial_id (replay its stimulation from its measured
+  /// initial state and compare) and stimulus.
+  std::optional<std::int64_t> trial_id;
+  std::optional<StimulusSpec> stimulus;
+  /// Stimulus: default free swing. Trial: default its protocol's mode.
+  std::optional<PredictionMode> mode;
+  /// Stimulus only. Free swing θ(0), deg, 0–180 (default: the passive rest
+  /// angle, else 90°); isometric lock angle, deg (default 90°).
+  std::optional<double> initial_angle_deg;
+  double initial_velocity_deg_s = 0.0;  ///< stimulus free swing θ̇(0), |·| ≤ 2000 deg/s.
+  std::optional<double> duration_s;     ///< stimulus only; default: the envelope's length.
+};
+
+/// The errors of a prediction against a measured trial (ch. 6).
+struct PredictionErrors {
+  std::string channel;  ///< "angle_deg" (free swing) or "torque_nm" (isometric).
+  std::string unit;     ///< "deg" or "N.m".
+  std::size_t samples = 0;
+  double e_rms = 0.0;    ///< Eq. 6.9, unit.
+  double e_abs = 0.0;    ///< Eq. 6.10, unit.
+  double max_abs = 0.0;  ///< unit.
+  /// Eq. 6.1 (dimensionless), with the samples used; unset where undefined
+  /// (every sample excluded).
+  std::optional<double> normalised_rms;
+  std::size_t normalised_samples_used = 0;
+  std::optional<double> e_ave;  ///< Eq. 6.2; unset where Σ data = 0.
+};
+
+struct PredictionResult {
+  std::int64_t prediction_id = 0;             ///< 0 when not stored.
+  std::optional<std::int64_t> evaluation_id;  ///< with a trial, once stored.
+  std::int64_t parameter_set_id = 0;
+  std::optional<std::int64_t> trial_id;
+  PredictionMode mode = PredictionMode::kFreeSwing;
+  std::string model;  ///< the variant simulated.
+  double initial_angle_deg = 0.0;
+  double initial_velocity_deg_s = 0.0;
+  /// Predicted columns at the output rate (trial: the trial's rate); the
+  /// isometric torque offset-removed.
+  model::SimulationResult predicted;
+  std::optional<PredictionErrors> errors;  ///< with a trial.
+};
+
+/// Checks the request alone: kInvalidArgument naming the field.
+api::Status ValidatePredictionRequest(const PredictionRequest& request,
+                                      const PredictionConfig& config = {});
+
+class PredictionService {
+ public:
+  /// `db` must outlive the service.
+  explicit PredictionService(storage::Database& db, PredictionConfig config = {});
+
+  /// Simulates and evaluates without storing anything. kNotFound for an
+  /// unknown parameter set or trial; kInvalidArgument naming the field for
+  /// bad input (durations over max_duration_s, unknown generator or
+  /// parameter, angles outside 0–180°); kFailedPrecondition when the trial
+  /// lacks a needed channel or the simulation fails (e.g. diverges).
+  api::Result<PredictionResult> Compute(const PredictionRequest& request) const;
+
+  /// Compute, then stores the prediction (and, with a trial, its
+  /// evaluation) and an audit entry in one transaction. Analysts and admins
+  /// only (kPermissionDenied).
+  api::Result<PredictionResult> Predict(const Actor& actor, const PredictionRequest& request);
+
+  const PredictionConfig& config() const { return config_; }
+
+ private:
+  storage::Database& db_;
+  PredictionConfig config_;
+};
+
+}  // namespace fesbench::server::services
