@@ -1,0 +1,151 @@
+#include "server/services/bench_service.h"
+
+#include <exception>
+#include <iostream>
+#include <utility>
+
+#include "server/bench/virtual_subject_json.h"
+#include "storage/audit_log.h"
+
+namespace fesbench::server::services {
+
+// --- SwappableSimulatedBench ----------------------------------------------------
+
+SwappableSimulatedBench::SwappableSimulatedBench(VirtualSubject subject,
+                                                 SimulatedBenchOptions options)
+    : options_(std::move(options)),
+      bench_(std::make_shared<SimulatedBench>(std::move(subject), options_)) {}
+
+api::Result<std::unique_ptr<SwappableSimulatedBench>> SwappableSimulatedBench::Create(
+    VirtualSubject subject, SimulatedBenchOptions options) {
+  if (api::Status st = ValidateVirtualSubject(subject); !st.ok()) return st;
+  return std::make_unique<SwappableSimulatedBench>(std::move(subject), std::move(options));
+}
+
+std::shared_ptr<SimulatedBench> SwappableSimulatedBench::current() const {
+  std::lock_guard lock(mu_);
+  return bench_;
+}
+
+void SwappableSimulatedBench::SetStimAmplitude(double stim_ma) {
+  current()->SetStimAmplitude(stim_ma);
+}
+void SwappableSimulatedBench::TriggerPulse(double stim_ma) { current()->TriggerPulse(stim_ma); }
+void SwappableSimulatedBench::SetMotorMode(MotorMode mode) { current()->SetMotorMode(mode); }
+void SwappableSimulatedBench::SetMotorSetpoint(double angle_deg) {
+  current()->SetMotorSetpoint(angle_deg);
+}
+double SwappableSimulatedBench::Now_s() const { return current()->Now_s(); }
+void SwappableSimulatedBench::AdvanceTo(double t_s) { current()->AdvanceTo(t_s); }
+SensorFrame SwappableSimulatedBench::ReadSensors() { return current()->ReadSensors(); }
+std::vector<double> SwappableSimulatedBench::DrainEmg_mv() { return current()->DrainEmg_mv(); }
+void SwappableSimulatedBench::HardwareEStop() { current()->HardwareEStop(); }
+void SwappableSimulatedBench::ClearHardwareEStop() { current()->ClearHardwareEStop(); }
+bool SwappableSimulatedBench::HardwareEStopped() const { return current()->HardwareEStopped(); }
+
+VirtualSubject SwappableSimulatedBench::subject() const { return current()->subject(); }
+
+api::Status SwappableSimulatedBench::ReplaceSubject(VirtualSubject subject) {
+  api::Result<std::unique_ptr<SimulatedBench>> made =
+      SimulatedBench::Create(std::move(subject), options_);
+  if (!made.ok()) return made.status();
+  std::shared_ptr<SimulatedBench> next = std::move(made).value();
+  std::shared_ptr<SimulatedBench> old;
+  {
+    std::lock_guard lock(mu_);
+    // An e-stop latched in hardware stays latched on the new bench.
+    if (bench_->HardwareEStopped()) next->HardwareEStop();
+    old = std::exchange(bench_, std::move(next));
+  }
+  return api::Status::Ok();  // `old` is released outside the lock
+}
+
+// --- BenchService --------------------------------------------------------------------
+
+nlohmann::json BenchInfoToJson(const BenchInfo& info) {
+  const BenchLimits& l = info.limits;
+  return {{"kind", info.kind},
+          {"time_scale", info.time_scale},
+          {"simulated", info.simulated},
+          {"limits",
+           {{"max_stim_ma", l.max_stim_ma},
+            {"pulse_rate_hz", l.pulse_rate_hz},
+            {"pulse_width_us", l.pulse_width_us},
+            {"min_angle_deg", l.min_angle_deg},
+            {"max_angle_deg", l.max_angle_deg},
+            {"max_motor_torque_nm", l.max_motor_torque_nm},
+            {"control_rate_hz", l.control_rate_hz},
+            {"sample_rate_hz", l.sample_rate_hz},
+            {"emg_rate_hz", l.emg_rate_hz}}},
+          {"state", BenchStateToJson(info.state)}};
+}
+
+BenchService::BenchService(storage::Database& db, RunService& runs,
+                           SwappableSimulatedBench* simulated)
+    : db_(db), runs_(runs), simulated_(simulated) {}
+
+BenchInfo BenchService::Info() const {
+  BenchInfo info;
+  info.kind = std::string(runs_.bench().kind());
+  info.time_scale = simulated_ != nullptr ? simulated_->time_scale() : runs_.config().time_scale;
+  info.limits = runs_.bench().limits();
+  info.simulated = simulated_ != nullptr;
+  info.state = runs_.State();
+  return info;
+}
+
+namespace {
+
+api::Status NeedAdmin(const Actor& actor, const char* what) {
+  if (actor.role == Role::kAdmin) return api::Status::Ok();
+  return api::Status(api::ErrorCode::kPermissionDenied,
+                     std::string(what) + " needs the admin role");
+}
+
+}  // namespace
+
+api::Result<nlohmann::json> BenchService::GetVirtualSubject(const Actor& actor) const {
+  if (api::Status st = NeedAdmin(actor, "reading the virtual subject"); !st.ok()) return st;
+  if (simulated_ == nullptr) return api::Status::Conflict("not a simulated bench");
+  try {
+    return VirtualSubjectToJson(simulated_->subject());
+  } catch (const std::exception& e) {
+    std::cerr << "fesbench-server: bench service: GetVirtualSubject: " << e.what() << std::endl;
+    return api::Status::Internal("reading the virtual subject failed");
+  }
+}
+
+api::Result<nlohmann::json> BenchService::PutVirtualSubject(const Actor& actor,
+                                                            const nlohmann::json& json) {
+  if (api::Status st = NeedAdmin(actor, "replacing the virtual subject"); !st.ok()) return st;
+  if (simulated_ == nullptr) return api::Status::Conflict("not a simulated bench");
+  try {
+    api::Result<VirtualSubject> subject = VirtualSubjectFromJson(json);
+    if (!subject.ok()) return subject.status();
+    const std::string name = subject->name;
+    api::Status st = runs_.WithIdleBench([&]() -> api::Status {
+      // Audit first inside the bench's idle window: if the audit cannot be
+      // written the subject stays as it was.
+      api::Status audited = db_.Write([&](storage::Connection&) -> api::Status {
+        storage::NewAuditEntry e;
+        if (actor.user_id > 0) e.user_id = actor.user_id;
+        e.actor = actor.user_name.empty() ? std::string("unknown") : actor.user_name;
+        e.action = "bench.virtual_subject.put";
+        e.target = "bench/virtual-subject";
+        e.request_summary = "virtual subject '" + name + "' seed " + std::to_string(subject->seed);
+        e.outcome = "ok";
+        api::Result<std::int64_t> id = storage::AuditLog(db_).Append(e);
+        return id.ok() ? api::Status::Ok() : id.status();
+      });
+      if (!audited.ok()) return audited;
+      return simulated_->ReplaceSubject(*subject);
+    });
+    if (!st.ok()) return st;
+    return VirtualSubjectToJson(simulated_->subject());
+  } catch (const std::exception& e) {
+    std::cerr << "fesbench-server: bench service: PutVirtualSubject: " << e.what() << std::endl;
+    return api::Status::Internal("replacing the virtual subject failed");
+  }
+}
+
+}  // namespace fesbench::server::services

@@ -1,0 +1,950 @@
+#include "server/services/run_service.h"
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <iostream>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include "server/protocols/rapid_identification.h"
+#include "server/protocols/run_json.h"
+#include "storage/audit_log.h"
+#include "storage/parameter_sets.h"
+#include "storage/subjects.h"
+#include "storage/trials.h"
+
+namespace fesbench::server::services {
+
+using protocols::RunState;
+
+namespace {
+
+nlohmann::json OptionalTime(const std::optional<storage::UtcTime>& t) {
+  return t ? nlohmann::json(storage::FormatUtc(*t)) : nlohmann::json(nullptr);
+}
+
+template <typename T>
+nlohmann::json OptionalValue(const std::optional<T>& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
+
+storage::RunState ToStorage(RunState state) {
+  switch (state) {
+    case RunState::kQueued:
+      return storage::RunState::kQueued;
+    case RunState::kRunning:
+      return storage::RunState::kRunning;
+    case RunState::kDone:
+      return storage::RunState::kCompleted;
+    case RunState::kFailed:
+      return storage::RunState::kFailed;
+    case RunState::kAborted:
+      return storage::RunState::kCancelled;
+  }
+  return storage::RunState::kFailed;
+}
+
+RunState FromStorage(storage::RunState state) {
+  switch (state) {
+    case storage::RunState::kQueued:
+      return RunState::kQueued;
+    case storage::RunState::kRunning:
+      return RunState::kRunning;
+    case storage::RunState::kCompleted:
+      return RunState::kDone;
+    case storage::RunState::kFailed:
+      return RunState::kFailed;
+    case storage::RunState::kCancelled:
+      return RunState::kAborted;
+  }
+  return RunState::kFailed;
+}
+
+std::string RunTarget(std::int64_t run_id) { return "runs/" + std::to_string(run_id); }
+
+std::string FormatNumber(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+// --- JSON -----------------------------------------------------------------------
+
+nlohmann::json RunViewToJson(const RunView& v) {
+  nlohmann::json parameters = nlohmann::json::object();
+  for (const auto& [k, x] : v.parameters) parameters[k] = x;
+  nlohmann::json values = nlohmann::json::object();
+  for (const auto& [k, x] : v.values) {
+    values[k] = std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr);
+  }
+  nlohmann::json events = nlohmann::json::array();
+  for (const SafetyEvent& e : v.safety_events) events.push_back(protocols::SafetyEventToJson(e));
+  nlohmann::json j = {{"run_id", v.run_id},
+                      {"session_id", v.session_id},
+                      {"protocol", v.protocol},
+                      {"protocol_version", v.protocol_version},
+                      {"parameters", std::move(parameters)},
+                      {"state", std::string(protocols::RunStateName(v.state))},
+                      {"reason", v.reason},
+                      {"owner", v.owner},
+                      {"owner_user_id", OptionalValue(v.owner_user_id)},
+                      {"created_at", storage::FormatUtc(v.created_at)},
+                      {"started_at", OptionalTime(v.started_at)},
+                      {"finished_at", OptionalTime(v.finished_at)},
+                      {"progress", protocols::ProgressToJson(v.progress)},
+                      {"trial_ids", v.trial_ids},
+                      {"parameter_set_id", OptionalValue(v.parameter_set_id)},
+                      {"safety_events", std::move(events)},
+                      {"values", std::move(values)},
+                      {"live", v.live}};
+  if (v.tolerance) {
+    protocols::RunResult r;
+    r.tolerance = v.tolerance;
+    j["tolerance"] = protocols::RunResultToJson(r).at("tolerance");
+  }
+  return j;
+}
+
+nlohmann::json BenchStateToJson(const BenchState& s) {
+  return {{"kind", s.kind},
+          {"mode", s.mode},
+          {"busy", s.busy},
+          {"estopped", s.estopped},
+          {"estop_source", s.estop_source},
+          {"owner", s.owner},
+          {"owner_user_id", OptionalValue(s.owner_user_id)},
+          {"run_id", OptionalValue(s.run_id)},
+          {"protocol", s.protocol},
+          {"run_state", std::string(protocols::RunStateName(s.run_state))},
+          {"progress", protocols::ProgressToJson(s.progress)}};
+}
+
+// --- session context ----------------------------------------------------------------
+
+api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64_t session_id,
+                                               const BenchLimits& limits) {
+  api::Result<storage::Session> session = storage::SessionRepository(db).Get(session_id);
+  if (!session.ok()) return session.status();
+  api::Result<storage::Subject> subject = storage::SubjectRepository(db).Get(session->subject_id);
+  if (!subject.ok()) return subject.status();
+
+  SessionContext out;
+  out.session = *session;
+  protocols::SubjectContext& c = out.subject;
+  const storage::SessionDetails& d = session->current.details;
+  out.has_stimulation_limits = d.threshold_ma.has_value() && d.max_tolerated_ma.has_value();
+  // Without recorded limits only tolerance_test may run (it measures them):
+  // the stimulator's range, which the test's ceiling_ma bounds.
+  c.threshold_ma = d.threshold_ma.value_or(0.0);
+  c.max_tolerated_ma = out.has_stimulation_limits ? *d.max_tolerated_ma : limits.max_stim_ma;
+  // Storage keeps no range of motion: the bench's mechanical range (DESIGN.md §2).
+  c.min_angle_deg = limits.min_angle_deg;
+  c.max_angle_deg = limits.max_angle_deg;
+  // Eq. 4.13, §4.2.1: body mass and the femoral condyle–medial malleolus
+  // length (the shank length) give the inertia when no prior set does.
+  const storage::SubjectDetails& a = subject->current.details;
+  if (a.weight_kg) c.body_mass_kg = *a.weight_kg;
+  if (a.shank_length_cm) c.leg_length_m = *a.shank_length_cm / 100.0;
+
+  api::Result<storage::StoredParameterSet> latest =
+      storage::ParameterSetRepository(db).Latest(session->subject_id, session->leg_id);
+  if (latest.ok()) {
+    c.parameter_set = latest->params;
+    out.parameter_set_id = latest->summary.id;
+  } else if (latest.status().code() != api::ErrorCode::kNotFound) {
+    return latest.status();
+  }
+  return out;
+}
+
+// --- the live run ---------------------------------------------------------------------
+
+struct RunService::LiveRun {
+  // Fixed at start.
+  std::int64_t run_id = 0;
+  std::int64_t subject_id = 0;
+  std::int64_t leg_id = 0;
+  Actor actor;
+  protocols::BenchMode mode = protocols::BenchMode::kLocked;
+  std::optional<protocols::RapidSettings> rapid;
+  std::optional<std::int64_t> prior_parameter_set_id;
+  // Guarded by RunService::mu_.
+  RunView view;
+  std::vector<std::optional<std::int64_t>> trial_ids;  // by trial index
+  bool final = false;
+  // Run thread only.
+  std::uint64_t next_sample = 0;
+};
+
+/// The runner's observer: runs on the run's thread, so it only updates the
+/// in-memory view, copies into the hub and queues storage work.
+class RunService::Observer final : public protocols::RunObserver {
+ public:
+  Observer(RunService& service, std::shared_ptr<LiveRun> run)
+      : service_(service), run_(std::move(run)) {}
+
+  void OnStateChanged(RunState state, const std::string& reason) override {
+    Guard("state", [&] {
+      if (state != RunState::kRunning) return;  // final states: after storing (RecordFinish)
+      {
+        std::lock_guard lock(service_.mu_);
+        run_->view.state = state;
+        run_->view.started_at = service_.db_.Now();
+      }
+      HubItem item;
+      item.kind = HubItem::Kind::kState;
+      item.run_id = run_->run_id;
+      item.state = state;
+      item.reason = reason;
+      service_.hub_.Publish(std::move(item));
+      service_.Enqueue([&s = service_, run = run_, state, reason] { s.RecordState(run, state, reason); });
+    });
+  }
+
+  void OnProgress(const protocols::Progress& progress) override {
+    Guard("progress", [&] {
+      {
+        std::lock_guard lock(service_.mu_);
+        run_->view.progress = progress;
+      }
+      HubItem item;
+      item.kind = HubItem::Kind::kProgress;
+      item.run_id = run_->run_id;
+      item.progress = progress;
+      service_.hub_.Publish(std::move(item));
+    });
+  }
+
+  void OnSamples(const protocols::SampleBatch& batch) override {
+    Guard("samples", [&] {
+      HubItem item;
+      item.kind = HubItem::Kind::kSamples;
+      item.run_id = run_->run_id;
+      item.first_sample = run_->next_sample;
+      item.samples = batch;
+      run_->next_sample += batch.t_s.size();
+      service_.hub_.Publish(std::move(item));
+    });
+  }
+
+  void OnTrial(const protocols::RecordedTrial& trial) override {
+    Guard("trial", [&] {
+      service_.Enqueue([&s = service_, run = run_, copy = trial] { s.RecordTrial(run, copy); });
+    });
+  }
+
+  void OnFinished(const protocols::RunResult& result) override {
+    Guard("finish", [&] {
+      protocols::RunResult copy;  // everything but the trials (already queued)
+      copy.state = result.state;
+      copy.reason = result.reason;
+      copy.protocol = result.protocol;
+      copy.protocol_version = result.protocol_version;
+      copy.parameters = result.parameters;
+      copy.parameter_set = result.parameter_set;
+      copy.tolerance = result.tolerance;
+      copy.safety_events = result.safety_events;
+      copy.values = result.values;
+      copy.bench_duration_s = result.bench_duration_s;
+      copy.wall_duration_s = result.wall_duration_s;
+      service_.Enqueue(
+          [&s = service_, run = run_, r = std::move(copy)] { s.RecordFinish(run, r); });
+    });
+  }
+
+ private:
+  // An observer must never throw into the control loop.
+  template <typename F>
+  void Guard(const char* what, F&& f) noexcept {
+    try {
+      f();
+    } catch (const std::exception& e) {
+      service_.Log(std::string("run observer (") + what + "): " + e.what());
+    } catch (...) {
+      service_.Log(std::string("run observer (") + what + "): unknown exception");
+    }
+  }
+
+  RunService& service_;
+  std::shared_ptr<LiveRun> run_;
+};
+
+// --- construction and the recorder ------------------------------------------------
+
+namespace {
+
+protocols::BenchOwnerOptions OwnerOptions(const RunServiceConfig& c) {
+  protocols::BenchOwnerOptions o;
+  o.runner.time_scale = c.time_scale;
+  o.runner.progress_interval_s = c.progress_interval_s;
+  o.runner.batch_samples = std::max<std::size_t>(1, c.batch_samples);
+  o.runner.arm_watchdog = c.arm_watchdog;
+  o.runner.heartbeat_timeout_s = c.heartbeat_timeout_s;
+  o.runner.wall_clock = c.wall_clock;
+  o.wall_clock = c.wall_clock;
+  return o;
+}
+
+}  // namespace
+
+RunService::RunService(storage::Database& db, Bench& bench, SampleHub& hub,
+                       RunServiceConfig config)
+    : db_(db),
+      bench_(bench),
+      hub_(hub),
+      config_(std::move(config)),
+      owner_(bench, OwnerOptions(config_)) {
+  recorder_ = std::thread([this] { RecorderLoop(); });
+}
+
+RunService::~RunService() { Shutdown(); }
+
+void RunService::Log(std::string_view message) const {
+  if (config_.log) {
+    config_.log(message);
+  } else {
+    std::cerr << "fesbench-server: run service: " << message << std::endl;
+  }
+}
+
+void RunService::Enqueue(std::function<void()> task) {
+  {
+    std::lock_guard lock(queue_mu_);
+    queue_.push_back(std::move(task));
+  }
+  queue_cv_.notify_one();
+}
+
+void RunService::RecorderLoop() {
+  for (;;) {
+    std::function<void()> task;
+    {
+      std::unique_lock lock(queue_mu_);
+      queue_cv_.wait(lock, [&] { return queue_stop_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stopping and drained
+      task = std::move(queue_.front());
+      queue_.pop_front();
+    }
+    try {
+      task();
+    } catch (const std::exception& e) {
+      Log(std::string("recorder: ") + e.what());
+    } catch (...) {
+      Log("recorder: unknown exception");
+    }
+  }
+}
+
+api::Status RunService::Audit(const Actor& actor, const std::string& action,
+                              const std::string& target, const std::string& summary,
+                              const std::string& outcome) {
+  storage::NewAuditEntry e;
+  if (actor.user_id > 0) e.user_id = actor.user_id;
+  e.actor = actor.user_name.empty() ? std::string("unknown") : actor.user_name;
+  e.action = action;
+  e.target = target;
+  e.request_summary = summary;
+  e.outcome = outcome;
+  api::Result<std::int64_t> id = storage::AuditLog(db_).Append(e);
+  return id.ok() ? api::Status::Ok() : id.status();
+}
+
+void RunService::RecordState(const std::shared_ptr<LiveRun>& run, RunState state,
+                             const std::string& reason) {
+  const api::Status st = db_.Write([&](storage::Connection&) -> api::Status {
+    api::Result<storage::Run> r =
+        storage::SessionRepository(db_).RecordRunState(run->run_id, ToStorage(state), reason);
+    if (!r.ok()) return r.status();
+    return Audit(run->actor, "run.state", RunTarget(run->run_id),
+                 std::string(protocols::RunStateName(state)), "ok");
+  });
+  if (!st.ok()) Log("storing state of run " + std::to_string(run->run_id) + ": " + st.ToString());
+}
+
+void RunService::RecordTrial(const std::shared_ptr<LiveRun>& run,
+                             const protocols::RecordedTrial& trial) {
+  const std::string name = trial.trial.name.value_or("trial");
+  std::optional<std::int64_t> id;
+  const api::Status st = db_.Write([&](storage::Connection&) -> api::Status {
+    api::Result<std::int64_t> inserted = storage::TrialRepository(db_).Insert(
+        storage::TrialOwner{run->view.session_id, run->run_id}, trial.trial);
+    if (!inserted.ok()) return inserted.status();
+    const std::size_t samples = trial.trial.num_samples();
+    api::Status a = Audit(run->actor, "trial.record", "trials/" + std::to_string(*inserted),
+                          RunTarget(run->run_id) + " trial " + name + ", " +
+                              std::to_string(samples) + " samples" +
+                              (trial.complete ? "" : " (incomplete)"),
+                          "ok");
+    if (!a.ok()) return a;
+    id = *inserted;
+    return api::Status::Ok();
+  });
+  if (!st.ok()) {
+    id.reset();
+    Log("storing trial " + name + " of run " + std::to_string(run->run_id) + ": " +
+        st.ToString());
+  }
+  int index = -1;
+  {
+    std::lock_guard lock(mu_);
+    run->trial_ids.push_back(id);
+    index = static_cast<int>(run->trial_ids.size()) - 1;
+    if (id) run->view.trial_ids.push_back(*id);
+  }
+  HubItem item;
+  item.kind = HubItem::Kind::kTrial;
+  item.run_id = run->run_id;
+  item.samples.trial = index;
+  item.samples.trial_name = name;
+  item.trial_id = id;
+  hub_.Publish(std::move(item));
+}
+
+void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
+                              const protocols::RunResult& result) {
+  RunState state = result.state;
+  std::string reason = result.reason;
+  if (!protocols::IsFinal(state)) {
+    state = RunState::kFailed;
+    reason = "the run ended in state " + std::string(protocols::RunStateName(result.state));
+  }
+  std::vector<std::optional<std::int64_t>> trial_ids;
+  {
+    std::lock_guard lock(mu_);
+    trial_ids = run->trial_ids;
+  }
+  const auto stored_id = [&](int index) -> std::optional<std::int64_t> {
+    if (index < 0 || static_cast<std::size_t>(index) >= trial_ids.size()) return std::nullopt;
+    return trial_ids[static_cast<std::size_t>(index)];
+  };
+
+  // The rapid protocol's set, its provenance naming the stored trials it
+  // was fitted to (§7.4.1: ramp IRC, free swing, random binary).
+  std::optional<storage::NewParameterSet> new_set;
+  if (state == RunState::kDone && result.parameter_set) {
+    storage::NewParameterSet ns;
+    ns.subject_id = run->subject_id;
+    ns.leg_id = run->leg_id;
+    ns.params = *result.parameter_set;
+    ns.supersedes_id = run->prior_parameter_set_id;
+    std::vector<std::int64_t> ids;
+    if (run->rapid) {
+      for (int k : {run->rapid->ramp_trial, run->rapid->passive_trial, run->rapid->active_trial}) {
+        if (auto id = stored_id(k)) ids.push_back(*id);
+      }
+      ns.params.provenance.active_trial_id = stored_id(run->rapid->active_trial);
+    } else {
+      for (const auto& id : trial_ids) {
+        if (id) ids.push_back(*id);
+      }
+    }
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    ns.params.provenance.trial_ids = ids;
+    new_set = std::move(ns);
+    if (ids.size() != 3 && run->rapid) {
+      state = RunState::kFailed;
+      reason = "the run's trials could not all be stored; its parameter set is not stored";
+      new_set.reset();
+    }
+  }
+
+  std::optional<std::int64_t> set_id;
+  std::optional<storage::Run> stored;
+  const auto write = [&](RunState s, const std::string& why,
+                         bool with_set) -> api::Status {
+    return db_.Write([&](storage::Connection&) -> api::Status {
+      set_id.reset();
+      std::string summary = std::string(protocols::RunStateName(s));
+      if (!why.empty()) summary += ": " + why;
+      if (with_set && new_set) {
+        api::Result<storage::ParameterSetSummary> ins =
+            storage::ParameterSetRepository(db_).Insert(*new_set);
+        if (!ins.ok()) return ins.status();
+        set_id = ins->id;
+        summary += "; parameter set " + std::to_string(ins->id);
+      }
+      api::Result<storage::Run> r =
+          storage::SessionRepository(db_).RecordRunState(run->run_id, ToStorage(s), why);
+      if (!r.ok()) return r.status();
+      stored = *r;
+      return Audit(run->actor, "run.finish", RunTarget(run->run_id), summary, "ok");
+    });
+  };
+  api::Status st = write(state, reason, true);
+  if (!st.ok() && new_set) {
+    Log("storing the parameter set of run " + std::to_string(run->run_id) + ": " + st.ToString());
+    state = RunState::kFailed;
+    reason = "storing the parameter set failed: " + st.message();
+    st = write(state, reason, false);
+  }
+  if (!st.ok()) {
+    Log("storing the end of run " + std::to_string(run->run_id) + ": " + st.ToString());
+  }
+
+  {
+    std::lock_guard lock(mu_);
+    RunView& v = run->view;
+    v.state = state;
+    v.reason = reason;
+    v.finished_at = stored && stored->finished_at ? stored->finished_at : db_.Now();
+    if (stored && stored->started_at) v.started_at = stored->started_at;
+    v.parameter_set_id = set_id;
+    v.safety_events = result.safety_events;
+    v.tolerance = result.tolerance;
+    v.values = result.values;
+    if (state == RunState::kDone) {
+      v.progress.fraction = 1.0;
+      v.progress.eta_s = 0.0;
+    }
+    run->final = true;
+  }
+  final_cv_.notify_all();
+
+  HubItem item;
+  item.kind = HubItem::Kind::kEnd;
+  item.run_id = run->run_id;
+  item.state = state;
+  item.reason = reason;
+  item.parameter_set_id = set_id;
+  hub_.Publish(std::move(item));
+  Forget();
+}
+
+void RunService::Forget() {
+  std::lock_guard lock(mu_);
+  std::size_t finished = 0;
+  for (const auto& [id, r] : runs_) finished += r->final ? 1 : 0;
+  for (auto it = runs_.begin(); it != runs_.end() && finished > config_.finished_runs_kept;) {
+    if (it->second->final && it->first != current_run_id_) {
+      it = runs_.erase(it);
+      --finished;
+    } else {
+      ++it;
+    }
+  }
+}
+
+// --- queries ------------------------------------------------------------------------
+
+std::shared_ptr<RunService::LiveRun> RunService::FindLive(std::int64_t run_id) const {
+  std::lock_guard lock(mu_);
+  const auto it = runs_.find(run_id);
+  return it == runs_.end() ? nullptr : it->second;
+}
+
+std::shared_ptr<RunService::LiveRun> RunService::Current() const {
+  std::lock_guard lock(mu_);
+  const auto it = runs_.find(current_run_id_);
+  return it == runs_.end() ? nullptr : it->second;
+}
+
+api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
+  api::Result<storage::Run> run = storage::SessionRepository(db_).GetRun(run_id);
+  if (!run.ok()) return run.status();
+  RunView v;
+  v.run_id = run->id;
+  v.session_id = run->session_id;
+  v.protocol = run->protocol_name;
+  try {
+    v.protocol_version = std::stoi(run->protocol_version);
+  } catch (const std::exception&) {
+    v.protocol_version = 0;
+  }
+  const nlohmann::json params = nlohmann::json::parse(run->parameters_json, nullptr, false);
+  if (params.is_object()) {
+    for (const auto& [k, x] : params.items()) {
+      if (x.is_number()) v.parameters[k] = x.get<double>();
+    }
+  }
+  v.state = FromStorage(run->state);
+  if (v.state == RunState::kFailed || v.state == RunState::kAborted) v.reason = run->message;
+  v.created_at = run->created_at;
+  v.started_at = run->started_at;
+  v.finished_at = run->finished_at;
+  if (v.state == RunState::kDone) v.progress.fraction = 1.0;
+
+  api::Result<std::vector<storage::TrialSummary>> trials =
+      storage::TrialRepository(db_).ListForSession(run->session_id);
+  if (!trials.ok()) return trials.status();
+  for (const storage::TrialSummary& t : *trials) {
+    if (t.run_id == run_id) v.trial_ids.push_back(t.id);
+  }
+  // The set a completed run stored names the run's trials in its provenance.
+  if (v.state == RunState::kDone && !v.trial_ids.empty()) {
+    api::Result<storage::Session> session = storage::SessionRepository(db_).Get(run->session_id);
+    if (!session.ok()) return session.status();
+    storage::HistoryQuery q;
+    q.subject_id = session->subject_id;
+    q.leg_id = session->leg_id;
+    q.from = run->created_at;
+    api::Result<std::vector<storage::ParameterSetSummary>> history =
+        storage::ParameterSetRepository(db_).History(q);
+    if (!history.ok()) return history.status();
+    const std::set<std::int64_t> mine(v.trial_ids.begin(), v.trial_ids.end());
+    for (const storage::ParameterSetSummary& s : *history) {
+      api::Result<storage::StoredParameterSet> set = storage::ParameterSetRepository(db_).Get(s.id);
+      if (!set.ok()) continue;
+      const bool all_mine = !set->trial_ids.empty() &&
+                            std::all_of(set->trial_ids.begin(), set->trial_ids.end(),
+                                        [&](std::int64_t id) { return mine.count(id) > 0; });
+      if (all_mine) {
+        v.parameter_set_id = s.id;
+        break;
+      }
+    }
+  }
+  return v;
+}
+
+api::Result<RunView> RunService::Get(std::int64_t run_id) {
+  try {
+    if (auto run = FindLive(run_id)) {
+      std::lock_guard lock(mu_);
+      return run->view;
+    }
+    return StoredView(run_id);
+  } catch (const std::exception& e) {
+    Log(std::string("Get: ") + e.what());
+    return api::Status::Internal("reading the run failed");
+  }
+}
+
+api::Result<RunView> RunService::Wait(std::int64_t run_id, std::chrono::milliseconds timeout) {
+  try {
+    if (auto run = FindLive(run_id)) {
+      std::unique_lock lock(mu_);
+      final_cv_.wait_for(lock, timeout, [&] { return run->final; });
+      return run->view;
+    }
+    return StoredView(run_id);
+  } catch (const std::exception& e) {
+    Log(std::string("Wait: ") + e.what());
+    return api::Status::Internal("reading the run failed");
+  }
+}
+
+BenchState RunService::State() const {
+  BenchState s;
+  s.kind = std::string(bench_.kind());
+  s.estopped = const_cast<protocols::BenchOwner&>(owner_).safe_bench().estopped() ||
+               bench_.HardwareEStopped();
+  s.busy = owner_.busy();
+  std::lock_guard lock(mu_);
+  if (s.estopped) s.estop_source = estop_source_;
+  const auto it = runs_.find(current_run_id_);
+  if (it == runs_.end()) return s;
+  const LiveRun& r = *it->second;
+  s.run_id = r.run_id;
+  s.protocol = r.view.protocol;
+  s.run_state = r.view.state;
+  s.progress = r.view.progress;
+  if (!r.final) {
+    s.busy = true;  // still storing what it produced
+    s.mode = std::string(protocols::BenchModeName(r.mode));
+    s.owner = r.actor.user_name;
+    s.owner_user_id = r.actor.user_id;
+  }
+  return s;
+}
+
+// --- commands ----------------------------------------------------------------------
+
+api::Result<RunView> RunService::Start(const Actor& actor, std::int64_t session_id,
+                                       const std::string& protocol,
+                                       const protocols::ParameterValues& parameters) {
+  try {
+    return StartImpl(actor, session_id, protocol, parameters);
+  } catch (const std::exception& e) {
+    Log(std::string("Start: ") + e.what());
+    return api::Status::Internal("starting the run failed");
+  }
+}
+
+api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t session_id,
+                                           const std::string& protocol,
+                                           const protocols::ParameterValues& parameters) {
+  if (!MayOperateBench(actor)) {
+    return api::Status(api::ErrorCode::kPermissionDenied,
+                       "starting a run needs the clinician or admin role");
+  }
+  const protocols::ProtocolDescription* description = protocols::FindProtocol(protocol);
+  if (description == nullptr) return api::Status::NotFound("unknown protocol '" + protocol + "'");
+  for (const auto& [name, value] : parameters) {
+    if (!std::isfinite(value)) {
+      return api::Status::InvalidArgument("must be finite", "parameters." + name);
+    }
+  }
+
+  std::lock_guard start_lock(start_mu_);
+  {
+    std::lock_guard lock(mu_);
+    if (shutting_down_) return api::Status::Unavailable("the server is shutting down");
+  }
+  api::Result<SessionContext> context = LoadSessionContext(db_, session_id, bench_.limits());
+  if (!context.ok()) return context.status();
+  if (!context->has_stimulation_limits &&
+      description->kind != protocols::ProtocolKind::kTolerance) {
+    return api::Status::FailedPrecondition(
+        "session " + std::to_string(session_id) +
+        " has no threshold and max tolerated amplitude: record them (tolerance_test) first");
+  }
+  if (owner_.busy()) {
+    return api::Status::Conflict("the bench is held by a run of " + owner_.owner());
+  }
+  if (const std::shared_ptr<LiveRun> previous = Current()) {
+    std::lock_guard lock(mu_);
+    if (!previous->final) return api::Status::Conflict("the previous run is still being stored");
+  }
+  if (owner_.safe_bench().estopped() || bench_.HardwareEStopped()) {
+    return api::Status::Conflict("e-stop latched: clear it first");
+  }
+
+  protocols::StartRequest request;
+  request.protocol = protocol;
+  request.parameters = parameters;
+  request.subject = context->subject;
+  request.client = actor.user_name;
+  api::Result<protocols::Plan> plan = owner_.Prepare(request);
+  if (!plan.ok()) return plan.status();
+  if (plan->rapid) {
+    api::Result<double> inertia = protocols::KnownInertia(request.subject);
+    if (!inertia.ok()) return inertia.status();
+  }
+
+  nlohmann::json params_json = nlohmann::json::object();
+  for (const auto& [k, v] : plan->parameters) params_json[k] = v;
+  storage::NewRun new_run;
+  new_run.protocol_name = protocol;
+  new_run.protocol_version = std::to_string(plan->protocol_version);
+  new_run.parameters_json = params_json.dump();
+  api::Result<storage::Run> created = db_.Write([&](storage::Connection&) -> api::Result<storage::Run> {
+    api::Result<storage::Run> r = storage::SessionRepository(db_).CreateRun(session_id, new_run);
+    if (!r.ok()) return r;
+    std::string summary = "session " + std::to_string(session_id) + ", " + protocol + " v" +
+                          new_run.protocol_version;
+    for (const auto& [k, v] : parameters) summary += ", " + k + "=" + FormatNumber(v);
+    if (api::Status a = Audit(actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
+      return a;
+    }
+    return r;
+  });
+  if (!created.ok()) return created.status();
+
+  auto run = std::make_shared<LiveRun>();
+  run->run_id = created->id;
+  run->subject_id = context->session.subject_id;
+  run->leg_id = context->session.leg_id;
+  run->actor = actor;
+  run->mode = description->bench_mode;
+  run->rapid = plan->rapid;
+  run->prior_parameter_set_id = context->parameter_set_id;
+  RunView& v = run->view;
+  v.run_id = created->id;
+  v.session_id = session_id;
+  v.protocol = protocol;
+  v.protocol_version = plan->protocol_version;
+  v.parameters = plan->parameters;
+  v.state = RunState::kQueued;
+  v.owner = actor.user_name;
+  v.owner_user_id = actor.user_id;
+  v.created_at = created->created_at;
+  v.progress.bench_total_s = plan->duration_s();
+  v.progress.eta_s =
+      config_.time_scale > 0.0 ? plan->duration_s() / config_.time_scale : 0.0;
+  v.live = true;
+  {
+    std::lock_guard lock(mu_);
+    runs_[run->run_id] = run;
+    current_run_id_ = run->run_id;
+  }
+  HubItem queued;
+  queued.kind = HubItem::Kind::kState;
+  queued.run_id = run->run_id;
+  queued.state = RunState::kQueued;
+  queued.progress = v.progress;
+  hub_.Publish(std::move(queued));
+
+  api::Status started = owner_.Start(request, std::make_shared<Observer>(*this, run));
+  if (!started.ok()) {
+    // Refused at the last moment (e.g. an e-stop in between): the run failed.
+    Enqueue([this, run, started] {
+      protocols::RunResult r;
+      r.state = RunState::kFailed;
+      r.reason = started.message();
+      RecordFinish(run, r);
+    });
+    return started;
+  }
+  std::lock_guard lock(mu_);
+  return run->view;
+}
+
+api::Status RunService::CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRun>* out) {
+  std::shared_ptr<LiveRun> run = FindLive(run_id);
+  if (!run) {
+    api::Result<storage::Run> stored = storage::SessionRepository(db_).GetRun(run_id);
+    if (!stored.ok()) return stored.status();
+    return api::Status::Conflict("run " + std::to_string(run_id) + " is not in progress (" +
+                                 std::string(storage::RunStateName(stored->state)) + ")");
+  }
+  std::lock_guard lock(mu_);
+  if (run->final || run_id != current_run_id_) {
+    return api::Status::Conflict("run " + std::to_string(run_id) + " is not in progress (" +
+                                 std::string(protocols::RunStateName(run->view.state)) + ")");
+  }
+  *out = std::move(run);
+  return api::Status::Ok();
+}
+
+api::Status RunService::Cancel(const Actor& actor, std::int64_t run_id) {
+  try {
+    if (!MayOperateBench(actor)) {
+      return api::Status(api::ErrorCode::kPermissionDenied,
+                         "cancelling a run needs the clinician or admin role");
+    }
+    std::shared_ptr<LiveRun> run;
+    if (api::Status st = CheckCurrent(run_id, &run); !st.ok()) return st;
+    if (api::Status st = owner_.Cancel("cancelled by " + actor.user_name); !st.ok()) {
+      return api::Status::Conflict("run " + std::to_string(run_id) + " is no longer running");
+    }
+    if (api::Status a = Audit(actor, "run.cancel", RunTarget(run_id), "cancel", "ok"); !a.ok()) {
+      Log("audit of cancel: " + a.ToString());
+    }
+    return api::Status::Ok();
+  } catch (const std::exception& e) {
+    Log(std::string("Cancel: ") + e.what());
+    return api::Status::Internal("cancelling the run failed");
+  }
+}
+
+api::Status RunService::StopWithResult(const Actor& actor, std::int64_t run_id) {
+  try {
+    if (!MayOperateBench(actor)) {
+      return api::Status(api::ErrorCode::kPermissionDenied,
+                         "stopping a run needs the clinician or admin role");
+    }
+    std::shared_ptr<LiveRun> run;
+    if (api::Status st = CheckCurrent(run_id, &run); !st.ok()) return st;
+    if (api::Status st = owner_.Stop(); !st.ok()) {
+      return api::Status::Conflict("run " + std::to_string(run_id) + " is no longer running");
+    }
+    if (api::Status a = Audit(actor, "run.stop", RunTarget(run_id), "stop with result", "ok");
+        !a.ok()) {
+      Log("audit of stop: " + a.ToString());
+    }
+    return api::Status::Ok();
+  } catch (const std::exception& e) {
+    Log(std::string("StopWithResult: ") + e.what());
+    return api::Status::Internal("stopping the run failed");
+  }
+}
+
+api::Status RunService::Heartbeat(const Actor& actor, std::int64_t run_id) {
+  try {
+    std::shared_ptr<LiveRun> run;
+    if (api::Status st = CheckCurrent(run_id, &run); !st.ok()) return st;
+    if (run->actor.user_id != actor.user_id || run->actor.user_name != actor.user_name) {
+      return api::Status(api::ErrorCode::kPermissionDenied,
+                         "only " + run->actor.user_name + ", who started run " +
+                             std::to_string(run_id) + ", controls it");
+    }
+    owner_.Heartbeat();
+    return api::Status::Ok();
+  } catch (const std::exception& e) {
+    Log(std::string("Heartbeat: ") + e.what());
+    return api::Status::Internal("heartbeat failed");
+  }
+}
+
+api::Status RunService::EStop(const Actor& actor, std::string_view source) {
+  const std::string who =
+      (source.empty() ? std::string("unknown source") : std::string(source)) + " (" +
+      (actor.user_name.empty() ? std::string("unknown") : actor.user_name) + ")";
+  // Act first: nothing may delay the e-stop (DESIGN.md §6).
+  owner_.EStop(who);
+  try {
+    {
+      std::lock_guard lock(mu_);
+      estop_source_ = who;
+    }
+    const std::shared_ptr<LiveRun> run = Current();
+    const std::string target =
+        run && !run->final ? RunTarget(run->run_id) : std::string("bench");
+    if (api::Status a = Audit(actor, "bench.estop", target, "e-stop from " + who, "ok"); !a.ok()) {
+      Log("audit of e-stop: " + a.ToString());
+    }
+  } catch (const std::exception& e) {
+    Log(std::string("EStop (after latching): ") + e.what());
+  }
+  return api::Status::Ok();
+}
+
+api::Status RunService::ClearEStop(const Actor& actor) {
+  try {
+    if (!MayOperateBench(actor)) {
+      return api::Status(api::ErrorCode::kPermissionDenied,
+                         "clearing the e-stop needs the clinician or admin role");
+    }
+    const bool was = owner_.safe_bench().estopped();
+    if (api::Status st = owner_.ClearEStop("cleared by " + actor.user_name); !st.ok()) return st;
+    // A hardware e-stop (the bench button) is cleared with it.
+    if (bench_.HardwareEStopped()) bench_.ClearHardwareEStop();
+    {
+      std::lock_guard lock(mu_);
+      estop_source_.clear();
+    }
+    if (api::Status a = Audit(actor, "bench.clear_estop", "bench",
+                              was ? "e-stop cleared" : "e-stop was not latched", "ok");
+        !a.ok()) {
+      Log("audit of clear e-stop: " + a.ToString());
+    }
+    return api::Status::Ok();
+  } catch (const std::exception& e) {
+    Log(std::string("ClearEStop: ") + e.what());
+    return api::Status::Internal("clearing the e-stop failed");
+  }
+}
+
+api::Status RunService::WithIdleBench(const std::function<api::Status()>& fn) {
+  try {
+    std::lock_guard start_lock(start_mu_);
+    {
+      std::lock_guard lock(mu_);
+      if (shutting_down_) return api::Status::Unavailable("the server is shutting down");
+    }
+    if (owner_.busy()) {
+      return api::Status::Conflict("a run of " + owner_.owner() + " holds the bench");
+    }
+    return fn();
+  } catch (const std::exception& e) {
+    Log(std::string("WithIdleBench: ") + e.what());
+    return api::Status::Internal("changing the bench failed");
+  }
+}
+
+void RunService::Shutdown() {
+  std::lock_guard start_lock(start_mu_);
+  {
+    std::lock_guard lock(mu_);
+    shutting_down_ = true;
+  }
+  try {
+    if (owner_.busy()) (void)owner_.Cancel("server shutting down");
+    (void)owner_.Wait();  // stimulation is 0 once the runner returns
+  } catch (const std::exception& e) {
+    Log(std::string("Shutdown: ") + e.what());
+  }
+  {
+    std::lock_guard lock(queue_mu_);
+    queue_stop_ = true;
+  }
+  queue_cv_.notify_all();
+  if (recorder_.joinable()) recorder_.join();
+}
+
+}  // namespace fesbench::server::services
