@@ -196,8 +196,9 @@ json IdentificationResultToJson(const IdentificationResult& r) {
   for (const StoredFit& s : r.stored) {
     sets.push_back({{"id", s.parameter_set_id}, {"version", s.version}, {"model", s.model}});
   }
-  return {{"subject_id", r.subject_id}, {"leg_id", r.leg_id},     {"parameter_sets", sets},
-          {"trial_ids", r.trial_ids},   {"report", ReportToJson(r.report)}, {"audit_id", r.audit_id}};
+  return {{"subject_id", r.subject_id},       {"leg_id", r.leg_id},
+          {"parameter_sets", sets},           {"trial_ids", r.trial_ids},
+          {"report", ReportToJson(r.report)}, {"audit_id", r.audit_id}};
 }
 
 api::Result<PredictionRequest> PredictionRequestFromJson(const json& j) {
@@ -356,6 +357,42 @@ json ComparisonResultToJson(const ComparisonResult& r) {
             {"confidence", t.confidence},
             {"t_critical", t.t_critical},
             {"significant", t.significant}}}};
+}
+
+}  // namespace fesbench::server::services
+
+namespace fesbench::server::services {
+
+api::Result<std::int64_t> SubmitIdentification(JobPool& pool, IdentificationService& service,
+                                               const Actor& actor, IdentificationRequest request) {
+  return pool.Submit(
+      "identification", actor,
+      [&service, actor, request = std::move(request)]() -> api::Result<nlohmann::json> {
+        api::Result<IdentificationResult> r = service.Fit(actor, request);
+        if (!r.ok()) return r.status();
+        return IdentificationResultToJson(*r);
+      });
+}
+
+api::Result<std::int64_t> SubmitPrediction(JobPool& pool, PredictionService& service,
+                                           const Actor& actor, PredictionRequest request) {
+  return pool.Submit(
+      "prediction", actor,
+      [&service, actor, request = std::move(request)]() -> api::Result<nlohmann::json> {
+        api::Result<PredictionResult> r = service.Predict(actor, request);
+        if (!r.ok()) return r.status();
+        return PredictionResultToJson(*r);
+      });
+}
+
+api::Result<std::int64_t> SubmitComparison(JobPool& pool, const ComparisonService& service,
+                                           const Actor& actor, ComparisonRequest request) {
+  return pool.Submit("comparison", actor,
+                     [&service, request = std::move(request)]() -> api::Result<nlohmann::json> {
+                       api::Result<ComparisonResult> r = service.Compare(request);
+                       if (!r.ok()) return r.status();
+                       return ComparisonResultToJson(*r);
+                     });
 }
 
 }  // namespace fesbench::server::services

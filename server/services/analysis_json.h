@@ -60,3 +60,21 @@ api::Result<ComparisonRequest> ComparisonRequestFromJson(const nlohmann::json& j
 nlohmann::json ComparisonResultToJson(const ComparisonResult& result);
 
 }  // namespace fesbench::server::services
+
+#include "server/services/job_pool.h"
+
+namespace fesbench::server::services {
+
+/// Queues service.Fit(actor, request) on `pool` as an "identification" job
+/// whose result is IdentificationResultToJson; the job id, or the pool's
+/// kUnavailable. `service` must outlive the job.
+api::Result<std::int64_t> SubmitIdentification(JobPool& pool, IdentificationService& service,
+                                               const Actor& actor, IdentificationRequest request);
+/// The same for service.Predict ("prediction" job, PredictionResultToJson).
+api::Result<std::int64_t> SubmitPrediction(JobPool& pool, PredictionService& service,
+                                           const Actor& actor, PredictionRequest request);
+/// The same for service.Compare ("comparison" job, ComparisonResultToJson).
+api::Result<std::int64_t> SubmitComparison(JobPool& pool, const ComparisonService& service,
+                                           const Actor& actor, ComparisonRequest request);
+
+}  // namespace fesbench::server::services

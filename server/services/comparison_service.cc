@@ -108,7 +108,8 @@ api::Result<ComparisonResult> ComparisonService::Compare(const ComparisonRequest
           api::Result<PredictionResult> r = predictions_.Compute(pr);
           if (!r.ok()) {
             api::Status s = r.status();
-            return api::Status(s.code(), tf + ": " + s.message(), s.field().empty() ? tf : s.field());
+            return api::Status(s.code(), tf + ": " + s.message(),
+                               s.field().empty() ? tf : s.field());
           }
           const PredictionErrors& e = *r->errors;
           if (channel.empty()) {

@@ -102,8 +102,8 @@ struct ModelFit {
 };
 
 struct FitOutcome {
-  std::vector<ModelFit> fits;     // request.models order
-  model::IdentifyReport common;   // conditioning, contraction, IRC, passive
+  std::vector<ModelFit> fits;      // request.models order
+  model::IdentifyReport common;    // conditioning, contraction, IRC, passive
   std::vector<std::int64_t> used;  // trial ids
 };
 
@@ -135,10 +135,9 @@ class Fitter {
         try {
           const model::EmgComparison cmp = model::CompareEmgPrePost(*v, emg->sample_rate_hz);
           if (cmp.voluntary_contraction) {
-            common_.warnings.push_back("trial " + std::to_string(t.id) +
-                                       ": EMG differs before and after (ratio " +
-                                       std::to_string(cmp.ratio) +
-                                       "): voluntary contraction? (§5.2.1)");
+            common_.warnings.push_back(
+                "trial " + std::to_string(t.id) + ": EMG differs before and after (ratio " +
+                std::to_string(cmp.ratio) + "): voluntary contraction? (§5.2.1)");
           }
         } catch (const std::invalid_argument&) {
           // Too short a recording to compare: nothing to report.
@@ -160,8 +159,7 @@ class Fitter {
     const model::PulseTrain pulses = model::TrialPulses(c, config_.pulse_rate_hz);
     std::vector<double> rel(c.t_s);
     for (double& t : rel) t -= c.t_s.front();
-    c.activation =
-        model::ActivationAt(p.contraction, p.irc, pulses, config_.pulse_rate_hz, rel);
+    c.activation = model::ActivationAt(p.contraction, p.irc, pulses, config_.pulse_rate_hz, rel);
   }
 
   std::vector<TrialColumns> ColumnsOfAll(TrialKind kind) {
@@ -180,8 +178,7 @@ class Fitter {
       missing.push_back(Missing("irc_method impulse", "an isometric_impulse_irc trial"));
     } else if (irc != model::IrcMethod::kStep && irc != model::IrcMethod::kImpulse &&
                !has(TrialKind::kRampIrc)) {
-      missing.push_back(
-          Missing("irc_method " + req_.irc_method, "an isometric_ramp_irc trial"));
+      missing.push_back(Missing("irc_method " + req_.irc_method, "an isometric_ramp_irc trial"));
     }
     if (!has(TrialKind::kRampIrc) && !has(TrialKind::kImpulseIrc)) {
       missing.push_back(Missing("the contraction dynamics (single-pulse responses)",
@@ -231,7 +228,8 @@ class Fitter {
     // Contraction dynamics from the averaged impulse responses (§4.1, Eqs. 4.2, 4.4).
     stage_ = "contraction dynamics";
     std::vector<TrialColumns> twitch_trials = ColumnsOfAll(TrialKind::kRampIrc);
-    for (TrialColumns& c : ColumnsOfAll(TrialKind::kImpulseIrc)) twitch_trials.push_back(std::move(c));
+    for (TrialColumns& c : ColumnsOfAll(TrialKind::kImpulseIrc))
+      twitch_trials.push_back(std::move(c));
     model::ContractionOptions co;
     co.order = req_.contraction_order;
     co.method = req_.pole_method == "least_squares" ? model::PoleMethod::kLeastSquares
@@ -247,7 +245,8 @@ class Fitter {
                                                                           : TrialKind::kRampIrc;
     model::IrcOptions io;
     io.ideal.pole_per_s = 0.0;  // from the trial's impulses (Eqs. 4.2, 4.4)
-    const model::IrcResult irc = model::IdentifyIrc(irc_method, Columns(*sel_.Latest(irc_kind)), io);
+    const model::IrcResult irc =
+        model::IdentifyIrc(irc_method, Columns(*sel_.Latest(irc_kind)), io);
     est.irc = irc.irc;
     est.active.torque_scale_nm = irc.torque_scale_nm;
     est.provenance.irc_method = req_.irc_method;
@@ -378,7 +377,8 @@ class Fitter {
       for (std::size_t i = 0; i < missing.size(); ++i) names += (i ? ", " : "") + missing[i];
       return api::Status::FailedPrecondition(
           "missing trials: method rapid needs the trials of a rapid_parameterisation run; none "
-          "named " + names);
+          "named " +
+          names);
     }
     std::optional<double> inertia = Inertia();
     if (!inertia && ctx_.latest) inertia = ctx_.latest->passive.inertia_kgm2;
@@ -478,9 +478,9 @@ api::Result<Selection> Select(storage::Database& db, const IdentificationRequest
     }
     if (ids.empty()) {
       // Still need the session's subject and leg for the message.
-      return api::Status::FailedPrecondition(
-          "missing trials: session " + std::to_string(*req.session_id) +
-          " has no trial of an identification protocol");
+      return api::Status::FailedPrecondition("missing trials: session " +
+                                             std::to_string(*req.session_id) +
+                                             " has no trial of an identification protocol");
     }
   }
   std::sort(ids.begin(), ids.end());
@@ -500,10 +500,10 @@ api::Result<Selection> Select(storage::Database& db, const IdentificationRequest
     const std::optional<TrialKind> kind = KindOfName(t->trial.name.value_or(""));
     if (!kind) {
       if (explicit_ids) {
-        return api::Status::InvalidArgument(
-            "trial " + std::to_string(t->id) + " (\"" + t->trial.name.value_or("") +
-                "\") is not a trial of an identification protocol",
-            field);
+        return api::Status::InvalidArgument("trial " + std::to_string(t->id) + " (\"" +
+                                                t->trial.name.value_or("") +
+                                                "\") is not a trial of an identification protocol",
+                                            field);
       }
       continue;
     }
@@ -600,7 +600,7 @@ IdentificationService::IdentificationService(storage::Database& db, Identificati
     : db_(db), config_(config) {}
 
 api::Result<IdentificationResult> IdentificationService::Fit(const Actor& actor,
-                                                            const IdentificationRequest& request) {
+                                                             const IdentificationRequest& request) {
   if (actor.role != Role::kAnalyst && actor.role != Role::kAdmin) {
     return api::Status(api::ErrorCode::kPermissionDenied,
                        "fitting parameter sets needs the analyst or admin role");
@@ -626,7 +626,8 @@ api::Result<IdentificationResult> IdentificationService::Fit(const Actor& actor,
       return latest.status();
     }
     if (request.torque_angle_parameter_set_id) {
-      api::Result<storage::StoredParameterSet> src = sets.Get(*request.torque_angle_parameter_set_id);
+      api::Result<storage::StoredParameterSet> src =
+          sets.Get(*request.torque_angle_parameter_set_id);
       if (!src.ok()) return src.status();
       if (src->summary.leg_id != selection->leg_id) {
         return api::Status::InvalidArgument("parameter set of another leg",

@@ -67,8 +67,8 @@ struct IdentificationRequest {
   std::string irc_method = "ramp_correlation";
   /// "sequential", "simultaneous", "free_swing".
   std::string passive_method = "simultaneous";
-  int contraction_order = 3;          ///< 2, 3, or 0 = the better-fitting order.
-  std::string pole_method = "peak";   ///< "peak" or "least_squares".
+  int contraction_order = 3;         ///< 2, 3, or 0 = the better-fitting order.
+  std::string pole_method = "peak";  ///< "peak" or "least_squares".
   /// Model variants to fit and store, "full" and/or the simplified ones
   /// (model::ModelKindName). One stored version each.
   std::vector<std::string> models = {"full"};

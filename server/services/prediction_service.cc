@@ -109,8 +109,7 @@ api::Status ValidatePredictionRequest(const PredictionRequest& r, const Predicti
     return api::Status::InvalidArgument("must be in [0, 180] deg", "initial_angle_deg");
   }
   if (!InRange(r.initial_velocity_deg_s, -2000.0, 2000.0)) {
-    return api::Status::InvalidArgument("must be in [-2000, 2000] deg/s",
-                                        "initial_velocity_deg_s");
+    return api::Status::InvalidArgument("must be in [-2000, 2000] deg/s", "initial_velocity_deg_s");
   }
   if (r.duration_s && !(std::isfinite(*r.duration_s) && *r.duration_s > 0.0 &&
                         *r.duration_s <= config.max_duration_s)) {
@@ -146,10 +145,10 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
           model::MakeStimulus(request.stimulus->generator, request.stimulus->params);
       const double duration = request.duration_s.value_or(env.EndTime());
       if (duration > config_.max_duration_s) {
-        return api::Status::InvalidArgument(
-            "the stimulus lasts " + std::to_string(duration) + " s, over the " +
-                std::to_string(config_.max_duration_s) + " s limit",
-            "stimulus");
+        return api::Status::InvalidArgument("the stimulus lasts " + std::to_string(duration) +
+                                                " s, over the " +
+                                                std::to_string(config_.max_duration_s) + " s limit",
+                                            "stimulus");
       }
       pulses = model::PulsesFromEnvelope(env, config_.pulse_rate_hz);
       options.duration_s = duration;
@@ -186,15 +185,14 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
       if (span > config_.max_duration_s) {
         return api::Status::InvalidArgument("trial lasts " + std::to_string(span) +
                                                 " s, over the " +
-                                                std::to_string(config_.max_duration_s) +
-                                                " s limit",
+                                                std::to_string(config_.max_duration_s) + " s limit",
                                             "trial_id");
       }
       const auto [lo, hi] = std::minmax_element(c.angle_deg.begin(), c.angle_deg.end());
-      const bool locked = name.starts_with("isometric_") ||
-                          name.starts_with("rapid_isometric") || (*hi - *lo) < 0.5;
-      out.mode = request.mode.value_or(locked ? PredictionMode::kIsometric
-                                              : PredictionMode::kFreeSwing);
+      const bool locked = name.starts_with("isometric_") || name.starts_with("rapid_isometric") ||
+                          (*hi - *lo) < 0.5;
+      out.mode =
+          request.mode.value_or(locked ? PredictionMode::kIsometric : PredictionMode::kFreeSwing);
       if (out.mode == PredictionMode::kIsometric && c.torque_nm.size() != c.size()) {
         return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
                                                " has no torque_nm channel to compare");
@@ -220,9 +218,9 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
       measured = std::move(c);
     }
     if (!InRange(out.initial_angle_deg, 0.0, 180.0)) {
-      return api::Status::InvalidArgument("initial angle " + std::to_string(out.initial_angle_deg) +
-                                              " deg is outside 0–180",
-                                          request.trial_id ? "trial_id" : "initial_angle_deg");
+      return api::Status::InvalidArgument(
+          "initial angle " + std::to_string(out.initial_angle_deg) + " deg is outside 0–180",
+          request.trial_id ? "trial_id" : "initial_angle_deg");
     }
     options.initial_angle_deg = out.initial_angle_deg;
     options.initial_velocity_deg_s = out.initial_velocity_deg_s;
@@ -251,15 +249,16 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
       out.errors = Errors(at, data, iso, config_.normalised_exclude_fraction);
     }
   } catch (const std::exception& e) {
-    return ModelFailure(stage, e, stage == "simulation" || stage == "errors"
-                                      ? api::ErrorCode::kFailedPrecondition
-                                      : api::ErrorCode::kInvalidArgument);
+    return ModelFailure(stage, e,
+                        stage == "simulation" || stage == "errors"
+                            ? api::ErrorCode::kFailedPrecondition
+                            : api::ErrorCode::kInvalidArgument);
   }
   return out;
 }
 
 api::Result<PredictionResult> PredictionService::Predict(const Actor& actor,
-                                                        const PredictionRequest& request) {
+                                                         const PredictionRequest& request) {
   if (actor.role != Role::kAnalyst && actor.role != Role::kAdmin) {
     return api::Status(api::ErrorCode::kPermissionDenied,
                        "predictions need the analyst or admin role");

@@ -34,9 +34,9 @@
 namespace fesbench::server::services {
 
 struct PredictionConfig {
-  double max_duration_s = 600.0;  ///< longest prediction, s.
-  double pulse_rate_hz = 33.0;    ///< stimulator pulse rate, Hz.
-  double output_rate_hz = 200.0;  ///< sample rate of stimulus predictions, Hz.
+  double max_duration_s = 600.0;              ///< longest prediction, s.
+  double pulse_rate_hz = 33.0;                ///< stimulator pulse rate, Hz.
+  double output_rate_hz = 200.0;              ///< sample rate of stimulus predictions, Hz.
   double normalised_exclude_fraction = 0.05;  ///< Eq. 6.1 exclusion (evaluation.h).
 };
 

@@ -135,12 +135,12 @@ class AnalysisServicesTest : public ::testing::Test {
     std::vector<std::int64_t> ids;
     const model::GeneratorParams range = {{"threshold_ma", 20}, {"max_ma", 45}};
     const model::SampledSignal ramp = model::MakeStimulus("isometric_ramp_irc", range);
-    ids.push_back(Store(
-        s, TrialOf("isometric_ramp_irc",
-                   model::SimulateIsometric(
-                       truth, model::PulsesFromEnvelope(ramp, model::kDefaultPulseRateHz), 90.0,
-                       Whole(ramp)),
-                   &ramp, false)));
+    ids.push_back(
+        Store(s, TrialOf("isometric_ramp_irc",
+                         model::SimulateIsometric(
+                             truth, model::PulsesFromEnvelope(ramp, model::kDefaultPulseRateHz),
+                             90.0, Whole(ramp)),
+                         &ramp, false)));
     for (std::uint64_t seed : {3u, 8u}) {
       model::SumOfSinesOptions so;
       so.min_deg = 12;
@@ -149,19 +149,19 @@ class AnalysisServicesTest : public ::testing::Test {
       const model::SumOfSinesTrajectory traj(so);
       model::SimulationOptions o;
       o.duration_s = traj.duration_s();
-      ids.push_back(Store(s, TrialOf("passive_simultaneous_" + std::to_string(ids.size()),
-                                     model::SimulateTrajectory(truth, {}, traj, o), nullptr,
-                                     true)));
+      ids.push_back(
+          Store(s, TrialOf("passive_simultaneous_" + std::to_string(ids.size()),
+                           model::SimulateTrajectory(truth, {}, traj, o), nullptr, true)));
     }
     for (double seed : {11.0, 12.0}) {
       const model::SampledSignal env =
           model::MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", seed}});
       ids.push_back(Store(
-          s, TrialOf("active_random_binary_rb" + std::to_string(ids.size()),
-                     model::SimulateFreeSwing(
-                         truth, model::PulsesFromEnvelope(env, model::kDefaultPulseRateHz),
-                         Whole(env)),
-                     &env, true)));
+          s, TrialOf(
+                 "active_random_binary_rb" + std::to_string(ids.size()),
+                 model::SimulateFreeSwing(
+                     truth, model::PulsesFromEnvelope(env, model::kDefaultPulseRateHz), Whole(env)),
+                 &env, true)));
     }
     return ids;
   }
@@ -206,7 +206,8 @@ TEST_F(AnalysisServicesTest, IdentificationRecoversKnownParametersAndStoresVersi
   // passive 0.05 N·m, inertia 1 %.
   EXPECT_NEAR(est.contraction.pole_per_s, 25.0, 0.02 * 25.0);
   double irc_err = 0.0;
-  for (double u = 27.0; u <= 45.0; u += 0.5) irc_err = std::max(irc_err, std::abs(est.irc(u) - truth.irc(u)));
+  for (double u = 27.0; u <= 45.0; u += 0.5)
+    irc_err = std::max(irc_err, std::abs(est.irc(u) - truth.irc(u)));
   EXPECT_LT(irc_err, 0.02);
   EXPECT_LT(MaxDiff(est.passive.torque_angle, truth.passive.torque_angle, 15, 105, 0.5), 0.05);
   EXPECT_LT(MaxDiff(est.passive.torque_velocity, truth.passive.torque_velocity, -150, 150, 1),
@@ -266,8 +267,8 @@ TEST_F(AnalysisServicesTest, IdentificationRefusesMissingTrialsUnknownIdsAndWron
   const std::int64_t ramp_id =
       Store(s, TrialOf("isometric_ramp_irc",
                        model::SimulateIsometric(
-                           truth, model::PulsesFromEnvelope(ramp, model::kDefaultPulseRateHz),
-                           90.0, Whole(ramp)),
+                           truth, model::PulsesFromEnvelope(ramp, model::kDefaultPulseRateHz), 90.0,
+                           Whole(ramp)),
                        &ramp, false));
   IdentificationService service(*db_);
   IdentificationRequest req;
@@ -314,12 +315,11 @@ TEST_F(AnalysisServicesTest, PredictionOfATrialMadeFromTheSameParametersHasZeroE
   const std::int64_t set_id = StoreSet(s, truth);
   const model::SampledSignal env =
       model::MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 99}});
-  const std::int64_t trial_id =
-      Store(s, TrialOf("prediction_random_binary",
-                       model::SimulateFreeSwing(
-                           truth, model::PulsesFromEnvelope(env, model::kDefaultPulseRateHz),
-                           Whole(env)),
-                       &env, true));
+  const std::int64_t trial_id = Store(
+      s, TrialOf("prediction_random_binary",
+                 model::SimulateFreeSwing(
+                     truth, model::PulsesFromEnvelope(env, model::kDefaultPulseRateHz), Whole(env)),
+                 &env, true));
   PredictionService service(*db_);
   PredictionRequest req;
   req.parameter_set_id = set_id;
@@ -452,6 +452,17 @@ TEST_F(AnalysisServicesTest, ComparisonReproducesHandComputedPairedTTest) {
   EXPECT_NEAR(t.p_value, 1.0 - std::sqrt(7.0) / 3.0, 1e-7);
   EXPECT_NEAR(t.t_critical, 4.302653, 1e-5);
   EXPECT_FALSE(t.significant);
+  // The same comparison as a job: its record carries the JSON result.
+  {
+    JobPool pool;
+    auto job = SubmitComparison(pool, service, kAnalyst, req);
+    ASSERT_TRUE(job.ok()) << job.status().ToString();
+    pool.Shutdown(/*drain=*/true);
+    auto record = pool.Get(*job);
+    ASSERT_TRUE(record.ok());
+    ASSERT_EQ(record->state, JobState::kDone) << record->error.ToString();
+    EXPECT_NEAR(record->result["t_test"]["t"].get<double>(), -std::sqrt(7.0), 1e-7);
+  }
   const nlohmann::json j = ComparisonResultToJson(*r);
   EXPECT_EQ(j["t_test"]["n"], 3);
   EXPECT_EQ(j["pairs"][1]["trials"][0]["trial_id"], req.pairs[1].trial_ids[0]);
@@ -471,8 +482,9 @@ TEST_F(AnalysisServicesTest, ComparisonReproducesHandComputedPairedTTest) {
   EXPECT_EQ(mixed.status().code(), api::ErrorCode::kInvalidArgument);
   EXPECT_EQ(mixed.status().field(), "pairs[0].b_parameter_set_id");
   auto parsed = ComparisonRequestFromJson(
-      {{"pairs", {{{"a_parameter_set_id", 1}, {"b_parameter_set_id", 2}, {"trial_ids", {3}}},
-                  {{"a_parameter_set_id", 1}, {"b_parameter_set_id", 2}, {"trial_id", {3}}}}}});
+      {{"pairs",
+        {{{"a_parameter_set_id", 1}, {"b_parameter_set_id", 2}, {"trial_ids", {3}}},
+         {{"a_parameter_set_id", 1}, {"b_parameter_set_id", 2}, {"trial_id", {3}}}}}});
   EXPECT_EQ(parsed.status().field(), "pairs[1].trial_ids");
 }
 

@@ -20,8 +20,9 @@ JobPoolConfig OneWorker(std::size_t capacity) {
 
 TEST(JobPool, RunsJobAndRecordsResultAndTimes) {
   JobPool pool;
-  auto id = pool.Submit("identification", kAnalyst,
-                        [] { return api::Result<nlohmann::json>(nlohmann::json{{"x", 2}}); });
+  auto id = pool.Submit("identification", kAnalyst, [] {
+    return api::Result<nlohmann::json>(nlohmann::json{{"x", 2}});
+  });
   ASSERT_TRUE(id.ok()) << id.status().ToString();
   pool.Shutdown(/*drain=*/true);
   auto job = pool.Get(*id);
@@ -103,9 +104,9 @@ TEST(JobPool, UnknownIdIsNotFoundAndListIsNewestFirst) {
   JobPool pool;
   EXPECT_EQ(pool.Get(42).status().code(), api::ErrorCode::kNotFound);
   for (int i = 0; i < 3; ++i) {
-    ASSERT_TRUE(pool.Submit("comparison", kAnalyst, [i] {
-                      return api::Result<nlohmann::json>(nlohmann::json(i));
-                    }).ok());
+    ASSERT_TRUE(pool.Submit("comparison", kAnalyst,
+                            [i] { return api::Result<nlohmann::json>(nlohmann::json(i)); })
+                    .ok());
   }
   pool.Shutdown(true);
   const auto list = pool.List(2);
