@@ -1,6 +1,7 @@
 #include "server/services/run_service.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <exception>
 #include <iostream>
@@ -176,6 +177,8 @@ struct RunService::LiveRun {
   RunView view;
   std::vector<std::optional<std::int64_t>> trial_ids;  // by trial index
   bool final = false;
+  /// Handed to the BenchOwner: its end waits for the bench to be released.
+  std::atomic<bool> on_bench{false};
   // Run thread only.
   std::uint64_t next_sample = 0;
 };
@@ -486,6 +489,9 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
     Log("storing the end of run " + std::to_string(run->run_id) + ": " + st.ToString());
   }
 
+  // The view turns final only once the bench is free again, so that a
+  // caller who saw the end may start the next run at once.
+  if (run->on_bench.load()) (void)owner_.Wait();
   {
     std::lock_guard lock(mu_);
     RunView& v = run->view;
@@ -769,8 +775,10 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   queued.progress = v.progress;
   hub_.Publish(std::move(queued));
 
+  run->on_bench = true;
   api::Status started = owner_.Start(request, std::make_shared<Observer>(*this, run));
   if (!started.ok()) {
+    run->on_bench = false;
     // Refused at the last moment (e.g. an e-stop in between): the run failed.
     Enqueue([this, run, started] {
       protocols::RunResult r;
