@@ -8,9 +8,8 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "api/status.h"
 #include "server/bench/bench.h"

@@ -204,7 +204,8 @@ class RunService::Observer final : public protocols::RunObserver {
       item.state = state;
       item.reason = reason;
       service_.hub_.Publish(std::move(item));
-      service_.Enqueue([&s = service_, run = run_, state, reason] { s.RecordState(run, state, reason); });
+      service_.Enqueue(
+          [&s = service_, run = run_, state, reason] { s.RecordState(run, state, reason); });
     });
   }
 
@@ -294,8 +295,7 @@ protocols::BenchOwnerOptions OwnerOptions(const RunServiceConfig& c) {
 
 }  // namespace
 
-RunService::RunService(storage::Database& db, Bench& bench, SampleHub& hub,
-                       RunServiceConfig config)
+RunService::RunService(storage::Database& db, Bench& bench, SampleHub& hub, RunServiceConfig config)
     : db_(db),
       bench_(bench),
       hub_(hub),
@@ -377,19 +377,18 @@ void RunService::RecordTrial(const std::shared_ptr<LiveRun>& run,
         storage::TrialOwner{run->view.session_id, run->run_id}, trial.trial);
     if (!inserted.ok()) return inserted.status();
     const std::size_t samples = trial.trial.num_samples();
-    api::Status a = Audit(run->actor, "trial.record", "trials/" + std::to_string(*inserted),
-                          RunTarget(run->run_id) + " trial " + name + ", " +
-                              std::to_string(samples) + " samples" +
-                              (trial.complete ? "" : " (incomplete)"),
-                          "ok");
+    api::Status a =
+        Audit(run->actor, "trial.record", "trials/" + std::to_string(*inserted),
+              RunTarget(run->run_id) + " trial " + name + ", " + std::to_string(samples) +
+                  " samples" + (trial.complete ? "" : " (incomplete)"),
+              "ok");
     if (!a.ok()) return a;
     id = *inserted;
     return api::Status::Ok();
   });
   if (!st.ok()) {
     id.reset();
-    Log("storing trial " + name + " of run " + std::to_string(run->run_id) + ": " +
-        st.ToString());
+    Log("storing trial " + name + " of run " + std::to_string(run->run_id) + ": " + st.ToString());
   }
   int index = -1;
   {
@@ -458,8 +457,7 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
 
   std::optional<std::int64_t> set_id;
   std::optional<storage::Run> stored;
-  const auto write = [&](RunState s, const std::string& why,
-                         bool with_set) -> api::Status {
+  const auto write = [&](RunState s, const std::string& why, bool with_set) -> api::Status {
     return db_.Write([&](storage::Connection&) -> api::Status {
       set_id.reset();
       std::string summary = std::string(protocols::RunStateName(s));
@@ -728,17 +726,19 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   new_run.protocol_name = protocol;
   new_run.protocol_version = std::to_string(plan->protocol_version);
   new_run.parameters_json = params_json.dump();
-  api::Result<storage::Run> created = db_.Write([&](storage::Connection&) -> api::Result<storage::Run> {
-    api::Result<storage::Run> r = storage::SessionRepository(db_).CreateRun(session_id, new_run);
-    if (!r.ok()) return r;
-    std::string summary = "session " + std::to_string(session_id) + ", " + protocol + " v" +
-                          new_run.protocol_version;
-    for (const auto& [k, v] : parameters) summary += ", " + k + "=" + FormatNumber(v);
-    if (api::Status a = Audit(actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
-      return a;
-    }
-    return r;
-  });
+  api::Result<storage::Run> created =
+      db_.Write([&](storage::Connection&) -> api::Result<storage::Run> {
+        api::Result<storage::Run> r =
+            storage::SessionRepository(db_).CreateRun(session_id, new_run);
+        if (!r.ok()) return r;
+        std::string summary = "session " + std::to_string(session_id) + ", " + protocol + " v" +
+                              new_run.protocol_version;
+        for (const auto& [k, v] : parameters) summary += ", " + k + "=" + FormatNumber(v);
+        if (api::Status a = Audit(actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
+          return a;
+        }
+        return r;
+      });
   if (!created.ok()) return created.status();
 
   auto run = std::make_shared<LiveRun>();
@@ -760,8 +760,7 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   v.owner_user_id = actor.user_id;
   v.created_at = created->created_at;
   v.progress.bench_total_s = plan->duration_s();
-  v.progress.eta_s =
-      config_.time_scale > 0.0 ? plan->duration_s() / config_.time_scale : 0.0;
+  v.progress.eta_s = config_.time_scale > 0.0 ? plan->duration_s() / config_.time_scale : 0.0;
   v.live = true;
   {
     std::lock_guard lock(mu_);
@@ -881,8 +880,7 @@ api::Status RunService::EStop(const Actor& actor, std::string_view source) {
       estop_source_ = who;
     }
     const std::shared_ptr<LiveRun> run = Current();
-    const std::string target =
-        run && !run->final ? RunTarget(run->run_id) : std::string("bench");
+    const std::string target = run && !run->final ? RunTarget(run->run_id) : std::string("bench");
     if (api::Status a = Audit(actor, "bench.estop", target, "e-stop from " + who, "ok"); !a.ok()) {
       Log("audit of e-stop: " + a.ToString());
     }

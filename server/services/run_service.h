@@ -32,13 +32,12 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <thread>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "api/status.h"
 #include "server/bench/bench.h"
@@ -59,11 +58,11 @@ struct RunServiceConfig {
   /// The controlling user must heartbeat within this many wall seconds
   /// during a run (DESIGN.md §6).
   double heartbeat_timeout_s = 1.0;
-  bool arm_watchdog = true;          ///< false only in tests and offline replays.
-  double progress_interval_s = 0.1;  ///< bench seconds between progress events.
-  std::size_t batch_samples = 40;    ///< samples per live batch.
+  bool arm_watchdog = true;             ///< false only in tests and offline replays.
+  double progress_interval_s = 0.1;     ///< bench seconds between progress events.
+  std::size_t batch_samples = 40;       ///< samples per live batch.
   std::size_t finished_runs_kept = 64;  ///< finished run views kept in memory.
-  SafeBench::WallClock wall_clock;  ///< empty = steady clock.
+  SafeBench::WallClock wall_clock;      ///< empty = steady clock.
   /// Where unexpected errors are logged; empty = std::cerr.
   std::function<void(std::string_view)> log;
 };
@@ -82,12 +81,12 @@ struct RunView {
   storage::UtcTime created_at;
   std::optional<storage::UtcTime> started_at;
   std::optional<storage::UtcTime> finished_at;
-  protocols::Progress progress;  ///< fraction 0–1 and ETA (wall s).
-  std::vector<std::int64_t> trial_ids;  ///< stored trials, in recording order.
+  protocols::Progress progress;                  ///< fraction 0–1 and ETA (wall s).
+  std::vector<std::int64_t> trial_ids;           ///< stored trials, in recording order.
   std::optional<std::int64_t> parameter_set_id;  ///< rapid_parameterisation's stored set.
-  std::vector<SafetyEvent> safety_events;  ///< of this run (live/in-memory views only).
+  std::vector<SafetyEvent> safety_events;        ///< of this run (live/in-memory views only).
   std::optional<protocols::ToleranceResult> tolerance;  ///< tolerance_test.
-  std::map<std::string, double> values;  ///< figures decided during the run.
+  std::map<std::string, double> values;                 ///< figures decided during the run.
   bool live = false;  ///< from memory (this process ran it) rather than storage.
 };
 
@@ -100,7 +99,7 @@ nlohmann::json RunViewToJson(const RunView& view);
 
 /// What the bench is doing (GET bench, DDS fesbench/bench/state).
 struct BenchState {
-  std::string kind;        ///< "sim", "replay", …
+  std::string kind;           ///< "sim", "replay", …
   std::string mode = "idle";  ///< the current run's bench mode, or "idle".
   bool busy = false;
   bool estopped = false;

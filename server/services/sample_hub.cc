@@ -105,8 +105,8 @@ struct HubCore {
 
   void Remove(const Subscription::Queue* queue) {
     std::lock_guard lock(mu);
-    const auto it = std::find_if(queues.begin(), queues.end(),
-                                 [&](const auto& q) { return q.get() == queue; });
+    const auto it =
+        std::find_if(queues.begin(), queues.end(), [&](const auto& q) { return q.get() == queue; });
     if (it == queues.end()) return;
     {
       std::lock_guard ql((*it)->mu);

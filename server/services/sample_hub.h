@@ -17,10 +17,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
-
-#include <nlohmann/json.hpp>
 
 #include "server/protocols/runner.h"
 
@@ -36,8 +35,8 @@ struct HubItem {
     kEnd,       ///< the run ended and everything it produced is stored.
   };
   Kind kind = Kind::kState;
-  std::uint64_t seq = 0;     ///< hub-wide, strictly increasing in publish order (from 1).
-  std::int64_t run_id = 0;   ///< 0 when no run has started yet (initial state).
+  std::uint64_t seq = 0;    ///< hub-wide, strictly increasing in publish order (from 1).
+  std::int64_t run_id = 0;  ///< 0 when no run has started yet (initial state).
   protocols::RunState state = protocols::RunState::kQueued;  ///< kState, kEnd.
   std::string reason;                                        ///< kState, kEnd.
   protocols::Progress progress;                              ///< kProgress (last known otherwise).

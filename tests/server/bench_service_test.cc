@@ -22,9 +22,9 @@ using namespace std::chrono_literals;
 
 std::filesystem::path TempDir() {
   static std::atomic<int> counter{0};
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("fesbench_benchsvc_" + std::to_string(::getpid()) + "_" +
-                    std::to_string(counter++));
+  const auto dir =
+      std::filesystem::temp_directory_path() /
+      ("fesbench_benchsvc_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
@@ -98,10 +98,9 @@ TEST(BenchService, AdminReadsAndReplacesTheVirtualSubject) {
 
   VirtualSubject next = DrawVirtualSubject(22);
   next.name = "replacement";
-  EXPECT_EQ(rig.service->PutVirtualSubject(rig.clinician, VirtualSubjectToJson(next))
-                .status()
-                .code(),
-            api::ErrorCode::kPermissionDenied);
+  EXPECT_EQ(
+      rig.service->PutVirtualSubject(rig.clinician, VirtualSubjectToJson(next)).status().code(),
+      api::ErrorCode::kPermissionDenied);
   auto put = rig.service->PutVirtualSubject(rig.admin, VirtualSubjectToJson(next));
   ASSERT_TRUE(put.ok()) << put.status().ToString();
   EXPECT_EQ(put->at("name"), "replacement");
@@ -149,15 +148,16 @@ TEST(BenchService, TheSubjectCannotChangeDuringARun) {
   auto view = rig.runs->Wait(run->run_id, 60s);
   ASSERT_TRUE(view.ok());
   EXPECT_EQ(view->state, protocols::RunState::kAborted);
-  auto after = rig.service->PutVirtualSubject(rig.admin, VirtualSubjectToJson(DrawVirtualSubject(5)));
+  auto after =
+      rig.service->PutVirtualSubject(rig.admin, VirtualSubjectToJson(DrawVirtualSubject(5)));
   EXPECT_TRUE(after.ok()) << after.status().ToString();
 }
 
 TEST(BenchService, AHardwareEStopSurvivesASubjectChange) {
   Rig rig;
   rig.bench->HardwareEStop();
-  ASSERT_TRUE(rig.service->PutVirtualSubject(rig.admin, VirtualSubjectToJson(DrawVirtualSubject(8)))
-                  .ok());
+  ASSERT_TRUE(
+      rig.service->PutVirtualSubject(rig.admin, VirtualSubjectToJson(DrawVirtualSubject(8))).ok());
   EXPECT_TRUE(rig.bench->HardwareEStopped());
   EXPECT_TRUE(rig.service->Info().state.estopped);
   ASSERT_TRUE(rig.runs->ClearEStop(rig.clinician).ok());

@@ -35,9 +35,9 @@ constexpr auto kWait = 120s;  // only reached if something hangs
 
 std::filesystem::path TempDir() {
   static std::atomic<int> counter{0};
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("fesbench_runsvc_" + std::to_string(::getpid()) + "_" +
-                    std::to_string(counter++));
+  const auto dir =
+      std::filesystem::temp_directory_path() /
+      ("fesbench_runsvc_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
@@ -133,7 +133,8 @@ struct Rig {
     auto entries = storage::AuditLog(*db).List(q);
     EXPECT_TRUE(entries.ok());
     std::vector<storage::AuditEntry> sorted = *entries;
-    std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
+    std::sort(sorted.begin(), sorted.end(),
+              [](const auto& a, const auto& b) { return a.id < b.id; });
     std::vector<std::string> out;
     for (const auto& e : sorted) out.push_back(e.entry.action);
     return out;
@@ -367,8 +368,8 @@ TEST(RunService, RapidProtocolStoresAParameterSetWhoseProvenanceTrialsExist) {
   EXPECT_EQ(actions.back(), "run.finish");
   auto audit = storage::AuditLog(*rig.db).List({});
   ASSERT_TRUE(audit.ok());
-  EXPECT_NE(audit->front().entry.request_summary.find(
-                "parameter set " + std::to_string(*view->parameter_set_id)),
+  EXPECT_NE(audit->front().entry.request_summary.find("parameter set " +
+                                                      std::to_string(*view->parameter_set_id)),
             std::string::npos);
 
   // Read back from storage by a fresh service: the set is found again.
@@ -440,8 +441,9 @@ TEST(RunService, EStopAbortsLatchesAndClearsByClinicianOnly) {
   ASSERT_TRUE(view.ok());
   EXPECT_EQ(view->state, RunState::kAborted);
   EXPECT_EQ(view->reason, "e-stop");
-  EXPECT_TRUE(std::any_of(view->safety_events.begin(), view->safety_events.end(),
-                          [](const SafetyEvent& e) { return e.kind == SafetyEvent::Kind::kEStop; }));
+  EXPECT_TRUE(
+      std::any_of(view->safety_events.begin(), view->safety_events.end(),
+                  [](const SafetyEvent& e) { return e.kind == SafetyEvent::Kind::kEStop; }));
   EXPECT_DOUBLE_EQ(rig.bench->ReadSensors().stim_ma, 0.0);
   auto stored = storage::SessionRepository(*rig.db).GetRun(run->run_id);
   ASSERT_TRUE(stored.ok());
@@ -451,7 +453,8 @@ TEST(RunService, EStopAbortsLatchesAndClearsByClinicianOnly) {
   BenchState state = rig.service->State();
   EXPECT_TRUE(state.estopped);
   EXPECT_EQ(state.estop_source, "http (ana)");
-  auto refused = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
+  auto refused =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.status().code(), api::ErrorCode::kConflict);
 
@@ -520,7 +523,8 @@ TEST(RunService, ShutdownCancelsTheRunSafelyAndRefusesNewOnes) {
   auto stored = storage::SessionRepository(*rig.db).GetRun(run->run_id);
   ASSERT_TRUE(stored.ok());
   EXPECT_EQ(stored->state, storage::RunState::kCancelled);
-  auto refused = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
+  auto refused =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.status().code(), api::ErrorCode::kUnavailable);
   rig.service->Shutdown();  // idempotent
@@ -604,13 +608,13 @@ TEST(RunService, UnknownIdsAndBadInputAreRefusedWithTheRightCode) {
   EXPECT_EQ(code(rig.service->Start(rig.analyst, rig.session_id, "isometric_ramp_irc", {})),
             api::ErrorCode::kPermissionDenied);
 
-  auto bad = rig.service->Start(rig.clinician, rig.session_id, "isometric_ramp_irc",
-                                {{"ramps", 2.5}});
+  auto bad =
+      rig.service->Start(rig.clinician, rig.session_id, "isometric_ramp_irc", {{"ramps", 2.5}});
   ASSERT_FALSE(bad.ok());
   EXPECT_EQ(bad.status().code(), api::ErrorCode::kInvalidArgument);
   EXPECT_EQ(bad.status().field(), "parameters.ramps");
-  auto unknown = rig.service->Start(rig.clinician, rig.session_id, "isometric_ramp_irc",
-                                    {{"colour", 1.0}});
+  auto unknown =
+      rig.service->Start(rig.clinician, rig.session_id, "isometric_ramp_irc", {{"colour", 1.0}});
   EXPECT_EQ(unknown.status().field(), "parameters.colour");
   auto nan = rig.service->Start(rig.clinician, rig.session_id, "isometric_ramp_irc",
                                 {{"ramps", std::nan("")}});
