@@ -1,12 +1,15 @@
 #include "model/identify_rapid.h"
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
+#include <cmath>
 #include <stdexcept>
+#include <limits>
 #include <string>
 
 #include "model/conditioning.h"
 #include "model/contraction.h"
 #include "model/identify_least_squares.h"
+#include "model/simulate.h"
 #include "model/units.h"
 
 namespace fesbench::model {
@@ -92,6 +95,187 @@ PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, 
   return res;
 }
 
+namespace {
+
+// The refined ordinates of a parameter set, in a fixed order: τ_pta, τ_ptv,
+// f_ata, f_atv, ln τ_scale.
+std::vector<double> PackCurves(const ParameterSet& p) {
+  std::vector<double> v;
+  for (const PiecewiseLinear* c : {&p.passive.torque_angle, &p.passive.torque_velocity,
+                                   &p.active.torque_angle, &p.active.torque_velocity}) {
+    v.insert(v.end(), c->y().begin(), c->y().end());
+  }
+  v.push_back(std::log(p.active.torque_scale_nm));
+  return v;
+}
+
+ParameterSet UnpackCurves(ParameterSet p, const Eigen::VectorXd& v) {
+  Eigen::Index k = 0;
+  for (PiecewiseLinear* c : {&p.passive.torque_angle, &p.passive.torque_velocity,
+                             &p.active.torque_angle, &p.active.torque_velocity}) {
+    std::vector<double> y(v.data() + k, v.data() + k + static_cast<Eigen::Index>(c->size()));
+    k += static_cast<Eigen::Index>(c->size());
+    *c = PiecewiseLinear(c->x(), std::move(y));
+  }
+  p.active.torque_scale_nm = std::exp(v(k));
+  return p;
+}
+
+// Simulated minus measured knee angle of every trial (every stride-th
+// sample), followed by the prior rows w·(x − x0)/scale. A diverging
+// simulation gives non-finite residuals.
+class OutputError {
+ public:
+  OutputError(const ParameterSet& start, std::span<const TrialColumns> trials,
+              const OutputErrorOptions& options)
+      : start_(start), trials_(trials), options_(options), x0_(PackCurves(start)) {
+    for (const TrialColumns& tr : trials_) {
+      pulses_.push_back(TrialPulses(tr, options.pulse_rate_hz));
+      for (std::size_t i = 0; i < tr.size(); i += static_cast<std::size_t>(options.stride)) ++n_;
+    }
+    const auto add = [&](std::size_t count, double s) { scale_.insert(scale_.end(), count, s); };
+    add(start.passive.torque_angle.size(), options.passive_torque_scale_nm);
+    add(start.passive.torque_velocity.size(), options.passive_velocity_scale_nm);
+    add(start.active.torque_angle.size(), options.active_gain_scale);
+    add(start.active.torque_velocity.size(), options.active_gain_scale);
+    add(1, options.log_torque_scale);
+    prior_ = std::sqrt(options.prior_weight * static_cast<double>(n_));
+  }
+
+  Eigen::Index samples() const { return static_cast<Eigen::Index>(n_); }
+  Eigen::VectorXd start() const { return Eigen::Map<const Eigen::VectorXd>(x0_.data(), size()); }
+  Eigen::Index size() const { return static_cast<Eigen::Index>(x0_.size()); }
+
+  Eigen::VectorXd operator()(const Eigen::VectorXd& x) const {
+    Eigen::VectorXd r(samples() + size());
+    const ParameterSet p = UnpackCurves(start_, x);
+    Eigen::Index row = 0;
+    for (std::size_t k = 0; k < trials_.size(); ++k) {
+      const TrialColumns& tr = trials_[k];
+      SimulationOptions o;
+      o.step_s = options_.step_s;
+      o.pulse_rate_hz = options_.pulse_rate_hz;
+      o.initial_angle_deg = tr.angle_deg.front();
+      o.initial_velocity_deg_s = tr.velocity_deg_s.front();
+      o.duration_s = tr.t_s.back() - tr.t_s.front() + 0.5 / tr.SampleRateHz();
+      o.output_rate_hz = tr.SampleRateHz();
+      const SimulationResult sim = SimulateFreeSwing(p, pulses_[k], o);
+      for (std::size_t i = 0; i < tr.size(); i += static_cast<std::size_t>(options_.stride)) {
+        r(row++) = i < sim.angle_deg.size() ? sim.angle_deg[i] - tr.angle_deg[i]
+                                            : std::numeric_limits<double>::quiet_NaN();
+      }
+    }
+    for (Eigen::Index j = 0; j < size(); ++j) {
+      r(row++) = prior_ * (x(j) - x0_[static_cast<std::size_t>(j)]) /
+                 scale_[static_cast<std::size_t>(j)];
+    }
+    return r;
+  }
+
+  double AngleRms(const Eigen::VectorXd& r) const {
+    return std::sqrt(r.head(samples()).squaredNorm() / static_cast<double>(n_));
+  }
+
+ private:
+  const ParameterSet& start_;
+  std::span<const TrialColumns> trials_;
+  OutputErrorOptions options_;
+  std::vector<double> x0_;
+  std::vector<double> scale_;
+  std::vector<PulseTrain> pulses_;
+  std::size_t n_ = 0;
+  double prior_ = 0.0;
+};
+
+double Cost(const Eigen::VectorXd& r) {
+  return r.allFinite() ? r.squaredNorm() : std::numeric_limits<double>::infinity();
+}
+
+}  // namespace
+
+OutputErrorResult RefineOutputError(const ParameterSet& start, std::span<const TrialColumns> trials,
+                                    const OutputErrorOptions& options) {
+  const char* what = "RefineOutputError";
+  if (trials.empty()) throw std::invalid_argument(std::string(what) + ": no trials");
+  if (options.iterations < 0 || options.stride < 1 || !(options.step_s > 0.0) ||
+      !(options.pulse_rate_hz > 0.0) || !(options.prior_weight >= 0.0) ||
+      !(options.passive_torque_scale_nm > 0.0) || !(options.passive_velocity_scale_nm > 0.0) ||
+      !(options.active_gain_scale > 0.0) || !(options.log_torque_scale > 0.0)) {
+    throw std::invalid_argument(std::string(what) + ": an option is out of range");
+  }
+  if (start.passive.torque_angle.empty() || start.passive.torque_velocity.empty() ||
+      start.active.torque_angle.empty() || start.active.torque_velocity.empty() ||
+      !(start.active.torque_scale_nm > 0.0)) {
+    throw std::invalid_argument(std::string(what) +
+                                ": start needs passive and active curves and τ_scale > 0");
+  }
+  for (const TrialColumns& tr : trials) {
+    const std::size_t n = tr.t_s.size();
+    if (n < 2) throw std::invalid_argument(std::string(what) + ": a trial has < 2 samples");
+    RequireColumn(what, "stim_ma", tr.stim_ma, n);
+    RequireColumn(what, "angle_deg", tr.angle_deg, n);
+    RequireColumn(what, "velocity_deg_s", tr.velocity_deg_s, n);
+  }
+  const OutputError error(start, trials, options);
+  Eigen::VectorXd x = error.start();
+  Eigen::VectorXd r = error(x);
+  double cost = Cost(r);
+  OutputErrorResult out;
+  out.report.fit_rms["output_error_start_deg"] = error.AngleRms(r);
+  // Levenberg–Marquardt (Marquardt's diagonal scaling), forward-difference
+  // Jacobian; a step is kept only if it lowers the cost.
+  double lambda = 1e-2;
+  int done = 0;
+  for (int it = 0; it < options.iterations && std::isfinite(cost); ++it) {
+    Eigen::MatrixXd jac(r.size(), x.size());
+    for (Eigen::Index j = 0; j < x.size(); ++j) {
+      Eigen::VectorXd xp = x;
+      const double h = 1e-4 * std::max(1.0, std::abs(x(j)));
+      xp(j) += h;
+      jac.col(j) = (error(xp) - r) / h;
+    }
+    if (!jac.allFinite()) break;
+    const Eigen::MatrixXd jtj = jac.transpose() * jac;
+    const Eigen::VectorXd g = jac.transpose() * r;
+    const double floor = std::max(jtj.diagonal().maxCoeff(), 1e-12);
+    bool improved = false;
+    for (int tries = 0; tries < 6 && !improved; ++tries) {
+      Eigen::MatrixXd a = jtj;
+      // The floor keeps ordinates the trials never move (no support) fixed.
+      a.diagonal() += lambda * (jtj.diagonal().array() + 1e-6 * floor).matrix();
+      const Eigen::VectorXd xn = x + a.ldlt().solve(-g);
+      const Eigen::VectorXd rn = error(xn);
+      const double cn = Cost(rn);
+      if (cn < cost) {
+        x = xn;
+        r = rn;
+        cost = cn;
+        lambda *= 0.3;
+        improved = true;
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!improved) break;
+    ++done;
+  }
+  ParameterSet p = UnpackCurves(start, x);
+  if (!(p.active.torque_angle(kReferenceAngleDeg) > 0.0) || !(p.active.torque_velocity(0.0) > 0.0)) {
+    // Not normalisable (§6.7): keep the start.
+    p = start;
+    r = error(error.start());
+    done = 0;
+    out.report.warnings.push_back("output-error refinement left f_ata(90°) or f_atv(0) ≤ 0; "
+                                  "kept the linear estimates");
+  }
+  p.passive = ReferencePassive(p.passive);  // §6.5
+  p.active = NormaliseActive(p.active);     // §6.7
+  out.parameters = std::move(p);
+  out.report.fit_rms["output_error_deg"] = error.AngleRms(r);
+  out.report.values["output_error_iterations"] = done;
+  return out;
+}
+
 RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& passive,
                           const TrialColumns& active, const RapidOptions& options) {
   if (!(options.inertia_kgm2 > 0.0) || !std::isfinite(options.inertia_kgm2)) {
@@ -139,6 +323,18 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& pas
   const ActiveResult act = IdentifyActive(swing, ps.passive, ao);
   ps.active = act.active;
   out.report.Merge(act.report);
+
+  // 4. Output-error refinement on both free-swing trials (see the file
+  //    comment); the linear estimates above are its start and prior.
+  if (options.refine_iterations > 0) {
+    OutputErrorOptions oe;
+    oe.iterations = options.refine_iterations;
+    oe.pulse_rate_hz = options.pulse_rate_hz;
+    oe.prior_weight = options.refine_prior_weight;
+    const OutputErrorResult refined = RefineOutputError(ps, swing, oe);
+    ps = refined.parameters;
+    out.report.Merge(refined.report);
+  }
 
   ps.provenance.irc_method = std::string(IrcMethodName(IrcMethod::kRampCorrelation));
   ps.provenance.passive_method = "free_swing_known_inertia";

@@ -14,7 +14,15 @@
 ///     (f_stim ≤ 0.01) of both, by Eq. 4.35 with J moved to the left:
 ///       −J·θ̈ = Σ c_j X_j(θ) + Σ c_k X_k(θ̇)   (Eq. 4.30 basis, SVD Eqs. 4.19–4.26),
 ///     then f_ata, f_atv and τ_scale from the stimulated samples (f_stim ≥
-///     0.01) by Eq. 4.40.
+///     0.01) by Eq. 4.40;
+///  4. (beyond the thesis) the linear estimates of step 3 refined by
+///     output error: Levenberg–Marquardt on the knee-angle error of the
+///     model simulated through both recorded free-swing trials (E_RMS,
+///     Eq. 6.9, the measure §6.9 judges prediction by), pulled toward the
+///     linear estimates (RefineOutputError). The equation-error fits weigh
+///     torque residuals that the leg's unmodelled effects (series
+///     elasticity, hysteresis, friction, potentiation, §3.3, §6.6) bias;
+///     the refinement trades them for the angles themselves.
 /// Velocity and acceleration come from the position by a GCV smoothing
 /// spline (§5.1, and §7.4.1: "the position signal could be double
 /// differentiated off-line … This would eliminate the need to calibrate
@@ -42,7 +50,52 @@ struct RapidOptions {
   BreakpointSpec active_velocity{7, {}};
   double max_passive_activation = 0.01;  ///< §5.4.3.
   double relative_tolerance = 1e-8;      ///< SVD truncation (Eq. 4.26).
+  /// Output-error iterations after the linear fits (RefineOutputError);
+  /// 0 keeps the thesis's linear estimates.
+  int refine_iterations = 6;
+  /// Weight of the pull toward the linear estimates (OutputErrorOptions).
+  double refine_prior_weight = 0.01;
 };
+
+/// Options of RefineOutputError.
+struct OutputErrorOptions {
+  int iterations = 6;             ///< Levenberg–Marquardt iterations (≥ 0).
+  double pulse_rate_hz = 33.0;    ///< stimulator pulse rate, Hz (> 0).
+  double step_s = 5e-3;           ///< RK4 step of the simulations, s (> 0).
+  int stride = 2;                 ///< every stride-th sample enters the error (≥ 1).
+  /// Prior: each ordinate's distance from its start value, divided by its
+  /// scale below, enters the cost with weight prior_weight·(number of angle
+  /// samples), so a change of one scale costs as much as raising the mean
+  /// squared angle error by prior_weight deg² (≥ 0; 0 = no prior).
+  double prior_weight = 0.01;
+  double passive_torque_scale_nm = 0.5;  ///< τ_pta and τ_ptv ordinates.
+  double passive_velocity_scale_nm = 0.3;
+  double active_gain_scale = 0.2;        ///< f_ata and f_atv ordinates.
+  double log_torque_scale = 0.2;         ///< ln τ_scale.
+};
+
+/// What RefineOutputError returns: the refined set (passive referenced,
+/// active normalised) and fit_rms "output_error_start_deg" /
+/// "output_error_deg" (knee-angle RMS over the trials before and after),
+/// values "output_error_iterations".
+struct OutputErrorResult {
+  ParameterSet parameters;
+  IdentifyReport report;
+};
+
+/// Refines τ_pta, τ_ptv, f_ata, f_atv (ordinates at their breakpoints) and
+/// τ_scale of a full-model set by Levenberg–Marquardt on the knee angle
+/// simulated in free swing (SimulateFreeSwing, muscle at rest at each
+/// trial's start, θ and θ̇ from its first sample) against each trial's
+/// angle_deg, with a Tikhonov pull toward `start`. Inertia, IRC and
+/// contraction dynamics are kept. Trials need t_s, stim_ma, angle_deg and
+/// velocity_deg_s. A step is taken only if it lowers the cost (a diverging
+/// simulation counts as no improvement), so the result is never worse on
+/// the trials than `start`.
+/// @throws std::invalid_argument if there are no trials, a column is
+///   missing, start has empty curves, or an option is out of range.
+OutputErrorResult RefineOutputError(const ParameterSet& start, std::span<const TrialColumns> trials,
+                                    const OutputErrorOptions& options = {});
 
 /// A parameter set and what the fits reported.
 struct RapidResult {
@@ -77,7 +130,10 @@ PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, 
 /// torque_nm (offset-corrected or not); `passive` and `active` need t_s,
 /// stim_ma and angle_deg (velocity, acceleration and activation are
 /// computed). Provenance: irc_method "ramp_correlation", passive_method
-/// "free_swing_known_inertia", active_method "log_least_squares".
+/// "free_swing_known_inertia", active_method "log_least_squares"; with
+/// refine_iterations > 0 the passive and active curves are then refined
+/// by RefineOutputError on both free-swing trials (fit_rms
+/// "output_error_deg").
 /// @throws std::invalid_argument if inertia_kgm2 is not > 0 or any fit's
 ///   precondition fails (the message names it).
 RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& passive,

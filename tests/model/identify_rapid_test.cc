@@ -115,6 +115,40 @@ TEST(IdentifyPassiveKnownInertia, RecoversPassiveTorqueOfTheSimulatedLeg) {
   EXPECT_THROW(IdentifyPassiveKnownInertia({&missing, 1}, 0.3), std::invalid_argument);
 }
 
+// Output error: a set whose τ_scale is 10 % high and whose damping is
+// 1.5 times the truth's simulates the recorded swings with degrees of error; the
+// refinement without a prior returns to the truth's response and τ_scale.
+TEST(RefineOutputError, RecoversAPerturbedSetFromItsOwnSwings) {
+  Data d;
+  TrialColumns trials[] = {d.passive, d.active};
+  for (TrialColumns& t : trials) AddKinematics(t);
+  ParameterSet start = d.truth;
+  start.active.torque_scale_nm *= 1.1;
+  start.passive.torque_velocity = d.truth.passive.torque_velocity.Scaled(1.5);
+  OutputErrorOptions o;
+  o.iterations = 10;
+  o.prior_weight = 0.0;
+  const OutputErrorResult r = RefineOutputError(start, trials, o);
+  EXPECT_GT(r.report.fit_rms.at("output_error_start_deg"), 2.0);
+  EXPECT_LT(r.report.fit_rms.at("output_error_deg"), 0.1);
+  EXPECT_GT(r.report.values.at("output_error_iterations"), 0.0);
+  const ActiveParams truth_active = NormaliseActive(d.truth.active);
+  EXPECT_NEAR(r.parameters.active.torque_scale_nm, truth_active.torque_scale_nm,
+              0.03 * truth_active.torque_scale_nm);
+  EXPECT_NEAR(r.parameters.passive.torque_angle(kReferenceAngleDeg), 0.0, 1e-9);  // §6.5
+  EXPECT_NEAR(r.parameters.active.torque_angle(kReferenceAngleDeg), 1.0, 1e-9);   // §6.7
+  // Zero iterations: the start, referenced.
+  o.iterations = 0;
+  const OutputErrorResult none = RefineOutputError(start, trials, o);
+  EXPECT_DOUBLE_EQ(none.report.fit_rms.at("output_error_deg"),
+                   none.report.fit_rms.at("output_error_start_deg"));
+  o.stride = 0;
+  EXPECT_THROW(RefineOutputError(start, trials, o), std::invalid_argument);
+  TrialColumns no_velocity = trials[0];
+  no_velocity.velocity_deg_s.clear();
+  EXPECT_THROW(RefineOutputError(start, {&no_velocity, 1}), std::invalid_argument);
+}
+
 TEST(IdentifyRapid, RecoversTheModelAndPredictsItsResponse) {
   Data d;
   RapidOptions o;

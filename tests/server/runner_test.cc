@@ -11,6 +11,7 @@
 #include <atomic>
 #include <cmath>
 #include <condition_variable>
+#include <map>
 #include <mutex>
 #include <numeric>
 
@@ -267,7 +268,7 @@ struct RapidOutcome {
   double prediction_rms_deg = 0.0;
 };
 
-RapidOutcome RunRapidAndPredict(std::uint64_t seed) {
+RapidOutcome RunRapidAndPredictUncached(std::uint64_t seed) {
   Rig rig(seed);
   SubjectContext ctx = Context(rig.subject);
   auto plan = MakePlan("rapid_parameterisation", {}, ctx);
@@ -299,12 +300,20 @@ RapidOutcome RunRapidAndPredict(std::uint64_t seed) {
   return out;
 }
 
+// Each leg's run is deterministic; the per-leg and the cohort tests share it.
+const RapidOutcome& RunRapidAndPredict(std::uint64_t seed) {
+  static std::map<std::uint64_t, RapidOutcome> cache;
+  auto it = cache.find(seed);
+  if (it == cache.end()) it = cache.emplace(seed, RunRapidAndPredictUncached(seed)).first;
+  return it->second;
+}
+
 class Rapid : public ::testing::TestWithParam<std::uint64_t> {};
 
 TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   const std::uint64_t seed = GetParam();
   const VirtualSubject vs = Subject(seed);
-  const RapidOutcome out = RunRapidAndPredict(seed);
+  const RapidOutcome& out = RunRapidAndPredict(seed);
   ASSERT_EQ(out.run.state, RunState::kDone) << out.run.reason;
   EXPECT_LT(out.run.bench_duration_s, 30.0);  // §7.4.1
   ASSERT_TRUE(out.run.parameter_set.has_value());
@@ -315,14 +324,15 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   const auto wire = api::ParameterSetFromJson(RunResultToJson(out.run).at("parameter_set"));
   EXPECT_TRUE(wire.ok()) << wire.status().ToString();
   // Contraction pole (3rd order): series elasticity delays the twitch peak
-  // (Fig. 6-13), so the estimate runs low; within 10 % (seeds 2–7: ≤ 8 %).
+  // (Fig. 6-13), so the estimate runs low; within 10 % (measured over seeds
+  // 1–16: ≤ 8.3 %).
   EXPECT_EQ(p.contraction.order, 3);
   EXPECT_NEAR(p.contraction.pole_per_s, vs.truth.contraction.pole_per_s,
               0.10 * vs.truth.contraction.pole_per_s);
   // Isometric torque at 90° over the upper half of the stimulation range:
   // τ_scale·R(u) against the truth's steady torque. Potentiation (up to
   // +30 % on twitches) and fatigue make the leg differ from its own model,
-  // hence 35 % + 1 N·m.
+  // hence 35 % + 1 N·m (measured over seeds 1–16: ≤ 25 %).
   for (double f : {0.5, 0.75, 1.0}) {
     const double u = vs.threshold_ma + f * (vs.max_tolerated_ma - vs.threshold_ma);
     const double truth = SteadyIsometricActiveTorqueNm(vs.truth, u, 90.0);
@@ -330,7 +340,9 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
     EXPECT_NEAR(est, truth, 0.35 * truth + 1.0) << "u = " << u;
   }
   // Passive torque (τ_pta + τ_ptv(0), both referenced) over the middle of
-  // the angles the free swing visited: within 0.6 N·m (seeds 2–7: ≤ 0.33).
+  // the angles the free swing visited: within 0.6 N·m (measured over seeds
+  // 1–16: ≤ 0.52; the output-error refinement trades some of the torque
+  // fit for the angle fit, as hysteresis and friction bias either).
   const std::vector<double> angles = *out.run.trials.at(1).trial.Values("angle_deg");
   std::vector<double> sorted = angles;
   std::sort(sorted.begin(), sorted.end());
@@ -341,9 +353,14 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
     EXPECT_NEAR(est, truth, 0.6) << "theta = " << th;
   }
   EXPECT_NEAR(p.passive.inertia_kgm2, vs.truth.passive.inertia_kgm2, 1e-12);
-  // Knee-angle RMS of a random-binary prediction: every leg under 6°; the
-  // cohort's distribution against the 3° is checked below.
-  EXPECT_LT(out.prediction_rms_deg, 6.0);
+  // The refinement ran and fits both free-swing trials better than the
+  // linear estimates it started from.
+  ASSERT_TRUE(p.provenance.fit_rms.contains("output_error_deg"));
+  EXPECT_LT(p.provenance.fit_rms.at("output_error_deg"),
+            p.provenance.fit_rms.at("output_error_start_deg"));
+  // The criterion: knee-angle RMS of a fresh random-binary
+  // prediction under 3° for every leg.
+  EXPECT_LT(out.prediction_rms_deg, 3.0);
 }
 
 // The 16 legs of a seeded virtual cohort (the thesis's study size, §5.4).
@@ -351,19 +368,22 @@ INSTANTIATE_TEST_SUITE_P(Seeds, Rapid, ::testing::Range<std::uint64_t>(1, 17));
 
 // The criterion over the same cohort. The simulated leg is richer
 // than the model (series elasticity, hysteresis, friction, fatigue,
-// potentiation, sensor non-linearity), so not every leg predicts under 3°:
-// measured RMS over seeds 1–16 is 1.1–5.0°, median 1.9°, 13 of 16 under 3°
-// (seed 1, the lightest leg, swings into the flexion stop: 5.0°).
-TEST(Rapid, CohortPredictsRandomBinaryMostlyUnderThreeDegrees) {
+// potentiation, twitch variation, pot non-linearity, noise, stops). With
+// the thesis's linear estimates alone (Eqs. 4.35, 4.40) the RMS over seeds
+// 1–16 was 5.03, 1.10, 1.93, 3.13, 1.50, 2.01, 1.62, 2.26, 1.25, 0.94,
+// 1.16, 1.95, 2.91, 1.49, 2.83, 3.69° (13 of 16 under 3°); with the
+// output-error refinement on the two recorded free-swing trials it is
+// 1.61, 0.90, 1.63, 1.64, 0.93, 1.13, 1.12, 1.18, 0.93, 0.74, 0.71, 1.42,
+// 1.64, 1.16, 1.58, 2.16° (median 1.17°). Other prediction trains (seeds
+// 3, 21, 42, 77 instead of 11) measured a worst leg of 1.08–2.28°.
+TEST(Rapid, CohortPredictsRandomBinaryUnderThreeDegrees) {
   std::vector<double> rms;
   for (std::uint64_t seed = 1; seed <= 16; ++seed) {
     rms.push_back(RunRapidAndPredict(seed).prediction_rms_deg);
   }
-  const auto under3 = std::count_if(rms.begin(), rms.end(), [](double r) { return r < 3.0; });
-  EXPECT_GE(under3, 13);
   std::sort(rms.begin(), rms.end());
-  EXPECT_LT(0.5 * (rms[7] + rms[8]), 2.5);  // median
-  EXPECT_LT(rms.back(), 6.0);
+  EXPECT_LT(rms.back(), 3.0);               // every leg
+  EXPECT_LT(0.5 * (rms[7] + rms[8]), 1.5);  // median
 }
 
 TEST(Runner, RapidWithoutInertiaFailsWithTheReason) {
