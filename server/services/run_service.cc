@@ -372,20 +372,24 @@ void RunService::RecordTrial(const std::shared_ptr<LiveRun>& run,
                              const protocols::RecordedTrial& trial) {
   const std::string name = trial.trial.name.value_or("trial");
   std::optional<std::int64_t> id;
-  const api::Status st = db_.Write([&](storage::Connection&) -> api::Status {
-    api::Result<std::int64_t> inserted = storage::TrialRepository(db_).Insert(
-        storage::TrialOwner{run->view.session_id, run->run_id}, trial.trial);
-    if (!inserted.ok()) return inserted.status();
-    const std::size_t samples = trial.trial.num_samples();
-    api::Status a =
-        Audit(run->actor, "trial.record", "trials/" + std::to_string(*inserted),
-              RunTarget(run->run_id) + " trial " + name + ", " + std::to_string(samples) +
-                  " samples" + (trial.complete ? "" : " (incomplete)"),
-              "ok");
-    if (!a.ok()) return a;
-    id = *inserted;
-    return api::Status::Ok();
-  });
+  // A run stopped before a trial's first sample leaves nothing to store.
+  const api::Status st =
+      trial.trial.num_samples() == 0
+          ? api::Status::Ok()
+          : db_.Write([&](storage::Connection&) -> api::Status {
+              api::Result<std::int64_t> inserted = storage::TrialRepository(db_).Insert(
+                  storage::TrialOwner{run->view.session_id, run->run_id}, trial.trial);
+              if (!inserted.ok()) return inserted.status();
+              const std::size_t samples = trial.trial.num_samples();
+              api::Status a =
+                  Audit(run->actor, "trial.record", "trials/" + std::to_string(*inserted),
+                        RunTarget(run->run_id) + " trial " + name + ", " + std::to_string(samples) +
+                            " samples" + (trial.complete ? "" : " (incomplete)"),
+                        "ok");
+              if (!a.ok()) return a;
+              id = *inserted;
+              return api::Status::Ok();
+            });
   if (!st.ok()) {
     id.reset();
     Log("storing trial " + name + " of run " + std::to_string(run->run_id) + ": " + st.ToString());
