@@ -1,0 +1,149 @@
+#include "server/config.h"
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <sstream>
+
+#include "server/http/json_fields.h"
+
+namespace fesbench::server {
+
+api::Status ValidateServerConfig(const ServerConfig& c) {
+  if (c.bind.empty()) return api::Status::InvalidArgument("must not be empty", "bind");
+  if (c.port < 0 || c.port > 65535) return api::Status::InvalidArgument("must be in [0, 65535]", "port");
+  if (c.db.empty()) return api::Status::InvalidArgument("must not be empty", "db");
+  if (c.bench != "sim" && c.bench != "replay") {
+    return api::Status::InvalidArgument("must be sim or replay", "bench");
+  }
+  if (!std::isfinite(c.time_scale) || c.time_scale < 0 || c.time_scale > 1000) {
+    return api::Status::InvalidArgument("must be in [0, 1000]", "time-scale");
+  }
+  if (c.dds_domain < 0 || c.dds_domain > 232) {
+    return api::Status::InvalidArgument("must be in [0, 232]", "dds-domain");
+  }
+  if (c.tls_cert.empty() != c.tls_key.empty()) {
+    return api::Status::InvalidArgument("--tls-cert and --tls-key go together", "tls-cert");
+  }
+  if (c.bench == "replay" && c.replay.empty()) {
+    return api::Status::InvalidArgument("--bench replay needs at least one --replay CSV file",
+                                        "replay");
+  }
+  if (c.job_workers < 1 || c.job_workers > 64) {
+    return api::Status::InvalidArgument("must be in [1, 64]", "job-workers");
+  }
+  if (c.max_connections < 1 || c.max_connections > 1024) {
+    return api::Status::InvalidArgument("must be in [1, 1024]", "max-connections");
+  }
+  if (c.max_streams < 1 || c.max_streams > 256) {
+    return api::Status::InvalidArgument("must be in [1, 256]", "max-streams");
+  }
+  return api::Status::Ok();
+}
+
+api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
+  auto json = http::ParseJsonObject(json_text);
+  if (!json.ok()) return json.status();
+  http::JsonFields f(*json);
+  if (auto v = f.String("bind", false, 255)) c.bind = *v;
+  if (auto v = f.Integer("port", false, 0, 65535)) c.port = static_cast<int>(*v);
+  if (auto v = f.String("db", false, 4096)) c.db = *v;
+  if (auto v = f.String("bench", false, 16)) c.bench = *v;
+  if (auto v = f.Number("time-scale", false, 0.0, 1000.0)) c.time_scale = *v;
+  if (auto v = f.Integer("dds-domain", false, 0, 232)) c.dds_domain = static_cast<int>(*v);
+  if (auto v = f.String("tls-cert", false, 4096)) c.tls_cert = *v;
+  if (auto v = f.String("tls-key", false, 4096)) c.tls_key = *v;
+  if (auto v = f.Integer("seed", false, 0)) c.seed = static_cast<std::uint64_t>(*v);
+  if (const auto* files = f.Any("replay", false)) {
+    if (!files->is_array()) return api::Status::InvalidArgument("must be an array of paths", "replay");
+    c.replay.clear();
+    for (const auto& file : *files) {
+      if (!file.is_string()) return api::Status::InvalidArgument("must be an array of paths", "replay");
+      c.replay.push_back(file.get<std::string>());
+    }
+  }
+  if (auto v = f.Integer("job-workers", false, 1, 64)) c.job_workers = static_cast<int>(*v);
+  if (auto v = f.Integer("max-connections", false, 1, 1024)) c.max_connections = static_cast<int>(*v);
+  if (auto v = f.Integer("max-streams", false, 1, 256)) c.max_streams = static_cast<int>(*v);
+  return f.Finish();
+}
+
+ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& out,
+                               std::ostream& err) {
+  ParsedConfig parsed;
+  ServerConfig flags;
+  CLI::App app{"fesbench-server: the FES bench service (HTTP/JSON API, DESIGN.md §8)",
+               "fesbench-server"};
+  app.add_option("--config", flags.config_file, "JSON file with the same keys as the flags")
+      ->check(CLI::ExistingFile);
+  app.add_option("--bind", flags.bind, "listen address (default 127.0.0.1)");
+  app.add_option("--port", flags.port, "TCP port; 0 picks a free one (default 8080)");
+  app.add_option("--db", flags.db, "SQLite database file (default ./data/fesbench.db)");
+  app.add_option("--bench", flags.bench, "sim (simulated leg) or replay (CSV trials)")
+      ->check(CLI::IsMember({"sim", "replay"}));
+  app.add_option("--time-scale", flags.time_scale,
+                 "bench seconds per wall second: 1 real time, 0 as fast as possible");
+  app.add_option("--dds-domain", flags.dds_domain, "DDS domain id (default 0)");
+  app.add_option("--tls-cert", flags.tls_cert, "PEM certificate for HTTPS");
+  app.add_option("--tls-key", flags.tls_key, "PEM private key for HTTPS");
+  app.add_option("--seed", flags.seed, "seed of the simulated virtual subject (default 1)");
+  app.add_option("--replay", flags.replay, "CSV trial files for --bench replay");
+  app.add_option("--job-workers", flags.job_workers, "identification/prediction worker threads");
+  app.add_option("--max-connections", flags.max_connections,
+                 "keep-alive connections served at once (default 48)");
+  app.add_option("--max-streams", flags.max_streams, "open event streams (default 16)");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    parsed.exit_code = app.exit(e, out, err);
+    return parsed;
+  } catch (const CLI::ParseError& e) {
+    app.exit(e, out, err);
+    parsed.exit_code = 2;
+    return parsed;
+  }
+
+  ServerConfig config;
+  if (!flags.config_file.empty()) {
+    std::ifstream in(flags.config_file);
+    std::stringstream text;
+    text << in.rdbuf();
+    if (!in) {
+      err << "fesbench-server: cannot read " << flags.config_file << "\n";
+      parsed.exit_code = 2;
+      return parsed;
+    }
+    if (auto st = ApplyConfigJson(text.str(), config); !st.ok()) {
+      err << "fesbench-server: " << flags.config_file << ": " << st.ToString() << "\n";
+      parsed.exit_code = 2;
+      return parsed;
+    }
+    config.config_file = flags.config_file;
+  }
+  auto given = [&](const char* name) { return app.count(name) > 0; };
+  if (given("--bind")) config.bind = flags.bind;
+  if (given("--port")) config.port = flags.port;
+  if (given("--db")) config.db = flags.db;
+  if (given("--bench")) config.bench = flags.bench;
+  if (given("--time-scale")) config.time_scale = flags.time_scale;
+  if (given("--dds-domain")) config.dds_domain = flags.dds_domain;
+  if (given("--tls-cert")) config.tls_cert = flags.tls_cert;
+  if (given("--tls-key")) config.tls_key = flags.tls_key;
+  if (given("--seed")) config.seed = flags.seed;
+  if (given("--replay")) config.replay = flags.replay;
+  if (given("--job-workers")) config.job_workers = flags.job_workers;
+  if (given("--max-connections")) config.max_connections = flags.max_connections;
+  if (given("--max-streams")) config.max_streams = flags.max_streams;
+
+  if (auto st = ValidateServerConfig(config); !st.ok()) {
+    err << "fesbench-server: " << st.ToString() << "\n";
+    parsed.exit_code = 2;
+    return parsed;
+  }
+  parsed.config = std::move(config);
+  return parsed;
+}
+
+}  // namespace fesbench::server

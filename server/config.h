@@ -1,0 +1,59 @@
+#pragma once
+
+/// @file
+/// fesbench-server's settings (DESIGN.md §10): command-line flags and, with
+/// the same keys, an optional JSON config file (--config FILE). Flags
+/// override the file; the file overrides the defaults. Only the executable
+/// reads these; the libraries take the plain structs built from them.
+
+#include <cstdint>
+#include <iosfwd>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "api/status.h"
+
+namespace fesbench::server {
+
+struct ServerConfig {
+  std::string bind = "127.0.0.1";          ///< --bind: listen address.
+  int port = 8080;                         ///< --port: 0 picks a free port (printed).
+  std::string db = "./data/fesbench.db";   ///< --db: SQLite file (folder created).
+  std::string bench = "sim";               ///< --bench: "sim" or "replay".
+  double time_scale = 1.0;                 ///< --time-scale: 1 real time, 0 as fast as possible.
+  int dds_domain = 0;                      ///< --dds-domain: 0–232 (DDS front end, DESIGN.md §9).
+  std::string tls_cert;                    ///< --tls-cert: PEM certificate (with --tls-key: HTTPS).
+  std::string tls_key;                     ///< --tls-key: PEM private key.
+  std::uint64_t seed = 1;                  ///< --seed: virtual subject of the simulated bench.
+  std::vector<std::string> replay;         ///< --replay: CSV trials for --bench replay.
+  int job_workers = 2;                     ///< --job-workers: identification/prediction threads.
+  int max_connections = 48;                ///< --max-connections: connections served at once.
+  int max_streams = 16;                    ///< --max-streams: open event streams.
+  std::string config_file;                 ///< --config: the JSON file read, if any.
+};
+
+/// The outcome of parsing: a config to run with, or an exit code (after
+/// --help, or an error already printed).
+struct ParsedConfig {
+  ServerConfig config;
+  std::optional<int> exit_code;
+};
+
+/// Parses flags (CLI11) and the optional JSON config file. Errors (unknown
+/// flag or key, wrong type, out-of-range value) are printed to `err` and
+/// give exit code 2; --help prints to `out` and gives 0.
+ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& out,
+                               std::ostream& err);
+
+/// Applies a JSON config object's keys ("bind", "port", "db", "bench",
+/// "time-scale", "dds-domain", "tls-cert", "tls-key", "seed", "replay",
+/// "job-workers", "max-connections", "max-streams") to `config`.
+/// kInvalidArgument naming the key for unknown keys, wrong types and
+/// out-of-range values.
+api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& config);
+
+/// Range checks shared by flags and file (kInvalidArgument naming the key).
+api::Status ValidateServerConfig(const ServerConfig& config);
+
+}  // namespace fesbench::server

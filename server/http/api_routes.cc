@@ -1,0 +1,29 @@
+#include "server/http/api_routes.h"
+
+#include <memory>
+
+#include "server/http/openapi.h"
+#include "server/http/routes_common.h"
+
+namespace fesbench::server::http {
+
+RouteTable BuildApiRoutes(const ApiDependencies& deps) {
+  RouteTable table;
+  auto document = std::make_shared<std::string>();
+  table.Add({"GET", "/api/v1/openapi.json", 0, false, "system",
+             "This OpenAPI 3 document (built from the server's route table)", {}, 200,
+             "application/json", nullptr, nullptr,
+             [document](RequestContext& ctx) -> api::Result<Reply> {
+               ctx.res.status = 200;
+               ctx.res.set_content(*document, "application/json");
+               return Reply{200, nullptr, true};
+             }});
+  AddStorageRoutes(table, deps);
+  AddAdminRoutes(table, deps);
+  AddBenchRoutes(table, deps);
+  AddJobRoutes(table, deps);
+  *document = BuildOpenApi(table, deps.server_version).dump();
+  return table;
+}
+
+}  // namespace fesbench::server::http

@@ -1,0 +1,62 @@
+#pragma once
+
+/// @file
+/// The API's routes (DESIGN.md §8) over storage and the application
+/// services. Roles per route (admin may do everything):
+///   open:               health, openapi.json
+///   any role:           read subjects, sessions, runs, trials, parameter
+///                       sets, protocols, bench; e-stop (a safety action
+///                       anyone signed in may take)
+///   clinician, admin:   create subjects and sessions, start / cancel /
+///                       heartbeat runs, clear an e-stop
+///   analyst, admin:     identifications, predictions, comparisons, jobs
+///   admin:              users, tokens, audit log, backup, virtual subject
+
+#include <memory>
+#include <string>
+
+#include "server/http/auth.h"
+#include "server/http/router.h"
+#include "server/http/stream_slots.h"
+#include "storage/database.h"
+
+namespace fesbench::server::services {
+class BenchService;
+class RunService;
+class SampleHub;
+class JobPool;
+class IdentificationService;
+class PredictionService;
+class ComparisonService;
+}  // namespace fesbench::server::services
+
+namespace fesbench::server::http {
+
+/// What the routes call. Storage, authenticator and stream slots are
+/// required; absent services make their routes answer 503 "not available".
+struct ApiDependencies {
+  storage::Database* db = nullptr;
+  Authenticator* auth = nullptr;
+  StreamSlots* streams = nullptr;
+  std::string backup_dir;  ///< where POST /backup writes (created on demand).
+  std::string server_version = "0.1.0";
+
+  services::BenchService* bench = nullptr;
+  services::RunService* runs = nullptr;
+  services::SampleHub* samples = nullptr;
+  services::JobPool* jobs = nullptr;
+  services::IdentificationService* identification = nullptr;
+  services::PredictionService* prediction = nullptr;
+  services::ComparisonService* comparison = nullptr;
+};
+
+/// Every route, GET /api/v1/openapi.json included (built from this table).
+RouteTable BuildApiRoutes(const ApiDependencies& deps);
+
+/// Adds the routes of one area (used by BuildApiRoutes).
+void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps);
+void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps);
+void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps);
+void AddJobRoutes(RouteTable& table, const ApiDependencies& deps);
+
+}  // namespace fesbench::server::http

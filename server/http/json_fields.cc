@@ -1,0 +1,205 @@
+#include "server/http/json_fields.h"
+
+#include <cmath>
+
+namespace fesbench::server::http {
+
+namespace {
+
+// Nesting depth of a JSON text, ignoring brackets inside strings; stops
+// early once `limit` is exceeded. Checked before parsing so that a deeply
+// nested body never reaches recursive code.
+int NestingDepth(std::string_view text, int limit) {
+  int depth = 0, deepest = 0;
+  bool in_string = false, escaped = false;
+  for (char c : text) {
+    if (in_string) {
+      if (escaped) {
+        escaped = false;
+      } else if (c == '\\') {
+        escaped = true;
+      } else if (c == '"') {
+        in_string = false;
+      }
+      continue;
+    }
+    if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      deepest = std::max(deepest, ++depth);
+      if (deepest > limit) return deepest;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return deepest;
+}
+
+std::string TypeName(const nlohmann::json& j) { return j.type_name(); }
+
+}  // namespace
+
+api::Result<nlohmann::json> ParseJsonObject(std::string_view body) {
+  if (body.empty()) return api::Status::InvalidArgument("request body is empty; expected a JSON object");
+  if (NestingDepth(body, kMaxJsonDepth) > kMaxJsonDepth) {
+    return api::Status::InvalidArgument("JSON nested deeper than " +
+                                        std::to_string(kMaxJsonDepth) + " levels");
+  }
+  nlohmann::json json;
+  try {
+    json = nlohmann::json::parse(body);
+  } catch (const nlohmann::json::parse_error& e) {
+    return api::Status::InvalidArgument("malformed JSON at byte " + std::to_string(e.byte) +
+                                        ": " + e.what());
+  }
+  if (!json.is_object()) {
+    return api::Status::InvalidArgument("expected a JSON object, got " + TypeName(json));
+  }
+  return json;
+}
+
+JsonFields::JsonFields(const nlohmann::json& object, std::string path)
+    : object_(object), path_(std::move(path)) {
+  if (!object_.is_object()) {
+    status_ = api::Status::InvalidArgument("must be an object, got " + TypeName(object_), path_);
+  }
+}
+
+std::string JsonFields::PathOf(std::string_view key) const {
+  return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+}
+
+void JsonFields::Fail(std::string_view key, std::string message) {
+  if (status_.ok()) status_ = api::Status::InvalidArgument(std::move(message), PathOf(key));
+}
+
+const nlohmann::json* JsonFields::Find(std::string_view key, bool required) {
+  if (!status_.ok()) return nullptr;
+  seen_.emplace(key);
+  auto it = object_.find(key);
+  if (it == object_.end() || it->is_null()) {
+    if (required) Fail(key, "is required");
+    return nullptr;
+  }
+  return &*it;
+}
+
+std::optional<std::string> JsonFields::String(std::string_view key, bool required,
+                                              std::size_t max_length) {
+  const auto* j = Find(key, required);
+  if (!j) return std::nullopt;
+  if (!j->is_string()) {
+    Fail(key, "must be a string, got " + TypeName(*j));
+    return std::nullopt;
+  }
+  const auto& s = j->get_ref<const std::string&>();
+  if (s.size() > max_length) {
+    Fail(key, "must be at most " + std::to_string(max_length) + " characters");
+    return std::nullopt;
+  }
+  return s;
+}
+
+std::optional<double> JsonFields::Number(std::string_view key, bool required, double min,
+                                         double max) {
+  const auto* j = Find(key, required);
+  if (!j) return std::nullopt;
+  if (!j->is_number()) {
+    Fail(key, "must be a number, got " + TypeName(*j));
+    return std::nullopt;
+  }
+  const double value = j->get<double>();
+  if (!std::isfinite(value) || value < min || value > max) {
+    Fail(key, "must be in [" + nlohmann::json(min).dump() + ", " + nlohmann::json(max).dump() +
+                  "], got " + j->dump());
+    return std::nullopt;
+  }
+  return value;
+}
+
+std::optional<std::int64_t> JsonFields::Integer(std::string_view key, bool required,
+                                                std::int64_t min, std::int64_t max) {
+  const auto* j = Find(key, required);
+  if (!j) return std::nullopt;
+  if (!j->is_number_integer()) {
+    Fail(key, "must be an integer, got " + (j->is_number() ? j->dump() : TypeName(*j)));
+    return std::nullopt;
+  }
+  if (j->is_number_unsigned() &&
+      j->get<std::uint64_t>() > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
+    Fail(key, "is out of range");
+    return std::nullopt;
+  }
+  const auto value = j->get<std::int64_t>();
+  if (value < min || value > max) {
+    Fail(key, "must be in [" + std::to_string(min) + ", " + std::to_string(max) + "], got " +
+                  std::to_string(value));
+    return std::nullopt;
+  }
+  return value;
+}
+
+std::optional<bool> JsonFields::Bool(std::string_view key, bool required) {
+  const auto* j = Find(key, required);
+  if (!j) return std::nullopt;
+  if (!j->is_boolean()) {
+    Fail(key, "must be true or false, got " + TypeName(*j));
+    return std::nullopt;
+  }
+  return j->get<bool>();
+}
+
+std::optional<std::vector<std::int64_t>> JsonFields::IdList(std::string_view key, bool required,
+                                                            std::size_t max_items) {
+  const auto* j = Find(key, required);
+  if (!j) return std::nullopt;
+  if (!j->is_array()) {
+    Fail(key, "must be an array of ids, got " + TypeName(*j));
+    return std::nullopt;
+  }
+  if (j->size() > max_items) {
+    Fail(key, "must hold at most " + std::to_string(max_items) + " ids");
+    return std::nullopt;
+  }
+  std::vector<std::int64_t> ids;
+  for (std::size_t i = 0; i < j->size(); ++i) {
+    const auto& item = (*j)[i];
+    const std::string item_key = std::string(key) + "[" + std::to_string(i) + "]";
+    if (!item.is_number_integer() || (item.is_number_unsigned() && item.get<std::uint64_t>() >
+                                          static_cast<std::uint64_t>(
+                                              std::numeric_limits<std::int64_t>::max())) ||
+        item.get<std::int64_t>() < 1) {
+      Fail(item_key, "must be a positive integer id, got " + item.dump());
+      return std::nullopt;
+    }
+    ids.push_back(item.get<std::int64_t>());
+  }
+  return ids;
+}
+
+const nlohmann::json* JsonFields::Object(std::string_view key, bool required) {
+  const auto* j = Find(key, required);
+  if (!j) return nullptr;
+  if (!j->is_object()) {
+    Fail(key, "must be an object, got " + TypeName(*j));
+    return nullptr;
+  }
+  return j;
+}
+
+const nlohmann::json* JsonFields::Any(std::string_view key, bool required) {
+  return Find(key, required);
+}
+
+api::Status JsonFields::Finish() {
+  if (!status_.ok()) return status_;
+  for (const auto& [key, value] : object_.items()) {
+    if (!seen_.contains(key)) {
+      Fail(key, "unknown field");
+      break;
+    }
+  }
+  return status_;
+}
+
+}  // namespace fesbench::server::http

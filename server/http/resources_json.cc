@@ -1,0 +1,233 @@
+#include "server/http/resources_json.h"
+
+#include "api/parameter_set_json.h"
+#include "server/http/json_fields.h"
+#include "storage/time_utc.h"
+
+namespace fesbench::server::http {
+
+namespace {
+
+template <typename T>
+void PutOptional(nlohmann::json& j, const char* key, const std::optional<T>& value) {
+  if (value) j[key] = *value;
+}
+
+nlohmann::json OptionalTime(const std::optional<storage::UtcTime>& t) {
+  return t ? nlohmann::json(storage::FormatUtc(*t)) : nlohmann::json(nullptr);
+}
+
+nlohmann::json OptionalId(const std::optional<std::int64_t>& id) {
+  return id ? nlohmann::json(*id) : nlohmann::json(nullptr);
+}
+
+}  // namespace
+
+nlohmann::json SubjectDetailsToJson(const storage::SubjectDetails& d) {
+  nlohmann::json j = nlohmann::json::object();
+  PutOptional(j, "age_years", d.age_years);
+  j["sex"] = storage::SexName(d.sex);
+  PutOptional(j, "height_cm", d.height_cm);
+  PutOptional(j, "weight_kg", d.weight_kg);
+  PutOptional(j, "shank_length_cm", d.shank_length_cm);
+  PutOptional(j, "calf_circumference_cm", d.calf_circumference_cm);
+  return j;
+}
+
+nlohmann::json SubjectToJson(const storage::Subject& s, const std::vector<storage::Leg>& legs) {
+  nlohmann::json leg_list = nlohmann::json::array();
+  for (const auto& leg : legs) leg_list.push_back({{"id", leg.id}, {"side", storage::SideName(leg.side)}});
+  return {{"id", s.id},
+          {"code", s.code},
+          {"created_at_utc", storage::FormatUtc(s.created_at)},
+          {"revision", s.current.revision},
+          {"details", SubjectDetailsToJson(s.current.details)},
+          {"legs", std::move(leg_list)}};
+}
+
+nlohmann::json SessionToJson(const storage::Session& s, std::string_view leg_side) {
+  const auto& d = s.current.details;
+  nlohmann::json details = {{"date", d.date},
+                            {"accelerometer_placement", d.accelerometer_placement},
+                            {"notes", d.notes}};
+  PutOptional(details, "threshold_ma", d.threshold_ma);
+  PutOptional(details, "max_tolerated_ma", d.max_tolerated_ma);
+  return {{"id", s.id},
+          {"subject_id", s.subject_id},
+          {"leg_id", s.leg_id},
+          {"leg", leg_side},
+          {"date", d.date},
+          {"created_at_utc", storage::FormatUtc(s.created_at)},
+          {"revision", s.current.revision},
+          {"details", std::move(details)}};
+}
+
+nlohmann::json RunToJson(const storage::Run& r) {
+  nlohmann::json parameters = nlohmann::json::parse(r.parameters_json, nullptr, false);
+  if (parameters.is_discarded()) parameters = nlohmann::json::object();
+  return {{"id", r.id},
+          {"session_id", r.session_id},
+          {"protocol", r.protocol_name},
+          {"protocol_version", r.protocol_version},
+          {"parameters", std::move(parameters)},
+          {"state", storage::RunStateName(r.state)},
+          {"message", r.message},
+          {"created_at_utc", storage::FormatUtc(r.created_at)},
+          {"started_at_utc", OptionalTime(r.started_at)},
+          {"finished_at_utc", OptionalTime(r.finished_at)}};
+}
+
+nlohmann::json TrialSummaryToJson(const storage::TrialSummary& t) {
+  return {{"id", t.id},
+          {"session_id", t.session_id},
+          {"run_id", OptionalId(t.run_id)},
+          {"name", t.name ? nlohmann::json(*t.name) : nlohmann::json(nullptr)},
+          {"num_samples", t.num_samples},
+          {"sample_rate_hz", t.sample_rate_hz},
+          {"created_at_utc", storage::FormatUtc(t.created_at)}};
+}
+
+nlohmann::json ParameterSetSummaryToJson(const storage::ParameterSetSummary& s) {
+  return {{"id", s.id},
+          {"subject_id", s.subject_id},
+          {"leg_id", s.leg_id},
+          {"version", s.version},
+          {"model", s.model},
+          {"irc_method", s.irc_method},
+          {"passive_method", s.passive_method},
+          {"active_method", s.active_method},
+          {"software_version", s.software_version},
+          {"supersedes_id", OptionalId(s.supersedes_id)},
+          {"created_at_utc", storage::FormatUtc(s.created_at)}};
+}
+
+nlohmann::json StoredParameterSetToJson(const storage::StoredParameterSet& set) {
+  nlohmann::json j = ParameterSetSummaryToJson(set.summary);
+  j["trial_ids"] = set.trial_ids;
+  j["parameters"] = api::ParameterSetToJson(set.params);
+  return j;
+}
+
+nlohmann::json UserToJson(const storage::User& u) {
+  return {{"id", u.id},
+          {"name", u.name},
+          {"role", storage::RoleName(u.role)},
+          {"active", u.active},
+          {"created_at_utc", storage::FormatUtc(u.created_at)}};
+}
+
+nlohmann::json AuditEntryToJson(const storage::AuditEntry& e) {
+  return {{"id", e.id},
+          {"at_utc", storage::FormatUtc(e.at)},
+          {"user_id", OptionalId(e.entry.user_id)},
+          {"actor", e.entry.actor},
+          {"action", e.entry.action},
+          {"target", e.entry.target},
+          {"request_summary", e.entry.request_summary},
+          {"outcome", e.entry.outcome}};
+}
+
+api::Result<storage::SubjectDetails> SubjectDetailsFromJson(const nlohmann::json& json,
+                                                            const std::string& path) {
+  JsonFields f(json, path);
+  storage::SubjectDetails d;
+  if (auto age = f.Integer("age_years", false, 0, 130)) d.age_years = static_cast<int>(*age);
+  if (auto sex = f.String("sex", false, 32)) {
+    auto parsed = storage::ParseSex(*sex);
+    if (!parsed) {
+      return api::Status::InvalidArgument("must be female, male, other or undisclosed",
+                                          f.PathOf("sex"));
+    }
+    d.sex = *parsed;
+  }
+  d.height_cm = f.Number("height_cm", false, 30.0, 250.0);
+  d.weight_kg = f.Number("weight_kg", false, 1.0, 400.0);
+  d.shank_length_cm = f.Number("shank_length_cm", false, 10.0, 80.0);
+  d.calf_circumference_cm = f.Number("calf_circumference_cm", false, 10.0, 100.0);
+  if (auto st = f.Finish(); !st.ok()) return st;
+  if (auto st = storage::ValidateSubjectDetails(d); !st.ok()) {
+    return api::Status(st.code(), st.message(),
+                       path.empty() ? st.field() : path + "." + st.field());
+  }
+  return d;
+}
+
+api::Result<NewSubjectRequest> NewSubjectFromJson(const nlohmann::json& body) {
+  JsonFields f(body);
+  NewSubjectRequest out;
+  if (auto code = f.String("code", true, 32)) out.code = *code;
+  if (const auto* details = f.Object("details", false)) {
+    auto d = SubjectDetailsFromJson(*details, "details");
+    if (!d.ok()) return d.status();
+    out.details = *d;
+  }
+  if (const auto* legs = f.Any("legs", false)) {
+    if (!legs->is_array() || legs->size() > 2) {
+      return api::Status::InvalidArgument("must be an array of at most two of left, right", "legs");
+    }
+    for (std::size_t i = 0; i < legs->size(); ++i) {
+      const auto& item = (*legs)[i];
+      auto side = item.is_string() ? storage::ParseSide(item.get<std::string>()) : std::nullopt;
+      if (!side) {
+        return api::Status::InvalidArgument("must be left or right",
+                                            "legs[" + std::to_string(i) + "]");
+      }
+      if (std::find(out.legs.begin(), out.legs.end(), *side) != out.legs.end()) {
+        return api::Status::InvalidArgument("duplicate leg", "legs[" + std::to_string(i) + "]");
+      }
+      out.legs.push_back(*side);
+    }
+  }
+  if (auto st = f.Finish(); !st.ok()) return st;
+  if (auto st = storage::ValidateSubjectCode(out.code); !st.ok()) return st;
+  return out;
+}
+
+api::Result<NewSessionRequest> NewSessionFromJson(const nlohmann::json& body) {
+  JsonFields f(body);
+  NewSessionRequest out;
+  if (auto leg = f.String("leg", true, 16)) {
+    auto side = storage::ParseSide(*leg);
+    if (!side) return api::Status::InvalidArgument("must be left or right", "leg");
+    out.leg = *side;
+  }
+  if (auto date = f.String("date", true, 10)) out.details.date = *date;
+  if (auto placement = f.String("accelerometer_placement", false, 256)) {
+    out.details.accelerometer_placement = *placement;
+  }
+  out.details.threshold_ma = f.Number("threshold_ma", false, 0.0, 100.0);
+  out.details.max_tolerated_ma = f.Number("max_tolerated_ma", false, 0.0, 100.0);
+  if (auto notes = f.String("notes", false, 4096)) out.details.notes = *notes;
+  if (auto st = f.Finish(); !st.ok()) return st;
+  if (!storage::IsIsoDate(out.details.date)) {
+    return api::Status::InvalidArgument("must be a date YYYY-MM-DD", "date");
+  }
+  if (auto st = storage::ValidateSessionDetails(out.details); !st.ok()) return st;
+  return out;
+}
+
+api::Result<NewUserRequest> NewUserFromJson(const nlohmann::json& body) {
+  JsonFields f(body);
+  NewUserRequest out;
+  if (auto name = f.String("name", true, 64)) out.name = *name;
+  if (auto role = f.String("role", true, 16)) {
+    auto parsed = storage::ParseRole(*role);
+    if (!parsed) return api::Status::InvalidArgument("must be clinician, analyst or admin", "role");
+    out.role = *parsed;
+  }
+  if (auto st = f.Finish(); !st.ok()) return st;
+  if (out.name.empty()) return api::Status::InvalidArgument("must not be empty", "name");
+  return out;
+}
+
+api::Result<NewTokenRequest> NewTokenFromJson(const nlohmann::json& body) {
+  JsonFields f(body);
+  NewTokenRequest out;
+  if (auto id = f.Integer("user_id", true, 1)) out.user_id = *id;
+  if (auto label = f.String("label", false, 128)) out.label = *label;
+  out.expires_in_s = f.Integer("expires_in_s", false, 60, 10LL * 365 * 24 * 3600);
+  if (auto st = f.Finish(); !st.ok()) return st;
+  return out;
+}
+
+}  // namespace fesbench::server::http

@@ -1,0 +1,257 @@
+// Admin routes: users, tokens, audit log, backup (DESIGN.md §8).
+
+#include <chrono>
+#include <filesystem>
+
+#include "server/http/api_routes.h"
+#include "server/http/json_fields.h"
+#include "server/http/resources_json.h"
+#include "server/http/routes_common.h"
+#include "storage/audit_log.h"
+#include "storage/users.h"
+
+namespace fesbench::server::http {
+
+namespace {
+
+using nlohmann::json;
+
+struct TokenRow {
+  std::int64_t id = 0;
+  std::int64_t user_id = 0;
+  std::string user_name;
+  std::string label;
+  std::string created_at_utc;
+  std::optional<std::string> expires_at_utc;
+  std::optional<std::string> revoked_at_utc;
+};
+
+// storage::UserRepository has no token listing; read the tokens table
+// (metadata only: the digests never leave the database).
+api::Result<std::vector<TokenRow>> ListTokens(storage::Database& db) {
+  return db.Read([](storage::Connection& c) -> api::Result<std::vector<TokenRow>> {
+    auto statement = c.Prepare(
+        "SELECT t.id, t.user_id, u.name, t.label, t.created_at_utc, t.expires_at_utc, r.at_utc "
+        "FROM tokens t JOIN users u ON u.id = t.user_id "
+        "LEFT JOIN token_revocations r ON r.token_id = t.id ORDER BY t.id");
+    if (!statement.ok()) return statement.status();
+    std::vector<TokenRow> rows;
+    while (true) {
+      auto more = statement->Step();
+      if (!more.ok()) return more.status();
+      if (!*more) break;
+      TokenRow row;
+      row.id = statement->Int64(0);
+      row.user_id = statement->Int64(1);
+      row.user_name = statement->Text(2);
+      row.label = statement->Text(3);
+      row.created_at_utc = statement->Text(4);
+      if (!statement->IsNull(5)) row.expires_at_utc = statement->Text(5);
+      if (!statement->IsNull(6)) row.revoked_at_utc = statement->Text(6);
+      rows.push_back(std::move(row));
+    }
+    return rows;
+  });
+}
+
+json TokenRowToJson(const TokenRow& t) {
+  return {{"id", t.id},
+          {"user_id", t.user_id},
+          {"user_name", t.user_name},
+          {"label", t.label},
+          {"created_at_utc", t.created_at_utc},
+          {"expires_at_utc", t.expires_at_utc ? json(*t.expires_at_utc) : json(nullptr)},
+          {"revoked", t.revoked_at_utc.has_value()},
+          {"revoked_at_utc", t.revoked_at_utc ? json(*t.revoked_at_utc) : json(nullptr)}};
+}
+
+}  // namespace
+
+void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
+  Authenticator& auth = *deps.auth;
+  const std::string backup_dir = deps.backup_dir;
+
+  table.Add({"GET", "/api/v1/users", kAdmin, false, "users", "List users", PageParams(), 200,
+             "application/json", nullptr, nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto page = ParsePage(ctx);
+               if (!page.ok()) return page.status();
+               auto users = storage::UserRepository(db).ListUsers();
+               if (!users.ok()) return users.status();
+               return JsonReply(MakePage(
+                   *users, *page, [](const storage::User& u) { return u.id; }, UserToJson));
+             }});
+  table.Add({"POST", "/api/v1/users", kAdmin, true, "users", "Create a user with a role", {},
+             201, "application/json",
+             ObjectSchema({{"name", {{"type", "string"}, {"minLength", 1}, {"maxLength", 64}}},
+                           {"role", {{"enum", {"clinician", "analyst", "admin"}}}}},
+                          {"name", "role"}),
+             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto request = NewUserFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               auto user = AuditedWrite<storage::User>(
+                   db, ctx, 201,
+                   [&] { return storage::UserRepository(db).CreateUser(request->name, request->role); },
+                   [](const storage::User& u) { return "users/" + std::to_string(u.id); });
+               if (!user.ok()) return user.status();
+               return JsonReply(UserToJson(*user), 201);
+             }});
+  table.Add({"POST", "/api/v1/users/{user_id}/deactivate", kAdmin, true, "users",
+             "Deactivate a user (their tokens stop working)", {}, 200, "application/json",
+             ObjectSchema({{"reason", {{"type", "string"}, {"minLength", 1}, {"maxLength", 512}}}},
+                          {"reason"}),
+             nullptr, [&db, &auth](RequestContext& ctx) -> api::Result<Reply> {
+               JsonFields f(ctx.body);
+               auto reason = f.String("reason", true, 512);
+               if (auto st = f.Finish(); !st.ok()) return st;
+               if (reason->empty()) return api::Status::InvalidArgument("must not be empty", "reason");
+               const std::int64_t user_id = ctx.Id("user_id");
+               if (ctx.user && ctx.user->id == user_id) {
+                 return api::Status::FailedPrecondition("an admin cannot deactivate themself");
+               }
+               auto user = AuditedWrite<storage::User>(
+                   db, ctx, 200,
+                   [&]() -> api::Result<storage::User> {
+                     storage::UserRepository users(db);
+                     if (auto st = users.DeactivateUser(user_id, *reason); !st.ok()) return st;
+                     return users.GetUser(user_id);
+                   },
+                   [](const storage::User& u) { return "users/" + std::to_string(u.id); });
+               if (!user.ok()) return user.status();
+               auth.Invalidate();
+               return JsonReply(UserToJson(*user));
+             }});
+
+  table.Add({"GET", "/api/v1/tokens", kAdmin, false, "tokens",
+             "List tokens (metadata; secrets are never shown again)", PageParams(), 200,
+             "application/json", nullptr, nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto page = ParsePage(ctx);
+               if (!page.ok()) return page.status();
+               auto tokens = ListTokens(db);
+               if (!tokens.ok()) return tokens.status();
+               return JsonReply(MakePage(
+                   *tokens, *page, [](const TokenRow& t) { return t.id; }, TokenRowToJson));
+             }});
+  table.Add({"POST", "/api/v1/tokens", kAdmin, true, "tokens",
+             "Issue a bearer token for a user (the secret is in this response only)", {}, 201,
+             "application/json",
+             ObjectSchema({{"user_id", {{"type", "integer"}, {"minimum", 1}}},
+                           {"label", {{"type", "string"}, {"maxLength", 128}}},
+                           {"expires_in_s", {{"type", "integer"}, {"minimum", 60}}}},
+                          {"user_id"}),
+             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto request = NewTokenFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               std::optional<storage::UtcTime> expires;
+               if (request->expires_in_s) {
+                 expires = storage::NowUtc() + std::chrono::seconds(*request->expires_in_s);
+               }
+               auto issued = AuditedWrite<storage::IssuedToken>(
+                   db, ctx, 201,
+                   [&] {
+                     return storage::UserRepository(db).IssueToken(request->user_id, request->label,
+                                                                   expires);
+                   },
+                   [](const storage::IssuedToken& t) { return "tokens/" + std::to_string(t.token_id); });
+               if (!issued.ok()) {
+                 if (issued.status().code() == api::ErrorCode::kNotFound) {
+                   return api::Status(api::ErrorCode::kNotFound, issued.status().message(), "user_id");
+                 }
+                 return issued.status();
+               }
+               return JsonReply({{"id", issued->token_id},
+                                 {"user_id", request->user_id},
+                                 {"label", request->label},
+                                 {"token", issued->token},
+                                 {"expires_at_utc", issued->expires_at
+                                                        ? json(storage::FormatUtc(*issued->expires_at))
+                                                        : json(nullptr)}},
+                                201);
+             }});
+  table.Add({"DELETE", "/api/v1/tokens/{token_id}", kAdmin, false, "tokens", "Revoke a token",
+             {}, 200, "application/json", nullptr, nullptr,
+             [&db, &auth](RequestContext& ctx) -> api::Result<Reply> {
+               const std::int64_t id = ctx.Id("token_id");
+               auto revoked = AuditedWrite<json>(
+                   db, ctx, 200,
+                   [&]() -> api::Result<json> {
+                     if (auto st = storage::UserRepository(db).RevokeToken(id); !st.ok()) return st;
+                     return json{{"id", id}, {"revoked", true}};
+                   },
+                   [id](const json&) { return "tokens/" + std::to_string(id); });
+               if (!revoked.ok()) return revoked.status();
+               auth.Invalidate();
+               return JsonReply(std::move(*revoked));
+             }});
+
+  {
+    std::vector<QueryParam> q = {{"limit", "integer", "page size, 1–500 (default 50)"},
+                                 {"cursor", "string", "opaque cursor from next_cursor"},
+                                 {"user_id", "integer", "only this user's requests"},
+                                 {"from", "string", "at or after (YYYY-MM-DD or UTC time)"},
+                                 {"to", "string", "before (YYYY-MM-DD or UTC time)"}};
+    table.Add({"GET", "/api/v1/audit", kAdmin, false, "audit",
+               "The audit log of state-changing requests, newest first", q, 200,
+               "application/json", nullptr, nullptr,
+               [&db](RequestContext& ctx) -> api::Result<Reply> {
+                 auto page = ParsePage(ctx);
+                 if (!page.ok()) return page.status();
+                 storage::AuditQuery query;
+                 auto user_id = QueryId(ctx, "user_id");
+                 if (!user_id.ok()) return user_id.status();
+                 query.user_id = *user_id;
+                 auto from = QueryTime(ctx, "from");
+                 if (!from.ok()) return from.status();
+                 auto to = QueryTime(ctx, "to");
+                 if (!to.ok()) return to.status();
+                 query.from = *from;
+                 query.to = *to;
+                 query.limit = 100000;
+                 auto entries = storage::AuditLog(db).List(query);
+                 if (!entries.ok()) return entries.status();
+                 // Newest first: the cursor is the last id shown; the next
+                 // page holds older (smaller) ids.
+                 json items = json::array();
+                 std::int64_t last = 0;
+                 std::size_t i = 0;
+                 for (; i < entries->size() && items.size() < page->limit; ++i) {
+                   const auto& e = (*entries)[i];
+                   if (page->after_id != 0 && e.id >= page->after_id) continue;
+                   items.push_back(AuditEntryToJson(e));
+                   last = e.id;
+                 }
+                 const bool more = i < entries->size();
+                 return JsonReply({{"items", std::move(items)},
+                                   {"next_cursor", more ? json(EncodeCursor(last)) : json(nullptr)}});
+               }});
+  }
+
+  table.Add({"POST", "/api/v1/backup", kAdmin, false, "system",
+             "Online backup of the database into the server's backup folder", {}, 201,
+             "application/json", nullptr, nullptr,
+             [&db, backup_dir](RequestContext& ctx) -> api::Result<Reply> {
+               std::error_code ec;
+               std::filesystem::create_directories(backup_dir, ec);
+               if (ec) return api::Status::Unavailable("cannot create the backup folder");
+               std::string stamp = storage::FormatUtc(storage::NowUtc());
+               for (char& c : stamp) {
+                 if (c == ':' || c == '.') c = '-';
+               }
+               const std::string path =
+                   (std::filesystem::path(backup_dir) / ("fesbench-" + stamp + ".db")).string();
+               if (auto st = db.Backup(path); !st.ok()) return st;
+               const std::uintmax_t size = std::filesystem::file_size(path, ec);
+               auto done = AuditedWrite<json>(
+                   db, ctx, 201,
+                   [&]() -> api::Result<json> {
+                     return json{{"path", path}, {"size_bytes", ec ? 0 : size}};
+                   },
+                   [](const json&) { return std::string("backup"); });
+               if (!done.ok()) return done.status();
+               return JsonReply(std::move(*done), 201);
+             }});
+}
+
+}  // namespace fesbench::server::http

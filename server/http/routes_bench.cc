@@ -1,0 +1,242 @@
+// Bench and run routes: start / read / cancel / heartbeat runs, the live
+// event stream, bench state, e-stop, the virtual subject (DESIGN.md §6, §8).
+
+// Eigen (via the bench headers) must come before httplib.h: <resolv.h>
+// defines `_res`, a name Eigen uses for parameters.
+#include "server/services/bench_service.h"
+#include "server/services/run_service.h"
+#include "server/services/sample_hub.h"
+// (separate block: keep the order above)
+#include <chrono>
+
+#include "server/http/api_routes.h"
+#include "server/http/routes_common.h"
+#include "server/http/services_json.h"
+
+namespace fesbench::server::http {
+
+namespace {
+
+using nlohmann::json;
+
+// One Server-Sent Events frame.
+std::string SseFrame(std::uint64_t id, std::string_view event, const json& data) {
+  std::string frame;
+  if (id != 0) frame += "id: " + std::to_string(id) + "\n";
+  frame += "event: ";
+  frame += event;
+  frame += "\ndata: ";
+  frame += data.dump(-1, ' ', false, json::error_handler_t::replace);
+  frame += "\n\n";
+  return frame;
+}
+
+// The state of one open stream, owned by the content provider.
+struct EventStream {
+  std::unique_ptr<StreamSlots::Slot> slot;
+  std::unique_ptr<services::Subscription> subscription;
+  std::string pending;  // frames to send before reading the hub
+  bool finished = false;
+  std::chrono::steady_clock::time_point last_write = std::chrono::steady_clock::now();
+};
+
+json RunViewJson(const services::RunView& view) { return services::RunViewToJson(view); }
+
+}  // namespace
+
+void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
+  services::RunService* runs = deps.runs;
+  services::SampleHub* hub = deps.samples;
+  services::BenchService* bench = deps.bench;
+  StreamSlots* slots = deps.streams;
+
+  table.Add({"POST", "/api/v1/sessions/{session_id}/runs", kClinician | kAdmin, true, "runs",
+             "Start a protocol for a session (one run at a time; 409 while the bench is busy)",
+             {}, 201, "application/json",
+             ObjectSchema({{"protocol", {{"type", "string"}}},
+                           {"parameters",
+                            {{"type", "object"}, {"additionalProperties", {{"type", "number"}}}}}},
+                          {"protocol"}),
+             nullptr, [runs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!runs) return NotAvailable("the bench");
+               auto request = StartRunFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               auto view = runs->Start(ActorOf(*ctx.user), ctx.Id("session_id"),
+                                       request->protocol, request->parameters);
+               if (!view.ok()) return view.status();
+               ctx.audited = true;  // RunService audits the start with the stored run
+               ctx.res.set_header("Location", "/api/v1/runs/" + std::to_string(view->run_id));
+               return JsonReply(RunViewJson(*view), 201);
+             }});
+  table.Add({"GET", "/api/v1/runs/{run_id}", kAnyRole, false, "runs",
+             "A run's state, progress (fraction, ETA), trials and result", {}, 200,
+             "application/json", nullptr, nullptr,
+             [runs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!runs) return NotAvailable("the bench");
+               auto view = runs->Get(ctx.Id("run_id"));
+               if (!view.ok()) return view.status();
+               return JsonReply(RunViewJson(*view));
+             }});
+  table.Add({"POST", "/api/v1/runs/{run_id}/cancel", kClinician | kAdmin, false, "runs",
+             "Cancel the run in progress (stimulation to zero)", {}, 200, "application/json",
+             nullptr, nullptr, [runs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!runs) return NotAvailable("the bench");
+               if (auto st = runs->Cancel(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok()) return st;
+               ctx.audited = true;
+               auto view = runs->Get(ctx.Id("run_id"));
+               if (!view.ok()) return view.status();
+               return JsonReply(RunViewJson(*view));
+             }});
+  table.Add({"POST", "/api/v1/runs/{run_id}/stop", kClinician | kAdmin, false, "runs",
+             "Stop with result (tolerance_test keeps the amplitude reached)", {}, 200,
+             "application/json", nullptr, nullptr,
+             [runs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!runs) return NotAvailable("the bench");
+               if (auto st = runs->StopWithResult(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok()) {
+                 return st;
+               }
+               ctx.audited = true;
+               auto view = runs->Get(ctx.Id("run_id"));
+               if (!view.ok()) return view.status();
+               return JsonReply(RunViewJson(*view));
+             }});
+  table.Add({"POST", "/api/v1/runs/{run_id}/heartbeat", kClinician | kAdmin, false, "runs",
+             "Heartbeat of the controlling user (at least once per second during a run; "
+             "not audited: it changes nothing)",
+             {}, 200, "application/json", nullptr, nullptr,
+             [runs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!runs) return NotAvailable("the bench");
+               ctx.audited = true;
+               if (auto st = runs->Heartbeat(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok()) {
+                 return st;
+               }
+               return JsonReply({{"run_id", ctx.Id("run_id")}, {"ok", true}});
+             }});
+  table.Add({"GET", "/api/v1/runs/{run_id}/stream", kAnyRole, false, "runs",
+             "Server-Sent Events of a run: state, progress, samples (batched, with "
+             "first_sample), trial, end",
+             {}, 200, "text/event-stream", nullptr, nullptr,
+             [runs, hub, slots](RequestContext& ctx) -> api::Result<Reply> {
+               if (!runs || !hub) return NotAvailable("the bench");
+               const std::int64_t run_id = ctx.Id("run_id");
+               auto slot = slots->TryAcquire();
+               if (!slot) return api::Status::Unavailable("too many open event streams; retry later");
+               auto stream = std::make_shared<EventStream>();
+               stream->slot = std::move(slot);
+               services::SubscribeOptions options;
+               options.run_id = run_id;
+               stream->subscription = hub->Subscribe(options);
+               auto view = runs->Get(run_id);
+               if (!view.ok()) return view.status();
+               if (protocols::IsFinal(view->state)) {
+                 // A finished run: its final state, then the end.
+                 json state = {{"run_id", run_id},
+                               {"kind", "state"},
+                               {"state", protocols::RunStateName(view->state)},
+                               {"reason", view->reason}};
+                 json end = state;
+                 end["kind"] = "end";
+                 end["parameter_set_id"] =
+                     view->parameter_set_id ? json(*view->parameter_set_id) : json(nullptr);
+                 end["dropped"] = 0;
+                 stream->pending = SseFrame(0, "state", state) + SseFrame(0, "end", end);
+                 stream->finished = true;
+                 stream->subscription.reset();
+               }
+               ctx.res.status = 200;
+               ctx.res.set_header("X-Accel-Buffering", "no");
+               ctx.res.set_chunked_content_provider(
+                   "text/event-stream",
+                   [stream, slots](std::size_t, httplib::DataSink& sink) {
+                     using namespace std::chrono;
+                     auto write = [&](const std::string& text) {
+                       stream->last_write = steady_clock::now();
+                       return sink.write(text.data(), text.size());
+                     };
+                     if (!stream->pending.empty()) {
+                       std::string pending = std::move(stream->pending);
+                       stream->pending.clear();
+                       if (!write(pending)) return false;
+                     }
+                     if (stream->finished || slots->shutting_down() || !stream->subscription) {
+                       sink.done();
+                       return true;
+                     }
+                     // Wait briefly for the next item, then send what has queued up.
+                     std::string frames;
+                     bool end = false;
+                     auto item = stream->subscription->Next(milliseconds(250));
+                     for (int n = 0; item && n < 256; ++n) {
+                       json data = services::HubItemToJson(*item);
+                       if (item->kind == services::HubItem::Kind::kEnd) {
+                         data["dropped"] = stream->subscription->dropped();
+                         end = true;
+                       }
+                       frames += SseFrame(item->seq, services::HubItemKindName(item->kind), data);
+                       if (end) break;
+                       item = stream->subscription->Next(milliseconds(0));
+                     }
+                     if (!frames.empty()) {
+                       if (!write(frames)) return false;  // the viewer left: free the worker
+                     } else if (steady_clock::now() - stream->last_write > seconds(2)) {
+                       // A comment line: keeps proxies open and detects a departed viewer.
+                       if (!write(": keep-alive\n\n")) return false;
+                     }
+                     if (end || stream->subscription->closed()) {
+                       stream->finished = true;
+                       sink.done();
+                     }
+                     return true;
+                   },
+                   [stream](bool) { stream->subscription.reset(); });
+               return Reply{200, nullptr, true};
+             }});
+
+  table.Add({"GET", "/api/v1/bench", kAnyRole, false, "bench",
+             "The bench: kind, limits, mode, e-stop, owner, current run and progress", {}, 200,
+             "application/json", nullptr, nullptr,
+             [bench](RequestContext&) -> api::Result<Reply> {
+               if (!bench) return NotAvailable("the bench");
+               return JsonReply(services::BenchInfoToJson(bench->Info()));
+             }});
+  table.Add({"POST", "/api/v1/bench/estop", kAnyRole, false, "bench",
+             "Emergency stop: stimulation to zero and motor disabled at once; latches "
+             "(any signed-in user may press it)",
+             {}, 200, "application/json", nullptr, nullptr,
+             [runs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!runs) return NotAvailable("the bench");
+               if (auto st = runs->EStop(ActorOf(*ctx.user), "http"); !st.ok()) return st;
+               ctx.audited = true;
+               return JsonReply(services::BenchStateToJson(runs->State()));
+             }});
+  table.Add({"DELETE", "/api/v1/bench/estop", kClinician | kAdmin, false, "bench",
+             "Clear a latched e-stop", {}, 200, "application/json", nullptr, nullptr,
+             [runs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!runs) return NotAvailable("the bench");
+               if (auto st = runs->ClearEStop(ActorOf(*ctx.user)); !st.ok()) return st;
+               ctx.audited = true;
+               return JsonReply(services::BenchStateToJson(runs->State()));
+             }});
+  table.Add({"GET", "/api/v1/bench/virtual-subject", kAdmin, false, "bench",
+             "The simulated bench's virtual subject (truth JSON); 409 on a real bench", {}, 200,
+             "application/json", nullptr, nullptr,
+             [bench](RequestContext& ctx) -> api::Result<Reply> {
+               if (!bench) return NotAvailable("the bench");
+               auto subject = bench->GetVirtualSubject(ActorOf(*ctx.user));
+               if (!subject.ok()) return subject.status();
+               return JsonReply(std::move(*subject));
+             }});
+  table.Add({"PUT", "/api/v1/bench/virtual-subject", kAdmin, true, "bench",
+             "Replace the virtual subject between runs (simulation only; 409 on a real bench "
+             "or while a run holds the bench)",
+             {}, 200, "application/json", nullptr, nullptr,
+             [bench](RequestContext& ctx) -> api::Result<Reply> {
+               if (!bench) return NotAvailable("the bench");
+               auto subject = bench->PutVirtualSubject(ActorOf(*ctx.user), ctx.body);
+               if (!subject.ok()) return subject.status();
+               ctx.audited = true;
+               return JsonReply(std::move(*subject));
+             }});
+}
+
+}  // namespace fesbench::server::http

@@ -1,0 +1,135 @@
+// Job routes: identifications, predictions and comparisons run in the
+// bounded job pool, never on the bench's control path (DESIGN.md §4, §8).
+// A submission answers 202 with the job record (Location: /api/v1/jobs/{id});
+// GET /jobs/{id} follows it to "done" (result) or "failed" (error).
+
+#include "server/services/analysis_json.h"
+#include "server/services/comparison_service.h"
+#include "server/services/identification_service.h"
+#include "server/services/job_pool.h"
+#include "server/services/prediction_service.h"
+// (separate block: Eigen before httplib.h, see routes_bench.cc)
+#include "server/http/api_routes.h"
+#include "server/http/routes_common.h"
+#include "server/http/services_json.h"
+
+namespace fesbench::server::http {
+
+namespace {
+
+using nlohmann::json;
+
+api::Result<Reply> Submitted(RequestContext& ctx, services::JobPool& jobs,
+                             const api::Result<std::int64_t>& id) {
+  if (!id.ok()) return id.status();
+  auto record = jobs.Get(*id);
+  if (!record.ok()) return record.status();
+  ctx.res.set_header("Location", "/api/v1/jobs/" + std::to_string(*id));
+  return JsonReply(services::JobToJson(*record), 202);
+}
+
+json IdSchema() { return {{"type", "integer"}, {"minimum", 1}}; }
+
+}  // namespace
+
+void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
+  services::JobPool* jobs = deps.jobs;
+  services::IdentificationService* identification = deps.identification;
+  services::PredictionService* prediction = deps.prediction;
+  services::ComparisonService* comparison = deps.comparison;
+
+  table.Add({"POST", "/api/v1/identifications", kAnalyst | kAdmin, true, "jobs",
+             "Fit a model from stored trials (a session's, or listed trial ids); a job", {}, 202,
+             "application/json",
+             ObjectSchema({{"session_id", IdSchema()},
+                           {"trial_ids", {{"type", "array"}, {"items", IdSchema()}}},
+                           {"method", {{"enum", {"thesis", "rapid"}}}},
+                           {"irc_method", {{"type", "string"}}},
+                           {"passive_method", {{"enum", {"sequential", "simultaneous", "free_swing"}}}},
+                           {"contraction_order", {{"enum", {0, 2, 3}}}},
+                           {"pole_method", {{"enum", {"peak", "least_squares"}}}},
+                           {"models", {{"type", "array"}, {"items", {{"type", "string"}}}}},
+                           {"breakpoints", {{"type", "object"}}},
+                           {"inertia_kgm2", {{"type", "number"}, {"exclusiveMinimum", 0}}},
+                           {"torque_angle_parameter_set_id", IdSchema()}},
+                          {}),
+             nullptr, [jobs, identification](RequestContext& ctx) -> api::Result<Reply> {
+               if (!jobs || !identification) return NotAvailable("identification");
+               auto request = services::IdentificationRequestFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               return Submitted(ctx, *jobs,
+                                services::SubmitIdentification(*jobs, *identification,
+                                                               ActorOf(*ctx.user), *request));
+             }});
+  table.Add({"POST", "/api/v1/predictions", kAnalyst | kAdmin, true, "jobs",
+             "Simulate a parameter set on a named stimulus or a stored trial (with errors "
+             "against it); a job",
+             {}, 202, "application/json",
+             ObjectSchema({{"parameter_set_id", IdSchema()},
+                           {"trial_id", IdSchema()},
+                           {"stimulus",
+                            ObjectSchema({{"generator", {{"type", "string"}}},
+                                          {"params", {{"type", "object"}}}},
+                                         {"generator"})},
+                           {"mode", {{"enum", {"free_swing", "isometric"}}}},
+                           {"initial_angle_deg", {{"type", "number"}}},
+                           {"initial_velocity_deg_s", {{"type", "number"}}},
+                           {"duration_s", {{"type", "number"}}}},
+                          {"parameter_set_id"}),
+             nullptr, [jobs, prediction](RequestContext& ctx) -> api::Result<Reply> {
+               if (!jobs || !prediction) return NotAvailable("prediction");
+               auto request = services::PredictionRequestFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               return Submitted(ctx, *jobs,
+                                services::SubmitPrediction(*jobs, *prediction, ActorOf(*ctx.user),
+                                                           *request));
+             }});
+  table.Add({"POST", "/api/v1/comparisons", kAnalyst | kAdmin, true, "jobs",
+             "Paired t-test of two parameter sets' (or models') errors across subjects and "
+             "trials; a job",
+             {}, 202, "application/json",
+             ObjectSchema({{"pairs",
+                            {{"type", "array"},
+                             {"items", ObjectSchema({{"a_parameter_set_id", IdSchema()},
+                                                     {"b_parameter_set_id", IdSchema()},
+                                                     {"trial_ids", {{"type", "array"}, {"items", IdSchema()}}}},
+                                                    {"a_parameter_set_id", "b_parameter_set_id",
+                                                     "trial_ids"})}}},
+                           {"metric", {{"type", "string"}}},
+                           {"confidence", {{"type", "number"}}}},
+                          {"pairs"}),
+             nullptr, [jobs, comparison](RequestContext& ctx) -> api::Result<Reply> {
+               if (!jobs || !comparison) return NotAvailable("comparison");
+               auto request = services::ComparisonRequestFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               return Submitted(ctx, *jobs,
+                                services::SubmitComparison(*jobs, *comparison, ActorOf(*ctx.user),
+                                                           *request));
+             }});
+
+  table.Add({"GET", "/api/v1/jobs", kAnalyst | kAdmin, false, "jobs",
+             "Recent jobs (identifications, predictions, comparisons), newest first",
+             {{"limit", "integer", "at most this many, 1–500 (default 50)"}}, 200,
+             "application/json", nullptr, nullptr,
+             [jobs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!jobs) return NotAvailable("the job pool");
+               auto page = ParsePage(ctx);
+               if (!page.ok()) return page.status();
+               json items = json::array();
+               for (const auto& record : jobs->List(page->limit)) {
+                 items.push_back(services::JobToJson(record));
+               }
+               return JsonReply({{"items", std::move(items)}, {"next_cursor", nullptr}});
+             }});
+  table.Add({"GET", "/api/v1/jobs/{job_id}", kAnalyst | kAdmin, false, "jobs",
+             "A job: state (queued, running, done, failed) and result or error", {}, 200,
+             "application/json", nullptr, nullptr,
+             [jobs](RequestContext& ctx) -> api::Result<Reply> {
+               if (!jobs) return NotAvailable("the job pool");
+               auto record = jobs->Get(ctx.Id("job_id"));
+               if (!record.ok()) return record.status();
+               return JsonReply(services::JobToJson(*record));
+             }});
+}
+
+}  // namespace fesbench::server::http

@@ -1,0 +1,433 @@
+// Storage-backed routes: health, subjects, sessions, trials, parameter sets,
+// protocols, stored predictions (DESIGN.md §8).
+
+#include <map>
+#include <mutex>
+#include <unordered_map>
+
+#include "api/trial.h"
+#include "server/http/api_routes.h"
+#include "server/http/resources_json.h"
+#include "server/http/routes_common.h"
+#include "server/protocols/protocol.h"
+#include "storage/parameter_sets.h"
+#include "storage/predictions.h"
+#include "storage/sessions.h"
+#include "storage/subjects.h"
+#include "storage/trials.h"
+
+namespace fesbench::server::http {
+
+namespace {
+
+using nlohmann::json;
+
+// Parameter sets are immutable (DESIGN.md §3): their rendered JSON can be
+// kept without ever being stale.
+class ParameterSetCache {
+ public:
+  std::optional<std::string> Find(std::int64_t id) {
+    std::lock_guard lock(mu_);
+    auto it = bodies_.find(id);
+    if (it == bodies_.end()) return std::nullopt;
+    return it->second;
+  }
+  void Put(std::int64_t id, std::string body) {
+    std::lock_guard lock(mu_);
+    if (bodies_.size() >= kCapacity) bodies_.clear();
+    bodies_.emplace(id, std::move(body));
+  }
+
+ private:
+  static constexpr std::size_t kCapacity = 2048;
+  std::mutex mu_;
+  std::unordered_map<std::int64_t, std::string> bodies_;
+};
+
+api::Result<json> SubjectJson(storage::Database& db, const storage::Subject& subject) {
+  auto legs = storage::SubjectRepository(db).Legs(subject.id);
+  if (!legs.ok()) return legs.status();
+  return SubjectToJson(subject, *legs);
+}
+
+api::Result<json> SessionJson(storage::Database& db, const storage::Session& session) {
+  auto leg = storage::SubjectRepository(db).GetLeg(session.leg_id);
+  if (!leg.ok()) return leg.status();
+  return SessionToJson(session, storage::SideName(leg->side));
+}
+
+json DetailsSchema() {
+  return ObjectSchema({{"age_years", {{"type", "integer"}, {"minimum", 0}, {"maximum", 130}}},
+                       {"sex", {{"enum", {"female", "male", "other", "undisclosed"}}}},
+                       {"height_cm", {{"type", "number"}, {"minimum", 30}, {"maximum", 250}}},
+                       {"weight_kg", {{"type", "number"}, {"minimum", 1}, {"maximum", 400}}},
+                       {"shank_length_cm", {{"type", "number"}, {"minimum", 10}, {"maximum", 80}}},
+                       {"calf_circumference_cm",
+                        {{"type", "number"}, {"minimum", 10}, {"maximum", 100}}}},
+                      {});
+}
+
+}  // namespace
+
+void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
+  const std::string version = deps.server_version;
+  auto cache = std::make_shared<ParameterSetCache>();
+
+  table.Add({"GET", "/api/v1/health", 0, false, "system", "Liveness and database health",
+             {}, 200, "application/json", nullptr, nullptr,
+             [&db, version](RequestContext&) -> api::Result<Reply> {
+               auto schema = db.SchemaVersion();
+               if (!schema.ok()) return schema.status();
+               return JsonReply({{"status", "ok"},
+                                 {"version", version},
+                                 {"schema_version", *schema},
+                                 {"time_utc", storage::FormatUtc(storage::NowUtc())}});
+             }});
+
+  // --- subjects ---------------------------------------------------------------
+  {
+    auto q = PageParams();
+    q.push_back({"code", "string", "exact pseudonymous code"});
+    table.Add({"GET", "/api/v1/subjects", kAnyRole, false, "subjects", "List subjects", q, 200,
+               "application/json", nullptr, nullptr,
+               [&db](RequestContext& ctx) -> api::Result<Reply> {
+                 auto page = ParsePage(ctx);
+                 if (!page.ok()) return page.status();
+                 storage::SubjectRepository subjects(db);
+                 std::vector<storage::Subject> list;
+                 if (auto code = ctx.Query("code")) {
+                   if (auto st = storage::ValidateSubjectCode(*code); !st.ok()) return st;
+                   auto one = subjects.GetByCode(*code);
+                   if (one.ok()) {
+                     list.push_back(*one);
+                   } else if (one.status().code() != api::ErrorCode::kNotFound) {
+                     return one.status();
+                   }
+                 } else {
+                   auto all = subjects.List();
+                   if (!all.ok()) return all.status();
+                   list = std::move(*all);
+                 }
+                 api::Status failure;
+                 json body = MakePage(
+                     list, *page, [](const storage::Subject& s) { return s.id; },
+                     [&](const storage::Subject& s) {
+                       auto j = SubjectJson(db, s);
+                       if (!j.ok()) {
+                         failure = j.status();
+                         return json(nullptr);
+                       }
+                       return *j;
+                     });
+                 if (!failure.ok()) return failure;
+                 return JsonReply(std::move(body));
+               }});
+  }
+  table.Add({"POST", "/api/v1/subjects", kClinician | kAdmin, true, "subjects",
+             "Create a subject (pseudonymous code, anthropometrics, legs)", {}, 201,
+             "application/json",
+             ObjectSchema({{"code", {{"type", "string"}, {"pattern", "^[A-Za-z0-9_-]{1,32}$"}}},
+                           {"details", DetailsSchema()},
+                           {"legs", {{"type", "array"},
+                                     {"items", {{"enum", {"left", "right"}}}},
+                                     {"maxItems", 2}}}},
+                          {"code"}),
+             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto request = NewSubjectFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               auto created = AuditedWrite<json>(
+                   db, ctx, 201,
+                   [&]() -> api::Result<json> {
+                     storage::SubjectRepository subjects(db);
+                     auto subject = subjects.Create(request->code, request->details);
+                     if (!subject.ok()) return subject.status();
+                     for (auto side : request->legs) {
+                       if (auto leg = subjects.AddLeg(subject->id, side); !leg.ok()) {
+                         return leg.status();
+                       }
+                     }
+                     return SubjectJson(db, *subject);
+                   },
+                   [](const json& s) { return "subjects/" + std::to_string(s["id"].get<std::int64_t>()); });
+               if (!created.ok()) return created.status();
+               return JsonReply(std::move(*created), 201);
+             }});
+  table.Add({"GET", "/api/v1/subjects/{subject_id}", kAnyRole, false, "subjects",
+             "One subject with its current details and legs", {}, 200, "application/json",
+             nullptr, nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto subject = storage::SubjectRepository(db).Get(ctx.Id("subject_id"));
+               if (!subject.ok()) return subject.status();
+               auto j = SubjectJson(db, *subject);
+               if (!j.ok()) return j.status();
+               return JsonReply(std::move(*j));
+             }});
+
+  // --- sessions ---------------------------------------------------------------
+  {
+    auto q = PageParams();
+    q.push_back({"from", "string", "sessions on or after this date (YYYY-MM-DD)"});
+    q.push_back({"to", "string", "sessions before this date (YYYY-MM-DD)"});
+    table.Add({"GET", "/api/v1/subjects/{subject_id}/sessions", kAnyRole, false, "sessions",
+               "A subject's sessions (filter by date range)", q, 200, "application/json",
+               nullptr, nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+                 auto page = ParsePage(ctx);
+                 if (!page.ok()) return page.status();
+                 auto from = QueryTime(ctx, "from");
+                 if (!from.ok()) return from.status();
+                 auto to = QueryTime(ctx, "to");
+                 if (!to.ok()) return to.status();
+                 auto sessions = storage::SessionRepository(db).ListForSubject(ctx.Id("subject_id"));
+                 if (!sessions.ok()) return sessions.status();
+                 std::vector<storage::Session> kept;
+                 for (auto& s : *sessions) {
+                   // Session dates are calendar dates: compare as text.
+                   const std::string& date = s.current.details.date;
+                   if (*from && date < storage::FormatUtc(**from).substr(0, 10)) continue;
+                   if (*to && date >= storage::FormatUtc(**to).substr(0, 10)) continue;
+                   kept.push_back(std::move(s));
+                 }
+                 api::Status failure;
+                 json body = MakePage(
+                     kept, *page, [](const storage::Session& s) { return s.id; },
+                     [&](const storage::Session& s) {
+                       auto j = SessionJson(db, s);
+                       if (!j.ok()) failure = j.status();
+                       return j.ok() ? *j : json(nullptr);
+                     });
+                 if (!failure.ok()) return failure;
+                 return JsonReply(std::move(body));
+               }});
+  }
+  table.Add({"POST", "/api/v1/subjects/{subject_id}/sessions", kClinician | kAdmin, true,
+             "sessions", "Open a session for one leg of a subject", {}, 201, "application/json",
+             ObjectSchema({{"leg", {{"enum", {"left", "right"}}}},
+                           {"date", {{"type", "string"}, {"format", "date"}}},
+                           {"accelerometer_placement", {{"type", "string"}, {"maxLength", 256}}},
+                           {"threshold_ma", {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
+                           {"max_tolerated_ma",
+                            {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
+                           {"notes", {{"type", "string"}, {"maxLength", 4096}}}},
+                          {"leg", "date"}),
+             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto request = NewSessionFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               const std::int64_t subject_id = ctx.Id("subject_id");
+               auto created = AuditedWrite<json>(
+                   db, ctx, 201,
+                   [&]() -> api::Result<json> {
+                     storage::SubjectRepository subjects(db);
+                     auto legs = subjects.Legs(subject_id);
+                     if (!legs.ok()) return legs.status();
+                     std::optional<std::int64_t> leg_id;
+                     for (const auto& leg : *legs) {
+                       if (leg.side == request->leg) leg_id = leg.id;
+                     }
+                     if (!leg_id) {
+                       auto leg = subjects.AddLeg(subject_id, request->leg);
+                       if (!leg.ok()) return leg.status();
+                       leg_id = leg->id;
+                     }
+                     auto session = storage::SessionRepository(db).Create(subject_id, *leg_id,
+                                                                         request->details);
+                     if (!session.ok()) return session.status();
+                     return SessionToJson(*session, storage::SideName(request->leg));
+                   },
+                   [](const json& s) { return "sessions/" + std::to_string(s["id"].get<std::int64_t>()); });
+               if (!created.ok()) return created.status();
+               return JsonReply(std::move(*created), 201);
+             }});
+  table.Add({"GET", "/api/v1/sessions/{session_id}", kAnyRole, false, "sessions", "One session",
+             {}, 200, "application/json", nullptr, nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto session = storage::SessionRepository(db).Get(ctx.Id("session_id"));
+               if (!session.ok()) return session.status();
+               auto j = SessionJson(db, *session);
+               if (!j.ok()) return j.status();
+               return JsonReply(std::move(*j));
+             }});
+  table.Add({"GET", "/api/v1/sessions/{session_id}/runs", kAnyRole, false, "runs",
+             "The runs of a session (history)", PageParams(), 200, "application/json", nullptr,
+             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto page = ParsePage(ctx);
+               if (!page.ok()) return page.status();
+               storage::SessionRepository sessions(db);
+               if (auto s = sessions.Get(ctx.Id("session_id")); !s.ok()) return s.status();
+               auto runs = sessions.ListRuns(ctx.Id("session_id"));
+               if (!runs.ok()) return runs.status();
+               return JsonReply(MakePage(
+                   *runs, *page, [](const storage::Run& r) { return r.id; }, RunToJson));
+             }});
+  table.Add({"GET", "/api/v1/sessions/{session_id}/trials", kAnyRole, false, "trials",
+             "The trials recorded in a session (summaries)", PageParams(), 200,
+             "application/json", nullptr, nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto page = ParsePage(ctx);
+               if (!page.ok()) return page.status();
+               if (auto s = storage::SessionRepository(db).Get(ctx.Id("session_id")); !s.ok()) {
+                 return s.status();
+               }
+               auto trials = storage::TrialRepository(db).ListForSession(ctx.Id("session_id"));
+               if (!trials.ok()) return trials.status();
+               return JsonReply(MakePage(
+                   *trials, *page, [](const storage::TrialSummary& t) { return t.id; },
+                   TrialSummaryToJson));
+             }});
+
+  // --- trials -------------------------------------------------------------------
+  table.Add({"GET", "/api/v1/trials/{trial_id}", kAnyRole, false, "trials",
+             "A recorded trial: JSON, or CSV with Accept: text/csv", {}, 200,
+             "application/json", nullptr, nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto trial = storage::TrialRepository(db).Get(ctx.Id("trial_id"));
+               if (!trial.ok()) return trial.status();
+               const std::string accept = ctx.req.get_header_value("Accept");
+               if (accept.find("text/csv") != std::string::npos) {
+                 ctx.res.status = 200;
+                 ctx.res.set_content(api::TrialToCsv(*trial), "text/csv");
+                 return Reply{200, nullptr, true};
+               }
+               return JsonReply(api::TrialToJson(*trial));
+             }});
+
+  // --- parameter sets -------------------------------------------------------------
+  {
+    auto q = PageParams();
+    q.push_back({"subject_id", "integer", "only this subject's sets"});
+    q.push_back({"leg", "string", "left or right (with subject_id)"});
+    q.push_back({"method", "string", "IRC, passive or active identification method"});
+    q.push_back({"from", "string", "created at or after (YYYY-MM-DD or UTC time)"});
+    q.push_back({"to", "string", "created before (YYYY-MM-DD or UTC time)"});
+    table.Add({"GET", "/api/v1/parameter-sets", kAnyRole, false, "parameter-sets",
+               "Parameter-set history (filter by subject, leg, method, date range)", q, 200,
+               "application/json", nullptr, nullptr,
+               [&db](RequestContext& ctx) -> api::Result<Reply> {
+                 auto page = ParsePage(ctx);
+                 if (!page.ok()) return page.status();
+                 auto subject_id = QueryId(ctx, "subject_id");
+                 if (!subject_id.ok()) return subject_id.status();
+                 auto from = QueryTime(ctx, "from");
+                 if (!from.ok()) return from.status();
+                 auto to = QueryTime(ctx, "to");
+                 if (!to.ok()) return to.status();
+                 std::optional<storage::Side> side;
+                 if (auto leg = ctx.Query("leg")) {
+                   side = storage::ParseSide(*leg);
+                   if (!side) return api::Status::InvalidArgument("must be left or right", "leg");
+                   if (!*subject_id) {
+                     return api::Status::InvalidArgument("a leg filter needs subject_id", "leg");
+                   }
+                 }
+                 auto method = ctx.Query("method");
+                 if (method && (method->empty() || method->size() > 64)) {
+                   return api::Status::InvalidArgument("must be 1–64 characters", "method");
+                 }
+                 storage::SubjectRepository subjects(db);
+                 std::vector<std::int64_t> subject_ids;
+                 if (*subject_id) {
+                   subject_ids.push_back(**subject_id);
+                 } else {
+                   auto all = subjects.List();
+                   if (!all.ok()) return all.status();
+                   for (const auto& s : *all) subject_ids.push_back(s.id);
+                 }
+                 std::vector<storage::ParameterSetSummary> found;
+                 for (std::int64_t id : subject_ids) {
+                   storage::HistoryQuery query;
+                   query.subject_id = id;
+                   query.method = method;
+                   query.from = *from;
+                   query.to = *to;
+                   query.limit = 1000000;
+                   if (side) {
+                     auto legs = subjects.Legs(id);
+                     if (!legs.ok()) return legs.status();
+                     query.leg_id = -1;  // a leg the subject lacks matches nothing
+                     for (const auto& leg : *legs) {
+                       if (leg.side == *side) query.leg_id = leg.id;
+                     }
+                   }
+                   auto history = storage::ParameterSetRepository(db).History(query);
+                   if (!history.ok()) return history.status();
+                   found.insert(found.end(), history->begin(), history->end());
+                 }
+                 std::sort(found.begin(), found.end(),
+                           [](const auto& a, const auto& b) { return a.id < b.id; });
+                 return JsonReply(MakePage(
+                     found, *page, [](const storage::ParameterSetSummary& s) { return s.id; },
+                     ParameterSetSummaryToJson));
+               }});
+  }
+  table.Add({"GET", "/api/v1/parameter-sets/{parameter_set_id}", kAnyRole, false,
+             "parameter-sets", "One parameter set (DESIGN.md §3 JSON) with its provenance", {},
+             200, "application/json", nullptr, nullptr,
+             [&db, cache](RequestContext& ctx) -> api::Result<Reply> {
+               const std::int64_t id = ctx.Id("parameter_set_id");
+               auto body = cache->Find(id);
+               if (!body) {
+                 auto set = storage::ParameterSetRepository(db).Get(id);
+                 if (!set.ok()) return set.status();
+                 body = StoredParameterSetToJson(*set).dump();
+                 cache->Put(id, *body);
+               }
+               ctx.res.status = 200;
+               ctx.res.set_content(std::move(*body), "application/json");
+               return Reply{200, nullptr, true};
+             }});
+  table.Add({"GET", "/api/v1/parameter-sets/{parameter_set_id}/predictions", kAnyRole, false,
+             "predictions", "Stored predictions of a parameter set", PageParams(), 200,
+             "application/json", nullptr, nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto page = ParsePage(ctx);
+               if (!page.ok()) return page.status();
+               const std::int64_t id = ctx.Id("parameter_set_id");
+               if (auto set = storage::ParameterSetRepository(db).Get(id); !set.ok()) {
+                 return set.status();
+               }
+               auto predictions = storage::PredictionRepository(db).PredictionsFor(id);
+               if (!predictions.ok()) return predictions.status();
+               return JsonReply(MakePage(
+                   *predictions, *page, [](const storage::Prediction& p) { return p.id; },
+                   [](const storage::Prediction& p) {
+                     return json{{"id", p.id},
+                                 {"parameter_set_id", p.prediction.parameter_set_id},
+                                 {"trial_id", p.prediction.trial_id
+                                                  ? json(*p.prediction.trial_id)
+                                                  : json(nullptr)},
+                                 {"created_at_utc", storage::FormatUtc(p.created_at)}};
+                   }));
+             }});
+  table.Add({"GET", "/api/v1/predictions/{prediction_id}", kAnyRole, false, "predictions",
+             "A stored prediction with its input and output", {}, 200, "application/json",
+             nullptr, nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto p = storage::PredictionRepository(db).GetPrediction(ctx.Id("prediction_id"));
+               if (!p.ok()) return p.status();
+               auto parse = [](const std::string& text) {
+                 json j = json::parse(text, nullptr, false);
+                 return j.is_discarded() ? json(nullptr) : j;
+               };
+               return JsonReply({{"id", p->id},
+                                 {"parameter_set_id", p->prediction.parameter_set_id},
+                                 {"trial_id", p->prediction.trial_id ? json(*p->prediction.trial_id)
+                                                                     : json(nullptr)},
+                                 {"input", parse(p->prediction.input_json)},
+                                 {"output", parse(p->prediction.output_json)},
+                                 {"created_at_utc", storage::FormatUtc(p->created_at)}});
+             }});
+
+  // --- protocols -------------------------------------------------------------------
+  table.Add({"GET", "/api/v1/protocols", kAnyRole, false, "protocols",
+             "The protocol catalog (DESIGN.md §5)", {}, 200, "application/json", nullptr,
+             nullptr, [](RequestContext&) -> api::Result<Reply> {
+               return JsonReply(protocols::CatalogToJson());
+             }});
+  table.Add({"GET", "/api/v1/protocols/{name}", kAnyRole, false, "protocols",
+             "One protocol with its parameters, units and defaults", {}, 200, "application/json",
+             nullptr, nullptr, [](RequestContext& ctx) -> api::Result<Reply> {
+               const auto* protocol = protocols::FindProtocol(ctx.path.at("name"));
+               if (!protocol) return api::Status::NotFound("protocol " + ctx.path.at("name") + " not found");
+               return JsonReply(protocols::ProtocolToJson(*protocol));
+             }});
+}
+
+}  // namespace fesbench::server::http

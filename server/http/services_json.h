@@ -1,0 +1,29 @@
+#pragma once
+
+/// @file
+/// Small conversions between the transport and the application services
+/// (server/services): the acting principal of an authenticated user and the
+/// run-start request. The analysis requests' JSON lives with their services
+/// (server/services/analysis_json.h).
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "api/status.h"
+#include "server/protocols/protocol.h"
+#include "server/services/actor.h"
+#include "storage/users.h"
+
+namespace fesbench::server::http {
+
+/// The services' Actor for an authenticated user.
+services::Actor ActorOf(const storage::User& user);
+
+/// POST /sessions/{id}/runs: {"protocol": "<name>", "parameters"?: {"<name>": number}}.
+struct StartRunRequest {
+  std::string protocol;
+  protocols::ParameterValues parameters;
+};
+api::Result<StartRunRequest> StartRunFromJson(const nlohmann::json& body);
+
+}  // namespace fesbench::server::http

@@ -1,0 +1,185 @@
+// fesbench-server: wiring only (STYLE.md). Reads flags and the optional JSON
+// config (server/config.h), opens the database, bootstraps the first admin,
+// builds the bench (simulated or replay) and the services, and serves the
+// HTTP API until SIGTERM/SIGINT; then stops the server, shuts the services
+// down (a running protocol is stopped with stimulation zero), closes the
+// database and exits 0.
+
+#include <fcntl.h>
+#include <pthread.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <thread>
+
+#include "server/bench/replay_bench.h"
+#include "server/bench/virtual_subject.h"
+#include "server/config.h"
+#include "server/services/bench_service.h"
+#include "server/services/comparison_service.h"
+#include "server/services/identification_service.h"
+#include "server/services/job_pool.h"
+#include "server/services/prediction_service.h"
+#include "server/services/run_service.h"
+#include "server/services/sample_hub.h"
+#include "storage/database.h"
+#include "storage/users.h"
+// (separate block: Eigen, above, before httplib.h, see routes_bench.cc)
+#include "server/http/api_routes.h"
+#include "server/http/http_server.h"
+
+namespace {
+
+using namespace fesbench;
+
+// Writes `text` to `path` readable by the owner only (0600).
+api::Status WriteSecretFile(const std::filesystem::path& path, const std::string& text) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  if (fd < 0) return api::Status::Unavailable("cannot write " + path.string());
+  ::fchmod(fd, 0600);
+  const bool ok = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
+  ::close(fd);
+  return ok ? api::Status::Ok() : api::Status::Unavailable("cannot write " + path.string());
+}
+
+// At first start on an empty database: an admin user and its token, printed
+// once and written to admin.token (0600) beside the database file.
+api::Status BootstrapAdmin(storage::Database& db, const std::filesystem::path& token_path) {
+  storage::UserRepository users(db);
+  auto existing = users.ListUsers();
+  if (!existing.ok()) return existing.status();
+  if (!existing->empty()) return api::Status::Ok();
+  auto admin = users.CreateUser("admin", storage::Role::kAdmin);
+  if (!admin.ok()) return admin.status();
+  auto token = users.IssueToken(admin->id, "bootstrap admin token");
+  if (!token.ok()) return token.status();
+  if (auto st = WriteSecretFile(token_path, token->token + "\n"); !st.ok()) return st;
+  std::cout << "fesbench-server: created user admin; its token (shown once): " << token->token
+            << "\n";
+  return api::Status::Ok();
+}
+
+int Fail(const std::string& what, const api::Status& status) {
+  std::cerr << "fesbench-server: " << what << ": " << status.ToString() << std::endl;
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  auto parsed = server::ParseServerConfig(argc, argv, std::cout, std::cerr);
+  if (parsed.exit_code) return *parsed.exit_code;
+  const server::ServerConfig& config = parsed.config;
+
+  // SIGTERM/SIGINT go to one waiting thread (blocked everywhere else, so
+  // every thread created below inherits the mask).
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+
+  const std::filesystem::path db_path = std::filesystem::absolute(config.db);
+  std::error_code ec;
+  std::filesystem::create_directories(db_path.parent_path(), ec);
+  if (ec) return Fail("cannot create " + db_path.parent_path().string(), api::Status::Unavailable(ec.message()));
+
+  storage::DatabaseOptions db_options;
+  db_options.path = db_path.string();
+  auto db = storage::Database::Open(db_options);
+  if (!db.ok()) return Fail("cannot open " + db_path.string(), db.status());
+
+  const std::filesystem::path token_path = db_path.parent_path() / "admin.token";
+  if (auto st = BootstrapAdmin(**db, token_path); !st.ok()) return Fail("admin bootstrap", st);
+
+  // The bench: a simulated leg (seeded virtual subject) or a replay of CSV trials.
+  std::unique_ptr<server::Bench> bench;
+  server::services::SwappableSimulatedBench* simulated = nullptr;
+  if (config.bench == "sim") {
+    server::SimulatedBenchOptions options;
+    options.time_scale = config.time_scale;
+    options.seed = config.seed;
+    auto sim = server::services::SwappableSimulatedBench::Create(
+        server::DrawVirtualSubject(config.seed), options);
+    if (!sim.ok()) return Fail("simulated bench", sim.status());
+    simulated = sim->get();
+    bench = std::move(*sim);
+  } else {
+    server::ReplayBenchOptions options;
+    options.time_scale = config.time_scale;
+    std::vector<std::filesystem::path> files(config.replay.begin(), config.replay.end());
+    auto replay = server::ReplayBench::FromCsvFiles(files, options);
+    if (!replay.ok()) return Fail("replay bench", replay.status());
+    bench = std::move(*replay);
+  }
+
+  server::services::SampleHub hub;
+  server::services::RunServiceConfig run_config;
+  run_config.time_scale = config.time_scale;
+  server::services::RunService runs(**db, *bench, hub, run_config);
+  server::services::BenchService bench_service(**db, runs, simulated);
+  server::services::JobPoolConfig job_config;
+  job_config.workers = config.job_workers;
+  server::services::JobPool jobs(job_config);
+  server::services::IdentificationService identification(**db);
+  server::services::PredictionService prediction(**db);
+  server::services::ComparisonService comparison(**db);
+
+  server::http::Authenticator auth(**db);
+  server::http::StreamSlots slots(static_cast<std::size_t>(config.max_streams));
+  server::http::ApiDependencies deps;
+  deps.db = db->get();
+  deps.auth = &auth;
+  deps.streams = &slots;
+  deps.backup_dir = (db_path.parent_path() / "backups").string();
+  deps.bench = &bench_service;
+  deps.runs = &runs;
+  deps.samples = &hub;
+  deps.jobs = &jobs;
+  deps.identification = &identification;
+  deps.prediction = &prediction;
+  deps.comparison = &comparison;
+
+  server::http::HttpServerOptions http_options;
+  http_options.bind_address = config.bind;
+  http_options.port = config.port;
+  http_options.tls_cert_path = config.tls_cert;
+  http_options.tls_key_path = config.tls_key;
+  http_options.max_connections = static_cast<std::size_t>(config.max_connections);
+  http_options.max_streams = static_cast<std::size_t>(config.max_streams);
+  server::http::HttpServer http(http_options, server::http::BuildApiRoutes(deps), auth, **db, slots);
+  auto port = http.Bind();
+  if (!port.ok()) return Fail("cannot listen", port.status());
+
+  const std::string scheme = config.tls_cert.empty() ? "http" : "https";
+  const std::string host = config.bind == "0.0.0.0" ? "127.0.0.1" : config.bind;
+  std::cout << "fesbench-server: bench " << bench->kind() << ", time scale " << config.time_scale
+            << ", database " << db_path.string() << "\n"
+            << "fesbench-server: admin token file " << token_path.string() << "\n"
+            << "fesbench-server: listening on " << scheme << "://" << host << ":" << *port << "/"
+            << std::endl;
+
+  std::thread waiter([&] {
+    int signal = 0;
+    sigwait(&signals, &signal);
+    http.Stop();
+  });
+  const bool served = http.Run();
+  if (!served) std::cerr << "fesbench-server: the HTTP server failed" << std::endl;
+  http.Stop();
+  // Wake the waiter if the server ended on its own.
+  pthread_kill(waiter.native_handle(), SIGTERM);
+  waiter.join();
+
+  runs.Shutdown();  // a running protocol: stimulation zero, state aborted, all stored
+  hub.Close();
+  jobs.Shutdown();
+  db->reset();
+  std::cout << "fesbench-server: stopped" << std::endl;
+  return served ? 0 : 1;
+}
