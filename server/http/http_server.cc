@@ -258,6 +258,11 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
         return;
       }
     }
+    if (route.json_body && !IsJsonContentType(req.get_header_value("Content-Type"))) {
+      refuse(HttpError{415, "unsupported_media_type",
+                       "the request body must be JSON (Content-Type: application/json)", {}});
+      return;
+    }
     for (const auto& [name, value] : req.params) {
       const bool known = std::any_of(route.query.begin(), route.query.end(),
                                      [&](const QueryParam& q) { return q.name == name; });
@@ -267,11 +272,6 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
       }
     }
     if (route.json_body) {
-      if (!IsJsonContentType(req.get_header_value("Content-Type"))) {
-        refuse(HttpError{415, "unsupported_media_type",
-                         "the request body must be JSON (Content-Type: application/json)", {}});
-        return;
-      }
       auto body = ParseJsonObject(req.body);
       if (!body.ok()) {
         refuse(ToHttpError(body.status()));

@@ -1,0 +1,201 @@
+// Unit tests of the HTTP layer's pure parts: route matching, strict JSON
+// reading, paging cursors, the status mapping, the OpenAPI builder and the
+// server config reader.
+
+#include <gtest/gtest.h>
+
+#include "server/config.h"
+#include "server/http/errors.h"
+#include "server/http/json_fields.h"
+#include "server/http/openapi.h"
+#include "server/http/router.h"
+#include "server/http/routes_common.h"
+
+namespace fesbench::server::http {
+namespace {
+
+using nlohmann::json;
+
+Route MakeRoute(std::string method, std::string path, RoleMask roles = kAnyRole) {
+  Route r;
+  r.method = std::move(method);
+  r.path = std::move(path);
+  r.roles = roles;
+  r.tag = "t";
+  r.summary = "s";
+  r.handler = [](RequestContext&) -> api::Result<Reply> { return Reply{}; };
+  return r;
+}
+
+TEST(RouterTest, MatchesTemplatesAndIds) {
+  RouteTable table;
+  table.Add(MakeRoute("GET", "/api/v1/subjects"));
+  table.Add(MakeRoute("POST", "/api/v1/subjects"));
+  table.Add(MakeRoute("GET", "/api/v1/subjects/{subject_id}"));
+  table.Add(MakeRoute("GET", "/api/v1/protocols/{name}"));
+
+  auto m = table.Match("GET", "/api/v1/subjects/42");
+  ASSERT_NE(m.route, nullptr);
+  EXPECT_EQ(m.route->path, "/api/v1/subjects/{subject_id}");
+  EXPECT_EQ(m.path.at("subject_id"), "42");
+
+  EXPECT_EQ(table.Match("GET", "/api/v1/subjects/abc").route, nullptr);
+  EXPECT_EQ(table.Match("GET", "/api/v1/subjects/0").route, nullptr);
+  EXPECT_EQ(table.Match("GET", "/api/v1/subjects/0042").route, nullptr);
+  EXPECT_EQ(table.Match("GET", "/api/v1/subjects/1234567890123456789").route, nullptr);
+  EXPECT_EQ(table.Match("GET", "/api/v1/subjects/../subjects").route, nullptr);
+  EXPECT_EQ(table.Match("GET", "/api/v1/subjects/").route, nullptr);
+  EXPECT_EQ(table.Match("GET", "/api/v1//subjects").route, nullptr);
+  EXPECT_EQ(table.Match("GET", "api/v1/subjects").route, nullptr);
+  EXPECT_EQ(table.Match("GET", "/api/v1/protocols/a.b").route, nullptr);
+  EXPECT_NE(table.Match("GET", "/api/v1/protocols/rapid_parameterisation").route, nullptr);
+  EXPECT_NE(table.Match("HEAD", "/api/v1/subjects").route, nullptr);
+
+  auto wrong_method = table.Match("DELETE", "/api/v1/subjects");
+  EXPECT_EQ(wrong_method.route, nullptr);
+  EXPECT_EQ(wrong_method.allowed_methods, (std::vector<std::string>{"GET", "POST"}));
+  EXPECT_TRUE(table.Match("GET", "/nothing").allowed_methods.empty());
+}
+
+TEST(JsonFieldsTest, ReadsStrictlyWithFieldPaths) {
+  json body = {{"name", "x"}, {"n", 3}, {"f", 2.5}, {"flag", true}, {"ids", {1, 2}},
+               {"inner", {{"a", 1}}}};
+  JsonFields f(body);
+  EXPECT_EQ(f.String("name", true), "x");
+  EXPECT_EQ(f.Integer("n", true, 0, 10), 3);
+  EXPECT_EQ(f.Number("f", true, 0, 10), 2.5);
+  EXPECT_EQ(f.Bool("flag", true), true);
+  EXPECT_EQ(f.IdList("ids", true), (std::vector<std::int64_t>{1, 2}));
+  EXPECT_NE(f.Object("inner", true), nullptr);
+  EXPECT_TRUE(f.Finish().ok());
+
+  auto first_error = [](json j, auto read) {
+    JsonFields f(j, "outer");
+    read(f);
+    return f.Finish();
+  };
+  auto st = first_error({{"n", "3"}}, [](JsonFields& f) { (void)f.Integer("n", true); });
+  EXPECT_EQ(st.code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(st.field(), "outer.n");
+  st = first_error({{"n", 2.5}}, [](JsonFields& f) { (void)f.Integer("n", true); });
+  EXPECT_EQ(st.field(), "outer.n");
+  st = first_error(json::object(), [](JsonFields& f) { (void)f.String("s", true); });
+  EXPECT_EQ(st.field(), "outer.s");
+  EXPECT_NE(st.message().find("required"), std::string::npos);
+  st = first_error({{"x", 11}}, [](JsonFields& f) { (void)f.Number("x", true, 0, 10); });
+  EXPECT_EQ(st.field(), "outer.x");
+  st = first_error({{"x", 1}, {"typo", 2}}, [](JsonFields& f) { (void)f.Number("x", true); });
+  EXPECT_EQ(st.field(), "outer.typo");
+  st = first_error({{"ids", {1, -2}}}, [](JsonFields& f) { (void)f.IdList("ids", true); });
+  EXPECT_EQ(st.field(), "outer.ids[1]");
+  st = first_error({{"s", std::string(20, 'a')}}, [](JsonFields& f) { (void)f.String("s", true, 10); });
+  EXPECT_EQ(st.field(), "outer.s");
+  // null counts as absent.
+  st = first_error({{"s", nullptr}}, [](JsonFields& f) { EXPECT_FALSE(f.String("s", false)); });
+  EXPECT_TRUE(st.ok());
+}
+
+TEST(JsonFieldsTest, ParseRefusesMalformedDeepAndNonObjects) {
+  EXPECT_TRUE(ParseJsonObject("{\"a\": [1, {\"b\": \"[[[\"}]}").ok());
+  EXPECT_FALSE(ParseJsonObject("").ok());
+  EXPECT_FALSE(ParseJsonObject("{").ok());
+  EXPECT_FALSE(ParseJsonObject("[]").ok());
+  EXPECT_FALSE(ParseJsonObject("{\"a\": NaN}").ok());
+  std::string deep = "{\"a\":" + std::string(kMaxJsonDepth, '[') + std::string(kMaxJsonDepth, ']') + "}";
+  auto r = ParseJsonObject(deep);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("nested"), std::string::npos);
+  std::string shallow = "{\"a\":" + std::string(kMaxJsonDepth - 1, '[') +
+                        std::string(kMaxJsonDepth - 1, ']') + "}";
+  EXPECT_TRUE(ParseJsonObject(shallow).ok());
+}
+
+TEST(PagingTest, CursorRoundTripsAndRejectsForgeries) {
+  for (std::int64_t id : {0LL, 1LL, 57LL, 123456789012LL}) {
+    EXPECT_EQ(DecodeCursor(EncodeCursor(id)), id);
+  }
+  EXPECT_FALSE(DecodeCursor("").has_value());
+  EXPECT_FALSE(DecodeCursor("!!!").has_value());
+  EXPECT_FALSE(DecodeCursor(EncodeCursor(5).substr(1)).has_value());
+  std::vector<int> items = {1, 2, 3, 4, 5};
+  auto page = MakePage(items, PageRequest{2, 2}, [](int i) { return i; }, [](int i) { return i; });
+  EXPECT_EQ(page["items"], json({3, 4}));
+  EXPECT_EQ(DecodeCursor(page["next_cursor"].get<std::string>()), 4);
+  auto last = MakePage(items, PageRequest{2, 4}, [](int i) { return i; }, [](int i) { return i; });
+  EXPECT_EQ(last["items"], json({5}));
+  EXPECT_TRUE(last["next_cursor"].is_null());
+}
+
+TEST(ErrorsTest, OneMappingForEveryCode) {
+  using api::ErrorCode;
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kInvalidArgument), 400);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kUnauthenticated), 401);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kPermissionDenied), 403);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kNotFound), 404);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kAlreadyExists), 409);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kConflict), 409);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kFailedPrecondition), 409);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kUnavailable), 503);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kInternal), 500);
+  auto j = ErrorJson(ToHttpError(api::Status::InvalidArgument("must be positive", "a.b")));
+  EXPECT_EQ(j, json({{"error", {{"code", "invalid_argument"}, {"message", "must be positive"},
+                                {"field", "a.b"}}}}));
+  EXPECT_FALSE(ErrorJson(ToHttpError(api::Status::NotFound("x")))["error"].contains("field"));
+}
+
+TEST(OpenApiTest, DocumentsEveryRouteOfTheTable) {
+  RouteTable table;
+  table.Add(MakeRoute("GET", "/api/v1/health", 0));
+  Route post = MakeRoute("POST", "/api/v1/subjects/{subject_id}/sessions", kClinician | kAdmin);
+  post.json_body = true;
+  post.query = {{"limit", "integer", "page size"}};
+  table.Add(post);
+  json doc = BuildOpenApi(table, "9.9");
+  EXPECT_EQ(doc["openapi"], "3.0.3");
+  ASSERT_EQ(doc["paths"].size(), 2u);
+  EXPECT_EQ(doc["paths"]["/api/v1/health"]["get"]["security"], json::array());
+  const json& op = doc["paths"]["/api/v1/subjects/{subject_id}/sessions"]["post"];
+  EXPECT_EQ(op["x-roles"], json({"clinician", "admin"}));
+  EXPECT_TRUE(op.contains("requestBody"));
+  EXPECT_TRUE(op["responses"].contains("401"));
+  EXPECT_TRUE(op["responses"].contains("403"));
+  EXPECT_TRUE(op["responses"].contains("404"));
+  EXPECT_TRUE(op["responses"].contains("415"));
+  ASSERT_EQ(op["parameters"].size(), 2u);
+  EXPECT_EQ(op["parameters"][0]["name"], "subject_id");
+  EXPECT_EQ(op["parameters"][0]["in"], "path");
+  EXPECT_EQ(op["parameters"][1]["in"], "query");
+}
+
+TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
+  ServerConfig c;
+  ASSERT_TRUE(ApplyConfigJson(R"({"port": 0, "bench": "sim", "time-scale": 0, "db": "x.db"})", c).ok());
+  EXPECT_EQ(c.port, 0);
+  EXPECT_EQ(c.db, "x.db");
+  EXPECT_EQ(c.time_scale, 0.0);
+  EXPECT_TRUE(ValidateServerConfig(c).ok());
+  EXPECT_EQ(ApplyConfigJson(R"({"prot": 1})", c).field(), "prot");
+  EXPECT_EQ(ApplyConfigJson(R"({"port": 70000})", c).field(), "port");
+  EXPECT_EQ(ApplyConfigJson(R"({"port": "80"})", c).field(), "port");
+  c.bench = "replay";
+  EXPECT_EQ(ValidateServerConfig(c).field(), "replay");
+  c = ServerConfig{};
+  c.tls_cert = "cert.pem";
+  EXPECT_EQ(ValidateServerConfig(c).field(), "tls-cert");
+
+  std::ostringstream out, err;
+  const char* argv[] = {"fesbench-server", "--port", "0", "--time-scale", "0.5", "--bench", "sim"};
+  auto parsed = ParseServerConfig(7, argv, out, err);
+  ASSERT_FALSE(parsed.exit_code) << err.str();
+  EXPECT_EQ(parsed.config.port, 0);
+  EXPECT_EQ(parsed.config.time_scale, 0.5);
+  EXPECT_EQ(parsed.config.bind, "127.0.0.1");
+  const char* bad[] = {"fesbench-server", "--bench", "real"};
+  EXPECT_EQ(ParseServerConfig(3, bad, out, err).exit_code, 2);
+  const char* help[] = {"fesbench-server", "--help"};
+  EXPECT_EQ(ParseServerConfig(2, help, out, err).exit_code, 0);
+  EXPECT_NE(out.str().find("--time-scale"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace fesbench::server::http

@@ -1,0 +1,230 @@
+#include "server_process.h"
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <fstream>
+#include <random>
+#include <regex>
+#include <stdexcept>
+#include <thread>
+
+#ifndef FESBENCH_SERVER_BINARY
+#error "FESBENCH_SERVER_BINARY must name the fesbench-server executable"
+#endif
+
+namespace fesbench::testing {
+
+namespace {
+std::filesystem::path NewTempDir() {
+  std::random_device rd;
+  auto dir = std::filesystem::temp_directory_path() /
+             ("fesbench-http-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+}  // namespace
+
+ServerProcess::ServerProcess(std::vector<std::string> extra_args, std::chrono::seconds timeout)
+    : ServerProcess(NewTempDir(), std::move(extra_args), true, timeout) {}
+
+std::unique_ptr<ServerProcess> ServerProcess::Restart(const ServerProcess& previous) {
+  return std::unique_ptr<ServerProcess>(
+      new ServerProcess(previous.dir_, {}, false, std::chrono::seconds(20)));
+}
+
+ServerProcess::ServerProcess(std::filesystem::path dir, std::vector<std::string> extra_args,
+                             bool owns_dir, std::chrono::seconds timeout)
+    : dir_(std::move(dir)), owns_dir_(owns_dir) {
+  // Defaults, unless extra_args gives the same flag.
+  std::vector<std::string> args = {FESBENCH_SERVER_BINARY};
+  const std::pair<std::string, std::string> defaults[] = {
+      {"--port", "0"}, {"--db", db_path().string()}, {"--time-scale", "0"}};
+  for (const auto& [flag, value] : defaults) {
+    if (std::find(extra_args.begin(), extra_args.end(), flag) == extra_args.end()) {
+      args.push_back(flag);
+      args.push_back(value);
+    }
+  }
+  args.insert(args.end(), extra_args.begin(), extra_args.end());
+
+  int pipe_fds[2];
+  if (::pipe(pipe_fds) != 0) throw std::runtime_error("pipe failed");
+  pid_ = ::fork();
+  if (pid_ < 0) throw std::runtime_error("fork failed");
+  if (pid_ == 0) {
+    ::dup2(pipe_fds[1], STDOUT_FILENO);
+    const int err = ::open((dir_ / "stderr.log").c_str(), O_WRONLY | O_CREAT | O_APPEND, 0600);
+    if (err >= 0) ::dup2(err, STDERR_FILENO);
+    ::close(pipe_fds[0]);
+    ::close(pipe_fds[1]);
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  ::close(pipe_fds[1]);
+  stdout_fd_ = pipe_fds[0];
+
+  const std::regex listening(R"(listening on https?://[0-9.]+:([0-9]+)/)");
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  std::smatch match;
+  while (std::chrono::steady_clock::now() < deadline) {
+    pollfd p{stdout_fd_, POLLIN, 0};
+    if (::poll(&p, 1, 100) > 0) {
+      char buffer[4096];
+      const ssize_t n = ::read(stdout_fd_, buffer, sizeof buffer);
+      if (n <= 0) break;
+      output_.append(buffer, static_cast<std::size_t>(n));
+      if (std::regex_search(output_, match, listening)) {
+        port_ = std::stoi(match[1]);
+        break;
+      }
+    }
+  }
+  if (port_ == 0) {
+    ::kill(pid_, SIGKILL);
+    throw std::runtime_error("fesbench-server did not start; output: " + output_);
+  }
+  std::ifstream token_file(dir_ / "data" / "admin.token");
+  std::getline(token_file, admin_token_);
+}
+
+ServerProcess::~ServerProcess() {
+  if (pid_ > 0) {
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+  }
+  if (stdout_fd_ >= 0) ::close(stdout_fd_);
+  std::error_code ec;
+  if (owns_dir_) std::filesystem::remove_all(dir_, ec);
+}
+
+int ServerProcess::Terminate(std::chrono::seconds timeout) {
+  if (pid_ <= 0) return -1;
+  ::kill(pid_, SIGTERM);
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  int status = 0;
+  while (std::chrono::steady_clock::now() < deadline) {
+    // Keep draining stdout so the server never blocks on a full pipe.
+    char buffer[4096];
+    pollfd p{stdout_fd_, POLLIN, 0};
+    if (::poll(&p, 1, 20) > 0) {
+      const ssize_t n = ::read(stdout_fd_, buffer, sizeof buffer);
+      if (n > 0) output_.append(buffer, static_cast<std::size_t>(n));
+    }
+    const int done = ::waitpid(pid_, &status, WNOHANG);
+    if (done == pid_) {
+      pid_ = -1;
+      return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    }
+  }
+  return -1;
+}
+
+httplib::Client ServerProcess::Client() const {
+  httplib::Client client("127.0.0.1", port_);
+  client.set_connection_timeout(5);
+  client.set_read_timeout(10);
+  client.set_write_timeout(10);
+  return client;
+}
+
+JsonResponse Call(httplib::Client& client, const std::string& method, const std::string& path,
+                  const std::string& token, const nlohmann::json& body,
+                  const std::string& content_type) {
+  httplib::Headers headers;
+  if (!token.empty()) headers.emplace("Authorization", "Bearer " + token);
+  const std::string text = body.is_null() ? std::string() : body.dump();
+  httplib::Result result{nullptr, httplib::Error::Unknown};
+  if (method == "GET") {
+    result = client.Get(path, headers);
+  } else if (method == "POST") {
+    result = client.Post(path, headers, text, content_type);
+  } else if (method == "PUT") {
+    result = client.Put(path, headers, text, content_type);
+  } else if (method == "DELETE") {
+    result = client.Delete(path, headers, text, content_type);
+  } else if (method == "PATCH") {
+    result = client.Patch(path, headers, text, content_type);
+  }
+  JsonResponse out;
+  if (!result) return out;
+  out.status = result->status;
+  out.text = result->body;
+  out.headers = result->headers;
+  out.body = nlohmann::json::parse(result->body, nullptr, false);
+  if (out.body.is_discarded()) out.body = nullptr;
+  return out;
+}
+
+std::string RawExchange(int port, const std::string& request, std::chrono::milliseconds timeout) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return {};
+  }
+  std::size_t sent = 0;
+  while (sent < request.size()) {
+    const ssize_t n = ::send(fd, request.data() + sent, request.size() - sent, MSG_NOSIGNAL);
+    if (n <= 0) break;
+    sent += static_cast<std::size_t>(n);
+  }
+  std::string response;
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 50) <= 0) {
+      if (!response.empty() && response.find("\r\n\r\n") != std::string::npos) {
+        // A full head arrived and nothing more for a while: enough.
+        const auto head_end = response.find("\r\n\r\n");
+        const auto length_at = response.find("Content-Length: ");
+        if (length_at != std::string::npos && length_at < head_end) {
+          const std::size_t length = std::stoul(response.substr(length_at + 16));
+          if (response.size() >= head_end + 4 + length) break;
+        }
+      }
+      continue;
+    }
+    char buffer[8192];
+    const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+    if (n <= 0) break;
+    response.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  return response;
+}
+
+std::string ServerProcess::Stderr() const {
+  std::ifstream in(dir_ / "stderr.log");
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+int RawStatus(const std::string& response) {
+  if (response.rfind("HTTP/1.1 ", 0) != 0 || response.size() < 12) return -1;
+  return std::stoi(response.substr(9, 3));
+}
+
+std::string CreateUserToken(httplib::Client& client, const std::string& admin_token,
+                            const std::string& name, const std::string& role) {
+  auto user = Call(client, "POST", "/api/v1/users", admin_token, {{"name", name}, {"role", role}});
+  if (user.status != 201) throw std::runtime_error("create user: " + user.text);
+  auto token = Call(client, "POST", "/api/v1/tokens", admin_token,
+                    {{"user_id", user.body["id"]}, {"label", name}});
+  if (token.status != 201) throw std::runtime_error("create token: " + token.text);
+  return token.body["token"].get<std::string>();
+}
+
+}  // namespace fesbench::testing

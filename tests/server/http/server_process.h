@@ -1,0 +1,88 @@
+#pragma once
+
+// Runs the real fesbench-server binary for integration tests: a temporary
+// database, --port 0 (the port is read from the "listening on" line),
+// --time-scale 0; stopped by pid with SIGTERM, exit status checked by the
+// caller. Also a raw-socket helper for requests httplib::Client cannot make
+// (chunked bodies, thousands of headers, unknown methods).
+
+#include <httplib.h>
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace fesbench::testing {
+
+class ServerProcess {
+ public:
+  /// Starts the server with `extra_args` appended; throws std::runtime_error
+  /// if it does not print its port within `timeout`.
+  explicit ServerProcess(std::vector<std::string> extra_args = {},
+                         std::chrono::seconds timeout = std::chrono::seconds(20));
+  /// Starts a server on the data folder of `previous` (which must be
+  /// stopped); the folder stays owned by `previous`.
+  static std::unique_ptr<ServerProcess> Restart(const ServerProcess& previous);
+  /// SIGKILL if still running; removes the temporary folder.
+  ~ServerProcess();
+  ServerProcess(const ServerProcess&) = delete;
+  ServerProcess& operator=(const ServerProcess&) = delete;
+
+  int port() const { return port_; }
+  const std::string& admin_token() const { return admin_token_; }
+  const std::filesystem::path& dir() const { return dir_; }
+  std::filesystem::path db_path() const { return dir_ / "data" / "fesbench.db"; }
+  /// Everything the server wrote to stderr (stderr.log in dir()).
+  std::string Stderr() const;
+  /// Everything the server printed on stdout so far.
+  const std::string& output() const { return output_; }
+
+  /// SIGTERM, then waits up to `timeout`; the exit code (−1 on timeout or a
+  /// signal death).
+  int Terminate(std::chrono::seconds timeout = std::chrono::seconds(20));
+
+  /// A client for this server (5 s timeouts).
+  httplib::Client Client() const;
+
+ private:
+  ServerProcess(std::filesystem::path dir, std::vector<std::string> extra_args, bool owns_dir,
+                std::chrono::seconds timeout);
+
+  std::filesystem::path dir_;
+  bool owns_dir_ = true;
+  int pid_ = -1;
+  int stdout_fd_ = -1;
+  int port_ = 0;
+  std::string admin_token_;
+  std::string output_;
+};
+
+/// A request with a JSON body (or none when body is null), with a bearer
+/// token when `token` is not empty. Returns status and parsed body (null if
+/// the body is not JSON); status −1 when the connection failed.
+struct JsonResponse {
+  int status = -1;
+  nlohmann::json body;
+  std::string text;
+  httplib::Headers headers;
+};
+JsonResponse Call(httplib::Client& client, const std::string& method, const std::string& path,
+                  const std::string& token, const nlohmann::json& body = nullptr,
+                  const std::string& content_type = "application/json");
+
+/// Sends raw bytes on a new loopback connection and returns what came back
+/// until the server closes or `timeout` passes.
+std::string RawExchange(int port, const std::string& request,
+                        std::chrono::milliseconds timeout = std::chrono::milliseconds(3000));
+/// The status code of a raw HTTP response ("HTTP/1.1 411 ..."), or −1.
+int RawStatus(const std::string& response);
+
+/// Creates a user with `role` and returns a token for it (admin token used).
+std::string CreateUserToken(httplib::Client& client, const std::string& admin_token,
+                            const std::string& name, const std::string& role);
+
+}  // namespace fesbench::testing
