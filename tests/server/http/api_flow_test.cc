@@ -278,3 +278,71 @@ TEST(ApiFlowTest, SigtermDuringRealTimeRunStopsSafely) {
 
 }  // namespace
 }  // namespace fesbench::testing
+
+namespace fesbench::testing {
+namespace {
+
+// Several viewers at once; a viewer that leaves frees its slot (and worker).
+TEST(ApiFlowTest, StreamViewersShareAndALeavingViewerFreesItsSlot) {
+  ServerProcess server({"--time-scale", "1", "--max-streams", "2"});
+  auto client = server.Client();
+  const std::string admin = server.admin_token();
+  auto subject = Call(client, "POST", "/api/v1/subjects", admin, {{"code", "VIEW-1"}});
+  ASSERT_EQ(subject.status, 201);
+  auto session = Call(client, "POST", "/api/v1/subjects/1/sessions", admin,
+                      {{"leg", "left"}, {"date", "2026-11-21"}, {"threshold_ma", 15},
+                       {"max_tolerated_ma", 40}});
+  ASSERT_EQ(session.status, 201);
+  auto run = Call(client, "POST", "/api/v1/sessions/1/runs", admin,
+                  {{"protocol", "isometric_ramp_irc"}});
+  ASSERT_EQ(run.status, 201) << run.text;
+  const std::string stream_path = "/api/v1/runs/" + std::to_string(run.body["run_id"].get<int>()) +
+                                  "/stream";
+  std::atomic<bool> beating{true};
+  std::thread heart([&] {
+    auto hb = server.Client();
+    while (beating) {
+      Call(hb, "POST", "/api/v1/runs/1/heartbeat", admin);
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+  });
+
+  // Two viewers read at once; each leaves after its first samples.
+  auto view_briefly = [&](std::atomic<int>& status) {
+    httplib::Client c("127.0.0.1", server.port());
+    std::size_t bytes = 0;
+    auto r = c.Get(stream_path, {{"Authorization", "Bearer " + admin}},
+                   [&](const httplib::Response& res) {
+                     status = res.status;
+                     return true;
+                   },
+                   [&](const char*, std::size_t n) {
+                     bytes += n;
+                     return bytes < 2000;  // leave after a few frames
+                   });
+    (void)r;
+  };
+  std::atomic<int> first{0}, second{0};
+  std::thread a([&] { view_briefly(first); });
+  std::thread b([&] { view_briefly(second); });
+  a.join();
+  b.join();
+  EXPECT_EQ(first, 200);
+  EXPECT_EQ(second, 200);
+
+  // Both left: within a few seconds their slots are free again.
+  int status = 0;
+  for (int attempt = 0; attempt < 50 && status != 200; ++attempt) {
+    std::atomic<int> third{0};
+    view_briefly(third);
+    status = third;
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_EQ(status, 200);
+  beating = false;
+  heart.join();
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+}  // namespace
+}  // namespace fesbench::testing
