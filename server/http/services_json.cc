@@ -1,27 +1,12 @@
 #include "server/http/services_json.h"
 
-
 #include "server/http/json_fields.h"
 
 namespace fesbench::server::http {
 
 using nlohmann::json;
 
-services::Actor ActorOf(const storage::User& user) {
-  services::Role role = services::Role::kAnalyst;
-  switch (user.role) {
-    case storage::Role::kClinician:
-      role = services::Role::kClinician;
-      break;
-    case storage::Role::kAnalyst:
-      role = services::Role::kAnalyst;
-      break;
-    case storage::Role::kAdmin:
-      role = services::Role::kAdmin;
-      break;
-  }
-  return {user.id, user.name, role};
-}
+services::Actor ActorOf(const storage::User& user) { return {user.id, user.name, user.role}; }
 
 api::Result<StartRunRequest> StartRunFromJson(const json& body) {
   JsonFields f(body);

@@ -6,22 +6,19 @@
 /// log (storage::AuditLog) in the same transaction as the change.
 
 #include <cstdint>
-#include <optional>
 #include <string>
-#include <string_view>
+
+#include "storage/users.h"
 
 namespace fesbench::server::services {
 
 /// What a user may do (DESIGN.md §8): clinicians run protocols on the bench,
 /// analysts fit and compare models, admins do everything incl. users and the
-/// simulated subject.
-enum class Role { kClinician, kAnalyst, kAdmin };
-
-/// The wire name: "clinician", "analyst", "admin".
-std::string_view RoleName(Role role);
-
-/// The role named `name` (exact, lower case), or nullopt for any other text.
-std::optional<Role> ParseRole(std::string_view name);
+/// simulated subject. The stored role of the user (storage/users.h), with its
+/// wire names "clinician", "analyst", "admin".
+using storage::ParseRole;
+using storage::Role;
+using storage::RoleName;
 
 /// The acting principal. `user_id` is the storage users.id (0 for the
 /// server itself, e.g. a shutdown or the heartbeat watchdog).
