@@ -1,0 +1,255 @@
+// `fesbench identify`, `predict` and `compare`: the analysis jobs of the
+// server (DESIGN.md §4, §8; thesis ch. 4, §5.4.5, §7.4). Each submits a job,
+// waits for it, and prints its result.
+
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "api/trial.h"
+#include "clients/cli/commands.h"
+#include "clients/cli/output.h"
+
+namespace fesbench::cli {
+
+namespace {
+
+using nlohmann::json;
+
+// The short stimulus names of `predict` and the generators they denote
+// (model/stimulus_generators.h; the §5.4.5 prediction stimuli and §5.4.4 RB).
+const std::map<std::string, std::string>& StimulusAliases() {
+  static const std::map<std::string, std::string> aliases = {
+      {"step", "prediction_step"},
+      {"ramp", "prediction_ramp"},
+      {"sine", "prediction_sine"},
+      {"rb", "random_binary_dense"},
+  };
+  return aliases;
+}
+
+std::string Fixed(const json& value, int digits) {
+  if (!value.is_number()) return "-";
+  char buffer[48];
+  std::snprintf(buffer, sizeof buffer, "%.*f", digits, value.get<double>());
+  return buffer;
+}
+
+struct IdentifyForm {
+  std::string session;
+  std::string method = "thesis";
+  std::string passive_method;
+  std::string irc_method;
+};
+
+struct PredictForm {
+  std::string params;
+  std::string stimulus;
+  std::vector<std::string> stimulus_params;
+  std::string mode;
+  std::string out_path;
+};
+
+struct CompareForm {
+  std::vector<std::string> a;
+  std::vector<std::string> b;
+  std::vector<std::string> trials;
+  std::string metric;
+  double confidence = 0.0;
+};
+
+}  // namespace
+
+void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
+  {
+    auto form = std::make_shared<IdentifyForm>();
+    CLI::App* identify = app.add_subcommand(
+        "identify", "Fit a parameter set from a session's stored trials (analyst or admin).");
+    identify->add_option("--session", form->session, "session id")->required();
+    identify->add_option("--method", form->method, "thesis (chapter 4) or rapid (§7.4.1)")
+        ->check(CLI::IsMember({"thesis", "rapid"}));
+    identify->add_option("--passive-method", form->passive_method,
+                         "sequential (§4.2.1), simultaneous (Eq. 4.31) or free_swing (Eq. 4.35)")
+        ->check(CLI::IsMember({"sequential", "simultaneous", "free_swing"}));
+    identify->add_option("--irc-method", form->irc_method, "IRC method, e.g. ramp_correlation");
+    identify->callback([form, &context] {
+      context.action = [form, &context] {
+        json body = {{"session_id", ParseId(form->session, "session")}, {"method", form->method}};
+        if (!form->passive_method.empty()) body["passive_method"] = form->passive_method;
+        if (!form->irc_method.empty()) body["irc_method"] = form->irc_method;
+        auto client = Connect(context);
+        const json job = client->Post("/identifications", body);
+        const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+        if (context.options.json) {
+          context.out << result.dump(2) << "\n";
+          return;
+        }
+        const json sets =
+            result.contains("parameter_sets") ? result["parameter_sets"] : json::array();
+        for (const auto& set : sets) {
+          context.out << "parameter set " << Cell(set["id"]) << " (version " << Cell(set["version"])
+                      << ", model " << Cell(set["model"]) << ")\n";
+        }
+        context.out << "report:\n";
+        if (result.contains("report")) PrintObject(context.out, result["report"], 2);
+      };
+    });
+  }
+  {
+    auto form = std::make_shared<PredictForm>();
+    CLI::App* predict = app.add_subcommand(
+        "predict",
+        "Simulate a parameter set on a stimulus or a stored trial; E_RMS/E_ABS against the "
+        "trial's measured angle.");
+    predict->add_option("--params", form->params, "parameter set id")->required();
+    predict->add_option("--stimulus", form->stimulus,
+                        "step, ramp, sine, rb (random binary), another generator name, or a "
+                        "TRIAL_ID to predict a recorded trial")
+        ->required();
+    predict->add_option("--param", form->stimulus_params,
+                        "stimulus generator parameter key=value (repeatable)");
+    predict->add_option("--mode", form->mode, "free_swing or isometric")
+        ->check(CLI::IsMember({"free_swing", "isometric"}));
+    predict->add_option("--out", form->out_path, "write the predicted trajectory as CSV");
+    predict->callback([form, &context] {
+      context.action = [form, &context] {
+        json body = {{"parameter_set_id", ParseId(form->params, "--params")}};
+        const bool is_trial =
+            form->stimulus.find_first_not_of("0123456789") == std::string::npos;
+        if (is_trial) {
+          body["trial_id"] = ParseId(form->stimulus, "--stimulus trial");
+          if (!form->stimulus_params.empty()) {
+            throw CliError::Usage("--param applies to a stimulus generator, not to a trial");
+          }
+        } else {
+          const auto alias = StimulusAliases().find(form->stimulus);
+          const std::string generator =
+              alias == StimulusAliases().end() ? form->stimulus : alias->second;
+          json params = json::object();
+          for (const auto& text : form->stimulus_params) {
+            const auto [key, value] = ParseKeyValue(text);
+            params[key] = value;
+          }
+          body["stimulus"] = {{"generator", generator}, {"params", params}};
+        }
+        if (!form->mode.empty()) body["mode"] = form->mode;
+        auto client = Connect(context);
+        const json job = client->Post("/predictions", body);
+        json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+        if (!form->out_path.empty()) {
+          api::ChannelGroup group;
+          group.sample_rate_hz = result.value("sample_rate_hz", 200.0);
+          if (!result.contains("columns") || !result["columns"].is_object()) {
+            throw CliError::Server("server: the prediction has no columns");
+          }
+          for (const auto& [name, values] : result["columns"].items()) {
+            group.Set(name, values.get<std::vector<double>>());
+          }
+          if (const api::Status st = api::ValidateChannelGroup(group); !st.ok()) {
+            throw CliError::Server("server sent an invalid prediction: " + st.ToString());
+          }
+          // t_s first, as every fesbench CSV.
+          std::stable_partition(group.channels.begin(), group.channels.end(),
+                                [](const api::Channel& c) { return c.name == api::kTimeChannel; });
+          WriteOutput(context, form->out_path, api::GroupToCsv(group));
+        }
+        if (context.options.json) {
+          result.erase("columns");
+          context.out << result.dump(2) << "\n";
+          return;
+        }
+        context.out << "prediction " << Cell(result.value("prediction_id", json(nullptr)))
+                    << ": parameter set " << Cell(result["parameter_set_id"]) << ", "
+                    << Cell(result.value("mode", json(nullptr))) << ", "
+                    << Cell(result.value("samples", json(nullptr))) << " samples\n";
+        const json errors = result.value("errors", json(nullptr));
+        if (errors.is_object()) {
+          const std::string unit = errors.value("unit", "");
+          context.out << "E_RMS " << Fixed(errors["e_rms"], 3) << " " << unit << "  E_ABS "
+                      << Fixed(errors["e_abs"], 3) << " " << unit << "  (trial "
+                      << Cell(result["trial_id"]) << ", " << Cell(errors["channel"]) << ", "
+                      << Cell(errors["samples"]) << " samples)\n";
+        } else {
+          context.out << "no measured trial: no errors computed\n";
+        }
+      };
+    });
+  }
+  {
+    auto form = std::make_shared<CompareForm>();
+    CLI::App* compare = app.add_subcommand(
+        "compare",
+        "Paired t-test of two groups of parameter sets' prediction errors (pair i = the i-th "
+        "set of each group, one subject/leg).");
+    compare->add_option("--params-a", form->a, "parameter set ids of group A (comma-separated)")
+        ->required()
+        ->delimiter(',');
+    compare->add_option("--params-b", form->b, "parameter set ids of group B (comma-separated)")
+        ->required()
+        ->delimiter(',');
+    compare->add_option("--trials", form->trials,
+                        "trial ids every pair is predicted on (default: each A set's own trials)")
+        ->delimiter(',');
+    compare->add_option("--metric", form->metric, "e_rms (default), e_abs, normalised_rms, ...");
+    compare->add_option("--confidence", form->confidence, "confidence level, e.g. 0.95")
+        ->check(CLI::Range(0.5, 0.9999));
+    compare->callback([form, &context] {
+      context.action = [form, &context] {
+        if (form->a.size() != form->b.size()) {
+          throw CliError::Usage("--params-a and --params-b must list the same number of sets (" +
+                                std::to_string(form->a.size()) + " vs " +
+                                std::to_string(form->b.size()) + ")");
+        }
+        std::vector<std::int64_t> trials;
+        for (const auto& t : form->trials) trials.push_back(ParseId(t, "--trials"));
+        std::vector<std::pair<std::int64_t, std::int64_t>> ids;
+        for (std::size_t i = 0; i < form->a.size(); ++i) {
+          ids.emplace_back(ParseId(form->a[i], "--params-a"), ParseId(form->b[i], "--params-b"));
+        }
+        auto client = Connect(context);
+        json pairs = json::array();
+        for (const auto& [a, b] : ids) {
+          json pair_trials = trials;
+          if (trials.empty()) {
+            pair_trials = client->Get("/parameter-sets/" + std::to_string(a))["trial_ids"];
+          }
+          pairs.push_back(
+              {{"a_parameter_set_id", a}, {"b_parameter_set_id", b}, {"trial_ids", pair_trials}});
+        }
+        json body = {{"pairs", pairs}};
+        if (!form->metric.empty()) body["metric"] = form->metric;
+        if (form->confidence > 0.0) body["confidence"] = form->confidence;
+        const json job = client->Post("/comparisons", body);
+        const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+        if (context.options.json) {
+          context.out << result.dump(2) << "\n";
+          return;
+        }
+        const std::string unit = result.value("unit", "");
+        std::vector<std::vector<std::string>> rows;
+        for (const auto& p : result["pairs"]) {
+          const double diff = p["a_error"].get<double>() - p["b_error"].get<double>();
+          rows.push_back({Cell(p["a_parameter_set_id"]), Cell(p["b_parameter_set_id"]),
+                          Cell(p["subject_id"]), Cell(p["trials"].size()), Fixed(p["a_error"], 4),
+                          Fixed(p["b_error"], 4), Fixed(json(diff), 4)});
+        }
+        context.out << "metric " << Cell(result["metric"]) << " (" << unit << ")\n";
+        PrintTable(context.out, {"set_a", "set_b", "subject", "trials", "a_error", "b_error", "a-b"},
+                   rows);
+        const json& t = result["t_test"];
+        context.out << "paired t-test:\n";
+        PrintTable(context.out,
+                   {"n", "mean_diff", "sd_diff", "t", "df", "p_value", "t_critical", "confidence",
+                    "significant"},
+                   {{Cell(t["n"]), Fixed(t["mean_difference"], 4), Fixed(t["sd_difference"], 4),
+                     Fixed(t["t"], 3), Cell(t["df"]), Fixed(t["p_value"], 4),
+                     Fixed(t["t_critical"], 3), Cell(t["confidence"]), Cell(t["significant"])}});
+      };
+    });
+  }
+}
+
+}  // namespace fesbench::cli

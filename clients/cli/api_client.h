@@ -1,0 +1,65 @@
+#pragma once
+
+/// @file
+/// A small client of the fesbench HTTP/JSON API (DESIGN.md §8) over HTTP or
+/// HTTPS (cpp-httplib with OpenSSL). Every call either returns the parsed
+/// JSON body or throws CliError: kExitServer with the server's error message
+/// for a 4xx/5xx answer, kExitUnreachable when no answer came.
+///
+/// HTTPS verifies the server certificate against the system CAs, or the PEM
+/// file named by FESBENCH_CA_FILE (for a lab's self-signed certificate).
+
+#include <functional>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "clients/cli/config.h"
+
+namespace httplib {
+class Client;
+}
+
+namespace fesbench::cli {
+
+class ApiClient {
+ public:
+  /// `connection.server` as normalised by NormaliseServerUrl.
+  explicit ApiClient(CliConfig connection);
+  ~ApiClient();
+  ApiClient(const ApiClient&) = delete;
+  ApiClient& operator=(const ApiClient&) = delete;
+
+  /// `path` is relative to /api/v1 and starts with '/', e.g. "/subjects".
+  nlohmann::json Get(const std::string& path);
+  nlohmann::json Post(const std::string& path, const nlohmann::json& body = nullptr);
+  nlohmann::json Delete(const std::string& path);
+
+  /// Every item of a paged list (follows next_cursor; `query` without
+  /// limit/cursor, e.g. "subject_id=3" or "").
+  nlohmann::json GetAllPages(const std::string& path, const std::string& query);
+
+  /// Follows a Server-Sent Events stream; `on_event(event, data)` returns
+  /// false to stop reading. Returns when the server closes the stream.
+  void Stream(const std::string& path,
+              const std::function<bool(const std::string&, const nlohmann::json&)>& on_event);
+
+  const std::string& server() const { return connection_.server; }
+
+ private:
+  nlohmann::json Handle(const std::string& method, const std::string& path, int status,
+                        const std::string& body) const;
+  [[noreturn]] void Unreachable(const std::string& what) const;
+
+  CliConfig connection_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+/// The one-line message of an error answer: the server's
+/// `{"error": {"message", "field"}}` if present, with the HTTP status.
+std::string ServerErrorMessage(int status, const std::string& body);
+
+/// Percent-encodes a query value.
+std::string UrlEncode(const std::string& value);
+
+}  // namespace fesbench::cli

@@ -1,0 +1,119 @@
+#include "clients/cli/cli.h"
+
+#include <chrono>
+#include <exception>
+#include <ostream>
+#include <string>
+#include <thread>
+
+#include "clients/cli/commands.h"
+#include "clients/cli/config.h"
+
+namespace fesbench::cli {
+namespace {
+
+// Every command, in the order `--help` lists them.
+constexpr CommandRegistrar kCommands[] = {
+    RegisterLoginCommand, RegisterRecordCommands,   RegisterRunCommands,
+    RegisterDataCommands, RegisterAnalysisCommands,
+};
+
+// One line: CLI11, server and library messages may carry newlines.
+std::string OneLine(std::string message) {
+  for (char& c : message) {
+    if (c == '\n' || c == '\r') c = ' ';
+  }
+  while (!message.empty() && message.back() == ' ') message.pop_back();
+  return message;
+}
+
+int Fail(std::ostream& err, int code, const std::string& message) {
+  err << "fesbench: error: " << OneLine(message) << std::endl;
+  return code;
+}
+
+}  // namespace
+
+std::unique_ptr<ApiClient> Connect(const CliContext& context) {
+  return std::make_unique<ApiClient>(ResolveConnection(context.options));
+}
+
+std::int64_t ResolveSubject(ApiClient& client, const std::string& id_or_code) {
+  if (!id_or_code.empty() && id_or_code.find_first_not_of("0123456789") == std::string::npos) {
+    return std::stoll(id_or_code);
+  }
+  const nlohmann::json page = client.Get("/subjects?code=" + UrlEncode(id_or_code));
+  if (!page.contains("items") || page["items"].empty()) {
+    throw CliError::Server("server: no subject with code '" + id_or_code + "'");
+  }
+  return page["items"][0]["id"].get<std::int64_t>();
+}
+
+nlohmann::json WaitForJob(ApiClient& client, std::int64_t job_id) {
+  auto delay = std::chrono::milliseconds(20);
+  for (;;) {
+    nlohmann::json job = client.Get("/jobs/" + std::to_string(job_id));
+    const std::string state = job.value("state", "");
+    if (state == "done") return job.contains("result") ? job["result"] : nlohmann::json(nullptr);
+    if (state == "failed") {
+      std::string message = "job failed";
+      if (job.contains("error") && job["error"].is_object()) {
+        message = job["error"].value("message", message);
+        const std::string field = job["error"].value("field", "");
+        if (!field.empty()) message += " (field " + field + ")";
+      }
+      throw CliError::Server("server: job " + std::to_string(job_id) + " failed: " + message);
+    }
+    std::this_thread::sleep_for(delay);
+    delay = std::min(delay * 2, std::chrono::milliseconds(250));
+  }
+}
+
+int RunFesbenchCli(int argc, const char* const* argv, std::ostream& out, std::ostream& err,
+                   bool out_is_terminal) {
+  try {
+    CliContext context{out, err, out_is_terminal, {}, {}};
+    CLI::App app(
+        "fesbench: the analyst command line of a fesbench server (subjects, sessions, runs,\n"
+        "parameter sets, trials, identification, prediction, comparison).\n"
+        "Exit codes: 0 ok, 1 error reported by the server, 2 usage error, 3 server unreachable.",
+        "fesbench");
+    app.require_subcommand(1);
+    app.fallthrough(true);  // global options may follow the subcommand
+    app.add_option("--server", context.options.server,
+                   "server URL, e.g. https://lab:8443 (overrides the config file)");
+    app.add_flag("--json", context.options.json, "machine-readable JSON output (read commands)");
+    for (CommandRegistrar registrar : kCommands) registrar(app, context);
+    try {
+      app.parse(argc, argv);
+    } catch (const CLI::CallForHelp&) {
+      out << app.help();
+      return kExitOk;
+    } catch (const CLI::CallForAllHelp&) {
+      out << app.help("", CLI::AppFormatMode::All);
+      return kExitOk;
+    } catch (const CLI::ParseError& e) {
+      if (app.get_subcommands().empty() && argc > 1 && argv[1][0] != '-') {
+        std::string names;
+        for (const CLI::App* sub : app.get_subcommands({})) {
+          names += (names.empty() ? "" : ", ") + sub->get_name();
+        }
+        return Fail(err, kExitUsage,
+                    std::string("unknown command '") + argv[1] + "' (commands: " + names + ")");
+      }
+      return Fail(err, kExitUsage, e.what());
+    }
+    if (!context.action) return Fail(err, kExitUsage, "no command given (see --help)");
+    context.action();
+    out.flush();
+    return kExitOk;
+  } catch (const CliError& e) {
+    return Fail(err, e.exit_code(), e.what());
+  } catch (const std::exception& e) {
+    return Fail(err, kExitServer, e.what());
+  } catch (...) {
+    return Fail(err, kExitServer, "unexpected failure");
+  }
+}
+
+}  // namespace fesbench::cli

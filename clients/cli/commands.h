@@ -1,0 +1,38 @@
+#pragma once
+
+/// @file
+/// Registration functions of the `fesbench` commands, one per source file
+/// (see cli.h), and helpers they share. RunFesbenchCli calls them in the
+/// order listed in kCommands (cli.cc).
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "clients/cli/api_client.h"
+#include "clients/cli/cli.h"
+
+namespace fesbench::cli {
+
+/// `login URL --token T` (login_command.cc).
+void RegisterLoginCommand(CLI::App& app, CliContext& context);
+/// `subjects list|show|create`, `sessions list|show|create` (records_commands.cc).
+void RegisterRecordCommands(CLI::App& app, CliContext& context);
+/// `run start|show|cancel`, `estop` (run_commands.cc).
+void RegisterRunCommands(CLI::App& app, CliContext& context);
+/// `params list|get`, `trials get` (data_commands.cc).
+void RegisterDataCommands(CLI::App& app, CliContext& context);
+/// `identify`, `predict`, `compare` (analysis_commands.cc).
+void RegisterAnalysisCommands(CLI::App& app, CliContext& context);
+
+/// A client for the configured server (ResolveConnection).
+std::unique_ptr<ApiClient> Connect(const CliContext& context);
+
+/// A subject id from an id or a subject code (looked up on the server).
+std::int64_t ResolveSubject(ApiClient& client, const std::string& id_or_code);
+
+/// Polls GET /jobs/{id} until done (returns its result) or failed (throws
+/// CliError with the job's error message).
+nlohmann::json WaitForJob(ApiClient& client, std::int64_t job_id);
+
+}  // namespace fesbench::cli

@@ -1,0 +1,166 @@
+// `fesbench params list|get` and `fesbench trials get`: parameter-set
+// history and export of parameter sets and recorded trials (DESIGN.md §3,
+// §7, §8) with the api/ wire types.
+
+#include <memory>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "api/parameter_set_json.h"
+#include "api/trial.h"
+#include "clients/cli/commands.h"
+#include "clients/cli/output.h"
+
+namespace fesbench::cli {
+
+namespace {
+
+using nlohmann::json;
+
+// "field,value" rows of every leaf of a JSON value, fields as dotted paths
+// with [i] for array elements (e.g. passive.torque_angle.angle_deg[3]).
+void Flatten(const json& value, const std::string& path, std::string& csv) {
+  if (value.is_object()) {
+    for (const auto& [key, item] : value.items()) {
+      Flatten(item, path.empty() ? key : path + "." + key, csv);
+    }
+  } else if (value.is_array()) {
+    for (std::size_t i = 0; i < value.size(); ++i) {
+      Flatten(value[i], path + "[" + std::to_string(i) + "]", csv);
+    }
+  } else if (value.is_number_float()) {
+    csv += path + "," + value.dump() + "\n";
+  } else {
+    std::string cell = Cell(value);
+    if (cell.find_first_of(",\"") != std::string::npos) {
+      std::string quoted = "\"";
+      for (char c : cell) quoted += (c == '"') ? std::string("\"\"") : std::string(1, c);
+      cell = quoted + "\"";
+    }
+    csv += path + "," + cell + "\n";
+  }
+}
+
+struct ListForm {
+  std::string subject;
+  std::string leg;
+  std::string method;
+  std::string since;
+};
+
+}  // namespace
+
+void RegisterDataCommands(CLI::App& app, CliContext& context) {
+  CLI::App* params = app.add_subcommand("params", "Parameter sets: history and export.");
+  params->require_subcommand(1);
+  {
+    auto form = std::make_shared<ListForm>();
+    CLI::App* list = params->add_subcommand("list", "A subject's parameter-set history.");
+    list->add_option("--subject", form->subject, "subject id or code")->required();
+    list->add_option("--leg", form->leg, "left or right")->check(CLI::IsMember({"left", "right"}));
+    list->add_option("--method", form->method, "identification method (IRC, passive or active)");
+    list->add_option("--since", form->since, "created on or after this date (YYYY-MM-DD)")
+        ->check([](const std::string& date) {
+          return date.size() == 10 && date[4] == '-' && date[7] == '-' ? std::string()
+                                                                        : "must be YYYY-MM-DD";
+        });
+    list->callback([form, &context] {
+      context.action = [form, &context] {
+        auto client = Connect(context);
+        std::string query = "subject_id=" + std::to_string(ResolveSubject(*client, form->subject));
+        if (!form->leg.empty()) query += "&leg=" + form->leg;
+        if (!form->method.empty()) query += "&method=" + UrlEncode(form->method);
+        if (!form->since.empty()) query += "&from=" + UrlEncode(form->since);
+        const json items = client->GetAllPages("/parameter-sets", query);
+        if (context.options.json) {
+          context.out << items.dump(2) << "\n";
+          return;
+        }
+        std::vector<std::vector<std::string>> rows;
+        for (const auto& s : items) {
+          rows.push_back({Cell(s["id"]), Cell(s["leg_id"]), Cell(s["version"]), Cell(s["model"]),
+                          Cell(s["irc_method"]), Cell(s["passive_method"]),
+                          Cell(s["active_method"]), Cell(s["supersedes_id"]),
+                          Cell(s["created_at_utc"])});
+        }
+        PrintTable(context.out,
+                   {"id", "leg_id", "version", "model", "irc_method", "passive_method",
+                    "active_method", "supersedes", "created_at_utc"},
+                   rows);
+      };
+    });
+  }
+  {
+    auto id = std::make_shared<std::string>();
+    auto format = std::make_shared<std::string>("json");
+    auto out_path = std::make_shared<std::string>("-");
+    CLI::App* get = params->add_subcommand(
+        "get", "One parameter set: DESIGN.md §3 JSON (as fesbench-model reads it) or CSV.");
+    get->add_option("id", *id, "parameter set id")->required();
+    get->add_option("--format", *format, "json or csv (field,value rows)")
+        ->check(CLI::IsMember({"json", "csv"}));
+    get->add_option("--out", *out_path, "output file ('-' for standard output, the default)");
+    get->callback([id, format, out_path, &context] {
+      context.action = [id, format, out_path, &context] {
+        const std::int64_t set_id = ParseId(*id, "parameter set");
+        auto client = Connect(context);
+        const json stored = client->Get("/parameter-sets/" + std::to_string(set_id));
+        if (!stored.contains("parameters")) {
+          throw CliError::Server("server: parameter set " + *id + " has no parameters");
+        }
+        // Checked with the wire type, so what is written reads back.
+        auto parsed = api::ParameterSetFromJson(stored["parameters"]);
+        if (!parsed.ok()) {
+          throw CliError::Server("server sent an invalid parameter set: " +
+                                 parsed.status().ToString());
+        }
+        const json params_json = api::ParameterSetToJson(*parsed);
+        if (*format == "json") {
+          WriteOutput(context, *out_path, params_json.dump(2) + "\n");
+        } else {
+          std::string csv = "field,value\n";
+          json provenance = stored;
+          provenance.erase("parameters");
+          Flatten(provenance, "provenance", csv);
+          Flatten(params_json, "", csv);
+          WriteOutput(context, *out_path, csv);
+        }
+      };
+    });
+  }
+
+  CLI::App* trials = app.add_subcommand("trials", "Recorded trials: export.");
+  trials->require_subcommand(1);
+  {
+    auto id = std::make_shared<std::string>();
+    auto format = std::make_shared<std::string>("csv");
+    auto out_path = std::make_shared<std::string>("-");
+    CLI::App* get = trials->add_subcommand("get", "A recorded trial as CSV or OpenSim .sto.");
+    get->add_option("id", *id, "trial id")->required();
+    get->add_option("--format", *format, "csv, sto (OpenSim Storage) or json")
+        ->check(CLI::IsMember({"csv", "sto", "json"}));
+    get->add_option("--out", *out_path, "output file ('-' for standard output, the default)");
+    get->callback([id, format, out_path, &context] {
+      context.action = [id, format, out_path, &context] {
+        const std::int64_t trial_id = ParseId(*id, "trial");
+        auto client = Connect(context);
+        auto trial = api::TrialFromJson(client->Get("/trials/" + std::to_string(trial_id)));
+        if (!trial.ok()) {
+          throw CliError::Server("server sent an invalid trial: " + trial.status().ToString());
+        }
+        std::string text;
+        if (*format == "csv") {
+          text = api::TrialToCsv(*trial);
+        } else if (*format == "sto") {
+          text = api::TrialToSto(*trial);
+        } else {
+          text = api::TrialToJson(*trial).dump() + "\n";
+        }
+        WriteOutput(context, *out_path, text);
+      };
+    });
+  }
+}
+
+}  // namespace fesbench::cli

@@ -1,0 +1,227 @@
+// `fesbench subjects list|show|create` and `sessions list|show|create`:
+// the records a clinician keeps (DESIGN.md §7, §8).
+
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "clients/cli/commands.h"
+#include "clients/cli/output.h"
+
+namespace fesbench::cli {
+
+namespace {
+
+using nlohmann::json;
+
+void PrintSubjects(CliContext& context, const json& items) {
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& s : items) {
+    std::string legs;
+    for (const auto& leg : s["legs"]) legs += (legs.empty() ? "" : ",") + Cell(leg["side"]);
+    rows.push_back({Cell(s["id"]), Cell(s["code"]), legs.empty() ? "-" : legs,
+                    Cell(s["details"].value("sex", json(nullptr))),
+                    Cell(s["details"].value("age_years", json(nullptr))), Cell(s["created_at_utc"])});
+  }
+  PrintTable(context.out, {"id", "code", "legs", "sex", "age_years", "created_at_utc"}, rows);
+}
+
+void PrintSessions(CliContext& context, const json& items) {
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& s : items) {
+    const json& d = s["details"];
+    rows.push_back({Cell(s["id"]), Cell(s["subject_id"]), Cell(s["leg"]), Cell(s["date"]),
+                    Cell(d.value("threshold_ma", json(nullptr))),
+                    Cell(d.value("max_tolerated_ma", json(nullptr))), Cell(d.value("notes", ""))});
+  }
+  PrintTable(context.out,
+             {"id", "subject_id", "leg", "date", "threshold_ma", "max_tolerated_ma", "notes"}, rows);
+}
+
+void Show(CliContext& context, const json& value) {
+  if (context.options.json) {
+    context.out << value.dump(2) << "\n";
+  } else {
+    PrintObject(context.out, value);
+  }
+}
+
+struct SubjectForm {
+  std::string code;
+  std::vector<std::string> legs;
+  std::optional<int> age_years;
+  std::optional<std::string> sex;
+  std::optional<double> height_cm, weight_kg, shank_length_cm, calf_circumference_cm;
+};
+
+struct SessionForm {
+  std::string subject;
+  std::string leg;
+  std::string date;
+  std::optional<double> threshold_ma, max_tolerated_ma;
+  std::optional<std::string> notes, placement;
+};
+
+}  // namespace
+
+void RegisterRecordCommands(CLI::App& app, CliContext& context) {
+  // --- subjects ---------------------------------------------------------------
+  CLI::App* subjects = app.add_subcommand("subjects", "Subjects: list, show, create.");
+  subjects->require_subcommand(1);
+  subjects->add_subcommand("list", "List every subject (a table, or --json).")->callback([&context] {
+    context.action = [&context] {
+      auto client = Connect(context);
+      const json items = client->GetAllPages("/subjects", "");
+      if (context.options.json) {
+        context.out << items.dump(2) << "\n";
+      } else {
+        PrintSubjects(context, items);
+      }
+    };
+  });
+  {
+    auto id = std::make_shared<std::string>();
+    CLI::App* show = subjects->add_subcommand("show", "One subject (by id or code).");
+    show->add_option("subject", *id, "subject id or code")->required();
+    show->callback([id, &context] {
+      context.action = [id, &context] {
+        auto client = Connect(context);
+        Show(context, client->Get("/subjects/" + std::to_string(ResolveSubject(*client, *id))));
+      };
+    });
+  }
+  {
+    auto form = std::make_shared<SubjectForm>();
+    CLI::App* create = subjects->add_subcommand("create", "Create a subject (clinician or admin).");
+    create->add_option("code", form->code, "pseudonymous code, [A-Za-z0-9_-]{1,32}")->required();
+    create->add_option("--leg", form->legs, "a leg to record (left, right; repeatable)")
+        ->check(CLI::IsMember({"left", "right"}));
+    create->add_option("--age", form->age_years, "age, years");
+    create->add_option("--sex", form->sex, "female, male, other or undisclosed")
+        ->check(CLI::IsMember({"female", "male", "other", "undisclosed"}));
+    create->add_option("--height-cm", form->height_cm, "height, cm");
+    create->add_option("--weight-kg", form->weight_kg, "body mass, kg");
+    create->add_option("--shank-length-cm", form->shank_length_cm, "shank length, cm");
+    create->add_option("--calf-circumference-cm", form->calf_circumference_cm,
+                       "calf circumference, cm");
+    create->callback([form, &context] {
+      context.action = [form, &context] {
+        json details = json::object();
+        if (form->age_years) details["age_years"] = *form->age_years;
+        if (form->sex) details["sex"] = *form->sex;
+        if (form->height_cm) details["height_cm"] = *form->height_cm;
+        if (form->weight_kg) details["weight_kg"] = *form->weight_kg;
+        if (form->shank_length_cm) details["shank_length_cm"] = *form->shank_length_cm;
+        if (form->calf_circumference_cm) {
+          details["calf_circumference_cm"] = *form->calf_circumference_cm;
+        }
+        json body = {{"code", form->code}, {"legs", form->legs}};
+        if (!details.empty()) body["details"] = details;
+        auto client = Connect(context);
+        const json created = client->Post("/subjects", body);
+        if (context.options.json) {
+          context.out << created.dump(2) << "\n";
+        } else {
+          context.out << "created subject " << Cell(created["id"]) << " (" << Cell(created["code"])
+                      << ")\n";
+        }
+      };
+    });
+  }
+
+  // --- sessions ---------------------------------------------------------------
+  CLI::App* sessions = app.add_subcommand("sessions", "Sessions: list, show, create.");
+  sessions->require_subcommand(1);
+  {
+    auto subject = std::make_shared<std::string>();
+    CLI::App* list = sessions->add_subcommand("list", "A subject's sessions.");
+    list->add_option("--subject", *subject, "subject id or code")->required();
+    list->callback([subject, &context] {
+      context.action = [subject, &context] {
+        auto client = Connect(context);
+        const std::int64_t id = ResolveSubject(*client, *subject);
+        const json items = client->GetAllPages("/subjects/" + std::to_string(id) + "/sessions", "");
+        if (context.options.json) {
+          context.out << items.dump(2) << "\n";
+        } else {
+          PrintSessions(context, items);
+        }
+      };
+    });
+  }
+  {
+    auto id = std::make_shared<std::string>();
+    CLI::App* show = sessions->add_subcommand("show", "One session with its runs and trials.");
+    show->add_option("session", *id, "session id")->required();
+    show->callback([id, &context] {
+      context.action = [id, &context] {
+        const std::string path = "/sessions/" + std::to_string(ParseId(*id, "session"));
+        auto client = Connect(context);
+        json session = client->Get(path);
+        session["runs"] = client->GetAllPages(path + "/runs", "");
+        session["trials"] = client->GetAllPages(path + "/trials", "");
+        if (context.options.json) {
+          context.out << session.dump(2) << "\n";
+          return;
+        }
+        json head = session;
+        head.erase("runs");
+        head.erase("trials");
+        PrintObject(context.out, head);
+        std::vector<std::vector<std::string>> runs;
+        for (const auto& r : session["runs"]) {
+          runs.push_back({Cell(r["id"]), Cell(r["protocol"]), Cell(r["state"]),
+                          Cell(r["started_at_utc"]), Cell(r["message"])});
+        }
+        context.out << "runs:\n";
+        PrintTable(context.out, {"id", "protocol", "state", "started_at_utc", "message"}, runs);
+        std::vector<std::vector<std::string>> trials;
+        for (const auto& t : session["trials"]) {
+          trials.push_back({Cell(t["id"]), Cell(t["run_id"]), Cell(t["name"]),
+                            Cell(t["num_samples"]), Cell(t["sample_rate_hz"])});
+        }
+        context.out << "trials:\n";
+        PrintTable(context.out, {"id", "run_id", "name", "num_samples", "sample_rate_hz"}, trials);
+      };
+    });
+  }
+  {
+    auto form = std::make_shared<SessionForm>();
+    CLI::App* create =
+        sessions->add_subcommand("create", "Open a session for one leg (clinician or admin).");
+    create->add_option("--subject", form->subject, "subject id or code")->required();
+    create->add_option("--leg", form->leg, "left or right")
+        ->required()
+        ->check(CLI::IsMember({"left", "right"}));
+    create->add_option("--date", form->date, "session date YYYY-MM-DD")->required();
+    create->add_option("--threshold-ma", form->threshold_ma, "torque threshold, mA");
+    create->add_option("--max-tolerated-ma", form->max_tolerated_ma,
+                       "maximum tolerated stimulation, mA");
+    create->add_option("--notes", form->notes, "free text");
+    create->add_option("--accelerometer-placement", form->placement, "free text");
+    create->callback([form, &context] {
+      context.action = [form, &context] {
+        json body = {{"leg", form->leg}, {"date", form->date}};
+        if (form->threshold_ma) body["threshold_ma"] = *form->threshold_ma;
+        if (form->max_tolerated_ma) body["max_tolerated_ma"] = *form->max_tolerated_ma;
+        if (form->notes) body["notes"] = *form->notes;
+        if (form->placement) body["accelerometer_placement"] = *form->placement;
+        auto client = Connect(context);
+        const std::int64_t subject = ResolveSubject(*client, form->subject);
+        const json created =
+            client->Post("/subjects/" + std::to_string(subject) + "/sessions", body);
+        if (context.options.json) {
+          context.out << created.dump(2) << "\n";
+        } else {
+          context.out << "created session " << Cell(created["id"]) << " (subject "
+                      << Cell(created["subject_id"]) << ", " << Cell(created["leg"]) << " leg, "
+                      << Cell(created["date"]) << ")\n";
+        }
+      };
+    });
+  }
+}
+
+}  // namespace fesbench::cli
