@@ -16,7 +16,13 @@ packages=(
   libfastrtps-dev libfastcdr-dev fastddsgen
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev
+  nodejs chromium
 )
+# The web client's build and browser tests (clients/web, tests/browser): Node
+# and npm (npm packages come from the npm registry via package-lock.json),
+# Debian's chromium for Playwright. A Node that already brings its own npm
+# (e.g. NodeSource's nodejs) needs no Debian npm.
+command -v npm >/dev/null 2>&1 || packages+=(npm)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -43,6 +43,14 @@ api::Status ValidateServerConfig(const ServerConfig& c) {
   return api::Status::Ok();
 }
 
+std::string DefaultWebRoot() {
+#ifdef FESBENCH_DEFAULT_WEB_ROOT
+  return FESBENCH_DEFAULT_WEB_ROOT;
+#else
+  return {};
+#endif
+}
+
 api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   auto json = http::ParseJsonObject(json_text);
   if (!json.ok()) return json.status();
@@ -67,6 +75,7 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.Integer("job-workers", false, 1, 64)) c.job_workers = static_cast<int>(*v);
   if (auto v = f.Integer("max-connections", false, 1, 1024)) c.max_connections = static_cast<int>(*v);
   if (auto v = f.Integer("max-streams", false, 1, 256)) c.max_streams = static_cast<int>(*v);
+  if (auto v = f.String("web-root", false, 4096)) c.web_root = *v;
   return f.Finish();
 }
 
@@ -94,6 +103,8 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   app.add_option("--max-connections", flags.max_connections,
                  "keep-alive connections served at once (default 48)");
   app.add_option("--max-streams", flags.max_streams, "open event streams (default 16)");
+  app.add_option("--web-root", flags.web_root,
+                 "folder of the built web client served at / (\"\": none)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -136,6 +147,7 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--job-workers")) config.job_workers = flags.job_workers;
   if (given("--max-connections")) config.max_connections = flags.max_connections;
   if (given("--max-streams")) config.max_streams = flags.max_streams;
+  if (given("--web-root")) config.web_root = flags.web_root;
 
   if (auto st = ValidateServerConfig(config); !st.ok()) {
     err << "fesbench-server: " << st.ToString() << "\n";

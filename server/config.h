@@ -16,6 +16,9 @@
 
 namespace fesbench::server {
 
+/// Where the build put the bundled web client (clients/web → <build>/clients/web/dist).
+std::string DefaultWebRoot();
+
 struct ServerConfig {
   std::string bind = "127.0.0.1";          ///< --bind: listen address.
   int port = 8080;                         ///< --port: 0 picks a free port (printed).
@@ -30,6 +33,9 @@ struct ServerConfig {
   int job_workers = 2;                     ///< --job-workers: identification/prediction threads.
   int max_connections = 48;                ///< --max-connections: connections served at once.
   int max_streams = 16;                    ///< --max-streams: open event streams.
+  /// --web-root: the web client's built files, served at / (default: the
+  /// build tree's clients/web/dist; "" serves none).
+  std::string web_root = DefaultWebRoot();
   std::string config_file;                 ///< --config: the JSON file read, if any.
 };
 

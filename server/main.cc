@@ -152,6 +152,7 @@ int main(int argc, char** argv) {
   http_options.tls_key_path = config.tls_key;
   http_options.max_connections = static_cast<std::size_t>(config.max_connections);
   http_options.max_streams = static_cast<std::size_t>(config.max_streams);
+  http_options.web_root = config.web_root;
   server::http::HttpServer http(http_options, server::http::BuildApiRoutes(deps), auth, **db, slots);
   auto port = http.Bind();
   if (!port.ok()) return Fail("cannot listen", port.status());
@@ -161,6 +162,11 @@ int main(int argc, char** argv) {
   std::cout << "fesbench-server: bench " << bench->kind() << ", time scale " << config.time_scale
             << ", database " << db_path.string() << "\n"
             << "fesbench-server: admin token file " << token_path.string() << "\n"
+            << "fesbench-server: web client "
+            << (std::filesystem::is_regular_file(std::filesystem::path(config.web_root) / "index.html")
+                    ? "from " + config.web_root
+                    : "not built (no index.html in --web-root \"" + config.web_root + "\")")
+            << "\n"
             << "fesbench-server: listening on " << scheme << "://" << host << ":" << *port << "/"
             << std::endl;
 

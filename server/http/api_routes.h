@@ -58,5 +58,7 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddJobRoutes(RouteTable& table, const ApiDependencies& deps);
+/// GET /api/v1/me (routes_web.cc): the signed-in user, for the web client.
+void AddWebRoutes(RouteTable& table, const ApiDependencies& deps);
 
 }  // namespace fesbench::server::http

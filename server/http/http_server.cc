@@ -80,7 +80,9 @@ HttpServer::HttpServer(HttpServerOptions options, RouteTable routes, Authenticat
       routes_(std::move(routes)),
       auth_(auth),
       db_(db),
-      slots_(slots) {}
+      slots_(slots) {
+  if (!options_.web_root.empty()) static_files_.emplace(options_.web_root);
+}
 
 HttpServer::~HttpServer() { Stop(); }
 
@@ -224,6 +226,7 @@ void HttpServer::AuditRefusal(const RequestContext& ctx, int status, const std::
 void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
   const RouteMatch match = routes_.Match(req.method, req.path);
   if (!match.route) {
+    if (match.allowed_methods.empty() && static_files_ && static_files_->Serve(req, res)) return;
     if (match.allowed_methods.empty()) {
       WriteError(res, HttpError{404, "not_found",
                                 "no route for " + Clip(req.method) + " " + Clip(req.path), {}});

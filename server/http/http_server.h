@@ -25,6 +25,7 @@
 #include "api/status.h"
 #include "server/http/auth.h"
 #include "server/http/router.h"
+#include "server/http/static_files.h"
 #include "server/http/stream_slots.h"
 #include "storage/database.h"
 
@@ -47,6 +48,9 @@ struct HttpServerOptions {
   std::size_t keep_alive_max_count = 10000;  ///< requests per connection.
   std::size_t max_connections = 48;  ///< concurrent keep-alive connections served at once.
   std::size_t max_streams = 16;      ///< open event streams (beyond: 503).
+  /// The web client's built files, served at / without a token for GET
+  /// and HEAD of paths no route matches (static_files.h). Empty: none.
+  std::string web_root;
 };
 
 class HttpServer {
@@ -79,6 +83,7 @@ class HttpServer {
   Authenticator& auth_;
   storage::Database& db_;
   StreamSlots& slots_;
+  std::optional<StaticFiles> static_files_;
   std::unique_ptr<httplib::Server> server_;
   std::atomic<bool> running_{false};
   std::atomic<bool> stop_requested_{false};

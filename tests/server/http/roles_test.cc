@@ -57,6 +57,7 @@ const Expectation kRoutes[] = {
     {"DELETE", "/api/v1/bench/estop", "cd"},
     {"GET", "/api/v1/bench/virtual-subject", "d"},
     {"PUT", "/api/v1/bench/virtual-subject", "d"},
+    {"GET", "/api/v1/me", "cad"},
     {"GET", "/api/v1/users", "d"},
     {"POST", "/api/v1/users", "d"},
     {"POST", "/api/v1/users/{user_id}/deactivate", "d"},

@@ -1,0 +1,91 @@
+// A parameter set as plots (IRC, twitch, passive and active torque–angle
+// and torque–velocity) with its values; two sets compared.
+import { api } from '../api.js';
+import { fmt, h, table } from '../dom.js';
+import { parameterCurves, parameterScalars, SCALAR_LABELS } from '../model.js';
+import { joinCurves, makePlot } from '../plot.js';
+
+function plotsOf(ctx, curvesBySet, labels) {
+  const grid = h('div', { class: 'plot-grid', id: 'set-plots' });
+  const ids = [...new Set(curvesBySet.flatMap((cs) => cs.map((c) => c.id)))];
+  const pending = [];
+  for (const id of ids) {
+    const present = curvesBySet.map((cs) => cs.find((c) => c.id === id));
+    const first = present.find(Boolean);
+    const cell = h('div', { class: 'plot-cell' });
+    grid.appendChild(cell);
+    pending.push(() => {
+      const curves = present.filter(Boolean);
+      const series = present.map((c, i) => (c ? { label: labels[i] } : null)).filter(Boolean);
+      const chart = makePlot(cell, series, joinCurves(curves), { title: first.title, xLabel: first.xLabel,
+        yLabel: first.yLabel, id, points: first.x.length < 60 });
+      ctx.onLeave(() => chart.disconnect());
+    });
+  }
+  return { grid, draw: () => pending.forEach((f) => f()) };
+}
+
+function valueRows(sets) {
+  const scalars = sets.map(parameterScalars);
+  const rows = Object.entries(SCALAR_LABELS).map(([key, label]) => [label, ...scalars.map((s) => fmt(s[key], 4))]);
+  rows.push(['model', ...sets.map((s) => s.model)]);
+  rows.push(['IRC method', ...sets.map((s) => s.irc_method)]);
+  rows.push(['passive method', ...sets.map((s) => s.passive_method)]);
+  rows.push(['active method', ...sets.map((s) => s.active_method)]);
+  rows.push(['trials', ...sets.map((s) => (s.trial_ids || []).join(', '))]);
+  rows.push(['created (UTC)', ...sets.map((s) => s.created_at_utc.slice(0, 19).replace('T', ' '))]);
+  if (sets.length === 2) {
+    for (let i = 0; i < Object.keys(SCALAR_LABELS).length; i++) {
+      const key = Object.keys(SCALAR_LABELS)[i];
+      const a = scalars[0][key];
+      const b = scalars[1][key];
+      rows[i].push(Number.isFinite(a) && Number.isFinite(b) ? fmt(b - a, 3) : '—');
+    }
+    for (let i = Object.keys(SCALAR_LABELS).length; i < rows.length; i++) rows[i].push('');
+  }
+  return rows;
+}
+
+function breakpointTables(set) {
+  return parameterCurves(set.parameters).filter((c) => c.id !== 'twitch').map((c) =>
+    h('details', {}, h('summary', {}, `${c.title}: ${c.x.length} breakpoints`),
+      table([c.xLabel, c.yLabel], c.x.map((x, i) => [fmt(x, 4), fmt(c.y[i], 4)]))));
+}
+
+export async function parameterSetView(ctx, setId) {
+  const set = await api('GET', `/parameter-sets/${setId}`);
+  const subject = await api('GET', `/subjects/${set.subject_id}`);
+  const { grid, draw } = plotsOf(ctx, [parameterCurves(set.parameters)], [`set ${set.id}`]);
+  const fit = (set.parameters.provenance && set.parameters.provenance.fit_rms) || {};
+  const warnings = (set.parameters.provenance && set.parameters.provenance.warnings) || [];
+  const mayPredict = ctx.user.role === 'analyst' || ctx.user.role === 'admin';
+  ctx.main.replaceChildren(
+    h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ',
+      h('a', { href: `#/subjects/${subject.id}` }, subject.code), ' › ', `Parameter set ${set.id}`),
+    h('h1', {}, `Parameter set ${set.id} (version ${set.version}) — ${subject.code}`),
+    h('p', { class: 'row' },
+      h('a', { href: `#/subjects/${subject.id}/history` }, 'History of this subject'),
+      mayPredict ? h('a', { href: `#/predict/${set.id}`, id: 'predict-link' }, 'Run a prediction with this set') : ''),
+    warnings.length ? h('p', { class: 'msg msg-info' }, `Fit warnings: ${warnings.join('; ')}`) : '',
+    grid,
+    h('section', { 'aria-labelledby': 'values-h' }, h('h2', { id: 'values-h' }, 'Values'),
+      table(['Quantity', 'Value'], valueRows([set]), { id: 'values-table', class: 'kv' }),
+      Object.keys(fit).length ? h('details', {}, h('summary', {}, 'Fit residuals (RMS)'),
+        table(['Fit', 'RMS'], Object.entries(fit).map(([k, v]) => [k, fmt(v, 4)]))) : '',
+      ...breakpointTables(set)));
+  draw();
+}
+
+export async function compareView(ctx, idA, idB) {
+  const [a, b] = await Promise.all([api('GET', `/parameter-sets/${idA}`), api('GET', `/parameter-sets/${idB}`)]);
+  const labels = [`set ${a.id}`, `set ${b.id}`];
+  const { grid, draw } = plotsOf(ctx, [parameterCurves(a.parameters), parameterCurves(b.parameters)], labels);
+  ctx.main.replaceChildren(
+    h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ',
+      h('a', { href: `#/subjects/${a.subject_id}` }, `Subject ${a.subject_id}`), ' › ', 'Compare'),
+    h('h1', {}, `Parameter set ${a.id} compared with ${b.id}`),
+    h('section', { 'aria-labelledby': 'cmp-h' }, h('h2', { id: 'cmp-h' }, 'Values'),
+      table(['Quantity', ...labels, `${labels[1]} − ${labels[0]}`], valueRows([a, b]), { id: 'compare-table' })),
+    grid);
+  draw();
+}

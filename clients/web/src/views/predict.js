@@ -1,0 +1,93 @@
+// Prediction: simulate a parameter set on a stored trial's stimulation and
+// show predicted vs measured knee angle with the error figures
+// (E_RMS, E_ABS, E_AVE, normalised RMS; §6.2).
+import { api, listAll, waitForJob } from '../api.js';
+import { fmt, h, say, table } from '../dom.js';
+import { makePlot } from '../plot.js';
+
+export async function predictionView(ctx, presetId) {
+  const mayPredict = ctx.user.role === 'analyst' || ctx.user.role === 'admin';
+  const sets = await listAll('/parameter-sets');
+  const status = h('div', { id: 'predict-status' });
+  const result = h('div', { id: 'predict-result' });
+  const setSelect = h('select', { id: 'predict-set', name: 'parameter_set_id' },
+    sets.map((s) => h('option', { value: s.id, selected: s.id === presetId },
+      `Parameter set ${s.id} (subject ${s.subject_id}, ${s.created_at_utc.slice(0, 10)})`)));
+  const trialSelect = h('select', { id: 'predict-trial', name: 'trial_id' });
+
+  async function loadTrials() {
+    const set = sets.find((s) => String(s.id) === setSelect.value);
+    if (!set) return;
+    trialSelect.replaceChildren(h('option', {}, 'Loading…'));
+    try {
+      const sessions = await listAll(`/subjects/${set.subject_id}/sessions`);
+      const trials = (await Promise.all(sessions.map((s) => listAll(`/sessions/${s.id}/trials`)))).flat();
+      // Free-swing trials (the knee moves) are what a prediction of the angle is for.
+      trials.sort((a, b) => (b.name.includes('random_binary') ? 1 : 0) - (a.name.includes('random_binary') ? 1 : 0) || b.id - a.id);
+      trialSelect.replaceChildren(...trials.map((t) => h('option', { value: t.id }, `Trial ${t.id}: ${t.name} (session ${t.session_id})`)));
+      if (!trials.length) trialSelect.replaceChildren(h('option', { value: '' }, 'No stored trials for this subject'));
+    } catch (e) {
+      say(status, 'error', e.message);
+    }
+  }
+  setSelect.addEventListener('change', loadTrials);
+
+  const form = h('form', { id: 'predict-form', novalidate: true, onsubmit: async (event) => {
+    event.preventDefault();
+    if (!trialSelect.value) {
+      say(status, 'error', 'Choose a stored trial.');
+      return;
+    }
+    const button = form.querySelector('button[type=submit]');
+    button.disabled = true;
+    say(status, 'info', 'Running the prediction…');
+    result.replaceChildren();
+    try {
+      const job = await api('POST', '/predictions', { parameter_set_id: Number(setSelect.value), trial_id: Number(trialSelect.value) });
+      const r = await waitForJob(job);
+      const trial = await api('GET', `/trials/${r.trial_id}`);
+      showResult(r, trial);
+      say(status, 'ok', `Prediction ${r.prediction_id} done.`);
+    } catch (e) {
+      say(status, 'error', `Prediction failed: ${e.message}`);
+    } finally {
+      button.disabled = false;
+    }
+  } },
+  h('div', { class: 'grid-form' },
+    h('div', { class: 'field' }, h('label', { for: 'predict-set' }, 'Parameter set'), setSelect),
+    h('div', { class: 'field' }, h('label', { for: 'predict-trial' }, 'Measured trial (its stimulation is replayed)'), trialSelect)),
+  h('div', { class: 'actions' }, h('button', { type: 'submit', class: 'primary', disabled: !mayPredict }, 'Run prediction'),
+    mayPredict ? '' : h('small', {}, ' Predictions need the analyst or admin role.')));
+
+  function showResult(r, trial) {
+    const channel = (name) => (trial.channels.find((c) => c.name === name) || { values: [] }).values;
+    const measured = channel(r.errors.channel || 'angle_deg');
+    const measuredT = channel('t_s');
+    const predicted = r.columns.angle_deg;
+    const t = r.columns.t_s;
+    // Align on the prediction's time base (same sample rate, same start).
+    const m = t.map((_, i) => (i < measured.length ? measured[i] : null));
+    const e = r.errors;
+    const plotBox = h('div', { class: 'plot-cell', id: 'predict-plot' });
+    const errorBox = h('div', { class: 'plot-cell' });
+    result.replaceChildren(
+      h('h2', {}, `Predicted vs measured knee angle — trial ${r.trial_id}`),
+      table(['Error figure', `Value (${e.unit})`], [
+        ['E_RMS', fmt(e.e_rms, 4)], ['E_ABS (mean absolute)', fmt(e.e_abs, 4)], ['E_AVE (mean)', fmt(e.e_ave, 4)],
+        ['largest absolute', fmt(e.max_abs, 4)], ['normalised RMS', fmt(e.normalised_rms, 4)], ['samples', fmt(e.samples)]],
+      { id: 'error-table', class: 'kv' }),
+      plotBox, errorBox);
+    const c1 = makePlot(plotBox, [{ label: 'measured' }, { label: 'predicted', dash: [6, 3] }], [t, m, predicted],
+      { title: 'Knee angle', xLabel: 'time (s)', yLabel: 'deg', height: 260, id: 'prediction' });
+    const c2 = makePlot(errorBox, [{ label: 'predicted − measured' }], [t, t.map((_, i) => (m[i] === null ? null : predicted[i] - m[i]))],
+      { title: 'Prediction error', xLabel: 'time (s)', yLabel: 'deg', height: 160, id: 'prediction-error' });
+    ctx.onLeave(() => { c1.disconnect(); c2.disconnect(); });
+    result.dataset.samples = String(measuredT.length);
+  }
+
+  ctx.main.replaceChildren(h('h1', {}, 'Prediction'),
+    h('p', {}, 'Simulate the model of a parameter set on a stored trial\'s stimulation and compare with the knee angle that was measured.'),
+    sets.length ? form : h('p', {}, 'No parameter sets yet.'), status, result);
+  if (sets.length) await loadTrials();
+}

@@ -1,0 +1,175 @@
+// Subjects: list, search by code, create; one subject: its sessions (list,
+// create), its parameter sets (open, compare two, history).
+import { api, listAll } from '../api.js';
+import { clearErrors, field, fmt, h, say, showFieldError, table, todayIso } from '../dom.js';
+
+function numberOrUndefined(form, name) {
+  const v = form.elements[name].value.trim();
+  if (v === '') return undefined;
+  const n = Number(v);
+  return Number.isFinite(n) ? n : v; // a non-number goes to the server, which names the field
+}
+
+async function submitForm(form, status, send, success) {
+  clearErrors(form);
+  say(status, 'info', 'Saving…');
+  try {
+    const created = await send();
+    say(status, 'ok', success(created));
+    return created;
+  } catch (e) {
+    const onField = showFieldError(form, e);
+    say(status, 'error', onField ? `Please correct the marked field: ${e.message}` : e.message);
+    return null;
+  }
+}
+
+function subjectRows(subjects) {
+  return subjects.map((s) => [
+    h('a', { href: `#/subjects/${s.id}` }, s.code),
+    s.legs.map((l) => l.side).join(', ') || '—',
+    fmt(s.details.age_years),
+    s.details.sex || '—',
+    fmt(s.details.weight_kg),
+    s.created_at_utc.slice(0, 10),
+  ]);
+}
+
+export async function subjectsView(ctx) {
+  const listSlot = h('div', { id: 'subject-list' });
+  const listStatus = h('div');
+  const search = h('input', { id: 'subject-search', name: 'code', type: 'search', placeholder: 'e.g. S01' });
+
+  async function load() {
+    const code = search.value.trim();
+    try {
+      const subjects = code
+        ? (await api('GET', `/subjects?code=${encodeURIComponent(code)}`)).items
+        : await listAll('/subjects');
+      say(listStatus, '', '');
+      listSlot.replaceChildren(subjects.length
+        ? table(['Code', 'Legs', 'Age', 'Sex', 'Weight (kg)', 'Created'], subjectRows(subjects), { id: 'subjects-table' })
+        : h('p', {}, code ? `No subject with code ${code}.` : 'No subjects yet.'));
+    } catch (e) {
+      say(listStatus, 'error', e.message);
+    }
+  }
+
+  const status = h('div', { id: 'subject-form-status' });
+  const form = h('form', { id: 'subject-form', novalidate: true, class: 'grid-form', onsubmit: async (event) => {
+    event.preventDefault();
+    const f = event.target;
+    const details = {};
+    for (const name of ['age_years', 'height_cm', 'weight_kg', 'shank_length_cm', 'calf_circumference_cm']) {
+      const v = numberOrUndefined(f, name);
+      if (v !== undefined) details[name] = v;
+    }
+    if (f.elements.sex.value) details.sex = f.elements.sex.value;
+    const legs = ['left', 'right'].filter((side) => f.elements[`leg_${side}`].checked);
+    const created = await submitForm(f, status,
+      () => api('POST', '/subjects', { code: f.elements.code.value.trim(), details, legs }),
+      (s) => `Subject ${s.code} created.`);
+    if (created) {
+      f.reset();
+      await load();
+    }
+  } },
+  field('code', 'Pseudonymous code', { required: true, help: 'letters, digits, _ and - (no names)' }),
+  field('age_years', 'Age (years)', { type: 'number' }),
+  field('sex', 'Sex', { options: [{ value: '', label: '(not given)' }, { value: 'female', label: 'female' },
+    { value: 'male', label: 'male' }, { value: 'other', label: 'other' }, { value: 'undisclosed', label: 'undisclosed' }] }),
+  field('height_cm', 'Height (cm)', { type: 'number' }),
+  field('weight_kg', 'Body mass (kg)', { type: 'number' }),
+  field('shank_length_cm', 'Shank length (cm)', { type: 'number' }),
+  field('calf_circumference_cm', 'Calf circumference (cm)', { type: 'number' }),
+  h('fieldset', { class: 'field' }, h('legend', {}, 'Legs'),
+    h('label', { class: 'inline' }, h('input', { type: 'checkbox', name: 'leg_left' }), ' left'),
+    h('label', { class: 'inline' }, h('input', { type: 'checkbox', name: 'leg_right', checked: true }), ' right')),
+  h('div', { class: 'actions' }, h('button', { type: 'submit', class: 'primary' }, 'Create subject')));
+
+  const searchForm = h('form', { role: 'search', class: 'row', onsubmit: (e) => { e.preventDefault(); load(); } },
+    h('label', { for: 'subject-search' }, 'Find by code'), search,
+    h('button', { type: 'submit' }, 'Search'),
+    h('button', { type: 'button', onclick: () => { search.value = ''; load(); } }, 'Show all'));
+
+  ctx.main.replaceChildren(
+    h('h1', {}, 'Subjects'),
+    h('section', { 'aria-labelledby': 'list-h' }, h('h2', { id: 'list-h' }, 'All subjects'), searchForm, listStatus, listSlot),
+    h('section', { 'aria-labelledby': 'new-h' }, h('h2', { id: 'new-h' }, 'New subject'), form, status));
+  await load();
+}
+
+export async function subjectView(ctx, subjectId) {
+  const subject = await api('GET', `/subjects/${subjectId}`);
+  const sessionsSlot = h('div', { id: 'session-list' });
+  const setsSlot = h('div', { id: 'set-list' });
+
+  async function loadSessions() {
+    const sessions = await listAll(`/subjects/${subjectId}/sessions`);
+    sessionsSlot.replaceChildren(sessions.length
+      ? table(['Session', 'Date', 'Leg', 'Threshold (mA)', 'Max tolerated (mA)', 'Accelerometer'],
+        sessions.map((s) => [h('a', { href: `#/sessions/${s.id}` }, `Session ${s.id}`), s.date, s.leg,
+          fmt(s.details.threshold_ma), fmt(s.details.max_tolerated_ma), s.details.accelerometer_placement || '—']),
+        { id: 'sessions-table' })
+      : h('p', {}, 'No sessions yet.'));
+  }
+
+  async function loadSets() {
+    const sets = await listAll(`/parameter-sets?subject_id=${subjectId}`);
+    if (!sets.length) {
+      setsSlot.replaceChildren(h('p', {}, 'No parameter sets yet: run the rapid parameterisation in a session.'));
+      return;
+    }
+    const options = sets.map((s) => h('option', { value: s.id }, `#${s.id} v${s.version} ${s.created_at_utc.slice(0, 16).replace('T', ' ')}`));
+    const a = h('select', { id: 'compare-a', name: 'a' }, options.map((o) => o.cloneNode(true)));
+    const b = h('select', { id: 'compare-b', name: 'b' }, options.map((o) => o.cloneNode(true)));
+    if (sets.length > 1) b.selectedIndex = 1;
+    setsSlot.replaceChildren(
+      table(['Set', 'Created', 'Leg', 'Model', 'Methods'], sets.map((s) => [
+        h('a', { href: `#/parameter-sets/${s.id}` }, `Parameter set ${s.id}`),
+        s.created_at_utc.slice(0, 19).replace('T', ' '), String(s.leg_id), s.model,
+        `${s.irc_method}, ${s.passive_method}, ${s.active_method}`]), { id: 'sets-table' }),
+      h('p', {}, h('a', { href: `#/subjects/${subjectId}/history`, id: 'history-link' }, 'Parameter history over time')),
+      h('form', { class: 'row', id: 'compare-form', onsubmit: (e) => { e.preventDefault(); location.hash = `#/compare/${a.value}/${b.value}`; } },
+        h('label', { for: 'compare-a' }, 'Compare'), a, h('label', { for: 'compare-b' }, 'with'), b,
+        h('button', { type: 'submit' }, 'Compare')));
+  }
+
+  const status = h('div', { id: 'session-form-status' });
+  const legOptions = (subject.legs.length ? subject.legs.map((l) => l.side) : ['right', 'left'])
+    .map((side) => ({ value: side, label: side }));
+  const form = h('form', { id: 'session-form', novalidate: true, class: 'grid-form', onsubmit: async (event) => {
+    event.preventDefault();
+    const f = event.target;
+    const body = { leg: f.elements.leg.value, date: f.elements.date.value.trim() };
+    for (const name of ['threshold_ma', 'max_tolerated_ma']) {
+      const v = numberOrUndefined(f, name);
+      if (v !== undefined) body[name] = v;
+    }
+    if (f.elements.accelerometer_placement.value.trim()) body.accelerometer_placement = f.elements.accelerometer_placement.value.trim();
+    if (f.elements.notes.value.trim()) body.notes = f.elements.notes.value.trim();
+    const created = await submitForm(f, status, () => api('POST', `/subjects/${subjectId}/sessions`, body),
+      (s) => `Session ${s.id} opened.`);
+    if (created) await loadSessions();
+  } },
+  field('leg', 'Leg', { options: legOptions }),
+  field('date', 'Date (YYYY-MM-DD)', { value: todayIso(), required: true }),
+  field('threshold_ma', 'Stimulation threshold (mA)', { type: 'number', help: 'from the tolerance test' }),
+  field('max_tolerated_ma', 'Max tolerated (mA)', { type: 'number' }),
+  field('accelerometer_placement', 'Accelerometer placement', { help: 'e.g. 20 cm below the knee, lateral' }),
+  field('notes', 'Notes', { type: 'textarea' }),
+  h('div', { class: 'actions' }, h('button', { type: 'submit', class: 'primary' }, 'Open session')));
+
+  const d = subject.details;
+  ctx.main.replaceChildren(
+    h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ', subject.code),
+    h('h1', {}, `Subject ${subject.code}`),
+    table(['Field', 'Value'], [
+      ['Legs', subject.legs.map((l) => l.side).join(', ') || '—'], ['Age (years)', fmt(d.age_years)], ['Sex', d.sex || '—'],
+      ['Height (cm)', fmt(d.height_cm)], ['Body mass (kg)', fmt(d.weight_kg)], ['Shank length (cm)', fmt(d.shank_length_cm)],
+      ['Calf circumference (cm)', fmt(d.calf_circumference_cm)]], { class: 'kv', id: 'subject-details' }),
+    h('section', { 'aria-labelledby': 'sess-h' }, h('h2', { id: 'sess-h' }, 'Sessions'), sessionsSlot),
+    h('section', { 'aria-labelledby': 'newsess-h' }, h('h2', { id: 'newsess-h' }, 'New session'), form, status),
+    h('section', { 'aria-labelledby': 'sets-h' }, h('h2', { id: 'sets-h' }, 'Parameter sets'), setsSlot));
+  await Promise.all([loadSessions(), loadSets()]);
+}

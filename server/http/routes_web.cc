@@ -1,0 +1,25 @@
+// Routes the web client needs beside the resources (DESIGN.md §8): who is
+// signed in, so the page can show the user's name and role.
+
+#include "server/http/api_routes.h"
+#include "server/http/routes_common.h"
+
+namespace fesbench::server::http {
+
+void AddWebRoutes(RouteTable& table, const ApiDependencies&) {
+  table.Add({"GET", "/api/v1/me", kAnyRole, false, "users",
+             "The signed-in user (id, name, role) of the bearer token", {}, 200,
+             "application/json", nullptr,
+             ObjectSchema({{"id", {{"type", "integer"}}},
+                           {"name", {{"type", "string"}}},
+                           {"role", {{"enum", {"clinician", "analyst", "admin"}}}}},
+                          {"id", "name", "role"}),
+             [](RequestContext& ctx) -> api::Result<Reply> {
+               const storage::User& user = *ctx.user;
+               return JsonReply({{"id", user.id},
+                                 {"name", user.name},
+                                 {"role", std::string(storage::RoleName(user.role))}});
+             }});
+}
+
+}  // namespace fesbench::server::http
