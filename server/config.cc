@@ -24,6 +24,11 @@ api::Status ValidateServerConfig(const ServerConfig& c) {
   if (c.dds_domain < 0 || c.dds_domain > 232) {
     return api::Status::InvalidArgument("must be in [0, 232]", "dds-domain");
   }
+  if (c.dds_transport != "auto" && c.dds_transport != "shm" && c.dds_transport != "udp" &&
+      c.dds_transport != "udp-loopback" && c.dds_transport != "off") {
+    return api::Status::InvalidArgument("must be auto, shm, udp, udp-loopback or off",
+                                        "dds-transport");
+  }
   if (c.tls_cert.empty() != c.tls_key.empty()) {
     return api::Status::InvalidArgument("--tls-cert and --tls-key go together", "tls-cert");
   }
@@ -61,6 +66,9 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.String("bench", false, 16)) c.bench = *v;
   if (auto v = f.Number("time-scale", false, 0.0, 1000.0)) c.time_scale = *v;
   if (auto v = f.Integer("dds-domain", false, 0, 232)) c.dds_domain = static_cast<int>(*v);
+  if (auto v = f.String("dds-transport", false, 16)) c.dds_transport = *v;
+  if (auto v = f.String("dds-profile", false, 4096)) c.dds_profile = *v;
+  if (auto v = f.String("dds-bench-id", false, 255)) c.dds_bench_id = *v;
   if (auto v = f.String("tls-cert", false, 4096)) c.tls_cert = *v;
   if (auto v = f.String("tls-key", false, 4096)) c.tls_key = *v;
   if (auto v = f.Integer("seed", false, 0)) c.seed = static_cast<std::uint64_t>(*v);
@@ -95,6 +103,13 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   app.add_option("--time-scale", flags.time_scale,
                  "bench seconds per wall second: 1 real time, 0 as fast as possible");
   app.add_option("--dds-domain", flags.dds_domain, "DDS domain id (default 0)");
+  app.add_option("--dds-transport", flags.dds_transport,
+                 "DDS transport: auto (shm + UDP), shm, udp, udp-loopback, off (default auto)")
+      ->check(CLI::IsMember({"auto", "shm", "udp", "udp-loopback", "off"}));
+  app.add_option("--dds-profile", flags.dds_profile, "Fast DDS XML profile file")
+      ->check(CLI::ExistingFile);
+  app.add_option("--dds-bench-id", flags.dds_bench_id,
+                 "DDS key of this bench's state (default: the host name)");
   app.add_option("--tls-cert", flags.tls_cert, "PEM certificate for HTTPS");
   app.add_option("--tls-key", flags.tls_key, "PEM private key for HTTPS");
   app.add_option("--seed", flags.seed, "seed of the simulated virtual subject (default 1)");
@@ -140,6 +155,9 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--bench")) config.bench = flags.bench;
   if (given("--time-scale")) config.time_scale = flags.time_scale;
   if (given("--dds-domain")) config.dds_domain = flags.dds_domain;
+  if (given("--dds-transport")) config.dds_transport = flags.dds_transport;
+  if (given("--dds-profile")) config.dds_profile = flags.dds_profile;
+  if (given("--dds-bench-id")) config.dds_bench_id = flags.dds_bench_id;
   if (given("--tls-cert")) config.tls_cert = flags.tls_cert;
   if (given("--tls-key")) config.tls_key = flags.tls_key;
   if (given("--seed")) config.seed = flags.seed;

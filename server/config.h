@@ -26,6 +26,11 @@ struct ServerConfig {
   std::string bench = "sim";               ///< --bench: "sim" or "replay".
   double time_scale = 1.0;                 ///< --time-scale: 1 real time, 0 as fast as possible.
   int dds_domain = 0;                      ///< --dds-domain: 0–232 (DDS front end, DESIGN.md §9).
+  /// --dds-transport: auto (Fast DDS default: shm + UDP), shm, udp,
+  /// udp-loopback, or off (no DDS front end).
+  std::string dds_transport = "auto";
+  std::string dds_profile;                 ///< --dds-profile: Fast DDS XML profile file.
+  std::string dds_bench_id;                ///< --dds-bench-id: key of the bench state (default: host name).
   std::string tls_cert;                    ///< --tls-cert: PEM certificate (with --tls-key: HTTPS).
   std::string tls_key;                     ///< --tls-key: PEM private key.
   std::uint64_t seed = 1;                  ///< --seed: virtual subject of the simulated bench.
@@ -53,7 +58,7 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
                                std::ostream& err);
 
 /// Applies a JSON config object's keys ("bind", "port", "db", "bench",
-/// "time-scale", "dds-domain", "tls-cert", "tls-key", "seed", "replay",
+/// "time-scale", "dds-domain", "dds-transport", "dds-profile", "dds-bench-id", "tls-cert", "tls-key", "seed", "replay",
 /// "job-workers", "max-connections", "max-streams") to `config`.
 /// kInvalidArgument naming the key for unknown keys, wrong types and
 /// out-of-range values.

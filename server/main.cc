@@ -19,6 +19,8 @@
 #include "server/bench/replay_bench.h"
 #include "server/bench/virtual_subject.h"
 #include "server/config.h"
+#include "server/dds/dds_server.h"
+#include "server/services/commands.h"
 #include "server/services/bench_service.h"
 #include "server/services/comparison_service.h"
 #include "server/services/identification_service.h"
@@ -130,6 +132,22 @@ int main(int argc, char** argv) {
   server::services::PredictionService prediction(**db);
   server::services::ComparisonService comparison(**db);
 
+  // The DDS front end (DESIGN.md §9): the same services, commands through
+  // the same RunService calls and audit log as HTTP.
+  server::services::CommandService dds_commands(**db, runs, "dds");
+  std::unique_ptr<server::dds::DdsServer> dds;
+  if (config.dds_transport != "off") {
+    server::dds::DdsServerOptions dds_options;
+    dds_options.participant.domain_id = config.dds_domain;
+    dds_options.participant.transport = *fesbench::dds::ParseTransport(config.dds_transport);
+    dds_options.participant.profile_file = config.dds_profile;
+    dds_options.participant.name = "fesbench-server";
+    dds_options.bench_id = config.dds_bench_id;
+    auto started = server::dds::DdsServer::Start(dds_options, **db, runs, hub, dds_commands);
+    if (!started.ok()) return Fail("DDS", started.status());
+    dds = std::move(*started);
+  }
+
   server::http::Authenticator auth(**db);
   server::http::StreamSlots slots(static_cast<std::size_t>(config.max_streams));
   server::http::ApiDependencies deps;
@@ -162,6 +180,11 @@ int main(int argc, char** argv) {
   std::cout << "fesbench-server: bench " << bench->kind() << ", time scale " << config.time_scale
             << ", database " << db_path.string() << "\n"
             << "fesbench-server: admin token file " << token_path.string() << "\n"
+            << "fesbench-server: DDS "
+            << (dds ? "domain " + std::to_string(config.dds_domain) + ", transport " +
+                          config.dds_transport + ", bench id " + dds->bench_id()
+                    : std::string("off"))
+            << "\n"
             << "fesbench-server: web client "
             << (std::filesystem::is_regular_file(std::filesystem::path(config.web_root) / "index.html")
                     ? "from " + config.web_root
@@ -183,6 +206,7 @@ int main(int argc, char** argv) {
   waiter.join();
 
   runs.Shutdown();  // a running protocol: stimulation zero, state aborted, all stored
+  if (dds) dds->Stop();  // after the run's final state went out
   hub.Close();
   jobs.Shutdown();
   db->reset();

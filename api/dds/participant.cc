@@ -1,0 +1,178 @@
+#include "api/dds/participant.h"
+
+#include <time.h>
+
+#include <chrono>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
+#include <fastrtps/utils/IPLocator.h>
+
+#include "api/dds/fesbench.h"
+#include "api/dds/fesbenchPubSubTypes.h"
+
+namespace fesbench::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+using eprosima::fastrtps::rtps::IPLocator;
+using eprosima::fastrtps::rtps::Locator_t;
+
+namespace {
+
+constexpr std::uint32_t kInitialPeersRange = 32;  // participants per host reachable on loopback
+
+void ApplyTransport(Transport transport, fdds::DomainParticipantQos& qos) {
+  if (transport == Transport::kBuiltin) return;
+  qos.transport().use_builtin_transports = false;
+  qos.transport().user_transports.clear();
+  if (transport == Transport::kSharedMemory) {
+    qos.transport().user_transports.push_back(
+        std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
+    return;
+  }
+  auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+  udp->maxInitialPeersRange = kInitialPeersRange;
+  if (transport == Transport::kUdpLoopback) {
+    udp->interfaceWhiteList.emplace_back("127.0.0.1");
+    Locator_t peer;
+    IPLocator::setIPv4(peer, 127, 0, 0, 1);
+    qos.wire_protocol().builtin.initialPeersList.push_back(peer);
+  }
+  qos.transport().user_transports.push_back(udp);
+}
+
+template <class PubSubType>
+fdds::Topic* MakeTopic(fdds::DomainParticipant* p, const char* name) {
+  fdds::TypeSupport type(new PubSubType());
+  if (type.register_type(p) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) return nullptr;
+  return p->create_topic(name, type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+}
+
+}  // namespace
+
+std::string_view TransportName(Transport transport) {
+  switch (transport) {
+    case Transport::kBuiltin: return "auto";
+    case Transport::kSharedMemory: return "shm";
+    case Transport::kUdp: return "udp";
+    case Transport::kUdpLoopback: return "udp-loopback";
+  }
+  return "auto";
+}
+
+api::Result<Transport> ParseTransport(std::string_view name) {
+  for (auto t : {Transport::kBuiltin, Transport::kSharedMemory, Transport::kUdp,
+                 Transport::kUdpLoopback}) {
+    if (TransportName(t) == name) return t;
+  }
+  return api::Status::InvalidArgument(
+      "unknown DDS transport '" + std::string(name) + "' (auto, shm, udp, udp-loopback)",
+      "transport");
+}
+
+api::Result<std::unique_ptr<Participant>> Participant::Create(const ParticipantOptions& options) {
+  if (options.domain_id < 0 || options.domain_id > 232) {
+    return api::Status::InvalidArgument("DDS domain id must be 0-232", "domain");
+  }
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  if (!options.profile_file.empty()) {
+    if (factory->load_XML_profiles_file(options.profile_file) !=
+        eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      return api::Status::InvalidArgument("cannot load Fast DDS XML profile " + options.profile_file,
+                                          "profile");
+    }
+  }
+  fdds::DomainParticipantQos qos = factory->get_default_participant_qos();
+  qos.name(options.name);
+  ApplyTransport(options.transport, qos);
+
+  std::unique_ptr<Participant> out(new Participant());
+  out->participant_ = factory->create_participant(options.domain_id, qos);
+  if (!out->participant_) return api::Status::Unavailable("Fast DDS could not create a participant");
+  auto* p = out->participant_;
+  out->publisher_ = p->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  out->subscriber_ = p->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
+  out->samples_ = MakeTopic<SampleBlockPubSubType>(p, kSamplesTopic);
+  out->bench_state_ = MakeTopic<BenchStatePubSubType>(p, kBenchStateTopic);
+  out->run_events_ = MakeTopic<RunEventPubSubType>(p, kRunEventsTopic);
+  out->parameter_sets_ = MakeTopic<ParameterSetPubSubType>(p, kParameterSetsTopic);
+  out->commands_ = MakeTopic<CommandPubSubType>(p, kCommandsTopic);
+  out->replies_ = MakeTopic<CommandReplyPubSubType>(p, kRepliesTopic);
+  if (!out->publisher_ || !out->subscriber_ || !out->samples_ || !out->bench_state_ ||
+      !out->run_events_ || !out->parameter_sets_ || !out->commands_ || !out->replies_) {
+    return api::Status::Unavailable("Fast DDS could not create the fesbench topics");
+  }
+  return out;
+}
+
+Participant::~Participant() {
+  if (!participant_) return;
+  participant_->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
+}
+
+fdds::DataWriter* Participant::MakeWriter(fdds::Topic* topic, fdds::DataWriterListener* listener) {
+  return publisher_->create_datawriter(topic, WriterQosFor(topic->get_name()), listener);
+}
+
+fdds::DataReader* Participant::MakeReader(fdds::Topic* topic, fdds::DataReaderListener* listener) {
+  return subscriber_->create_datareader(topic, ReaderQosFor(topic->get_name()), listener);
+}
+
+namespace {
+
+struct TopicQos {
+  bool reliable = true;
+  bool transient_local = false;
+  int depth = 64;
+};
+
+TopicQos QosOf(std::string_view topic) {
+  if (topic == kSamplesTopic) return {false, false, 64};
+  if (topic == kBenchStateTopic) return {true, true, 1};
+  if (topic == kRunEventsTopic) return {true, false, 256};
+  if (topic == kParameterSetsTopic) return {true, true, 1};
+  // Replies are transient local so a client whose reader matched a moment
+  // after the reply was written still gets it (it filters by request_id);
+  // commands are volatile: a server never acts on a command sent before it started.
+  if (topic == kRepliesTopic) return {true, true, 64};
+  return {true, false, 64};  // commands
+}
+
+template <class Qos>
+void Fill(const TopicQos& t, Qos& qos) {
+  qos.reliability().kind =
+      t.reliable ? fdds::RELIABLE_RELIABILITY_QOS : fdds::BEST_EFFORT_RELIABILITY_QOS;
+  qos.durability().kind =
+      t.transient_local ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS : fdds::VOLATILE_DURABILITY_QOS;
+  qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+  qos.history().depth = t.depth;  // per instance for keyed topics
+}
+
+}  // namespace
+
+fdds::DataWriterQos WriterQosFor(std::string_view topic_name) {
+  fdds::DataWriterQos qos = fdds::DATAWRITER_QOS_DEFAULT;
+  Fill(QosOf(topic_name), qos);
+  return qos;
+}
+
+fdds::DataReaderQos ReaderQosFor(std::string_view topic_name) {
+  fdds::DataReaderQos qos = fdds::DATAREADER_QOS_DEFAULT;
+  Fill(QosOf(topic_name), qos);
+  return qos;
+}
+
+long long NowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+long long MonotonicNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<long long>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
+
+}  // namespace fesbench::dds

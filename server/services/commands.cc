@@ -1,0 +1,100 @@
+#include "server/services/commands.h"
+
+#include <iostream>
+
+#include "storage/audit_log.h"
+
+namespace fesbench::server::services {
+
+namespace {
+const api::Status kBadToken{api::ErrorCode::kUnauthenticated, "a valid bearer token is required"};
+}  // namespace
+
+CommandService::CommandService(storage::Database& db, RunService& runs, std::string transport)
+    : db_(db), runs_(runs), transport_(std::move(transport)) {}
+
+api::Result<Actor> CommandService::Authenticate(std::string_view token) {
+  if (token.empty() || token.size() > 256) return kBadToken;
+  storage::UserRepository users(db_);
+  auto user = users.Authenticate(token);
+  if (!user.ok()) {
+    if (user.status().code() == api::ErrorCode::kUnauthenticated) return kBadToken;
+    return user.status();
+  }
+  return Actor{user->id, user->name, user->role};
+}
+
+api::Status CommandService::RequireOperator(const Actor& actor) {
+  if (MayOperateBench(actor)) return api::Status::Ok();
+  return {api::ErrorCode::kPermissionDenied,
+          "role " + std::string(RoleName(actor.role)) +
+              " may not do this (allowed: clinician, admin)"};
+}
+
+void CommandService::AuditRefusal(const Actor& actor, const std::string& action,
+                                  const std::string& target, const std::string& summary,
+                                  const api::Status& status) {
+  storage::NewAuditEntry e;
+  if (actor.user_id > 0) e.user_id = actor.user_id;
+  e.actor = actor.user_name;
+  e.action = transport_ + " " + action;
+  e.target = target;
+  e.request_summary = summary;
+  e.outcome = std::string(api::ErrorCodeName(status.code()));
+  auto appended = storage::AuditLog(db_).Append(e);
+  if (!appended.ok()) {
+    std::cerr << "fesbench-server: audit log: " << appended.status().ToString() << std::endl;
+  }
+}
+
+api::Status CommandService::EStop(std::string_view token) {
+  auto actor = Authenticate(token);
+  if (!actor.ok()) return actor.status();
+  // Any signed-in user may press it (as POST /api/v1/bench/estop).
+  api::Status st = runs_.EStop(*actor, transport_);
+  if (!st.ok()) AuditRefusal(*actor, "estop", "bench", "e-stop", st);
+  return st;
+}
+
+api::Result<RunView> CommandService::StartRun(std::string_view token, std::int64_t session_id,
+                                              const std::string& protocol,
+                                              const protocols::ParameterValues& parameters) {
+  auto actor = Authenticate(token);
+  if (!actor.ok()) return actor.status();
+  const std::string target = "sessions/" + std::to_string(session_id);
+  const std::string summary = "start " + protocol.substr(0, 64);
+  if (api::Status allowed = RequireOperator(*actor); !allowed.ok()) {
+    AuditRefusal(*actor, "start_run", target, summary, allowed);
+    return allowed;
+  }
+  auto view = runs_.Start(*actor, session_id, protocol, parameters);
+  if (!view.ok()) AuditRefusal(*actor, "start_run", target, summary, view.status());
+  return view;
+}
+
+api::Status CommandService::CancelRun(std::string_view token, std::int64_t run_id) {
+  auto actor = Authenticate(token);
+  if (!actor.ok()) return actor.status();
+  const std::string target = "runs/" + std::to_string(run_id);
+  if (api::Status allowed = RequireOperator(*actor); !allowed.ok()) {
+    AuditRefusal(*actor, "cancel_run", target, "cancel", allowed);
+    return allowed;
+  }
+  api::Status st = runs_.Cancel(*actor, run_id);
+  if (!st.ok()) AuditRefusal(*actor, "cancel_run", target, "cancel", st);
+  return st;
+}
+
+api::Status CommandService::Heartbeat(std::string_view token, std::int64_t run_id) {
+  auto actor = Authenticate(token);
+  if (!actor.ok()) return actor.status();
+  const std::string target = "runs/" + std::to_string(run_id);
+  if (api::Status allowed = RequireOperator(*actor); !allowed.ok()) {
+    AuditRefusal(*actor, "heartbeat", target, "heartbeat", allowed);
+    return allowed;
+  }
+  // A heartbeat changes nothing: neither it nor its failure is audited (as HTTP).
+  return runs_.Heartbeat(*actor, run_id);
+}
+
+}  // namespace fesbench::server::services

@@ -1,0 +1,53 @@
+#pragma once
+
+/// @file
+/// Bench commands from a token-carrying transport other than HTTP (DDS,
+/// DESIGN.md §9): authenticate the bearer token against storage, check the
+/// role exactly as the HTTP routes do (e-stop: any signed-in user; start,
+/// cancel, heartbeat: clinician or admin), then call the same RunService
+/// methods HTTP calls, so the safety interlocks, the run/e-stop audit
+/// entries and the refusals are one code path. A refusal of a signed-in
+/// user is audited like HTTP's (outcome "<code>"); an unknown token is not
+/// (there is no user to name). Thread-safe.
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "api/status.h"
+#include "server/services/run_service.h"
+#include "storage/database.h"
+#include "storage/users.h"
+
+namespace fesbench::server::services {
+
+class CommandService {
+ public:
+  /// @param transport names the source in audit entries and e-stops ("dds").
+  CommandService(storage::Database& db, RunService& runs, std::string transport);
+
+  /// E-stop (any role). kUnauthenticated for a bad, revoked or expired token.
+  api::Status EStop(std::string_view token);
+  /// Starts a protocol; errors as RunService::Start plus kUnauthenticated,
+  /// and kPermissionDenied for analysts.
+  api::Result<RunView> StartRun(std::string_view token, std::int64_t session_id,
+                                const std::string& protocol,
+                                const protocols::ParameterValues& parameters);
+  /// Cancels the run in progress; errors as RunService::Cancel plus kUnauthenticated.
+  api::Status CancelRun(std::string_view token, std::int64_t run_id);
+  /// The controlling user's heartbeat; errors as RunService::Heartbeat plus kUnauthenticated.
+  api::Status Heartbeat(std::string_view token, std::int64_t run_id);
+
+ private:
+  api::Result<Actor> Authenticate(std::string_view token);
+  /// kPermissionDenied unless clinician/admin (the HTTP message).
+  static api::Status RequireOperator(const Actor& actor);
+  void AuditRefusal(const Actor& actor, const std::string& action, const std::string& target,
+                    const std::string& summary, const api::Status& status);
+
+  storage::Database& db_;
+  RunService& runs_;
+  std::string transport_;
+};
+
+}  // namespace fesbench::server::services

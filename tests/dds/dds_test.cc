@@ -1,0 +1,460 @@
+// The DDS front end (DESIGN.md §9) against real services on a temporary
+// database, with a second participant as the client, on UDP loopback and a
+// domain id unique to the test process (parallel ctest runs do not meet):
+// a late joiner gets the latest parameter set of every leg and the bench
+// state; e-stop over DDS stops a running protocol within one control period
+// while bad and analyst tokens are refused with a reason (and audited as
+// HTTP does); a real-time run's samples arrive complete and in order.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "api/dds/fesbench.h"
+#include "api/dds/participant.h"
+#include "model/parameter_set.h"
+#include "server/bench/virtual_subject.h"
+#include "server/dds/dds_server.h"
+#include "server/services/bench_service.h"
+#include "server/services/commands.h"
+#include "server/services/run_service.h"
+#include "storage/audit_log.h"
+#include "storage/parameter_sets.h"
+#include "storage/sessions.h"
+#include "storage/subjects.h"
+#include "storage/trials.h"
+#include "storage/users.h"
+
+namespace fesbench::server::dds {
+namespace {
+
+namespace wire = fesbench::dds;
+namespace fdds = eprosima::fastdds::dds;
+using namespace std::chrono_literals;
+using eprosima::fastrtps::types::ReturnCode_t;
+using services::Actor;
+
+constexpr auto kWait = 20s;  // only reached if something is broken
+
+// A domain id per test, unique across processes running at once.
+int UniqueDomain() {
+  static std::atomic<int> counter{0};
+  return 1 + static_cast<int>((static_cast<unsigned>(::getpid()) * 4u + counter++) % 230u);
+}
+
+std::filesystem::path TempDir() {
+  static std::atomic<int> counter{0};
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("fesbench_dds_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+const protocols::ParameterValues kShortTolerance = {
+    {"settle_s", 0.2}, {"start_ma", 0.0}, {"rate_ma_per_s", 5.0}, {"ceiling_ma", 3.0}};
+
+/// Database (users with tokens, a subject with two legs, a session), a
+/// simulated bench, the run and command services and the DDS server.
+struct Rig {
+  explicit Rig(double time_scale) : dir(TempDir()), domain(UniqueDomain()) {
+    storage::DatabaseOptions dbo;
+    dbo.path = (dir / "fesbench.db").string();
+    dbo.synchronous = storage::Synchronous::kNormal;
+    auto opened = storage::Database::Open(dbo);
+    EXPECT_TRUE(opened.ok()) << opened.status().ToString();
+    db = std::move(opened).value();
+
+    storage::UserRepository users(*db);
+    clinician = MakeUser(users, "cora", storage::Role::kClinician, &clinician_token);
+    analyst = MakeUser(users, "ana", storage::Role::kAnalyst, &analyst_token);
+
+    vs = DrawVirtualSubject(11);
+    storage::SubjectDetails details;
+    details.weight_kg = vs.anthropometrics.body_mass_kg;
+    details.height_cm = vs.anthropometrics.height_m * 100.0;
+    details.shank_length_cm = vs.anthropometrics.shank_length_m * 100.0;
+    storage::SubjectRepository subjects(*db);
+    auto subject = subjects.Create("S011", details);
+    EXPECT_TRUE(subject.ok()) << subject.status().ToString();
+    subject_id = subject->id;
+    left_leg = subjects.AddLeg(subject_id, storage::Side::kLeft)->id;
+    right_leg = subjects.AddLeg(subject_id, storage::Side::kRight)->id;
+    storage::SessionDetails sd;
+    sd.date = "2026-01-15";
+    sd.accelerometer_placement = "shank, 28 cm below the knee";
+    sd.threshold_ma = vs.threshold_ma;
+    sd.max_tolerated_ma = vs.max_tolerated_ma;
+    session_id = storage::SessionRepository(*db).Create(subject_id, right_leg, sd)->id;
+
+    SimulatedBenchOptions bo;
+    bo.time_scale = time_scale;
+    bo.seed = 3;
+    bench = std::make_unique<services::SwappableSimulatedBench>(vs, bo);
+    services::RunServiceConfig config;
+    config.time_scale = time_scale;
+    config.arm_watchdog = false;
+    runs = std::make_unique<services::RunService>(*db, *bench, hub, config);
+    commands = std::make_unique<services::CommandService>(*db, *runs, "dds");
+  }
+  ~Rig() {
+    if (server) server->Stop();
+    runs.reset();
+    db.reset();
+    std::filesystem::remove_all(dir);
+  }
+
+  static Actor MakeUser(storage::UserRepository& users, const char* name, storage::Role role,
+                        std::string* token) {
+    auto u = users.CreateUser(name, role);
+    EXPECT_TRUE(u.ok()) << u.status().ToString();
+    auto t = users.IssueToken(u->id, "test");
+    EXPECT_TRUE(t.ok());
+    *token = t->token;
+    return Actor{u->id, name, role};
+  }
+
+  std::int64_t StoreSet(std::int64_t leg_id, double pole_per_s) {
+    storage::NewParameterSet set;
+    set.subject_id = subject_id;
+    set.leg_id = leg_id;
+    set.params = model::ExampleParameterSet();
+    set.params.contraction.pole_per_s = pole_per_s;
+    auto stored = storage::ParameterSetRepository(*db).Insert(set);
+    EXPECT_TRUE(stored.ok()) << stored.status().ToString();
+    return stored.ok() ? stored->id : 0;
+  }
+
+  void StartServer() {
+    DdsServerOptions options;
+    options.participant.domain_id = domain;
+    options.participant.transport = wire::Transport::kUdpLoopback;
+    options.participant.name = "fesbench-test-server";
+    options.bench_id = "bench-under-test";
+    options.parameter_poll_s = 0.1;
+    auto started = DdsServer::Start(options, *db, *runs, hub, *commands);
+    ASSERT_TRUE(started.ok()) << started.status().ToString();
+    server = std::move(*started);
+  }
+
+  std::unique_ptr<wire::Participant> Client() {
+    wire::ParticipantOptions options;
+    options.domain_id = domain;
+    options.transport = wire::Transport::kUdpLoopback;
+    options.name = "fesbench-test-client";
+    auto p = wire::Participant::Create(options);
+    EXPECT_TRUE(p.ok()) << p.status().ToString();
+    return p.ok() ? std::move(*p) : nullptr;
+  }
+
+  std::filesystem::path dir;
+  int domain;
+  std::unique_ptr<storage::Database> db;
+  Actor clinician, analyst;
+  std::string clinician_token, analyst_token;
+  VirtualSubject vs;
+  std::int64_t subject_id = 0, left_leg = 0, right_leg = 0, session_id = 0;
+  std::unique_ptr<services::SwappableSimulatedBench> bench;
+  services::SampleHub hub;
+  std::unique_ptr<services::RunService> runs;
+  std::unique_ptr<services::CommandService> commands;
+  std::unique_ptr<DdsServer> server;
+};
+
+template <class T>
+std::vector<T> TakeAll(fdds::DataReader* reader) {
+  std::vector<T> out;
+  T value;
+  fdds::SampleInfo info;
+  while (reader->take_next_sample(&value, &info) == ReturnCode_t::RETCODE_OK) {
+    if (info.valid_data) out.push_back(value);
+  }
+  return out;
+}
+
+bool WaitMatched(fdds::DataWriter* writer) {
+  const auto until = std::chrono::steady_clock::now() + kWait;
+  fdds::PublicationMatchedStatus status;
+  while (std::chrono::steady_clock::now() < until) {
+    writer->get_publication_matched_status(status);
+    if (status.current_count > 0) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+bool WaitMatched(fdds::DataReader* reader) {
+  const auto until = std::chrono::steady_clock::now() + kWait;
+  fdds::SubscriptionMatchedStatus status;
+  while (std::chrono::steady_clock::now() < until) {
+    reader->get_subscription_matched_status(status);
+    if (status.current_count > 0) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+/// A command client: writer on fesbench/commands, reader on the replies.
+struct CommandClient {
+  explicit CommandClient(wire::Participant& p)
+      : writer(p.MakeWriter(p.commands())), replies(p.MakeReader(p.replies())) {
+    EXPECT_TRUE(WaitMatched(writer));
+    EXPECT_TRUE(WaitMatched(replies));
+  }
+  wire::CommandReply Send(wire::Command command) {
+    command.request_id("req-" + std::to_string(++next_id));
+    writer->write(&command);
+    const auto until = std::chrono::steady_clock::now() + kWait;
+    while (std::chrono::steady_clock::now() < until) {
+      replies->wait_for_unread_message(eprosima::fastrtps::Duration_t(0, 50000000));
+      for (const auto& reply : TakeAll<wire::CommandReply>(replies)) {
+        if (reply.request_id() == command.request_id()) return reply;
+      }
+    }
+    ADD_FAILURE() << "no reply to " << command.request_id();
+    return {};
+  }
+  fdds::DataWriter* writer;
+  fdds::DataReader* replies;
+  int next_id = 0;
+};
+
+wire::Command MakeCommand(wire::CommandKind kind, const std::string& token) {
+  wire::Command c;
+  c.kind(kind);
+  c.token(token);
+  return c;
+}
+
+TEST(DdsServer, LateJoinerGetsTheLatestParameterSetOfEveryLegAndTheBenchState) {
+  Rig rig(0.0);
+  rig.StoreSet(rig.left_leg, 20.0);
+  rig.StoreSet(rig.right_leg, 21.0);
+  rig.StartServer();
+  // A new version of the right leg's set while the server runs: published by the poll.
+  const std::int64_t newest_right = rig.StoreSet(rig.right_leg, 27.5);
+  const auto until = std::chrono::steady_clock::now() + kWait;
+  while (rig.server->stats().parameter_sets < 3 && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(20ms);
+  }
+  ASSERT_EQ(rig.server->stats().parameter_sets, 3u);
+
+  // Only now does the analyst join.
+  auto client = rig.Client();
+  ASSERT_TRUE(client);
+  fdds::DataReader* sets = client->MakeReader(client->parameter_sets());
+  fdds::DataReader* states = client->MakeReader(client->bench_state());
+  std::map<std::int64_t, wire::ParameterSet> by_leg;
+  std::vector<wire::BenchState> bench_states;
+  while ((by_leg.size() < 2 || bench_states.empty()) && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(20ms);
+    for (const auto& s : TakeAll<wire::ParameterSet>(sets)) by_leg[s.leg_id()] = s;
+    for (const auto& s : TakeAll<wire::BenchState>(states)) bench_states.push_back(s);
+  }
+  ASSERT_EQ(by_leg.size(), 2u);
+  EXPECT_EQ(by_leg[rig.left_leg].subject_id(), rig.subject_id);
+  EXPECT_EQ(by_leg[rig.left_leg].version(), 1);
+  EXPECT_EQ(by_leg[rig.right_leg].version(), 2);  // keep last per key: only the newest
+  EXPECT_EQ(by_leg[rig.right_leg].parameter_set_id(), newest_right);
+  const auto json = nlohmann::json::parse(by_leg[rig.right_leg].parameters_json());
+  EXPECT_DOUBLE_EQ(json.at("contraction").at("pole_per_s").get<double>(), 27.5);
+  EXPECT_EQ(by_leg[rig.right_leg].model(), "full");
+
+  ASSERT_FALSE(bench_states.empty());
+  const wire::BenchState& state = bench_states.back();
+  EXPECT_EQ(state.bench_id(), "bench-under-test");
+  EXPECT_EQ(state.kind(), rig.bench->kind());
+  EXPECT_FALSE(state.estopped());
+  EXPECT_FALSE(state.busy());
+}
+
+TEST(DdsServer, EStopStopsARunningProtocolWithinOneControlPeriodAndBadTokensAreRefused) {
+  Rig rig(1.0);
+  rig.StartServer();
+  auto client = rig.Client();
+  ASSERT_TRUE(client);
+  CommandClient commands(*client);
+
+  services::SubscribeOptions watch_options;
+  watch_options.capacity = 100000;
+  auto watch = rig.hub.Subscribe(watch_options);
+  auto run = rig.runs->Start(rig.clinician, rig.session_id, "isometric_ramp_irc", {});
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+
+  // A bad token: refused, nothing happens.
+  wire::CommandReply bad = commands.Send(MakeCommand(wire::CMD_ESTOP, "fsb_not_a_token"));
+  EXPECT_FALSE(bad.accepted());
+  EXPECT_EQ(bad.code(), "unauthenticated");
+  EXPECT_NE(bad.reason().find("token"), std::string::npos) << bad.reason();
+  EXPECT_EQ(bad.bench_id(), "bench-under-test");
+  EXPECT_FALSE(rig.runs->State().estopped);
+
+  // An analyst may not start or cancel runs: refused with the reason.
+  wire::Command start = MakeCommand(wire::CMD_START_RUN, rig.analyst_token);
+  start.session_id(rig.session_id);
+  start.protocol("tolerance_test");
+  wire::CommandReply refused = commands.Send(start);
+  EXPECT_FALSE(refused.accepted());
+  EXPECT_EQ(refused.code(), "permission_denied");
+  EXPECT_NE(refused.reason().find("role analyst may not"), std::string::npos) << refused.reason();
+  wire::Command cancel = MakeCommand(wire::CMD_CANCEL_RUN, rig.analyst_token);
+  cancel.run_id(run->run_id);
+  EXPECT_EQ(commands.Send(cancel).code(), "permission_denied");
+  EXPECT_TRUE(rig.runs->State().busy);
+
+  // A command for another bench is not this server's to answer; e-stop by an
+  // analyst (any signed-in user may press it, as over HTTP) is.
+  // Wait until the bench is stimulating (the conditioning burst).
+  bool stimulating = false;
+  const auto until = std::chrono::steady_clock::now() + kWait;
+  while (!stimulating && std::chrono::steady_clock::now() < until) {
+    services::HubItemPtr item = watch->Next(100ms);
+    if (!item || item->kind != services::HubItem::Kind::kSamples) continue;
+    for (double u : item->samples.stim_ma) stimulating = stimulating || u > 1.0;
+  }
+  ASSERT_TRUE(stimulating);
+  wire::Command estop = MakeCommand(wire::CMD_ESTOP, rig.analyst_token);
+  estop.bench_id("bench-under-test");
+  wire::CommandReply stopped = commands.Send(estop);
+  EXPECT_TRUE(stopped.accepted()) << stopped.reason();
+  EXPECT_EQ(stopped.code(), "ok");
+
+  auto view = rig.runs->Wait(run->run_id, kWait);
+  ASSERT_TRUE(view.ok());
+  EXPECT_EQ(view->state, protocols::RunState::kAborted);
+  EXPECT_EQ(view->reason, "e-stop");
+  EXPECT_DOUBLE_EQ(rig.bench->ReadSensors().stim_ma, 0.0);
+  const auto estop_event =
+      std::find_if(view->safety_events.begin(), view->safety_events.end(),
+                   [](const SafetyEvent& e) { return e.kind == SafetyEvent::Kind::kEStop; });
+  ASSERT_NE(estop_event, view->safety_events.end());
+  // The protocol stopped within one control period (1 ms) of the e-stop:
+  // recording ends at the next 200 Hz sample at the latest, and any sample
+  // later than one control period after it has stimulation zero; before it
+  // the bench was stimulating.
+  std::size_t after = 0;
+  double last_t_s = 0.0, max_stim_ma = 0.0;
+  for (std::int64_t id : view->trial_ids) {
+    auto trial = storage::TrialRepository(*rig.db).Get(id);
+    ASSERT_TRUE(trial.ok());
+    const std::vector<double>* t_ptr = trial->Values("t_s");
+    const std::vector<double>* stim_ptr = trial->Values("stim_ma");
+    ASSERT_TRUE(t_ptr && stim_ptr);
+    const auto& t = *t_ptr;
+    const auto& stim = *stim_ptr;
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      last_t_s = std::max(last_t_s, t[i]);
+      max_stim_ma = std::max(max_stim_ma, stim[i]);
+      if (t[i] > estop_event->t_s + 1e-3) {
+        ++after;
+        EXPECT_EQ(stim[i], 0.0) << "t " << t[i];
+      }
+    }
+  }
+  EXPECT_TRUE(rig.runs->State().estopped);
+  EXPECT_EQ(rig.runs->State().estop_source, "dds (ana)");
+
+  // The audit log has the e-stop and the refusals, as HTTP writes them.
+  auto entries = storage::AuditLog(*rig.db).List({});
+  ASSERT_TRUE(entries.ok());
+  int estops = 0, refusals = 0;
+  for (const auto& e : *entries) {
+    if (e.entry.action == "bench.estop" && e.entry.actor == "ana") ++estops;
+    if ((e.entry.action == "dds start_run" || e.entry.action == "dds cancel_run") &&
+        e.entry.outcome == "permission_denied" && e.entry.actor == "ana") {
+      ++refusals;
+    }
+  }
+  EXPECT_EQ(estops, 1);
+  EXPECT_EQ(refusals, 2);
+  EXPECT_LE(after, 1u);
+  EXPECT_LE(last_t_s, estop_event->t_s + 1e-3 + 1.0 / 200.0);
+  EXPECT_GT(max_stim_ma, 1.0);
+}
+
+TEST(DdsServer, RealTimeRunSamplesArriveCompleteAndInOrderAt200Hz) {
+  Rig rig(1.0);
+  rig.StartServer();
+  auto client = rig.Client();
+  ASSERT_TRUE(client);
+  fdds::DataReader* samples = client->MakeReader(client->samples());
+  fdds::DataReader* events = client->MakeReader(client->run_events());
+  CommandClient commands(*client);
+  ASSERT_TRUE(WaitMatched(samples));
+  ASSERT_TRUE(WaitMatched(events));
+
+  // The run is started over DDS by the clinician: the same RunService call as HTTP.
+  wire::Command start = MakeCommand(wire::CMD_START_RUN, rig.clinician_token);
+  start.session_id(rig.session_id);
+  start.protocol("tolerance_test");
+  for (const auto& [name, value] : kShortTolerance) {
+    wire::Parameter p;
+    p.name(name);
+    p.value(value);
+    start.parameters().push_back(p);
+  }
+  wire::CommandReply reply = commands.Send(start);
+  ASSERT_TRUE(reply.accepted()) << reply.code() << ": " << reply.reason();
+  const std::int64_t run_id = reply.run_id();
+  ASSERT_GT(run_id, 0);
+  wire::Command heartbeat = MakeCommand(wire::CMD_HEARTBEAT, rig.clinician_token);
+  heartbeat.run_id(run_id);
+  EXPECT_TRUE(commands.Send(heartbeat).accepted());
+
+  std::vector<wire::SampleBlock> blocks;
+  bool ended = false;
+  std::vector<wire::RunState> states;
+  const auto until = std::chrono::steady_clock::now() + kWait;
+  while (!ended && std::chrono::steady_clock::now() < until) {
+    samples->wait_for_unread_message(eprosima::fastrtps::Duration_t(0, 20000000));
+    for (auto& b : TakeAll<wire::SampleBlock>(samples)) {
+      if (b.run_id() == run_id) blocks.push_back(b);
+    }
+    for (const auto& e : TakeAll<wire::RunEvent>(events)) {
+      if (e.run_id() != run_id) continue;
+      states.push_back(e.state());
+      if (e.end()) ended = true;
+    }
+  }
+  ASSERT_TRUE(ended);
+  // Blocks sent before the end event may still be in flight.
+  std::this_thread::sleep_for(100ms);
+  for (auto& b : TakeAll<wire::SampleBlock>(samples)) {
+    if (b.run_id() == run_id) blocks.push_back(b);
+  }
+  ASSERT_FALSE(states.empty());
+  EXPECT_NE(std::find(states.begin(), states.end(), wire::RUN_RUNNING), states.end());
+  EXPECT_EQ(states.back(), wire::RUN_DONE);
+
+  auto view = rig.runs->Wait(run_id, kWait);
+  ASSERT_TRUE(view.ok());
+  ASSERT_EQ(view->state, protocols::RunState::kDone) << view->reason;
+  std::size_t stored = 0;
+  for (std::int64_t id : view->trial_ids) stored += storage::TrialRepository(*rig.db).Get(id)->num_samples();
+
+  ASSERT_FALSE(blocks.empty());
+  std::uint64_t next_sample = 0;
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    const wire::SampleBlock& b = blocks[i];
+    EXPECT_EQ(b.block_seq(), i + 1);              // none lost, none reordered
+    EXPECT_EQ(b.first_sample(), next_sample);     // contiguous
+    ASSERT_EQ(b.channels().size(), 4u);
+    for (const auto& c : b.channels()) EXPECT_EQ(c.values().size(), b.t_s().size()) << c.name();
+    for (std::size_t k = 1; k < b.t_s().size(); ++k) {
+      EXPECT_NEAR(b.t_s()[k] - b.t_s()[k - 1], 1.0 / 200.0, 1e-9);  // 200 Hz
+    }
+    next_sample += b.t_s().size();
+  }
+  EXPECT_EQ(next_sample, stored);
+  EXPECT_EQ(blocks.front().channels()[0].name(), "stim");
+  EXPECT_EQ(blocks.front().channels()[2].unit(), "N.m");
+}
+
+}  // namespace
+}  // namespace fesbench::server::dds
