@@ -22,16 +22,22 @@ export function twitchPeak_s(pole_per_s, order) {
   return (order - 1) / pole_per_s;
 }
 
-/// IRC threshold: the largest stimulation with zero activation below the
-/// first positive breakpoint (R(u) = 0 below threshold, §3).
+/// IRC threshold: the stimulation at which the recruitment R(u) first
+/// reaches 2 % of full recruitment (linear between breakpoints, as the PWL
+/// IRC itself, §3). A level rather than "last zero" because a fitted IRC's
+/// breakpoints need not hold an exact zero just below threshold.
+export const THRESHOLD_LEVEL = 0.02;
 export function ircThreshold_ma(irc) {
   if (!irc || !irc.stim_ma || !irc.stim_ma.length) return NaN;
-  let threshold = irc.stim_ma[0];
-  for (let i = 0; i < irc.stim_ma.length; i++) {
-    if (irc.activation[i] > 0) break;
-    threshold = irc.stim_ma[i];
+  const u = irc.stim_ma;
+  const r = irc.activation;
+  if (r[0] >= THRESHOLD_LEVEL) return u[0];
+  for (let i = 1; i < u.length; i++) {
+    if (r[i] >= THRESHOLD_LEVEL) {
+      return u[i - 1] + ((THRESHOLD_LEVEL - r[i - 1]) * (u[i] - u[i - 1])) / (r[i] - r[i - 1]);
+    }
   }
-  return threshold;
+  return NaN;
 }
 
 /// The curves present in a parameter set's "parameters" object, each as
@@ -88,5 +94,5 @@ export const SCALAR_LABELS = {
   pole_per_s: 'pole a (1/s)',
   order: 'order n',
   twitch_peak_s: 'twitch peak (s)',
-  threshold_ma: 'IRC threshold (mA)',
+  threshold_ma: 'IRC threshold, R = 2 % (mA)',
 };
