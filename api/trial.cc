@@ -485,4 +485,19 @@ Result<Trial> ReadTrialCsvFile(const std::filesystem::path& path, double default
   return trial;
 }
 
+model::TrialColumns ToTrialColumns(const Trial& trial) {
+  model::TrialColumns c;
+  const auto take = [&](std::string_view name, std::vector<double>& dst) {
+    if (const std::vector<double>* v = trial.Values(name)) dst = *v;
+  };
+  take(kTimeChannel, c.t_s);
+  take("stim_ma", c.stim_ma);
+  take("angle_deg", c.angle_deg);
+  take("velocity_deg_s", c.velocity_deg_s);
+  take("accel_deg_s2", c.accel_deg_s2);
+  take("torque_nm", c.torque_nm);
+  take("activation", c.activation);
+  return c;
+}
+
 }  // namespace fesbench::api

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "api/status.h"
+#include "model/identify_common.h"
 
 namespace fesbench::api {
 
@@ -158,5 +159,10 @@ Result<std::string> ReadTextFile(const std::filesystem::path& path);
 Status WriteTextFile(const std::filesystem::path& path, std::string_view text);
 /// ReadTextFile + TrialFromCsv; messages are prefixed with the path.
 Result<Trial> ReadTrialCsvFile(const std::filesystem::path& path, double default_rate_hz = 200.0);
+
+/// The trial's main channels as identification columns (model/identify_common.h):
+/// t_s, stim_ma, angle_deg, velocity_deg_s, accel_deg_s2, torque_nm,
+/// activation; a channel the trial lacks stays empty.
+model::TrialColumns ToTrialColumns(const Trial& trial);
 
 }  // namespace fesbench::api

@@ -260,21 +260,6 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
   return out;
 }
 
-model::TrialColumns ToColumns(const api::Trial& t) {
-  model::TrialColumns c;
-  const auto take = [&](std::string_view name, std::vector<double>& dst) {
-    if (const auto* v = t.Values(name)) dst = *v;
-  };
-  take(api::kTimeChannel, c.t_s);
-  take("stim_ma", c.stim_ma);
-  take("angle_deg", c.angle_deg);
-  take("velocity_deg_s", c.velocity_deg_s);
-  take("accel_deg_s2", c.accel_deg_s2);
-  take("torque_nm", c.torque_nm);
-  take("activation", c.activation);
-  return c;
-}
-
 struct IdentifyArgs {
   std::string method;
   std::vector<std::string> trials;
@@ -306,7 +291,7 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
     if (!text.ok()) throw CliError::BadInput("trial " + text.status().message());
     api::Result<api::Trial> table = api::TrialFromCsv(*text);
     if (!table.ok()) throw CliError::BadInput("trial " + path + ": " + table.status().message());
-    trials.push_back(ToColumns(*table));
+    trials.push_back(api::ToTrialColumns(*table));
     if (table->emg && table->emg->Values("emg")) {
       try {
         const auto c =

@@ -45,8 +45,8 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
   model::RapidOptions options;
   options.inertia_kgm2 = *inertia;
   try {
-    model::RapidResult r = model::IdentifyRapid(ToColumns(iso->trial), ToColumns(pas->trial),
-                                                ToColumns(act->trial), options);
+    model::RapidResult r = model::IdentifyRapid(api::ToTrialColumns(iso->trial), api::ToTrialColumns(pas->trial),
+                                                api::ToTrialColumns(act->trial), options);
     r.parameters.provenance.software_version = "fesbench 0.1.0";
     return r.parameters;
   } catch (const std::exception& e) {

@@ -424,7 +424,7 @@ api::Result<double> AmplitudeForTorque(const api::Trial& ramp_trial, double targ
                                        double min_ma, double max_ma) {
   try {
     const model::IrcResult irc =
-        model::IdentifyIrc(model::IrcMethod::kRampCorrelation, ToColumns(ramp_trial));
+        model::IdentifyIrc(model::IrcMethod::kRampCorrelation, api::ToTrialColumns(ramp_trial));
     for (double u = min_ma; u <= max_ma; u += 0.1) {
       if (irc.torque_scale_nm * irc.irc(u) >= target_torque_nm) return u;
     }
@@ -432,19 +432,6 @@ api::Result<double> AmplitudeForTorque(const api::Trial& ramp_trial, double targ
   } catch (const std::exception& e) {
     return api::Status::FailedPrecondition(std::string("IRC of the ramp trial: ") + e.what());
   }
-}
-
-model::TrialColumns ToColumns(const api::Trial& trial) {
-  model::TrialColumns c;
-  const auto get = [&](std::string_view name) {
-    const std::vector<double>* v = trial.Values(name);
-    return v != nullptr ? *v : std::vector<double>{};
-  };
-  c.t_s = get("t_s");
-  c.stim_ma = get("stim_ma");
-  c.angle_deg = get("angle_deg");
-  c.torque_nm = get("torque_nm");
-  return c;
 }
 
 }  // namespace fesbench::server::protocols

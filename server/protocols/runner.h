@@ -169,8 +169,4 @@ class ProtocolRunner {
 api::Result<double> AmplitudeForTorque(const api::Trial& ramp_trial, double target_torque_nm,
                                        double min_ma, double max_ma);
 
-/// Converts a recorded trial to identification columns: t_s, stim_ma,
-/// angle_deg, torque_nm (empty columns for channels the trial lacks).
-model::TrialColumns ToColumns(const api::Trial& trial);
-
 }  // namespace fesbench::server::protocols

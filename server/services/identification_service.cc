@@ -129,7 +129,7 @@ class Fitter {
  private:
   TrialColumns Columns(const LoadedTrial& t) {
     used_.insert(t.id);
-    TrialColumns c = ColumnsOf(t.trial);
+    TrialColumns c = api::ToTrialColumns(t.trial);
     if (const api::ChannelGroup* emg = t.trial.emg ? &*t.trial.emg : nullptr) {
       if (const std::vector<double>* v = emg->Values("emg"); v != nullptr) {
         try {

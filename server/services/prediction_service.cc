@@ -175,7 +175,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
             "trial " + std::to_string(trial->id) + " (\"" + name +
             "\") is a motor trial; predictions replay free-swing or isometric trials");
       }
-      model::TrialColumns c = ColumnsOf(trial->trial);
+      model::TrialColumns c = api::ToTrialColumns(trial->trial);
       if (c.size() < 2 || c.angle_deg.size() != c.size() || c.stim_ma.size() != c.size()) {
         return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
                                                " needs t_s, stim_ma and angle_deg channels");

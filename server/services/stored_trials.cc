@@ -27,21 +27,6 @@ api::Result<LoadedTrial> LoadTrial(storage::Database& db, std::int64_t trial_id)
   });
 }
 
-model::TrialColumns ColumnsOf(const api::Trial& trial) {
-  model::TrialColumns c;
-  const auto take = [&](std::string_view name, std::vector<double>& dst) {
-    if (const std::vector<double>* v = trial.Values(name)) dst = *v;
-  };
-  take(api::kTimeChannel, c.t_s);
-  take("stim_ma", c.stim_ma);
-  take("angle_deg", c.angle_deg);
-  take("velocity_deg_s", c.velocity_deg_s);
-  take("accel_deg_s2", c.accel_deg_s2);
-  take("torque_nm", c.torque_nm);
-  take("activation", c.activation);
-  return c;
-}
-
 api::Status ModelFailure(std::string_view what, const std::exception& e,
                          api::ErrorCode invalid_code) {
   const bool invalid = dynamic_cast<const std::invalid_argument*>(&e) != nullptr;

@@ -30,13 +30,6 @@ struct LoadedTrial {
 /// transaction. kNotFound ("trial <id>") for an unknown trial.
 api::Result<LoadedTrial> LoadTrial(storage::Database& db, std::int64_t trial_id);
 
-/// The trial's main channels as identification columns (t_s, stim_ma,
-/// angle_deg, velocity_deg_s, accel_deg_s2, torque_nm, activation; empty
-/// where the trial has no such channel). The runner's accel_m_s2 (linear
-/// acceleration of the accelerometer) is not an angular acceleration and is
-/// not used.
-model::TrialColumns ColumnsOf(const api::Trial& trial);
-
 /// The Status for an exception thrown by model code during `what`:
 /// std::invalid_argument (broken precondition: bad data or options) →
 /// `invalid_code`, anything else (e.g. a diverging integration) →

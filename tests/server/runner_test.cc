@@ -288,7 +288,7 @@ RapidOutcome RunRapidAndPredictUncached(std::uint64_t seed) {
   ProtocolRunner runner2(rig.safe, &rig.log, nullptr, NoWatchdog());
   const RunResult measured = runner2.Run(*predict, ctx);
   EXPECT_EQ(measured.state, RunState::kDone);
-  model::TrialColumns cols = ToColumns(measured.trials.at(0).trial);
+  model::TrialColumns cols = api::ToTrialColumns(measured.trials.at(0).trial);
   model::AddKinematics(cols);
   model::SimulationOptions o;
   o.initial_angle_deg = cols.angle_deg.front();
