@@ -38,6 +38,27 @@ std::string Fixed(const json& value, int digits) {
   return buffer;
 }
 
+// The free-swing trials a parameter set was fitted from (passive free swing
+// and active random binary, §5.4.3–5.4.4): the trials whose predicted knee
+// angle is compared in §7.4, all in one unit (deg).
+json FreeSwingTrials(ApiClient& client, std::int64_t set_id) {
+  const json set = client.Get("/parameter-sets/" + std::to_string(set_id));
+  json kept = json::array();
+  for (const auto& id : set.value("trial_ids", json::array())) {
+    const json trial = client.Get("/trials/" + Cell(id));
+    const std::string name = trial.value("name", "");
+    if (name.find("free_swing") != std::string::npos ||
+        name.find("random_binary") != std::string::npos) {
+      kept.push_back(id);
+    }
+  }
+  if (kept.empty()) {
+    throw CliError::Usage("parameter set " + std::to_string(set_id) +
+                          " was not fitted from free-swing trials: name them with --trials");
+  }
+  return kept;
+}
+
 struct IdentifyForm {
   std::string session;
   std::string method = "thesis";
@@ -71,8 +92,9 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     identify->add_option("--session", form->session, "session id")->required();
     identify->add_option("--method", form->method, "thesis (chapter 4) or rapid (§7.4.1)")
         ->check(CLI::IsMember({"thesis", "rapid"}));
-    identify->add_option("--passive-method", form->passive_method,
-                         "sequential (§4.2.1), simultaneous (Eq. 4.31) or free_swing (Eq. 4.35)")
+    identify
+        ->add_option("--passive-method", form->passive_method,
+                     "sequential (§4.2.1), simultaneous (Eq. 4.31) or free_swing (Eq. 4.35)")
         ->check(CLI::IsMember({"sequential", "simultaneous", "free_swing"}));
     identify->add_option("--irc-method", form->irc_method, "IRC method, e.g. ramp_correlation");
     identify->callback([form, &context] {
@@ -105,9 +127,10 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         "Simulate a parameter set on a stimulus or a stored trial; E_RMS/E_ABS against the "
         "trial's measured angle.");
     predict->add_option("--params", form->params, "parameter set id")->required();
-    predict->add_option("--stimulus", form->stimulus,
-                        "step, ramp, sine, rb (random binary), another generator name, or a "
-                        "TRIAL_ID to predict a recorded trial")
+    predict
+        ->add_option("--stimulus", form->stimulus,
+                     "step, ramp, sine, rb (random binary), another generator name, or a "
+                     "TRIAL_ID to predict a recorded trial")
         ->required();
     predict->add_option("--param", form->stimulus_params,
                         "stimulus generator parameter key=value (repeatable)");
@@ -117,8 +140,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     predict->callback([form, &context] {
       context.action = [form, &context] {
         json body = {{"parameter_set_id", ParseId(form->params, "--params")}};
-        const bool is_trial =
-            form->stimulus.find_first_not_of("0123456789") == std::string::npos;
+        const bool is_trial = form->stimulus.find_first_not_of("0123456789") == std::string::npos;
         if (is_trial) {
           body["trial_id"] = ParseId(form->stimulus, "--stimulus trial");
           if (!form->stimulus_params.empty()) {
@@ -190,8 +212,10 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     compare->add_option("--params-b", form->b, "parameter set ids of group B (comma-separated)")
         ->required()
         ->delimiter(',');
-    compare->add_option("--trials", form->trials,
-                        "trial ids every pair is predicted on (default: each A set's own trials)")
+    compare
+        ->add_option(
+            "--trials", form->trials,
+            "trial ids every pair is predicted on (default: each A set's own free-swing trials)")
         ->delimiter(',');
     compare->add_option("--metric", form->metric, "e_rms (default), e_abs, normalised_rms, ...");
     compare->add_option("--confidence", form->confidence, "confidence level, e.g. 0.95")
@@ -213,9 +237,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         json pairs = json::array();
         for (const auto& [a, b] : ids) {
           json pair_trials = trials;
-          if (trials.empty()) {
-            pair_trials = client->Get("/parameter-sets/" + std::to_string(a))["trial_ids"];
-          }
+          if (trials.empty()) pair_trials = FreeSwingTrials(*client, a);
           pairs.push_back(
               {{"a_parameter_set_id", a}, {"b_parameter_set_id", b}, {"trial_ids", pair_trials}});
         }
@@ -237,8 +259,8 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
                           Fixed(p["b_error"], 4), Fixed(json(diff), 4)});
         }
         context.out << "metric " << Cell(result["metric"]) << " (" << unit << ")\n";
-        PrintTable(context.out, {"set_a", "set_b", "subject", "trials", "a_error", "b_error", "a-b"},
-                   rows);
+        PrintTable(context.out,
+                   {"set_a", "set_b", "subject", "trials", "a_error", "b_error", "a-b"}, rows);
         const json& t = result["t_test"];
         context.out << "paired t-test:\n";
         PrintTable(context.out,

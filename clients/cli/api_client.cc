@@ -3,6 +3,7 @@
 #include <httplib.h>
 
 #include <cstdlib>
+#include <map>
 
 namespace fesbench::cli {
 
@@ -59,7 +60,18 @@ ApiClient::ApiClient(CliConfig connection) : connection_(std::move(connection)) 
 ApiClient::~ApiClient() = default;
 
 void ApiClient::Unreachable(const std::string& what) const {
-  throw CliError::Unreachable("cannot reach " + connection_.server + ": " + what);
+  static const std::map<std::string, std::string> kPlain = {
+      {"Connection", "connection refused or host unreachable"},
+      {"ConnectionTimeout", "connection timed out"},
+      {"Read", "the connection broke while reading the answer"},
+      {"Write", "the connection broke while sending the request"},
+      {"SSLConnection", "TLS handshake failed"},
+      {"SSLServerVerification",
+       "the server's certificate is not trusted (set FESBENCH_CA_FILE to its CA file)"},
+  };
+  const auto plain = kPlain.find(what);
+  const std::string detail = plain == kPlain.end() ? what : plain->second;
+  throw CliError::Unreachable("cannot reach " + connection_.server + ": " + detail);
 }
 
 json ApiClient::Handle(const std::string& method, const std::string& path, int status,

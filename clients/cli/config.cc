@@ -62,8 +62,10 @@ api::Status SaveConfig(const std::filesystem::path& path, const CliConfig& confi
   std::size_t written = 0;
   while (ok && written < text.size()) {
     const ssize_t n = ::write(fd, text.data() + written, text.size() - written);
-    if (n <= 0) ok = false;
-    else written += static_cast<std::size_t>(n);
+    if (n <= 0)
+      ok = false;
+    else
+      written += static_cast<std::size_t>(n);
   }
   ok = (::close(fd) == 0) && ok;
   if (!ok) return api::Status::Unavailable("cannot write " + path.string());

@@ -63,7 +63,7 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
     list->add_option("--since", form->since, "created on or after this date (YYYY-MM-DD)")
         ->check([](const std::string& date) {
           return date.size() == 10 && date[4] == '-' && date[7] == '-' ? std::string()
-                                                                        : "must be YYYY-MM-DD";
+                                                                       : "must be YYYY-MM-DD";
         });
     list->callback([form, &context] {
       context.action = [form, &context] {

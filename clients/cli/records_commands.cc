@@ -23,7 +23,8 @@ void PrintSubjects(CliContext& context, const json& items) {
     for (const auto& leg : s["legs"]) legs += (legs.empty() ? "" : ",") + Cell(leg["side"]);
     rows.push_back({Cell(s["id"]), Cell(s["code"]), legs.empty() ? "-" : legs,
                     Cell(s["details"].value("sex", json(nullptr))),
-                    Cell(s["details"].value("age_years", json(nullptr))), Cell(s["created_at_utc"])});
+                    Cell(s["details"].value("age_years", json(nullptr))),
+                    Cell(s["created_at_utc"])});
   }
   PrintTable(context.out, {"id", "code", "legs", "sex", "age_years", "created_at_utc"}, rows);
 }
@@ -37,7 +38,8 @@ void PrintSessions(CliContext& context, const json& items) {
                     Cell(d.value("max_tolerated_ma", json(nullptr))), Cell(d.value("notes", ""))});
   }
   PrintTable(context.out,
-             {"id", "subject_id", "leg", "date", "threshold_ma", "max_tolerated_ma", "notes"}, rows);
+             {"id", "subject_id", "leg", "date", "threshold_ma", "max_tolerated_ma", "notes"},
+             rows);
 }
 
 void Show(CliContext& context, const json& value) {
@@ -70,17 +72,18 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
   // --- subjects ---------------------------------------------------------------
   CLI::App* subjects = app.add_subcommand("subjects", "Subjects: list, show, create.");
   subjects->require_subcommand(1);
-  subjects->add_subcommand("list", "List every subject (a table, or --json).")->callback([&context] {
-    context.action = [&context] {
-      auto client = Connect(context);
-      const json items = client->GetAllPages("/subjects", "");
-      if (context.options.json) {
-        context.out << items.dump(2) << "\n";
-      } else {
-        PrintSubjects(context, items);
-      }
-    };
-  });
+  subjects->add_subcommand("list", "List every subject (a table, or --json).")
+      ->callback([&context] {
+        context.action = [&context] {
+          auto client = Connect(context);
+          const json items = client->GetAllPages("/subjects", "");
+          if (context.options.json) {
+            context.out << items.dump(2) << "\n";
+          } else {
+            PrintSubjects(context, items);
+          }
+        };
+      });
   {
     auto id = std::make_shared<std::string>();
     CLI::App* show = subjects->add_subcommand("show", "One subject (by id or code).");

@@ -66,8 +66,8 @@ class ProgressPrinter {
     }
     if (percent / 5 == last_bucket_) return;
     last_bucket_ = percent / 5;
-    out_ << "progress " << percent << "% eta " << eta << " step "
-         << progress.value("step", 0) << " " << phase << "\n"
+    out_ << "progress " << percent << "% eta " << eta << " step " << progress.value("step", 0)
+         << " " << phase << "\n"
          << std::flush;
   }
 
@@ -216,8 +216,8 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
           context.out << started.dump(2) << "\n";
           return;
         }
-        context.out << "started run " << run_id << " (" << form->protocol << ", session "
-                    << session << ")\n"
+        context.out << "started run " << run_id << " (" << form->protocol << ", session " << session
+                    << ")\n"
                     << std::flush;
         if (form->follow) FollowRun(context, client, connection, run_id);
       };
@@ -244,22 +244,22 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         const std::int64_t run_id = ParseId(*id, "run");
         auto client = Connect(context);
         const json view = client->Post("/runs/" + std::to_string(run_id) + "/cancel");
-        context.out << "run " << run_id << ": " << Cell(view.value("state", json(nullptr)))
-                    << "\n";
+        context.out << "run " << run_id << ": " << Cell(view.value("state", json(nullptr))) << "\n";
       };
     });
   }
   {
     auto clear = std::make_shared<bool>(false);
     CLI::App* estop = app.add_subcommand(
-        "estop", "Emergency stop: stimulation to zero, motor disabled, latched (--clear to clear).");
+        "estop",
+        "Emergency stop: stimulation to zero, motor disabled, latched (--clear to clear).");
     estop->add_flag("--clear", *clear, "clear a latched e-stop (clinician or admin)");
     estop->callback([clear, &context] {
       context.action = [clear, &context] {
         auto client = Connect(context);
         const json state = *clear ? client->Delete("/bench/estop") : client->Post("/bench/estop");
-        context.out << (*clear ? "e-stop cleared" : "e-stop latched") << "; bench estopped: "
-                    << Cell(state.value("estopped", json(nullptr))) << "\n";
+        context.out << (*clear ? "e-stop cleared" : "e-stop latched")
+                    << "; bench estopped: " << Cell(state.value("estopped", json(nullptr))) << "\n";
       };
     });
   }

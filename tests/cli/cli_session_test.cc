@@ -1,0 +1,460 @@
+// Integration: the `fesbench` binary against a real fesbench-server (issue
+// 9): a whole analyst session — login (config file mode 0600), lists,
+// subjects and sessions, rapid_parameterisation followed with --follow while
+// piped, parameter sets as JSON and CSV, a trial as OpenSim .sto, predict,
+// identify, compare — checking outputs and exit codes; then bad usage (2),
+// server errors (1, the server's message) and an unreachable server (3).
+
+#include <fcntl.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "api/parameter_set_json.h"
+#include "api/trial.h"
+#include "clients/cli/cli.h"
+#include "clients/cli/config.h"
+#include "server_process.h"
+
+#ifndef FESBENCH_CLI_EXE
+#error "FESBENCH_CLI_EXE must name the fesbench binary"
+#endif
+
+namespace fesbench::testing {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using ::testing::HasSubstr;
+using ::testing::Not;
+using ::testing::StartsWith;
+
+struct CliRun {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string ReadAll(const fs::path& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Runs the CLI as a separate process with HOME and XDG_CONFIG_HOME in a
+// temporary folder, stdout and stderr to files (so stdout is not a terminal).
+class Cli {
+ public:
+  Cli() {
+    dir_ = fs::temp_directory_path() /
+           ("fesbench-cli-" + std::to_string(::getpid()) + "-" + std::to_string(counter_++));
+    fs::create_directories(dir_ / "home");
+  }
+  ~Cli() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  const fs::path& dir() const { return dir_; }
+  fs::path config_file() const { return dir_ / "xdg" / "fesbench" / "config.json"; }
+
+  CliRun Run(const std::vector<std::string>& args, const std::string& token_env = "") const {
+    const fs::path out_file = dir_ / "stdout.txt";
+    const fs::path err_file = dir_ / "stderr.txt";
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      const int out = ::open(out_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+      const int err = ::open(err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+      ::dup2(out, STDOUT_FILENO);
+      ::dup2(err, STDERR_FILENO);
+      ::setenv("HOME", (dir_ / "home").c_str(), 1);
+      ::setenv("XDG_CONFIG_HOME", (dir_ / "xdg").c_str(), 1);
+      if (token_env.empty()) {
+        ::unsetenv("FESBENCH_TOKEN");
+      } else {
+        ::setenv("FESBENCH_TOKEN", token_env.c_str(), 1);
+      }
+      std::vector<std::string> all = {FESBENCH_CLI_EXE};
+      all.insert(all.end(), args.begin(), args.end());
+      std::vector<char*> argv;
+      for (auto& a : all) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      ::execv(argv[0], argv.data());
+      ::_exit(127);
+    }
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    CliRun run;
+    run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    run.out = ReadAll(out_file);
+    run.err = ReadAll(err_file);
+    return run;
+  }
+
+ private:
+  static inline int counter_ = 0;
+  fs::path dir_;
+};
+
+std::string Url(const ServerProcess& server) {
+  return "http://127.0.0.1:" + std::to_string(server.port());
+}
+
+// Exactly one line on stderr, "fesbench: error: ...", nothing like a trace.
+void ExpectOneErrorLine(const CliRun& run) {
+  EXPECT_THAT(run.err, StartsWith("fesbench: error: "));
+  EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+}
+
+std::int64_t LastNumber(const std::string& text, const std::string& after) {
+  const std::regex pattern(after + " ([0-9]+)");
+  std::int64_t value = -1;
+  for (std::sregex_iterator it(text.begin(), text.end(), pattern), end; it != end; ++it) {
+    value = std::stoll((*it)[1]);
+  }
+  return value;
+}
+
+TEST(CliSessionTest, WholeAnalystSession) {
+  ServerProcess server;
+  auto http = server.Client();
+  const std::string admin = server.admin_token();
+  auto truth = Call(http, "GET", "/api/v1/bench/virtual-subject", admin);
+  ASSERT_EQ(truth.status, 200) << truth.text;
+  const double mass_kg = truth.body["anthropometrics"]["body_mass_kg"];
+  const double shank_cm = truth.body["anthropometrics"]["shank_length_m"].get<double>() * 100.0;
+  const std::string threshold = std::to_string(truth.body["threshold_ma"].get<double>());
+  const std::string max_ma = std::to_string(truth.body["max_tolerated_ma"].get<double>());
+  Cli cli;
+
+  // Login: the config file holds server and token, mode 0600.
+  auto login = cli.Run({"login", Url(server), "--token", admin});
+  ASSERT_EQ(login.exit_code, 0) << login.err;
+  EXPECT_THAT(login.out, HasSubstr("logged in to " + Url(server)));
+  struct stat st {};
+  ASSERT_EQ(::stat(cli.config_file().c_str(), &st), 0) << cli.config_file();
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  const json config = json::parse(ReadAll(cli.config_file()));
+  EXPECT_EQ(config["server"], Url(server));
+  EXPECT_EQ(config["token"], admin);
+
+  // Empty lists, as a table and as JSON.
+  auto empty = cli.Run({"subjects", "list"});
+  ASSERT_EQ(empty.exit_code, 0) << empty.err;
+  EXPECT_THAT(empty.out, StartsWith("id  code  legs"));
+  auto empty_json = cli.Run({"subjects", "list", "--json"});
+  ASSERT_EQ(empty_json.exit_code, 0);
+  EXPECT_EQ(json::parse(empty_json.out), json::array());
+
+  // Two subjects, one session each, two rapid runs per session (two fits
+  // per leg for the comparison), each followed with --follow while piped.
+  std::vector<std::int64_t> sessions, first_sets, second_sets, rb_trials;
+  for (const std::string code : {"CLI-A", "CLI-B"}) {
+    auto subject =
+        cli.Run({"subjects", "create", code, "--leg", "right", "--weight-kg",
+                 std::to_string(mass_kg), "--shank-length-cm", std::to_string(shank_cm)});
+    ASSERT_EQ(subject.exit_code, 0) << subject.err;
+    EXPECT_THAT(subject.out, HasSubstr("created subject"));
+    auto session =
+        cli.Run({"sessions", "create", "--subject", code, "--leg", "right", "--date", "2026-11-21",
+                 "--threshold-ma", threshold, "--max-tolerated-ma", max_ma});
+    ASSERT_EQ(session.exit_code, 0) << session.err;
+    const std::int64_t session_id = LastNumber(session.out, "created session");
+    ASSERT_GT(session_id, 0) << session.out;
+    sessions.push_back(session_id);
+    for (int fit = 0; fit < 2; ++fit) {
+      auto run = cli.Run(
+          {"run", "start", std::to_string(session_id), "rapid_parameterisation", "--follow"});
+      ASSERT_EQ(run.exit_code, 0) << run.out << run.err;
+      EXPECT_EQ(run.err, "");
+      EXPECT_THAT(run.out, HasSubstr("state running\n"));
+      EXPECT_THAT(run.out, HasSubstr("progress 100% "));
+      EXPECT_THAT(run.out, HasSubstr("trial rapid_active_random_binary stored as trial "));
+      EXPECT_THAT(run.out, Not(HasSubstr("\r"))) << "no progress bar when piped";
+      EXPECT_THAT(run.out, Not(HasSubstr("#"))) << "no progress bar when piped";
+      const std::int64_t set_id = LastNumber(run.out, "end done parameter_set");
+      ASSERT_GT(set_id, 0) << run.out;
+      (fit == 0 ? first_sets : second_sets).push_back(set_id);
+      if (fit == 0)
+        rb_trials.push_back(LastNumber(run.out, "rapid_active_random_binary stored as trial"));
+    }
+  }
+
+  // Lists and show.
+  auto subjects = cli.Run({"subjects", "list", "--json"});
+  ASSERT_EQ(subjects.exit_code, 0);
+  ASSERT_EQ(json::parse(subjects.out).size(), 2u);
+  auto shown = cli.Run({"sessions", "show", std::to_string(sessions[0])});
+  ASSERT_EQ(shown.exit_code, 0) << shown.err;
+  EXPECT_THAT(shown.out, HasSubstr("rapid_parameterisation"));
+  EXPECT_THAT(shown.out, HasSubstr("rapid_free_swing_passive"));
+  auto run_show = cli.Run({"run", "show", "1", "--json"});
+  ASSERT_EQ(run_show.exit_code, 0) << run_show.err;
+  EXPECT_EQ(json::parse(run_show.out)["state"], "done");
+
+  // Parameter-set history as a table, filtered by leg and date.
+  auto history =
+      cli.Run({"params", "list", "--subject", "CLI-A", "--leg", "right", "--since", "2000-01-01"});
+  ASSERT_EQ(history.exit_code, 0) << history.err;
+  EXPECT_THAT(history.out, StartsWith("id  leg_id  version  model"));
+  EXPECT_EQ(std::count(history.out.begin(), history.out.end(), '\n'), 3) << history.out;
+  auto history_json = cli.Run({"params", "list", "--subject", "CLI-A", "--json"});
+  ASSERT_EQ(history_json.exit_code, 0);
+  EXPECT_EQ(json::parse(history_json.out)[0]["id"], first_sets[0]);
+
+  // A parameter set as JSON (reads back as the wire type) and as CSV.
+  auto params_json = cli.Run({"params", "get", std::to_string(first_sets[0]), "--format", "json"});
+  ASSERT_EQ(params_json.exit_code, 0) << params_json.err;
+  auto parsed = api::ParameterSetFromJson(json::parse(params_json.out));
+  ASSERT_TRUE(parsed.ok()) << parsed.status().ToString();
+  const double pole = json::parse(params_json.out)["contraction"]["pole_per_s"];
+  EXPECT_GT(pole, 0.0);
+  const fs::path csv_path = cli.dir() / "params.csv";
+  auto params_csv = cli.Run({"params", "get", std::to_string(first_sets[0]), "--format", "csv",
+                             "--out", csv_path.string()});
+  ASSERT_EQ(params_csv.exit_code, 0) << params_csv.err;
+  const std::string csv = ReadAll(csv_path);
+  EXPECT_THAT(csv, StartsWith("field,value\n"));
+  EXPECT_THAT(csv, HasSubstr("\ncontraction.pole_per_s," + json(pole).dump() + "\n"));
+  EXPECT_THAT(csv, HasSubstr("\nprovenance.id," + std::to_string(first_sets[0]) + "\n"));
+
+  // A trial as OpenSim .sto: header, then as many rows as the CSV export.
+  const fs::path sto_path = cli.dir() / "rb.sto";
+  auto sto = cli.Run({"trials", "get", std::to_string(rb_trials[0]), "--format", "sto", "--out",
+                      sto_path.string()});
+  ASSERT_EQ(sto.exit_code, 0) << sto.err;
+  auto trial_csv = cli.Run({"trials", "get", std::to_string(rb_trials[0]), "--format", "csv"});
+  ASSERT_EQ(trial_csv.exit_code, 0);
+  auto trial = api::TrialFromCsv(trial_csv.out);
+  ASSERT_TRUE(trial.ok()) << trial.status().ToString();
+  const std::string sto_text = ReadAll(sto_path);
+  EXPECT_THAT(sto_text, StartsWith("rapid_active_random_binary\nversion=1\n"));
+  EXPECT_THAT(sto_text, HasSubstr("nRows=" + std::to_string(trial->num_samples()) + "\n"));
+  EXPECT_THAT(sto_text, HasSubstr("endheader\ntime\t"));
+
+  // Predict the recorded random-binary trial: errors against it, and the
+  // predicted trajectory as CSV of the same length.
+  const fs::path prediction_csv = cli.dir() / "prediction.csv";
+  auto predict = cli.Run({"predict", "--params", std::to_string(first_sets[0]), "--stimulus",
+                          std::to_string(rb_trials[0]), "--out", prediction_csv.string()});
+  ASSERT_EQ(predict.exit_code, 0) << predict.err;
+  std::smatch errors;
+  ASSERT_TRUE(std::regex_search(predict.out, errors,
+                                std::regex(R"(E_RMS ([0-9.]+) deg  E_ABS ([0-9.]+) deg)")))
+      << predict.out;
+  const double e_rms = std::stod(errors[1]);
+  const double e_abs = std::stod(errors[2]);
+  EXPECT_GT(e_rms, 0.0);
+  EXPECT_LT(e_rms, 5.0) << "the rapid fit predicts its own random-binary trial (§7.4.1)";
+  EXPECT_LE(e_abs, e_rms + 1e-3) << "mean absolute error never exceeds the RMS error";
+  auto predicted = api::ReadTrialCsvFile(prediction_csv);
+  ASSERT_TRUE(predicted.ok()) << predicted.status().ToString();
+  EXPECT_EQ(predicted->num_samples(), trial->num_samples());
+  EXPECT_NE(predicted->Values("angle_deg"), nullptr);
+  auto step = cli.Run({"predict", "--params", std::to_string(first_sets[0]), "--stimulus", "step"});
+  ASSERT_EQ(step.exit_code, 0) << step.err;
+  EXPECT_THAT(step.out, HasSubstr("no measured trial"));
+
+  // A refit of the first session's trials by the rapid method.
+  auto identify = cli.Run({"identify", "--session", std::to_string(sessions[0]), "--method",
+                           "rapid", "--passive-method", "free_swing"});
+  ASSERT_EQ(identify.exit_code, 0) << identify.err;
+  EXPECT_THAT(identify.out, HasSubstr("(version 3, model full)"));
+  EXPECT_THAT(identify.out, HasSubstr("fit_rms:"));
+
+  // Compare the first and second fits of each leg: a paired t-test, n = 2.
+  const std::string a = std::to_string(first_sets[0]) + "," + std::to_string(first_sets[1]);
+  const std::string b = std::to_string(second_sets[0]) + "," + std::to_string(second_sets[1]);
+  auto compare = cli.Run({"compare", "--params-a", a, "--params-b", b});
+  ASSERT_EQ(compare.exit_code, 0) << compare.err;
+  EXPECT_THAT(compare.out, HasSubstr("metric e_rms (deg)"));
+  EXPECT_THAT(compare.out, HasSubstr("paired t-test:\nn  mean_diff"));
+  auto compare_json = cli.Run({"compare", "--params-a", a, "--params-b", b, "--json"});
+  ASSERT_EQ(compare_json.exit_code, 0) << compare_json.err;
+  const json t_test = json::parse(compare_json.out)["t_test"];
+  EXPECT_EQ(t_test["n"], 2);
+  EXPECT_EQ(t_test["df"], 1);
+  EXPECT_THAT(compare.out, HasSubstr(std::to_string(t_test["n"].get<int>()) + "  "));
+
+  // E-stop latches and clears.
+  auto estop = cli.Run({"estop"});
+  ASSERT_EQ(estop.exit_code, 0) << estop.err;
+  EXPECT_THAT(estop.out, HasSubstr("estopped: yes"));
+  auto refused = cli.Run({"run", "start", std::to_string(sessions[0]), "rapid_parameterisation"});
+  EXPECT_EQ(refused.exit_code, 1) << "a latched e-stop refuses runs";
+  ExpectOneErrorLine(refused);
+  auto clear = cli.Run({"estop", "--clear"});
+  ASSERT_EQ(clear.exit_code, 0) << clear.err;
+  EXPECT_THAT(clear.out, HasSubstr("estopped: no"));
+
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+TEST(CliSessionTest, ExitCodesAndOneLineErrors) {
+  ServerProcess server;
+  auto http = server.Client();
+  const std::string analyst = CreateUserToken(http, server.admin_token(), "ana", "analyst");
+  Cli cli;
+
+  // No server configured yet: a usage error.
+  auto unconfigured = cli.Run({"subjects", "list"});
+  EXPECT_EQ(unconfigured.exit_code, 2);
+  ExpectOneErrorLine(unconfigured);
+  EXPECT_THAT(unconfigured.err, HasSubstr("fesbench login"));
+
+  ASSERT_EQ(cli.Run({"login", Url(server), "--token", analyst}).exit_code, 0);
+
+  // Usage errors: exit 2, one clear line, nothing on stdout.
+  const std::vector<std::pair<std::vector<std::string>, std::string>> usage = {
+      {{"frobnicate"}, "unknown command 'frobnicate'"},
+      {{"params", "get", "abc"}, "parameter set must be a positive integer id"},
+      {{"params", "get", "1", "--format", "xml"}, "--format"},
+      {{"params", "list"}, "--subject"},
+      {{"trials", "get", "1", "--format", "sto", "--bogus"}, "--bogus"},
+      {{"run", "start", "1", "rapid_parameterisation", "--param", "amplitude_ma"}, "key=value"},
+      {{"compare", "--params-a", "1,2", "--params-b", "3"}, "same number"},
+      {{"login", "ftp://x", "--token", "t"}, "server URL must be"},
+  };
+  for (const auto& [args, message] : usage) {
+    auto run = cli.Run(args);
+    EXPECT_EQ(run.exit_code, 2) << args[0] << ": " << run.err;
+    ExpectOneErrorLine(run);
+    EXPECT_THAT(run.err, HasSubstr(message));
+    EXPECT_EQ(run.out, "");
+  }
+
+  // Errors reported by the server: exit 1 with its message.
+  auto unknown = cli.Run({"params", "get", "999"});
+  EXPECT_EQ(unknown.exit_code, 1);
+  ExpectOneErrorLine(unknown);
+  EXPECT_THAT(unknown.err, HasSubstr("parameter set 999 not found [HTTP 404]"));
+  auto unknown_trial = cli.Run({"trials", "get", "77", "--format", "csv"});
+  EXPECT_EQ(unknown_trial.exit_code, 1);
+  EXPECT_THAT(unknown_trial.err, HasSubstr("[HTTP 404]"));
+  auto forbidden = cli.Run({"subjects", "create", "NOPE"});
+  EXPECT_EQ(forbidden.exit_code, 1) << "an analyst may not create subjects";
+  EXPECT_THAT(forbidden.err, HasSubstr("[HTTP 403]"));
+  auto bad_token = cli.Run({"subjects", "list"}, "fsb_not_a_token");
+  EXPECT_EQ(bad_token.exit_code, 1) << "FESBENCH_TOKEN overrides the stored token";
+  EXPECT_THAT(bad_token.err, HasSubstr("[HTTP 401]"));
+  auto failed_job = cli.Run({"identify", "--session", "5"});
+  EXPECT_EQ(failed_job.exit_code, 1);
+  ExpectOneErrorLine(failed_job);
+
+  // The server cannot be reached: exit 3 (--server overrides the config).
+  const int port = server.port();
+  EXPECT_EQ(server.Terminate(), 0);
+  auto gone = cli.Run({"subjects", "list"});
+  EXPECT_EQ(gone.exit_code, 3);
+  ExpectOneErrorLine(gone);
+  EXPECT_THAT(gone.err, HasSubstr("cannot reach http://127.0.0.1:" + std::to_string(port)));
+  auto elsewhere = cli.Run({"--server", "http://127.0.0.1:1", "params", "get", "1"});
+  EXPECT_EQ(elsewhere.exit_code, 3);
+  EXPECT_THAT(elsewhere.err, HasSubstr("cannot reach http://127.0.0.1:1:"));
+}
+
+// On a terminal --follow draws a redrawn bar with ETA instead of lines
+// (in process: RunFesbenchCli with out_is_terminal = true).
+TEST(CliSessionTest, FollowDrawsAProgressBarOnATerminal) {
+  ServerProcess server;
+  auto http = server.Client();
+  const std::string admin = server.admin_token();
+  auto truth = Call(http, "GET", "/api/v1/bench/virtual-subject", admin);
+  ASSERT_EQ(truth.status, 200);
+  ASSERT_EQ(Call(http, "POST", "/api/v1/subjects", admin,
+                 {{"code", "TTY-1"},
+                  {"details",
+                   {{"weight_kg", truth.body["anthropometrics"]["body_mass_kg"]},
+                    {"shank_length_cm",
+                     truth.body["anthropometrics"]["shank_length_m"].get<double>() * 100.0}}}})
+                .status,
+            201);
+  ASSERT_EQ(Call(http, "POST", "/api/v1/subjects/1/sessions", admin,
+                 {{"leg", "left"},
+                  {"date", "2026-11-21"},
+                  {"threshold_ma", truth.body["threshold_ma"]},
+                  {"max_tolerated_ma", truth.body["max_tolerated_ma"]}})
+                .status,
+            201);
+  Cli cli;  // an empty config folder: --server and FESBENCH_TOKEN only
+  ::setenv("XDG_CONFIG_HOME", (cli.dir() / "xdg").c_str(), 1);
+  ::setenv("FESBENCH_TOKEN", admin.c_str(), 1);
+  const std::string url = Url(server);
+  const char* argv[] = {
+      "fesbench", "--server", url.c_str(), "run", "start", "1", "rapid_parameterisation",
+      "--follow"};
+  std::ostringstream out, err;
+  const int code = cli::RunFesbenchCli(8, argv, out, err, true);
+  ::unsetenv("FESBENCH_TOKEN");
+  ::unsetenv("XDG_CONFIG_HOME");
+  ASSERT_EQ(code, 0) << err.str();
+  EXPECT_THAT(out.str(), HasSubstr("\r[##############################] 100%  ETA "));
+  EXPECT_THAT(out.str(), Not(HasSubstr("\nprogress "))) << "no plain lines on a terminal";
+  EXPECT_THAT(out.str(), HasSubstr("\nend done parameter_set 1\n"));
+  EXPECT_FALSE(fs::exists(cli.config_file())) << "only login writes the config file";
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+// In (accelerated) real time the watchdog aborts a run whose controller
+// stops heart-beating; --follow heart-beats, so its run ends done.
+TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
+  ServerProcess server({"--time-scale", "4"});
+  Cli cli;
+  ASSERT_EQ(cli.Run({"login", Url(server), "--token", server.admin_token()}).exit_code, 0);
+  ASSERT_EQ(cli.Run({"subjects", "create", "RT-1"}).exit_code, 0);
+  ASSERT_EQ(cli.Run({"sessions", "create", "--subject", "RT-1", "--leg", "left", "--date",
+                     "2026-11-21", "--threshold-ma", "15", "--max-tolerated-ma", "40"})
+                .exit_code,
+            0);
+
+  // Started without --follow, nobody heart-beats: the watchdog aborts it.
+  auto unattended = cli.Run({"run", "start", "1", "isometric_ramp_irc"});
+  ASSERT_EQ(unattended.exit_code, 0) << unattended.err;
+  std::string state;
+  for (int i = 0; i < 100 && (state.empty() || state == "running" || state == "queued"); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    state = json::parse(cli.Run({"run", "show", "1", "--json"}).out)["state"];
+  }
+  EXPECT_EQ(state, "aborted");
+  EXPECT_THAT(cli.Run({"run", "show", "1"}).out, HasSubstr("watchdog"));
+
+  // Followed (16 s of bench time, 4 s of wall time): done.
+  auto followed = cli.Run({"run", "start", "1", "isometric_ramp_irc", "--follow"});
+  ASSERT_EQ(followed.exit_code, 0) << followed.out << followed.err;
+  EXPECT_THAT(followed.out, HasSubstr("trial isometric_ramp_irc stored as trial"));
+  EXPECT_THAT(followed.out, HasSubstr("\nend done\n"));
+  EXPECT_TRUE(std::regex_search(followed.out, std::regex("progress [0-9]+% eta [1-9][0-9]*s")))
+      << "a real-time run has a non-zero ETA:\n"
+      << followed.out;
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+// An older config file with wider permissions is narrowed to 0600.
+TEST(CliConfigTest, SaveNarrowsAnExistingFileTo0600) {
+  Cli cli;
+  const fs::path path = cli.dir() / "cfg" / "config.json";
+  fs::create_directories(path.parent_path());
+  { std::ofstream(path) << "{}"; }
+  ::chmod(path.c_str(), 0644);
+  ASSERT_TRUE(cli::SaveConfig(path, {"http://h:1", "fsb_x"}).ok());
+  struct stat st {};
+  ASSERT_EQ(::stat(path.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  auto loaded = cli::LoadConfig(path);
+  ASSERT_TRUE(loaded.ok());
+  EXPECT_EQ(loaded->server, "http://h:1");
+  EXPECT_EQ(loaded->token, "fsb_x");
+  { std::ofstream(path) << "[1]"; }
+  EXPECT_FALSE(cli::LoadConfig(path).ok()) << "not an object";
+}
+
+}  // namespace
+}  // namespace fesbench::testing
