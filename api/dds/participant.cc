@@ -163,7 +163,11 @@ fdds::DataWriterQos WriterQosFor(std::string_view topic_name) {
 
 fdds::DataReaderQos ReaderQosFor(std::string_view topic_name) {
   fdds::DataReaderQos qos = fdds::DATAREADER_QOS_DEFAULT;
-  Fill(QosOf(topic_name), qos);
+  TopicQos t = QosOf(topic_name);
+  // Sample readers keep more than the writer: a reader thread that is
+  // descheduled for a while (a busy host) must not overwrite unread blocks.
+  if (topic_name == kSamplesTopic) t.depth = 1024;
+  Fill(t, qos);
   return qos;
 }
 

@@ -8,7 +8,7 @@
 /// the QoS of each topic's writers and readers so every party agrees.
 ///
 /// Topics and types (registered type name = IDL scoped name):
-///   fesbench/bench/samples        fesbench::dds::SampleBlock   best effort, keep last 64
+///   fesbench/bench/samples        fesbench::dds::SampleBlock   best effort, keep last 64 (readers 1024)
 ///   fesbench/bench/state          fesbench::dds::BenchState    reliable, transient local, keep last 1 per bench_id
 ///   fesbench/runs/events          fesbench::dds::RunEvent      reliable, keep last 256
 ///   fesbench/parameter_sets       fesbench::dds::ParameterSet  reliable, transient local, keep last 1 per (subject_id, leg_id)
