@@ -87,6 +87,22 @@ int EchoMain(int domain, const std::string& transport) {
   return 0;
 }
 
+wire::SampleBlock MakeBlock(std::size_t samples) {
+  wire::SampleBlock b;
+  b.bench_id("bench");
+  std::vector<double> t(samples), v(samples, 1.0);
+  for (std::size_t i = 0; i < samples; ++i) t[i] = static_cast<double>(i) / 200.0;
+  b.t_s(t);
+  for (const char* name : {"stim", "angle", "torque", "accel"}) {
+    wire::Channel c;
+    c.name(name);
+    c.unit("u");
+    c.values(v);
+    b.channels().push_back(c);
+  }
+  return b;
+}
+
 struct EchoProcess {
   EchoProcess(int domain, const char* transport) {
     const std::string d = std::to_string(domain);
@@ -121,11 +137,17 @@ struct Rig {
     while (std::chrono::steady_clock::now() < until) {
       writer->get_publication_matched_status(pub);
       reader->get_subscription_matched_status(sub);
-      if (pub.current_count > 0 && sub.current_count > 0) {
-        ready = true;
-        break;
-      }
+      if (pub.current_count > 0 && sub.current_count > 0) break;
       std::this_thread::sleep_for(10ms);
+    }
+    // Matched here does not yet mean matched in the echo process: probe
+    // until a block makes the round trip, so no measurement starts early.
+    wire::SampleBlock probe = MakeBlock(1), echo;
+    probe.block_seq(0);
+    for (int attempt = 0; attempt < 100 && !ready; ++attempt) {
+      probe.run_id(-1 - attempt);
+      writer->write(&probe);
+      ready = Echo(probe.run_id(), echo, std::chrono::milliseconds(100));
     }
   }
   // The next echo of `run_id` (waiting up to `timeout`); false on timeout.
@@ -153,22 +175,6 @@ int DomainFor(int offset) { return 100 + static_cast<int>(::getpid() % 60) * 2 +
 const char* TransportArg(int index) {
   static const char* names[] = {"shm", "udp-loopback"};
   return names[index];
-}
-
-wire::SampleBlock MakeBlock(std::size_t samples) {
-  wire::SampleBlock b;
-  b.bench_id("bench");
-  std::vector<double> t(samples), v(samples, 1.0);
-  for (std::size_t i = 0; i < samples; ++i) t[i] = static_cast<double>(i) / 200.0;
-  b.t_s(t);
-  for (const char* name : {"stim", "angle", "torque", "accel"}) {
-    wire::Channel c;
-    c.name(name);
-    c.unit("u");
-    c.values(v);
-    b.channels().push_back(c);
-  }
-  return b;
 }
 
 double Percentile(std::vector<double> v, double q) {
