@@ -209,7 +209,8 @@ void BM_DdsBlockLatency(benchmark::State& state) {
       state.SkipWithError("echo process not answering");
       return;
     }
-    const double one_way_s = static_cast<double>(echo.published_ns() - block.published_mono_ns()) * 1e-9;
+    const double one_way_s =
+        static_cast<double>(echo.published_ns() - block.published_mono_ns()) * 1e-9;
     state.SetIterationTime(one_way_s);
     latencies_us.push_back(one_way_s * 1e6);
   }
@@ -246,8 +247,9 @@ void BM_DdsSustainedRate(benchmark::State& state) {
       block.block_seq(++sent);
       block.published_mono_ns(wire::MonotonicNs());
       rig.writer->write(&block);
-      std::this_thread::sleep_until(start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                period * static_cast<double>(sent)));
+      std::this_thread::sleep_until(start +
+                                    std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                        period * static_cast<double>(sent)));
     }
     std::this_thread::sleep_for(200ms);  // let the last blocks land
     wire::SampleBlock ask = MakeBlock(0);

@@ -1,12 +1,12 @@
 #include "api/dds/participant.h"
 
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
+#include <fastrtps/utils/IPLocator.h>
 #include <time.h>
 
 #include <chrono>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
-#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
-#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
-#include <fastrtps/utils/IPLocator.h>
 
 #include "api/dds/fesbench.h"
 #include "api/dds/fesbenchPubSubTypes.h"
@@ -52,17 +52,21 @@ fdds::Topic* MakeTopic(fdds::DomainParticipant* p, const char* name) {
 
 std::string_view TransportName(Transport transport) {
   switch (transport) {
-    case Transport::kBuiltin: return "auto";
-    case Transport::kSharedMemory: return "shm";
-    case Transport::kUdp: return "udp";
-    case Transport::kUdpLoopback: return "udp-loopback";
+    case Transport::kBuiltin:
+      return "auto";
+    case Transport::kSharedMemory:
+      return "shm";
+    case Transport::kUdp:
+      return "udp";
+    case Transport::kUdpLoopback:
+      return "udp-loopback";
   }
   return "auto";
 }
 
 api::Result<Transport> ParseTransport(std::string_view name) {
-  for (auto t : {Transport::kBuiltin, Transport::kSharedMemory, Transport::kUdp,
-                 Transport::kUdpLoopback}) {
+  for (auto t :
+       {Transport::kBuiltin, Transport::kSharedMemory, Transport::kUdp, Transport::kUdpLoopback}) {
     if (TransportName(t) == name) return t;
   }
   return api::Status::InvalidArgument(
@@ -78,8 +82,8 @@ api::Result<std::unique_ptr<Participant>> Participant::Create(const ParticipantO
   if (!options.profile_file.empty()) {
     if (factory->load_XML_profiles_file(options.profile_file) !=
         eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
-      return api::Status::InvalidArgument("cannot load Fast DDS XML profile " + options.profile_file,
-                                          "profile");
+      return api::Status::InvalidArgument(
+          "cannot load Fast DDS XML profile " + options.profile_file, "profile");
     }
   }
   fdds::DomainParticipantQos qos = factory->get_default_participant_qos();
@@ -88,7 +92,8 @@ api::Result<std::unique_ptr<Participant>> Participant::Create(const ParticipantO
 
   std::unique_ptr<Participant> out(new Participant());
   out->participant_ = factory->create_participant(options.domain_id, qos);
-  if (!out->participant_) return api::Status::Unavailable("Fast DDS could not create a participant");
+  if (!out->participant_)
+    return api::Status::Unavailable("Fast DDS could not create a participant");
   auto* p = out->participant_;
   out->publisher_ = p->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
   out->subscriber_ = p->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);

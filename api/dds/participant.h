@@ -4,16 +4,20 @@
 /// The fesbench DDS participant (DESIGN.md §9), shared by the server, the
 /// DDS monitor, tests and benchmarks: domain id, transport (shared memory,
 /// UDP, UDP on loopback only, or Fast DDS's built-in shm+UDP), an optional
-/// Fast DDS XML profile, the five topics with their registered types, and
+/// Fast DDS XML profile, the six topics with their registered types, and
 /// the QoS of each topic's writers and readers so every party agrees.
 ///
-/// Topics and types (registered type name = IDL scoped name):
-///   fesbench/bench/samples        fesbench::dds::SampleBlock   best effort, keep last 64 (readers 1024)
-///   fesbench/bench/state          fesbench::dds::BenchState    reliable, transient local, keep last 1 per bench_id
-///   fesbench/runs/events          fesbench::dds::RunEvent      reliable, keep last 256
-///   fesbench/parameter_sets       fesbench::dds::ParameterSet  reliable, transient local, keep last 1 per (subject_id, leg_id)
-///   fesbench/commands             fesbench::dds::Command       reliable, volatile, keep last 64
-///   fesbench/commands/replies     fesbench::dds::CommandReply  reliable, transient local, keep last 64
+/// Topics and types (registered type name = IDL scoped name), QoS:
+/// - fesbench/bench/samples, fesbench::dds::SampleBlock: best effort, keep
+///   last 64 (readers 1024).
+/// - fesbench/bench/state, fesbench::dds::BenchState: reliable, transient
+///   local, keep last 1 per bench_id.
+/// - fesbench/runs/events, fesbench::dds::RunEvent: reliable, keep last 256.
+/// - fesbench/parameter_sets, fesbench::dds::ParameterSet: reliable,
+///   transient local, keep last 1 per (subject_id, leg_id).
+/// - fesbench/commands, fesbench::dds::Command: reliable, volatile, keep last 64.
+/// - fesbench/commands/replies, fesbench::dds::CommandReply: reliable,
+///   transient local, keep last 64.
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
@@ -40,10 +44,10 @@ inline constexpr const char* kRepliesTopic = "fesbench/commands/replies";
 
 /// How the participant talks.
 enum class Transport {
-  kBuiltin,      ///< Fast DDS default: shared memory on the host plus UDPv4 on every interface.
-  kSharedMemory, ///< shared memory only (same host); segments in /dev/shm.
-  kUdp,          ///< UDPv4 on every interface.
-  kUdpLoopback,  ///< UDPv4 on 127.0.0.1 only (discovery by unicast to 127.0.0.1).
+  kBuiltin,       ///< Fast DDS default: shared memory on the host plus UDPv4 on every interface.
+  kSharedMemory,  ///< shared memory only (same host); segments in /dev/shm.
+  kUdp,           ///< UDPv4 on every interface.
+  kUdpLoopback,   ///< UDPv4 on 127.0.0.1 only (discovery by unicast to 127.0.0.1).
 };
 
 /// "auto", "shm", "udp", "udp-loopback".
@@ -83,10 +87,12 @@ class Participant {
 
   /// A writer / reader on `topic` with the topic's QoS (WriterQosFor /
   /// ReaderQosFor); nullptr if Fast DDS refuses.
-  eprosima::fastdds::dds::DataWriter* MakeWriter(eprosima::fastdds::dds::Topic* topic,
-                                                 eprosima::fastdds::dds::DataWriterListener* listener = nullptr);
-  eprosima::fastdds::dds::DataReader* MakeReader(eprosima::fastdds::dds::Topic* topic,
-                                                 eprosima::fastdds::dds::DataReaderListener* listener = nullptr);
+  eprosima::fastdds::dds::DataWriter* MakeWriter(
+      eprosima::fastdds::dds::Topic* topic,
+      eprosima::fastdds::dds::DataWriterListener* listener = nullptr);
+  eprosima::fastdds::dds::DataReader* MakeReader(
+      eprosima::fastdds::dds::Topic* topic,
+      eprosima::fastdds::dds::DataReaderListener* listener = nullptr);
 
  private:
   Participant() = default;

@@ -22,8 +22,8 @@ namespace {
 const eprosima::fastrtps::Duration_t kPoll(0, 50000000);  // 50 ms
 
 Clock::time_point Deadline(double seconds) {
-  return Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                            std::chrono::duration<double>(seconds));
+  return Clock::now() +
+         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
 }
 
 api::Status NoServer(const MonitorOptions& o) {
@@ -64,21 +64,26 @@ api::Result<std::unique_ptr<dds::Participant>> Join(const MonitorOptions& option
 
 const char* RunStateName(dds::RunState state) {
   switch (state) {
-    case dds::RUN_QUEUED: return "queued";
-    case dds::RUN_RUNNING: return "running";
-    case dds::RUN_DONE: return "done";
-    case dds::RUN_FAILED: return "failed";
-    case dds::RUN_ABORTED: return "aborted";
+    case dds::RUN_QUEUED:
+      return "queued";
+    case dds::RUN_RUNNING:
+      return "running";
+    case dds::RUN_DONE:
+      return "done";
+    case dds::RUN_FAILED:
+      return "failed";
+    case dds::RUN_ABORTED:
+      return "aborted";
   }
   return "?";
 }
 
 api::ErrorCode CodeFromName(const std::string& name) {
-  for (auto code : {api::ErrorCode::kInvalidArgument, api::ErrorCode::kNotFound,
-                    api::ErrorCode::kAlreadyExists, api::ErrorCode::kConflict,
-                    api::ErrorCode::kFailedPrecondition, api::ErrorCode::kUnauthenticated,
-                    api::ErrorCode::kPermissionDenied, api::ErrorCode::kUnavailable,
-                    api::ErrorCode::kDataLoss}) {
+  for (auto code :
+       {api::ErrorCode::kInvalidArgument, api::ErrorCode::kNotFound, api::ErrorCode::kAlreadyExists,
+        api::ErrorCode::kConflict, api::ErrorCode::kFailedPrecondition,
+        api::ErrorCode::kUnauthenticated, api::ErrorCode::kPermissionDenied,
+        api::ErrorCode::kUnavailable, api::ErrorCode::kDataLoss}) {
     if (api::ErrorCodeName(code) == name) return code;
   }
   return api::ErrorCode::kInternal;
@@ -166,7 +171,8 @@ api::Result<std::uint64_t> StreamSamples(const MonitorOptions& options, std::int
         if (max_samples != 0 && count >= max_samples) break;
         const char* sep = csv ? "," : " ";
         out << run_id << sep << b.trial() << sep << b.t_s()[i];
-        for (const auto& c : b.channels()) out << sep << (i < c.values().size() ? c.values()[i] : 0.0);
+        for (const auto& c : b.channels())
+          out << sep << (i < c.values().size() ? c.values()[i] : 0.0);
         out << "\n";
         ++count;
       }
@@ -180,10 +186,12 @@ api::Result<std::uint64_t> StreamSamples(const MonitorOptions& options, std::int
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     for (const auto& b : TakeAll<dds::SampleBlock>(samples)) {
       if (b.run_id() != run_id) continue;
-      for (std::size_t i = 0; i < b.t_s().size() && (max_samples == 0 || count < max_samples); ++i) {
+      for (std::size_t i = 0; i < b.t_s().size() && (max_samples == 0 || count < max_samples);
+           ++i) {
         const char* sep = csv ? "," : " ";
         out << run_id << sep << b.trial() << sep << b.t_s()[i];
-        for (const auto& c : b.channels()) out << sep << (i < c.values().size() ? c.values()[i] : 0.0);
+        for (const auto& c : b.channels())
+          out << sep << (i < c.values().size() ? c.values()[i] : 0.0);
         out << "\n";
         ++count;
       }
@@ -209,8 +217,8 @@ api::Status ShowParameterSet(const MonitorOptions& options, std::int64_t subject
       out << "subject " << s.subject_id() << " leg " << s.leg_id() << ": parameter set "
           << s.parameter_set_id() << " version " << s.version() << ", model " << s.model()
           << ", created " << s.created_at() << "\n"
-          << "methods: irc " << s.irc_method() << ", passive " << s.passive_method()
-          << ", active " << s.active_method() << "\n";
+          << "methods: irc " << s.irc_method() << ", passive " << s.passive_method() << ", active "
+          << s.active_method() << "\n";
       auto json = nlohmann::json::parse(s.parameters_json(), nullptr, false);
       out << (json.is_discarded() ? s.parameters_json() : json.dump(2)) << "\n";
       return api::Status::Ok();

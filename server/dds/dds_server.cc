@@ -22,11 +22,16 @@ namespace {
 
 wire::RunState ToWire(protocols::RunState state) {
   switch (state) {
-    case protocols::RunState::kQueued: return wire::RUN_QUEUED;
-    case protocols::RunState::kRunning: return wire::RUN_RUNNING;
-    case protocols::RunState::kDone: return wire::RUN_DONE;
-    case protocols::RunState::kFailed: return wire::RUN_FAILED;
-    case protocols::RunState::kAborted: return wire::RUN_ABORTED;
+    case protocols::RunState::kQueued:
+      return wire::RUN_QUEUED;
+    case protocols::RunState::kRunning:
+      return wire::RUN_RUNNING;
+    case protocols::RunState::kDone:
+      return wire::RUN_DONE;
+    case protocols::RunState::kFailed:
+      return wire::RUN_FAILED;
+    case protocols::RunState::kAborted:
+      return wire::RUN_ABORTED;
   }
   return wire::RUN_QUEUED;
 }

@@ -37,10 +37,10 @@ namespace fesbench::server::dds {
 
 struct DdsServerOptions {
   fesbench::dds::ParticipantOptions participant;
-  std::string bench_id;                  ///< key of this bench's state; default: host name.
-  double parameter_poll_s = 1.0;         ///< how often storage is checked for new sets.
-  double state_check_s = 0.05;           ///< how often the bench state is compared and republished.
-  std::size_t hub_capacity = 8192;       ///< items queued for the forwarding thread.
+  std::string bench_id;             ///< key of this bench's state; default: host name.
+  double parameter_poll_s = 1.0;    ///< how often storage is checked for new sets.
+  double state_check_s = 0.05;      ///< how often the bench state is compared and republished.
+  std::size_t hub_capacity = 8192;  ///< items queued for the forwarding thread.
 };
 
 /// Counters for tests and logs.

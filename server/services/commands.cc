@@ -26,9 +26,8 @@ api::Result<Actor> CommandService::Authenticate(std::string_view token) {
 
 api::Status CommandService::RequireOperator(const Actor& actor) {
   if (MayOperateBench(actor)) return api::Status::Ok();
-  return {api::ErrorCode::kPermissionDenied,
-          "role " + std::string(RoleName(actor.role)) +
-              " may not do this (allowed: clinician, admin)"};
+  return {api::ErrorCode::kPermissionDenied, "role " + std::string(RoleName(actor.role)) +
+                                                 " may not do this (allowed: clinician, admin)"};
 }
 
 void CommandService::AuditRefusal(const Actor& actor, const std::string& action,

@@ -30,7 +30,6 @@
 #include "storage/subjects.h"
 #include "storage/trials.h"
 #include "storage/users.h"
-
 #include "tests/dds/dds_rig.h"
 
 namespace fesbench::server::dds::testing {
@@ -240,14 +239,15 @@ TEST(DdsServer, RealTimeRunSamplesArriveCompleteAndInOrderAt200Hz) {
   ASSERT_TRUE(view.ok());
   ASSERT_EQ(view->state, protocols::RunState::kDone) << view->reason;
   std::size_t stored = 0;
-  for (std::int64_t id : view->trial_ids) stored += storage::TrialRepository(*rig.db).Get(id)->num_samples();
+  for (std::int64_t id : view->trial_ids)
+    stored += storage::TrialRepository(*rig.db).Get(id)->num_samples();
 
   ASSERT_FALSE(blocks.empty());
   std::uint64_t next_sample = 0;
   for (std::size_t i = 0; i < blocks.size(); ++i) {
     const wire::SampleBlock& b = blocks[i];
-    EXPECT_EQ(b.block_seq(), i + 1);              // none lost, none reordered
-    EXPECT_EQ(b.first_sample(), next_sample);     // contiguous
+    EXPECT_EQ(b.block_seq(), i + 1);           // none lost, none reordered
+    EXPECT_EQ(b.first_sample(), next_sample);  // contiguous
     ASSERT_EQ(b.channels().size(), 4u);
     for (const auto& c : b.channels()) EXPECT_EQ(c.values().size(), b.t_s().size()) << c.name();
     for (std::size_t k = 1; k < b.t_s().size(); ++k) {
