@@ -32,7 +32,7 @@ mkdirSync(artefacts, { recursive: true });
 // --- the server ---------------------------------------------------------------------
 function startServer() {
   const child = spawn(serverBin, ['--port', '0', '--db', join(work, 'fesbench.db'), '--time-scale', String(TIME_SCALE),
-    '--web-root', webRoot, '--seed', '3'], { stdio: ['ignore', 'pipe', 'pipe'] });
+    '--web-root', webRoot, '--seed', '3', '--dds-transport', 'off'], { stdio: ['ignore', 'pipe', 'pipe'] });
   let out = '';
   child.stderr.on('data', (d) => process.stderr.write(`[server] ${d}`));
   return new Promise((resolve, reject) => {

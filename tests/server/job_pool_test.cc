@@ -122,6 +122,7 @@ TEST(JobPool, UnknownIdIsNotFoundAndListIsNewestFirst) {
 TEST(JobPool, ForgetsOldestFinishedBeyondHistory) {
   JobPoolConfig c;
   c.history = 2;
+  c.workers = 1;  // jobs finish in submission order, so "oldest" is well defined
   JobPool pool(c);
   for (int i = 0; i < 4; ++i) {
     ASSERT_TRUE(

@@ -46,7 +46,12 @@ ServerProcess::ServerProcess(std::filesystem::path dir, std::vector<std::string>
   // Defaults, unless extra_args gives the same flag.
   std::vector<std::string> args = {FESBENCH_SERVER_BINARY};
   const std::pair<std::string, std::string> defaults[] = {
-      {"--port", "0"}, {"--db", db_path().string()}, {"--time-scale", "0"}};
+      {"--port", "0"},
+      {"--db", db_path().string()},
+      {"--time-scale", "0"},
+      // HTTP tests need no DDS participant: keep parallel test servers off
+      // domain 0 and out of /dev/shm (the DDS tests use their own domains).
+      {"--dds-transport", "off"}};
   for (const auto& [flag, value] : defaults) {
     if (std::find(extra_args.begin(), extra_args.end(), flag) == extra_args.end()) {
       args.push_back(flag);
