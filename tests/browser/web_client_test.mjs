@@ -211,6 +211,8 @@ try {
     assert.equal(await page.locator('#f-threshold_ma').inputValue(), '20');
     assert.equal(await page.locator('#f-max_ma').inputValue(), '45');
     assert.equal(await page.locator('#f-duration_s').inputValue(), '10');
+    // A range-scaled amplitude shows mA: threshold + 0.6·(max − threshold).
+    assert.equal(await page.locator('#f-amplitude_ma').inputValue(), '35');
     await page.locator('#f-max_ma').fill('500');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#f-max_ma-error').filter({ hasText: /out of range/ }).waitFor();

@@ -9,11 +9,22 @@ import { streamEvents } from '../sse.js';
 
 const WINDOW_S = 30; // bench seconds shown in the live plots
 
-function defaultFor(param, session) {
+// The value the server will use when the field is left alone: the same
+// scaling as its DefaultFor (server/protocols/protocol.cc), so an mA field
+// shows mA and an angle field the range the run will use.
+function defaultFor(param, session, limits) {
   const d = session.details;
-  if (param.scales_to === 'threshold' && Number.isFinite(d.threshold_ma)) return d.threshold_ma;
-  if (param.scales_to === 'max_tolerated' && Number.isFinite(d.max_tolerated_ma)) return d.max_tolerated_ma;
-  return param.default;
+  const thr = d.threshold_ma, max = d.max_tolerated_ma;
+  const known = Number.isFinite(thr) && Number.isFinite(max);
+  switch (param.scales_to) {
+    case 'threshold': return Number.isFinite(thr) ? thr : param.default;
+    case 'max_tolerated': return Number.isFinite(max) ? max : param.default;
+    case 'stim_range':
+      return known ? Math.round((thr + param.default * (max - thr)) * 10) / 10 : param.default;
+    case 'range_min': return limits.min_angle_deg;
+    case 'range_max': return limits.max_angle_deg;
+    default: return param.default;
+  }
 }
 
 export async function sessionView(ctx, sessionId) {
@@ -46,7 +57,7 @@ export async function sessionView(ctx, sessionId) {
     description.textContent = `${p.description} Bench mode: ${p.bench_mode}.`;
     paramSlot.replaceChildren(...p.parameters.map((param) => field(param.name,
       `${param.name.replace(/_/g, ' ')} (${param.unit})`,
-      { type: 'number', value: defaultFor(param, session), step: param.integer ? 1 : 'any',
+      { type: 'number', value: defaultFor(param, session, bench.limits), step: param.integer ? 1 : 'any',
         help: `${param.description}; ${param.min}–${param.max}` })));
     for (const input of paramSlot.querySelectorAll('input')) input.dataset.prefilled = input.value;
   }
