@@ -17,6 +17,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev
   nodejs chromium
+  gnuplot-nox
 )
 # The web client's build and browser tests (clients/web, tests/browser): Node
 # and npm (npm packages come from the npm registry via package-lock.json),

@@ -99,6 +99,13 @@ json ApiClient::Post(const std::string& path, const json& body) {
   return Handle("POST", path, result->status, result->body);
 }
 
+json ApiClient::Put(const std::string& path, const json& body) {
+  const std::string text = body.dump();
+  auto result = client_->Put(kApiPrefix + path, text, "application/json");
+  if (!result) Unreachable(httplib::to_string(result.error()));
+  return Handle("PUT", path, result->status, result->body);
+}
+
 json ApiClient::Delete(const std::string& path) {
   auto result = client_->Delete(kApiPrefix + path);
   if (!result) Unreachable(httplib::to_string(result.error()));

@@ -33,6 +33,7 @@ class ApiClient {
   /// `path` is relative to /api/v1 and starts with '/', e.g. "/subjects".
   nlohmann::json Get(const std::string& path);
   nlohmann::json Post(const std::string& path, const nlohmann::json& body = nullptr);
+  nlohmann::json Put(const std::string& path, const nlohmann::json& body);
   nlohmann::json Delete(const std::string& path);
 
   /// Every item of a paged list (follows next_cursor; `query` without

@@ -15,7 +15,7 @@ namespace {
 // Every command, in the order `--help` lists them.
 constexpr CommandRegistrar kCommands[] = {
     RegisterLoginCommand, RegisterRecordCommands,   RegisterRunCommands,
-    RegisterDataCommands, RegisterAnalysisCommands,
+    RegisterDataCommands, RegisterAnalysisCommands, RegisterStudyCommand,
 };
 
 // One line: CLI11, server and library messages may carry newlines.

@@ -24,6 +24,8 @@ void RegisterRunCommands(CLI::App& app, CliContext& context);
 void RegisterDataCommands(CLI::App& app, CliContext& context);
 /// `identify`, `predict`, `compare` (analysis_commands.cc).
 void RegisterAnalysisCommands(CLI::App& app, CliContext& context);
+/// `study` (study_command.cc, clients/cli/study/).
+void RegisterStudyCommand(CLI::App& app, CliContext& context);
 
 /// A client for the configured server (ResolveConnection).
 std::unique_ptr<ApiClient> Connect(const CliContext& context);

@@ -1,0 +1,651 @@
+// The virtual-cohort study (see study.h). Every bench action and every fit
+// goes through the server's public HTTP API; only the tables' statistics
+// (Eq. 6.3 paired t-tests, Table 6.4 linearisation) are computed here, with
+// the model library's own functions.
+
+#include "clients/cli/study/study.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <optional>
+#include <ostream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "api/parameter_set_json.h"
+#include "api/trial.h"
+#include "clients/cli/cli.h"
+#include "clients/cli/commands.h"
+#include "model/evaluation.h"
+#include "server/bench/virtual_subject.h"
+#include "server/bench/virtual_subject_json.h"
+
+namespace fesbench::cli::study {
+
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// The protocols run per leg, in order (§5.2–5.4, Appendix F).
+const std::vector<std::string> kProtocols = {
+    "isometric_ramp_irc", "isometric_step_irc",   "isometric_prediction",
+    "passive_sequential", "passive_simultaneous", "free_swing_passive",
+    "active_random_binary", "prediction_step",    "prediction_ramp",
+    "prediction_sine",    "rapid_parameterisation",
+};
+
+// Prediction inputs (§5.4.5): label and the trial name the runner stores.
+struct Input {
+  std::string label;
+  std::string trial;
+};
+const std::vector<Input> kInputs = {
+    {"step", "prediction_step"},
+    {"ramp", "prediction_ramp"},
+    {"sine", "prediction_sine"},
+    {"rb1", "active_random_binary_rb1"},
+    {"rb2", "active_random_binary_rb2"},
+};
+
+// The six full-model parameter sets (3 passive methods × 2 active trains).
+const std::vector<std::string> kPassiveMethods = {"sequential", "simultaneous", "free_swing"};
+const std::vector<std::string> kTrains = {"rb1", "rb2"};
+const std::vector<std::string> kSimplified = {"torque_generator", "single_segment",
+                                              "static_gain_pwl_velocity", "parametric"};
+// Isometric IRC variants (Tables 6.1, 6.2): irc method × contraction order.
+struct IrcVariant {
+  std::string key, irc_method;
+  int order;
+};
+const std::vector<IrcVariant> kIrcVariants = {{"step_o3", "step", 3},
+                                              {"ramp_o3", "ramp_correlation", 3},
+                                              {"step_o2", "step", 2},
+                                              {"ramp_o2", "ramp_correlation", 2}};
+
+std::string SetKey(const std::string& passive, const std::string& train) {
+  return passive + "_" + train;
+}
+
+std::string Num(double value, int digits = 4) {
+  if (!std::isfinite(value)) return "n/a";
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.*f", digits, value);
+  return buffer;
+}
+
+void Pause(std::chrono::milliseconds d) { std::this_thread::sleep_for(d); }
+
+struct LegData {
+  int index = 0;
+  server::VirtualSubject subject;
+  std::int64_t session_id = 0;
+  std::map<std::string, std::int64_t> trials;       // name → id
+  std::map<std::string, double> bench_s;            // protocol → bench seconds
+  std::map<std::string, std::int64_t> sets;         // set key → parameter set id
+  std::map<std::string, std::string> set_failures;  // set key → message
+  std::map<std::string, model::ParameterSet> params;
+  // set key → input label → {e_rms, e_abs} (deg; isometric: N·m)
+  std::map<std::string, std::map<std::string, std::pair<double, double>>> errors;
+  std::map<std::string, json> plot_columns;  // "set|input" → predicted columns
+};
+
+// Starts a protocol and heart-beats it to its end; the run's final JSON.
+json RunProtocol(ApiClient& client, std::int64_t session_id, const std::string& protocol) {
+  const json started = client.Post("/sessions/" + std::to_string(session_id) + "/runs",
+                                   {{"protocol", protocol}, {"parameters", json::object()}});
+  const std::int64_t run_id = started.at("run_id").get<std::int64_t>();
+  const std::string path = "/runs/" + std::to_string(run_id);
+  for (;;) {
+    try {
+      client.Post(path + "/heartbeat");
+    } catch (const CliError&) {
+      // The run may have just ended; its state below says so.
+    }
+    const json run = client.Get(path);
+    const std::string state = run.value("state", "");
+    if (state == "done") return run;
+    if (state == "failed" || state == "aborted") {
+      throw CliError::Server("study: run " + std::to_string(run_id) + " (" + protocol + ") " +
+                             state + ": " + run.value("reason", ""));
+    }
+    Pause(std::chrono::milliseconds(30));
+  }
+}
+
+// Polls a job to its end: the result, or the error message.
+struct JobOutcome {
+  json result;
+  std::string error;
+};
+JobOutcome AwaitJob(ApiClient& client, std::int64_t job_id) {
+  auto delay = std::chrono::milliseconds(5);
+  for (;;) {
+    const json job = client.Get("/jobs/" + std::to_string(job_id));
+    const std::string state = job.value("state", "");
+    if (state == "done") return {job.value("result", json()), ""};
+    if (state == "failed") {
+      return {json(), job.contains("error") ? job["error"].value("message", "failed") : "failed"};
+    }
+    Pause(delay);
+    delay = std::min(delay * 2, std::chrono::milliseconds(100));
+  }
+}
+
+JobOutcome Submit(ApiClient& client, const std::string& path, const json& body) {
+  const json job = client.Post(path, body);
+  return AwaitJob(client, job.at("id").get<std::int64_t>());
+}
+
+json TrialIds(const LegData& leg, const std::vector<std::string>& names) {
+  json ids = json::array();
+  for (const auto& name : names) {
+    auto it = leg.trials.find(name);
+    if (it != leg.trials.end()) ids.push_back(it->second);
+  }
+  return ids;
+}
+
+// One identification; stores every returned set under `keys` (by model
+// order) or records the failure.
+void Identify(ApiClient& client, LegData& leg, const json& request,
+              const std::vector<std::string>& keys, int& failures, std::ostream& log) {
+  const JobOutcome outcome = Submit(client, "/identifications", request);
+  if (!outcome.error.empty()) {
+    for (const auto& key : keys) leg.set_failures[key] = outcome.error;
+    ++failures;
+    log << "  leg " << leg.index << ": " << keys.front() << " failed: " << outcome.error << "\n";
+    return;
+  }
+  const json& sets = outcome.result.at("parameter_sets");
+  for (std::size_t i = 0; i < keys.size() && i < sets.size(); ++i) {
+    leg.sets[keys[i]] = sets[i].at("id").get<std::int64_t>();
+  }
+}
+
+void FetchParams(ApiClient& client, LegData& leg) {
+  for (const auto& [key, id] : leg.sets) {
+    const json stored = client.Get("/parameter-sets/" + std::to_string(id));
+    auto parsed = api::ParameterSetFromJson(stored.at("parameters"));
+    if (parsed.ok()) leg.params[key] = std::move(parsed).value();
+  }
+}
+
+void Predict(ApiClient& client, LegData& leg, const std::string& key, const std::string& input,
+             std::int64_t trial_id, bool keep_columns) {
+  auto set = leg.sets.find(key);
+  if (set == leg.sets.end()) {
+    leg.errors[key][input] = {kNaN, kNaN};
+    return;
+  }
+  const JobOutcome outcome =
+      Submit(client, "/predictions", {{"parameter_set_id", set->second}, {"trial_id", trial_id}});
+  if (!outcome.error.empty() || !outcome.result.contains("errors") ||
+      !outcome.result["errors"].is_object()) {
+    leg.errors[key][input] = {kNaN, kNaN};
+    return;
+  }
+  const json& e = outcome.result["errors"];
+  leg.errors[key][input] = {e.value("e_rms", kNaN), e.value("e_abs", kNaN)};
+  if (keep_columns && outcome.result.contains("columns")) {
+    leg.plot_columns[key + "|" + input] = outcome.result["columns"];
+  }
+}
+
+LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& failures,
+               std::ostream& log) {
+  LegData leg;
+  leg.index = index;
+  leg.subject = server::DrawVirtualSubject(options.seed * 1000 + static_cast<std::uint64_t>(index));
+  const auto& vs = leg.subject;
+  client.Put("/bench/virtual-subject", server::VirtualSubjectToJson(vs));
+
+  // Codes are unique per server (a second study on one server gets new ones);
+  // they never reach the tables.
+  const std::string code =
+      "V" + std::to_string(options.seed) + "-" + std::to_string(index) + "-" +
+      std::to_string(std::chrono::system_clock::now().time_since_epoch().count() % 100000000);
+  const json subject = client.Post(
+      "/subjects", {{"code", code},
+                    {"legs", {"right"}},
+                    {"details",
+                     {{"weight_kg", vs.anthropometrics.body_mass_kg},
+                      {"height_cm", vs.anthropometrics.height_m * 100.0},
+                      {"shank_length_cm", vs.anthropometrics.shank_length_m * 100.0}}}});
+  const json session = client.Post(
+      "/subjects/" + std::to_string(subject.at("id").get<std::int64_t>()) + "/sessions",
+      {{"leg", "right"},
+       {"date", options.date},
+       {"threshold_ma", vs.threshold_ma},
+       {"max_tolerated_ma", vs.max_tolerated_ma}});
+  leg.session_id = session.at("id").get<std::int64_t>();
+
+  std::int64_t rapid_set = 0;
+  for (const auto& protocol : kProtocols) {
+    const json run = RunProtocol(client, leg.session_id, protocol);
+    leg.bench_s[protocol] = run.at("progress").value("bench_total_s", kNaN);
+    if (protocol == "rapid_parameterisation" && run["parameter_set_id"].is_number_integer()) {
+      rapid_set = run["parameter_set_id"].get<std::int64_t>();
+    }
+  }
+  for (const auto& trial :
+       client.GetAllPages("/sessions/" + std::to_string(leg.session_id) + "/trials", "")) {
+    leg.trials[trial.at("name").get<std::string>()] = trial.at("id").get<std::int64_t>();
+  }
+  if (rapid_set != 0) leg.sets["rapid"] = rapid_set;
+
+  // 3 passive methods × 2 trains (§5.4); simultaneous first so free swing
+  // can fall back to its τ_pta when no position holds were recognised.
+  for (const auto& train : kTrains) {
+    const std::string active = "active_random_binary_" + train;
+    Identify(client, leg,
+             {{"trial_ids", TrialIds(leg, {"isometric_ramp_irc", "passive_simultaneous_1",
+                                           "passive_simultaneous_2", active})},
+              {"passive_method", "simultaneous"}},
+             {SetKey("simultaneous", train)}, failures, log);
+    Identify(client, leg,
+             {{"trial_ids", TrialIds(leg, {"isometric_ramp_irc", "passive_positions",
+                                           "passive_velocities", active})},
+              {"passive_method", "sequential"}},
+             {SetKey("sequential", train)}, failures, log);
+    std::vector<std::string> keys = {SetKey("free_swing", train)};
+    json models = {"full"};
+    if (train == "rb1") {
+      for (const auto& m : kSimplified) {
+        keys.push_back(m);
+        models.push_back(m);
+      }
+    }
+    json request = {{"trial_ids", TrialIds(leg, {"isometric_ramp_irc", "passive_positions",
+                                                 "free_swing_passive", active})},
+                    {"passive_method", "free_swing"},
+                    {"models", models}};
+    const JobOutcome first = Submit(client, "/identifications", request);
+    if (first.error.empty()) {
+      const json& sets = first.result.at("parameter_sets");
+      for (std::size_t i = 0; i < keys.size() && i < sets.size(); ++i) {
+        leg.sets[keys[i]] = sets[i].at("id").get<std::int64_t>();
+      }
+    } else if (leg.sets.count(SetKey("simultaneous", train)) != 0) {
+      // τ_pta from the simultaneous set (Eq. 4.35 needs a τ_pta).
+      request["trial_ids"] =
+          TrialIds(leg, {"isometric_ramp_irc", "free_swing_passive", active});
+      request["torque_angle_parameter_set_id"] = leg.sets[SetKey("simultaneous", train)];
+      Identify(client, leg, request, keys, failures, log);
+    } else {
+      for (const auto& key : keys) leg.set_failures[key] = first.error;
+      ++failures;
+    }
+  }
+  // IRC variants for the isometric prediction (Tables 6.1, 6.2).
+  for (const auto& variant : kIrcVariants) {
+    Identify(client, leg,
+             {{"trial_ids", TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc",
+                                           "passive_simultaneous_1", "passive_simultaneous_2",
+                                           "active_random_binary_rb1"})},
+              {"passive_method", "simultaneous"},
+              {"irc_method", variant.irc_method},
+              {"contraction_order", variant.order}},
+             {"irc_" + variant.key}, failures, log);
+  }
+  FetchParams(client, leg);
+
+  // Predictions.
+  const bool keep = index == 1;
+  for (const auto& input : kInputs) {
+    auto trial = leg.trials.find(input.trial);
+    if (trial == leg.trials.end()) continue;
+    std::vector<std::string> keys = {"rapid"};
+    for (const auto& p : kPassiveMethods)
+      for (const auto& t : kTrains) keys.push_back(SetKey(p, t));
+    for (const auto& m : kSimplified) keys.push_back(m);
+    for (const auto& key : keys) Predict(client, leg, key, input.label, trial->second, keep);
+  }
+  auto iso = leg.trials.find("isometric_prediction");
+  for (const auto& variant : kIrcVariants) {
+    if (iso != leg.trials.end()) {
+      Predict(client, leg, "irc_" + variant.key, "isometric", iso->second, false);
+    }
+  }
+  log << "leg " << index << " done (" << leg.sets.size() << " parameter sets)\n" << std::flush;
+  return leg;
+}
+
+// ---- tables -----------------------------------------------------------
+
+struct Table {
+  std::string name, title;
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  std::string note;
+};
+
+std::string CsvCell(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string out = "\"";
+  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
+void WriteTable(const fs::path& dir, const Table& table, std::ostream& markdown) {
+  std::ofstream csv(dir / (table.name + ".csv"));
+  for (std::size_t i = 0; i < table.header.size(); ++i)
+    csv << (i ? "," : "") << CsvCell(table.header[i]);
+  csv << "\n";
+  for (const auto& row : table.rows) {
+    for (std::size_t i = 0; i < row.size(); ++i) csv << (i ? "," : "") << CsvCell(row[i]);
+    csv << "\n";
+  }
+  markdown << "## " << table.title << "\n\n";
+  if (!table.note.empty()) markdown << table.note << "\n\n";
+  markdown << "|";
+  for (const auto& h : table.header) markdown << " " << h << " |";
+  markdown << "\n|";
+  for (std::size_t i = 0; i < table.header.size(); ++i) markdown << "---|";
+  markdown << "\n";
+  for (const auto& row : table.rows) {
+    markdown << "|";
+    for (const auto& c : row) markdown << " " << c << " |";
+    markdown << "\n";
+  }
+  markdown << "\n";
+}
+
+double Mean(const std::vector<double>& v) {
+  double sum = 0.0;
+  std::size_t n = 0;
+  for (double x : v)
+    if (std::isfinite(x)) sum += x, ++n;
+  return n ? sum / static_cast<double>(n) : kNaN;
+}
+double Sd(const std::vector<double>& v) {
+  const double m = Mean(v);
+  double ss = 0.0;
+  std::size_t n = 0;
+  for (double x : v)
+    if (std::isfinite(x)) ss += (x - m) * (x - m), ++n;
+  return n > 1 ? std::sqrt(ss / static_cast<double>(n - 1)) : kNaN;
+}
+
+double ErrorOf(const LegData& leg, const std::string& key, const std::string& input) {
+  auto s = leg.errors.find(key);
+  if (s == leg.errors.end()) return kNaN;
+  auto e = s->second.find(input);
+  return e == s->second.end() ? kNaN : e->second.first;
+}
+
+// A paired t-test row (Eq. 6.3) over the legs where both errors exist.
+std::vector<std::string> TTestRow(const std::vector<LegData>& legs, const std::string& input,
+                                  const std::string& a, const std::string& b) {
+  std::vector<double> xa, xb;
+  for (const auto& leg : legs) {
+    const double ea = ErrorOf(leg, a, input), eb = ErrorOf(leg, b, input);
+    if (std::isfinite(ea) && std::isfinite(eb)) xa.push_back(ea), xb.push_back(eb);
+  }
+  std::vector<std::string> row = {input, a, b, std::to_string(xa.size()), Num(Mean(xa)),
+                                  Num(Mean(xb))};
+  if (xa.size() < 2) {
+    for (int i = 0; i < 7; ++i) row.push_back("n/a");
+    return row;
+  }
+  const model::PairedTTestResult t = model::PairedTTest(xa, xb, 0.95);
+  for (double v : {t.mean_difference, t.sd_difference, t.t, t.df, t.p_value, t.t_critical})
+    row.push_back(Num(v));
+  row.push_back(!std::isfinite(t.t) ? "n/a" : (t.significant ? "yes" : "no"));
+  return row;
+}
+
+const std::vector<std::string> kTTestHeader = {
+    "input", "set_a", "set_b", "n", "mean_a", "mean_b", "mean_diff", "sd_diff",
+    "t",     "df",    "p",     "t_crit_95", "significant"};
+
+std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
+  std::vector<Table> tables;
+  // 6.1 / 6.2: isometric prediction (torque E_RMS, N·m).
+  {
+    Table t{"table_6_1_isometric_irc",
+            "Table 6.1: isometric prediction, step IRC vs ramp-correlation IRC (E_RMS torque, "
+            "N.m, paired t-test)",
+            kTTestHeader, {}, "3rd-order contraction dynamics for both."};
+    t.rows.push_back(TTestRow(legs, "isometric", "irc_step_o3", "irc_ramp_o3"));
+    tables.push_back(t);
+    Table u{"table_6_2_isometric_order",
+            "Table 6.2: isometric prediction, 2nd vs 3rd order contraction dynamics (E_RMS "
+            "torque, N.m)",
+            kTTestHeader, {}, "Rows per IRC method."};
+    u.rows.push_back(TTestRow(legs, "isometric", "irc_ramp_o2", "irc_ramp_o3"));
+    u.rows.push_back(TTestRow(legs, "isometric", "irc_step_o2", "irc_step_o3"));
+    tables.push_back(u);
+  }
+  // 6.3: inertia by method with the virtual truth.
+  {
+    Table t{"table_6_3_inertia", "Table 6.3: limb inertia by method (kg.m^2), with the virtual truth",
+            {"leg", "sequential", "simultaneous", "free_swing", "rapid", "truth"}, {}, ""};
+    std::map<std::string, std::vector<double>> cols;
+    for (const auto& leg : legs) {
+      std::vector<std::string> row = {std::to_string(leg.index)};
+      for (const std::string key : {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid"}) {
+        auto p = leg.params.find(key);
+        const double j = p == leg.params.end() ? kNaN : p->second.passive.inertia_kgm2;
+        cols[key].push_back(j);
+        row.push_back(Num(j));
+      }
+      cols["truth"].push_back(leg.subject.truth.passive.inertia_kgm2);
+      row.push_back(Num(leg.subject.truth.passive.inertia_kgm2));
+      t.rows.push_back(row);
+    }
+    for (const std::string stat : {"mean", "sd"}) {
+      std::vector<std::string> row = {stat};
+      for (const std::string key : {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid", "truth"})
+        row.push_back(Num(stat == "mean" ? Mean(cols[key]) : Sd(cols[key])));
+      t.rows.push_back(row);
+    }
+    tables.push_back(t);
+  }
+  // 6.4: linearised ζ and ω_n (Table 6.4).
+  {
+    Table t{"table_6_4_linearised",
+            "Table 6.4: linearised passive dynamics about the rest angle (zeta, omega_n rad/s)",
+            {"leg", "method", "rest_angle_deg", "zeta", "omega_n_rad_s"}, {}, ""};
+    for (const auto& leg : legs) {
+      std::vector<std::pair<std::string, const model::ParameterSet*>> sets;
+      for (const std::string key : {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid"}) {
+        auto p = leg.params.find(key);
+        sets.emplace_back(key, p == leg.params.end() ? nullptr : &p->second);
+      }
+      sets.emplace_back("truth", &leg.subject.truth);
+      for (const auto& [key, p] : sets) {
+        std::vector<std::string> row = {std::to_string(leg.index), key};
+        try {
+          if (p == nullptr) throw std::invalid_argument("no set");
+          const server::LinearisedPassive lin = server::LinearisePassive(p->passive);
+          row.insert(row.end(), {Num(lin.rest_angle_deg, 2), Num(lin.zeta), Num(lin.natural_frequency_rad_s)});
+        } catch (const std::invalid_argument&) {
+          row.insert(row.end(), {"n/a", "n/a", "n/a"});
+        }
+        t.rows.push_back(row);
+      }
+    }
+    tables.push_back(t);
+  }
+  // 6.5–6.8: paired t-tests between parameter sets for each input.
+  {
+    Table t{"table_6_5_6_8_ttests",
+            "Tables 6.5-6.8: paired t-tests of free-swing prediction E_RMS (deg) between parameter "
+            "sets, per input",
+            kTTestHeader, {}, "Positive mean_diff: set_a has more error. significant: |t| > t_crit (95 %)."};
+    for (const auto& input : kInputs) {
+      for (const auto& train : kTrains) {
+        t.rows.push_back(TTestRow(legs, input.label, SetKey("sequential", train), SetKey("simultaneous", train)));
+        t.rows.push_back(TTestRow(legs, input.label, SetKey("simultaneous", train), SetKey("free_swing", train)));
+        t.rows.push_back(TTestRow(legs, input.label, SetKey("sequential", train), SetKey("free_swing", train)));
+      }
+      for (const auto& p : kPassiveMethods)
+        t.rows.push_back(TTestRow(legs, input.label, SetKey(p, "rb1"), SetKey(p, "rb2")));
+      t.rows.push_back(TTestRow(legs, input.label, "rapid", "free_swing_rb1"));
+    }
+    tables.push_back(t);
+  }
+  // 6.9: full vs simplified.
+  {
+    Table t{"table_6_9_simplified",
+            "Table 6.9: full model vs simplified models (free swing passive, RB1), E_RMS deg",
+            kTTestHeader, {}, ""};
+    for (const auto& input : kInputs)
+      for (const auto& m : kSimplified) t.rows.push_back(TTestRow(legs, input.label, m, "free_swing_rb1"));
+    tables.push_back(t);
+  }
+  // Appendices J, K: per-leg errors.
+  {
+    Table t{"appendix_jk_per_leg_errors",
+            "Appendices J and K: per-leg prediction errors (E_RMS and E_ABS, deg; isometric N.m)",
+            {"leg", "set", "input", "e_rms", "e_abs"}, {}, ""};
+    for (const auto& leg : legs)
+      for (const auto& [key, inputs] : leg.errors)
+        for (const auto& [input, e] : inputs)
+          t.rows.push_back({std::to_string(leg.index), key, input, Num(e.first), Num(e.second)});
+    tables.push_back(t);
+    Table m{"mean_errors", "Mean E_RMS (deg) by parameter set and input over the cohort",
+            {"set"}, {}, ""};
+    for (const auto& input : kInputs) m.header.push_back(input.label);
+    std::vector<std::string> keys = {"rapid"};
+    for (const auto& p : kPassiveMethods)
+      for (const auto& tr : kTrains) keys.push_back(SetKey(p, tr));
+    for (const auto& s : kSimplified) keys.push_back(s);
+    for (const auto& key : keys) {
+      std::vector<std::string> row = {key};
+      for (const auto& input : kInputs) {
+        std::vector<double> v;
+        for (const auto& leg : legs) v.push_back(ErrorOf(leg, key, input.label));
+        row.push_back(Num(Mean(v), 3));
+      }
+      m.rows.push_back(row);
+    }
+    tables.push_back(m);
+  }
+  // §7.4.1 bench time per parameterisation.
+  {
+    Table t{"bench_time", "Bench time per parameterisation (s of bench time), §7.4.1",
+            {"leg", "rapid_s", "traditional_s (step IRC + sequential passive)"}, {},
+            "Thesis: rapid < 30 s vs traditional 12.5 min (750 s)."};
+    std::vector<double> rapid, traditional;
+    for (const auto& leg : legs) {
+      auto at = [&](const std::string& p) {
+        auto it = leg.bench_s.find(p);
+        return it == leg.bench_s.end() ? kNaN : it->second;
+      };
+      const double r = at("rapid_parameterisation");
+      const double tr = at("isometric_step_irc") + at("passive_sequential");
+      rapid.push_back(r);
+      traditional.push_back(tr);
+      t.rows.push_back({std::to_string(leg.index), Num(r, 2), Num(tr, 2)});
+    }
+    t.rows.push_back({"mean", Num(Mean(rapid), 2), Num(Mean(traditional), 2)});
+    tables.push_back(t);
+  }
+  return tables;
+}
+
+// Data files and a gnuplot script for leg 1's predicted vs measured angle.
+bool WritePlots(ApiClient& client, const LegData& leg, const fs::path& dir, bool run_gnuplot,
+                std::string& note) {
+  std::ofstream script(dir / "plots.gp");
+  script << "# gnuplot script written by fesbench study: predicted vs measured knee angle, leg "
+         << leg.index << "\nset terminal png size 900,500\nset xlabel 't (s)'\n"
+         << "set ylabel 'knee angle (deg flexion)'\nset key outside right\nset grid\n";
+  const std::vector<std::string> shown = {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1",
+                                          "rapid"};
+  for (const auto& input : kInputs) {
+    auto trial_id = leg.trials.find(input.trial);
+    if (trial_id == leg.trials.end()) continue;
+    auto trial = api::TrialFromJson(client.Get("/trials/" + std::to_string(trial_id->second)));
+    if (!trial.ok()) continue;
+    const api::Channel* t = trial.value().FindChannel("t_s");
+    const api::Channel* angle = trial.value().FindChannel("angle_deg");
+    if (t == nullptr || angle == nullptr) continue;
+    const std::string data = "plot_" + input.label + ".dat";
+    std::ofstream out(dir / data);
+    out << "# t_s measured_deg";
+    for (const auto& key : shown) out << " " << key << "_deg";
+    out << "\n";
+    for (std::size_t i = 0; i < t->values.size(); i += 2) {  // 100 Hz is enough to draw.
+      out << Num(t->values[i], 3) << " " << Num(angle->values[i], 3);
+      for (const auto& key : shown) {
+        auto c = leg.plot_columns.find(key + "|" + input.label);
+        double v = kNaN;
+        if (c != leg.plot_columns.end() && c->second.contains("angle_deg") &&
+            i < c->second["angle_deg"].size()) {
+          v = c->second["angle_deg"][i].get<double>();
+        }
+        out << " " << (std::isfinite(v) ? Num(v, 3) : "NaN");
+      }
+      out << "\n";
+    }
+    script << "set output 'plot_" << input.label << ".png'\nset title 'Leg " << leg.index
+           << ", input " << input.label << ": predicted vs measured'\nplot '" << data
+           << "' using 1:2 with lines lw 2 title 'measured'";
+    for (std::size_t k = 0; k < shown.size(); ++k) {
+      script << ", '' using 1:" << k + 3 << " with lines title '" << shown[k] << "'";
+    }
+    script << "\n";
+  }
+  script.close();
+  if (!run_gnuplot) {
+    note = "plots disabled (--no-plots); data files and plots.gp written";
+    return false;
+  }
+  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
+    note = "gnuplot not found on PATH (install Debian's gnuplot-nox): PNGs not drawn; data files "
+           "and plots.gp written, tables complete";
+    return false;
+  }
+  const std::string command = "cd '" + dir.string() + "' && gnuplot plots.gp";
+  if (std::system(command.c_str()) != 0) {
+    note = "gnuplot failed on plots.gp";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+StudySummary RunStudy(ApiClient& client, const StudyOptions& options, std::ostream& log) {
+  if (options.legs < 2) throw CliError::Usage("study: --legs must be at least 2");
+  fs::create_directories(options.output_dir);
+  StudySummary summary;
+  std::vector<LegData> legs;
+  for (int i = 1; i <= options.legs; ++i) {
+    legs.push_back(RunLeg(client, options, i, summary.identifications_failed, log));
+    ++summary.legs_done;
+  }
+  const std::vector<Table> tables = BuildTables(legs);
+  std::ofstream markdown(options.output_dir / "study.md");
+  markdown << "# Virtual cohort study\n\n" << options.legs << " legs, seed " << options.seed
+           << ". Generated by `fesbench study`.\n\n";
+  for (const auto& table : tables) WriteTable(options.output_dir, table, markdown);
+  std::map<std::string, std::string> failures;
+  for (const auto& leg : legs)
+    for (const auto& [key, message] : leg.set_failures)
+      failures[key] = message;  // one example message per set
+  if (!failures.empty()) {
+    markdown << "## Identifications that failed\n\n";
+    for (const auto& [key, message] : failures) markdown << "- " << key << ": " << message << "\n";
+    markdown << "\n";
+  }
+  summary.plots_drawn =
+      WritePlots(client, legs.front(), options.output_dir, options.plots, summary.plot_note);
+  if (!summary.plot_note.empty()) markdown << "Plots: " << summary.plot_note << "\n";
+  return summary;
+}
+
+}  // namespace fesbench::cli::study
