@@ -56,7 +56,7 @@ std::vector<std::vector<std::string>> ReadCsv(const fs::path& path) {
 const std::vector<std::string> kCsvs = {
     "table_6_1_isometric_irc", "table_6_2_isometric_order", "table_6_3_inertia",
     "table_6_4_linearised",    "table_6_5_6_8_ttests",      "table_6_9_simplified",
-    "appendix_jk_per_leg_errors", "mean_errors",            "bench_time"};
+    "appendix_jk_per_leg_errors", "mean_errors", "median_errors",            "bench_time"};
 
 fs::path RunTwoLegStudy(const std::string& name, bool plots) {
   ServerProcess server({"--seed", "5"});
