@@ -48,9 +48,9 @@ void RegisterStudyCommand(CLI::App& app, CliContext& context) {
       const study::StudySummary summary = study::RunStudy(*client, options, context.err);
       const double wall_s =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      context.out << "study: " << summary.legs_done << " legs, "
-                  << summary.identifications_failed << " identifications failed, wall "
-                  << wall_s << " s; tables in " << form->out << "\n";
+      context.out << "study: " << summary.legs_done << " legs, " << summary.identifications_failed
+                  << " identifications failed, wall " << wall_s << " s; tables in " << form->out
+                  << "\n";
       if (!summary.plots_drawn) context.out << "study: " << summary.plot_note << "\n";
     };
   });

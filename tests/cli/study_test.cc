@@ -3,6 +3,8 @@
 // structure, the inertia truth column against the seeded generator, t-test
 // df = n − 1, and determinism (two servers, same seeds → identical CSVs).
 
+#include "clients/cli/study/study.h"
+
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -13,7 +15,6 @@
 #include <vector>
 
 #include "clients/cli/api_client.h"
-#include "clients/cli/study/study.h"
 #include "server/bench/virtual_subject.h"
 #include "server_process.h"
 
@@ -53,10 +54,16 @@ std::vector<std::vector<std::string>> ReadCsv(const fs::path& path) {
   return rows;
 }
 
-const std::vector<std::string> kCsvs = {
-    "table_6_1_isometric_irc", "table_6_2_isometric_order", "table_6_3_inertia",
-    "table_6_4_linearised",    "table_6_5_6_8_ttests",      "table_6_9_simplified",
-    "appendix_jk_per_leg_errors", "mean_errors", "median_errors",            "bench_time"};
+const std::vector<std::string> kCsvs = {"table_6_1_isometric_irc",
+                                        "table_6_2_isometric_order",
+                                        "table_6_3_inertia",
+                                        "table_6_4_linearised",
+                                        "table_6_5_6_8_ttests",
+                                        "table_6_9_simplified",
+                                        "appendix_jk_per_leg_errors",
+                                        "mean_errors",
+                                        "median_errors",
+                                        "bench_time"};
 
 fs::path RunTwoLegStudy(const std::string& name, bool plots) {
   ServerProcess server({"--seed", "5"});
@@ -66,8 +73,8 @@ fs::path RunTwoLegStudy(const std::string& name, bool plots) {
   options.legs = 2;
   options.seed = 3;
   options.plots = plots;
-  options.output_dir = fs::temp_directory_path() / ("fesbench-study-" + name + "-" +
-                                                    std::to_string(::getpid()));
+  options.output_dir =
+      fs::temp_directory_path() / ("fesbench-study-" + name + "-" + std::to_string(::getpid()));
   fs::remove_all(options.output_dir);
   std::ostringstream log;
   const cli::study::StudySummary summary = cli::study::RunStudy(client, options, log);
@@ -104,8 +111,8 @@ TEST(StudyTest, TwoLegStudyWritesTablesAndIsDeterministic) {
 
   // t-tests: df = n − 1 wherever computed; n ≤ 2; at least one computed.
   int computed = 0;
-  for (const std::string name : {"table_6_1_isometric_irc", "table_6_5_6_8_ttests",
-                                 "table_6_9_simplified"}) {
+  for (const std::string name :
+       {"table_6_1_isometric_irc", "table_6_5_6_8_ttests", "table_6_9_simplified"}) {
     const auto rows = ReadCsv(a / (name + ".csv"));
     ASSERT_GE(rows.size(), 2u) << name;
     ASSERT_EQ(rows[0][9], "df");

@@ -39,10 +39,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The protocols run per leg, in order (§5.2–5.4, Appendix F).
 const std::vector<std::string> kProtocols = {
-    "isometric_ramp_irc", "isometric_step_irc",   "isometric_prediction",
-    "passive_sequential", "passive_simultaneous", "free_swing_passive",
-    "active_random_binary", "prediction_step",    "prediction_ramp",
-    "prediction_sine",    "rapid_parameterisation",
+    "isometric_ramp_irc",   "isometric_step_irc", "isometric_prediction",   "passive_sequential",
+    "passive_simultaneous", "free_swing_passive", "active_random_binary",   "prediction_step",
+    "prediction_ramp",      "prediction_sine",    "rapid_parameterisation",
 };
 
 // Prediction inputs (§5.4.5): label and the trial name the runner stores.
@@ -51,10 +50,8 @@ struct Input {
   std::string trial;
 };
 const std::vector<Input> kInputs = {
-    {"step", "prediction_step"},
-    {"ramp", "prediction_ramp"},
-    {"sine", "prediction_sine"},
-    {"rb1", "active_random_binary_rb1"},
+    {"step", "prediction_step"},         {"ramp", "prediction_ramp"},
+    {"sine", "prediction_sine"},         {"rb1", "active_random_binary_rb1"},
     {"rb2", "active_random_binary_rb2"},
 };
 
@@ -222,12 +219,12 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
                      {{"weight_kg", vs.anthropometrics.body_mass_kg},
                       {"height_cm", vs.anthropometrics.height_m * 100.0},
                       {"shank_length_cm", vs.anthropometrics.shank_length_m * 100.0}}}});
-  const json session = client.Post(
-      "/subjects/" + std::to_string(subject.at("id").get<std::int64_t>()) + "/sessions",
-      {{"leg", "right"},
-       {"date", options.date},
-       {"threshold_ma", vs.threshold_ma},
-       {"max_tolerated_ma", vs.max_tolerated_ma}});
+  const json session =
+      client.Post("/subjects/" + std::to_string(subject.at("id").get<std::int64_t>()) + "/sessions",
+                  {{"leg", "right"},
+                   {"date", options.date},
+                   {"threshold_ma", vs.threshold_ma},
+                   {"max_tolerated_ma", vs.max_tolerated_ma}});
   leg.session_id = session.at("id").get<std::int64_t>();
 
   std::int64_t rapid_set = 0;
@@ -278,8 +275,7 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
       }
     } else if (leg.sets.count(SetKey("simultaneous", train)) != 0) {
       // τ_pta from the simultaneous set (Eq. 4.35 needs a τ_pta).
-      request["trial_ids"] =
-          TrialIds(leg, {"isometric_ramp_irc", "free_swing_passive", active});
+      request["trial_ids"] = TrialIds(leg, {"isometric_ramp_irc", "free_swing_passive", active});
       request["torque_angle_parameter_set_id"] = leg.sets[SetKey("simultaneous", train)];
       Identify(client, leg, request, keys, failures, log);
     } else {
@@ -290,9 +286,9 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   // IRC variants for the isometric prediction (Tables 6.1, 6.2).
   for (const auto& variant : kIrcVariants) {
     Identify(client, leg,
-             {{"trial_ids", TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc",
-                                           "passive_simultaneous_1", "passive_simultaneous_2",
-                                           "active_random_binary_rb1"})},
+             {{"trial_ids",
+               TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc", "passive_simultaneous_1",
+                              "passive_simultaneous_2", "active_random_binary_rb1"})},
               {"passive_method", "simultaneous"},
               {"irc_method", variant.irc_method},
               {"contraction_order", variant.order}},
@@ -392,7 +388,7 @@ std::vector<std::string> TTestRow(const std::vector<LegData>& legs, const std::s
     const double ea = ErrorOf(leg, a, input), eb = ErrorOf(leg, b, input);
     if (std::isfinite(ea) && std::isfinite(eb)) xa.push_back(ea), xb.push_back(eb);
   }
-  std::vector<std::string> row = {input, a, b, std::to_string(xa.size()), Num(Mean(xa)),
+  std::vector<std::string> row = {input,        a, b, std::to_string(xa.size()), Num(Mean(xa)),
                                   Num(Mean(xb))};
   if (xa.size() < 2) {
     for (int i = 0; i < 7; ++i) row.push_back("n/a");
@@ -405,9 +401,9 @@ std::vector<std::string> TTestRow(const std::vector<LegData>& legs, const std::s
   return row;
 }
 
-const std::vector<std::string> kTTestHeader = {
-    "input", "set_a", "set_b", "n", "mean_a", "mean_b", "mean_diff", "sd_diff",
-    "t",     "df",    "p",     "t_crit_95", "significant"};
+const std::vector<std::string> kTTestHeader = {"input",  "set_a",     "set_b",      "n", "mean_a",
+                                               "mean_b", "mean_diff", "sd_diff",    "t", "df",
+                                               "p",      "t_crit_95", "significant"};
 
 std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
   std::vector<Table> tables;
@@ -416,25 +412,33 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
     Table t{"table_6_1_isometric_irc",
             "Table 6.1: isometric prediction, step IRC vs ramp-correlation IRC (E_RMS torque, "
             "N.m, paired t-test)",
-            kTTestHeader, {}, "3rd-order contraction dynamics for both."};
+            kTTestHeader,
+            {},
+            "3rd-order contraction dynamics for both."};
     t.rows.push_back(TTestRow(legs, "isometric", "irc_step_o3", "irc_ramp_o3"));
     tables.push_back(t);
     Table u{"table_6_2_isometric_order",
             "Table 6.2: isometric prediction, 2nd vs 3rd order contraction dynamics (E_RMS "
             "torque, N.m)",
-            kTTestHeader, {}, "Rows per IRC method."};
+            kTTestHeader,
+            {},
+            "Rows per IRC method."};
     u.rows.push_back(TTestRow(legs, "isometric", "irc_ramp_o2", "irc_ramp_o3"));
     u.rows.push_back(TTestRow(legs, "isometric", "irc_step_o2", "irc_step_o3"));
     tables.push_back(u);
   }
   // 6.3: inertia by method with the virtual truth.
   {
-    Table t{"table_6_3_inertia", "Table 6.3: limb inertia by method (kg.m^2), with the virtual truth",
-            {"leg", "sequential", "simultaneous", "free_swing", "rapid", "truth"}, {}, ""};
+    Table t{"table_6_3_inertia",
+            "Table 6.3: limb inertia by method (kg.m^2), with the virtual truth",
+            {"leg", "sequential", "simultaneous", "free_swing", "rapid", "truth"},
+            {},
+            ""};
     std::map<std::string, std::vector<double>> cols;
     for (const auto& leg : legs) {
       std::vector<std::string> row = {std::to_string(leg.index)};
-      for (const std::string key : {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid"}) {
+      for (const std::string key :
+           {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid"}) {
         auto p = leg.params.find(key);
         const double j = p == leg.params.end() ? kNaN : p->second.passive.inertia_kgm2;
         cols[key].push_back(j);
@@ -446,7 +450,8 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
     }
     for (const std::string stat : {"mean", "sd"}) {
       std::vector<std::string> row = {stat};
-      for (const std::string key : {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid", "truth"})
+      for (const std::string key :
+           {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid", "truth"})
         row.push_back(Num(stat == "mean" ? Mean(cols[key]) : Sd(cols[key])));
       t.rows.push_back(row);
     }
@@ -456,10 +461,13 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
   {
     Table t{"table_6_4_linearised",
             "Table 6.4: linearised passive dynamics about the rest angle (zeta, omega_n rad/s)",
-            {"leg", "method", "rest_angle_deg", "zeta", "omega_n_rad_s"}, {}, ""};
+            {"leg", "method", "rest_angle_deg", "zeta", "omega_n_rad_s"},
+            {},
+            ""};
     for (const auto& leg : legs) {
       std::vector<std::pair<std::string, const model::ParameterSet*>> sets;
-      for (const std::string key : {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid"}) {
+      for (const std::string key :
+           {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid"}) {
         auto p = leg.params.find(key);
         sets.emplace_back(key, p == leg.params.end() ? nullptr : &p->second);
       }
@@ -469,7 +477,8 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
         try {
           if (p == nullptr) throw std::invalid_argument("no set");
           const server::LinearisedPassive lin = server::LinearisePassive(p->passive);
-          row.insert(row.end(), {Num(lin.rest_angle_deg, 2), Num(lin.zeta), Num(lin.natural_frequency_rad_s)});
+          row.insert(row.end(),
+                     {Num(lin.rest_angle_deg, 2), Num(lin.zeta), Num(lin.natural_frequency_rad_s)});
         } catch (const std::invalid_argument&) {
           row.insert(row.end(), {"n/a", "n/a", "n/a"});
         }
@@ -483,12 +492,17 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
     Table t{"table_6_5_6_8_ttests",
             "Tables 6.5-6.8: paired t-tests of free-swing prediction E_RMS (deg) between parameter "
             "sets, per input",
-            kTTestHeader, {}, "Positive mean_diff: set_a has more error. significant: |t| > t_crit (95 %)."};
+            kTTestHeader,
+            {},
+            "Positive mean_diff: set_a has more error. significant: |t| > t_crit (95 %)."};
     for (const auto& input : kInputs) {
       for (const auto& train : kTrains) {
-        t.rows.push_back(TTestRow(legs, input.label, SetKey("sequential", train), SetKey("simultaneous", train)));
-        t.rows.push_back(TTestRow(legs, input.label, SetKey("simultaneous", train), SetKey("free_swing", train)));
-        t.rows.push_back(TTestRow(legs, input.label, SetKey("sequential", train), SetKey("free_swing", train)));
+        t.rows.push_back(TTestRow(legs, input.label, SetKey("sequential", train),
+                                  SetKey("simultaneous", train)));
+        t.rows.push_back(TTestRow(legs, input.label, SetKey("simultaneous", train),
+                                  SetKey("free_swing", train)));
+        t.rows.push_back(
+            TTestRow(legs, input.label, SetKey("sequential", train), SetKey("free_swing", train)));
       }
       for (const auto& p : kPassiveMethods)
         t.rows.push_back(TTestRow(legs, input.label, SetKey(p, "rb1"), SetKey(p, "rb2")));
@@ -500,23 +514,31 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
   {
     Table t{"table_6_9_simplified",
             "Table 6.9: full model vs simplified models (free swing passive, RB1), E_RMS deg",
-            kTTestHeader, {}, ""};
+            kTTestHeader,
+            {},
+            ""};
     for (const auto& input : kInputs)
-      for (const auto& m : kSimplified) t.rows.push_back(TTestRow(legs, input.label, m, "free_swing_rb1"));
+      for (const auto& m : kSimplified)
+        t.rows.push_back(TTestRow(legs, input.label, m, "free_swing_rb1"));
     tables.push_back(t);
   }
   // Appendices J, K: per-leg errors.
   {
     Table t{"appendix_jk_per_leg_errors",
             "Appendices J and K: per-leg prediction errors (E_RMS and E_ABS, deg; isometric N.m)",
-            {"leg", "set", "input", "e_rms", "e_abs"}, {}, ""};
+            {"leg", "set", "input", "e_rms", "e_abs"},
+            {},
+            ""};
     for (const auto& leg : legs)
       for (const auto& [key, inputs] : leg.errors)
         for (const auto& [input, e] : inputs)
           t.rows.push_back({std::to_string(leg.index), key, input, Num(e.first), Num(e.second)});
     tables.push_back(t);
-    Table m{"mean_errors", "Mean E_RMS (deg) by parameter set and input over the cohort",
-            {"set"}, {}, ""};
+    Table m{"mean_errors",
+            "Mean E_RMS (deg) by parameter set and input over the cohort",
+            {"set"},
+            {},
+            ""};
     for (const auto& input : kInputs) m.header.push_back(input.label);
     std::vector<std::string> keys = {"rapid"};
     for (const auto& p : kPassiveMethods)
@@ -534,8 +556,11 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
     tables.push_back(m);
     // Medians: a few diverging predictions (the model has no hard stops, so
     // an unstable fit runs far past 10-110 deg) dominate the means.
-    Table md{"median_errors", "Median E_RMS (deg) by parameter set and input over the cohort",
-             m.header, {}, "The median is robust to the few predictions that diverge."};
+    Table md{"median_errors",
+             "Median E_RMS (deg) by parameter set and input over the cohort",
+             m.header,
+             {},
+             "The median is robust to the few predictions that diverge."};
     for (const auto& key : keys) {
       std::vector<std::string> row = {key};
       for (const auto& input : kInputs) {
@@ -558,8 +583,10 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
   }
   // §7.4.1 bench time per parameterisation.
   {
-    Table t{"bench_time", "Bench time per parameterisation (s of bench time), §7.4.1",
-            {"leg", "rapid_s", "traditional_s (step IRC + sequential passive)"}, {},
+    Table t{"bench_time",
+            "Bench time per parameterisation (s of bench time), §7.4.1",
+            {"leg", "rapid_s", "traditional_s (step IRC + sequential passive)"},
+            {},
             "Thesis: rapid < 30 s vs traditional 12.5 min (750 s)."};
     std::vector<double> rapid, traditional;
     for (const auto& leg : legs) {
@@ -584,7 +611,9 @@ bool WritePlots(ApiClient& client, const LegData& leg, const fs::path& dir, bool
                 std::string& note) {
   std::ofstream script(dir / "plots.gp");
   script << "# gnuplot script written by fesbench study: predicted vs measured knee angle, leg "
-         << leg.index << "\nset terminal png size 900,500\nset termoption noenhanced\nset yrange [-20:140]\nset xlabel 't (s)'\n"
+         << leg.index
+         << "\nset terminal png size 900,500\nset termoption noenhanced\nset yrange [-20:140]\nset "
+            "xlabel 't (s)'\n"
          << "set ylabel 'knee angle (deg flexion)'\nset key outside right\nset grid\n";
   const std::vector<std::string> shown = {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1",
                                           "rapid"};
@@ -628,8 +657,9 @@ bool WritePlots(ApiClient& client, const LegData& leg, const fs::path& dir, bool
     return false;
   }
   if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
-    note = "gnuplot not found on PATH (install Debian's gnuplot-nox): PNGs not drawn; data files "
-           "and plots.gp written, tables complete";
+    note =
+        "gnuplot not found on PATH (install Debian's gnuplot-nox): PNGs not drawn; data files "
+        "and plots.gp written, tables complete";
     return false;
   }
   const std::string command = "cd '" + dir.string() + "' && gnuplot plots.gp";
@@ -653,7 +683,8 @@ StudySummary RunStudy(ApiClient& client, const StudyOptions& options, std::ostre
   }
   const std::vector<Table> tables = BuildTables(legs);
   std::ofstream markdown(options.output_dir / "study.md");
-  markdown << "# Virtual cohort study\n\n" << options.legs << " legs, seed " << options.seed
+  markdown << "# Virtual cohort study\n\n"
+           << options.legs << " legs, seed " << options.seed
            << ". Generated by `fesbench study`.\n\n";
   for (const auto& table : tables) WriteTable(options.output_dir, table, markdown);
   std::map<std::string, std::string> failures;

@@ -18,11 +18,11 @@
 namespace fesbench::cli::study {
 
 struct StudyOptions {
-  int legs = 16;                      ///< cohort size, ≥ 2 (t-tests need n − 1 ≥ 1).
-  std::uint64_t seed = 1;             ///< leg i's virtual subject is DrawVirtualSubject(seed·1000 + i).
-  std::filesystem::path output_dir;   ///< created; tables, data files and PNGs go here.
-  std::string date = "2026-01-01";    ///< session date (fixed for determinism).
-  bool plots = true;                  ///< run gnuplot (if found on PATH).
+  int legs = 16;           ///< cohort size, ≥ 2 (t-tests need n − 1 ≥ 1).
+  std::uint64_t seed = 1;  ///< leg i's virtual subject is DrawVirtualSubject(seed·1000 + i).
+  std::filesystem::path output_dir;  ///< created; tables, data files and PNGs go here.
+  std::string date = "2026-01-01";   ///< session date (fixed for determinism).
+  bool plots = true;                 ///< run gnuplot (if found on PATH).
 };
 
 struct StudySummary {
