@@ -214,10 +214,17 @@ std::vector<PositionHold> DetectHolds(std::span<const double> t_s,
   if (options.average_samples == 0) {
     throw std::invalid_argument("DetectHolds: average_samples must be positive");
   }
+  if (!(options.speed_span_s >= 0.0)) {
+    throw std::invalid_argument("DetectHolds: speed_span_s must be >= 0");
+  }
+  // Half the span in samples (at least one neighbour each side).
+  const double dt = (t_s[n - 1] - t_s[0]) / static_cast<double>(n - 1);
+  const auto half = std::max<std::size_t>(
+      1, static_cast<std::size_t>(std::llround(0.5 * options.speed_span_s / dt)));
   std::vector<bool> still(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t a = i == 0 ? 0 : i - 1;
-    const std::size_t b = i + 1 == n ? i : i + 1;
+    const std::size_t a = i >= half ? i - half : 0;
+    const std::size_t b = std::min(n - 1, i + half);
     const double speed = std::abs(angle_deg[b] - angle_deg[a]) / (t_s[b] - t_s[a]);
     still[i] = speed < options.max_speed_deg_s;
   }

@@ -36,11 +36,15 @@ struct PositionHold {
 /// Options of DetectHolds.
 struct HoldOptions {
   double max_speed_deg_s = 0.5;      ///< |Δθ/Δt| below this counts as still.
+  /// Δθ/Δt is taken across this span centred on each sample, so that
+  /// potentiometer noise and A/D steps (±0.03° at 200 Hz would read as
+  /// several deg/s between neighbours) do not hide a hold.
+  double speed_span_s = 0.5;
   double min_duration_s = 1.0;       ///< shorter still runs are not holds.
   std::size_t average_samples = 50;  ///< §5.4.1: 50 samples averaged.
 };
 
-/// Finds runs where the knee is still (finite-difference speed below
+/// Finds runs where the knee is still (speed over speed_span_s below
 /// max_speed_deg_s) for at least min_duration_s, and averages angle, torque
 /// and acceleration over the last `average_samples` samples of each.
 /// torque_nm and accel_deg_s2 may be empty.

@@ -50,6 +50,35 @@ TEST(AccelerometerCalibration, TableFromHoldsRemovesGravity) {
   EXPECT_NEAR(corrected[1], -3.0, 1e-9);
 }
 
+TEST(DetectHolds, FindsHoldsInNoisyQuantisedPotentiometerData) {
+  // §5.4.1 position holds as the bench records them: 12-bit angle
+  // (120°/4096 per LSB) with ±0.03° noise. Neighbouring samples then differ
+  // by up to a few deg/s, which must not hide a 10 s hold.
+  const double rate = 200.0, lsb = 120.0 / 4096.0;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> noise(-0.03, 0.03);
+  std::vector<double> t, ang;
+  const std::vector<double> levels = {110.0, 90.0, 70.0, 50.0};
+  double th = 90.0;
+  for (double level : levels) {
+    for (int i = 0; i < 200; ++i) {  // 1 s move at constant speed
+      th += (level - th) / static_cast<double>(200 - i);
+      t.push_back(static_cast<double>(t.size()) / rate);
+      ang.push_back(std::round((th + noise(rng)) / lsb) * lsb);
+    }
+    for (int i = 0; i < 2000; ++i) {  // 10 s hold
+      t.push_back(static_cast<double>(t.size()) / rate);
+      ang.push_back(std::round((level + noise(rng)) / lsb) * lsb);
+    }
+  }
+  const auto holds = DetectHolds(t, ang, {}, {}, HoldOptions{});
+  ASSERT_EQ(holds.size(), levels.size());
+  for (std::size_t k = 0; k < levels.size(); ++k) {
+    EXPECT_NEAR(holds[k].angle_deg, levels[k], 0.03) << k;
+    EXPECT_GT(t[holds[k].end - 1] - t[holds[k].begin], 9.0) << k;
+  }
+}
+
 TEST(SmoothingSpline, ZeroLambdaInterpolatesAndLargeLambdaIsALine) {
   std::vector<double> t, y;
   for (int i = 0; i < 30; ++i) {
