@@ -6,6 +6,7 @@
 #include <string>
 #include <thread>
 
+#include "clients/command_line.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
 
@@ -17,15 +18,6 @@ constexpr CommandRegistrar kCommands[] = {
     RegisterLoginCommand, RegisterRecordCommands,   RegisterRunCommands,
     RegisterDataCommands, RegisterAnalysisCommands, RegisterStudyCommand,
 };
-
-// One line: CLI11, server and library messages may carry newlines.
-std::string OneLine(std::string message) {
-  for (char& c : message) {
-    if (c == '\n' || c == '\r') c = ' ';
-  }
-  while (!message.empty() && message.back() == ' ') message.pop_back();
-  return message;
-}
 
 int Fail(std::ostream& err, int code, const std::string& message) {
   err << "fesbench: error: " << OneLine(message) << std::endl;
@@ -84,25 +76,9 @@ int RunFesbenchCli(int argc, const char* const* argv, std::ostream& out, std::os
                    "server URL, e.g. https://lab:8443 (overrides the config file)");
     app.add_flag("--json", context.options.json, "machine-readable JSON output (read commands)");
     for (CommandRegistrar registrar : kCommands) registrar(app, context);
-    try {
-      app.parse(argc, argv);
-    } catch (const CLI::CallForHelp&) {
-      out << app.help();
-      return kExitOk;
-    } catch (const CLI::CallForAllHelp&) {
-      out << app.help("", CLI::AppFormatMode::All);
-      return kExitOk;
-    } catch (const CLI::ParseError& e) {
-      if (app.get_subcommands().empty() && argc > 1 && argv[1][0] != '-') {
-        std::string names;
-        for (const CLI::App* sub : app.get_subcommands({})) {
-          names += (names.empty() ? "" : ", ") + sub->get_name();
-        }
-        return Fail(err, kExitUsage,
-                    std::string("unknown command '") + argv[1] + "' (commands: " + names + ")");
-      }
-      return Fail(err, kExitUsage, e.what());
-    }
+    const ParseOutcome parsed = ParseCommandLine(app, argc, argv, out);
+    if (parsed.help_printed) return kExitOk;
+    if (!parsed.usage_error.empty()) return Fail(err, kExitUsage, parsed.usage_error);
     if (!context.action) return Fail(err, kExitUsage, "no command given (see --help)");
     context.action();
     out.flush();

@@ -4,6 +4,7 @@
 #include <ostream>
 #include <string>
 
+#include "clients/command_line.h"
 #include "clients/model_cli/commands.h"
 
 namespace fesbench::cli {
@@ -17,15 +18,6 @@ constexpr CommandRegistrar kCommands[] = {
     RegisterIdentifyCommand,
     RegisterExampleCommand,
 };
-
-// One line: CLI11 and library messages may carry newlines.
-std::string OneLine(std::string message) {
-  for (char& c : message) {
-    if (c == '\n' || c == '\r') c = ' ';
-  }
-  while (!message.empty() && message.back() == ' ') message.pop_back();
-  return message;
-}
 
 int Fail(std::ostream& err, int code, const std::string& message) {
   err << "fesbench-model: error: " << OneLine(message) << std::endl;
@@ -44,27 +36,9 @@ int RunModelCli(int argc, const char* const* argv, std::ostream& out, std::ostre
     app.require_subcommand(1);
     app.fallthrough(false);
     for (CommandRegistrar registrar : kCommands) registrar(app, context);
-    try {
-      app.parse(argc, argv);
-    } catch (const CLI::CallForHelp&) {
-      out << app.help();
-      return kExitOk;
-    } catch (const CLI::CallForAllHelp&) {
-      out << app.help("", CLI::AppFormatMode::All);
-      return kExitOk;
-    } catch (const CLI::ParseError& e) {
-      // A subcommand's --help arrives as CallForHelp from the subcommand;
-      // it is handled above (app.help() then shows the selected one).
-      if (app.get_subcommands().empty() && argc > 1 && argv[1][0] != '-') {
-        std::string names;
-        for (const CLI::App* sub : app.get_subcommands({})) {
-          names += (names.empty() ? "" : ", ") + sub->get_name();
-        }
-        return Fail(err, kExitUsage,
-                    std::string("unknown command '") + argv[1] + "' (commands: " + names + ")");
-      }
-      return Fail(err, kExitUsage, e.what());
-    }
+    const ParseOutcome parsed = ParseCommandLine(app, argc, argv, out);
+    if (parsed.help_printed) return kExitOk;
+    if (!parsed.usage_error.empty()) return Fail(err, kExitUsage, parsed.usage_error);
     return kExitOk;
   } catch (const CliError& e) {
     return Fail(err, e.exit_code(), e.what());
