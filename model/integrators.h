@@ -114,17 +114,29 @@ double ErrorNorm(const State& err, const State& x0, const State& x1,
 
 }  // namespace detail
 
+/// The projection that leaves every state as it is (see
+/// IntegrateDormandPrince45).
+struct NoProjection {
+  template <class State>
+  bool operator()(State& /*x*/) const {
+    return false;
+  }
+};
+
 /// Dormand–Prince 5(4) from t0 to t1 ≥ t0, local extrapolation (the 5th-order
 /// solution is propagated), FSAL, step controller
 /// h ← h·clamp(0.9·err^(−1/5), 0.2, 5). workspace.next_step_s is used as the
 /// first step (chosen from ‖x‖/‖f‖ when ≤ 0) and receives the step to try
-/// next; the last step is shortened to land on t1 exactly.
+/// next; the last step is shortened to land on t1 exactly. After each
+/// accepted step `project(x)` may move the state onto a constraint (a joint
+/// stop) and returns whether it did; the FSAL derivative is then re-evaluated.
 /// @throws std::runtime_error if the step needed falls below min_step_s, the
 ///   state becomes non-finite, or max_steps is exceeded. Tolerances are not
 ///   validated here (see ValidateTolerances).
-template <class State, class Rhs>
+template <class State, class Rhs, class Project = NoProjection>
 State IntegrateDormandPrince45(const Rhs& f, double t0, double t1, State x,
-                               const AdaptiveTolerances& tol, IntegratorWorkspace& ws) {
+                               const AdaptiveTolerances& tol, IntegratorWorkspace& ws,
+                               const Project& project = {}) {
   if (!(t1 > t0)) return x;
   // Butcher tableau (Dormand & Prince 1980).
   constexpr double c2 = 1.0 / 5, c3 = 3.0 / 10, c4 = 4.0 / 5, c5 = 8.0 / 9;
@@ -181,6 +193,10 @@ State IntegrateDormandPrince45(const Rhs& f, double t0, double t1, State x,
       t = last ? t1 : t + hs;
       x = x_new;
       k1 = k7;  // FSAL
+      if (project(x)) {
+        k1 = f(t, x);
+        ws.stats.rhs_evaluations += 1;
+      }
       // A shortened last step that passed easily says nothing against h.
       h = (last && factor >= 1.0) ? std::max(h, hs * factor) : hs * factor;
       h = std::clamp(h, tol.min_step_s, tol.max_step_s);

@@ -1,6 +1,7 @@
 #include "model/simulate.h"
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -20,6 +21,21 @@ void RequireAngle(double angle_deg, const char* field) {
   if (!std::isfinite(angle_deg) || angle_deg < 0.0 || angle_deg > 180.0) {
     throw std::invalid_argument(std::string("simulation: ") + field +
                                 " must be within 0-180 deg, got " + std::to_string(angle_deg));
+  }
+}
+
+void ValidateLimits(const JointLimits& limits, double initial_angle_deg) {
+  if (!std::isfinite(limits.min_angle_deg) || !std::isfinite(limits.max_angle_deg) ||
+      limits.min_angle_deg < 0.0 || limits.max_angle_deg > 180.0 ||
+      !(limits.min_angle_deg < limits.max_angle_deg)) {
+    throw std::invalid_argument(
+        "simulation: joint_limits must satisfy 0 <= min_angle_deg < max_angle_deg <= 180");
+  }
+  if (initial_angle_deg < limits.min_angle_deg || initial_angle_deg > limits.max_angle_deg) {
+    throw std::invalid_argument(
+        "simulation: initial_angle_deg " + std::to_string(initial_angle_deg) +
+        " is outside the joint limits " + std::to_string(limits.min_angle_deg) + "-" +
+        std::to_string(limits.max_angle_deg) + " deg");
   }
 }
 
@@ -84,6 +100,7 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
   if (!std::isfinite(options.initial_velocity_deg_s)) {
     throw std::invalid_argument("simulation: initial_velocity_deg_s must be finite");
   }
+  if (options.joint_limits) ValidateLimits(*options.joint_limits, options.initial_angle_deg);
   const JointModel model = PrepareModel(params, options);
 
   SimulationResult r = MakeResult(n, options.output_rate_hz, model.kind());
@@ -94,18 +111,44 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
   const auto rhs = [&model](double /*t*/, const State& x, double activation) {
     return State(x[1], model.AccelerationDegS2(x[0], x[1], activation));
   };
+  const std::optional<JointLimits>& limits = options.joint_limits;
   const auto record = [&](std::size_t i, double /*t*/, const State& x, double activation) {
     r.angle_deg[i] = x[0];
     r.velocity_deg_s[i] = x[1];
-    r.accel_deg_s2[i] = model.AccelerationDegS2(x[0], x[1], activation);
+    double accel = model.AccelerationDegS2(x[0], x[1], activation);
+    // Resting on a stop that the net torque pushes into: the stop holds.
+    if (limits && ((x[0] <= limits->min_angle_deg && accel < 0.0) ||
+                   (x[0] >= limits->max_angle_deg && accel > 0.0))) {
+      accel = 0.0;
+    }
+    r.accel_deg_s2[i] = accel;
     r.activation[i] = activation;
   };
   const IntegratorSettings settings{options.integrator, options.step_s, options.tolerances};
   IntegratorWorkspace ws;
-  detail::RunPulseDriven(rhs, record,
-                         State(options.initial_angle_deg, options.initial_velocity_deg_s),
-                         params.contraction, params.irc, pulses, options.pulse_rate_hz,
-                         options.output_rate_hz, n, settings, ws);
+  const State x0(options.initial_angle_deg, options.initial_velocity_deg_s);
+  if (limits) {
+    // Plastic stops (JointLimits): clamp the angle, drop the velocity into
+    // the stop.
+    const auto stop = [&limits](State& x) {
+      if (x[0] < limits->min_angle_deg || (x[0] == limits->min_angle_deg && x[1] < 0.0)) {
+        x[0] = limits->min_angle_deg;
+        x[1] = std::max(x[1], 0.0);
+        return true;
+      }
+      if (x[0] > limits->max_angle_deg || (x[0] == limits->max_angle_deg && x[1] > 0.0)) {
+        x[0] = limits->max_angle_deg;
+        x[1] = std::min(x[1], 0.0);
+        return true;
+      }
+      return false;
+    };
+    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
+                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop);
+  } else {
+    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
+                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws);
+  }
   r.stats = ws.stats;
   return r;
 }

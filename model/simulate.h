@@ -32,6 +32,19 @@
 
 namespace fesbench::model {
 
+/// The mechanical range of motion of a free-swing simulation: hard stops at
+/// which the knee stops dead (a plastic impact: the angle is held at the stop
+/// and the velocity into it is removed). This models the bench's stops, a
+/// stiff spring–damper near critical damping that does not rebound
+/// (server/bench/simulated_bench.cc); the thesis's model has none (ch. 3), so
+/// without limits an identified set whose curves stop at the edge of the
+/// visited range can swing the knee round past 0° or 180°.
+struct JointLimits {
+  double min_angle_deg = 10.0;   ///< full extension stop, deg.
+  double max_angle_deg = 110.0;  ///< flexion stop, deg, > min_angle_deg.
+  friend bool operator==(const JointLimits&, const JointLimits&) = default;
+};
+
 /// Options of every simulation mode.
 struct SimulationOptions {
   IntegratorKind integrator = IntegratorKind::kRk4;
@@ -46,6 +59,10 @@ struct SimulationOptions {
       kDefaultPulseRateHz;  ///< f_pulse of the pulse weight R(u)/f_pulse, Hz, > 0.
   AdaptiveTolerances tolerances{1e-8, 1e-8, 1e-10, 0.01, 10'000'000};  ///< adaptive only.
   std::optional<ModelKind> model_kind;  ///< overrides params.model when set.
+  /// Free swing only: hard stops (none when unset). With RK4 the stop is
+  /// applied after every step; with the adaptive integrator after every
+  /// accepted step.
+  std::optional<JointLimits> joint_limits;
 };
 
 /// Equal-length columns, one row per output sample.
@@ -70,10 +87,14 @@ struct SimulationResult {
   std::size_t size() const { return t_s.size(); }
 };
 
-/// Free swing: motor off, J·θ̈ = −τ_pta(θ) − τ_ptv(θ̇) − τ_act.
+/// Free swing: motor off, J·θ̈ = −τ_pta(θ) − τ_ptv(θ̇) − τ_act, inside
+/// options.joint_limits when set (at a stop with the net torque pushing into
+/// it, θ̇ = θ̈ = 0).
 /// @throws std::invalid_argument on invalid options (non-finite or
 ///   non-positive step, rate, duration, pulse rate, tolerances; initial
-///   angle outside 0–180° or non-finite velocity), an invalid pulse train
+///   angle outside 0–180° or outside the joint limits, non-finite
+///   velocity, joint limits not finite or not 0 ≤ min < max ≤ 180), an
+///   invalid pulse train
 ///   (non-finite, negative, or non-increasing times; negative amplitudes),
 ///   or an invalid parameter set (contraction, empty irc, JointModel); the
 ///   message names the field.
@@ -114,13 +135,15 @@ double DefaultDuration(const PulseTrain& pulses);
 
 /// Integrates a mechanical state driven by the exact activation of a pulse
 /// train (see the file comment): rhs(t, x, f_stim) → ẋ; record(i, t_i, x,
-/// f_stim) at each output time. Inputs are assumed validated.
-template <class State, class Rhs, class Record>
+/// f_stim) at each output time; project(x) after every step may move the
+/// state onto a constraint (see IntegrateDormandPrince45). Inputs are assumed
+/// validated.
+template <class State, class Rhs, class Record, class Project = NoProjection>
 void RunPulseDriven(const Rhs& rhs, const Record& record, State x,
                     const ContractionParams& contraction, const PiecewiseLinear& irc,
                     const PulseTrain& pulses, double pulse_rate_hz, double output_rate_hz,
-                    std::size_t n_out, const IntegratorSettings& settings,
-                    IntegratorWorkspace& ws) {
+                    std::size_t n_out, const IntegratorSettings& settings, IntegratorWorkspace& ws,
+                    const Project& project = {}) {
   ContractionPropagator prop(contraction);
   ContractionState chain{};
   double t = 0.0;
@@ -150,6 +173,7 @@ void RunPulseDriven(const Rhs& rhs, const Record& record, State x,
           return rhs(tt, xx, u < 0.25 * h ? a0 : (u < 0.75 * h ? a_half : a_end));
         };
         x = Rk4Step(f, ts, x, h);
+        project(x);
         chain = c_end;
       }
       ws.stats.accepted_steps += m;
@@ -160,7 +184,7 @@ void RunPulseDriven(const Rhs& rhs, const Record& record, State x,
       const auto f = [&](double tt, const State& xx) {
         return rhs(tt, xx, prop.OutputAfter(c0, tt - ts));
       };
-      x = IntegrateDormandPrince45(f, t, t_end, x, settings.tolerances, ws);
+      x = IntegrateDormandPrince45(f, t, t_end, x, settings.tolerances, ws, project);
       chain = prop.Propagate(chain, t_end - t);
     }
     t = t_end;

@@ -69,6 +69,51 @@ TEST(SimulateTest, LinearPassiveFreeResponseMatchesClosedForm) {
   }
 }
 
+// A constant passive torque falls the knee at constant angular acceleration
+// onto the extension stop, where it stays: θ = θ₀ − ½·a·t² until
+// t* = √(2(θ₀ − θ_min)/a), then θ = θ_min, θ̇ = θ̈ = 0.
+TEST(SimulateTest, JointLimitsStopTheKneeDead) {
+  ParameterSet p = LinearPassive(0.0, 0.0);
+  const double tau = 2.0, j = p.passive.inertia_kgm2;
+  p.passive.torque_angle = PiecewiseLinear::Constant(tau, 90.0);
+  const double a = RadToDeg(tau / j);  // deg/s², towards extension
+  const double theta0 = 50.0;
+  const double t_stop = std::sqrt(2.0 * (theta0 - 10.0) / a);
+  for (IntegratorKind kind : {IntegratorKind::kRk4, IntegratorKind::kAdaptive}) {
+    SimulationOptions o;
+    o.integrator = kind;
+    o.duration_s = 2.0;
+    o.initial_angle_deg = theta0;
+    o.joint_limits = JointLimits{10.0, 110.0};
+    const SimulationResult r = SimulateFreeSwing(p, {}, o);
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      const double t = r.t_s[i];
+      if (t < t_stop - 2e-3) {
+        EXPECT_NEAR(r.angle_deg[i], theta0 - 0.5 * a * t * t, 1e-6) << t;
+        EXPECT_NEAR(r.velocity_deg_s[i], -a * t, 1e-6) << t;
+      } else if (t > t_stop + 2e-3) {
+        EXPECT_EQ(r.angle_deg[i], 10.0) << t;
+        EXPECT_EQ(r.velocity_deg_s[i], 0.0) << t;
+        EXPECT_EQ(r.accel_deg_s2[i], 0.0) << t;
+      }
+      EXPECT_GE(r.angle_deg[i], 10.0);
+    }
+    // Without limits the same knee falls through the stop.
+    o.joint_limits.reset();
+    EXPECT_LT(SimulateFreeSwing(p, {}, o).angle_deg.back(), 0.0) << IntegratorKindName(kind);
+  }
+  // The flexion stop: the torque reversed.
+  p.passive.torque_angle = PiecewiseLinear::Constant(-tau, 90.0);
+  SimulationOptions o;
+  o.duration_s = 2.0;
+  o.initial_angle_deg = 100.0;
+  o.joint_limits = JointLimits{10.0, 110.0};
+  const SimulationResult r = SimulateFreeSwing(p, {}, o);
+  EXPECT_EQ(r.angle_deg.back(), 110.0);
+  EXPECT_EQ(r.velocity_deg_s.back(), 0.0);
+  EXPECT_LE(*std::max_element(r.angle_deg.begin(), r.angle_deg.end()), 110.0);
+}
+
 TEST(SimulateTest, Rk4AndAdaptiveAgreeOnRandomBinaryFreeSwing) {
   const ParameterSet p = ExampleParameterSet();
   const PulseTrain pulses = RandomBinaryPulses(10.0, 40.0, 20261121u);
@@ -242,6 +287,13 @@ TEST(SimulateTest, RejectsBadInput) {
   EXPECT_THROW(SimulateFreeSwing(p, {}, bad), std::invalid_argument);
   bad = o;
   bad.initial_velocity_deg_s = NAN;
+  EXPECT_THROW(SimulateFreeSwing(p, {}, bad), std::invalid_argument);
+  bad = o;
+  bad.joint_limits = JointLimits{50.0, 40.0};
+  EXPECT_THROW(SimulateFreeSwing(p, {}, bad), std::invalid_argument);
+  bad.joint_limits = JointLimits{10.0, 80.0};  // θ₀ = 90° outside
+  EXPECT_THROW(SimulateFreeSwing(p, {}, bad), std::invalid_argument);
+  bad.joint_limits = JointLimits{NAN, 110.0};
   EXPECT_THROW(SimulateFreeSwing(p, {}, bad), std::invalid_argument);
   bad = o;
   bad.step_s = -1e-3;
