@@ -20,8 +20,8 @@
 #include "server/bench/virtual_subject.h"
 #include "server/config.h"
 #include "server/dds/dds_server.h"
-#include "server/services/commands.h"
 #include "server/services/bench_service.h"
+#include "server/services/commands.h"
 #include "server/services/comparison_service.h"
 #include "server/services/identification_service.h"
 #include "server/services/job_pool.h"
@@ -89,7 +89,9 @@ int main(int argc, char** argv) {
   const std::filesystem::path db_path = std::filesystem::absolute(config.db);
   std::error_code ec;
   std::filesystem::create_directories(db_path.parent_path(), ec);
-  if (ec) return Fail("cannot create " + db_path.parent_path().string(), api::Status::Unavailable(ec.message()));
+  if (ec)
+    return Fail("cannot create " + db_path.parent_path().string(),
+                api::Status::Unavailable(ec.message()));
 
   storage::DatabaseOptions db_options;
   db_options.path = db_path.string();
@@ -129,8 +131,12 @@ int main(int argc, char** argv) {
   job_config.workers = config.job_workers;
   server::services::JobPool jobs(job_config);
   server::services::IdentificationService identification(**db);
-  server::services::PredictionService prediction(**db);
-  server::services::ComparisonService comparison(**db);
+  // Predictions stop at the bench's range of motion, as the knee does.
+  server::services::PredictionConfig prediction_config;
+  prediction_config.joint_limits =
+      model::JointLimits{bench->limits().min_angle_deg, bench->limits().max_angle_deg};
+  server::services::PredictionService prediction(**db, prediction_config);
+  server::services::ComparisonService comparison(**db, prediction_config);
 
   // The DDS front end (DESIGN.md §9): the same services, commands through
   // the same RunService calls and audit log as HTTP.
@@ -171,7 +177,8 @@ int main(int argc, char** argv) {
   http_options.max_connections = static_cast<std::size_t>(config.max_connections);
   http_options.max_streams = static_cast<std::size_t>(config.max_streams);
   http_options.web_root = config.web_root;
-  server::http::HttpServer http(http_options, server::http::BuildApiRoutes(deps), auth, **db, slots);
+  server::http::HttpServer http(http_options, server::http::BuildApiRoutes(deps), auth, **db,
+                                slots);
   auto port = http.Bind();
   if (!port.ok()) return Fail("cannot listen", port.status());
 
@@ -186,7 +193,8 @@ int main(int argc, char** argv) {
                     : std::string("off"))
             << "\n"
             << "fesbench-server: web client "
-            << (std::filesystem::is_regular_file(std::filesystem::path(config.web_root) / "index.html")
+            << (std::filesystem::is_regular_file(std::filesystem::path(config.web_root) /
+                                                 "index.html")
                     ? "from " + config.web_root
                     : "not built (no index.html in --web-root \"" + config.web_root + "\")")
             << "\n"
@@ -205,7 +213,7 @@ int main(int argc, char** argv) {
   pthread_kill(waiter.native_handle(), SIGTERM);
   waiter.join();
 
-  runs.Shutdown();  // a running protocol: stimulation zero, state aborted, all stored
+  runs.Shutdown();       // a running protocol: stimulation zero, state aborted, all stored
   if (dds) dds->Stop();  // after the run's final state went out
   hub.Close();
   jobs.Shutdown();

@@ -239,6 +239,10 @@ api::Result<PredictionRequest> PredictionRequestFromJson(const json& j) {
       r.initial_velocity_deg_s = Number(*v, "initial_velocity_deg_s");
     }
     if (const json* v = f.Get("duration_s")) r.duration_s = Number(*v, "duration_s");
+    if (const json* v = f.Get("fit_scale")) {
+      if (!v->is_boolean()) Fail("fit_scale", "must be true or false");
+      r.fit_scale = v->get<bool>();
+    }
     f.Done();
     if (api::Status s = ValidatePredictionRequest(r); !s.ok()) throw ParseError{s};
     return r;
@@ -257,6 +261,7 @@ json PredictionRequestToJson(const PredictionRequest& r) {
   if (r.initial_angle_deg) j["initial_angle_deg"] = *r.initial_angle_deg;
   if (r.stimulus) j["initial_velocity_deg_s"] = r.initial_velocity_deg_s;
   if (r.duration_s) j["duration_s"] = *r.duration_s;
+  if (r.fit_scale) j["fit_scale"] = true;
   return j;
 }
 
@@ -282,7 +287,11 @@ json PredictionResultToJson(const PredictionResult& r, bool include_columns) {
             {"initial_angle_deg", r.initial_angle_deg},
             {"initial_velocity_deg_s", r.initial_velocity_deg_s},
             {"samples", r.predicted.size()},
-            {"errors", r.errors ? PredictionErrorsToJson(*r.errors) : json(nullptr)}};
+            {"errors", r.errors ? PredictionErrorsToJson(*r.errors) : json(nullptr)},
+            {"fitted_scale", Nullable(r.fitted_scale)}};
+  j["joint_limits"] = r.joint_limits ? json{{"min_angle_deg", r.joint_limits->min_angle_deg},
+                                            {"max_angle_deg", r.joint_limits->max_angle_deg}}
+                                     : json(nullptr);
   if (r.predicted.size() >= 2) {
     j["sample_rate_hz"] = 1.0 / (r.predicted.t_s[1] - r.predicted.t_s[0]);
   }

@@ -72,6 +72,13 @@ api::Status ValidatePredictionRequest(const PredictionRequest& r, const Predicti
   if (r.trial_id && *r.trial_id <= 0) {
     return api::Status::InvalidArgument("must be a positive id", "trial_id");
   }
+  if (r.fit_scale && !r.trial_id) {
+    return api::Status::InvalidArgument("needs trial_id (an isometric trial to fit against)",
+                                        "fit_scale");
+  }
+  if (r.fit_scale && r.mode == PredictionMode::kFreeSwing) {
+    return api::Status::InvalidArgument("isometric predictions only", "fit_scale");
+  }
   if (r.trial_id) {
     for (const auto& [set, field] :
          {std::pair{r.initial_angle_deg.has_value(), "initial_angle_deg"},
@@ -222,6 +229,23 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
           "initial angle " + std::to_string(out.initial_angle_deg) + " deg is outside 0–180",
           request.trial_id ? "trial_id" : "initial_angle_deg");
     }
+    if (out.mode == PredictionMode::kFreeSwing && config_.joint_limits) {
+      const model::JointLimits& stops = *config_.joint_limits;
+      if (request.trial_id) {
+        // A measured start a sensor-noise step past a stop is at the stop.
+        out.initial_angle_deg =
+            std::clamp(out.initial_angle_deg, stops.min_angle_deg, stops.max_angle_deg);
+      } else if (out.initial_angle_deg < stops.min_angle_deg ||
+                 out.initial_angle_deg > stops.max_angle_deg) {
+        return api::Status::InvalidArgument(
+            "initial angle " + std::to_string(out.initial_angle_deg) +
+                " deg is outside the range of motion " + std::to_string(stops.min_angle_deg) + "-" +
+                std::to_string(stops.max_angle_deg) + " deg",
+            "initial_angle_deg");
+      }
+      options.joint_limits = stops;
+      out.joint_limits = stops;
+    }
     options.initial_angle_deg = out.initial_angle_deg;
     options.initial_velocity_deg_s = out.initial_velocity_deg_s;
     stage = "simulation";
@@ -245,6 +269,25 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
       for (std::size_t i = 0; i < c.size(); ++i) {
         at[i] = sim.InterpolateAt(c.t_s[i] - c.t_s.front());
         data[i] = iso ? c.torque_nm[i] - offset : c.angle_deg[i];
+      }
+      if (request.fit_scale) {
+        if (!iso) {
+          return api::Status::InvalidArgument("isometric predictions only (trial " +
+                                                  std::to_string(*request.trial_id) +
+                                                  " is predicted in free swing)",
+                                              "fit_scale");
+        }
+        // §6.1.2: the constant k minimising Σ(k·prediction − data)².
+        double pd = 0.0, pp = 0.0;
+        for (std::size_t i = 0; i < at.size(); ++i) pd += at[i] * data[i], pp += at[i] * at[i];
+        if (!(pp > 0.0)) {
+          return api::Status::FailedPrecondition(
+              "fit_scale: the predicted torque is zero throughout, no scale fits");
+        }
+        const double k = pd / pp;
+        for (double& v : at) v *= k;
+        for (double& v : out.predicted.torque_nm) v *= k;
+        out.fitted_scale = k;
       }
       out.errors = Errors(at, data, iso, config_.normalised_exclude_fraction);
     }

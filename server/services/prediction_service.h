@@ -38,6 +38,9 @@ struct PredictionConfig {
   double pulse_rate_hz = 33.0;                ///< stimulator pulse rate, Hz.
   double output_rate_hz = 200.0;              ///< sample rate of stimulus predictions, Hz.
   double normalised_exclude_fraction = 0.05;  ///< Eq. 6.1 exclusion (evaluation.h).
+  /// The bench's range of motion: free-swing predictions stop at it, as the
+  /// knee does (model/simulate.h JointLimits). Unset: unbounded.
+  std::optional<model::JointLimits> joint_limits = model::JointLimits{};
 };
 
 enum class PredictionMode { kFreeSwing, kIsometric };
@@ -63,6 +66,11 @@ struct PredictionRequest {
   std::optional<double> initial_angle_deg;
   double initial_velocity_deg_s = 0.0;  ///< stimulus free swing θ̇(0), |·| ≤ 2000 deg/s.
   std::optional<double> duration_s;     ///< stimulus only; default: the envelope's length.
+  /// Isometric trial only: scale the predicted torque by the least-squares
+  /// constant before the errors, as the isometric IRC comparisons of §6.1.2
+  /// and §6.2 do ("the maximum isometric torque output was determined by
+  /// scaling the simulation result by a constant to get a best fit").
+  bool fit_scale = false;
 };
 
 /// The errors of a prediction against a measured trial (ch. 6).
@@ -92,7 +100,9 @@ struct PredictionResult {
   /// Predicted columns at the output rate (trial: the trial's rate); the
   /// isometric torque offset-removed.
   model::SimulationResult predicted;
-  std::optional<PredictionErrors> errors;  ///< with a trial.
+  std::optional<PredictionErrors> errors;          ///< with a trial.
+  std::optional<double> fitted_scale;              ///< the §6.1.2 constant, with fit_scale.
+  std::optional<model::JointLimits> joint_limits;  ///< free swing: the stops used.
 };
 
 /// Checks the request alone: kInvalidArgument naming the field.

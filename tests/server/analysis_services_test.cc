@@ -363,6 +363,93 @@ TEST_F(AnalysisServicesTest, PredictionOfATrialMadeFromTheSameParametersHasZeroE
               0.01 * truth.active.torque_scale_nm);
 }
 
+// §6.1.2: the isometric prediction's torque is scaled by the best-fit
+// constant; a set whose τ_scale is twice the truth's fits with k = 1/2 and no
+// error left.
+TEST_F(AnalysisServicesTest, IsometricPredictionFitsTheScaleOfSection612) {
+  const model::ParameterSet truth = Truth();
+  const storage::Session s = MakeSession("S5");
+  model::ParameterSet doubled = truth;
+  doubled.active.torque_scale_nm *= 2.0;
+  const std::int64_t set_id = StoreSet(s, doubled);
+  const model::SampledSignal env =
+      model::MakeStimulus("plateau_profile", {{"threshold_ma", 20}, {"max_ma", 45}});
+  const std::int64_t trial_id =
+      Store(s, TrialOf("isometric_prediction",
+                       model::SimulateIsometric(
+                           truth, model::PulsesFromEnvelope(env, model::kDefaultPulseRateHz), 90.0,
+                           Whole(env)),
+                       &env, false));
+  PredictionService service(*db_);
+  PredictionRequest req;
+  req.parameter_set_id = set_id;
+  req.trial_id = trial_id;
+  auto plain = service.Compute(req);
+  ASSERT_TRUE(plain.ok()) << plain.status().ToString();
+  EXPECT_EQ(plain->mode, PredictionMode::kIsometric);
+  EXPECT_FALSE(plain->fitted_scale.has_value());
+  EXPECT_GT(plain->errors->e_rms, 1.0);
+  req.fit_scale = true;
+  auto fitted = service.Compute(req);
+  ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
+  ASSERT_TRUE(fitted->fitted_scale.has_value());
+  EXPECT_NEAR(*fitted->fitted_scale, 0.5, 1e-9);
+  EXPECT_LT(fitted->errors->e_rms, 1e-9);
+  EXPECT_EQ(PredictionResultToJson(*fitted, false)["fitted_scale"], *fitted->fitted_scale);
+
+  // Only for an isometric trial.
+  PredictionRequest stim;
+  stim.parameter_set_id = set_id;
+  stim.stimulus = StimulusSpec{"prediction_step", {}};
+  stim.fit_scale = true;
+  EXPECT_EQ(service.Compute(stim).status().field(), "fit_scale");
+  req.mode = PredictionMode::kFreeSwing;
+  EXPECT_EQ(service.Compute(req).status().field(), "fit_scale");
+  EXPECT_EQ(PredictionRequestFromJson({{"parameter_set_id", 1}, {"trial_id", 2}, {"fit_scale", 1}})
+                .status()
+                .field(),
+            "fit_scale");
+}
+
+// Free swing stops at the bench's range of motion: a set whose passive
+// torque only ever pushes into extension leaves the knee on the 10° stop,
+// where without stops it would fall through.
+TEST_F(AnalysisServicesTest, FreeSwingPredictionStopsAtTheRangeOfMotion) {
+  const model::ParameterSet truth = Truth();
+  const storage::Session s = MakeSession("S6");
+  model::ParameterSet falling = truth;
+  falling.passive.torque_angle = model::PiecewiseLinear::Constant(5.0, 90.0);
+  const std::int64_t set_id = StoreSet(s, falling);
+  const model::SampledSignal env =
+      model::MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 5}});
+  const std::int64_t trial_id = Store(
+      s, TrialOf("prediction_random_binary",
+                 model::SimulateFreeSwing(
+                     truth, model::PulsesFromEnvelope(env, model::kDefaultPulseRateHz), Whole(env)),
+                 &env, true));
+  PredictionRequest req;
+  req.parameter_set_id = set_id;
+  req.trial_id = trial_id;
+  auto stopped = PredictionService(*db_).Compute(req);
+  ASSERT_TRUE(stopped.ok()) << stopped.status().ToString();
+  ASSERT_TRUE(stopped->joint_limits.has_value());
+  const auto& a = stopped->predicted.angle_deg;
+  EXPECT_EQ(*std::min_element(a.begin(), a.end()), 10.0);
+  EXPECT_EQ(a.back(), 10.0);
+  PredictionConfig unbounded;
+  unbounded.joint_limits.reset();
+  auto free = PredictionService(*db_, unbounded).Compute(req);
+  ASSERT_TRUE(free.ok()) << free.status().ToString();
+  EXPECT_FALSE(free->joint_limits.has_value());
+  EXPECT_LT(free->predicted.angle_deg.back(), 0.0);
+  // A stimulus prediction may not start outside the range of motion.
+  PredictionRequest stim;
+  stim.parameter_set_id = set_id;
+  stim.stimulus = StimulusSpec{"prediction_step", {}};
+  stim.initial_angle_deg = 120.0;
+  EXPECT_EQ(PredictionService(*db_).Compute(stim).status().field(), "initial_angle_deg");
+}
+
 TEST_F(AnalysisServicesTest, PredictionRejectsBadInputNamingTheField) {
   const storage::Session s = MakeSession("S4");
   const std::int64_t set_id = StoreSet(s, Truth());
