@@ -227,8 +227,9 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply(std::move(*subject));
              }});
   table.Add({"PUT", "/api/v1/bench/virtual-subject", kAdmin, true, "bench",
-             "Replace the virtual subject between runs (simulation only; 409 on a real bench "
-             "or while a run holds the bench)",
+             "Replace the virtual subject between runs: a full subject, or {\"draw_seed\": N} "
+             "(N a non-negative integer, no other key) for the server's seeded draw "
+             "(simulation only; 409 on a real bench or while a run holds the bench)",
              {}, 200, "application/json", nullptr, nullptr,
              [bench](RequestContext& ctx) -> api::Result<Reply> {
                if (!bench) return NotAvailable("the bench");

@@ -1,7 +1,9 @@
 #include "server/services/bench_service.h"
 
+#include <cstdint>
 #include <exception>
 #include <iostream>
+#include <string>
 #include <utility>
 
 #include "server/bench/virtual_subject_json.h"
@@ -102,6 +104,21 @@ api::Status NeedAdmin(const Actor& actor, const char* what) {
                      std::string(what) + " needs the admin role");
 }
 
+// {"draw_seed": N}: N a non-negative integer and no other key.
+api::Result<std::uint64_t> DrawSeedFromJson(const nlohmann::json& json) {
+  for (const auto& [key, value] : json.items()) {
+    if (key != "draw_seed") {
+      return api::Status::InvalidArgument("unknown field (a draw takes only draw_seed)", key);
+    }
+  }
+  const nlohmann::json& seed = json.at("draw_seed");
+  if (seed.is_number_unsigned()) return seed.get<std::uint64_t>();
+  if (seed.is_number_integer() && seed.get<std::int64_t>() >= 0) {
+    return static_cast<std::uint64_t>(seed.get<std::int64_t>());
+  }
+  return api::Status::InvalidArgument("must be a non-negative integer", "draw_seed");
+}
+
 }  // namespace
 
 api::Result<nlohmann::json> BenchService::GetVirtualSubject(const Actor& actor) const {
@@ -120,32 +137,45 @@ api::Result<nlohmann::json> BenchService::PutVirtualSubject(const Actor& actor,
   if (api::Status st = NeedAdmin(actor, "replacing the virtual subject"); !st.ok()) return st;
   if (simulated_ == nullptr) return api::Status::Conflict("not a simulated bench");
   try {
+    if (json.is_object() && json.contains("draw_seed")) {
+      api::Result<std::uint64_t> seed = DrawSeedFromJson(json);
+      if (!seed.ok()) return seed.status();
+      return ReplaceVirtualSubject(actor, DrawVirtualSubject(*seed),
+                                   "virtual subject drawn from seed " + std::to_string(*seed));
+    }
     api::Result<VirtualSubject> subject = VirtualSubjectFromJson(json);
     if (!subject.ok()) return subject.status();
-    const std::string name = subject->name;
-    api::Status st = runs_.WithIdleBench([&]() -> api::Status {
-      // Audit first inside the bench's idle window: if the audit cannot be
-      // written the subject stays as it was.
-      api::Status audited = db_.Write([&](storage::Connection&) -> api::Status {
-        storage::NewAuditEntry e;
-        if (actor.user_id > 0) e.user_id = actor.user_id;
-        e.actor = actor.user_name.empty() ? std::string("unknown") : actor.user_name;
-        e.action = "bench.virtual_subject.put";
-        e.target = "bench/virtual-subject";
-        e.request_summary = "virtual subject '" + name + "' seed " + std::to_string(subject->seed);
-        e.outcome = "ok";
-        api::Result<std::int64_t> id = storage::AuditLog(db_).Append(e);
-        return id.ok() ? api::Status::Ok() : id.status();
-      });
-      if (!audited.ok()) return audited;
-      return simulated_->ReplaceSubject(*subject);
-    });
-    if (!st.ok()) return st;
-    return VirtualSubjectToJson(simulated_->subject());
+    const std::string summary =
+        "virtual subject '" + subject->name + "' seed " + std::to_string(subject->seed);
+    return ReplaceVirtualSubject(actor, std::move(subject).value(), summary);
   } catch (const std::exception& e) {
     std::cerr << "fesbench-server: bench service: PutVirtualSubject: " << e.what() << std::endl;
     return api::Status::Internal("replacing the virtual subject failed");
   }
+}
+
+api::Result<nlohmann::json> BenchService::ReplaceVirtualSubject(const Actor& actor,
+                                                                VirtualSubject subject,
+                                                                const std::string& summary) {
+  api::Status st = runs_.WithIdleBench([&]() -> api::Status {
+    // Audit first inside the bench's idle window: if the audit cannot be
+    // written the subject stays as it was.
+    api::Status audited = db_.Write([&](storage::Connection&) -> api::Status {
+      storage::NewAuditEntry e;
+      if (actor.user_id > 0) e.user_id = actor.user_id;
+      e.actor = actor.user_name.empty() ? std::string("unknown") : actor.user_name;
+      e.action = "bench.virtual_subject.put";
+      e.target = "bench/virtual-subject";
+      e.request_summary = summary;
+      e.outcome = "ok";
+      api::Result<std::int64_t> id = storage::AuditLog(db_).Append(e);
+      return id.ok() ? api::Status::Ok() : id.status();
+    });
+    if (!audited.ok()) return audited;
+    return simulated_->ReplaceSubject(std::move(subject));
+  });
+  if (!st.ok()) return st;
+  return VirtualSubjectToJson(simulated_->subject());
 }
 
 }  // namespace fesbench::server::services

@@ -92,13 +92,21 @@ class BenchService {
   /// The virtual subject's JSON (VirtualSubjectToJson). kPermissionDenied
   /// unless admin; kConflict "not a simulated bench".
   api::Result<nlohmann::json> GetVirtualSubject(const Actor& actor) const;
-  /// Replaces the virtual subject between runs. kPermissionDenied unless
-  /// admin; kConflict "not a simulated bench" or while a run holds the
-  /// bench; kInvalidArgument naming the field (VirtualSubjectFromJson).
-  /// Audited. Returns the stored subject's JSON (defaults filled in).
+  /// Replaces the virtual subject between runs. The body is either a full
+  /// subject (VirtualSubjectFromJson) or exactly {"draw_seed": N}, N a
+  /// non-negative integer, for DrawVirtualSubject(N). kPermissionDenied
+  /// unless admin; kConflict "not a simulated bench" or while a run holds
+  /// the bench; kInvalidArgument naming the field (a non-integer or
+  /// negative draw_seed, a key beside draw_seed, VirtualSubjectFromJson's
+  /// errors). Audited. Returns the stored subject's JSON (defaults filled
+  /// in).
   api::Result<nlohmann::json> PutVirtualSubject(const Actor& actor, const nlohmann::json& json);
 
  private:
+  // Audits `summary` and swaps the subject in inside the bench's idle window.
+  api::Result<nlohmann::json> ReplaceVirtualSubject(const Actor& actor, VirtualSubject subject,
+                                                    const std::string& summary);
+
   storage::Database& db_;
   RunService& runs_;
   SwappableSimulatedBench* simulated_;

@@ -126,6 +126,53 @@ TEST(BenchService, AdminReadsAndReplacesTheVirtualSubject) {
   EXPECT_EQ(typo.status().code(), api::ErrorCode::kInvalidArgument);
 }
 
+TEST(BenchService, ADrawSeedReplacesTheSubjectWithTheSeededDraw) {
+  Rig rig;
+  EXPECT_EQ(rig.service->PutVirtualSubject(rig.clinician, {{"draw_seed", 33}}).status().code(),
+            api::ErrorCode::kPermissionDenied);
+  auto put = rig.service->PutVirtualSubject(rig.admin, {{"draw_seed", 33}});
+  ASSERT_TRUE(put.ok()) << put.status().ToString();
+  const VirtualSubject drawn = DrawVirtualSubject(33);
+  EXPECT_EQ(rig.bench->subject(), drawn);
+  EXPECT_EQ(*put, VirtualSubjectToJson(drawn));
+  EXPECT_EQ(put->at("truth"), VirtualSubjectToJson(drawn).at("truth"));
+  EXPECT_NE(rig.bench->subject().truth, DrawVirtualSubject(21).truth);
+  // A seed parsed from text is unsigned; the largest one is accepted too.
+  auto big = rig.service->PutVirtualSubject(
+      rig.admin, nlohmann::json::parse(R"({"draw_seed": 18446744073709551615})"));
+  ASSERT_TRUE(big.ok()) << big.status().ToString();
+  EXPECT_EQ(rig.bench->subject(), DrawVirtualSubject(18446744073709551615ULL));
+
+  auto audit = storage::AuditLog(*rig.db).List({});
+  ASSERT_TRUE(audit.ok());
+  ASSERT_EQ(audit->size(), 2u);
+  bool seen = false;
+  for (const auto& row : *audit) {
+    EXPECT_EQ(row.entry.action, "bench.virtual_subject.put");
+    EXPECT_EQ(row.entry.user_id, rig.admin.user_id);
+    seen = seen || row.entry.request_summary == "virtual subject drawn from seed 33";
+  }
+  EXPECT_TRUE(seen);
+
+  // Refusals name the field and leave the subject (and the audit) as it was.
+  const auto expect_refused = [&](const nlohmann::json& body, const std::string& field) {
+    SCOPED_TRACE(body.dump());
+    auto refused = rig.service->PutVirtualSubject(rig.admin, body);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.status().code(), api::ErrorCode::kInvalidArgument);
+    EXPECT_EQ(refused.status().field(), field);
+  };
+  expect_refused({{"draw_seed", -1}}, "draw_seed");
+  expect_refused({{"draw_seed", 2.5}}, "draw_seed");
+  expect_refused(nlohmann::json::parse(R"({"draw_seed": 3.0})"), "draw_seed");
+  expect_refused({{"draw_seed", "7"}}, "draw_seed");
+  expect_refused({{"draw_seed", nullptr}}, "draw_seed");
+  expect_refused({{"draw_seed", 7}, {"fidelity", nlohmann::json::object()}}, "fidelity");
+  expect_refused({{"draw_seed", 7}, {"name", "x"}}, "name");
+  EXPECT_EQ(rig.bench->subject(), DrawVirtualSubject(18446744073709551615ULL));
+  EXPECT_EQ(storage::AuditLog(*rig.db).List({})->size(), 2u);
+}
+
 TEST(BenchService, TheSubjectCannotChangeDuringARun) {
   Rig rig(1.0);
   storage::SubjectDetails d;

@@ -115,6 +115,13 @@ TEST_F(BadInputTest, WrongTypesMissingFieldsOutOfRangeUnknownFields) {
               400, "invalid_argument", "role");
   ExpectError(Call(*client_, "PUT", "/api/v1/bench/virtual-subject", admin_, {{"truth", 1}}), 400,
               "invalid_argument");
+  ExpectError(Call(*client_, "PUT", "/api/v1/bench/virtual-subject", admin_, {{"draw_seed", -4}}),
+              400, "invalid_argument", "draw_seed");
+  ExpectError(Call(*client_, "PUT", "/api/v1/bench/virtual-subject", admin_, {{"draw_seed", 1.5}}),
+              400, "invalid_argument", "draw_seed");
+  ExpectError(Call(*client_, "PUT", "/api/v1/bench/virtual-subject", admin_,
+                   {{"draw_seed", 4}, {"seed", 4}}),
+              400, "invalid_argument", "seed");
   ExpectError(Call(*client_, "POST", "/api/v1/identifications", admin_, {{"session_id", "one"}}),
               400, "invalid_argument", "session_id");
   ExpectError(Call(*client_, "POST", "/api/v1/predictions", admin_, {{"parameter_set_id", 1.5}}),
