@@ -25,8 +25,7 @@
 #include "clients/cli/cli.h"
 #include "clients/cli/commands.h"
 #include "model/evaluation.h"
-#include "server/bench/virtual_subject.h"
-#include "server/bench/virtual_subject_json.h"
+#include "model/parameter_set.h"
 
 namespace fesbench::cli::study {
 
@@ -83,9 +82,41 @@ std::string Num(double value, int digits = 4) {
 
 void Pause(std::chrono::milliseconds d) { std::this_thread::sleep_for(d); }
 
+// A leg's virtual subject as the server drew it (PUT /bench/virtual-subject
+// {"draw_seed": N}): the truth for the tables and what the session records.
+struct DrawnSubject {
+  model::ParameterSet truth;
+  double threshold_ma = 0.0;
+  double max_tolerated_ma = 0.0;
+  double body_mass_kg = 0.0;
+  double height_m = 0.0;
+  double shank_length_m = 0.0;
+};
+
+DrawnSubject DrawSubject(ApiClient& client, std::uint64_t draw_seed) {
+  const json drawn = client.Put("/bench/virtual-subject", {{"draw_seed", draw_seed}});
+  DrawnSubject subject;
+  try {
+    auto truth = api::ParameterSetFromJson(drawn.at("truth"));
+    if (!truth.ok()) {
+      throw CliError::Server("study: the drawn subject's truth: " + truth.status().ToString());
+    }
+    subject.truth = std::move(truth).value();
+    subject.threshold_ma = drawn.at("threshold_ma").get<double>();
+    subject.max_tolerated_ma = drawn.at("max_tolerated_ma").get<double>();
+    const json& a = drawn.at("anthropometrics");
+    subject.body_mass_kg = a.at("body_mass_kg").get<double>();
+    subject.height_m = a.at("height_m").get<double>();
+    subject.shank_length_m = a.at("shank_length_m").get<double>();
+  } catch (const json::exception& e) {
+    throw CliError::Server(std::string("study: the drawn subject's JSON: ") + e.what());
+  }
+  return subject;
+}
+
 struct LegData {
   int index = 0;
-  server::VirtualSubject subject;
+  DrawnSubject subject;
   std::int64_t session_id = 0;
   std::map<std::string, std::int64_t> trials;       // name → id
   std::map<std::string, double> bench_s;            // protocol → bench seconds
@@ -203,22 +234,21 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
                std::ostream& log) {
   LegData leg;
   leg.index = index;
-  leg.subject = server::DrawVirtualSubject(options.seed * 1000 + static_cast<std::uint64_t>(index));
-  const auto& vs = leg.subject;
-  client.Put("/bench/virtual-subject", server::VirtualSubjectToJson(vs));
+  leg.subject = DrawSubject(client, options.seed * 1000 + static_cast<std::uint64_t>(index));
+  const DrawnSubject& vs = leg.subject;
 
   // Codes are unique per server (a second study on one server gets new ones);
   // they never reach the tables.
   const std::string code =
       "V" + std::to_string(options.seed) + "-" + std::to_string(index) + "-" +
       std::to_string(std::chrono::system_clock::now().time_since_epoch().count() % 100000000);
-  const json subject = client.Post(
-      "/subjects", {{"code", code},
-                    {"legs", {"right"}},
-                    {"details",
-                     {{"weight_kg", vs.anthropometrics.body_mass_kg},
-                      {"height_cm", vs.anthropometrics.height_m * 100.0},
-                      {"shank_length_cm", vs.anthropometrics.shank_length_m * 100.0}}}});
+  const json subject =
+      client.Post("/subjects", {{"code", code},
+                                {"legs", {"right"}},
+                                {"details",
+                                 {{"weight_kg", vs.body_mass_kg},
+                                  {"height_cm", vs.height_m * 100.0},
+                                  {"shank_length_cm", vs.shank_length_m * 100.0}}}});
   const json session =
       client.Post("/subjects/" + std::to_string(subject.at("id").get<std::int64_t>()) + "/sessions",
                   {{"leg", "right"},
@@ -476,9 +506,12 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
         std::vector<std::string> row = {std::to_string(leg.index), key};
         try {
           if (p == nullptr) throw std::invalid_argument("no set");
-          const server::LinearisedPassive lin = server::LinearisePassive(p->passive);
+          // §6.9, Table 6.4: linearised about the free-hanging rest angle.
+          const double rest_deg = model::PassiveRestAngle(p->passive);
+          const model::PassiveLinearisation lin =
+              model::LinearisePassive(p->passive, rest_deg, 0.0);
           row.insert(row.end(),
-                     {Num(lin.rest_angle_deg, 2), Num(lin.zeta), Num(lin.natural_frequency_rad_s)});
+                     {Num(rest_deg, 2), Num(lin.damping_ratio), Num(lin.natural_frequency_rad_s)});
         } catch (const std::invalid_argument&) {
           row.insert(row.end(), {"n/a", "n/a", "n/a"});
         }

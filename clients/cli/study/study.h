@@ -18,8 +18,10 @@
 namespace fesbench::cli::study {
 
 struct StudyOptions {
-  int legs = 16;           ///< cohort size, ≥ 2 (t-tests need n − 1 ≥ 1).
-  std::uint64_t seed = 1;  ///< leg i's virtual subject is DrawVirtualSubject(seed·1000 + i).
+  int legs = 16;  ///< cohort size, ≥ 2 (t-tests need n − 1 ≥ 1).
+  /// leg i's virtual subject is the server's draw from seed·1000 + i
+  /// (PUT /bench/virtual-subject {"draw_seed"}).
+  std::uint64_t seed = 1;
   std::filesystem::path output_dir;  ///< created; tables, data files and PNGs go here.
   std::string date = "2026-01-01";   ///< session date (fixed for determinism).
   bool plots = true;                 ///< run gnuplot (if found on PATH).
