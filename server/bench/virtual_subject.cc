@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "model/evaluation.h"
 #include "model/units.h"
 
 namespace fesbench::server {
@@ -65,47 +65,6 @@ double HangingAngleDeg(const Anthropometrics& anthropometrics) {
   return 90.0 - anthropometrics.thigh_elevation_deg;
 }
 
-LinearisedPassive LinearisePassive(const model::PassiveParams& passive) {
-  if (passive.torque_angle.empty() || passive.torque_velocity.empty()) {
-    throw std::invalid_argument("LinearisePassive: passive curves must not be empty");
-  }
-  const PiecewiseLinear& pta = passive.torque_angle;
-  const double ptv0 = passive.torque_velocity(0.0);
-  const auto g = [&](double th) { return pta(th) + ptv0; };
-  // The stable rest angle: g rises through zero (restoring torque).
-  double lo = std::nan(""), hi = std::nan("");
-  for (double th = 10.0; th < 110.0 - 1e-9; th += 0.5) {
-    if (g(th) <= 0.0 && g(th + 0.5) > 0.0) {
-      lo = th;
-      hi = th + 0.5;
-      break;
-    }
-  }
-  if (std::isnan(lo)) {
-    throw std::invalid_argument(
-        "LinearisePassive: tau_pta + tau_ptv(0) has no stable zero in [10, 110] deg");
-  }
-  for (int i = 0; i < 60; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (g(mid) <= 0.0 ? lo : hi) = mid;
-  }
-  LinearisedPassive out;
-  out.rest_angle_deg = 0.5 * (lo + hi);
-  const double th = out.rest_angle_deg;
-  const double k_per_deg = (pta(th + 1.0) - pta(th - 1.0)) / 2.0;
-  const double b_per_deg_s = (passive.torque_velocity(1.0) - passive.torque_velocity(-1.0)) / 2.0;
-  if (!(k_per_deg > 0.0)) {
-    throw std::invalid_argument("LinearisePassive: passive stiffness at rest is not positive");
-  }
-  // Table 6.4: per-degree slopes to SI (N·m/rad, N·m·s/rad).
-  out.stiffness_nm_per_rad = k_per_deg / kRadPerDeg;
-  out.damping_nm_s_per_rad = b_per_deg_s / kRadPerDeg;
-  const double j = passive.inertia_kgm2;
-  out.natural_frequency_rad_s = std::sqrt(out.stiffness_nm_per_rad / j);
-  out.zeta = out.damping_nm_s_per_rad / (2.0 * std::sqrt(out.stiffness_nm_per_rad * j));
-  return out;
-}
-
 double SteadyIsometricActiveTorqueNm(const model::ParameterSet& truth, double stim_ma,
                                      double angle_deg) {
   // Eqs. 3.18–3.19: C0·f_stim with C0 = f_ata(θ)·f_atv(0)·τ_scale; a steady
@@ -161,9 +120,10 @@ VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& range
   // drawn one, mildly progressive and asymmetric beyond (Fig. 6-20, I-2).
   const double zeta = draw.Uniform(ranges.min_zeta + 0.1 * (ranges.max_zeta - ranges.min_zeta),
                                    ranges.max_zeta - 0.1 * (ranges.max_zeta - ranges.min_zeta));
-  const LinearisedPassive lin = LinearisePassive(passive);
-  const double b_per_deg_s =
-      2.0 * zeta * std::sqrt(lin.stiffness_nm_per_rad * j) * kRadPerDeg;
+  // Table 6.4, §6.9: k = dτ_pta/dθ at the rest angle (τ_ptv is still 0 here).
+  const double rest_deg = model::PassiveRestAngle(passive);
+  const double k_nm_per_rad = model::LinearisePassive(passive, rest_deg, 0.0).stiffness_nm_per_rad;
+  const double b_per_deg_s = 2.0 * zeta * std::sqrt(k_nm_per_rad * j) * kRadPerDeg;
   const double grow_neg = draw.Uniform(0.0, 0.6), grow_pos = draw.Uniform(0.0, 0.6);
   const std::vector<double> vel = {-300, -150, -60, -20, 0, 20, 60, 150, 300};
   std::vector<double> ptv;

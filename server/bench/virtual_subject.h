@@ -76,8 +76,8 @@ struct Fidelity {
 struct Anthropometrics {
   double body_mass_kg = 70.0;
   double height_m = 1.75;
-  double shank_length_m = 0.43;         ///< knee centre to lateral malleolus.
-  double accel_distance_m = 0.28;       ///< accelerometer from the knee centre (≈ 11 in, §5.1).
+  double shank_length_m = 0.43;    ///< knee centre to lateral malleolus.
+  double accel_distance_m = 0.28;  ///< accelerometer from the knee centre (≈ 11 in, §5.1).
   /// Thigh elevation above horizontal as the subject reclines (Fig. 5-5):
   /// the shank hangs vertically at θ = 90° − elevation (81° for 9°).
   double thigh_elevation_deg = 9.0;
@@ -90,9 +90,9 @@ struct VirtualSubject {
   /// Seed of the subject's own random effects (sensor noise, voluntary
   /// bursts). The bench combines it with its own seed.
   std::uint64_t seed = 1;
-  model::ParameterSet truth;            ///< the DESIGN.md §3 model part.
-  double threshold_ma = 20.0;           ///< lowest amplitude giving torque.
-  double max_tolerated_ma = 45.0;       ///< highest amplitude the subject accepts.
+  model::ParameterSet truth;       ///< the DESIGN.md §3 model part.
+  double threshold_ma = 20.0;      ///< lowest amplitude giving torque.
+  double max_tolerated_ma = 45.0;  ///< highest amplitude the subject accepts.
   Anthropometrics anthropometrics;
   Fidelity fidelity;
   friend bool operator==(const VirtualSubject&, const VirtualSubject&) = default;
@@ -114,25 +114,11 @@ struct SubjectRanges {
 /// Draws a plausible subject (full model, 3rd-order contraction) from the
 /// seed: anthropometrics → J (Winter's shank-and-foot segment) and gravity;
 /// tissue stiffness near the ends of the range; passive damping set so the
-/// linearised free-swing ζ is in range; IRC from threshold to saturation;
+/// linearised free-swing ζ (model::LinearisePassive about
+/// model::PassiveRestAngle, Table 6.4) is in range; IRC from threshold to saturation;
 /// Gaussian f_ata, Hill-like f_atv; τ_scale from the drawn max isometric
 /// torque. Same seed → identical subject. Fidelity is Fidelity::Default().
 VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& ranges = {});
-
-/// Linearised passive dynamics about the free-hanging rest angle (Table
-/// 6.4): θ_eq solves τ_pta(θ) + τ_ptv(0) = 0, k = dτ_pta/dθ and
-/// b = dτ_ptv/dθ̇ there (central secant over ±1° and ±1 deg/s), in SI:
-/// ω_n = √(k/J), ζ = b / (2√(k·J)).
-struct LinearisedPassive {
-  double rest_angle_deg = 0.0;
-  double stiffness_nm_per_rad = 0.0;
-  double damping_nm_s_per_rad = 0.0;
-  double natural_frequency_rad_s = 0.0;
-  double zeta = 0.0;
-};
-/// @throws std::invalid_argument if the curves are empty, τ_pta + τ_ptv(0)
-///   has no zero in [10°, 110°], or the stiffness there is not positive.
-LinearisedPassive LinearisePassive(const model::PassiveParams& passive);
 
 /// Steady isometric torque at stim_ma with the knee locked at angle_deg in
 /// the model without fidelity effects (Eqs. 3.18–3.20):

@@ -1,12 +1,13 @@
 #include "server/bench/simulated_bench.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <thread>
 #include <vector>
 
-#include <gtest/gtest.h>
-
+#include "model/evaluation.h"
 #include "model/parameter_set.h"
 #include "model/signal.h"
 #include "model/simulate.h"
@@ -89,8 +90,8 @@ TEST(SimulatedBench, FreeSwingWithFidelityOffMatchesModelSimulator) {
     min_angle = std::min(min_angle, ref.angle_deg[i]);
     EXPECT_EQ(frames[i].stim_ma, ref.stim_ma[i]) << "i=" << i;
   }
-  EXPECT_LT(min_angle, 70.0);   // the leg really moved
-  EXPECT_GT(min_angle, 12.0);   // and stayed off the stops (no stops in the model)
+  EXPECT_LT(min_angle, 70.0);  // the leg really moved
+  EXPECT_GT(min_angle, 12.0);  // and stayed off the stops (no stops in the model)
   EXPECT_LT(max_err, 0.05);
 }
 
@@ -127,8 +128,8 @@ TEST(SimulatedBench, SteadyIsometricTorqueAtMaxStimulation) {
   const std::vector<SensorFrame> f = Drive(bench, Burst(1.0, 3.0, 0.5, 45.0));
   const double rest = MeanTorque(f, 0.5, 1.0);
   const double steady = MeanTorque(f, 3.5, 4.0);
-  const double passive = subject.truth.passive.torque_angle(90.0) +
-                         subject.truth.passive.torque_velocity(0.0);
+  const double passive =
+      subject.truth.passive.torque_angle(90.0) + subject.truth.passive.torque_velocity(0.0);
   EXPECT_NEAR(rest, passive, 0.03);
   const double expected = SteadyIsometricActiveTorqueNm(subject.truth, 45.0, 90.0);
   EXPECT_NEAR(expected, 40.0, 1e-9);  // τ_scale · f_ata(90) · f_atv(0) · R(45)
@@ -218,7 +219,7 @@ TEST(SimulatedBench, FreeSwingSettlesAtPassiveRestAngle) {
   bench.AdvanceTo(1.0);
   EXPECT_GT(bench.Truth().angle_deg, 45.0);  // it swings
   bench.AdvanceTo(40.0);
-  const double rest = LinearisePassive(subject.truth.passive).rest_angle_deg;
+  const double rest = model::PassiveRestAngle(subject.truth.passive);
   EXPECT_NEAR(bench.Truth().angle_deg, rest, 0.1);
   EXPECT_NEAR(bench.ReadSensors().angle_deg, rest, 0.1);
 }
@@ -323,8 +324,9 @@ TEST(SimulatedBench, AccelerometerSeesGravityAtItsPlacement) {
   SimulatedBench swing(subject, Options(40.0, MotorMode::kDecoupled));
   swing.AdvanceTo(0.02);
   const LegTruth s = swing.Truth();
-  const double expected = subject.anthropometrics.accel_distance_m * s.accel_deg_s2 * model::kPi / 180 +
-                          9.80665 * std::sin((s.angle_deg - 81.0) * model::kPi / 180.0);
+  const double expected =
+      subject.anthropometrics.accel_distance_m * s.accel_deg_s2 * model::kPi / 180 +
+      9.80665 * std::sin((s.angle_deg - 81.0) * model::kPi / 180.0);
   EXPECT_NEAR(swing.ReadSensors().accel_m_s2, expected, 1e-9);
   EXPECT_GT(std::abs(s.accel_deg_s2), 50.0);
 }
