@@ -72,6 +72,7 @@ struct PredictForm {
   std::vector<std::string> stimulus_params;
   std::string mode;
   std::string out_path;
+  bool fit_scale = false;
 };
 
 struct CompareForm {
@@ -137,6 +138,9 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     predict->add_option("--mode", form->mode, "free_swing or isometric")
         ->check(CLI::IsMember({"free_swing", "isometric"}));
     predict->add_option("--out", form->out_path, "write the predicted trajectory as CSV");
+    predict->add_flag("--fit-scale", form->fit_scale,
+                      "isometric trial: scale the predicted torque by the best-fit constant "
+                      "(§6.1.2) before the errors");
     predict->callback([form, &context] {
       context.action = [form, &context] {
         json body = {{"parameter_set_id", ParseId(form->params, "--params")}};
@@ -158,6 +162,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
           body["stimulus"] = {{"generator", generator}, {"params", params}};
         }
         if (!form->mode.empty()) body["mode"] = form->mode;
+        if (form->fit_scale) body["fit_scale"] = true;
         auto client = Connect(context);
         const json job = client->Post("/predictions", body);
         json result = WaitForJob(*client, job["id"].get<std::int64_t>());
@@ -194,6 +199,12 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
                       << Fixed(errors["e_abs"], 3) << " " << unit << "  (trial "
                       << Cell(result["trial_id"]) << ", " << Cell(errors["channel"]) << ", "
                       << Cell(errors["samples"]) << " samples)\n";
+          if (result.contains("fitted_scale") && result["fitted_scale"].is_number()) {
+            context.out << "fitted scale " << Fixed(result["fitted_scale"], 4)
+                        << " (§6.1.2)  normalised E_RMS "
+                        << Fixed(errors.value("normalised_rms", json(nullptr)), 4) << "  E_AVE "
+                        << Fixed(errors.value("e_ave", json(nullptr)), 5) << "\n";
+          }
         } else {
           context.out << "no measured trial: no errors computed\n";
         }

@@ -156,7 +156,7 @@ TEST(CliSessionTest, WholeAnalystSession) {
 
   // Two subjects, one session each, two rapid runs per session (two fits
   // per leg for the comparison), each followed with --follow while piped.
-  std::vector<std::int64_t> sessions, first_sets, second_sets, rb_trials;
+  std::vector<std::int64_t> sessions, first_sets, second_sets, rb_trials, ramp_trials;
   for (const std::string code : {"CLI-A", "CLI-B"}) {
     auto subject =
         cli.Run({"subjects", "create", code, "--leg", "right", "--weight-kg",
@@ -183,8 +183,10 @@ TEST(CliSessionTest, WholeAnalystSession) {
       const std::int64_t set_id = LastNumber(run.out, "end done parameter_set");
       ASSERT_GT(set_id, 0) << run.out;
       (fit == 0 ? first_sets : second_sets).push_back(set_id);
-      if (fit == 0)
+      if (fit == 0) {
         rb_trials.push_back(LastNumber(run.out, "rapid_active_random_binary stored as trial"));
+        ramp_trials.push_back(LastNumber(run.out, "rapid_isometric_ramp_irc stored as trial"));
+      }
     }
   }
 
@@ -262,6 +264,19 @@ TEST(CliSessionTest, WholeAnalystSession) {
   auto step = cli.Run({"predict", "--params", std::to_string(first_sets[0]), "--stimulus", "step"});
   ASSERT_EQ(step.exit_code, 0) << step.err;
   EXPECT_THAT(step.out, HasSubstr("no measured trial"));
+  // The isometric ramp trial with the §6.1.2 best-fit scale.
+  auto iso = cli.Run({"predict", "--params", std::to_string(first_sets[0]), "--stimulus",
+                      std::to_string(ramp_trials[0]), "--fit-scale"});
+  ASSERT_EQ(iso.exit_code, 0) << iso.err;
+  EXPECT_THAT(iso.out, HasSubstr(" N.m  E_ABS "));
+  std::smatch scale;
+  ASSERT_TRUE(std::regex_search(iso.out, scale, std::regex(R"(fitted scale ([0-9.]+) )")))
+      << iso.out;
+  EXPECT_NEAR(std::stod(scale[1]), 1.0, 0.3) << "the rapid set's own ramp trial";
+  auto not_iso = cli.Run({"predict", "--params", std::to_string(first_sets[0]), "--stimulus",
+                          std::to_string(rb_trials[0]), "--fit-scale"});
+  EXPECT_EQ(not_iso.exit_code, 1);
+  EXPECT_THAT(not_iso.err, HasSubstr("fit_scale"));
 
   // A refit of the first session's trials by the rapid method.
   auto identify = cli.Run({"identify", "--session", std::to_string(sessions[0]), "--method",
