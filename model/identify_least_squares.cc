@@ -1,8 +1,10 @@
 #include "model/identify_least_squares.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <vector>
 
 #include "model/piecewise_linear.h"
 
@@ -61,6 +63,62 @@ LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::Ve
   out.rms = std::sqrt((a * out.c - b).squaredNorm() / static_cast<double>(a.rows()));
   out.singular_values = w;
   return out;
+}
+
+Eigen::VectorXd SolveNonNegative(const Eigen::MatrixXd& a, const Eigen::VectorXd& b) {
+  const Eigen::Index m = a.cols();
+  if (a.rows() == 0 || m == 0 || b.size() != a.rows()) {
+    return SolveTruncatedSvd(a, b).c;  // throws with the reason
+  }
+  std::vector<bool> free(static_cast<std::size_t>(m), false);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(m);
+  const double tol = 1e-12 * std::max(1.0, a.norm() * b.norm());
+  // Least squares on the free columns, zero elsewhere.
+  const auto solve_free = [&]() {
+    std::vector<Eigen::Index> cols;
+    for (Eigen::Index j = 0; j < m; ++j)
+      if (free[static_cast<std::size_t>(j)]) cols.push_back(j);
+    Eigen::MatrixXd af(a.rows(), static_cast<Eigen::Index>(cols.size()));
+    for (std::size_t k = 0; k < cols.size(); ++k)
+      af.col(static_cast<Eigen::Index>(k)) = a.col(cols[k]);
+    const Eigen::VectorXd zf = SolveTruncatedSvd(af, b).c;
+    Eigen::VectorXd z = Eigen::VectorXd::Zero(m);
+    for (std::size_t k = 0; k < cols.size(); ++k) z(cols[k]) = zf(static_cast<Eigen::Index>(k));
+    return z;
+  };
+  for (Eigen::Index outer = 0; outer < 3 * m + 3; ++outer) {
+    const Eigen::VectorXd w = a.transpose() * (b - a * x);  // −gradient / 2
+    Eigen::Index best = -1;
+    for (Eigen::Index j = 0; j < m; ++j) {
+      if (!free[static_cast<std::size_t>(j)] && w(j) > tol && (best < 0 || w(j) > w(best)))
+        best = j;
+    }
+    if (best < 0) break;  // Kuhn–Tucker conditions hold
+    free[static_cast<std::size_t>(best)] = true;
+    for (Eigen::Index inner = 0; inner <= m; ++inner) {
+      const Eigen::VectorXd z = solve_free();
+      double alpha = 1.0;
+      Eigen::Index blocking = -1;
+      for (Eigen::Index j = 0; j < m; ++j) {
+        if (free[static_cast<std::size_t>(j)] && z(j) <= 0.0) {
+          const double t = x(j) / (x(j) - z(j));
+          if (t < alpha) alpha = t, blocking = j;
+        }
+      }
+      if (blocking < 0) {
+        x = z;
+        break;
+      }
+      x += alpha * (z - x);
+      for (Eigen::Index j = 0; j < m; ++j) {
+        if (free[static_cast<std::size_t>(j)] && (j == blocking || x(j) <= 0.0)) {
+          free[static_cast<std::size_t>(j)] = false;
+          x(j) = 0.0;
+        }
+      }
+    }
+  }
+  return x;
 }
 
 void SetPwlBasisRow(Eigen::MatrixXd& a, Eigen::Index row, Eigen::Index col0,

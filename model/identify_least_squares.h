@@ -35,6 +35,15 @@ struct LeastSquaresSolution {
 LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
                                        double relative_tolerance = 1e-10);
 
+/// Solves min |A·c − b|² subject to c ≥ 0 by the active-set method of
+/// Lawson and Hanson (Solving Least Squares Problems, 1974, ch. 23): columns
+/// are freed one at a time by the largest gradient component, each free set
+/// solved by SolveTruncatedSvd, and a step that would turn a free
+/// coefficient negative is cut back to the boundary. Used where an ordinate
+/// is a gain, which a muscle cannot make negative (§3.4).
+/// @throws std::invalid_argument as SolveTruncatedSvd.
+Eigen::VectorXd SolveNonNegative(const Eigen::MatrixXd& a, const Eigen::VectorXd& b);
+
 /// Writes the Eq. 4.30 basis of breakpoints `bp` at abscissa x, times
 /// `scale`, into row `row`, columns col0 .. col0 + bp.size() − 1, of `a`
 /// (which must be large enough; not checked).

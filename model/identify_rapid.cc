@@ -1,6 +1,7 @@
 #include "model/identify_rapid.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <limits>
@@ -119,6 +120,17 @@ ParameterSet UnpackCurves(ParameterSet p, const Eigen::VectorXd& v) {
   }
   p.active.torque_scale_nm = std::exp(v(k));
   return p;
+}
+
+// Projects the f_ata and f_atv ordinates of a packed vector (PackCurves) onto
+// gains ≥ 0: a muscle only pulls (§3.4), and a negative gain would not make a
+// valid parameter set.
+void ClampActiveGains(const ParameterSet& p, Eigen::VectorXd& v) {
+  const auto begin =
+      static_cast<Eigen::Index>(p.passive.torque_angle.size() + p.passive.torque_velocity.size());
+  const auto end = begin + static_cast<Eigen::Index>(p.active.torque_angle.size() +
+                                                     p.active.torque_velocity.size());
+  for (Eigen::Index i = begin; i < end; ++i) v(i) = std::max(v(i), 0.0);
 }
 
 // Simulated minus measured knee angle of every trial (every stride-th
@@ -243,7 +255,8 @@ OutputErrorResult RefineOutputError(const ParameterSet& start, std::span<const T
       Eigen::MatrixXd a = jtj;
       // The floor keeps ordinates the trials never move (no support) fixed.
       a.diagonal() += lambda * (jtj.diagonal().array() + 1e-6 * floor).matrix();
-      const Eigen::VectorXd xn = x + a.ldlt().solve(-g);
+      Eigen::VectorXd xn = x + a.ldlt().solve(-g);
+      ClampActiveGains(start, xn);  // projected step
       const Eigen::VectorXd rn = error(xn);
       const double cn = Cost(rn);
       if (cn < cost) {

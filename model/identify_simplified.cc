@@ -178,7 +178,7 @@ SimplifiedResult IdentifySimplified(ModelKind kind, std::span<const TrialColumns
       SetPwlBasisRow(m, i, 0, bp, s.vel[static_cast<std::size_t>(i)],
                      s.act[static_cast<std::size_t>(i)]);
     }
-    const Eigen::VectorXd c = Lsq(m, y);
+    const Eigen::VectorXd c = SolveNonNegative(m, y);  // gains ≥ 0 (§3.4)
     const PiecewiseLinear curve(bp, std::vector<double>(c.data(), c.data() + mv));
     const double k = curve(kReferenceVelocityDegS);
     if (!(k > 0.0))

@@ -85,5 +85,54 @@ TEST(SolveTruncatedSvd, RejectsBrokenPreconditions) {
                std::invalid_argument);
 }
 
+TEST(SolveNonNegative, ClosedForms) {
+  // Identity: the negative coordinate is clipped.
+  Eigen::Vector2d x = SolveNonNegative(Eigen::Matrix2d::Identity(), Eigen::Vector2d(1.0, -2.0));
+  EXPECT_NEAR(x(0), 1.0, 1e-12);
+  EXPECT_EQ(x(1), 0.0);
+  // A falling line: slope ≥ 0 forces slope 0 and the mean as intercept.
+  Eigen::MatrixXd a(3, 2);
+  a << 1, 0, 1, 1, 1, 2;
+  x = SolveNonNegative(a, Eigen::Vector3d(2.0, 1.0, 0.0));
+  EXPECT_NEAR(x(0), 1.0, 1e-12);
+  EXPECT_EQ(x(1), 0.0);
+  // A feasible unconstrained solution is returned unchanged.
+  x = SolveNonNegative(a, Eigen::Vector3d(1.0, 2.0, 3.0));
+  EXPECT_NEAR(x(0), 1.0, 1e-12);
+  EXPECT_NEAR(x(1), 1.0, 1e-12);
+}
+
+// Against brute force: the best feasible least-squares solution over every
+// choice of zeroed columns.
+TEST(SolveNonNegative, MatchesExhaustiveSearch) {
+  std::mt19937 rng(17);
+  std::normal_distribution<double> n01;
+  for (int trial = 0; trial < 50; ++trial) {
+    Eigen::MatrixXd a(8, 4);
+    Eigen::VectorXd b(8);
+    for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] = n01(rng);
+    for (Eigen::Index i = 0; i < b.size(); ++i) b(i) = n01(rng);
+    double best = 1e300;
+    for (int mask = 0; mask < 16; ++mask) {
+      std::vector<Eigen::Index> cols;
+      for (Eigen::Index j = 0; j < 4; ++j)
+        if (mask & (1 << j)) cols.push_back(j);
+      Eigen::VectorXd full = Eigen::VectorXd::Zero(4);
+      if (!cols.empty()) {
+        Eigen::MatrixXd af(8, static_cast<Eigen::Index>(cols.size()));
+        for (std::size_t k = 0; k < cols.size(); ++k)
+          af.col(static_cast<Eigen::Index>(k)) = a.col(cols[k]);
+        const Eigen::VectorXd z = af.colPivHouseholderQr().solve(b);
+        for (std::size_t k = 0; k < cols.size(); ++k)
+          full(cols[k]) = z(static_cast<Eigen::Index>(k));
+      }
+      if (full.minCoeff() >= 0.0) best = std::min(best, (a * full - b).squaredNorm());
+    }
+    const Eigen::VectorXd x = SolveNonNegative(a, b);
+    EXPECT_GE(x.minCoeff(), 0.0);
+    EXPECT_NEAR((a * x - b).squaredNorm(), best, 1e-9) << "trial " << trial;
+  }
+}
+
 }  // namespace
 }  // namespace fesbench::model
