@@ -122,6 +122,7 @@ struct LegData {
   std::map<std::string, double> bench_s;            // protocol → bench seconds
   std::map<std::string, std::int64_t> sets;         // set key → parameter set id
   std::map<std::string, std::string> set_failures;  // set key → message
+  std::map<std::string, std::string> run_failures;  // protocol → message
   std::map<std::string, model::ParameterSet> params;
   // set key → input label → {e_rms, e_abs} (deg; isometric: N·m)
   std::map<std::string, std::map<std::string, std::pair<double, double>>> errors;
@@ -129,9 +130,10 @@ struct LegData {
 };
 
 // Starts a protocol and heart-beats it to its end; the run's final JSON.
-json RunProtocol(ApiClient& client, std::int64_t session_id, const std::string& protocol) {
+json RunProtocol(ApiClient& client, std::int64_t session_id, const std::string& protocol,
+                 const json& parameters) {
   const json started = client.Post("/sessions/" + std::to_string(session_id) + "/runs",
-                                   {{"protocol", protocol}, {"parameters", json::object()}});
+                                   {{"protocol", protocol}, {"parameters", parameters}});
   const std::int64_t run_id = started.at("run_id").get<std::int64_t>();
   const std::string path = "/runs/" + std::to_string(run_id);
   for (;;) {
@@ -163,7 +165,13 @@ JobOutcome AwaitJob(ApiClient& client, std::int64_t job_id) {
     const std::string state = job.value("state", "");
     if (state == "done") return {job.value("result", json()), ""};
     if (state == "failed") {
-      return {json(), job.contains("error") ? job["error"].value("message", "failed") : "failed"};
+      std::string message = "failed";
+      if (job.contains("error") && job["error"].is_object()) {
+        message = job["error"].value("message", message);
+        const std::string field = job["error"].value("field", "");
+        if (!field.empty()) message = field + ": " + message;
+      }
+      return {json(), message};
     }
     Pause(delay);
     delay = std::min(delay * 2, std::chrono::milliseconds(100));
@@ -209,22 +217,36 @@ void FetchParams(ApiClient& client, LegData& leg) {
   }
 }
 
+// A JSON number, or NaN for null / missing.
+double NumberOr(const json& object, const char* key) {
+  const auto it = object.find(key);
+  return it != object.end() && it->is_number() ? it->get<double>() : kNaN;
+}
+
 void Predict(ApiClient& client, LegData& leg, const std::string& key, const std::string& input,
              std::int64_t trial_id, bool keep_columns) {
+  // The isometric prediction is scaled by its best-fit constant (§6.1.2)
+  // and judged by Eqs. 6.1 and 6.2 as well (stored as extra inputs).
+  const bool isometric = input == "isometric";
   auto set = leg.sets.find(key);
   if (set == leg.sets.end()) {
     leg.errors[key][input] = {kNaN, kNaN};
     return;
   }
-  const JobOutcome outcome =
-      Submit(client, "/predictions", {{"parameter_set_id", set->second}, {"trial_id", trial_id}});
+  json request = {{"parameter_set_id", set->second}, {"trial_id", trial_id}};
+  if (isometric) request["fit_scale"] = true;
+  const JobOutcome outcome = Submit(client, "/predictions", request);
   if (!outcome.error.empty() || !outcome.result.contains("errors") ||
       !outcome.result["errors"].is_object()) {
     leg.errors[key][input] = {kNaN, kNaN};
     return;
   }
   const json& e = outcome.result["errors"];
-  leg.errors[key][input] = {e.value("e_rms", kNaN), e.value("e_abs", kNaN)};
+  leg.errors[key][input] = {NumberOr(e, "e_rms"), NumberOr(e, "e_abs")};
+  if (isometric) {
+    leg.errors[key][input + "_normalised"] = {NumberOr(e, "normalised_rms"), kNaN};
+    leg.errors[key][input + "_e_ave"] = {NumberOr(e, "e_ave"), kNaN};
+  }
   if (keep_columns && outcome.result.contains("columns")) {
     leg.plot_columns[key + "|" + input] = outcome.result["columns"];
   }
@@ -259,7 +281,24 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
 
   std::int64_t rapid_set = 0;
   for (const auto& protocol : kProtocols) {
-    const json run = RunProtocol(client, leg.session_id, protocol);
+    // The rapid routine's random-binary trains at the same amplitude as the
+    // free-swing protocols ("the free swing identification routine",
+    // §7.4.1), not its default 6 N·m adaptive level, which keeps the swing
+    // to mid-range and so leaves the curves unidentified near the stops.
+    const json parameters =
+        protocol == "rapid_parameterisation" ? json{{"rb_torque_nm", 0.0}} : json::object();
+    json run;
+    try {
+      run = RunProtocol(client, leg.session_id, protocol, parameters);
+    } catch (const CliError& e) {
+      // A failed run (e.g. a fit it could not store) costs its trials or
+      // set; the fits that need them fail and are listed.
+      if (e.exit_code() != kExitServer) throw;
+      ++failures;
+      leg.run_failures[protocol] = e.what();
+      log << "  leg " << index << ": " << e.what() << "\n";
+      continue;
+    }
     leg.bench_s[protocol] = run.at("progress").value("bench_total_s", kNaN);
     if (protocol == "rapid_parameterisation" && run["parameter_set_id"].is_number_integer()) {
       rapid_set = run["parameter_set_id"].get<std::int64_t>();
@@ -304,6 +343,8 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
         leg.sets[keys[i]] = sets[i].at("id").get<std::int64_t>();
       }
     } else if (leg.sets.count(SetKey("simultaneous", train)) != 0) {
+      log << "  leg " << leg.index << ": " << keys.front() << " with the position holds failed ("
+          << first.error << "); retrying with the simultaneous set's tau_pta\n";
       // τ_pta from the simultaneous set (Eq. 4.35 needs a τ_pta).
       request["trial_ids"] = TrialIds(leg, {"isometric_ramp_irc", "free_swing_passive", active});
       request["torque_angle_parameter_set_id"] = leg.sets[SetKey("simultaneous", train)];
@@ -437,38 +478,50 @@ const std::vector<std::string> kTTestHeader = {"input",  "set_a",     "set_b",  
 
 std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
   std::vector<Table> tables;
-  // 6.1 / 6.2: isometric prediction (torque E_RMS, N·m).
+  // 6.1 / 6.2: isometric prediction, scaled by its best-fit constant
+  // (§6.1.2), judged by Eq. 6.1 (normalised RMS), Eq. 6.2 (E_AVE) and the
+  // torque E_RMS (Eq. 6.9, N·m).
   {
+    const std::vector<std::string> measures = {"isometric_normalised", "isometric_e_ave",
+                                               "isometric"};
     Table t{"table_6_1_isometric_irc",
-            "Table 6.1: isometric prediction, step IRC vs ramp-correlation IRC (E_RMS torque, "
-            "N.m, paired t-test)",
+            "Table 6.1: isometric prediction, step IRC vs ramp-correlation IRC (paired t-test)",
             kTTestHeader,
             {},
-            "3rd-order contraction dynamics for both."};
-    t.rows.push_back(TTestRow(legs, "isometric", "irc_step_o3", "irc_ramp_o3"));
+            "3rd-order contraction dynamics for both; the prediction scaled by the best-fit "
+            "constant (§6.1.2). Inputs: isometric_normalised = Eq. 6.1, isometric_e_ave = Eq. "
+            "6.2, isometric = torque E_RMS (N.m)."};
+    for (const auto& m : measures)
+      t.rows.push_back(TTestRow(legs, m, "irc_step_o3", "irc_ramp_o3"));
     tables.push_back(t);
     Table u{"table_6_2_isometric_order",
-            "Table 6.2: isometric prediction, 2nd vs 3rd order contraction dynamics (E_RMS "
-            "torque, N.m)",
+            "Table 6.2: isometric prediction, 2nd vs 3rd order contraction dynamics (paired "
+            "t-test)",
             kTTestHeader,
             {},
-            "Rows per IRC method."};
-    u.rows.push_back(TTestRow(legs, "isometric", "irc_ramp_o2", "irc_ramp_o3"));
-    u.rows.push_back(TTestRow(legs, "isometric", "irc_step_o2", "irc_step_o3"));
+            "Rows per IRC method and error measure, as Table 6.1."};
+    for (const auto& m : measures) {
+      u.rows.push_back(TTestRow(legs, m, "irc_ramp_o2", "irc_ramp_o3"));
+      u.rows.push_back(TTestRow(legs, m, "irc_step_o2", "irc_step_o3"));
+    }
     tables.push_back(u);
   }
   // 6.3: inertia by method with the virtual truth.
   {
+    // Sequential and rapid sets take J from the anthropometrics (Eq. 4.13,
+    // §7.4.1), the thesis's "calculated" column; simultaneous (Eq. 4.31)
+    // and free swing (Eq. 4.35) estimate it.
     Table t{"table_6_3_inertia",
             "Table 6.3: limb inertia by method (kg.m^2), with the virtual truth",
-            {"leg", "sequential", "simultaneous", "free_swing", "rapid", "truth"},
+            {"leg", "anthropometric_eq_4_13", "simultaneous", "free_swing", "truth"},
             {},
-            ""};
+            "anthropometric_eq_4_13: the inertia the sequential and rapid sets use, "
+            "calculated from body mass and shank length (Eq. 4.13)."};
+    const std::vector<std::string> keys = {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1"};
     std::map<std::string, std::vector<double>> cols;
     for (const auto& leg : legs) {
       std::vector<std::string> row = {std::to_string(leg.index)};
-      for (const std::string key :
-           {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid"}) {
+      for (const auto& key : keys) {
         auto p = leg.params.find(key);
         const double j = p == leg.params.end() ? kNaN : p->second.passive.inertia_kgm2;
         cols[key].push_back(j);
@@ -481,7 +534,7 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
     for (const std::string stat : {"mean", "sd"}) {
       std::vector<std::string> row = {stat};
       for (const std::string key :
-           {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "rapid", "truth"})
+           {"sequential_rb1", "simultaneous_rb1", "free_swing_rb1", "truth"})
         row.push_back(Num(stat == "mean" ? Mean(cols[key]) : Sd(cols[key])));
       t.rows.push_back(row);
     }
@@ -587,13 +640,13 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
       m.rows.push_back(row);
     }
     tables.push_back(m);
-    // Medians: a few diverging predictions (the model has no hard stops, so
-    // an unstable fit runs far past 10-110 deg) dominate the means.
+    // Medians: a few poorly identified sets (a knee predicted to sit on a
+    // stop for seconds) weigh heavily in the means.
     Table md{"median_errors",
              "Median E_RMS (deg) by parameter set and input over the cohort",
              m.header,
              {},
-             "The median is robust to the few predictions that diverge."};
+             "The median is robust to the few predictions that fail badly."};
     for (const auto& key : keys) {
       std::vector<std::string> row = {key};
       for (const auto& input : kInputs) {
@@ -724,8 +777,11 @@ StudySummary RunStudy(ApiClient& client, const StudyOptions& options, std::ostre
   for (const auto& leg : legs)
     for (const auto& [key, message] : leg.set_failures)
       failures[key] = message;  // one example message per set
+  for (const auto& leg : legs)
+    for (const auto& [protocol, message] : leg.run_failures)
+      failures["run " + protocol + " (leg " + std::to_string(leg.index) + ")"] = message;
   if (!failures.empty()) {
-    markdown << "## Identifications that failed\n\n";
+    markdown << "## Runs and identifications that failed\n\n";
     for (const auto& [key, message] : failures) markdown << "- " << key << ": " << message << "\n";
     markdown << "\n";
   }
