@@ -126,29 +126,26 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
   };
   const IntegratorSettings settings{options.integrator, options.step_s, options.tolerances};
   IntegratorWorkspace ws;
-  const State x0(options.initial_angle_deg, options.initial_velocity_deg_s);
-  if (limits) {
-    // Plastic stops (JointLimits): clamp the angle, drop the velocity into
-    // the stop.
-    const auto stop = [&limits](State& x) {
-      if (x[0] < limits->min_angle_deg || (x[0] == limits->min_angle_deg && x[1] < 0.0)) {
-        x[0] = limits->min_angle_deg;
-        x[1] = std::max(x[1], 0.0);
-        return true;
-      }
-      if (x[0] > limits->max_angle_deg || (x[0] == limits->max_angle_deg && x[1] > 0.0)) {
-        x[0] = limits->max_angle_deg;
-        x[1] = std::min(x[1], 0.0);
-        return true;
-      }
-      return false;
-    };
-    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
-                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop);
-  } else {
-    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
-                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws);
-  }
+  // Plastic stops (JointLimits): clamp the angle, drop the velocity into
+  // the stop; without limits nothing moves.
+  const auto stop = [&limits](State& x) {
+    if (!limits) return false;
+    if (x[0] < limits->min_angle_deg || (x[0] == limits->min_angle_deg && x[1] < 0.0)) {
+      x[0] = limits->min_angle_deg;
+      x[1] = std::max(x[1], 0.0);
+      return true;
+    }
+    if (x[0] > limits->max_angle_deg || (x[0] == limits->max_angle_deg && x[1] > 0.0)) {
+      x[0] = limits->max_angle_deg;
+      x[1] = std::min(x[1], 0.0);
+      return true;
+    }
+    return false;
+  };
+  detail::RunPulseDriven(rhs, record,
+                         State(options.initial_angle_deg, options.initial_velocity_deg_s),
+                         params.contraction, params.irc, pulses, options.pulse_rate_hz,
+                         options.output_rate_hz, n, settings, ws, stop);
   r.stats = ws.stats;
   return r;
 }

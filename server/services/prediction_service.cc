@@ -76,9 +76,6 @@ api::Status ValidatePredictionRequest(const PredictionRequest& r, const Predicti
     return api::Status::InvalidArgument("needs trial_id (an isometric trial to fit against)",
                                         "fit_scale");
   }
-  if (r.fit_scale && r.mode == PredictionMode::kFreeSwing) {
-    return api::Status::InvalidArgument("isometric predictions only", "fit_scale");
-  }
   if (r.trial_id) {
     for (const auto& [set, field] :
          {std::pair{r.initial_angle_deg.has_value(), "initial_angle_deg"},
@@ -200,6 +197,12 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
                           (*hi - *lo) < 0.5;
       out.mode =
           request.mode.value_or(locked ? PredictionMode::kIsometric : PredictionMode::kFreeSwing);
+      if (request.fit_scale && out.mode != PredictionMode::kIsometric) {
+        return api::Status::InvalidArgument("isometric predictions only (trial " +
+                                                std::to_string(trial->id) +
+                                                " is predicted in free swing)",
+                                            "fit_scale");
+      }
       if (out.mode == PredictionMode::kIsometric && c.torque_nm.size() != c.size()) {
         return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
                                                " has no torque_nm channel to compare");
@@ -271,12 +274,6 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
         data[i] = iso ? c.torque_nm[i] - offset : c.angle_deg[i];
       }
       if (request.fit_scale) {
-        if (!iso) {
-          return api::Status::InvalidArgument("isometric predictions only (trial " +
-                                                  std::to_string(*request.trial_id) +
-                                                  " is predicted in free swing)",
-                                              "fit_scale");
-        }
         // §6.1.2: the constant k minimising Σ(k·prediction − data)².
         double pd = 0.0, pp = 0.0;
         for (std::size_t i = 0; i < at.size(); ++i) pd += at[i] * data[i], pp += at[i] * at[i];
