@@ -227,8 +227,10 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply(std::move(*subject));
              }});
   table.Add({"PUT", "/api/v1/bench/virtual-subject", kAdmin, true, "bench",
-             "Replace the virtual subject between runs: a full subject, or {\"draw_seed\": N} "
-             "(N a non-negative integer, no other key) for the server's seeded draw "
+             "Replace the virtual subject between runs: a full subject, or {\"draw_seed\": N, "
+             "\"family\": F} (N a non-negative integer; F \"thesis\", the default, or "
+             "\"analytic\": gravity + exponential end-range stiffness, asymmetric damping, "
+             "other Gaussian f_ata, tanh f_atv; no other key) for the server's seeded draw "
              "(simulation only; 409 on a real bench or while a run holds the bench)",
              {}, 200, "application/json", nullptr, nullptr,
              [bench](RequestContext& ctx) -> api::Result<Reply> {
