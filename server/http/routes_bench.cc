@@ -42,6 +42,28 @@ struct EventStream {
 
 json RunViewJson(const services::RunView& view) { return services::RunViewToJson(view); }
 
+// PUT /bench/virtual-subject: a seeded draw of a shape family, or a full
+// subject (server/bench/virtual_subject_json.h).
+json VirtualSubjectPutSchema() {
+  const json draw = {
+      {"type", "object"},
+      {"required", {"draw_seed"}},
+      {"additionalProperties", false},
+      {"properties",
+       {{"draw_seed", {{"type", "integer"}, {"minimum", 0}}},
+        {"family",
+         {{"type", "string"},
+          {"enum", {"thesis", "analytic"}},
+          {"default", "thesis"},
+          {"description",
+           "thesis: the server's generator; analytic: gravity + exponential end-range "
+           "stiffness, asymmetric damping, other Gaussian f_ata, tanh f_atv"}}}}}};
+  const json full = {{"type", "object"},
+                     {"required", {"truth", "threshold_ma", "max_tolerated_ma"}},
+                     {"description", "a full virtual subject (DESIGN.md §6)"}};
+  return {{"oneOf", {draw, full}}};
+}
+
 }  // namespace
 
 void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
@@ -232,7 +254,7 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
              "\"analytic\": gravity + exponential end-range stiffness, asymmetric damping, "
              "other Gaussian f_ata, tanh f_atv; no other key) for the server's seeded draw "
              "(simulation only; 409 on a real bench or while a run holds the bench)",
-             {}, 200, "application/json", nullptr, nullptr,
+             {}, 200, "application/json", VirtualSubjectPutSchema(), nullptr,
              [bench](RequestContext& ctx) -> api::Result<Reply> {
                if (!bench) return NotAvailable("the bench");
                auto subject = bench->PutVirtualSubject(ActorOf(*ctx.user), ctx.body);
