@@ -86,7 +86,7 @@ constexpr std::string_view kRunSql =
     " (SELECT message FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1),"
     " (SELECT MIN(at_utc) FROM run_events WHERE run_id = r.id AND state = 'running'),"
     " (SELECT MAX(at_utc) FROM run_events WHERE run_id = r.id"
-    "    AND state IN ('completed', 'failed', 'cancelled'))"
+    "    AND state IN ('done', 'failed', 'aborted'))"
     " FROM runs r ";
 
 api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where, std::int64_t id) {

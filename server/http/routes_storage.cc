@@ -1,6 +1,7 @@
 // Storage-backed routes: health, subjects, sessions, trials, parameter sets,
 // protocols, stored predictions (DESIGN.md §8).
 
+#include <cctype>
 #include <functional>
 #include <map>
 #include <mutex>
@@ -490,22 +491,48 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
              kAnyRole,
              false,
              "trials",
-             "A recorded trial: JSON, or CSV with Accept: text/csv",
-             {},
+             "A recorded trial: JSON, CSV or OpenSim .sto (?format=json|csv|sto, or Accept: "
+             "text/csv); a download with a Content-Disposition file name when ?format is given",
+             {{"format", "string", "json (default), csv or sto"}},
              200,
              "application/json",
              nullptr,
              nullptr,
              [&db](RequestContext& ctx) -> api::Result<Reply> {
+               const std::optional<std::string> format = ctx.Query("format");
+               if (format && *format != "json" && *format != "csv" && *format != "sto") {
+                 return api::Status::InvalidArgument("must be json, csv or sto", "format");
+               }
                auto trial = storage::TrialRepository(db).Get(ctx.Id("trial_id"));
                if (!trial.ok()) return trial.status();
                const std::string accept = ctx.req.get_header_value("Accept");
-               if (accept.find("text/csv") != std::string::npos) {
+               const std::string kind =
+                   format ? *format
+                          : (accept.find("text/csv") != std::string::npos ? "csv" : "json");
+               if (format) {
+                 // trial-12-rapid_free_swing_passive.csv: safe characters only.
+                 std::string name = trial->name.value_or("trial");
+                 for (char& c : name) {
+                   if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-')
+                     c = '_';
+                 }
+                 ctx.res.set_header("Content-Disposition", "attachment; filename=\"trial-" +
+                                                               std::to_string(ctx.Id("trial_id")) +
+                                                               "-" + name + "." + kind + "\"");
+               }
+               if (kind == "json") {
+                 if (!format) return JsonReply(api::TrialToJson(*trial));
                  ctx.res.status = 200;
-                 ctx.res.set_content(api::TrialToCsv(*trial), "text/csv");
+                 ctx.res.set_content(api::TrialToJson(*trial).dump(), "application/json");
                  return Reply{200, nullptr, true};
                }
-               return JsonReply(api::TrialToJson(*trial));
+               ctx.res.status = 200;
+               if (kind == "csv") {
+                 ctx.res.set_content(api::TrialToCsv(*trial), "text/csv");
+               } else {
+                 ctx.res.set_content(api::TrialToSto(*trial), "text/plain");
+               }
+               return Reply{200, nullptr, true};
              }});
 
   // --- parameter sets -------------------------------------------------------------
@@ -650,36 +677,45 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
 
   // --- protocols -------------------------------------------------------------------
-  table.Add({"GET",
-             "/api/v1/protocols",
-             kAnyRole,
-             false,
-             "protocols",
-             "The protocol catalog (DESIGN.md §5)",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [](RequestContext&) -> api::Result<Reply> {
-               return JsonReply(protocols::CatalogToJson());
+  // ?session_id=N resolves the defaults derived from the session.
+  const auto session_context =
+      [&db, runs = deps.runs](
+          RequestContext& ctx) -> api::Result<std::optional<services::SessionContext>> {
+    auto id = QueryId(ctx, "session_id");
+    if (!id.ok()) return id.status();
+    if (!*id) return std::optional<services::SessionContext>();
+    auto context =
+        services::LoadSessionContext(db, **id, runs ? runs->bench().limits() : BenchLimits{});
+    if (!context.ok()) return context.status();
+    return std::optional<services::SessionContext>(std::move(*context));
+  };
+  const std::vector<QueryParam> protocol_query = {
+      {"session_id", "integer",
+       "resolve the defaults derived from this session (threshold, max tolerated, range)"}};
+  table.Add({"GET", "/api/v1/protocols", kAnyRole, false, "protocols",
+             "The protocol catalog (DESIGN.md §5): labels, units, defaults (resolved with "
+             "?session_id), thesis sections",
+             protocol_query, 200, "application/json", nullptr, nullptr,
+             [session_context](RequestContext& ctx) -> api::Result<Reply> {
+               auto context = session_context(ctx);
+               if (!context.ok()) return context.status();
+               if (!*context) return JsonReply(protocols::CatalogToJson());
+               return JsonReply(protocols::CatalogToJson(&(*context)->subject,
+                                                         (*context)->has_stimulation_limits));
              }});
-  table.Add({"GET",
-             "/api/v1/protocols/{name}",
-             kAnyRole,
-             false,
-             "protocols",
-             "One protocol with its parameters, units and defaults",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({"GET", "/api/v1/protocols/{name}", kAnyRole, false, "protocols",
+             "One protocol with its parameters, labels, units and defaults", protocol_query, 200,
+             "application/json", nullptr, nullptr,
+             [session_context](RequestContext& ctx) -> api::Result<Reply> {
                const auto* protocol = protocols::FindProtocol(ctx.path.at("name"));
-               if (!protocol)
+               if (!protocol) {
                  return api::Status::NotFound("protocol " + ctx.path.at("name") + " not found");
-               return JsonReply(protocols::ProtocolToJson(*protocol));
+               }
+               auto context = session_context(ctx);
+               if (!context.ok()) return context.status();
+               if (!*context) return JsonReply(protocols::ProtocolToJson(*protocol));
+               return JsonReply(protocols::ProtocolToJson(*protocol, &(*context)->subject,
+                                                          (*context)->has_stimulation_limits));
              }});
 }
 

@@ -81,6 +81,8 @@ nlohmann::json RunViewToJson(const RunView& v) {
       {"finished_at_utc", OptionalTime(v.finished_at)},
       {"result", v.result},
       {"controller", v.owner.empty() ? nlohmann::json(nullptr) : nlohmann::json(v.owner)},
+      {"bench_elapsed_s", v.progress.bench_elapsed_s},
+      {"bench_total_s", v.progress.bench_total_s},
       {"trial_ids", v.trial_ids},
       {"parameter_set_id", OptionalValue(v.parameter_set_id)},
       {"values", std::move(values)},

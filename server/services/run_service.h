@@ -101,7 +101,7 @@ struct RunView {
 ///  "progress" (0–1), "eta_s" (wall s, null when unknown), "created_at_utc",
 ///  "started_at_utc", "finished_at_utc" (ISO-8601 UTC or null), "result"
 ///  (RunView::result), "controller" (user name or null)}, plus the details
-///  "trial_ids", "parameter_set_id", "values", "safety_events", "live" and,
+///  "bench_elapsed_s", "bench_total_s" (bench time of the plan), "trial_ids", "parameter_set_id", "values", "safety_events", "live" and,
 ///  for tolerance_test runs of this process, "tolerance".
 nlohmann::json RunViewToJson(const RunView& view);
 

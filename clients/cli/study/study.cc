@@ -299,7 +299,7 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
       log << "  leg " << index << ": " << e.what() << "\n";
       continue;
     }
-    leg.bench_s[protocol] = run.at("progress").value("bench_total_s", kNaN);
+    leg.bench_s[protocol] = run.value("bench_total_s", kNaN);
     if (protocol == "rapid_parameterisation" && run["parameter_set_id"].is_number_integer()) {
       rapid_set = run["parameter_set_id"].get<std::int64_t>();
     }

@@ -263,6 +263,49 @@ TEST_F(CorrectionsTest, ToleranceTestWritesTheSessionAndRapidTakesAnExplicitIner
   EXPECT_EQ(list.body["items"][0]["state"], "done");
   EXPECT_EQ(list.body["items"][0]["result"], result);
 
+  // The protocol catalog resolves the amplitude defaults for this session
+  // in mA; without a session such a default is null with its rule.
+  const double max_tolerated = result["max_tolerated_ma"];
+  auto resolved = Do(
+      "GET", "/api/v1/protocols/prediction_random_binary?session_id=" + std::to_string(session_id),
+      analyst_);
+  ASSERT_EQ(resolved.status, 200) << resolved.text;
+  auto bare = Do("GET", "/api/v1/protocols", analyst_);
+  ASSERT_EQ(bare.status, 200);
+  for (const auto& p : resolved.body["parameters"]) {
+    if (p["name"] != "amplitude_ma") continue;
+    EXPECT_EQ(p["unit"], "mA");
+    EXPECT_NEAR(p["default"].get<double>(), threshold + 0.6 * (max_tolerated - threshold), 1e-9);
+  }
+  for (const auto& protocol : bare.body["protocols"]) {
+    EXPECT_TRUE(protocol["thesis_section"].get<std::string>().starts_with("§")) << protocol;
+    for (const auto& p : protocol["parameters"]) {
+      EXPECT_FALSE(p["label"].get<std::string>().empty());
+      if (p["name"] == "amplitude_ma") {
+        EXPECT_TRUE(p["default"].is_null()) << p;
+        EXPECT_TRUE(p["default_rule"].is_string()) << p;
+      }
+    }
+  }
+  EXPECT_EQ(Do("GET", "/api/v1/protocols?session_id=999", analyst_).status, 404);
+  EXPECT_EQ(Do("GET", "/api/v1/protocols?session_id=x", analyst_).status, 400);
+
+  // The trial downloads with a file name.
+  const std::int64_t trial_id = view["trial_ids"][0];
+  auto csv = client_->Get(("/api/v1/trials/" + std::to_string(trial_id) + "?format=csv").c_str(),
+                          {{"Authorization", "Bearer " + analyst_}});
+  ASSERT_TRUE(csv);
+  EXPECT_EQ(csv->status, 200);
+  EXPECT_EQ(csv->get_header_value("Content-Disposition"),
+            "attachment; filename=\"trial-" + std::to_string(trial_id) + "-tolerance_test.csv\"");
+  EXPECT_EQ(csv->body.rfind("t_s,", 0), 0u) << csv->body.substr(0, 80);
+  Expect400(Do("GET", "/api/v1/trials/" + std::to_string(trial_id) + "?format=xml", analyst_),
+            "format", {"csv"});
+  auto trials = Do("GET", "/api/v1/sessions/" + std::to_string(session_id) + "/trials", analyst_);
+  ASSERT_EQ(trials.body["items"].size(), 1u);
+  EXPECT_EQ(trials.body["items"][0]["kind"], "tolerance_test");
+  EXPECT_GT(trials.body["items"][0]["duration_s"].get<double>(), 0.0);
+
   // The subject has no weight or shank length: rapid needs an explicit inertia.
   auto no_inertia = Do("POST", runs, clinician_, {{"protocol", "rapid_parameterisation"}});
   Expect400(no_inertia, "parameters.inertia_kgm2", {"weight_kg", "shank_length_cm", "kg·m²"});
