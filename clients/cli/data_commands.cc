@@ -81,7 +81,8 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
         }
         // Legs as right/left, not internal ids.
         std::map<std::int64_t, std::string> sides;
-        for (const auto& leg : client->Get("/subjects/" + std::to_string(subject_id))["legs"]) {
+        const json subject = client->Get("/subjects/" + std::to_string(subject_id));
+        for (const auto& leg : subject["legs"]) {
           sides[leg.value("id", std::int64_t{0})] = leg.value("side", "");
         }
         std::vector<std::vector<std::string>> rows;

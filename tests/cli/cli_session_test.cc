@@ -616,7 +616,9 @@ TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) {
   }
 
   // 7. Predict the new set on those fresh trials: validation by default.
-  auto predict = cli.Run({"predict", "--params", std::to_string(set_id)});
+  // (predictions are the analyst's)
+  const std::string analyst = CreateUserToken(http, admin, "anton", "analyst");
+  auto predict = cli.Run({"predict", "--params", std::to_string(set_id)}, analyst);
   ASSERT_TRUE(step_ok(predict));
   EXPECT_THAT(predict.out, HasSubstr("it was not fitted on (validation)"));
   EXPECT_THAT(predict.out, Not(HasSubstr("rapid_active_random_binary")))
@@ -637,8 +639,9 @@ TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) {
   // A training trial named explicitly is marked as such.
   const std::int64_t training_trial =
       LastNumber(rapid.out, "rapid_active_random_binary stored as trial");
-  auto on_training = cli.Run({"predict", "--params", std::to_string(set_id), "--stimulus",
-                              std::to_string(training_trial)});
+  auto on_training = cli.Run(
+      {"predict", "--params", std::to_string(set_id), "--stimulus", std::to_string(training_trial)},
+      analyst);
   ASSERT_TRUE(step_ok(on_training));
   EXPECT_THAT(on_training.out, HasSubstr("is a training trial"));
   EXPECT_EQ(server.Terminate(), 0);
