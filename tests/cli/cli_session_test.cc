@@ -503,8 +503,8 @@ TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
 // recorded values → rapid parameterisation (followed by default) →
 // prediction_random_binary and prediction_step → predict the new set on
 // those fresh trials (not its training trials) with error figures.
-TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) {
-  ServerProcess server({"--time-scale", "10"});
+void WalkANewLeg(const std::string& max_stop_impact_deg_s, bool expect_gate_refusal) {
+  ServerProcess server({"--time-scale", "10", "--max-stop-impact-deg-s", max_stop_impact_deg_s});
   auto http = server.Client();
   const std::string admin = server.admin_token();
   const std::string clinician = CreateUserToken(http, admin, "clara", "clinician");
@@ -608,6 +608,7 @@ TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) {
     gate_messages.push_back(run.err);
     std::cout << "[ gate     ] " << run.err;
   }
+  EXPECT_EQ(!gate_messages.empty(), expect_gate_refusal);
   if (fresh_kinds.empty()) {
     // Fresh free-swing trials all the same: active random binary is not gated.
     auto rb = cli.Run({"run", "start", sid, "active_random_binary"});
@@ -645,6 +646,18 @@ TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) {
   ASSERT_TRUE(step_ok(on_training));
   EXPECT_THAT(on_training.out, HasSubstr("is a training trial"));
   EXPECT_EQ(server.Terminate(), 0);
+}
+
+// At the default 90 deg/s the gate refuses the prediction protocols on this
+// leg: both drive the knee into the extension stop at 150–400 deg/s (the
+// simulated leg itself does too: §5.4.3's amplitude is the lowest giving
+// full extension). Fresh trials then come from active_random_binary.
+TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) { WalkANewLeg("90", true); }
+
+// A bench whose stops take 500 deg/s runs the prediction protocols after
+// the default rapid run, and the new set is validated on those trials.
+TEST(CliSessionTest, NewLegWithPredictionProtocolsOnABenchWithFirmerStops) {
+  WalkANewLeg("500", false);
 }
 
 // An older config file with wider permissions is narrowed to 0600.
