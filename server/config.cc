@@ -13,13 +13,18 @@ namespace fesbench::server {
 
 api::Status ValidateServerConfig(const ServerConfig& c) {
   if (c.bind.empty()) return api::Status::InvalidArgument("must not be empty", "bind");
-  if (c.port < 0 || c.port > 65535) return api::Status::InvalidArgument("must be in [0, 65535]", "port");
+  if (c.port < 0 || c.port > 65535)
+    return api::Status::InvalidArgument("must be in [0, 65535]", "port");
   if (c.db.empty()) return api::Status::InvalidArgument("must not be empty", "db");
   if (c.bench != "sim" && c.bench != "replay") {
     return api::Status::InvalidArgument("must be sim or replay", "bench");
   }
   if (!std::isfinite(c.time_scale) || c.time_scale < 0 || c.time_scale > 1000) {
     return api::Status::InvalidArgument("must be in [0, 1000]", "time-scale");
+  }
+  if (!std::isfinite(c.max_stop_impact_deg_s) || c.max_stop_impact_deg_s <= 0 ||
+      c.max_stop_impact_deg_s > 2000) {
+    return api::Status::InvalidArgument("must be in (0, 2000] deg/s", "max-stop-impact-deg-s");
   }
   if (c.dds_domain < 0 || c.dds_domain > 232) {
     return api::Status::InvalidArgument("must be in [0, 232]", "dds-domain");
@@ -65,6 +70,7 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.String("db", false, 4096)) c.db = *v;
   if (auto v = f.String("bench", false, 16)) c.bench = *v;
   if (auto v = f.Number("time-scale", false, 0.0, 1000.0)) c.time_scale = *v;
+  if (auto v = f.Number("max-stop-impact-deg-s", false, 0.0, 2000.0)) c.max_stop_impact_deg_s = *v;
   if (auto v = f.Integer("dds-domain", false, 0, 232)) c.dds_domain = static_cast<int>(*v);
   if (auto v = f.String("dds-transport", false, 16)) c.dds_transport = *v;
   if (auto v = f.String("dds-profile", false, 4096)) c.dds_profile = *v;
@@ -73,15 +79,18 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.String("tls-key", false, 4096)) c.tls_key = *v;
   if (auto v = f.Integer("seed", false, 0)) c.seed = static_cast<std::uint64_t>(*v);
   if (const auto* files = f.Any("replay", false)) {
-    if (!files->is_array()) return api::Status::InvalidArgument("must be an array of paths", "replay");
+    if (!files->is_array())
+      return api::Status::InvalidArgument("must be an array of paths", "replay");
     c.replay.clear();
     for (const auto& file : *files) {
-      if (!file.is_string()) return api::Status::InvalidArgument("must be an array of paths", "replay");
+      if (!file.is_string())
+        return api::Status::InvalidArgument("must be an array of paths", "replay");
       c.replay.push_back(file.get<std::string>());
     }
   }
   if (auto v = f.Integer("job-workers", false, 1, 64)) c.job_workers = static_cast<int>(*v);
-  if (auto v = f.Integer("max-connections", false, 1, 1024)) c.max_connections = static_cast<int>(*v);
+  if (auto v = f.Integer("max-connections", false, 1, 1024))
+    c.max_connections = static_cast<int>(*v);
   if (auto v = f.Integer("max-streams", false, 1, 256)) c.max_streams = static_cast<int>(*v);
   if (auto v = f.String("web-root", false, 4096)) c.web_root = *v;
   return f.Finish();
@@ -102,6 +111,9 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
       ->check(CLI::IsMember({"sim", "replay"}));
   app.add_option("--time-scale", flags.time_scale,
                  "bench seconds per wall second: 1 real time, 0 as fast as possible");
+  app.add_option("--max-stop-impact-deg-s", flags.max_stop_impact_deg_s,
+                 "model gate: fastest predicted arrival of the knee at a stop of the range of "
+                 "motion, deg/s (default 90)");
   app.add_option("--dds-domain", flags.dds_domain, "DDS domain id (default 0)");
   app.add_option("--dds-transport", flags.dds_transport,
                  "DDS transport: auto (shm + UDP), shm, udp, udp-loopback, off (default auto)")
@@ -154,6 +166,7 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--db")) config.db = flags.db;
   if (given("--bench")) config.bench = flags.bench;
   if (given("--time-scale")) config.time_scale = flags.time_scale;
+  if (given("--max-stop-impact-deg-s")) config.max_stop_impact_deg_s = flags.max_stop_impact_deg_s;
   if (given("--dds-domain")) config.dds_domain = flags.dds_domain;
   if (given("--dds-transport")) config.dds_transport = flags.dds_transport;
   if (given("--dds-profile")) config.dds_profile = flags.dds_profile;

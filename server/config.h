@@ -20,28 +20,31 @@ namespace fesbench::server {
 std::string DefaultWebRoot();
 
 struct ServerConfig {
-  std::string bind = "127.0.0.1";          ///< --bind: listen address.
-  int port = 8080;                         ///< --port: 0 picks a free port (printed).
-  std::string db = "./data/fesbench.db";   ///< --db: SQLite file (folder created).
-  std::string bench = "sim";               ///< --bench: "sim" or "replay".
-  double time_scale = 1.0;                 ///< --time-scale: 1 real time, 0 as fast as possible.
-  int dds_domain = 0;                      ///< --dds-domain: 0–232 (DDS front end, DESIGN.md §9).
+  std::string bind = "127.0.0.1";         ///< --bind: listen address.
+  int port = 8080;                        ///< --port: 0 picks a free port (printed).
+  std::string db = "./data/fesbench.db";  ///< --db: SQLite file (folder created).
+  std::string bench = "sim";              ///< --bench: "sim" or "replay".
+  double time_scale = 1.0;                ///< --time-scale: 1 real time, 0 as fast as possible.
+  /// --max-stop-impact-deg-s: the model gate's limit on the predicted speed
+  /// of the knee at a stop of the range of motion (BenchLimits), (0, 2000].
+  double max_stop_impact_deg_s = 90.0;
+  int dds_domain = 0;  ///< --dds-domain: 0–232 (DDS front end, DESIGN.md §9).
   /// --dds-transport: auto (Fast DDS default: shm + UDP), shm, udp,
   /// udp-loopback, or off (no DDS front end).
   std::string dds_transport = "auto";
-  std::string dds_profile;                 ///< --dds-profile: Fast DDS XML profile file.
-  std::string dds_bench_id;                ///< --dds-bench-id: key of the bench state (default: host name).
-  std::string tls_cert;                    ///< --tls-cert: PEM certificate (with --tls-key: HTTPS).
-  std::string tls_key;                     ///< --tls-key: PEM private key.
-  std::uint64_t seed = 1;                  ///< --seed: virtual subject of the simulated bench.
-  std::vector<std::string> replay;         ///< --replay: CSV trials for --bench replay.
-  int job_workers = 2;                     ///< --job-workers: identification/prediction threads.
-  int max_connections = 48;                ///< --max-connections: connections served at once.
-  int max_streams = 16;                    ///< --max-streams: open event streams.
+  std::string dds_profile;   ///< --dds-profile: Fast DDS XML profile file.
+  std::string dds_bench_id;  ///< --dds-bench-id: key of the bench state (default: host name).
+  std::string tls_cert;      ///< --tls-cert: PEM certificate (with --tls-key: HTTPS).
+  std::string tls_key;       ///< --tls-key: PEM private key.
+  std::uint64_t seed = 1;    ///< --seed: virtual subject of the simulated bench.
+  std::vector<std::string> replay;  ///< --replay: CSV trials for --bench replay.
+  int job_workers = 2;              ///< --job-workers: identification/prediction threads.
+  int max_connections = 48;         ///< --max-connections: connections served at once.
+  int max_streams = 16;             ///< --max-streams: open event streams.
   /// --web-root: the web client's built files, served at / (default: the
   /// build tree's clients/web/dist; "" serves none).
   std::string web_root = DefaultWebRoot();
-  std::string config_file;                 ///< --config: the JSON file read, if any.
+  std::string config_file;  ///< --config: the JSON file read, if any.
 };
 
 /// The outcome of parsing: a config to run with, or an exit code (after
@@ -58,9 +61,9 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
                                std::ostream& err);
 
 /// Applies a JSON config object's keys ("bind", "port", "db", "bench",
-/// "time-scale", "dds-domain", "dds-transport", "dds-profile", "dds-bench-id", "tls-cert", "tls-key", "seed", "replay",
-/// "job-workers", "max-connections", "max-streams") to `config`.
-/// kInvalidArgument naming the key for unknown keys, wrong types and
+/// "time-scale", "max-stop-impact-deg-s", "dds-domain", "dds-transport", "dds-profile",
+/// "dds-bench-id", "tls-cert", "tls-key", "seed", "replay", "job-workers", "max-connections",
+/// "max-streams") to `config`. kInvalidArgument naming the key for unknown keys, wrong types and
 /// out-of-range values.
 api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& config);
 

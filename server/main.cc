@@ -108,6 +108,7 @@ int main(int argc, char** argv) {
     server::SimulatedBenchOptions options;
     options.time_scale = config.time_scale;
     options.seed = config.seed;
+    options.limits.max_stop_impact_deg_s = config.max_stop_impact_deg_s;
     auto sim = server::services::SwappableSimulatedBench::Create(
         server::DrawVirtualSubject(config.seed), options);
     if (!sim.ok()) return Fail("simulated bench", sim.status());
@@ -116,6 +117,7 @@ int main(int argc, char** argv) {
   } else {
     server::ReplayBenchOptions options;
     options.time_scale = config.time_scale;
+    options.limits.max_stop_impact_deg_s = config.max_stop_impact_deg_s;
     std::vector<std::filesystem::path> files(config.replay.begin(), config.replay.end());
     auto replay = server::ReplayBench::FromCsvFiles(files, options);
     if (!replay.ok()) return Fail("replay bench", replay.status());

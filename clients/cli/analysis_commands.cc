@@ -2,6 +2,7 @@
 // server (DESIGN.md §4, §8; thesis ch. 4, §5.4.5, §7.4). Each submits a job,
 // waits for it, and prints its result.
 
+#include <algorithm>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -38,23 +39,52 @@ std::string Fixed(const json& value, int digits) {
   return buffer;
 }
 
-// The free-swing trials a parameter set was fitted from (passive free swing
-// and active random binary, §5.4.3–5.4.4): the trials whose predicted knee
-// angle is compared in §7.4, all in one unit (deg).
-json FreeSwingTrials(ApiClient& client, std::int64_t set_id) {
-  const json set = client.Get("/parameter-sets/" + std::to_string(set_id));
-  json kept = json::array();
+// A trial recorded in free swing (the knee angle is what is predicted):
+// passive free swing, active random binary, the §5.4.5 prediction trials.
+bool IsFreeSwingTrial(const std::string& name) {
+  return name.find("free_swing") != std::string::npos ||
+         name.find("random_binary") != std::string::npos || name.starts_with("prediction_");
+}
+
+// The trials a parameter set was fitted on (its provenance): training data.
+std::vector<std::int64_t> TrainingTrials(const json& set) {
+  std::vector<std::int64_t> ids;
   for (const auto& id : set.value("trial_ids", json::array())) {
-    const json trial = client.Get("/trials/" + Cell(id));
-    const std::string name = trial.value("name", "");
-    if (name.find("free_swing") != std::string::npos ||
-        name.find("random_binary") != std::string::npos) {
-      kept.push_back(id);
+    if (id.is_number_integer()) ids.push_back(id.get<std::int64_t>());
+  }
+  return ids;
+}
+
+bool Contains(const std::vector<std::int64_t>& ids, std::int64_t id) {
+  return std::find(ids.begin(), ids.end(), id) != ids.end();
+}
+
+// Honest validation by default (issue 14): the free-swing trials of the
+// set's leg (every session of its subject) that the set was NOT fitted on.
+json ValidationTrials(ApiClient& client, std::int64_t set_id) {
+  const json set = client.Get("/parameter-sets/" + std::to_string(set_id));
+  const std::vector<std::int64_t> training = TrainingTrials(set);
+  const std::int64_t subject = set.value("subject_id", std::int64_t{0});
+  const std::int64_t leg = set.value("leg_id", std::int64_t{0});
+  json kept = json::array();
+  for (const auto& session :
+       client.GetAllPages("/subjects/" + std::to_string(subject) + "/sessions", "")) {
+    if (session.value("leg_id", std::int64_t{-1}) != leg) continue;
+    for (const auto& trial :
+         client.GetAllPages("/sessions/" + Cell(session["id"]) + "/trials", "")) {
+      const std::int64_t id = trial.value("id", std::int64_t{0});
+      if (IsFreeSwingTrial(trial.value("name", "")) && !Contains(training, id)) {
+        kept.push_back(id);
+      }
     }
   }
   if (kept.empty()) {
-    throw CliError::Usage("parameter set " + std::to_string(set_id) +
-                          " was not fitted from free-swing trials: name them with --trials");
+    throw CliError::Usage(
+        "parameter set " + std::to_string(set_id) +
+        " has no free-swing trial of its leg that it was not fitted on (it was fitted on trials " +
+        set.value("trial_ids", json::array()).dump() +
+        "): record one (e.g. `fesbench run start SESSION prediction_random_binary`) or name "
+        "trials with --trials (training trials are then marked as such)");
   }
   return kept;
 }
@@ -128,11 +158,10 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         "Simulate a parameter set on a stimulus or a stored trial; E_RMS/E_ABS against the "
         "trial's measured angle.");
     predict->add_option("--params", form->params, "parameter set id")->required();
-    predict
-        ->add_option("--stimulus", form->stimulus,
-                     "step, ramp, sine, rb (random binary), another generator name, or a "
-                     "TRIAL_ID to predict a recorded trial")
-        ->required();
+    predict->add_option("--stimulus", form->stimulus,
+                        "step, ramp, sine, rb (random binary), another generator name, or a "
+                        "TRIAL_ID to predict a recorded trial (default: every free-swing trial of "
+                        "the set's leg it was not fitted on)");
     predict->add_option("--param", form->stimulus_params,
                         "stimulus generator parameter key=value (repeatable)");
     predict->add_option("--mode", form->mode, "free_swing or isometric")
@@ -143,7 +172,41 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
                       "(§6.1.2) before the errors");
     predict->callback([form, &context] {
       context.action = [form, &context] {
-        json body = {{"parameter_set_id", ParseId(form->params, "--params")}};
+        const std::int64_t set_id = ParseId(form->params, "--params");
+        if (form->stimulus.empty()) {
+          // Held-out validation: each trial the set was not fitted on.
+          if (!form->out_path.empty() || !form->stimulus_params.empty()) {
+            throw CliError::Usage("--out and --param need one --stimulus");
+          }
+          auto client = Connect(context);
+          const json trials = ValidationTrials(*client, set_id);
+          json results = json::array();
+          std::vector<std::vector<std::string>> rows;
+          for (const auto& trial : trials) {
+            json body = {{"parameter_set_id", set_id}, {"trial_id", trial}};
+            if (!form->mode.empty()) body["mode"] = form->mode;
+            const json job = client->Post("/predictions", body);
+            json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+            result.erase("columns");
+            const json errors = result.value("errors", json(nullptr));
+            const json name = client->Get("/trials/" + Cell(trial)).value("name", json(nullptr));
+            rows.push_back({Cell(trial), Cell(name),
+                            errors.is_object() ? Fixed(errors["e_rms"], 3) : "-",
+                            errors.is_object() ? Fixed(errors["e_abs"], 3) : "-",
+                            errors.is_object() ? Cell(errors.value("unit", json(nullptr))) : "-",
+                            Cell(result.value("prediction_id", json(nullptr)))});
+            results.push_back(std::move(result));
+          }
+          if (context.options.json) {
+            context.out << results.dump(2) << "\n";
+            return;
+          }
+          context.out << "parameter set " << set_id
+                      << " on the free-swing trials it was not fitted on (validation):\n";
+          PrintTable(context.out, {"trial", "name", "E_RMS", "E_ABS", "unit", "prediction"}, rows);
+          return;
+        }
+        json body = {{"parameter_set_id", set_id}};
         const bool is_trial = form->stimulus.find_first_not_of("0123456789") == std::string::npos;
         if (is_trial) {
           body["trial_id"] = ParseId(form->stimulus, "--stimulus trial");
@@ -166,6 +229,10 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         auto client = Connect(context);
         const json job = client->Post("/predictions", body);
         json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+        const bool training =
+            body.contains("trial_id") &&
+            Contains(TrainingTrials(client->Get("/parameter-sets/" + std::to_string(set_id))),
+                     body["trial_id"].get<std::int64_t>());
         if (!form->out_path.empty()) {
           api::ChannelGroup group;
           group.sample_rate_hz = result.value("sample_rate_hz", 200.0);
@@ -199,6 +266,11 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
                       << Fixed(errors["e_abs"], 3) << " " << unit << "  (trial "
                       << Cell(result["trial_id"]) << ", " << Cell(errors["channel"]) << ", "
                       << Cell(errors["samples"]) << " samples)\n";
+          if (training) {
+            context.out << "note: trial " << Cell(result["trial_id"]) << " is a training trial: "
+                        << "parameter set " << set_id
+                        << " was fitted on it, so these errors are not a validation\n";
+          }
           if (result.contains("fitted_scale") && result["fitted_scale"].is_number()) {
             context.out << "fitted scale " << Fixed(result["fitted_scale"], 4)
                         << " (§6.1.2)  normalised E_RMS "
@@ -226,7 +298,8 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     compare
         ->add_option(
             "--trials", form->trials,
-            "trial ids every pair is predicted on (default: each A set's own free-swing trials)")
+            "trial ids every pair is predicted on (default: for each pair, the free-swing trials "
+            "of the leg that the A set was not fitted on)")
         ->delimiter(',');
     compare->add_option("--metric", form->metric, "e_rms (default), e_abs, normalised_rms, ...");
     compare->add_option("--confidence", form->confidence, "confidence level, e.g. 0.95")
@@ -248,7 +321,20 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         json pairs = json::array();
         for (const auto& [a, b] : ids) {
           json pair_trials = trials;
-          if (trials.empty()) pair_trials = FreeSwingTrials(*client, a);
+          if (trials.empty()) {
+            pair_trials = ValidationTrials(*client, a);
+          } else {
+            for (std::int64_t set : {a, b}) {
+              const std::vector<std::int64_t> training =
+                  TrainingTrials(client->Get("/parameter-sets/" + std::to_string(set)));
+              for (std::int64_t t : trials) {
+                if (Contains(training, t)) {
+                  context.err << "note: trial " << t << " is a training trial of parameter set "
+                              << set << " (it was fitted on it)\n";
+                }
+              }
+            }
+          }
           pairs.push_back(
               {{"a_parameter_set_id", a}, {"b_parameter_set_id", b}, {"trial_ids", pair_trials}});
         }

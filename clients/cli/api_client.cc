@@ -106,6 +106,13 @@ json ApiClient::Put(const std::string& path, const json& body) {
   return Handle("PUT", path, result->status, result->body);
 }
 
+json ApiClient::Patch(const std::string& path, const json& body) {
+  const std::string text = body.dump();
+  auto result = client_->Patch(kApiPrefix + path, text, "application/json");
+  if (!result) Unreachable(httplib::to_string(result.error()));
+  return Handle("PATCH", path, result->status, result->body);
+}
+
 json ApiClient::Delete(const std::string& path) {
   auto result = client_->Delete(kApiPrefix + path);
   if (!result) Unreachable(httplib::to_string(result.error()));

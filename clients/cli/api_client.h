@@ -34,6 +34,7 @@ class ApiClient {
   nlohmann::json Get(const std::string& path);
   nlohmann::json Post(const std::string& path, const nlohmann::json& body = nullptr);
   nlohmann::json Put(const std::string& path, const nlohmann::json& body);
+  nlohmann::json Patch(const std::string& path, const nlohmann::json& body);
   nlohmann::json Delete(const std::string& path);
 
   /// Every item of a paged list (follows next_cursor; `query` without

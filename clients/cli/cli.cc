@@ -6,9 +6,9 @@
 #include <string>
 #include <thread>
 
-#include "clients/command_line.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
+#include "clients/command_line.h"
 
 namespace fesbench::cli {
 namespace {

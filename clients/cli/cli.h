@@ -28,6 +28,8 @@ inline constexpr int kExitOk = 0;
 inline constexpr int kExitServer = 1;
 inline constexpr int kExitUsage = 2;
 inline constexpr int kExitUnreachable = 3;
+/// Interrupted (Ctrl-C) after the server confirmed the run was cancelled (128 + SIGINT).
+inline constexpr int kExitInterrupted = 130;
 
 /// A failure a command reports to the user: one line of text and an exit
 /// code. Thrown by actions and caught by RunFesbenchCli.

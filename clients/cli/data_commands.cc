@@ -2,6 +2,7 @@
 // history and export of parameter sets and recorded trials (DESIGN.md §3,
 // §7, §8) with the api/ wire types.
 
+#include <map>
 #include <memory>
 #include <ostream>
 #include <string>
@@ -68,7 +69,8 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
     list->callback([form, &context] {
       context.action = [form, &context] {
         auto client = Connect(context);
-        std::string query = "subject_id=" + std::to_string(ResolveSubject(*client, form->subject));
+        const std::int64_t subject_id = ResolveSubject(*client, form->subject);
+        std::string query = "subject_id=" + std::to_string(subject_id);
         if (!form->leg.empty()) query += "&leg=" + form->leg;
         if (!form->method.empty()) query += "&method=" + UrlEncode(form->method);
         if (!form->since.empty()) query += "&from=" + UrlEncode(form->since);
@@ -77,15 +79,22 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
           context.out << items.dump(2) << "\n";
           return;
         }
+        // Legs as right/left, not internal ids.
+        std::map<std::int64_t, std::string> sides;
+        const json subject = client->Get("/subjects/" + std::to_string(subject_id));
+        for (const auto& leg : subject["legs"]) {
+          sides[leg.value("id", std::int64_t{0})] = leg.value("side", "");
+        }
         std::vector<std::vector<std::string>> rows;
         for (const auto& s : items) {
-          rows.push_back({Cell(s["id"]), Cell(s["leg_id"]), Cell(s["version"]), Cell(s["model"]),
-                          Cell(s["irc_method"]), Cell(s["passive_method"]),
-                          Cell(s["active_method"]), Cell(s["supersedes_id"]),
-                          Cell(s["created_at_utc"])});
+          const auto side = sides.find(s.value("leg_id", std::int64_t{0}));
+          rows.push_back({Cell(s["id"]), side == sides.end() ? Cell(s["leg_id"]) : side->second,
+                          Cell(s["version"]), Cell(s["model"]), Cell(s["irc_method"]),
+                          Cell(s["passive_method"]), Cell(s["active_method"]),
+                          Cell(s["supersedes_id"]), Cell(s["created_at_utc"])});
         }
         PrintTable(context.out,
-                   {"id", "leg_id", "version", "model", "irc_method", "passive_method",
+                   {"id", "leg", "version", "model", "irc_method", "passive_method",
                     "active_method", "supersedes", "created_at_utc"},
                    rows);
       };
@@ -130,8 +139,32 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
     });
   }
 
-  CLI::App* trials = app.add_subcommand("trials", "Recorded trials: export.");
+  CLI::App* trials = app.add_subcommand("trials", "Recorded trials: list, export.");
   trials->require_subcommand(1);
+  {
+    auto session = std::make_shared<std::string>();
+    CLI::App* list = trials->add_subcommand("list", "The trials recorded in a session.");
+    list->add_option("--session", *session, "session id")->required();
+    list->callback([session, &context] {
+      context.action = [session, &context] {
+        auto client = Connect(context);
+        const json items = client->GetAllPages(
+            "/sessions/" + std::to_string(ParseId(*session, "session")) + "/trials", "");
+        if (context.options.json) {
+          context.out << items.dump(2) << "\n";
+          return;
+        }
+        std::vector<std::vector<std::string>> rows;
+        for (const auto& t : items) {
+          rows.push_back({Cell(t["id"]), Cell(t["run_id"]), Cell(t.value("kind", json(nullptr))),
+                          Cell(t["num_samples"]), Cell(t.value("duration_s", json(nullptr))),
+                          Cell(t["created_at_utc"])});
+        }
+        PrintTable(context.out,
+                   {"id", "run_id", "kind", "num_samples", "duration_s", "created_at_utc"}, rows);
+      };
+    });
+  }
   {
     auto id = std::make_shared<std::string>();
     auto format = std::make_shared<std::string>("csv");

@@ -1,5 +1,6 @@
-// `fesbench subjects list|show|create` and `sessions list|show|create`:
-// the records a clinician keeps (DESIGN.md §7, §8).
+// `fesbench subjects list|show|create|edit` and `sessions
+// list|show|create|edit`: the records a clinician keeps (DESIGN.md §7, §8).
+// `edit` records a correction as a new revision with a reason (issue 14).
 
 #include <memory>
 #include <optional>
@@ -42,14 +43,6 @@ void PrintSessions(CliContext& context, const json& items) {
              rows);
 }
 
-void Show(CliContext& context, const json& value) {
-  if (context.options.json) {
-    context.out << value.dump(2) << "\n";
-  } else {
-    PrintObject(context.out, value);
-  }
-}
-
 struct SubjectForm {
   std::string code;
   std::vector<std::string> legs;
@@ -57,6 +50,45 @@ struct SubjectForm {
   std::optional<std::string> sex;
   std::optional<double> height_cm, weight_kg, shank_length_cm, calf_circumference_cm;
 };
+
+// A correction: --reason and the fields to change; "--clear FIELD" clears one.
+struct SubjectEditForm {
+  std::string subject;
+  std::string reason;
+  std::vector<std::string> clear;
+  std::optional<int> age_years;
+  std::optional<std::string> sex;
+  std::optional<double> height_cm, weight_kg, shank_length_cm, calf_circumference_cm;
+};
+
+struct SessionEditForm {
+  std::string session;
+  std::string reason;
+  std::vector<std::string> clear;
+  std::optional<std::string> date, notes, placement;
+  std::optional<double> threshold_ma, max_tolerated_ma;
+};
+
+// Prints a correction's result: the revision and the current details.
+void PrintCorrected(CliContext& context, const std::string& what, const json& record) {
+  if (context.options.json) {
+    context.out << record.dump(2) << "\n";
+    return;
+  }
+  context.out << what << " " << Cell(record["id"]) << " corrected: revision "
+              << Cell(record["revision"]) << "\n";
+  PrintObject(context.out, record["details"]);
+}
+
+void PrintRevisions(CliContext& context, const json& items) {
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& r : items) {
+    rows.push_back({Cell(r["revision"]), Cell(r["changed_at_utc"]),
+                    Cell(r.value("changed_by", json(nullptr))), Cell(r["reason"])});
+  }
+  context.out << "revisions:\n";
+  PrintTable(context.out, {"revision", "changed_at_utc", "changed_by", "reason"}, rows);
+}
 
 struct SessionForm {
   std::string subject;
@@ -70,7 +102,7 @@ struct SessionForm {
 
 void RegisterRecordCommands(CLI::App& app, CliContext& context) {
   // --- subjects ---------------------------------------------------------------
-  CLI::App* subjects = app.add_subcommand("subjects", "Subjects: list, show, create.");
+  CLI::App* subjects = app.add_subcommand("subjects", "Subjects: list, show, create, edit.");
   subjects->require_subcommand(1);
   subjects->add_subcommand("list", "List every subject (a table, or --json).")
       ->callback([&context] {
@@ -91,7 +123,16 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
     show->callback([id, &context] {
       context.action = [id, &context] {
         auto client = Connect(context);
-        Show(context, client->Get("/subjects/" + std::to_string(ResolveSubject(*client, *id))));
+        const std::string path = "/subjects/" + std::to_string(ResolveSubject(*client, *id));
+        json subject = client->Get(path);
+        const json revisions = client->Get(path + "/revisions")["items"];
+        if (context.options.json) {
+          subject["revisions"] = revisions;
+          context.out << subject.dump(2) << "\n";
+          return;
+        }
+        PrintObject(context.out, subject);
+        PrintRevisions(context, revisions);
       };
     });
   }
@@ -134,8 +175,47 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
     });
   }
 
+  {
+    auto form = std::make_shared<SubjectEditForm>();
+    CLI::App* edit = subjects->add_subcommand(
+        "edit", "Correct a subject's details: a new revision with a reason (clinician or admin).");
+    edit->add_option("subject", form->subject, "subject id or code")->required();
+    edit->add_option("--reason", form->reason, "why the record is corrected")->required();
+    edit->add_option("--age", form->age_years, "age, years");
+    edit->add_option("--sex", form->sex, "female, male, other or undisclosed")
+        ->check(CLI::IsMember({"female", "male", "other", "undisclosed"}));
+    edit->add_option("--height-cm", form->height_cm, "height, cm");
+    edit->add_option("--weight-kg", form->weight_kg, "body mass, kg");
+    edit->add_option("--shank-length-cm", form->shank_length_cm, "shank length, cm");
+    edit->add_option("--calf-circumference-cm", form->calf_circumference_cm,
+                     "calf circumference, cm");
+    edit->add_option("--clear", form->clear, "a field to clear (repeatable), e.g. height_cm")
+        ->check(CLI::IsMember({"age_years", "sex", "height_cm", "weight_kg", "shank_length_cm",
+                               "calf_circumference_cm"}));
+    edit->callback([form, &context] {
+      context.action = [form, &context] {
+        json details = json::object();
+        for (const std::string& field : form->clear) details[field] = nullptr;
+        if (form->age_years) details["age_years"] = *form->age_years;
+        if (form->sex) details["sex"] = *form->sex;
+        if (form->height_cm) details["height_cm"] = *form->height_cm;
+        if (form->weight_kg) details["weight_kg"] = *form->weight_kg;
+        if (form->shank_length_cm) details["shank_length_cm"] = *form->shank_length_cm;
+        if (form->calf_circumference_cm) {
+          details["calf_circumference_cm"] = *form->calf_circumference_cm;
+        }
+        if (details.empty()) throw CliError::Usage("name at least one field to correct");
+        auto client = Connect(context);
+        const std::int64_t id = ResolveSubject(*client, form->subject);
+        PrintCorrected(context, "subject",
+                       client->Patch("/subjects/" + std::to_string(id),
+                                     {{"reason", form->reason}, {"details", details}}));
+      };
+    });
+  }
+
   // --- sessions ---------------------------------------------------------------
-  CLI::App* sessions = app.add_subcommand("sessions", "Sessions: list, show, create.");
+  CLI::App* sessions = app.add_subcommand("sessions", "Sessions: list, show, create, edit.");
   sessions->require_subcommand(1);
   {
     auto subject = std::make_shared<std::string>();
@@ -165,21 +245,32 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
         json session = client->Get(path);
         session["runs"] = client->GetAllPages(path + "/runs", "");
         session["trials"] = client->GetAllPages(path + "/trials", "");
+        session["revisions"] = client->Get(path + "/revisions")["items"];
         if (context.options.json) {
           context.out << session.dump(2) << "\n";
           return;
         }
+        // The current values first: what the protocols are scaled to.
+        const json& d = session["details"];
+        context.out << "session " << Cell(session["id"]) << " (subject "
+                    << Cell(session["subject_id"]) << ", " << Cell(session["leg"]) << " leg, "
+                    << Cell(session["date"]) << "), revision " << Cell(session["revision"]) << "\n"
+                    << "threshold_ma: " << Cell(d.value("threshold_ma", json(nullptr))) << "\n"
+                    << "max_tolerated_ma: " << Cell(d.value("max_tolerated_ma", json(nullptr)))
+                    << "\n";
         json head = session;
         head.erase("runs");
         head.erase("trials");
+        head.erase("revisions");
         PrintObject(context.out, head);
+        PrintRevisions(context, session["revisions"]);
         std::vector<std::vector<std::string>> runs;
         for (const auto& r : session["runs"]) {
-          runs.push_back({Cell(r["id"]), Cell(r["protocol"]), Cell(r["state"]),
-                          Cell(r["started_at_utc"]), Cell(r["message"])});
+          runs.push_back({Cell(r["run_id"]), Cell(r["protocol"]), Cell(r["state"]),
+                          Cell(r["started_at_utc"]), Cell(r["reason"])});
         }
         context.out << "runs:\n";
-        PrintTable(context.out, {"id", "protocol", "state", "started_at_utc", "message"}, runs);
+        PrintTable(context.out, {"run_id", "protocol", "state", "started_at_utc", "reason"}, runs);
         std::vector<std::vector<std::string>> trials;
         for (const auto& t : session["trials"]) {
           trials.push_back({Cell(t["id"]), Cell(t["run_id"]), Cell(t["name"]),
@@ -222,6 +313,39 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
                       << Cell(created["subject_id"]) << ", " << Cell(created["leg"]) << " leg, "
                       << Cell(created["date"]) << ")\n";
         }
+      };
+    });
+  }
+  {
+    auto form = std::make_shared<SessionEditForm>();
+    CLI::App* edit = sessions->add_subcommand(
+        "edit", "Correct a session's details: a new revision with a reason (clinician or admin).");
+    edit->add_option("session", form->session, "session id")->required();
+    edit->add_option("--reason", form->reason, "why the record is corrected")->required();
+    edit->add_option("--date", form->date, "session date YYYY-MM-DD");
+    edit->add_option("--threshold-ma", form->threshold_ma, "torque threshold, mA");
+    edit->add_option("--max-tolerated-ma", form->max_tolerated_ma,
+                     "maximum tolerated stimulation, mA");
+    edit->add_option("--notes", form->notes, "free text");
+    edit->add_option("--accelerometer-placement", form->placement, "free text");
+    edit->add_option("--clear", form->clear, "a field to clear (repeatable), e.g. notes")
+        ->check(CLI::IsMember(
+            {"threshold_ma", "max_tolerated_ma", "notes", "accelerometer_placement"}));
+    edit->callback([form, &context] {
+      context.action = [form, &context] {
+        json details = json::object();
+        for (const std::string& field : form->clear) details[field] = nullptr;
+        if (form->date) details["date"] = *form->date;
+        if (form->threshold_ma) details["threshold_ma"] = *form->threshold_ma;
+        if (form->max_tolerated_ma) details["max_tolerated_ma"] = *form->max_tolerated_ma;
+        if (form->notes) details["notes"] = *form->notes;
+        if (form->placement) details["accelerometer_placement"] = *form->placement;
+        if (details.empty()) throw CliError::Usage("name at least one field to correct");
+        auto client = Connect(context);
+        PrintCorrected(
+            context, "session",
+            client->Patch("/sessions/" + std::to_string(ParseId(form->session, "session")),
+                          {{"reason", form->reason}, {"details", details}}));
       };
     });
   }

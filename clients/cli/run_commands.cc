@@ -1,12 +1,15 @@
 // `fesbench run start|show|cancel` and `fesbench estop`: protocol runs on the
-// bench (DESIGN.md §5, §6, §8). `run start --follow` follows the run's event
-// stream to its end while heart-beating it, because the server's watchdog
-// stops a run whose controlling user goes silent for more than a second.
+// bench (DESIGN.md §5, §6, §8). `run start` follows the run's event stream to
+// its end while heart-beating it (issue 14), because the server's watchdog
+// stops a run whose controlling user goes silent for more than a second;
+// Ctrl-C cancels the run and exits 130 once the server confirms. `--detach`
+// is refused for any protocol the watchdog would abort a second later.
 
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <csignal>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -121,15 +124,48 @@ class Heartbeat {
   std::thread thread_;
 };
 
-// Follows a run's stream to its end; throws CliError unless it ends "done".
+// Ctrl-C while following a run: the handler only raises this flag; the
+// stream loop cancels the run and waits for the server to confirm its end.
+volatile std::sig_atomic_t g_interrupted = 0;
+extern "C" void OnInterrupt(int) { g_interrupted = 1; }
+
+// Installs OnInterrupt for SIGINT while alive (the previous handler after).
+class InterruptGuard {
+ public:
+  InterruptGuard() {
+    g_interrupted = 0;
+    previous_ = std::signal(SIGINT, OnInterrupt);
+  }
+  ~InterruptGuard() { std::signal(SIGINT, previous_ == SIG_ERR ? SIG_DFL : previous_); }
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+
+ private:
+  void (*previous_)(int) = SIG_DFL;
+};
+
+// Follows a run's stream to its end; throws CliError unless it ends "done"
+// (exit 130 when Ctrl-C cancelled it). Progress goes to `progress_out`.
 void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connection,
-               std::int64_t run_id) {
+               std::int64_t run_id, std::ostream& progress_out) {
+  InterruptGuard interrupt_guard;
   Heartbeat heartbeat(connection, run_id);
-  ProgressPrinter printer(context.out, context.out_is_terminal);
+  ProgressPrinter printer(progress_out, context.out_is_terminal && &progress_out == &context.out);
   json end;
   std::string last_state;
+  bool cancel_sent = false;
   client.Stream("/runs/" + std::to_string(run_id) + "/stream",
                 [&](const std::string& event, const json& data) {
+                  if (g_interrupted && !cancel_sent) {
+                    cancel_sent = true;
+                    printer.Line("interrupted: cancelling run " + std::to_string(run_id) + " …");
+                    try {
+                      ApiClient(connection).Post("/runs/" + std::to_string(run_id) + "/cancel");
+                    } catch (const CliError& e) {
+                      // Already over: the stream's end says how it ended.
+                      printer.Line(std::string("cancel: ") + e.what());
+                    }
+                  }
                   if (!data.is_object()) return true;
                   if (event == "state") {
                     const std::string state = data.value("state", "");
@@ -158,7 +194,17 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
   if (end.contains("parameter_set_id") && end["parameter_set_id"].is_number_integer()) {
     line += " parameter_set " + Cell(end["parameter_set_id"]);
   }
+  const json result = end.value("result", json(nullptr));
+  if (result.is_object() && result.contains("session_revision")) {
+    line += " threshold_ma " + Cell(result.value("threshold_ma", json(nullptr))) +
+            " max_tolerated_ma " + Cell(result.value("max_tolerated_ma", json(nullptr))) +
+            " session_revision " + Cell(result["session_revision"]);
+  }
   printer.Line(line);
+  if (cancel_sent) {
+    throw CliError(kExitInterrupted, "run " + std::to_string(run_id) + " cancelled (Ctrl-C): " +
+                                         state + " " + end.value("reason", ""));
+  }
   if (state != "done") {
     std::string reason = end.value("reason", "");
     throw CliError::Server("server: run " + std::to_string(run_id) + " ended " + state +
@@ -180,8 +226,28 @@ struct StartForm {
   std::string session;
   std::string protocol;
   std::vector<std::string> params;
-  bool follow = false;
+  bool follow = false;  // the default; kept so that older scripts still work
+  bool detach = false;
 };
+
+// Why a run of `protocol` (GET /protocols/{name}) cannot be left alone, or
+// "" if it can: the watchdog aborts every run whose controller stops
+// heart-beating, and it is there for stimulation and the motor.
+std::string DetachRefusal(const json& protocol) {
+  const std::string name = protocol.value("name", "");
+  std::string what;
+  if (protocol.value("stimulates", true)) {
+    what = "stimulates the subject";
+  } else if (protocol.value("bench_mode", "") != "decoupled") {
+    what = "moves the brace with the motor";
+  } else {
+    return "";
+  }
+  return "--detach refused: " + name + " " + what +
+         ", and the server's watchdog aborts such a run about a second after its controller "
+         "stops heart-beating; run it without --detach (this command then follows it, "
+         "heart-beating, and Ctrl-C cancels it cleanly)";
+}
 
 }  // namespace
 
@@ -191,15 +257,24 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
   {
     auto form = std::make_shared<StartForm>();
     CLI::App* start = run->add_subcommand(
-        "start", "Start a protocol for a session (clinician or admin); --follow to watch it.");
+        "start",
+        "Start a protocol for a session (clinician or admin) and follow it to its end "
+        "(heart-beating; Ctrl-C cancels the run and exits 130).");
     start->add_option("session", form->session, "session id")->required();
     start->add_option("protocol", form->protocol, "protocol name, e.g. rapid_parameterisation")
         ->required();
     start->add_option("--param", form->params, "protocol parameter key=value (repeatable)");
     start->add_flag("--follow", form->follow,
-                    "follow the run to its end (progress bar on a terminal, lines when piped)");
+                    "follow the run to its end (the default; progress bar on a terminal, lines "
+                    "when piped)");
+    start->add_flag("--detach", form->detach,
+                    "start and return at once (refused for protocols the watchdog guards: "
+                    "stimulation or motor)");
     start->callback([form, &context] {
       context.action = [form, &context] {
+        if (form->detach && form->follow) {
+          throw CliError::Usage("--detach and --follow exclude each other");
+        }
         const std::int64_t session = ParseId(form->session, "session");
         json parameters = json::object();
         for (const auto& text : form->params) {
@@ -208,18 +283,39 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         }
         const CliConfig connection = ResolveConnection(context.options);
         ApiClient client(connection);
+        if (form->detach) {
+          const std::string refusal = DetachRefusal(client.Get("/protocols/" + form->protocol));
+          if (!refusal.empty()) throw CliError::Usage(refusal);
+        }
         const json started =
             client.Post("/sessions/" + std::to_string(session) + "/runs",
                         {{"protocol", form->protocol}, {"parameters", parameters}});
         const std::int64_t run_id = started["run_id"].get<std::int64_t>();
-        if (context.options.json && !form->follow) {
-          context.out << started.dump(2) << "\n";
+        if (form->detach) {
+          if (context.options.json) {
+            context.out << started.dump(2) << "\n";
+          } else {
+            context.out << "started run " << run_id << " (" << form->protocol << ", session "
+                        << session << "), detached\n";
+          }
           return;
         }
-        context.out << "started run " << run_id << " (" << form->protocol << ", session " << session
-                    << ")\n"
-                    << std::flush;
-        if (form->follow) FollowRun(context, client, connection, run_id);
+        // With --json the progress goes to stderr and stdout gets the final run.
+        std::ostream& progress = context.options.json ? context.err : context.out;
+        progress << "started run " << run_id << " (" << form->protocol << ", session " << session
+                 << ")\n"
+                 << std::flush;
+        try {
+          FollowRun(context, client, connection, run_id, progress);
+        } catch (const CliError&) {
+          if (context.options.json) {
+            context.out << client.Get("/runs/" + std::to_string(run_id)).dump(2) << "\n";
+          }
+          throw;
+        }
+        if (context.options.json) {
+          context.out << client.Get("/runs/" + std::to_string(run_id)).dump(2) << "\n";
+        }
       };
     });
   }

@@ -31,10 +31,12 @@ nlohmann::json SubjectToJson(const storage::Subject& subject, const std::vector<
 ///  "details": {"date", "accelerometer_placement", "threshold_ma",
 ///  "max_tolerated_ma", "notes"}}.
 nlohmann::json SessionToJson(const storage::Session& session, std::string_view leg_side);
-/// {"id", "session_id", "protocol", "protocol_version", "parameters",
-///  "state", "message", "created_at_utc", "started_at_utc", "finished_at_utc"}.
+/// A stored run in the run resource's shape (services::RunViewToJson) as far
+/// as storage knows it: "result" and "controller" null (used only when the
+/// server has no run service).
 nlohmann::json RunToJson(const storage::Run& run);
-/// {"id", "session_id", "run_id", "name", "num_samples", "sample_rate_hz", "created_at_utc"}.
+/// {"id", "session_id", "run_id", "name", "kind" (the protocol's trial name),
+///  "num_samples", "sample_rate_hz", "duration_s", "created_at_utc"}.
 nlohmann::json TrialSummaryToJson(const storage::TrialSummary& trial);
 /// {"id", "subject_id", "leg_id", "version", "model", "irc_method",
 ///  "passive_method", "active_method", "software_version", "supersedes_id",
@@ -66,6 +68,32 @@ struct NewSessionRequest {
   storage::SessionDetails details;
 };
 api::Result<NewSessionRequest> NewSessionFromJson(const nlohmann::json& body);
+
+/// PATCH /subjects/{id} and /sessions/{id} (issue 14 §1): {"reason",
+/// "details": {...}}. The given fields replace the current ones, null
+/// clears one, the others are kept. `changed` lists the given fields.
+struct SubjectCorrection {
+  std::string reason;
+  storage::SubjectDetails details;
+  std::vector<std::string> changed;
+};
+struct SessionCorrection {
+  std::string reason;
+  storage::SessionDetails details;
+  std::vector<std::string> changed;
+};
+/// kInvalidArgument naming the field ("reason", "details.weight_kg") with
+/// the unit and allowed range in the message.
+api::Result<SubjectCorrection> SubjectCorrectionFromJson(const nlohmann::json& body,
+                                                         const storage::SubjectDetails& current);
+api::Result<SessionCorrection> SessionCorrectionFromJson(const nlohmann::json& body,
+                                                         const storage::SessionDetails& current);
+/// {"revision", "corrects_revision" (null for 1), "reason", "changed_by"
+///  (user name or null), "changed_at_utc", "details"}.
+nlohmann::json SubjectRevisionToJson(const storage::SubjectRevision& revision,
+                                     std::optional<int> corrects_revision);
+nlohmann::json SessionRevisionToJson(const storage::SessionRevision& revision,
+                                     std::optional<int> corrects_revision);
 
 /// POST /users: {"name", "role"}.
 struct NewUserRequest {

@@ -1,6 +1,8 @@
 #include "server/protocols/protocol.h"
 
+#include <cctype>
 #include <cmath>
+#include <map>
 #include <sstream>
 
 #include "api/trial.h"
@@ -308,7 +310,11 @@ std::vector<ProtocolDescription> MakeCatalog() {
          6.0, 0.0, 60.0, false},
         {"duration_s", "length of each random-binary trial, s", 10.0, 3.0, 60.0, false},
         {"passive_seed", "seed of the passive (sparse) train", 1.0, 0.0, 4294967295.0, true},
-        {"active_seed", "seed of the active (dense) train", 2.0, 0.0, 4294967295.0, true}}});
+        {"active_seed", "seed of the active (dense) train", 2.0, 0.0, 4294967295.0, true},
+        {"inertia_kgm2",
+         "limb inertia about the knee if known, kg·m²; 0 = from a prior parameter set or the "
+         "subject's weight and shank length (Eq. 4.13)",
+         0.0, 0.0, 5.0, false}}});
   return c;
 }
 
@@ -470,16 +476,142 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
   return out;
 }
 
-nlohmann::json ProtocolToJson(const ProtocolDescription& protocol) {
+namespace {
+
+// Labels in clinician words; `advanced` = folded away in the web form.
+const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTable() {
+  static const std::map<std::string, ParameterPresentation, std::less<>> table = {
+      // Stimulation levels (the subject's).
+      {"threshold_ma", {"Stimulation threshold", "mA", false}},
+      {"max_ma", {"Maximum stimulation (max tolerated)", "mA", false}},
+      {"amplitude_ma", {"Random-binary amplitude", "mA", false}},
+      {"level_fraction", {"Step level (fraction of threshold→max)", "1", false}},
+      {"conditioning_fraction", {"Conditioning level (fraction of threshold→max)", "1", true}},
+      {"below_threshold_ma", {"Start below threshold", "mA", true}},
+      {"above_threshold_ma", {"Lowest level above threshold", "mA", true}},
+      {"rb_torque_nm", {"Random-binary target torque (0 = use the amplitude)", "N·m", true}},
+      // Tolerance test.
+      {"start_ma", {"Starting amplitude", "mA", false}},
+      {"rate_ma_per_s", {"Amplitude rise rate", "mA/s", false}},
+      {"ceiling_ma", {"Highest amplitude if not stopped", "mA", false}},
+      {"threshold_torque_nm", {"Torque counted as a response", "N·m", true}},
+      {"min_torque_at_max_nm", {"Torque expected at max (warning below)", "N·m", true}},
+      // Angles and motion.
+      {"lock_angle_deg", {"Knee angle of the locked brace", "deg", true}},
+      {"min_angle_deg", {"Lowest knee angle (full extension)", "deg", false}},
+      {"max_angle_deg", {"Highest knee angle (flexion)", "deg", false}},
+      {"reference_deg", {"Reference angle for the torque offset", "deg", true}},
+      {"max_speed_deg_s", {"Fastest motor speed", "deg/s", true}},
+      {"max_velocity_deg_s", {"Motor velocity limit", "deg/s", true}},
+      // Timing.
+      {"duration_s", {"Length of each stimulation train", "s", false}},
+      {"settle_s", {"Settling time before recording", "s", true}},
+      {"swing_settle_s", {"Free swing before recording", "s", true}},
+      {"rest_s", {"Rest between elements", "s", true}},
+      {"interval_s", {"Time between pulses", "s", true}},
+      {"pause_s", {"Pause before each motor move", "s", true}},
+      {"conditioning_s", {"Conditioning burst length", "s", true}},
+      {"ramp_duration_s", {"Ramp length (up and down)", "s", true}},
+      {"ramp_s", {"Ramp time", "s", true}},
+      {"burst_s", {"Burst length", "s", true}},
+      {"hold_s", {"Hold time", "s", true}},
+      {"move_s", {"Move time between angles", "s", true}},
+      {"lead_s", {"Quiet time before the first ramp", "s", true}},
+      {"tail_s", {"Quiet time at the end", "s", true}},
+      {"onset_s", {"Quiet time before the step", "s", true}},
+      {"on_s", {"Step length", "s", false}},
+      {"off_s", {"Quiet time after the step", "s", true}},
+      {"up_s", {"Ramp-up time", "s", false}},
+      {"down_s", {"Ramp-down time", "s", false}},
+      // Counts and seeds.
+      {"impulses", {"Number of single pulses at max", "1", true}},
+      {"ramps", {"Number of ramps", "1", true}},
+      {"levels", {"Number of levels", "1", true}},
+      {"count", {"Number of pulses", "1", true}},
+      {"positions", {"Number of angles per pass", "1", true}},
+      {"speeds", {"Number of motor speeds", "1", true}},
+      {"trajectories", {"Number of trajectories", "1", true}},
+      {"dense", {"Dense train (1) or sparse train (0)", "1", true}},
+      {"seed", {"Random pattern number", "1", true}},
+      {"rb1_seed", {"First pattern number", "1", true}},
+      {"rb2_seed", {"Second pattern number", "1", true}},
+      {"passive_seed", {"Passive-swing pattern number", "1", true}},
+      {"active_seed", {"Active-swing pattern number", "1", true}},
+      // Anthropometrics.
+      {"inertia_kgm2", {"Leg inertia (0 = from weight and shank length)", "kg·m²", false}},
+  };
+  return table;
+}
+
+std::string DefaultRule(const ParameterSpec& p) {
+  switch (p.scaling) {
+    case Scaling::kNone:
+      return "";
+    case Scaling::kThreshold:
+      return "the session's threshold";
+    case Scaling::kMaxTolerated:
+      return "the session's max tolerated amplitude";
+    case Scaling::kStimRange:
+      return Format(p.default_value * 100.0) + " % of threshold→max";
+    case Scaling::kRangeMin:
+      return "the lower end of the range of motion";
+    case Scaling::kRangeMax:
+      return "the upper end of the range of motion";
+  }
+  return "";
+}
+
+bool IsStimulationScaling(Scaling s) {
+  return s == Scaling::kThreshold || s == Scaling::kMaxTolerated || s == Scaling::kStimRange;
+}
+
+}  // namespace
+
+ParameterPresentation PresentationOf(std::string_view name) {
+  const auto& table = PresentationTable();
+  if (const auto it = table.find(name); it != table.end()) return it->second;
+  return {std::string(name), Unit(name), true};
+}
+
+std::string ThesisSection(const ProtocolDescription& protocol) {
+  const std::string& d = protocol.description;
+  const std::size_t at = d.rfind("§");
+  if (at == std::string::npos) return "";
+  std::size_t end = at + std::string("§").size();
+  while (end < d.size() && (std::isdigit(static_cast<unsigned char>(d[end])) || d[end] == '.')) {
+    ++end;
+  }
+  while (end > at && d[end - 1] == '.') --end;  // a sentence's full stop
+  return d.substr(at, end - at);
+}
+
+bool Stimulates(const ProtocolDescription& protocol) {
+  return protocol.kind != ProtocolKind::kPassive;
+}
+
+nlohmann::json ProtocolToJson(const ProtocolDescription& protocol, const SubjectContext* session,
+                              bool session_has_limits) {
   nlohmann::json params = nlohmann::json::array();
   for (const ParameterSpec& p : protocol.parameters) {
+    const ParameterPresentation look = PresentationOf(p.name);
+    nlohmann::json def = p.default_value;
+    nlohmann::json rule = nullptr;
+    if (p.scaling != Scaling::kNone) {
+      const bool resolvable =
+          session != nullptr && (session_has_limits || !IsStimulationScaling(p.scaling));
+      def = resolvable ? nlohmann::json(DefaultFor(p, *session)) : nlohmann::json(nullptr);
+      rule = DefaultRule(p);
+    }
     params.push_back({{"name", p.name},
-                      {"unit", Unit(p.name)},
+                      {"label", look.label},
+                      {"unit", look.unit},
                       {"description", p.description},
-                      {"default", p.default_value},
+                      {"default", std::move(def)},
+                      {"default_rule", std::move(rule)},
                       {"min", p.min_value},
                       {"max", p.max_value},
                       {"integer", p.integer},
+                      {"advanced", look.advanced},
                       {"scales_to", std::string(ScalingName(p.scaling))},
                       {"rest", p.is_rest}});
   }
@@ -487,14 +619,18 @@ nlohmann::json ProtocolToJson(const ProtocolDescription& protocol) {
           {"version", protocol.version},
           {"title", protocol.title},
           {"description", protocol.description},
+          {"thesis_section", ThesisSection(protocol)},
+          {"stimulates", Stimulates(protocol)},
           {"bench_mode", std::string(BenchModeName(protocol.bench_mode))},
           {"min_rest_s", protocol.min_rest_s},
           {"parameters", std::move(params)}};
 }
 
-nlohmann::json CatalogToJson() {
+nlohmann::json CatalogToJson(const SubjectContext* session, bool session_has_limits) {
   nlohmann::json list = nlohmann::json::array();
-  for (const ProtocolDescription& p : ProtocolCatalog()) list.push_back(ProtocolToJson(p));
+  for (const ProtocolDescription& p : ProtocolCatalog()) {
+    list.push_back(ProtocolToJson(p, session, session_has_limits));
+  }
   return {{"protocols", std::move(list)}};
 }
 

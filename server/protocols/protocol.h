@@ -102,6 +102,8 @@ struct SubjectContext {
   /// The leg's current parameter set, if any: gates prediction protocols
   /// (model-gated stimulation) and supplies the inertia for the rapid fit.
   std::optional<model::ParameterSet> parameter_set;
+  /// Its stored id, when it has one (named in the model gate's messages).
+  std::optional<std::int64_t> parameter_set_id;
 };
 
 /// Checks a context: finite values, 0 ≤ threshold < max tolerated ≤ 100 mA,
@@ -123,12 +125,37 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
                                                const ParameterValues& values,
                                                const SubjectContext& subject);
 
-/// JSON of a description (GET /api/v1/protocols/{name}):
-/// {"name", "version", "title", "description", "bench_mode", "min_rest_s",
-///  "parameters": [{"name", "unit", "description", "default", "min", "max",
-///  "integer", "scales_to", "rest"}]}.
-nlohmann::json ProtocolToJson(const ProtocolDescription& protocol);
-/// {"protocols": [...]} of the whole catalog.
-nlohmann::json CatalogToJson();
+/// How a parameter reads to a clinician (issue 14 §5): label, unit and
+/// whether the web form folds it away, by parameter name.
+struct ParameterPresentation {
+  std::string label;     ///< clinician words, e.g. "Random-binary amplitude".
+  std::string unit;      ///< "mA", "s", "deg", "1" (fractions and counts), …
+  bool advanced = true;  ///< collapsed by default in the web form.
+};
+/// The presentation of `name` (every catalog parameter has one; an unknown
+/// name gets its own name as label, Unit-from-suffix and advanced).
+ParameterPresentation PresentationOf(std::string_view name);
+/// The thesis section a protocol implements, e.g. "§7.4.1" (the last
+/// section its description cites), or "".
+std::string ThesisSection(const ProtocolDescription& protocol);
+/// True if the protocol delivers stimulation (every kind but kPassive).
+bool Stimulates(const ProtocolDescription& protocol);
+
+/// JSON of a description (GET /api/v1/protocols/{name}, issue 14 §5):
+/// {"name", "version", "title", "description", "thesis_section",
+///  "stimulates", "bench_mode", "min_rest_s", "parameters": [{"name",
+///  "label", "unit", "description", "default", "default_rule", "min", "max",
+///  "integer", "advanced", "scales_to", "rest"}]}. A default derived from
+/// the session (threshold, max tolerated, range-scaled amplitudes, range of
+/// motion) is resolved for `session` in the parameter's own unit; without a
+/// session (or, for stimulation values, a session without recorded limits)
+/// it is null and "default_rule" says how it is derived. "default_rule" is
+/// null for fixed defaults.
+nlohmann::json ProtocolToJson(const ProtocolDescription& protocol,
+                              const SubjectContext* session = nullptr,
+                              bool session_has_limits = false);
+/// {"protocols": [...]} of the whole catalog (defaults as ProtocolToJson).
+nlohmann::json CatalogToJson(const SubjectContext* session = nullptr,
+                             bool session_has_limits = false);
 
 }  // namespace fesbench::server::protocols

@@ -67,20 +67,31 @@ api::Status SwappableSimulatedBench::ReplaceSubject(VirtualSubject subject) {
 
 nlohmann::json BenchInfoToJson(const BenchInfo& info) {
   const BenchLimits& l = info.limits;
-  return {{"kind", info.kind},
-          {"time_scale", info.time_scale},
-          {"simulated", info.simulated},
-          {"limits",
-           {{"max_stim_ma", l.max_stim_ma},
-            {"pulse_rate_hz", l.pulse_rate_hz},
-            {"pulse_width_us", l.pulse_width_us},
-            {"min_angle_deg", l.min_angle_deg},
-            {"max_angle_deg", l.max_angle_deg},
-            {"max_motor_torque_nm", l.max_motor_torque_nm},
-            {"control_rate_hz", l.control_rate_hz},
-            {"sample_rate_hz", l.sample_rate_hz},
-            {"emg_rate_hz", l.emg_rate_hz}}},
-          {"state", BenchStateToJson(info.state)}};
+  return {
+      {"kind", info.kind},
+      {"time_scale", info.time_scale},
+      {"simulated", info.simulated},
+      {"limits",
+       {{"max_stim_ma", l.max_stim_ma},
+        {"pulse_rate_hz", l.pulse_rate_hz},
+        {"pulse_width_us", l.pulse_width_us},
+        {"min_angle_deg", l.min_angle_deg},
+        {"max_angle_deg", l.max_angle_deg},
+        {"max_motor_torque_nm", l.max_motor_torque_nm},
+        {"control_rate_hz", l.control_rate_hz},
+        {"sample_rate_hz", l.sample_rate_hz},
+        {"emg_rate_hz", l.emg_rate_hz},
+        {"max_stop_impact_deg_s", l.max_stop_impact_deg_s}}},
+      // Issue 14 §7 at the top level (the whole picture stays in "state").
+      {"estopped", info.state.estopped},
+      {"owner",
+       info.state.owner.empty() ? nlohmann::json(nullptr) : nlohmann::json(info.state.owner)},
+      {"run_id", info.state.run_id ? nlohmann::json(*info.state.run_id) : nlohmann::json(nullptr)},
+      {"run_state", info.state.run_id
+                        ? nlohmann::json(std::string(protocols::RunStateName(info.state.run_state)))
+                        : nlohmann::json(nullptr)},
+      {"progress", info.state.progress.fraction},
+      {"state", BenchStateToJson(info.state)}};
 }
 
 BenchService::BenchService(storage::Database& db, RunService& runs,

@@ -69,7 +69,9 @@ class SwappableSimulatedBench final : public Bench {
 /// {"kind", "time_scale", "limits": {"max_stim_ma", "pulse_rate_hz",
 ///  "pulse_width_us", "min_angle_deg", "max_angle_deg",
 ///  "max_motor_torque_nm", "control_rate_hz", "sample_rate_hz",
-///  "emg_rate_hz"}, "simulated", "state": BenchStateToJson}.
+///  "emg_rate_hz", "max_stop_impact_deg_s"}, "simulated", "estopped",
+///  "owner" (controlling user or null), "run_id" (current or last run, or
+///  null), "run_state", "progress" (0–1), "state": BenchStateToJson}.
 struct BenchInfo {
   std::string kind;
   double time_scale = 1.0;

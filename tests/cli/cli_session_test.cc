@@ -8,12 +8,15 @@
 #include <fcntl.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -35,6 +38,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using ::testing::AnyOf;
 using ::testing::HasSubstr;
 using ::testing::Not;
 using ::testing::StartsWith;
@@ -67,6 +71,11 @@ class Cli {
   fs::path config_file() const { return dir_ / "xdg" / "fesbench" / "config.json"; }
 
   CliRun Run(const std::vector<std::string>& args, const std::string& token_env = "") const {
+    return Finish(Start(args, token_env));
+  }
+
+  // Starts the CLI without waiting (Finish collects it): for signals.
+  pid_t Start(const std::vector<std::string>& args, const std::string& token_env = "") const {
     const fs::path out_file = dir_ / "stdout.txt";
     const fs::path err_file = dir_ / "stderr.txt";
     const pid_t pid = ::fork();
@@ -90,6 +99,15 @@ class Cli {
       ::execv(argv[0], argv.data());
       ::_exit(127);
     }
+    return pid;
+  }
+
+  // What the CLI printed so far (while it runs).
+  std::string OutSoFar() const { return ReadAll(dir_ / "stdout.txt"); }
+
+  CliRun Finish(pid_t pid) const {
+    const fs::path out_file = dir_ / "stdout.txt";
+    const fs::path err_file = dir_ / "stderr.txt";
     int status = 0;
     ::waitpid(pid, &status, 0);
     CliRun run;
@@ -206,7 +224,7 @@ TEST(CliSessionTest, WholeAnalystSession) {
   auto history =
       cli.Run({"params", "list", "--subject", "CLI-A", "--leg", "right", "--since", "2000-01-01"});
   ASSERT_EQ(history.exit_code, 0) << history.err;
-  EXPECT_THAT(history.out, StartsWith("id  leg_id  version  model"));
+  EXPECT_THAT(history.out, StartsWith("id  leg    version  model"));  // right/left, not ids
   EXPECT_EQ(std::count(history.out.begin(), history.out.end(), '\n'), 3) << history.out;
   auto history_json = cli.Run({"params", "list", "--subject", "CLI-A", "--json"});
   ASSERT_EQ(history_json.exit_code, 0);
@@ -419,7 +437,8 @@ TEST(CliSessionTest, FollowDrawsAProgressBarOnATerminal) {
 }
 
 // In (accelerated) real time the watchdog aborts a run whose controller
-// stops heart-beating; --follow heart-beats, so its run ends done.
+// stops heart-beating; `run start` follows and heart-beats by default, so
+// its run ends done; --detach is refused; Ctrl-C cancels cleanly (exit 130).
 TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
   ServerProcess server({"--time-scale", "4"});
   Cli cli;
@@ -430,9 +449,19 @@ TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
                 .exit_code,
             0);
 
-  // Started without --follow, nobody heart-beats: the watchdog aborts it.
-  auto unattended = cli.Run({"run", "start", "1", "isometric_ramp_irc"});
-  ASSERT_EQ(unattended.exit_code, 0) << unattended.err;
+  // A detached start of a stimulating protocol is refused, saying why.
+  auto detached = cli.Run({"run", "start", "1", "isometric_ramp_irc", "--detach"});
+  EXPECT_EQ(detached.exit_code, 2) << detached.out << detached.err;
+  ExpectOneErrorLine(detached);
+  EXPECT_THAT(detached.err, HasSubstr("stimulates the subject"));
+  EXPECT_THAT(detached.err, HasSubstr("watchdog"));
+  EXPECT_EQ(detached.out, "");
+
+  // The watchdog stays: a run nobody heart-beats (started over the API) is aborted.
+  auto http = server.Client();
+  auto unattended = Call(http, "POST", "/api/v1/sessions/1/runs", server.admin_token(),
+                         {{"protocol", "isometric_ramp_irc"}});
+  ASSERT_EQ(unattended.status, 201) << unattended.text;
   std::string state;
   for (int i = 0; i < 100 && (state.empty() || state == "running" || state == "queued"); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
@@ -441,8 +470,23 @@ TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
   EXPECT_EQ(state, "aborted");
   EXPECT_THAT(cli.Run({"run", "show", "1"}).out, HasSubstr("watchdog"));
 
-  // Followed (16 s of bench time, 4 s of wall time): done.
-  auto followed = cli.Run({"run", "start", "1", "isometric_ramp_irc", "--follow"});
+  // Ctrl-C while following: the run is cancelled and the CLI exits 130
+  // once the server confirmed the end.
+  const pid_t pid = cli.Start({"run", "start", "1", "isometric_ramp_irc"});
+  for (int i = 0; i < 200 && cli.OutSoFar().find("state running") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_THAT(cli.OutSoFar(), HasSubstr("state running"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ::kill(pid, SIGINT);
+  auto interrupted = cli.Finish(pid);
+  EXPECT_EQ(interrupted.exit_code, 130) << interrupted.out << interrupted.err;
+  EXPECT_THAT(interrupted.out, HasSubstr("interrupted: cancelling run 2"));
+  EXPECT_THAT(interrupted.out, HasSubstr("\nend aborted\n"));
+  EXPECT_EQ(json::parse(cli.Run({"run", "show", "2", "--json"}).out)["state"], "aborted");
+
+  // Followed by default (16 s of bench time, 4 s of wall time): done.
+  auto followed = cli.Run({"run", "start", "1", "isometric_ramp_irc"});
   ASSERT_EQ(followed.exit_code, 0) << followed.out << followed.err;
   EXPECT_THAT(followed.out, HasSubstr("trial isometric_ramp_irc stored as trial"));
   EXPECT_THAT(followed.out, HasSubstr("\nend done\n"));
@@ -450,6 +494,170 @@ TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
       << "a real-time run has a non-zero ETA:\n"
       << followed.out;
   EXPECT_EQ(server.Terminate(), 0);
+}
+
+// Issue 14: a new leg from the tolerance test to a validated model, by
+// default, as a clinician walks it on a fresh server: new subject without
+// inertia inputs → corrected → session without values → tolerance test
+// (stopped over the API at a chosen amplitude) → the session shows the
+// recorded values → rapid parameterisation (followed by default) →
+// prediction_random_binary and prediction_step → predict the new set on
+// those fresh trials (not its training trials) with error figures.
+void WalkANewLeg(const std::string& max_stop_impact_deg_s, bool expect_gate_refusal) {
+  ServerProcess server({"--time-scale", "10", "--max-stop-impact-deg-s", max_stop_impact_deg_s});
+  auto http = server.Client();
+  const std::string admin = server.admin_token();
+  const std::string clinician = CreateUserToken(http, admin, "clara", "clinician");
+  auto truth = Call(http, "GET", "/api/v1/bench/virtual-subject", admin);
+  ASSERT_EQ(truth.status, 200) << truth.text;
+  const double mass_kg = truth.body["anthropometrics"]["body_mass_kg"];
+  const double shank_cm = truth.body["anthropometrics"]["shank_length_m"].get<double>() * 100.0;
+  const double true_max = truth.body["max_tolerated_ma"];
+  Cli cli;
+  ASSERT_EQ(cli.Run({"login", Url(server), "--token", clinician}).exit_code, 0);
+  const auto step_ok = [](const CliRun& r) {
+    return ::testing::AssertionResult(r.exit_code == 0) << "exit " << r.exit_code << "\n"
+                                                        << r.out << r.err;
+  };
+
+  // 1. A new subject without weight or shank length, then corrected.
+  ASSERT_TRUE(step_ok(cli.Run({"subjects", "create", "NEW-01", "--leg", "right"})));
+  auto edited =
+      cli.Run({"subjects", "edit", "NEW-01", "--reason", "measured at the bench", "--weight-kg",
+               std::to_string(mass_kg), "--shank-length-cm", std::to_string(shank_cm)});
+  ASSERT_TRUE(step_ok(edited));
+  EXPECT_THAT(edited.out, HasSubstr("corrected: revision 2"));
+  auto subject_shown = cli.Run({"subjects", "show", "NEW-01"});
+  EXPECT_THAT(subject_shown.out, HasSubstr("measured at the bench"));
+  EXPECT_THAT(subject_shown.out, HasSubstr("clara"));
+
+  // 2. A session without threshold or max tolerated: rapid is refused.
+  auto session = cli.Run(
+      {"sessions", "create", "--subject", "NEW-01", "--leg", "right", "--date", "2026-11-23"});
+  ASSERT_TRUE(step_ok(session));
+  const std::int64_t session_id = LastNumber(session.out, "created session");
+  ASSERT_GT(session_id, 0);
+  const std::string sid = std::to_string(session_id);
+  auto early = cli.Run({"run", "start", sid, "rapid_parameterisation"});
+  EXPECT_EQ(early.exit_code, 1);
+  EXPECT_THAT(early.err, HasSubstr("tolerance_test"));
+
+  // 3. The tolerance test, followed by the CLI, stopped over the API when
+  // the ramp reaches the chosen amplitude (what the clinician's Stop does).
+  const double rate = 2.0, settle = 1.5, chosen_ma = std::floor(true_max) - 2.0;
+  const pid_t pid = cli.Start(
+      {"run", "start", sid, "tolerance_test", "--param", "rate_ma_per_s=" + std::to_string(rate)});
+  std::int64_t run_id = -1;
+  for (int i = 0; i < 400 && run_id < 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    run_id = LastNumber(cli.OutSoFar(), "started run");
+  }
+  ASSERT_GT(run_id, 0) << cli.OutSoFar();
+  const std::string run_path = "/api/v1/runs/" + std::to_string(run_id);
+  for (int i = 0; i < 2000; ++i) {
+    auto view = Call(http, "GET", run_path, clinician);
+    if (view.body.value("bench_elapsed_s", 0.0) >= settle + chosen_ma / rate) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  auto stop = Call(http, "POST", run_path + "/stop", clinician);
+  ASSERT_EQ(stop.status, 200) << stop.text;
+  auto tolerance = cli.Finish(pid);
+  ASSERT_TRUE(step_ok(tolerance));
+  std::smatch recorded;
+  ASSERT_TRUE(std::regex_search(
+      tolerance.out, recorded,
+      std::regex(
+          R"(end done threshold_ma ([0-9.]+) max_tolerated_ma ([0-9.]+) session_revision 2)")))
+      << tolerance.out;
+  const double max_tolerated = std::stod(recorded[2]);
+  EXPECT_NEAR(max_tolerated, chosen_ma, 1.0) << "stopped at the chosen amplitude";
+
+  // 4. The session shows the recorded values at once.
+  auto shown = cli.Run({"sessions", "show", sid});
+  ASSERT_TRUE(step_ok(shown));
+  EXPECT_THAT(shown.out, HasSubstr("revision 2\n"));
+  EXPECT_THAT(shown.out, HasSubstr("threshold_ma: " + std::string(recorded[1])));
+  EXPECT_THAT(shown.out, HasSubstr("max_tolerated_ma: " + std::string(recorded[2])));
+  EXPECT_THAT(shown.out, HasSubstr("tolerance_test run " + std::to_string(run_id)));
+
+  // 5. Rapid parameterisation, followed by default (no --follow).
+  auto rapid = cli.Run({"run", "start", sid, "rapid_parameterisation"});
+  ASSERT_TRUE(step_ok(rapid));
+  EXPECT_THAT(rapid.out, HasSubstr("progress 100% "));
+  const std::int64_t set_id = LastNumber(rapid.out, "end done parameter_set");
+  ASSERT_GT(set_id, 0) << rapid.out;
+
+  // 6. The prediction protocols on the new set: the model gate decides. A
+  // refusal must be the gate speaking a clinician's language (which burst,
+  // which stop, how fast) — never the old "leaves the range of motion".
+  std::vector<std::string> fresh_kinds, gate_messages;
+  for (const std::string protocol : {"prediction_random_binary", "prediction_step"}) {
+    auto run = cli.Run({"run", "start", sid, protocol});
+    if (run.exit_code == 0) {
+      EXPECT_THAT(run.out, HasSubstr("\nend done\n")) << run.out;
+      fresh_kinds.push_back(protocol);
+      continue;
+    }
+    EXPECT_EQ(run.exit_code, 1) << run.out << run.err;
+    ExpectOneErrorLine(run);
+    EXPECT_THAT(run.err, AnyOf(HasSubstr("model-gated stimulation (parameter set " +
+                                         std::to_string(set_id) + "): the stimulation from "),
+                               HasSubstr("parameter set " + std::to_string(set_id) +
+                                         " cannot simulate this input: ")));
+    EXPECT_THAT(run.err, Not(HasSubstr("leaves the range of motion")));
+    gate_messages.push_back(run.err);
+    std::cout << "[ gate     ] " << run.err;
+  }
+  EXPECT_EQ(!gate_messages.empty(), expect_gate_refusal);
+  if (fresh_kinds.empty()) {
+    // Fresh free-swing trials all the same: active random binary is not gated.
+    auto rb = cli.Run({"run", "start", sid, "active_random_binary"});
+    ASSERT_TRUE(step_ok(rb));
+    fresh_kinds = {"active_random_binary_rb1", "active_random_binary_rb2"};
+  }
+
+  // 7. Predict the new set on those fresh trials: validation by default.
+  // (predictions are the analyst's)
+  const std::string analyst = CreateUserToken(http, admin, "anton", "analyst");
+  auto predict = cli.Run({"predict", "--params", std::to_string(set_id)}, analyst);
+  ASSERT_TRUE(step_ok(predict));
+  EXPECT_THAT(predict.out, HasSubstr("it was not fitted on (validation)"));
+  EXPECT_THAT(predict.out, Not(HasSubstr("rapid_active_random_binary")))
+      << "training trials are not the default";
+  int rows = 0;
+  for (const std::string& kind : fresh_kinds) {
+    std::smatch m;
+    ASSERT_TRUE(
+        std::regex_search(predict.out, m, std::regex(kind + R"(  +([0-9.]+)  +([0-9.]+)  +deg)")))
+        << kind << " in:\n"
+        << predict.out;
+    ++rows;
+    EXPECT_GT(std::stod(m[1]), 0.0);
+    EXPECT_LE(std::stod(m[2]), std::stod(m[1]) + 1e-3) << "E_ABS ≤ E_RMS";
+    std::cout << "[ validate ] " << kind << " E_RMS " << m[1] << " deg, E_ABS " << m[2] << " deg\n";
+  }
+  EXPECT_EQ(rows, static_cast<int>(fresh_kinds.size()));
+  // A training trial named explicitly is marked as such.
+  const std::int64_t training_trial =
+      LastNumber(rapid.out, "rapid_active_random_binary stored as trial");
+  auto on_training = cli.Run(
+      {"predict", "--params", std::to_string(set_id), "--stimulus", std::to_string(training_trial)},
+      analyst);
+  ASSERT_TRUE(step_ok(on_training));
+  EXPECT_THAT(on_training.out, HasSubstr("is a training trial"));
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+// At the default 90 deg/s the gate refuses the prediction protocols on this
+// leg: both drive the knee into the extension stop at 150–400 deg/s (the
+// simulated leg itself does too: §5.4.3's amplitude is the lowest giving
+// full extension). Fresh trials then come from active_random_binary.
+TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) { WalkANewLeg("90", true); }
+
+// A bench whose stops take 500 deg/s runs the prediction protocols after
+// the default rapid run, and the new set is validated on those trials.
+TEST(CliSessionTest, NewLegWithPredictionProtocolsOnABenchWithFirmerStops) {
+  WalkANewLeg("500", false);
 }
 
 // An older config file with wider permissions is narrowed to 0600.

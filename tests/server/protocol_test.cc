@@ -76,7 +76,8 @@ TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
       EXPECT_TRUE(names.insert(s.name).second) << "duplicate";
       const bool has_unit = s.name.ends_with("_ma") || s.name.ends_with("_s") ||
                             s.name.ends_with("_deg") || s.name.ends_with("_deg_s") ||
-                            s.name.ends_with("_nm") || s.name.ends_with("_ma_per_s");
+                            s.name.ends_with("_nm") || s.name.ends_with("_ma_per_s") ||
+                            s.name.ends_with("_kgm2");
       EXPECT_TRUE(has_unit || unitless.count(s.name)) << "name without unit suffix";
       EXPECT_LE(s.min_value, s.max_value);
       if (s.scaling == Scaling::kNone) {
@@ -112,6 +113,61 @@ TEST(ProtocolCatalog, JsonListsNameVersionAndParameters) {
     }
   }
   EXPECT_TRUE(found);
+}
+
+// Issue 14 §5: parameters say what they are.
+TEST(ProtocolCatalog, EveryParameterHasAClinicianLabelAUnitAndAnHonestDefault) {
+  for (const ProtocolDescription& p : ProtocolCatalog()) {
+    for (const ParameterSpec& spec : p.parameters) {
+      const ParameterPresentation look = PresentationOf(spec.name);
+      EXPECT_NE(look.label, spec.name) << p.name << "." << spec.name << " has no label";
+      EXPECT_EQ(look.label.find("§"), std::string::npos) << spec.name;
+      EXPECT_FALSE(look.unit.empty()) << spec.name;
+      if (spec.name.ends_with("_fraction")) {
+        EXPECT_EQ(look.unit, "1") << spec.name;
+      }
+      if (spec.name.ends_with("_ma")) {
+        EXPECT_EQ(look.unit, "mA") << spec.name;
+      }
+    }
+  }
+  const nlohmann::json bare = ProtocolToJson(*FindProtocol("prediction_random_binary"));
+  EXPECT_EQ(bare.at("thesis_section"), "§5.4.5");
+  EXPECT_EQ(bare.at("stimulates"), true);
+  for (const auto& param : bare.at("parameters")) {
+    if (param.at("name") != "amplitude_ma") continue;
+    // No default in mA that is not the subject's: null and the rule.
+    EXPECT_TRUE(param.at("default").is_null()) << param.dump();
+    EXPECT_EQ(param.at("default_rule"), "60 % of threshold→max");
+    EXPECT_EQ(param.at("unit"), "mA");
+    EXPECT_EQ(param.at("label"), "Random-binary amplitude");
+    EXPECT_EQ(param.at("advanced"), false);
+  }
+  const SubjectContext s = Subject();
+  const nlohmann::json resolved =
+      ProtocolToJson(*FindProtocol("prediction_random_binary"), &s, true);
+  for (const auto& param : resolved.at("parameters")) {
+    if (param.at("name") == "amplitude_ma") {
+      EXPECT_DOUBLE_EQ(param.at("default").get<double>(),
+                       s.threshold_ma + 0.6 * (s.max_tolerated_ma - s.threshold_ma));
+    }
+    if (param.at("name") == "seed") {
+      EXPECT_DOUBLE_EQ(param.at("default").get<double>(), 3.0);
+      EXPECT_TRUE(param.at("default_rule").is_null());
+    }
+  }
+  // A session without recorded limits resolves no stimulation default.
+  const nlohmann::json unmeasured =
+      ProtocolToJson(*FindProtocol("prediction_random_binary"), &s, false);
+  for (const auto& param : unmeasured.at("parameters")) {
+    if (param.at("name") == "threshold_ma") {
+      EXPECT_TRUE(param.at("default").is_null());
+    }
+  }
+  EXPECT_EQ(ProtocolToJson(*FindProtocol("rapid_parameterisation")).at("thesis_section"), "§7.4.1");
+  EXPECT_EQ(ProtocolToJson(*FindProtocol("passive_simultaneous")).at("thesis_section"), "§5.4.2");
+  EXPECT_EQ(ProtocolToJson(*FindProtocol("passive_sequential")).at("stimulates"), false);
+  EXPECT_EQ(ProtocolToJson(*FindProtocol("tolerance_test")).at("thesis_section"), "§5.2.1");
 }
 
 TEST(ResolveParameters, ScalesDefaultsToTheSubject) {

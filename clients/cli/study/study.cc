@@ -356,7 +356,7 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
       log << "  leg " << index << ": " << e.what() << "\n";
       continue;
     }
-    leg.bench_s[spec.label] = run.at("progress").value("bench_total_s", kNaN);
+    leg.bench_s[spec.label] = run.value("bench_total_s", kNaN);
     if (spec.label != spec.protocol) relabel[run.at("run_id").get<std::int64_t>()] = spec.label;
     if (spec.protocol == kRapid && run["parameter_set_id"].is_number_integer()) {
       rapid_set = run["parameter_set_id"].get<std::int64_t>();

@@ -182,6 +182,13 @@ TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
   c = ServerConfig{};
   c.tls_cert = "cert.pem";
   EXPECT_EQ(ValidateServerConfig(c).field(), "tls-cert");
+  // The model gate's impact limit (default 90 deg/s), in (0, 2000].
+  c = ServerConfig{};
+  EXPECT_EQ(c.max_stop_impact_deg_s, 90.0);
+  ASSERT_TRUE(ApplyConfigJson(R"({"max-stop-impact-deg-s": 300})", c).ok());
+  EXPECT_EQ(c.max_stop_impact_deg_s, 300.0);
+  c.max_stop_impact_deg_s = 0.0;
+  EXPECT_EQ(ValidateServerConfig(c).field(), "max-stop-impact-deg-s");
 
   std::ostringstream out, err;
   const char* argv[] = {"fesbench-server", "--port", "0", "--time-scale", "0.5", "--bench", "sim"};
