@@ -86,6 +86,21 @@ export function showFieldError(form, error) {
   return true;
 }
 
+/// Shows every problem of a client-side check at once ([{field, message}]);
+/// focuses the first marked field.
+export function showFieldErrors(form, problems) {
+  let first = null;
+  for (const p of problems) {
+    const input = form.querySelector(`[name="${CSS.escape(p.field)}"]`);
+    if (!input) continue;
+    input.setAttribute('aria-invalid', 'true');
+    const slot = form.querySelector(`#${CSS.escape(input.id)}-error`);
+    if (slot) slot.textContent = p.message;
+    first = first || input;
+  }
+  if (first) first.focus();
+}
+
 /// A table from rows of cells; first row is the header.
 export function table(header, rows, attrs = {}) {
   return h('table', attrs,
