@@ -41,9 +41,10 @@ export function say(slot, kind, text) {
   slot.replaceChildren(text ? message(kind, text) : '');
 }
 
-/// A labelled input row. options: {type, value, step, help, required, options (select)}.
+/// A labelled input row. options: {type, value, step, help, required, options (select),
+/// idPrefix (default 'f-': the input's id is prefix + name)}.
 export function field(name, label, options = {}) {
-  const id = `f-${name.replace(/[^a-z0-9_-]/gi, '-')}`;
+  const id = `${options.idPrefix || 'f-'}${name.replace(/[^a-z0-9_-]/gi, '-')}`;
   let input;
   if (options.options) {
     input = h('select', { id, name },

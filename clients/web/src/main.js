@@ -204,7 +204,7 @@ function showBench() {
   const st = benchStateOf(bench);
   document.body.classList.toggle('bench-unknown', !st);
   if (!st) slot.textContent = 'Bench: unknown';
-  else if (st.estopped) slot.textContent = 'Bench: E-STOP LATCHED';
+  else if (st.estopped) slot.textContent = 'Bench: LATCHED';
   else if (st.run_id && !isFinal(st.run_state)) slot.textContent = `Bench: run ${st.run_id}`;
   else slot.textContent = 'Bench: idle';
   slot.title = slot.textContent;
@@ -288,14 +288,18 @@ function renderRunBar(run) {
         h('strong', { class: 'runbar-title' }, `Run ${run.run_id} in progress: `, h('span', { id: 'runbar-protocol' }, run.protocol || '')),
         progress,
         h('span', { id: 'runbar-text' }),
-        run.session_id ? h('a', { href: `#/sessions/${run.session_id}`, id: 'runbar-session' }, `Session ${run.session_id}`) : '',
+        h('span', { id: 'runbar-link' }),
         h('span', { id: 'runbar-owner', class: 'help' }),
         mayCancel ? h('button', { type: 'button', class: 'danger small', id: 'runbar-cancel', onclick: async (e) => {
           e.target.disabled = true;
           try {
             await runs.cancel();
           } catch (err) {
-            bar.querySelector('#runbar-owner').textContent = `Cancel failed: ${err.message}`;
+            const link = bar.querySelector('#runbar-link');
+    if (run.session_id && !link.firstChild) {
+      link.appendChild(h('a', { href: `#/sessions/${run.session_id}`, id: 'runbar-session' }, `Go to session ${run.session_id}`));
+    }
+    bar.querySelector('#runbar-owner').textContent = `Cancel failed: ${err.message}`;
             e.target.disabled = false;
           }
         } }, 'Cancel run') : '');
@@ -304,6 +308,10 @@ function renderRunBar(run) {
     progress.value = fraction;
     bar.querySelector('#runbar-text').textContent =
       `${run.state || 'running'} · ${Math.round(fraction * 100)} % · ETA ${fmtDuration(eta_s)}`;
+    const link = bar.querySelector('#runbar-link');
+    if (run.session_id && !link.firstChild) {
+      link.appendChild(h('a', { href: `#/sessions/${run.session_id}`, id: 'runbar-session' }, `Go to session ${run.session_id}`));
+    }
     bar.querySelector('#runbar-owner').textContent = run.controlled ? '' : `controlled by ${run.owner || run.controller || 'another client'}`;
     bar.hidden = false;
     return;
@@ -365,9 +373,10 @@ async function pollBench() {
       runs.update(fields);
     } else if (mine && (state.user.role === 'clinician' || state.user.role === 'admin')) {
       // After a reload: the server says this user controls the run, so this
-      // page takes the heartbeat over again.
+      // page takes the heartbeat over again, at once (the watchdog allows 1 s).
+      runs.control(fields);
       const run = await api('GET', `/runs/${active.run_id}`).catch(() => null);
-      if (run && !isFinal(run.state)) runs.control({ ...fields, session_id: run.session_id, ...run });
+      if (run) runs.update({ session_id: run.session_id, state: run.state });
     } else {
       const run = await api('GET', `/runs/${active.run_id}`).catch(() => null);
       runs.observe({ ...fields, session_id: run ? run.session_id : undefined });

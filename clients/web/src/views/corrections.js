@@ -62,8 +62,8 @@ export function correctionForm({ id, path, fields, current, onSaved, mayEdit }) 
     }
   } },
   ...fields.map((f) => field(f.name, f.label, { type: f.type === 'select' ? undefined : f.type, options: f.options,
-    value: valueOf(f), step: f.type === 'number' ? 'any' : undefined, help: f.help })),
-  wide(field('reason', 'Reason for the correction', { required: true, type: 'textarea',
+    value: valueOf(f), step: f.type === 'number' ? 'any' : undefined, help: f.help, idPrefix: `${id}-` })),
+  wide(field('reason', 'Reason for the correction', { required: true, type: 'textarea', idPrefix: `${id}-`,
     help: 'kept with the revision, e.g. "body mass measured on the scale"' })),
   h('div', { class: 'actions' }, h('button', { type: 'submit', class: 'primary', disabled: !mayEdit }, 'Save correction'),
     mayEdit ? '' : h('small', {}, ' Only a clinician or an admin may correct records.')));

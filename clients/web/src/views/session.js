@@ -5,7 +5,7 @@
 // runs and its recorded trials (plot, CSV / .sto download).
 // The run's heartbeat belongs to the app (ctx.runs), not to this view.
 import { api, download, listAll } from '../api.js';
-import { clearErrors, field, fmt, fmtDuration, h, say, showFieldError, showFieldErrors, table } from '../dom.js';
+import { clearErrors, field, fmt, message, fmtDuration, h, say, showFieldError, showFieldErrors, table } from '../dom.js';
 import { makePlot } from '../plot.js';
 import { isFinal, progressOf } from '../runs.js';
 import { streamEvents } from '../sse.js';
@@ -64,7 +64,7 @@ export async function sessionView(ctx, sessionId) {
       { class: 'kv', id: 'session-details' }),
       correctionForm({ id: 'session-edit', path: sessionPath, fields: SESSION_FIELDS, mayEdit: mayRun,
         current: { ...d, date: session.date }, onSaved: async () => refreshSession() }),
-      await revisionHistory(sessionPath, SESSION_LABELS, 'session-revisions').catch((e) => say(h('div'), 'error', e.message)));
+      await revisionHistory(sessionPath, SESSION_LABELS, 'session-revisions').catch((e) => message('error', `Revision history unavailable: ${e.message}`)));
   }
   async function refreshSession() {
     [session, catalog] = await Promise.all([api('GET', sessionPath), api('GET', `/protocols?session_id=${sessionId}`)]);
@@ -272,6 +272,7 @@ export async function sessionView(ctx, sessionId) {
       drawPending = false;
       for (const key of ['angle', 'torque', 'stim']) plots[key].setData([data.t, data[key]]);
       live.dataset.samples = String(samplesSeen);
+      if (data.stim.length) live.dataset.lastStim = String(data.stim[data.stim.length - 1]);
     };
     const showProgress = (x) => {
       if (!x || x.progress === undefined) return;

@@ -1,7 +1,7 @@
 // Subjects: list, search by code, create; one subject: its sessions (list,
 // create), its parameter sets (open, compare two, history).
 import { api, listAll } from '../api.js';
-import { clearErrors, field, fmt, h, say, showFieldError, table, todayIso } from '../dom.js';
+import { clearErrors, field, fmt, message, h, say, showFieldError, table, todayIso } from '../dom.js';
 import { correctionForm, revisionHistory } from './corrections.js';
 
 const SEX_OPTIONS = [{ value: '', label: '(not given)' }, { value: 'female', label: 'female' },
@@ -199,7 +199,7 @@ export async function subjectView(ctx, subjectId) {
           subject = await api('GET', subjectPath);
           await renderDetails();
         } }),
-      await revisionHistory(subjectPath, SUBJECT_LABELS, 'subject-revisions').catch((e) => say(h('div'), 'error', e.message)));
+      await revisionHistory(subjectPath, SUBJECT_LABELS, 'subject-revisions').catch((e) => message('error', `Revision history unavailable: ${e.message}`)));
   }
   ctx.main.replaceChildren(
     h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ', subject.code),
