@@ -5,7 +5,7 @@
 // runs and its recorded trials (plot, CSV / .sto download).
 // The run's heartbeat belongs to the app (ctx.runs), not to this view.
 import { api, download, listAll } from '../api.js';
-import { clearErrors, field, fmt, message, fmtDuration, h, say, showFieldError, showFieldErrors, table } from '../dom.js';
+import { clearErrors, field, fmt, fmtDuration, h, message, say, showFieldError, showFieldErrors, table } from '../dom.js';
 import { makePlot } from '../plot.js';
 import { isFinal, progressOf } from '../runs.js';
 import { streamEvents } from '../sse.js';

@@ -1,7 +1,7 @@
 // Subjects: list, search by code, create; one subject: its sessions (list,
 // create), its parameter sets (open, compare two, history).
 import { api, listAll } from '../api.js';
-import { clearErrors, field, fmt, message, h, say, showFieldError, table, todayIso } from '../dom.js';
+import { clearErrors, field, fmt, h, message, say, showFieldError, showFieldErrors, table, todayIso } from '../dom.js';
 import { correctionForm, revisionHistory } from './corrections.js';
 
 const SEX_OPTIONS = [{ value: '', label: '(not given)' }, { value: 'female', label: 'female' },
@@ -82,9 +82,23 @@ export async function subjectsView(ctx) {
     event.preventDefault();
     const f = event.target;
     const details = {};
-    for (const name of ['age_years', 'height_cm', 'weight_kg', 'shank_length_cm', 'calf_circumference_cm']) {
-      const v = numberOrUndefined(f, name);
-      if (v !== undefined) details[name] = v;
+    const problems = [];
+    if (!f.elements.code.value.trim()) problems.push({ field: 'code', message: 'a pseudonymous code is required' });
+    for (const spec of SUBJECT_FIELDS.filter((x) => x.type === 'number')) {
+      const v = numberOrUndefined(f, spec.name);
+      if (v === undefined) continue;
+      if (typeof v !== 'number') problems.push({ field: spec.name, message: `must be a number in ${spec.unit}` });
+      else if (v < spec.min || (spec.max !== undefined && v > spec.max)) {
+        problems.push({ field: spec.name, message: spec.max !== undefined ? `must be between ${spec.min} and ${spec.max} ${spec.unit}`
+          : `must be positive (${spec.unit})` });
+      }
+      details[spec.name] = v;
+    }
+    clearErrors(f);
+    if (problems.length) {
+      showFieldErrors(f, problems);
+      say(status, 'error', `Please correct the ${problems.length === 1 ? 'marked field' : `${problems.length} marked fields`}.`);
+      return;
     }
     if (f.elements.sex.value) details.sex = f.elements.sex.value;
     const legs = ['left', 'right'].filter((side) => f.elements[`leg_${side}`].checked);
