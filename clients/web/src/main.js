@@ -193,7 +193,7 @@ function renderLatch() {
   const mayClear = state.user && (state.user.role === 'clinician' || state.user.role === 'admin');
   latch.replaceChildren(
     h('strong', {}, 'E-STOP LATCHED'),
-    h('span', {}, ` — stimulation is off and the motor disabled${st.estop_source ? ` (pressed via ${st.estop_source})` : ''}.` +
+    h('span', {}, `Stimulation is off and the motor disabled${st.estop_source ? ` (e-stop from ${st.estop_source})` : ''}.` +
       ' Nothing can start until the e-stop is cleared.'),
     mayClear ? h('button', { type: 'button', id: 'estop-clear', onclick: openClearDialog }, 'Clear e-stop…') : '');
   latch.hidden = false;
