@@ -349,6 +349,7 @@ async function pollBench() {
     showBench();
     return;
   }
+  const generation = runs.generation;
   try {
     bench = await api('GET', '/bench');
   } catch {
@@ -357,7 +358,13 @@ async function pollBench() {
     return;
   }
   const st = benchStateOf(bench);
-  const active = st.run_id && !isFinal(st.run_state) ? st : null;
+  if (runs.generation !== generation) {
+    // A run was started or ended while this answer was on its way: the next
+    // poll decides (an old answer must not end a run's heartbeat).
+    showBench();
+    return;
+  }
+  const active = st.run_id && !isFinal(st.run_state) && !runs.hasEnded(st.run_id) ? st : null;
   const current = runs.current;
   if (current && (!active || active.run_id !== current.run_id)) {
     const ended = current.run_id;

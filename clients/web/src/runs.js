@@ -26,6 +26,8 @@ const HEARTBEAT_MS = 400; // the server's watchdog wants one at least every seco
 export function createRunController() {
   let current = null;
   let heartbeat = null;
+  let generation = 0; // bumped when the app takes or leaves a run
+  const ended = new Set(); // runs seen to end here: never re-attached
   const listeners = new Set();
   const emit = () => {
     for (const l of listeners) l(current);
@@ -39,6 +41,14 @@ export function createRunController() {
     get current() {
       return current;
     },
+    /// Changes when a run is taken over or left: a bench answer older than
+    /// the change must not undo it.
+    get generation() {
+      return generation;
+    },
+    hasEnded(runId) {
+      return ended.has(runId);
+    },
     onChange(fn) {
       listeners.add(fn);
       return () => listeners.delete(fn);
@@ -46,6 +56,7 @@ export function createRunController() {
     /// This page started (or re-attached to) the run: heart-beat it until it ends.
     control(run) {
       stopHeartbeat();
+      generation += 1;
       current = { ...run, controlled: true };
       const id = run.run_id;
       heartbeat = setInterval(() => {
@@ -63,6 +74,7 @@ export function createRunController() {
         current = { ...current, ...run, controlled: current.controlled };
       } else {
         stopHeartbeat();
+        generation += 1;
         current = { ...run, controlled: false };
       }
       emit();
@@ -73,6 +85,8 @@ export function createRunController() {
       current = { ...current, ...fields };
       if (isFinal(current.state)) {
         stopHeartbeat();
+        ended.add(current.run_id);
+        generation += 1;
         current = null;
       }
       emit();
@@ -81,6 +95,8 @@ export function createRunController() {
     end() {
       stopHeartbeat();
       if (current) {
+        ended.add(current.run_id);
+        generation += 1;
         current = null;
         emit();
       }
