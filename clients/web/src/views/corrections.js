@@ -32,7 +32,8 @@ export function correctionForm({ id, path, fields, current, onSaved, mayEdit }) 
         const n = Number(raw);
         if (!Number.isFinite(n)) problems.push({ field: f.name, message: `must be a number${f.unit ? ` in ${f.unit}` : ''}` });
         else if ((f.min !== undefined && n < f.min) || (f.max !== undefined && n > f.max)) {
-          problems.push({ field: f.name, message: `must be between ${f.min} and ${f.max} ${f.unit || ''}`.trim() });
+          const range = f.max === undefined ? `at least ${f.min}` : `between ${f.min} and ${f.max}`;
+          problems.push({ field: f.name, message: `must be ${range} ${f.unit || ''}`.trim() });
         }
         details[f.name] = n;
       } else {
