@@ -137,9 +137,9 @@ try {
     assert.ok(runId, 'tolerance test refused');
     await page.locator('#live[data-state="running"]').waitFor();
     await page.locator('#runbar[data-state="running"]').waitFor();
-    // The clinician stops when the subject has had enough: well above the
-    // threshold of this virtual subject.
-    await page.waitForFunction(() => Number(document.querySelector('#live').dataset.lastStim || 0) >= 24, null, { timeout: 60000 });
+    // The clinician stops when the subject has had enough: a clear torque
+    // response, above this virtual subject's threshold.
+    await page.waitForFunction(() => Number(document.querySelector('#live').dataset.torqueSwing || 0) >= 3, null, { timeout: 60000 });
     await shots.both(page, 'tolerance-running');
     await page.getByRole('button', { name: 'Stop here (max tolerated)' }).click();
     await page.locator('#live[data-state="done"]').waitFor();

@@ -7,7 +7,7 @@ import { spawn } from 'node:child_process';
 import { mkdirSync, mkdtempSync, readFileSync, rmSync } from 'node:fs';
 import { createRequire } from 'node:module';
 import { tmpdir } from 'node:os';
-import { join } from 'node:path';
+import { join, resolve } from 'node:path';
 import assert from 'node:assert/strict';
 
 export const arg = (name) => {
@@ -17,7 +17,7 @@ export const arg = (name) => {
 };
 
 export function playwright() {
-  return createRequire(join(arg('--node-modules'), 'index.js'))('playwright-core');
+  return createRequire(join(resolve(arg('--node-modules')), 'index.js'))('playwright-core');
 }
 
 /// Starts fesbench-server; resolves {child, url, token (admin), work}.

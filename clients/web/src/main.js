@@ -203,11 +203,13 @@ function showBench() {
   const slot = estopState();
   const st = benchStateOf(bench);
   document.body.classList.toggle('bench-unknown', !st);
-  if (!st) slot.textContent = 'Bench: unknown';
-  else if (st.estopped) slot.textContent = 'Bench: LATCHED';
-  else if (st.run_id && !isFinal(st.run_state)) slot.textContent = `Bench: run ${st.run_id}`;
-  else slot.textContent = 'Bench: idle';
-  slot.title = slot.textContent;
+  let text = 'idle';
+  if (!st) text = 'unknown';
+  else if (st.estopped) text = 'LATCHED';
+  else if (st.run_id && !isFinal(st.run_state)) text = `run ${st.run_id}`;
+  // "Bench: " folds away at narrow widths (the slot keeps its width).
+  slot.replaceChildren(h('span', { class: 'wide-only' }, 'Bench: '), text);
+  slot.title = `Bench: ${text}`;
   renderLatch();
   applyStartControls();
 }

@@ -12,10 +12,13 @@ const wide = (el) => {
 };
 
 /// fields: [{name, label, type: 'number'|'text'|'date'|'textarea'|'select', options, min, max, unit}].
-/// current: the details object now. path: '/subjects/3'. onSaved(updated).
+/// current(): the details object now. path: '/subjects/3'. onSaved(updated).
 export function correctionForm({ id, path, fields, current, onSaved, mayEdit }) {
   const status = h('div', { id: `${id}-status` });
-  const valueOf = (f) => (current[f.name] === null || current[f.name] === undefined ? '' : String(current[f.name]));
+  const valueOf = (f) => {
+    const v = current()[f.name];
+    return v === null || v === undefined ? '' : String(v);
+  };
   const form = h('form', { id, novalidate: true, class: 'grid-form', onsubmit: async (event) => {
     event.preventDefault();
     clearErrors(form);
@@ -55,8 +58,10 @@ export function correctionForm({ id, path, fields, current, onSaved, mayEdit }) 
     say(status, 'info', 'Saving the correction…');
     try {
       const updated = await api('PATCH', path, { reason, details });
-      say(status, 'ok', `Saved as revision ${updated.revision ?? ''}.`.replace(' .', '.'));
       await onSaved(updated);
+      box.refresh();
+      form.elements.reason.value = '';
+      say(status, 'ok', `Saved as revision ${updated.revision}.`);
     } catch (e) {
       const onField = showFieldError(form, e);
       say(status, 'error', onField ? `Please correct the marked field: ${e.message}` : `Not saved: ${e.message}`);
@@ -68,7 +73,13 @@ export function correctionForm({ id, path, fields, current, onSaved, mayEdit }) 
     help: 'kept with the revision, e.g. "body mass measured on the scale"' })),
   h('div', { class: 'actions' }, h('button', { type: 'submit', class: 'primary', disabled: !mayEdit }, 'Save correction'),
     mayEdit ? '' : h('small', {}, ' Only a clinician or an admin may correct records.')));
-  return h('details', { class: 'edit', id: `${id}-box` }, h('summary', {}, 'Correct these details…'), form, status);
+  const box = h('details', { class: 'edit', id: `${id}-box` }, h('summary', {}, 'Correct these details…'), form, status);
+  /// Shows the current values again (after a save, or when the record changed
+  /// elsewhere, e.g. a tolerance test): a later correction starts from them.
+  box.refresh = () => {
+    for (const f of fields) form.elements[f.name].value = valueOf(f);
+  };
+  return box;
 }
 
 /// The revision history (oldest first) as a table; `labels` names the detail keys.

@@ -54,6 +54,8 @@ export async function sessionView(ctx, sessionId) {
 
   // --- details, correction, revisions ---------------------------------------------
   const detailsSlot = h('div', { id: 'session-details-box' });
+  const editForm = correctionForm({ id: 'session-edit', path: sessionPath, fields: SESSION_FIELDS, mayEdit: mayRun,
+    current: () => ({ ...session.details, date: session.date }), onSaved: async () => refreshSession() });
   async function renderDetails() {
     const d = session.details;
     detailsSlot.replaceChildren(
@@ -62,13 +64,13 @@ export async function sessionView(ctx, sessionId) {
         ['Accelerometer placement', d.accelerometer_placement || '—'], ['Notes', d.notes || '—'],
         ['Revision', String(session.revision ?? 1)]],
       { class: 'kv', id: 'session-details' }),
-      correctionForm({ id: 'session-edit', path: sessionPath, fields: SESSION_FIELDS, mayEdit: mayRun,
-        current: { ...d, date: session.date }, onSaved: async () => refreshSession() }),
+      editForm,
       await revisionHistory(sessionPath, SESSION_LABELS, 'session-revisions').catch((e) => message('error', `Revision history unavailable: ${e.message}`)));
   }
   async function refreshSession() {
     [session, catalog] = await Promise.all([api('GET', sessionPath), api('GET', `/protocols?session_id=${sessionId}`)]);
     protocols = catalog.protocols;
+    editForm.refresh();
     await renderDetails();
     renderParameters();
   }
@@ -158,7 +160,8 @@ export async function sessionView(ctx, sessionId) {
     const p = current();
     if (!p) return;
     const tip = [p.description, p.thesis_section ? `Thesis ${p.thesis_section}.` : ''].filter(Boolean).join(' ');
-    description.replaceChildren(`${p.stimulates ? 'Stimulates' : 'No stimulation'}; bench mode ${p.bench_mode}.`,
+    const stim = p.stimulates === undefined ? '' : p.stimulates ? 'Stimulates; ' : 'No stimulation; ';
+    description.replaceChildren(`${stim}bench mode ${p.bench_mode}.`,
       h('a', { href: '#', class: 'help-tip', id: 'protocol-help', title: tip, 'aria-label': `About this protocol: ${tip}`,
         onclick: (e) => { e.preventDefault(); helpText.hidden = !helpText.hidden; } }, '?'));
     helpText.textContent = tip;
@@ -273,6 +276,14 @@ export async function sessionView(ctx, sessionId) {
       for (const key of ['angle', 'torque', 'stim']) plots[key].setData([data.t, data[key]]);
       live.dataset.samples = String(samplesSeen);
       if (data.stim.length) live.dataset.lastStim = String(data.stim[data.stim.length - 1]);
+      let lo = Infinity;
+      let hi = -Infinity;
+      for (const v of data.torque) {
+        if (v < lo) lo = v;
+        if (v > hi) hi = v;
+      }
+      // The torque response seen in the window (a tolerance test stops on it).
+      if (data.torque.length) live.dataset.torqueSwing = String(hi - lo);
     };
     const showProgress = (x) => {
       if (!x || x.progress === undefined) return;

@@ -200,6 +200,12 @@ export async function subjectView(ctx, subjectId) {
 
   const detailsSlot = h('div', { id: 'subject-details-box' });
   const subjectPath = `/subjects/${subjectId}`;
+  const editForm = correctionForm({ id: 'subject-edit', path: subjectPath, fields: SUBJECT_FIELDS, mayEdit,
+    current: () => subject.details,
+    onSaved: async () => {
+      subject = await api('GET', subjectPath);
+      await renderDetails();
+    } });
   async function renderDetails() {
     const d = subject.details;
     detailsSlot.replaceChildren(
@@ -208,11 +214,7 @@ export async function subjectView(ctx, subjectId) {
         ['Height (cm)', fmt(d.height_cm)], ['Body mass (kg)', fmt(d.weight_kg)], ['Shank length (cm)', fmt(d.shank_length_cm)],
         ['Calf circumference (cm)', fmt(d.calf_circumference_cm)], ['Revision', String(subject.revision ?? 1)]],
       { class: 'kv', id: 'subject-details' }),
-      correctionForm({ id: 'subject-edit', path: subjectPath, fields: SUBJECT_FIELDS, current: d, mayEdit,
-        onSaved: async () => {
-          subject = await api('GET', subjectPath);
-          await renderDetails();
-        } }),
+      editForm,
       await revisionHistory(subjectPath, SUBJECT_LABELS, 'subject-revisions').catch((e) => message('error', `Revision history unavailable: ${e.message}`)));
   }
   ctx.main.replaceChildren(
