@@ -89,7 +89,7 @@ export async function revisionHistory(path, labels, id) {
     const now = rev.details || {};
     const before = (prev && prev.details) || {};
     const changed = Object.keys(labels).filter((k) => JSON.stringify(now[k] ?? null) !== JSON.stringify(before[k] ?? null));
-    if (!prev) return changed.map((k) => `${labels[k]} ${fmt(now[k])}`).join('; ') || '—';
+    if (!prev) return changed.filter((k) => now[k] !== '').map((k) => `${labels[k]} ${fmt(now[k])}`).join('; ') || '—';
     return changed.map((k) => `${labels[k]}: ${fmt(before[k] ?? null)} → ${fmt(now[k] ?? null)}`).join('; ') || 'no change';
   };
   return h('details', { class: 'revisions', id, open: items.length > 1 },
