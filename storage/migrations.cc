@@ -240,6 +240,37 @@ CREATE INDEX evaluations_parameter_set ON evaluations(parameter_set_id, id);
 CREATE INDEX evaluations_trial ON evaluations(trial_id, id);
 )sql";
 
+// Who recorded each revision (the user name; '' for rows from before this
+// migration and for revisions written by the server itself without a user).
+const char* const kMigration5 = R"sql(
+ALTER TABLE subject_revisions ADD COLUMN recorded_by TEXT NOT NULL DEFAULT '';
+ALTER TABLE session_revisions ADD COLUMN recorded_by TEXT NOT NULL DEFAULT '';
+)sql";
+
+// One run vocabulary (DESIGN.md §5, issue 14): run_events used
+// 'completed' and 'cancelled' for done and aborted. The table is rebuilt
+// with the new names (the append-only triggers are recreated with it).
+const char* const kMigration6 = R"sql(
+CREATE TABLE run_events_v6 (
+  id      INTEGER PRIMARY KEY,
+  run_id  INTEGER NOT NULL REFERENCES runs(id),
+  state   TEXT NOT NULL
+          CHECK (state IN ('queued', 'running', 'done', 'failed', 'aborted')),
+  message TEXT NOT NULL DEFAULT '',
+  at_utc  TEXT NOT NULL
+);
+INSERT INTO run_events_v6 (id, run_id, state, message, at_utc)
+  SELECT id, run_id,
+         CASE state WHEN 'completed' THEN 'done' WHEN 'cancelled' THEN 'aborted' ELSE state END,
+         message, at_utc
+  FROM run_events ORDER BY id;
+DROP TRIGGER run_events_no_update;
+DROP TRIGGER run_events_no_delete;
+DROP TABLE run_events;
+ALTER TABLE run_events_v6 RENAME TO run_events;
+CREATE INDEX run_events_run ON run_events(run_id, id);
+)sql";
+
 }  // namespace
 
 const std::vector<Migration>& AllMigrations() {
@@ -255,6 +286,9 @@ const std::vector<Migration>& AllMigrations() {
        std::string(kMigration3) + AppendOnly({"parameter_sets", "parameter_set_trials"})},
       {4, "predictions and evaluations",
        std::string(kMigration4) + AppendOnly({"predictions", "evaluations"})},
+      {5, "who recorded each subject and session revision", kMigration5},
+      {6, "run states named as everywhere else (done, aborted)",
+       std::string(kMigration6) + AppendOnly({"run_events"})},
   };
   return kMigrations;
 }

@@ -10,7 +10,7 @@ namespace {
 
 constexpr std::string_view kRevisionColumns =
     "r.id, r.revision, r.session_date, r.accelerometer_placement, r.threshold_ma,"
-    " r.max_tolerated_ma, r.notes, r.corrects_id, r.reason, r.recorded_at_utc";
+    " r.max_tolerated_ma, r.notes, r.corrects_id, r.reason, r.recorded_at_utc, r.recorded_by";
 
 api::Result<SessionRevision> ReadRevision(const Statement& s, int first) {
   SessionRevision revision;
@@ -26,6 +26,7 @@ api::Result<SessionRevision> ReadRevision(const Statement& s, int first) {
   const auto recorded = ParseUtc(s.Text(first + 9));
   if (!recorded) return internal::BadStoredValue("session revision");
   revision.recorded_at = *recorded;
+  revision.recorded_by = s.Text(first + 10);
   return revision;
 }
 
@@ -61,14 +62,14 @@ api::Result<Session> GetSession(Connection& c, std::int64_t id) {
 
 api::Status InsertRevision(Connection& c, std::int64_t session_id, int revision,
                            const SessionDetails& d, std::optional<std::int64_t> corrects_id,
-                           std::string_view reason, UtcTime now) {
+                           std::string_view reason, std::string_view recorded_by, UtcTime now) {
   return internal::Execute(
       c,
       "INSERT INTO session_revisions (session_id, revision, session_date,"
       " accelerometer_placement, threshold_ma, max_tolerated_ma, notes, corrects_id, reason,"
-      " recorded_at_utc) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+      " recorded_at_utc, recorded_by) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
       session_id, revision, d.date, d.accelerometer_placement, d.threshold_ma, d.max_tolerated_ma,
-      d.notes, corrects_id, reason, FormatUtc(now));
+      d.notes, corrects_id, reason, FormatUtc(now), recorded_by);
 }
 
 api::Status CheckCurrent(const std::optional<double>& value, const char* field) {
@@ -99,7 +100,7 @@ api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where, s
         run.protocol_version = s.Text(3);
         run.parameters_json = s.Text(4);
         const auto created = ParseUtc(s.Text(5));
-        const auto state = ParseRunState(s.Text(6));
+        const auto state = api::ParseRunState(s.Text(6));
         if (!created || !state) return internal::BadStoredValue("run");
         run.created_at = *created;
         run.state = *state;
@@ -119,39 +120,10 @@ api::Status AppendRunEvent(Connection& c, std::int64_t run_id, RunState state,
                            std::string_view message, UtcTime now) {
   return internal::Execute(
       c, "INSERT INTO run_events (run_id, state, message, at_utc) VALUES (?1, ?2, ?3, ?4)", run_id,
-      RunStateName(state), message, FormatUtc(now));
+      api::RunStateName(state), message, FormatUtc(now));
 }
 
 }  // namespace
-
-std::string_view RunStateName(RunState state) {
-  switch (state) {
-    case RunState::kQueued:
-      return "queued";
-    case RunState::kRunning:
-      return "running";
-    case RunState::kCompleted:
-      return "completed";
-    case RunState::kFailed:
-      return "failed";
-    case RunState::kCancelled:
-      return "cancelled";
-  }
-  return "failed";
-}
-
-std::optional<RunState> ParseRunState(std::string_view name) {
-  for (RunState state : {RunState::kQueued, RunState::kRunning, RunState::kCompleted,
-                         RunState::kFailed, RunState::kCancelled}) {
-    if (RunStateName(state) == name) return state;
-  }
-  return std::nullopt;
-}
-
-bool IsTerminal(RunState state) {
-  return state == RunState::kCompleted || state == RunState::kFailed ||
-         state == RunState::kCancelled;
-}
 
 api::Status ValidateSessionDetails(const SessionDetails& d) {
   if (!IsIsoDate(d.date)) {
@@ -181,7 +153,7 @@ api::Result<Session> SessionRepository::Create(std::int64_t subject_id, std::int
         c, "INSERT INTO sessions (subject_id, leg_id, created_at_utc) VALUES (?1, ?2, ?3)",
         subject_id, leg_id, FormatUtc(now));
     if (!id.ok()) return id.status();
-    if (auto s = InsertRevision(c, *id, 1, details, std::nullopt, "", now); !s.ok()) return s;
+    if (auto s = InsertRevision(c, *id, 1, details, std::nullopt, "", "", now); !s.ok()) return s;
     return GetSession(c, *id);
   });
 }
@@ -203,13 +175,15 @@ api::Result<std::vector<Session>> SessionRepository::ListForSubject(std::int64_t
 
 api::Result<Session> SessionRepository::Correct(std::int64_t session_id,
                                                 const SessionDetails& details,
-                                                std::string_view reason) {
+                                                std::string_view reason,
+                                                std::string_view recorded_by) {
   if (auto s = ValidateSessionDetails(details); !s.ok()) return s;
   if (reason.empty()) return api::Status::InvalidArgument("a correction needs a reason", "reason");
   return db_.Write([&](Connection& c) {
     return internal::AppendCorrection(
         c, session_id, GetSession, [&](int revision, std::int64_t corrects_id) {
-          return InsertRevision(c, session_id, revision, details, corrects_id, reason, db_.Now());
+          return InsertRevision(c, session_id, revision, details, corrects_id, reason, recorded_by,
+                                db_.Now());
         });
   });
 }
@@ -281,12 +255,12 @@ api::Result<Run> SessionRepository::RecordRunState(std::int64_t run_id, RunState
     const RunState from = run->state;
     const bool allowed =
         (from == RunState::kQueued && (state == RunState::kRunning || state == RunState::kFailed ||
-                                       state == RunState::kCancelled)) ||
-        (from == RunState::kRunning && IsTerminal(state));
+                                       state == RunState::kAborted)) ||
+        (from == RunState::kRunning && api::IsFinal(state));
     if (!allowed) {
       return api::Status::FailedPrecondition("run " + std::to_string(run_id) + " cannot go from " +
-                                             std::string(RunStateName(from)) + " to " +
-                                             std::string(RunStateName(state)));
+                                             std::string(api::RunStateName(from)) + " to " +
+                                             std::string(api::RunStateName(state)));
     }
     if (auto s = AppendRunEvent(c, run_id, state, message, db_.Now()); !s.ok()) return s;
     return GetRunIn(c, run_id);

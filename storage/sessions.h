@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "api/run_state.h"
 #include "api/status.h"
 #include "storage/database.h"
 
@@ -33,6 +34,7 @@ struct SessionRevision {
   std::optional<std::int64_t> corrects_id;
   std::string reason;
   UtcTime recorded_at;
+  std::string recorded_by;  ///< user name of who recorded it ("" if unknown).
 };
 
 struct Session {
@@ -43,12 +45,9 @@ struct Session {
   SessionRevision current;  ///< the latest revision.
 };
 
-enum class RunState { kQueued, kRunning, kCompleted, kFailed, kCancelled };
-/// "queued", "running", "completed", "failed", "cancelled".
-std::string_view RunStateName(RunState state);
-std::optional<RunState> ParseRunState(std::string_view name);
-/// True for completed, failed and cancelled.
-bool IsTerminal(RunState state);
+/// The run states are the one vocabulary of api/run_state.h; run_events
+/// stores their names.
+using api::RunState;
 
 struct NewRun {
   std::string protocol_name;           ///< e.g. "irc_ramp".
@@ -86,7 +85,7 @@ class SessionRepository {
   api::Result<std::vector<Session>> ListForSubject(std::int64_t subject_id);
   /// Adds a revision pointing at the current one; `reason` must not be empty.
   api::Result<Session> Correct(std::int64_t session_id, const SessionDetails& details,
-                               std::string_view reason);
+                               std::string_view reason, std::string_view recorded_by = {});
   api::Result<std::vector<SessionRevision>> Revisions(std::int64_t session_id);
 
   /// A new run in state queued. kNotFound for an unknown session;
@@ -94,8 +93,8 @@ class SessionRepository {
   api::Result<Run> CreateRun(std::int64_t session_id, const NewRun& run);
   api::Result<Run> GetRun(std::int64_t run_id);
   api::Result<std::vector<Run>> ListRuns(std::int64_t session_id);
-  /// Appends a state event. Allowed: queued → running | failed | cancelled;
-  /// running → completed | failed | cancelled. Anything else (including from
+  /// Appends a state event. Allowed: queued → running | failed | aborted;
+  /// running → done | failed | aborted. Anything else (including from
   /// a terminal state) is kFailedPrecondition naming both states.
   api::Result<Run> RecordRunState(std::int64_t run_id, RunState state,
                                   std::string_view message = {});

@@ -9,7 +9,7 @@ namespace {
 
 constexpr std::string_view kRevisionColumns =
     "r.id, r.revision, r.age_years, r.sex, r.height_cm, r.weight_kg, r.shank_length_cm, "
-    "r.calf_circumference_cm, r.corrects_id, r.reason, r.recorded_at_utc";
+    "r.calf_circumference_cm, r.corrects_id, r.reason, r.recorded_at_utc, r.recorded_by";
 
 // Reads kRevisionColumns starting at column `first`.
 api::Result<SubjectRevision> ReadRevision(const Statement& s, int first) {
@@ -28,6 +28,7 @@ api::Result<SubjectRevision> ReadRevision(const Statement& s, int first) {
   revision.corrects_id = s.OptionalInt64(first + 8);
   revision.reason = s.Text(first + 9);
   revision.recorded_at = *recorded;
+  revision.recorded_by = s.Text(first + 11);
   return revision;
 }
 
@@ -64,16 +65,16 @@ api::Result<Subject> GetById(Connection& c, std::int64_t id) {
 
 api::Status InsertRevision(Connection& c, std::int64_t subject_id, int revision,
                            const SubjectDetails& d, std::optional<std::int64_t> corrects_id,
-                           std::string_view reason, UtcTime now) {
+                           std::string_view reason, std::string_view recorded_by, UtcTime now) {
   std::optional<std::int64_t> age;
   if (d.age_years) age = *d.age_years;
   return internal::Execute(
       c,
       "INSERT INTO subject_revisions (subject_id, revision, age_years, sex, height_cm, weight_kg,"
-      " shank_length_cm, calf_circumference_cm, corrects_id, reason, recorded_at_utc)"
-      " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+      " shank_length_cm, calf_circumference_cm, corrects_id, reason, recorded_at_utc, recorded_by)"
+      " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
       subject_id, revision, age, SexName(d.sex), d.height_cm, d.weight_kg, d.shank_length_cm,
-      d.calf_circumference_cm, corrects_id, reason, FormatUtc(now));
+      d.calf_circumference_cm, corrects_id, reason, FormatUtc(now), recorded_by);
 }
 
 api::Status CheckRange(const std::optional<double>& value, double low, double high,
@@ -170,7 +171,7 @@ api::Result<Subject> SubjectRepository::Create(std::string_view code,
     auto id = internal::InsertRow(c, "INSERT INTO subjects (code, created_at_utc) VALUES (?1, ?2)",
                                   code, FormatUtc(now));
     if (!id.ok()) return id.status();
-    if (auto s = InsertRevision(c, *id, 1, details, std::nullopt, "", now); !s.ok()) return s;
+    if (auto s = InsertRevision(c, *id, 1, details, std::nullopt, "", "", now); !s.ok()) return s;
     return GetById(c, *id);
   });
 }
@@ -196,7 +197,8 @@ api::Result<std::vector<Subject>> SubjectRepository::List() {
 
 api::Result<Subject> SubjectRepository::Correct(std::int64_t subject_id,
                                                 const SubjectDetails& details,
-                                                std::string_view reason) {
+                                                std::string_view reason,
+                                                std::string_view recorded_by) {
   if (auto s = ValidateSubjectDetails(details); !s.ok()) return s;
   if (reason.empty()) {
     return api::Status::InvalidArgument("a correction needs a reason", "reason");
@@ -204,7 +206,8 @@ api::Result<Subject> SubjectRepository::Correct(std::int64_t subject_id,
   return db_.Write([&](Connection& c) {
     return internal::AppendCorrection(
         c, subject_id, GetById, [&](int revision, std::int64_t corrects_id) {
-          return InsertRevision(c, subject_id, revision, details, corrects_id, reason, db_.Now());
+          return InsertRevision(c, subject_id, revision, details, corrects_id, reason, recorded_by,
+                                db_.Now());
         });
   });
 }

@@ -45,6 +45,7 @@ struct SubjectRevision {
   std::optional<std::int64_t> corrects_id;  ///< the revision this one corrects.
   std::string reason;
   UtcTime recorded_at;
+  std::string recorded_by;  ///< user name of who recorded it ("" if unknown).
 };
 
 /// A subject with its current (latest) details.
@@ -83,7 +84,7 @@ class SubjectRepository {
   /// Records corrected details as a new revision pointing at the current one.
   /// `reason` must not be empty (field "reason").
   api::Result<Subject> Correct(std::int64_t subject_id, const SubjectDetails& details,
-                               std::string_view reason);
+                               std::string_view reason, std::string_view recorded_by = {});
   /// All revisions, oldest first.
   api::Result<std::vector<SubjectRevision>> Revisions(std::int64_t subject_id);
 

@@ -1,5 +1,8 @@
 #include "server/http/resources_json.h"
 
+#include <cmath>
+#include <sstream>
+
 #include "api/parameter_set_json.h"
 #include "server/http/json_fields.h"
 #include "storage/time_utc.h"
@@ -36,7 +39,8 @@ nlohmann::json SubjectDetailsToJson(const storage::SubjectDetails& d) {
 
 nlohmann::json SubjectToJson(const storage::Subject& s, const std::vector<storage::Leg>& legs) {
   nlohmann::json leg_list = nlohmann::json::array();
-  for (const auto& leg : legs) leg_list.push_back({{"id", leg.id}, {"side", storage::SideName(leg.side)}});
+  for (const auto& leg : legs)
+    leg_list.push_back({{"id", leg.id}, {"side", storage::SideName(leg.side)}});
   return {{"id", s.id},
           {"code", s.code},
           {"created_at_utc", storage::FormatUtc(s.created_at)},
@@ -47,9 +51,8 @@ nlohmann::json SubjectToJson(const storage::Subject& s, const std::vector<storag
 
 nlohmann::json SessionToJson(const storage::Session& s, std::string_view leg_side) {
   const auto& d = s.current.details;
-  nlohmann::json details = {{"date", d.date},
-                            {"accelerometer_placement", d.accelerometer_placement},
-                            {"notes", d.notes}};
+  nlohmann::json details = {
+      {"date", d.date}, {"accelerometer_placement", d.accelerometer_placement}, {"notes", d.notes}};
   PutOptional(details, "threshold_ma", d.threshold_ma);
   PutOptional(details, "max_tolerated_ma", d.max_tolerated_ma);
   return {{"id", s.id},
@@ -65,16 +68,26 @@ nlohmann::json SessionToJson(const storage::Session& s, std::string_view leg_sid
 nlohmann::json RunToJson(const storage::Run& r) {
   nlohmann::json parameters = nlohmann::json::parse(r.parameters_json, nullptr, false);
   if (parameters.is_discarded()) parameters = nlohmann::json::object();
-  return {{"id", r.id},
+  int version = 0;
+  try {
+    version = std::stoi(r.protocol_version);
+  } catch (const std::exception&) {
+  }
+  const bool done = r.state == api::RunState::kDone;
+  return {{"run_id", r.id},
           {"session_id", r.session_id},
           {"protocol", r.protocol_name},
-          {"protocol_version", r.protocol_version},
+          {"protocol_version", version},
           {"parameters", std::move(parameters)},
-          {"state", storage::RunStateName(r.state)},
-          {"message", r.message},
+          {"state", api::RunStateName(r.state)},
+          {"reason", r.message},
+          {"progress", done ? 1.0 : 0.0},
+          {"eta_s", done ? nlohmann::json(0.0) : nlohmann::json(nullptr)},
           {"created_at_utc", storage::FormatUtc(r.created_at)},
           {"started_at_utc", OptionalTime(r.started_at)},
-          {"finished_at_utc", OptionalTime(r.finished_at)}};
+          {"finished_at_utc", OptionalTime(r.finished_at)},
+          {"result", nullptr},
+          {"controller", nullptr}};
 }
 
 nlohmann::json TrialSummaryToJson(const storage::TrialSummary& t) {
@@ -204,6 +217,214 @@ api::Result<NewSessionRequest> NewSessionFromJson(const nlohmann::json& body) {
   }
   if (auto st = storage::ValidateSessionDetails(out.details); !st.ok()) return st;
   return out;
+}
+
+namespace {
+
+constexpr std::size_t kMaxReasonLength = 500;
+
+std::string FormatBound(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+// The correction's envelope: {"reason", "details"}; the reason is required.
+api::Result<std::pair<std::string, const nlohmann::json*>> CorrectionEnvelope(
+    const nlohmann::json& body) {
+  JsonFields f(body);
+  std::optional<std::string> reason = f.String("reason", true, 100000);
+  const nlohmann::json* details = f.Object("details", true);
+  if (auto st = f.Finish(); !st.ok()) return st;
+  if (reason->find_first_not_of(" \t\r\n") == std::string::npos) {
+    return api::Status::InvalidArgument("must say why the record is corrected (not empty)",
+                                        "reason");
+  }
+  if (reason->size() > kMaxReasonLength) {
+    return api::Status::InvalidArgument(
+        "must be at most " + std::to_string(kMaxReasonLength) + " characters", "reason");
+  }
+  return std::make_pair(*reason, details);
+}
+
+// A number with unit in (low, high] (or [low, high] when `low_inclusive`);
+// null clears it.
+api::Status PatchNumber(const nlohmann::json& value, const std::string& field, const char* unit,
+                        double low, double high, bool low_inclusive, std::optional<double>& out) {
+  if (value.is_null()) {
+    out.reset();
+    return api::Status::Ok();
+  }
+  const std::string range = std::string(low_inclusive ? "[" : "(") + FormatBound(low) + ", " +
+                            FormatBound(high) + "] " + unit;
+  if (!value.is_number()) {
+    return api::Status::InvalidArgument("must be a number in " + range + " (or null to clear it)",
+                                        field);
+  }
+  const double v = value.get<double>();
+  if (!std::isfinite(v) || (low_inclusive ? v < low : v <= low) || v > high) {
+    return api::Status::InvalidArgument(
+        "must be in " + range + ", got " + value.dump() + " " + unit, field);
+  }
+  out = v;
+  return api::Status::Ok();
+}
+
+api::Status PatchText(const nlohmann::json& value, const std::string& field, std::size_t max_length,
+                      std::string& out) {
+  if (value.is_null()) {
+    out.clear();
+    return api::Status::Ok();
+  }
+  if (!value.is_string()) {
+    return api::Status::InvalidArgument("must be text (or null to clear it)", field);
+  }
+  const auto& text = value.get_ref<const std::string&>();
+  if (text.size() > max_length) {
+    return api::Status::InvalidArgument(
+        "must be at most " + std::to_string(max_length) + " characters", field);
+  }
+  out = text;
+  return api::Status::Ok();
+}
+
+}  // namespace
+
+api::Result<SubjectCorrection> SubjectCorrectionFromJson(const nlohmann::json& body,
+                                                         const storage::SubjectDetails& current) {
+  auto envelope = CorrectionEnvelope(body);
+  if (!envelope.ok()) return envelope.status();
+  SubjectCorrection out;
+  out.reason = envelope->first;
+  out.details = current;
+  storage::SubjectDetails& d = out.details;
+  for (const auto& [key, value] : envelope->second->items()) {
+    const std::string field = "details." + key;
+    api::Status st;
+    if (key == "age_years") {
+      if (value.is_null()) {
+        d.age_years.reset();
+      } else if (!value.is_number_integer() || value.get<std::int64_t>() < 0 ||
+                 value.get<std::int64_t>() > 130) {
+        st = api::Status::InvalidArgument(
+            "must be a whole number of years in [0, 130], got " + value.dump(), field);
+      } else {
+        d.age_years = static_cast<int>(value.get<std::int64_t>());
+      }
+    } else if (key == "sex") {
+      if (value.is_null()) {
+        d.sex = storage::Sex::kUndisclosed;
+      } else {
+        auto sex = value.is_string() ? storage::ParseSex(value.get<std::string>()) : std::nullopt;
+        if (!sex) {
+          st = api::Status::InvalidArgument("must be female, male, other or undisclosed", field);
+        } else {
+          d.sex = *sex;
+        }
+      }
+    } else if (key == "height_cm") {
+      st = PatchNumber(value, field, "cm", 30, 250, false, d.height_cm);
+    } else if (key == "weight_kg") {
+      st = PatchNumber(value, field, "kg", 1, 400, false, d.weight_kg);
+    } else if (key == "shank_length_cm") {
+      st = PatchNumber(value, field, "cm", 10, 80, false, d.shank_length_cm);
+    } else if (key == "calf_circumference_cm") {
+      st = PatchNumber(value, field, "cm", 10, 100, false, d.calf_circumference_cm);
+    } else {
+      st = api::Status::InvalidArgument(
+          "unknown field (allowed: age_years, sex, height_cm, weight_kg, shank_length_cm, "
+          "calf_circumference_cm)",
+          field);
+    }
+    if (!st.ok()) return st;
+    out.changed.push_back(key);
+  }
+  if (out.changed.empty()) {
+    return api::Status::InvalidArgument("must name at least one field to correct", "details");
+  }
+  if (auto st = storage::ValidateSubjectDetails(d); !st.ok()) {
+    return api::Status(st.code(), st.message(), "details." + st.field());
+  }
+  return out;
+}
+
+api::Result<SessionCorrection> SessionCorrectionFromJson(const nlohmann::json& body,
+                                                         const storage::SessionDetails& current) {
+  auto envelope = CorrectionEnvelope(body);
+  if (!envelope.ok()) return envelope.status();
+  SessionCorrection out;
+  out.reason = envelope->first;
+  out.details = current;
+  storage::SessionDetails& d = out.details;
+  for (const auto& [key, value] : envelope->second->items()) {
+    const std::string field = "details." + key;
+    api::Status st;
+    if (key == "date") {
+      if (!value.is_string() || !storage::IsIsoDate(value.get<std::string>())) {
+        st = api::Status::InvalidArgument(
+            "must be a calendar date YYYY-MM-DD (it cannot be cleared)", field);
+      } else {
+        d.date = value.get<std::string>();
+      }
+    } else if (key == "accelerometer_placement") {
+      st = PatchText(value, field, 256, d.accelerometer_placement);
+    } else if (key == "threshold_ma") {
+      st = PatchNumber(value, field, "mA", 0, 100, true, d.threshold_ma);
+    } else if (key == "max_tolerated_ma") {
+      st = PatchNumber(value, field, "mA", 0, 100, true, d.max_tolerated_ma);
+    } else if (key == "notes") {
+      st = PatchText(value, field, 4096, d.notes);
+    } else {
+      st = api::Status::InvalidArgument(
+          "unknown field (allowed: date, accelerometer_placement, threshold_ma, "
+          "max_tolerated_ma, notes)",
+          field);
+    }
+    if (!st.ok()) return st;
+    out.changed.push_back(key);
+  }
+  if (out.changed.empty()) {
+    return api::Status::InvalidArgument("must name at least one field to correct", "details");
+  }
+  if (d.threshold_ma && d.max_tolerated_ma && *d.threshold_ma > *d.max_tolerated_ma) {
+    return api::Status::InvalidArgument(
+        "the max tolerated amplitude (" + FormatBound(*d.max_tolerated_ma) +
+            " mA) must not be below the threshold (" + FormatBound(*d.threshold_ma) + " mA)",
+        "details.max_tolerated_ma");
+  }
+  if (auto st = storage::ValidateSessionDetails(d); !st.ok()) {
+    return api::Status(st.code(), st.message(), "details." + st.field());
+  }
+  return out;
+}
+
+namespace {
+
+template <typename Revision>
+nlohmann::json RevisionToJson(const Revision& r, std::optional<int> corrects_revision,
+                              nlohmann::json details) {
+  return {{"revision", r.revision},
+          {"corrects_revision",
+           corrects_revision ? nlohmann::json(*corrects_revision) : nlohmann::json(nullptr)},
+          {"reason", r.reason},
+          {"changed_by",
+           r.recorded_by.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.recorded_by)},
+          {"changed_at_utc", storage::FormatUtc(r.recorded_at)},
+          {"details", std::move(details)}};
+}
+
+}  // namespace
+
+nlohmann::json SubjectRevisionToJson(const storage::SubjectRevision& r,
+                                     std::optional<int> corrects_revision) {
+  return RevisionToJson(r, corrects_revision, SubjectDetailsToJson(r.details));
+}
+
+nlohmann::json SessionRevisionToJson(const storage::SessionRevision& r,
+                                     std::optional<int> corrects_revision) {
+  storage::Session s;
+  s.current = r;
+  return RevisionToJson(r, corrects_revision, SessionToJson(s, "").at("details"));
 }
 
 api::Result<NewUserRequest> NewUserFromJson(const nlohmann::json& body) {

@@ -67,6 +67,32 @@ struct NewSessionRequest {
 };
 api::Result<NewSessionRequest> NewSessionFromJson(const nlohmann::json& body);
 
+/// PATCH /subjects/{id} and /sessions/{id} (issue 14 §1): {"reason",
+/// "details": {...}}. The given fields replace the current ones, null
+/// clears one, the others are kept. `changed` lists the given fields.
+struct SubjectCorrection {
+  std::string reason;
+  storage::SubjectDetails details;
+  std::vector<std::string> changed;
+};
+struct SessionCorrection {
+  std::string reason;
+  storage::SessionDetails details;
+  std::vector<std::string> changed;
+};
+/// kInvalidArgument naming the field ("reason", "details.weight_kg") with
+/// the unit and allowed range in the message.
+api::Result<SubjectCorrection> SubjectCorrectionFromJson(const nlohmann::json& body,
+                                                         const storage::SubjectDetails& current);
+api::Result<SessionCorrection> SessionCorrectionFromJson(const nlohmann::json& body,
+                                                         const storage::SessionDetails& current);
+/// {"revision", "corrects_revision" (null for 1), "reason", "changed_by"
+///  (user name or null), "changed_at_utc", "details"}.
+nlohmann::json SubjectRevisionToJson(const storage::SubjectRevision& revision,
+                                     std::optional<int> corrects_revision);
+nlohmann::json SessionRevisionToJson(const storage::SessionRevision& revision,
+                                     std::optional<int> corrects_revision);
+
 /// POST /users: {"name", "role"}.
 struct NewUserRequest {
   std::string name;

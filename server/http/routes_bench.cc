@@ -138,6 +138,7 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                  end["kind"] = "end";
                  end["parameter_set_id"] =
                      view->parameter_set_id ? json(*view->parameter_set_id) : json(nullptr);
+                 end["result"] = view->result;
                  end["dropped"] = 0;
                  stream->pending = SseFrame(0, "state", state) + SseFrame(0, "end", end);
                  stream->finished = true;

@@ -1,6 +1,7 @@
 // Storage-backed routes: health, subjects, sessions, trials, parameter sets,
 // protocols, stored predictions (DESIGN.md §8).
 
+#include <functional>
 #include <map>
 #include <mutex>
 #include <unordered_map>
@@ -10,6 +11,7 @@
 #include "server/http/resources_json.h"
 #include "server/http/routes_common.h"
 #include "server/protocols/protocol.h"
+#include "server/services/run_service.h"
 #include "storage/parameter_sets.h"
 #include "storage/predictions.h"
 #include "storage/sessions.h"
@@ -57,14 +59,60 @@ api::Result<json> SessionJson(storage::Database& db, const storage::Session& ses
 }
 
 json DetailsSchema() {
-  return ObjectSchema({{"age_years", {{"type", "integer"}, {"minimum", 0}, {"maximum", 130}}},
-                       {"sex", {{"enum", {"female", "male", "other", "undisclosed"}}}},
-                       {"height_cm", {{"type", "number"}, {"minimum", 30}, {"maximum", 250}}},
-                       {"weight_kg", {{"type", "number"}, {"minimum", 1}, {"maximum", 400}}},
-                       {"shank_length_cm", {{"type", "number"}, {"minimum", 10}, {"maximum", 80}}},
-                       {"calf_circumference_cm",
-                        {{"type", "number"}, {"minimum", 10}, {"maximum", 100}}}},
-                      {});
+  return ObjectSchema(
+      {{"age_years", {{"type", "integer"}, {"minimum", 0}, {"maximum", 130}}},
+       {"sex", {{"enum", {"female", "male", "other", "undisclosed"}}}},
+       {"height_cm", {{"type", "number"}, {"minimum", 30}, {"maximum", 250}}},
+       {"weight_kg", {{"type", "number"}, {"minimum", 1}, {"maximum", 400}}},
+       {"shank_length_cm", {{"type", "number"}, {"minimum", 10}, {"maximum", 80}}},
+       {"calf_circumference_cm", {{"type", "number"}, {"minimum", 10}, {"maximum", 100}}}},
+      {});
+}
+
+// A correction (PATCH) in one write transaction with its audit entry,
+// whose summary carries the reason and the changed values in full.
+api::Result<json> AuditedCorrection(storage::Database& db, RequestContext& ctx,
+                                    const std::string& target, const std::string& reason,
+                                    const std::vector<std::string>& changed,
+                                    const json& new_details,
+                                    const std::function<api::Result<json>()>& write) {
+  std::string summary = "reason: " + reason + "; changed:";
+  for (const std::string& key : changed) {
+    summary += " " + key + "=" + (new_details.contains(key) ? new_details.at(key).dump() : "null");
+  }
+  auto result = db.Write([&](storage::Connection&) -> api::Result<json> {
+    api::Result<json> value = write();
+    if (!value.ok()) return value;
+    auto appended = storage::AuditLog(db).Append(
+        {ctx.user ? std::optional<std::int64_t>(ctx.user->id) : std::nullopt,
+         ctx.user ? ctx.user->name : std::string("anonymous"), ctx.req.method + " " + ctx.req.path,
+         target, summary, "200"});
+    if (!appended.ok()) return appended.status();
+    return value;
+  });
+  if (result.ok()) ctx.audited = true;
+  return result;
+}
+
+// The revision number each revision corrects (ids → numbers).
+template <typename Revision>
+json RevisionsJson(const std::vector<Revision>& revisions,
+                   json (*to_json)(const Revision&, std::optional<int>)) {
+  json items = json::array();
+  for (const Revision& r : revisions) {
+    std::optional<int> corrects;
+    for (const Revision& other : revisions) {
+      if (r.corrects_id && other.id == *r.corrects_id) corrects = other.revision;
+    }
+    items.push_back(to_json(r, corrects));
+  }
+  return {{"items", std::move(items)}};
+}
+
+json CorrectionSchema(json details) {
+  return ObjectSchema({{"reason", {{"type", "string"}, {"minLength", 1}, {"maxLength", 500}}},
+                       {"details", std::move(details)}},
+                      {"reason", "details"});
 }
 
 }  // namespace
@@ -74,8 +122,17 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
   const std::string version = deps.server_version;
   auto cache = std::make_shared<ParameterSetCache>();
 
-  table.Add({"GET", "/api/v1/health", 0, false, "system", "Liveness and database health",
-             {}, 200, "application/json", nullptr, nullptr,
+  table.Add({"GET",
+             "/api/v1/health",
+             0,
+             false,
+             "system",
+             "Liveness and database health",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
              [&db, version](RequestContext&) -> api::Result<Reply> {
                auto schema = db.SchemaVersion();
                if (!schema.ok()) return schema.status();
@@ -124,16 +181,23 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                  return JsonReply(std::move(body));
                }});
   }
-  table.Add({"POST", "/api/v1/subjects", kClinician | kAdmin, true, "subjects",
-             "Create a subject (pseudonymous code, anthropometrics, legs)", {}, 201,
+  table.Add({"POST",
+             "/api/v1/subjects",
+             kClinician | kAdmin,
+             true,
+             "subjects",
+             "Create a subject (pseudonymous code, anthropometrics, legs)",
+             {},
+             201,
              "application/json",
-             ObjectSchema({{"code", {{"type", "string"}, {"pattern", "^[A-Za-z0-9_-]{1,32}$"}}},
-                           {"details", DetailsSchema()},
-                           {"legs", {{"type", "array"},
-                                     {"items", {{"enum", {"left", "right"}}}},
-                                     {"maxItems", 2}}}},
-                          {"code"}),
-             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+             ObjectSchema(
+                 {{"code", {{"type", "string"}, {"pattern", "^[A-Za-z0-9_-]{1,32}$"}}},
+                  {"details", DetailsSchema()},
+                  {"legs",
+                   {{"type", "array"}, {"items", {{"enum", {"left", "right"}}}}, {"maxItems", 2}}}},
+                 {"code"}),
+             nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto request = NewSubjectFromJson(ctx.body);
                if (!request.ok()) return request.status();
                auto created = AuditedWrite<json>(
@@ -149,18 +213,77 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                      }
                      return SubjectJson(db, *subject);
                    },
-                   [](const json& s) { return "subjects/" + std::to_string(s["id"].get<std::int64_t>()); });
+                   [](const json& s) {
+                     return "subjects/" + std::to_string(s["id"].get<std::int64_t>());
+                   });
                if (!created.ok()) return created.status();
                return JsonReply(std::move(*created), 201);
              }});
-  table.Add({"GET", "/api/v1/subjects/{subject_id}", kAnyRole, false, "subjects",
-             "One subject with its current details and legs", {}, 200, "application/json",
-             nullptr, nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({"GET",
+             "/api/v1/subjects/{subject_id}",
+             kAnyRole,
+             false,
+             "subjects",
+             "One subject with its current details and legs",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto subject = storage::SubjectRepository(db).Get(ctx.Id("subject_id"));
                if (!subject.ok()) return subject.status();
                auto j = SubjectJson(db, *subject);
                if (!j.ok()) return j.status();
                return JsonReply(std::move(*j));
+             }});
+
+  table.Add({"PATCH",
+             "/api/v1/subjects/{subject_id}",
+             kClinician | kAdmin,
+             true,
+             "subjects",
+             "Correct a subject's details: a new revision with a reason (given fields replace "
+             "the current ones, null clears one); audited",
+             {},
+             200,
+             "application/json",
+             CorrectionSchema(DetailsSchema()),
+             nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               const std::int64_t id = ctx.Id("subject_id");
+               storage::SubjectRepository subjects(db);
+               auto current = subjects.Get(id);
+               if (!current.ok()) return current.status();
+               auto correction = SubjectCorrectionFromJson(ctx.body, current->current.details);
+               if (!correction.ok()) return correction.status();
+               auto corrected = AuditedCorrection(
+                   db, ctx, "subjects/" + std::to_string(id), correction->reason,
+                   correction->changed, SubjectDetailsToJson(correction->details),
+                   [&]() -> api::Result<json> {
+                     auto s = subjects.Correct(id, correction->details, correction->reason,
+                                               ctx.user ? ctx.user->name : std::string());
+                     if (!s.ok()) return s.status();
+                     return SubjectJson(db, *s);
+                   });
+               if (!corrected.ok()) return corrected.status();
+               return JsonReply(std::move(*corrected));
+             }});
+  table.Add({"GET",
+             "/api/v1/subjects/{subject_id}/revisions",
+             kAnyRole,
+             false,
+             "subjects",
+             "A subject's revisions, oldest first (who, when, why, the details)",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto revisions = storage::SubjectRepository(db).Revisions(ctx.Id("subject_id"));
+               if (!revisions.ok()) return revisions.status();
+               return JsonReply(RevisionsJson(*revisions, &SubjectRevisionToJson));
              }});
 
   // --- sessions ---------------------------------------------------------------
@@ -169,15 +292,16 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
     q.push_back({"from", "string", "sessions on or after this date (YYYY-MM-DD)"});
     q.push_back({"to", "string", "sessions before this date (YYYY-MM-DD)"});
     table.Add({"GET", "/api/v1/subjects/{subject_id}/sessions", kAnyRole, false, "sessions",
-               "A subject's sessions (filter by date range)", q, 200, "application/json",
-               nullptr, nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+               "A subject's sessions (filter by date range)", q, 200, "application/json", nullptr,
+               nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
                  auto page = ParsePage(ctx);
                  if (!page.ok()) return page.status();
                  auto from = QueryTime(ctx, "from");
                  if (!from.ok()) return from.status();
                  auto to = QueryTime(ctx, "to");
                  if (!to.ok()) return to.status();
-                 auto sessions = storage::SessionRepository(db).ListForSubject(ctx.Id("subject_id"));
+                 auto sessions =
+                     storage::SessionRepository(db).ListForSubject(ctx.Id("subject_id"));
                  if (!sessions.ok()) return sessions.status();
                  std::vector<storage::Session> kept;
                  for (auto& s : *sessions) {
@@ -199,46 +323,65 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                  return JsonReply(std::move(body));
                }});
   }
-  table.Add({"POST", "/api/v1/subjects/{subject_id}/sessions", kClinician | kAdmin, true,
-             "sessions", "Open a session for one leg of a subject", {}, 201, "application/json",
-             ObjectSchema({{"leg", {{"enum", {"left", "right"}}}},
-                           {"date", {{"type", "string"}, {"format", "date"}}},
-                           {"accelerometer_placement", {{"type", "string"}, {"maxLength", 256}}},
-                           {"threshold_ma", {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
-                           {"max_tolerated_ma",
-                            {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
-                           {"notes", {{"type", "string"}, {"maxLength", 4096}}}},
-                          {"leg", "date"}),
-             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
-               auto request = NewSessionFromJson(ctx.body);
-               if (!request.ok()) return request.status();
-               const std::int64_t subject_id = ctx.Id("subject_id");
-               auto created = AuditedWrite<json>(
-                   db, ctx, 201,
-                   [&]() -> api::Result<json> {
-                     storage::SubjectRepository subjects(db);
-                     auto legs = subjects.Legs(subject_id);
-                     if (!legs.ok()) return legs.status();
-                     std::optional<std::int64_t> leg_id;
-                     for (const auto& leg : *legs) {
-                       if (leg.side == request->leg) leg_id = leg.id;
-                     }
-                     if (!leg_id) {
-                       auto leg = subjects.AddLeg(subject_id, request->leg);
-                       if (!leg.ok()) return leg.status();
-                       leg_id = leg->id;
-                     }
-                     auto session = storage::SessionRepository(db).Create(subject_id, *leg_id,
-                                                                         request->details);
-                     if (!session.ok()) return session.status();
-                     return SessionToJson(*session, storage::SideName(request->leg));
-                   },
-                   [](const json& s) { return "sessions/" + std::to_string(s["id"].get<std::int64_t>()); });
-               if (!created.ok()) return created.status();
-               return JsonReply(std::move(*created), 201);
-             }});
-  table.Add({"GET", "/api/v1/sessions/{session_id}", kAnyRole, false, "sessions", "One session",
-             {}, 200, "application/json", nullptr, nullptr,
+  table.Add(
+      {"POST",
+       "/api/v1/subjects/{subject_id}/sessions",
+       kClinician | kAdmin,
+       true,
+       "sessions",
+       "Open a session for one leg of a subject",
+       {},
+       201,
+       "application/json",
+       ObjectSchema({{"leg", {{"enum", {"left", "right"}}}},
+                     {"date", {{"type", "string"}, {"format", "date"}}},
+                     {"accelerometer_placement", {{"type", "string"}, {"maxLength", 256}}},
+                     {"threshold_ma", {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
+                     {"max_tolerated_ma", {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
+                     {"notes", {{"type", "string"}, {"maxLength", 4096}}}},
+                    {"leg", "date"}),
+       nullptr,
+       [&db](RequestContext& ctx) -> api::Result<Reply> {
+         auto request = NewSessionFromJson(ctx.body);
+         if (!request.ok()) return request.status();
+         const std::int64_t subject_id = ctx.Id("subject_id");
+         auto created = AuditedWrite<json>(
+             db, ctx, 201,
+             [&]() -> api::Result<json> {
+               storage::SubjectRepository subjects(db);
+               auto legs = subjects.Legs(subject_id);
+               if (!legs.ok()) return legs.status();
+               std::optional<std::int64_t> leg_id;
+               for (const auto& leg : *legs) {
+                 if (leg.side == request->leg) leg_id = leg.id;
+               }
+               if (!leg_id) {
+                 auto leg = subjects.AddLeg(subject_id, request->leg);
+                 if (!leg.ok()) return leg.status();
+                 leg_id = leg->id;
+               }
+               auto session =
+                   storage::SessionRepository(db).Create(subject_id, *leg_id, request->details);
+               if (!session.ok()) return session.status();
+               return SessionToJson(*session, storage::SideName(request->leg));
+             },
+             [](const json& s) {
+               return "sessions/" + std::to_string(s["id"].get<std::int64_t>());
+             });
+         if (!created.ok()) return created.status();
+         return JsonReply(std::move(*created), 201);
+       }});
+  table.Add({"GET",
+             "/api/v1/sessions/{session_id}",
+             kAnyRole,
+             false,
+             "sessions",
+             "One session",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
              [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto session = storage::SessionRepository(db).Get(ctx.Id("session_id"));
                if (!session.ok()) return session.status();
@@ -246,22 +389,89 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!j.ok()) return j.status();
                return JsonReply(std::move(*j));
              }});
+  table.Add(
+      {"PATCH",
+       "/api/v1/sessions/{session_id}",
+       kClinician | kAdmin,
+       true,
+       "sessions",
+       "Correct a session's details: a new revision with a reason (given fields replace "
+       "the current ones, null clears one); audited",
+       {},
+       200,
+       "application/json",
+       CorrectionSchema(ObjectSchema(
+           {{"date", {{"type", "string"}, {"format", "date"}}},
+            {"accelerometer_placement", {{"type", {"string", "null"}}, {"maxLength", 256}}},
+            {"threshold_ma", {{"type", {"number", "null"}}, {"minimum", 0}, {"maximum", 100}}},
+            {"max_tolerated_ma", {{"type", {"number", "null"}}, {"minimum", 0}, {"maximum", 100}}},
+            {"notes", {{"type", {"string", "null"}}, {"maxLength", 4096}}}},
+           {})),
+       nullptr,
+       [&db](RequestContext& ctx) -> api::Result<Reply> {
+         const std::int64_t id = ctx.Id("session_id");
+         storage::SessionRepository sessions(db);
+         auto current = sessions.Get(id);
+         if (!current.ok()) return current.status();
+         auto correction = SessionCorrectionFromJson(ctx.body, current->current.details);
+         if (!correction.ok()) return correction.status();
+         storage::Session preview = *current;
+         preview.current.details = correction->details;
+         auto corrected = AuditedCorrection(
+             db, ctx, "sessions/" + std::to_string(id), correction->reason, correction->changed,
+             SessionToJson(preview, "").at("details"), [&]() -> api::Result<json> {
+               auto s = sessions.Correct(id, correction->details, correction->reason,
+                                         ctx.user ? ctx.user->name : std::string());
+               if (!s.ok()) return s.status();
+               return SessionJson(db, *s);
+             });
+         if (!corrected.ok()) return corrected.status();
+         return JsonReply(std::move(*corrected));
+       }});
+  table.Add({"GET",
+             "/api/v1/sessions/{session_id}/revisions",
+             kAnyRole,
+             false,
+             "sessions",
+             "A session's revisions, oldest first (who, when, why, the details)",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto revisions = storage::SessionRepository(db).Revisions(ctx.Id("session_id"));
+               if (!revisions.ok()) return revisions.status();
+               return JsonReply(RevisionsJson(*revisions, &SessionRevisionToJson));
+             }});
   table.Add({"GET", "/api/v1/sessions/{session_id}/runs", kAnyRole, false, "runs",
-             "The runs of a session (history)", PageParams(), 200, "application/json", nullptr,
-             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+             "The runs of a session (history; each item has the shape of GET /runs/{id})",
+             PageParams(), 200, "application/json", nullptr, nullptr,
+             [&db, runs_service = deps.runs](RequestContext& ctx) -> api::Result<Reply> {
                auto page = ParsePage(ctx);
                if (!page.ok()) return page.status();
                storage::SessionRepository sessions(db);
                if (auto s = sessions.Get(ctx.Id("session_id")); !s.ok()) return s.status();
                auto runs = sessions.ListRuns(ctx.Id("session_id"));
                if (!runs.ok()) return runs.status();
-               return JsonReply(MakePage(
-                   *runs, *page, [](const storage::Run& r) { return r.id; }, RunToJson));
+               api::Status failure;
+               json body = MakePage(
+                   *runs, *page, [](const storage::Run& r) { return r.id; },
+                   [&](const storage::Run& r) -> json {
+                     if (!runs_service) return RunToJson(r);
+                     auto view = runs_service->Get(r.id);
+                     if (!view.ok()) {
+                       failure = view.status();
+                       return nullptr;
+                     }
+                     return services::RunViewToJson(*view);
+                   });
+               if (!failure.ok()) return failure;
+               return JsonReply(std::move(body));
              }});
   table.Add({"GET", "/api/v1/sessions/{session_id}/trials", kAnyRole, false, "trials",
-             "The trials recorded in a session (summaries)", PageParams(), 200,
-             "application/json", nullptr, nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+             "The trials recorded in a session (summaries)", PageParams(), 200, "application/json",
+             nullptr, nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto page = ParsePage(ctx);
                if (!page.ok()) return page.status();
                if (auto s = storage::SessionRepository(db).Get(ctx.Id("session_id")); !s.ok()) {
@@ -275,9 +485,17 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
 
   // --- trials -------------------------------------------------------------------
-  table.Add({"GET", "/api/v1/trials/{trial_id}", kAnyRole, false, "trials",
-             "A recorded trial: JSON, or CSV with Accept: text/csv", {}, 200,
-             "application/json", nullptr, nullptr,
+  table.Add({"GET",
+             "/api/v1/trials/{trial_id}",
+             kAnyRole,
+             false,
+             "trials",
+             "A recorded trial: JSON, or CSV with Accept: text/csv",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
              [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto trial = storage::TrialRepository(db).Get(ctx.Id("trial_id"));
                if (!trial.ok()) return trial.status();
@@ -358,9 +576,17 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                      ParameterSetSummaryToJson));
                }});
   }
-  table.Add({"GET", "/api/v1/parameter-sets/{parameter_set_id}", kAnyRole, false,
-             "parameter-sets", "One parameter set (DESIGN.md §3 JSON) with its provenance", {},
-             200, "application/json", nullptr, nullptr,
+  table.Add({"GET",
+             "/api/v1/parameter-sets/{parameter_set_id}",
+             kAnyRole,
+             false,
+             "parameter-sets",
+             "One parameter set (DESIGN.md §3 JSON) with its provenance",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
              [&db, cache](RequestContext& ctx) -> api::Result<Reply> {
                const std::int64_t id = ctx.Id("parameter_set_id");
                auto body = cache->Find(id);
@@ -391,15 +617,23 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                    [](const storage::Prediction& p) {
                      return json{{"id", p.id},
                                  {"parameter_set_id", p.prediction.parameter_set_id},
-                                 {"trial_id", p.prediction.trial_id
-                                                  ? json(*p.prediction.trial_id)
-                                                  : json(nullptr)},
+                                 {"trial_id", p.prediction.trial_id ? json(*p.prediction.trial_id)
+                                                                    : json(nullptr)},
                                  {"created_at_utc", storage::FormatUtc(p.created_at)}};
                    }));
              }});
-  table.Add({"GET", "/api/v1/predictions/{prediction_id}", kAnyRole, false, "predictions",
-             "A stored prediction with its input and output", {}, 200, "application/json",
-             nullptr, nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({"GET",
+             "/api/v1/predictions/{prediction_id}",
+             kAnyRole,
+             false,
+             "predictions",
+             "A stored prediction with its input and output",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
+             [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto p = storage::PredictionRepository(db).GetPrediction(ctx.Id("prediction_id"));
                if (!p.ok()) return p.status();
                auto parse = [](const std::string& text) {
@@ -416,16 +650,35 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
 
   // --- protocols -------------------------------------------------------------------
-  table.Add({"GET", "/api/v1/protocols", kAnyRole, false, "protocols",
-             "The protocol catalog (DESIGN.md §5)", {}, 200, "application/json", nullptr,
-             nullptr, [](RequestContext&) -> api::Result<Reply> {
+  table.Add({"GET",
+             "/api/v1/protocols",
+             kAnyRole,
+             false,
+             "protocols",
+             "The protocol catalog (DESIGN.md §5)",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
+             [](RequestContext&) -> api::Result<Reply> {
                return JsonReply(protocols::CatalogToJson());
              }});
-  table.Add({"GET", "/api/v1/protocols/{name}", kAnyRole, false, "protocols",
-             "One protocol with its parameters, units and defaults", {}, 200, "application/json",
-             nullptr, nullptr, [](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({"GET",
+             "/api/v1/protocols/{name}",
+             kAnyRole,
+             false,
+             "protocols",
+             "One protocol with its parameters, units and defaults",
+             {},
+             200,
+             "application/json",
+             nullptr,
+             nullptr,
+             [](RequestContext& ctx) -> api::Result<Reply> {
                const auto* protocol = protocols::FindProtocol(ctx.path.at("name"));
-               if (!protocol) return api::Status::NotFound("protocol " + ctx.path.at("name") + " not found");
+               if (!protocol)
+                 return api::Status::NotFound("protocol " + ctx.path.at("name") + " not found");
                return JsonReply(protocols::ProtocolToJson(*protocol));
              }});
 }

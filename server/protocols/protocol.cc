@@ -308,7 +308,11 @@ std::vector<ProtocolDescription> MakeCatalog() {
          6.0, 0.0, 60.0, false},
         {"duration_s", "length of each random-binary trial, s", 10.0, 3.0, 60.0, false},
         {"passive_seed", "seed of the passive (sparse) train", 1.0, 0.0, 4294967295.0, true},
-        {"active_seed", "seed of the active (dense) train", 2.0, 0.0, 4294967295.0, true}}});
+        {"active_seed", "seed of the active (dense) train", 2.0, 0.0, 4294967295.0, true},
+        {"inertia_kgm2",
+         "limb inertia about the knee if known, kg·m²; 0 = from a prior parameter set or the "
+         "subject's weight and shank length (Eq. 4.13)",
+         0.0, 0.0, 5.0, false}}});
   return c;
 }
 

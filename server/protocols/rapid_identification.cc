@@ -22,9 +22,11 @@ api::Result<double> KnownInertia(const SubjectContext& subject) {
                                              e.what());
     }
   }
-  return api::Status::FailedPrecondition(
-      "rapid parameterisation needs the limb inertia: give inertia_kgm2, a prior parameter set, "
-      "or body mass and leg length (Eq. 4.13)");
+  return api::Status::InvalidArgument(
+      "rapid parameterisation needs the limb inertia: give it as parameters.inertia_kgm2 "
+      "(kg·m², > 0), or record the subject's weight_kg and shank_length_cm (a correction: "
+      "PATCH /api/v1/subjects/{id}, `fesbench subjects edit`) so that Eq. 4.13 gives it",
+      "parameters.inertia_kgm2");
 }
 
 api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedTrial>& trials,

@@ -16,8 +16,9 @@ namespace fesbench::server::protocols {
 
 struct RecordedTrial;
 
-/// The inertia the rapid fit uses, kg·m²; kFailedPrecondition if none of
-/// the sources is available.
+/// The inertia the rapid fit uses, kg·m²; kInvalidArgument (field
+/// "parameters.inertia_kgm2", saying how to provide one) if none of the
+/// sources is available.
 api::Result<double> KnownInertia(const SubjectContext& subject);
 
 /// kFailedPrecondition without an inertia or when a trial is missing;

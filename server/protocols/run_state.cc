@@ -2,22 +2,6 @@
 
 namespace fesbench::server::protocols {
 
-std::string_view RunStateName(RunState state) {
-  switch (state) {
-    case RunState::kQueued:
-      return "queued";
-    case RunState::kRunning:
-      return "running";
-    case RunState::kDone:
-      return "done";
-    case RunState::kFailed:
-      return "failed";
-    case RunState::kAborted:
-      return "aborted";
-  }
-  return "failed";
-}
-
 std::string_view RunTransitionName(RunTransition transition) {
   switch (transition) {
     case RunTransition::kStart:
@@ -34,10 +18,6 @@ std::string_view RunTransitionName(RunTransition transition) {
       return "error";
   }
   return "error";
-}
-
-bool IsFinal(RunState state) {
-  return state == RunState::kDone || state == RunState::kFailed || state == RunState::kAborted;
 }
 
 std::optional<RunState> NextState(RunState state, RunTransition transition) {

@@ -14,17 +14,17 @@
 #include <optional>
 #include <string_view>
 
+#include "api/run_state.h"
+
 namespace fesbench::server::protocols {
 
-enum class RunState { kQueued, kRunning, kDone, kFailed, kAborted };
+using api::IsFinal;
+using api::RunState;
+using api::RunStateName;
 enum class RunTransition { kStart, kComplete, kCancel, kEStop, kWatchdog, kError };
 
-/// "queued", "running", "done", "failed", "aborted".
-std::string_view RunStateName(RunState state);
 /// "start", "complete", "cancel", "estop", "watchdog", "error".
 std::string_view RunTransitionName(RunTransition transition);
-/// True for done, failed and aborted.
-bool IsFinal(RunState state);
 /// The state `transition` leads to from `state`, or nullopt if the
 /// transition is not allowed there.
 std::optional<RunState> NextState(RunState state, RunTransition transition);

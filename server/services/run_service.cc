@@ -31,39 +31,20 @@ nlohmann::json OptionalValue(const std::optional<T>& v) {
   return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
 }
 
-storage::RunState ToStorage(RunState state) {
-  switch (state) {
-    case RunState::kQueued:
-      return storage::RunState::kQueued;
-    case RunState::kRunning:
-      return storage::RunState::kRunning;
-    case RunState::kDone:
-      return storage::RunState::kCompleted;
-    case RunState::kFailed:
-      return storage::RunState::kFailed;
-    case RunState::kAborted:
-      return storage::RunState::kCancelled;
-  }
-  return storage::RunState::kFailed;
-}
-
-RunState FromStorage(storage::RunState state) {
-  switch (state) {
-    case storage::RunState::kQueued:
-      return RunState::kQueued;
-    case storage::RunState::kRunning:
-      return RunState::kRunning;
-    case storage::RunState::kCompleted:
-      return RunState::kDone;
-    case storage::RunState::kFailed:
-      return RunState::kFailed;
-    case storage::RunState::kCancelled:
-      return RunState::kAborted;
-  }
-  return RunState::kFailed;
-}
-
 std::string RunTarget(std::int64_t run_id) { return "runs/" + std::to_string(run_id); }
+
+/// The reason of the session revision a tolerance_test run stores; also how
+/// a stored run finds its revision again.
+std::string ToleranceRevisionReason(std::int64_t run_id) {
+  return "tolerance_test run " + std::to_string(run_id);
+}
+
+nlohmann::json ToleranceResultJson(const storage::SessionDetails& d, int revision) {
+  return {{"threshold_ma", d.threshold_ma ? nlohmann::json(*d.threshold_ma) : nlohmann::json()},
+          {"max_tolerated_ma",
+           d.max_tolerated_ma ? nlohmann::json(*d.max_tolerated_ma) : nlohmann::json()},
+          {"session_revision", revision}};
+}
 
 std::string FormatNumber(double v) {
   std::ostringstream s;
@@ -84,24 +65,27 @@ nlohmann::json RunViewToJson(const RunView& v) {
   }
   nlohmann::json events = nlohmann::json::array();
   for (const SafetyEvent& e : v.safety_events) events.push_back(protocols::SafetyEventToJson(e));
-  nlohmann::json j = {{"run_id", v.run_id},
-                      {"session_id", v.session_id},
-                      {"protocol", v.protocol},
-                      {"protocol_version", v.protocol_version},
-                      {"parameters", std::move(parameters)},
-                      {"state", std::string(protocols::RunStateName(v.state))},
-                      {"reason", v.reason},
-                      {"owner", v.owner},
-                      {"owner_user_id", OptionalValue(v.owner_user_id)},
-                      {"created_at", storage::FormatUtc(v.created_at)},
-                      {"started_at", OptionalTime(v.started_at)},
-                      {"finished_at", OptionalTime(v.finished_at)},
-                      {"progress", protocols::ProgressToJson(v.progress)},
-                      {"trial_ids", v.trial_ids},
-                      {"parameter_set_id", OptionalValue(v.parameter_set_id)},
-                      {"safety_events", std::move(events)},
-                      {"values", std::move(values)},
-                      {"live", v.live}};
+  const double eta = v.progress.eta_s;
+  nlohmann::json j = {
+      {"run_id", v.run_id},
+      {"session_id", v.session_id},
+      {"protocol", v.protocol},
+      {"protocol_version", v.protocol_version},
+      {"parameters", std::move(parameters)},
+      {"state", std::string(protocols::RunStateName(v.state))},
+      {"reason", v.reason},
+      {"progress", v.progress.fraction},
+      {"eta_s", std::isfinite(eta) && eta >= 0.0 ? nlohmann::json(eta) : nlohmann::json(nullptr)},
+      {"created_at_utc", storage::FormatUtc(v.created_at)},
+      {"started_at_utc", OptionalTime(v.started_at)},
+      {"finished_at_utc", OptionalTime(v.finished_at)},
+      {"result", v.result},
+      {"controller", v.owner.empty() ? nlohmann::json(nullptr) : nlohmann::json(v.owner)},
+      {"trial_ids", v.trial_ids},
+      {"parameter_set_id", OptionalValue(v.parameter_set_id)},
+      {"values", std::move(values)},
+      {"safety_events", std::move(events)},
+      {"live", v.live}};
   if (v.tolerance) {
     protocols::RunResult r;
     r.tolerance = v.tolerance;
@@ -360,7 +344,7 @@ void RunService::RecordState(const std::shared_ptr<LiveRun>& run, RunState state
                              const std::string& reason) {
   const api::Status st = db_.Write([&](storage::Connection&) -> api::Status {
     api::Result<storage::Run> r =
-        storage::SessionRepository(db_).RecordRunState(run->run_id, ToStorage(state), reason);
+        storage::SessionRepository(db_).RecordRunState(run->run_id, state, reason);
     if (!r.ok()) return r.status();
     return Audit(run->actor, "run.state", RunTarget(run->run_id),
                  std::string(protocols::RunStateName(state)), "ok");
@@ -459,13 +443,55 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
     }
   }
 
+  // tolerance_test writes what it measured into the session (issue 14):
+  // a session revision by the run's user, so that the protocols that need
+  // threshold and max tolerated may run at once.
+  std::optional<storage::SessionDetails> measured;
+  std::vector<std::string> warnings;
+  if (state == RunState::kDone && result.tolerance) {
+    const protocols::ToleranceResult& t = *result.tolerance;
+    if (!t.threshold_ma) {
+      warnings.push_back(
+          "no threshold was detected: the session's threshold and max tolerated are unchanged");
+    } else {
+      api::Result<storage::Session> session =
+          storage::SessionRepository(db_).Get(run->view.session_id);
+      if (session.ok()) {
+        storage::SessionDetails d = session->current.details;
+        d.threshold_ma = *t.threshold_ma;
+        d.max_tolerated_ma = t.max_tolerated_ma;
+        if (api::Status valid = storage::ValidateSessionDetails(d); valid.ok()) {
+          measured = std::move(d);
+        } else {
+          warnings.push_back("the measured values were not stored in the session: " +
+                             valid.message());
+        }
+      } else {
+        warnings.push_back("the session could not be read: " + session.status().message());
+      }
+    }
+  }
+
   std::optional<std::int64_t> set_id;
+  std::optional<int> session_revision;
   std::optional<storage::Run> stored;
   const auto write = [&](RunState s, const std::string& why, bool with_set) -> api::Status {
     return db_.Write([&](storage::Connection&) -> api::Status {
       set_id.reset();
+      session_revision.reset();
       std::string summary = std::string(protocols::RunStateName(s));
       if (!why.empty()) summary += ": " + why;
+      if (with_set && measured) {
+        api::Result<storage::Session> corrected = storage::SessionRepository(db_).Correct(
+            run->view.session_id, *measured, ToleranceRevisionReason(run->run_id),
+            run->actor.user_name);
+        if (!corrected.ok()) return corrected.status();
+        session_revision = corrected->current.revision;
+        summary += "; session " + std::to_string(run->view.session_id) + " revision " +
+                   std::to_string(*session_revision) + " (threshold " +
+                   FormatNumber(*measured->threshold_ma) + " mA, max tolerated " +
+                   FormatNumber(*measured->max_tolerated_ma) + " mA)";
+      }
       if (with_set && new_set) {
         api::Result<storage::ParameterSetSummary> ins =
             storage::ParameterSetRepository(db_).Insert(*new_set);
@@ -474,13 +500,19 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
         summary += "; parameter set " + std::to_string(ins->id);
       }
       api::Result<storage::Run> r =
-          storage::SessionRepository(db_).RecordRunState(run->run_id, ToStorage(s), why);
+          storage::SessionRepository(db_).RecordRunState(run->run_id, s, why);
       if (!r.ok()) return r.status();
       stored = *r;
       return Audit(run->actor, "run.finish", RunTarget(run->run_id), summary, "ok");
     });
   };
   api::Status st = write(state, reason, true);
+  if (!st.ok() && measured) {
+    Log("storing the measured limits of run " + std::to_string(run->run_id) + ": " + st.ToString());
+    warnings.push_back("the measured values could not be stored in the session: " + st.message());
+    measured.reset();
+    st = write(state, reason, true);
+  }
   if (!st.ok() && new_set) {
     Log("storing the parameter set of run " + std::to_string(run->run_id) + ": " + st.ToString());
     state = RunState::kFailed;
@@ -504,7 +536,21 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
     v.parameter_set_id = set_id;
     v.safety_events = result.safety_events;
     v.tolerance = result.tolerance;
+    if (v.tolerance) {
+      for (std::string& w : warnings) v.tolerance->warnings.push_back(std::move(w));
+    }
     v.values = result.values;
+    if (session_revision && measured) {
+      v.result = ToleranceResultJson(*measured, *session_revision);
+    } else if (state == RunState::kDone && result.tolerance) {
+      storage::SessionDetails d;  // measured, but not stored in the session
+      d.threshold_ma = result.tolerance->threshold_ma;
+      d.max_tolerated_ma = result.tolerance->max_tolerated_ma;
+      v.result = ToleranceResultJson(d, 0);
+      v.result["session_revision"] = nullptr;
+    } else if (set_id) {
+      v.result = {{"parameter_set_id", *set_id}};
+    }
     if (state == RunState::kDone) {
       v.progress.fraction = 1.0;
       v.progress.eta_s = 0.0;
@@ -519,6 +565,10 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
   item.state = state;
   item.reason = reason;
   item.parameter_set_id = set_id;
+  {
+    std::lock_guard lock(mu_);
+    item.result = run->view.result;
+  }
   hub_.Publish(std::move(item));
   Forget();
 }
@@ -569,7 +619,7 @@ api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
       if (x.is_number()) v.parameters[k] = x.get<double>();
     }
   }
-  v.state = FromStorage(run->state);
+  v.state = run->state;
   if (v.state == RunState::kFailed || v.state == RunState::kAborted) v.reason = run->message;
   v.created_at = run->created_at;
   v.started_at = run->started_at;
@@ -581,6 +631,15 @@ api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
   if (!trials.ok()) return trials.status();
   for (const storage::TrialSummary& t : *trials) {
     if (t.run_id == run_id) v.trial_ids.push_back(t.id);
+  }
+  if (v.state == RunState::kDone && v.protocol == "tolerance_test") {
+    api::Result<std::vector<storage::SessionRevision>> revisions =
+        storage::SessionRepository(db_).Revisions(run->session_id);
+    if (!revisions.ok()) return revisions.status();
+    const std::string reason = ToleranceRevisionReason(run_id);
+    for (const storage::SessionRevision& r : *revisions) {
+      if (r.reason == reason) v.result = ToleranceResultJson(r.details, r.revision);
+    }
   }
   // The set a completed run stored names the run's trials in its provenance.
   if (v.state == RunState::kDone && !v.trial_ids.empty()) {
@@ -602,6 +661,7 @@ api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
                                         [&](std::int64_t id) { return mine.count(id) > 0; });
       if (all_mine) {
         v.parameter_set_id = s.id;
+        v.result = {{"parameter_set_id", s.id}};
         break;
       }
     }
@@ -720,6 +780,11 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   api::Result<protocols::Plan> plan = owner_.Prepare(request);
   if (!plan.ok()) return plan.status();
   if (plan->rapid) {
+    // An explicit inertia (parameter inertia_kgm2 > 0) comes before any other source.
+    if (const auto it = plan->parameters.find("inertia_kgm2");
+        it != plan->parameters.end() && it->second > 0.0) {
+      request.subject.inertia_kgm2 = it->second;
+    }
     api::Result<double> inertia = protocols::KnownInertia(request.subject);
     if (!inertia.ok()) return inertia.status();
   }
@@ -801,7 +866,7 @@ api::Status RunService::CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRu
     api::Result<storage::Run> stored = storage::SessionRepository(db_).GetRun(run_id);
     if (!stored.ok()) return stored.status();
     return api::Status::Conflict("run " + std::to_string(run_id) + " is not in progress (" +
-                                 std::string(storage::RunStateName(stored->state)) + ")");
+                                 std::string(api::RunStateName(stored->state)) + ")");
   }
   std::lock_guard lock(mu_);
   if (run->final || run_id != current_run_id_) {

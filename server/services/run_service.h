@@ -87,14 +87,22 @@ struct RunView {
   std::vector<SafetyEvent> safety_events;        ///< of this run (live/in-memory views only).
   std::optional<protocols::ToleranceResult> tolerance;  ///< tolerance_test.
   std::map<std::string, double> values;                 ///< figures decided during the run.
+  /// What the run produced, for clients (null while running or when it
+  /// produced nothing): tolerance_test {"threshold_ma", "max_tolerated_ma",
+  /// "session_revision"} (the session revision it stored), rapid
+  /// {"parameter_set_id"}.
+  nlohmann::json result;
   bool live = false;  ///< from memory (this process ran it) rather than storage.
 };
 
-/// {"run_id", "session_id", "protocol", "protocol_version", "parameters",
-///  "state", "reason", "owner", "owner_user_id", "created_at",
-///  "started_at", "finished_at" (ISO-8601 UTC or null), "progress"
-///  (protocols::ProgressToJson), "trial_ids", "parameter_set_id",
-///  "safety_events", "tolerance" (if any), "values", "live"}.
+/// The run resource (contract of issue 14 §4, one vocabulary on every
+/// route): {"run_id", "session_id", "protocol", "protocol_version" (int),
+///  "parameters", "state" (queued|running|done|failed|aborted), "reason",
+///  "progress" (0–1), "eta_s" (wall s, null when unknown), "created_at_utc",
+///  "started_at_utc", "finished_at_utc" (ISO-8601 UTC or null), "result"
+///  (RunView::result), "controller" (user name or null)}, plus the details
+///  "trial_ids", "parameter_set_id", "values", "safety_events", "live" and,
+///  for tolerance_test runs of this process, "tolerance".
 nlohmann::json RunViewToJson(const RunView& view);
 
 /// What the bench is doing (GET bench, DDS fesbench/bench/state).

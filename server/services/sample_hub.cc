@@ -88,6 +88,7 @@ nlohmann::json HubItemToJson(const HubItem& item) {
       j["reason"] = item.reason;
       j["parameter_set_id"] =
           item.parameter_set_id ? nlohmann::json(*item.parameter_set_id) : nlohmann::json(nullptr);
+      j["result"] = item.result;
       break;
   }
   return j;

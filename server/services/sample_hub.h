@@ -47,6 +47,7 @@ struct HubItem {
   std::uint64_t first_sample = 0;
   std::optional<std::int64_t> trial_id;          ///< kTrial: the stored trial.
   std::optional<std::int64_t> parameter_set_id;  ///< kEnd: a stored parameter set.
+  nlohmann::json result;  ///< kEnd: what the run produced (RunView::result), or null.
 };
 
 using HubItemPtr = std::shared_ptr<const HubItem>;
@@ -57,7 +58,7 @@ std::string_view HubItemKindName(HubItem::Kind kind);
 /// The JSON data of an item: {"seq", "run_id", "kind", …} plus, by kind,
 /// "state"/"reason", "progress" (protocols::ProgressToJson), "samples"
 /// (protocols::SampleBatchToJson) with "first_sample", "trial"/"trial_name"/
-/// "trial_id", or "state"/"reason"/"parameter_set_id".
+/// "trial_id", or "state"/"reason"/"parameter_set_id"/"result".
 nlohmann::json HubItemToJson(const HubItem& item);
 
 struct SubscribeOptions {

@@ -243,7 +243,7 @@ TEST(RunService, IsometricRampRunStoresStatesTrialsAndAudit) {
   // The stored run: queued → running → completed.
   auto run = storage::SessionRepository(*rig.db).GetRun(run_id);
   ASSERT_TRUE(run.ok());
-  EXPECT_EQ(run->state, storage::RunState::kCompleted);
+  EXPECT_EQ(run->state, storage::RunState::kDone);
   EXPECT_EQ(run->protocol_name, "isometric_ramp_irc");
   EXPECT_EQ(run->protocol_version, std::to_string(plan.protocol_version));
   EXPECT_EQ(nlohmann::json::parse(run->parameters_json).at("ramps"), plan.parameters.at("ramps"));
@@ -419,7 +419,7 @@ TEST(RunService, SecondStartConflictsAndCancelAbortsTheRun) {
   EXPECT_LT(view->progress.fraction, 0.5);
   auto run = storage::SessionRepository(*rig.db).GetRun(first->run_id);
   ASSERT_TRUE(run.ok());
-  EXPECT_EQ(run->state, storage::RunState::kCancelled);
+  EXPECT_EQ(run->state, storage::RunState::kAborted);
   EXPECT_EQ(run->message, "cancelled by cora");
   EXPECT_DOUBLE_EQ(rig.bench->ReadSensors().stim_ma, 0.0);
   EXPECT_FALSE(rig.service->State().busy);
@@ -447,7 +447,7 @@ TEST(RunService, EStopAbortsLatchesAndClearsByClinicianOnly) {
   EXPECT_DOUBLE_EQ(rig.bench->ReadSensors().stim_ma, 0.0);
   auto stored = storage::SessionRepository(*rig.db).GetRun(run->run_id);
   ASSERT_TRUE(stored.ok());
-  EXPECT_EQ(stored->state, storage::RunState::kCancelled);
+  EXPECT_EQ(stored->state, storage::RunState::kAborted);
   EXPECT_EQ(stored->message, "e-stop");
 
   BenchState state = rig.service->State();
@@ -522,7 +522,7 @@ TEST(RunService, ShutdownCancelsTheRunSafelyAndRefusesNewOnes) {
   EXPECT_DOUBLE_EQ(rig.bench->ReadSensors().stim_ma, 0.0);
   auto stored = storage::SessionRepository(*rig.db).GetRun(run->run_id);
   ASSERT_TRUE(stored.ok());
-  EXPECT_EQ(stored->state, storage::RunState::kCancelled);
+  EXPECT_EQ(stored->state, storage::RunState::kAborted);
   auto refused =
       rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
   ASSERT_FALSE(refused.ok());

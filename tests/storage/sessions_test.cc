@@ -77,15 +77,15 @@ TEST_F(StorageTest, RunStateIsTheLastEvent) {
   auto running = sessions.RecordRunState(run->id, RunState::kRunning);
   ASSERT_TRUE(running.ok()) << running.status().ToString();
   ASSERT_TRUE(running->started_at.has_value());
-  auto done = sessions.RecordRunState(run->id, RunState::kCompleted, "3 trials");
+  auto done = sessions.RecordRunState(run->id, RunState::kDone, "3 trials");
   ASSERT_TRUE(done.ok());
-  EXPECT_EQ(done->state, RunState::kCompleted);
+  EXPECT_EQ(done->state, RunState::kDone);
   EXPECT_EQ(done->message, "3 trials");
   ASSERT_TRUE(done->finished_at.has_value());
   EXPECT_EQ(*done->finished_at - *done->started_at, std::chrono::seconds(1));
   auto again = sessions.RecordRunState(run->id, RunState::kRunning);
   EXPECT_EQ(again.status().code(), api::ErrorCode::kFailedPrecondition);
-  EXPECT_EQ(again.status().message(), "run 1 cannot go from completed to running");
+  EXPECT_EQ(again.status().message(), "run 1 cannot go from done to running");
   auto list = sessions.ListRuns(session.id);
   ASSERT_TRUE(list.ok());
   ASSERT_EQ(list->size(), 1u);

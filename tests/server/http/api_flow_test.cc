@@ -192,7 +192,7 @@ TEST(ApiFlowTest, RapidParameterisationEndToEnd) {
                    analyst);
   ASSERT_EQ(runs.status, 200);
   ASSERT_EQ(runs.body["items"].size(), 1u);
-  EXPECT_EQ(runs.body["items"][0]["state"], "completed");
+  EXPECT_EQ(runs.body["items"][0]["state"], "done");
   auto predictions = Call(client, "GET",
                           "/api/v1/parameter-sets/" + std::to_string(set_id) + "/predictions",
                           analyst);
