@@ -177,13 +177,13 @@ try {
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#live[data-state="running"]').waitFor();
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.samples) > 100);
-    await page.getByRole('button', { name: 'Cancel run' }).click();
+    await page.locator('#cancel-run').click();
     await page.locator('#live[data-state="aborted"]').waitFor();
     await page.locator('#run-end .msg').filter({ hasText: /ended: aborted/ }).waitFor();
     console.log(`    ${await page.locator('#run-end .msg').textContent()}`);
   });
 
-  await step('e-stop during a run: the run ends, the latch shows, a start is refused, then cleared', async () => {
+  await step('e-stop during a run: the run ends, the latch shows, start disabled, cleared after confirming', async () => {
     await page.locator('#protocol').selectOption('active_random_binary');
     await page.locator('#f-duration_s').fill('120');
     await page.getByRole('button', { name: 'Start protocol' }).click();
