@@ -160,8 +160,8 @@ export async function sessionView(ctx, sessionId) {
     const p = current();
     if (!p) return;
     const tip = [p.description, p.thesis_section ? `Thesis ${p.thesis_section}.` : ''].filter(Boolean).join(' ');
-    const stim = p.stimulates === undefined ? '' : p.stimulates ? 'Stimulates; ' : 'No stimulation; ';
-    description.replaceChildren(`${stim}bench mode ${p.bench_mode}.`,
+    const stim = p.stimulates === undefined ? '' : p.stimulates ? 'Stimulates; bench' : 'No stimulation; bench';
+    description.replaceChildren(`${stim || 'Bench'} mode ${p.bench_mode}.`,
       h('a', { href: '#', class: 'help-tip', id: 'protocol-help', title: tip, 'aria-label': `About this protocol: ${tip}`,
         onclick: (e) => { e.preventDefault(); helpText.hidden = !helpText.hidden; } }, '?'));
     helpText.textContent = tip;
@@ -314,10 +314,17 @@ export async function sessionView(ctx, sessionId) {
       const parts = [`Run ${runId} ended: ${end.state}.`];
       if (end.reason) parts.push(`Reason: ${end.reason}.`);
       const r = end.result;
-      const recorded = r && Number.isFinite(r.max_tolerated_ma)
-        ? h('p', { class: 'msg msg-ok', id: 'run-recorded' }, `Recorded in this session: threshold ${fmt(r.threshold_ma, 4)} mA, ` +
-          `max tolerated ${fmt(r.max_tolerated_ma, 4)} mA${r.session_revision ? ` (revision ${r.session_revision})` : ''}.`)
-        : '';
+      let recorded = '';
+      if (r && r.session_revision) {
+        recorded = h('p', { class: 'msg msg-ok', id: 'run-recorded' }, `Recorded in this session: threshold ${fmt(r.threshold_ma, 4)} mA, ` +
+          `max tolerated ${fmt(r.max_tolerated_ma, 4)} mA (revision ${r.session_revision}).`);
+      } else if (r && 'max_tolerated_ma' in r) {
+        recorded = h('p', { class: 'msg msg-error', id: 'run-not-recorded' }, Number.isFinite(r.threshold_ma)
+          ? `Measured threshold ${fmt(r.threshold_ma, 4)} mA and max tolerated ${fmt(r.max_tolerated_ma, 4)} mA, but they were not ` +
+            'stored in the session: correct the session by hand or repeat the test.'
+          : 'No threshold was detected (no torque response before the stop): the session\'s values are unchanged. ' +
+            'Repeat the test and stop only after a clear response.');
+      }
       endSlot.replaceChildren(h('p', { class: `msg ${end.state === 'done' ? 'msg-ok' : 'msg-error'}`, role: 'status' }, parts.join(' ')),
         recorded,
         end.parameter_set_id ? h('p', {}, h('a', { href: `#/parameter-sets/${end.parameter_set_id}`, id: 'run-parameter-set' },
