@@ -24,6 +24,9 @@ struct BenchLimits {
   double pulse_width_us = 300.0;        ///< stimulation pulse width.
   double min_angle_deg = 10.0;          ///< mechanical range of motion.
   double max_angle_deg = 110.0;
+  /// Model gate (DESIGN.md §6): the fastest a predicted knee may reach a
+  /// stop of the range of motion, deg/s.
+  double max_stop_impact_deg_s = 90.0;
   double max_motor_torque_nm = 50.0;    ///< servo torque limit at the knee.
   double control_rate_hz = 1000.0;      ///< motor set-point updates.
   double sample_rate_hz = 200.0;        ///< position, torque, acceleration.

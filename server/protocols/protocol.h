@@ -102,6 +102,8 @@ struct SubjectContext {
   /// The leg's current parameter set, if any: gates prediction protocols
   /// (model-gated stimulation) and supplies the inertia for the rapid fit.
   std::optional<model::ParameterSet> parameter_set;
+  /// Its stored id, when it has one (named in the model gate's messages).
+  std::optional<std::int64_t> parameter_set_id;
 };
 
 /// Checks a context: finite values, 0 ≤ threshold < max tolerated ≤ 100 mA,

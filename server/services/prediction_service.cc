@@ -10,6 +10,7 @@
 #include "model/evaluation.h"
 #include "model/identify_rapid.h"
 #include "model/signal.h"
+#include "server/protocols/model_gate.h"
 #include "server/services/analysis_json.h"
 #include "server/services/stored_trials.h"
 #include "storage/audit_log.h"
@@ -154,7 +155,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
                                                 std::to_string(config_.max_duration_s) + " s limit",
                                             "stimulus");
       }
-      pulses = model::PulsesFromEnvelope(env, config_.pulse_rate_hz);
+      pulses = protocols::EnvelopePulses(env, config_.pulse_rate_hz);
       options.duration_s = duration;
       options.output_rate_hz = config_.output_rate_hz;
       out.mode = request.mode.value_or(PredictionMode::kFreeSwing);
@@ -163,11 +164,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
       } else if (request.initial_angle_deg) {
         out.initial_angle_deg = *request.initial_angle_deg;
       } else {
-        try {
-          out.initial_angle_deg = model::PassiveRestAngle(params.passive);
-        } catch (const std::invalid_argument&) {
-          out.initial_angle_deg = model::kReferenceAngleDeg;  // no stable rest angle
-        }
+        out.initial_angle_deg = protocols::FreeSwingStartAngleDeg(params);
       }
       out.initial_velocity_deg_s = request.initial_velocity_deg_s;
     } else {
@@ -254,7 +251,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
     stage = "simulation";
     out.predicted = out.mode == PredictionMode::kIsometric
                         ? model::SimulateIsometric(params, pulses, out.initial_angle_deg, options)
-                        : model::SimulateFreeSwing(params, pulses, options);
+                        : protocols::SimulateStimulatedSwing(params, pulses, options);
     if (out.mode == PredictionMode::kIsometric && !out.predicted.torque_nm.empty()) {
       // The torque before any activation is the offset the bench removes (§5.3).
       const double offset = out.predicted.torque_nm.front();

@@ -139,6 +139,7 @@ api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64
       storage::ParameterSetRepository(db).Latest(session->subject_id, session->leg_id);
   if (latest.ok()) {
     c.parameter_set = latest->params;
+    c.parameter_set_id = latest->summary.id;
     out.parameter_set_id = latest->summary.id;
   } else if (latest.status().code() != api::ErrorCode::kNotFound) {
     return latest.status();

@@ -562,26 +562,63 @@ TEST(BenchOwner, RefusesBadRequestsAndLatchedEStop) {
   EXPECT_FALSE(own.safe_bench().estopped());
 }
 
-TEST(ModelGate, RefusesPredictionsThatWouldLeaveTheRangeOfMotion) {
+TEST(ModelGate, RefusesOnlyAFastArrivalAtAStopAndNamesIt) {
   SubjectContext ctx;
   ctx.threshold_ma = 20.0;
   ctx.max_tolerated_ma = 45.0;
   ctx.min_angle_deg = 15.0;
   ctx.max_angle_deg = 108.0;
   ctx.parameter_set = model::ExampleParameterSet();
+  ctx.parameter_set_id = 4;
+  const model::JointLimits stops{ctx.min_angle_deg, ctx.max_angle_deg};
+  // A sane input: a gentle ramp extends the knee without reaching a stop.
   auto plan = MakePlan("prediction_ramp", {{"max_ma", 26.0}}, ctx);
   ASSERT_TRUE(plan.ok());
-  auto ex = PredictExcursion(*plan, *ctx.parameter_set);
-  ASSERT_TRUE(ex.ok());
-  EXPECT_LT(ex->min_angle_deg, ex->rest_angle_deg - 10.0);  // the ramp extends the knee
-  EXPECT_GT(ex->min_angle_deg, ctx.min_angle_deg);
+  auto p = PredictPlanSwing(*plan, *ctx.parameter_set, stops, 33.0);
+  ASSERT_TRUE(p.ok()) << p.status().ToString();
+  EXPECT_LT(p->min_angle_deg, p->start_angle_deg - 10.0);  // the ramp extends the knee
+  EXPECT_GT(p->min_angle_deg, ctx.min_angle_deg);
+  EXPECT_TRUE(p->impacts.empty());
   EXPECT_TRUE(CheckModelGate(*plan, ctx).ok());
-  // A range that ends above the predicted extension is refused, naming it.
-  SubjectContext narrow = ctx;
-  narrow.min_angle_deg = ex->min_angle_deg + 5.0;
-  const api::Status refused = CheckModelGate(*plan, narrow);
+  // The start is the passive rest angle, as in POST /predictions.
+  EXPECT_NEAR(p->start_angle_deg, FreeSwingStartAngleDeg(*ctx.parameter_set), 1e-12);
+
+  // A step at the subject's max drives this leg hard into the extension stop:
+  // the same simulation without stops goes past 15° (so the stop is real).
+  auto step = MakePlan("prediction_step", {}, ctx);
+  ASSERT_TRUE(step.ok());
+  auto hit = PredictPlanSwing(*step, *ctx.parameter_set, stops, 33.0);
+  ASSERT_TRUE(hit.ok()) << hit.status().ToString();
+  ASSERT_FALSE(hit->impacts.empty());
+  const StopImpact& first = hit->impacts.front();
+  EXPECT_TRUE(first.extension);
+  EXPECT_DOUBLE_EQ(first.stop_deg, 15.0);
+  EXPECT_GT(first.speed_deg_s, kDefaultMaxStopImpactDegS);
+  ASSERT_TRUE(first.onset_s.has_value());
+  EXPECT_LT(*first.onset_s, first.t_s);
+  auto free = PredictPlanSwing(*step, *ctx.parameter_set, model::JointLimits{0.1, 179.9}, 33.0);
+  ASSERT_TRUE(free.ok());
+  EXPECT_LT(free->min_angle_deg, 15.0);
+  const api::Status refused = CheckModelGate(*step, ctx);
   EXPECT_EQ(refused.code(), api::ErrorCode::kFailedPrecondition);
-  EXPECT_NE(refused.message().find("predicted knee angle"), std::string::npos);
+  const std::string m = refused.message();
+  EXPECT_NE(m.find("parameter set 4"), std::string::npos) << m;
+  EXPECT_NE(m.find("the stimulation from"), std::string::npos) << m;
+  EXPECT_NE(m.find("extension stop (15°)"), std::string::npos) << m;
+  EXPECT_NE(m.find("deg/s"), std::string::npos) << m;
+  EXPECT_EQ(m.find("cannot simulate"), std::string::npos) << m;
+  // A bench whose stops take that speed lets it run.
+  EXPECT_TRUE(CheckModelGate(*step, ctx, 33.0, first.speed_deg_s * 1.01 + 1000.0).ok());
+
+  // A set that cannot simulate the input (RK4 unstable with a vanishing
+  // inertia) is reported as such, not as a range-of-motion refusal.
+  SubjectContext diverging = ctx;
+  diverging.parameter_set->passive.inertia_kgm2 = 1e-7;
+  const api::Status unusable = CheckModelGate(*plan, diverging);
+  EXPECT_EQ(unusable.code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(unusable.message().rfind("parameter set 4 cannot simulate this input: ", 0), 0u)
+      << unusable.message();
+
   // Non-prediction protocols and legs without a parameter set are not gated.
   auto iso = MakePlan("isometric_ramp_irc", {}, ctx);
   ASSERT_TRUE(iso.ok());
@@ -589,15 +626,15 @@ TEST(ModelGate, RefusesPredictionsThatWouldLeaveTheRangeOfMotion) {
   tiny.min_angle_deg = 89.0;
   tiny.max_angle_deg = 91.0;
   EXPECT_TRUE(CheckModelGate(*iso, tiny).ok());
-  SubjectContext none = narrow;
+  SubjectContext none = ctx;
   none.parameter_set.reset();
-  EXPECT_TRUE(CheckModelGate(*plan, none).ok());
-  // The owner applies the gate before touching the bench: the full 45 mA
-  // ramp would extend this model's knee far past 15°.
+  EXPECT_TRUE(CheckModelGate(*step, none).ok());
+  // The owner applies the gate before touching the bench: the step at max
+  // would drive this model's knee into the 15° stop.
   const VirtualSubject vs = Subject(7);
   SimulatedBench bench(vs);
   BenchOwner own(bench);
-  const api::Status st = own.Start({"prediction_ramp", {}, ctx, "a"});
+  const api::Status st = own.Start({"prediction_step", {}, ctx, "a"});
   EXPECT_EQ(st.code(), api::ErrorCode::kFailedPrecondition) << st.ToString();
   EXPECT_FALSE(own.busy());
   EXPECT_TRUE(bench.DeliveredPulses().empty());

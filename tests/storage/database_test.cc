@@ -35,12 +35,12 @@ TEST_F(StorageTest, OpensInWalWithForeignKeysAndFullSync) {
   auto version = db_->SchemaVersion();
   ASSERT_TRUE(version.ok());
   EXPECT_EQ(*version, LatestSchemaVersion());
-  EXPECT_EQ(LatestSchemaVersion(), 4);
+  EXPECT_EQ(LatestSchemaVersion(), 6);
   auto recorded = db_->Read([](Connection& c) {
     return c.QueryText("SELECT group_concat(version) FROM schema_migrations");
   });
   ASSERT_TRUE(recorded.ok());
-  EXPECT_EQ(*recorded, "1,2,3,4");
+  EXPECT_EQ(*recorded, "1,2,3,4,5,6");
 }
 
 TEST_F(StorageTest, ReopeningAppliesNothingTwice) {
@@ -50,7 +50,7 @@ TEST_F(StorageTest, ReopeningAppliesNothingTwice) {
   auto count = (*db)->Read(
       [](Connection& c) { return c.QueryText("SELECT count(*) FROM schema_migrations"); });
   ASSERT_TRUE(count.ok());
-  EXPECT_EQ(*count, "4");
+  EXPECT_EQ(*count, "6");
 }
 
 TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
@@ -74,23 +74,35 @@ TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
     ASSERT_TRUE(tables.ok());
     EXPECT_EQ(*tables, "0");
 
-    SubjectRepository subjects(**db);
-    SubjectDetails details;
-    details.age_years = 34;
-    details.sex = Sex::kFemale;
-    details.height_cm = 168.5;
-    auto subject = subjects.Create("P07", details);
-    ASSERT_TRUE(subject.ok());
-    subject_id = subject->id;
-    auto corrected = details;
-    corrected.height_cm = 169.0;
-    ASSERT_TRUE(subjects.Correct(subject_id, corrected, "remeasured").ok());
-    auto leg = subjects.AddLeg(subject_id, Side::kLeft);
-    ASSERT_TRUE(leg.ok());
-    SessionDetails sd{"2026-02-03", "lateral shank", 18.0, 55.0, "first visit"};
-    auto session = SessionRepository(**db).Create(subject_id, leg->id, sd);
-    ASSERT_TRUE(session.ok()) << session.status().ToString();
-    session_id = session->id;
+    // Rows as the version-1 schema had them (today's repositories write
+    // columns of later migrations), a finished run among them.
+    ASSERT_TRUE((*db)
+                    ->Write([](Connection& c) {
+                      return c.ExecScript(
+                          "INSERT INTO subjects VALUES (1, 'P07', '2026-02-03T08:00:00.000000Z');"
+                          "INSERT INTO subject_revisions (id, subject_id, revision, age_years, sex,"
+                          " height_cm, corrects_id, reason, recorded_at_utc) VALUES"
+                          " (1, 1, 1, 34, 'female', 168.5, NULL, '', '2026-02-03T08:00:00.000000Z'),"
+                          " (2, 1, 2, 34, 'female', 169.0, 1, 'remeasured',"
+                          " '2026-02-03T08:01:00.000000Z');"
+                          "INSERT INTO legs VALUES (1, 1, 'left', '2026-02-03T08:00:00.000000Z');"
+                          "INSERT INTO sessions VALUES (1, 1, 1, '2026-02-03T08:02:00.000000Z');"
+                          "INSERT INTO session_revisions (id, session_id, revision, session_date,"
+                          " accelerometer_placement, threshold_ma, max_tolerated_ma, notes,"
+                          " corrects_id, reason, recorded_at_utc) VALUES (1, 1, 1, '2026-02-03',"
+                          " 'lateral shank', 18.0, 55.0, 'first visit', NULL, '',"
+                          " '2026-02-03T08:02:00.000000Z');"
+                          "INSERT INTO runs (id, session_id, protocol_name, protocol_version,"
+                          " parameters_json, created_at_utc) VALUES (1, 1, 'irc_ramp', '1', '{}',"
+                          " '2026-02-03T08:03:00.000000Z');"
+                          "INSERT INTO run_events (run_id, state, message, at_utc) VALUES"
+                          " (1, 'queued', '', '2026-02-03T08:03:00.000000Z'),"
+                          " (1, 'running', '', '2026-02-03T08:03:01.000000Z'),"
+                          " (1, 'completed', '', '2026-02-03T08:03:09.000000Z');");
+                    })
+                    .ok());
+    subject_id = 1;
+    session_id = 1;
     auto user = UserRepository(**db).CreateUser("alice", Role::kClinician);
     ASSERT_TRUE(user.ok());
     user_id = user->id;
@@ -103,7 +115,7 @@ TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   auto version = (*db)->SchemaVersion();
   ASSERT_TRUE(version.ok());
-  EXPECT_EQ(*version, 4);
+  EXPECT_EQ(*version, LatestSchemaVersion());
 
   auto subject = SubjectRepository(**db).Get(subject_id);
   ASSERT_TRUE(subject.ok());
@@ -120,6 +132,12 @@ TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
   EXPECT_EQ(session->current.details.threshold_ma, 18.0);
   EXPECT_EQ(session->current.details.max_tolerated_ma, 55.0);
   EXPECT_EQ(session->current.details.notes, "first visit");
+  EXPECT_EQ(session->current.recorded_by, "");
+  // Migration 6 renamed the run states: 'completed' reads as done.
+  auto run = SessionRepository(**db).GetRun(1);
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  EXPECT_EQ(run->state, RunState::kDone);
+  EXPECT_TRUE(run->finished_at.has_value());
   auto user = UserRepository(**db).GetUser(user_id);
   ASSERT_TRUE(user.ok());
   EXPECT_EQ(user->name, "alice");
@@ -156,7 +174,7 @@ TEST(DatabaseOpen, RejectsBadOptions) {
   ASSERT_FALSE(db.ok());
   EXPECT_EQ(db.status().field(), "reader_count");
   options.reader_count = 1;
-  options.target_schema_version = 5;
+  options.target_schema_version = 7;
   db = Database::Open(options);
   ASSERT_FALSE(db.ok());
   EXPECT_EQ(db.status().field(), "target_schema_version");
