@@ -13,7 +13,7 @@
 //                                 --chromium BIN --artefacts DIR
 import assert from 'node:assert/strict';
 import { join } from 'node:path';
-import { arg, call, expectEstopVisible, launch, makeUser, shooter, startServer, step, stopServer } from './harness.mjs';
+import { arg, call, expectEstopVisible, fillParameter, launch, makeUser, shooter, startServer, step, stopServer } from './harness.mjs';
 
 // Runs last a few seconds of wall time (rapid ≈ 7 s), so switching views
 // really happens while the run goes on.
@@ -247,7 +247,7 @@ try {
     await page.goto(`${server.url}/#/sessions/${sessionId}`);
     await page.locator('#run-form').waitFor();
     await page.locator('#protocol').selectOption('active_random_binary');
-    await page.locator('#f-duration_s').fill('120'); // long enough for the reload and the e-stop below
+    await fillParameter(page, 'duration_s', '120'); // long enough for the reload and the e-stop below
     const { runId } = await startProtocol('active_random_binary');
     assert.ok(runId);
     await page.locator('#live[data-state="running"]').waitFor();

@@ -126,3 +126,10 @@ export async function expectEstopVisible(page) {
   assert.ok(box && box.y >= 0 && box.y + box.height <= vp.height && box.x + box.width <= vp.width,
     `e-stop not in the viewport: ${JSON.stringify(box)}`);
 }
+
+/// Fills a protocol parameter, unfolding the advanced parameters if it is one of them.
+export async function fillParameter(page, name, value) {
+  const input = page.locator(`#f-${name}`);
+  if (!(await input.isVisible())) await page.locator('#advanced-parameters > summary').click();
+  await input.fill(value);
+}

@@ -9,7 +9,7 @@
 import net from 'node:net';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { arg, call, expectEstopVisible, launch, shooter, startServer, step, stopServer } from './harness.mjs';
+import { arg, call, expectEstopVisible, fillParameter, launch, shooter, startServer, step, stopServer } from './harness.mjs';
 
 const TIME_SCALE = 8;
 const artefacts = arg('--artefacts');
@@ -139,10 +139,10 @@ try {
     assert.equal(await page.locator('#f-duration_s').inputValue(), '10');
     // A range-scaled amplitude shows mA: threshold + 0.6·(max − threshold).
     assert.equal(await page.locator('#f-amplitude_ma').inputValue(), '35');
-    await page.locator('#f-max_ma').fill('500');
+    await fillParameter(page, 'max_ma', '500');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#f-max_ma-error').filter({ hasText: /out of range/ }).waitFor();
-    await page.locator('#f-max_ma').fill('45');
+    await fillParameter(page, 'max_ma', '45');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#live[data-state="running"]').waitFor();
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.samples || 0) > 600 &&
@@ -173,7 +173,7 @@ try {
   await step('cancel a run', async () => {
     await page.goto(sessionUrl);
     await page.locator('#protocol').selectOption('active_random_binary');
-    await page.locator('#f-duration_s').fill('120');
+    await fillParameter(page, 'duration_s', '120');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#live[data-state="running"]').waitFor();
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.samples) > 100);
@@ -185,7 +185,7 @@ try {
 
   await step('e-stop during a run: the run ends, the latch shows, start disabled, cleared after confirming', async () => {
     await page.locator('#protocol').selectOption('active_random_binary');
-    await page.locator('#f-duration_s').fill('120');
+    await fillParameter(page, 'duration_s', '120');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#live[data-state="running"]').waitFor();
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.samples) > 100);
