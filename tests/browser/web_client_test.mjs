@@ -6,57 +6,15 @@
 //
 //   node web_client_test.mjs --server BIN --web-root DIR --node-modules DIR
 //                            --chromium BIN --artefacts DIR
-import { spawn } from 'node:child_process';
-import { mkdirSync, mkdtempSync, readFileSync, rmSync } from 'node:fs';
-import { createRequire } from 'node:module';
 import net from 'node:net';
-import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-
-const arg = (name) => {
-  const i = process.argv.indexOf(name);
-  if (i < 0) throw new Error(`missing ${name}`);
-  return process.argv[i + 1];
-};
-const serverBin = arg('--server');
-const webRoot = arg('--web-root');
-const artefacts = arg('--artefacts');
-const chromiumBin = arg('--chromium');
-const { chromium } = createRequire(join(arg('--node-modules'), 'index.js'))('playwright-core');
+import { arg, call, expectEstopVisible, fillParameter, launch, shooter, startServer, step, stopServer } from './harness.mjs';
 
 const TIME_SCALE = 8;
-const work = mkdtempSync(join(tmpdir(), 'fesbench-browser-'));
-mkdirSync(artefacts, { recursive: true });
-
-// --- the server ---------------------------------------------------------------------
-function startServer() {
-  const child = spawn(serverBin, ['--port', '0', '--db', join(work, 'fesbench.db'), '--time-scale', String(TIME_SCALE),
-    '--web-root', webRoot, '--seed', '3', '--dds-transport', 'off'], { stdio: ['ignore', 'pipe', 'pipe'] });
-  let out = '';
-  child.stderr.on('data', (d) => process.stderr.write(`[server] ${d}`));
-  return new Promise((resolve, reject) => {
-    const timer = setTimeout(() => reject(new Error(`server did not start: ${out}`)), 20000);
-    child.on('exit', (code) => reject(new Error(`server exited ${code}: ${out}`)));
-    child.stdout.on('data', (d) => {
-      out += d;
-      const m = out.match(/listening on (http:\/\/127\.0\.0\.1:\d+)\//);
-      if (m) {
-        clearTimeout(timer);
-        const token = readFileSync(join(work, 'admin.token'), 'utf8').trim();
-        resolve({ child, url: m[1], token });
-      }
-    });
-  });
-}
-
-async function call(server, method, path, body, token = server.token) {
-  const res = await fetch(`${server.url}/api/v1${path}`, {
-    method, headers: { Authorization: `Bearer ${token}`, ...(body ? { 'Content-Type': 'application/json' } : {}) },
-    body: body ? JSON.stringify(body) : undefined });
-  const text = await res.text();
-  return { status: res.status, body: text ? JSON.parse(text) : null };
-}
+const artefacts = arg('--artefacts');
+const shots = shooter(artefacts);
+const shot = (page, name) => shots.full(page, name);
 
 // The status of a GET with exactly this request target (no URL normalisation).
 function rawStatus(url, target) {
@@ -71,30 +29,8 @@ function rawStatus(url, target) {
   });
 }
 
-// --- steps -------------------------------------------------------------------------
 const started = Date.now();
-let shots = 0;
-async function shot(page, name) {
-  shots += 1;
-  // A full-page capture with the sticky header at the top (not mid-page).
-  await page.evaluate(() => { document.querySelector('.top').style.position = 'static'; });
-  await page.screenshot({ path: join(artefacts, `${String(shots).padStart(2, '0')}-${name}.png`), fullPage: true });
-  await page.evaluate(() => { document.querySelector('.top').style.position = ''; });
-}
-async function step(name, fn) {
-  const t0 = Date.now();
-  await fn();
-  console.log(`ok  ${name} (${Date.now() - t0} ms)`);
-}
-// The e-stop button is visible (inside the viewport) on this page.
-async function expectEstopVisible(page) {
-  const box = await page.locator('#estop').boundingBox();
-  const vp = page.viewportSize();
-  assert.ok(box && box.y >= 0 && box.y + box.height <= vp.height && box.x + box.width <= vp.width,
-    `e-stop not in the viewport: ${JSON.stringify(box)}`);
-}
-
-const server = await startServer();
+const server = await startServer({ timeScale: TIME_SCALE });
 let context;
 let failed = false;
 try {
@@ -127,20 +63,10 @@ try {
     assert.deepEqual([me.status, me.body.name, me.body.role], [200, 'admin', 'admin']);
   });
 
-  context = await chromium.launchPersistentContext(join(work, 'profile'), {
-    executablePath: chromiumBin,
-    headless: true,
-    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-      '--disable-component-update', '--disable-sync'],
-    viewport: { width: 1280, height: 800 },
-  });
-  context.setDefaultTimeout(20000);
-  const page = context.pages()[0] || (await context.newPage());
-  const external = [];
-  page.on('request', (r) => { if (!r.url().startsWith(server.url)) external.push(r.url()); });
-  const consoleErrors = [];
-  page.on('pageerror', (e) => consoleErrors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error' && !/Failed to load resource/.test(m.text())) consoleErrors.push(m.text()); });
+  let page;
+  let external;
+  let consoleErrors;
+  ({ context, page, external, consoleErrors } = await launch(server));
 
   await step('sign in: a wrong token is refused plainly, the right one shows name and role', async () => {
     await page.goto(`${server.url}/`);
@@ -213,10 +139,10 @@ try {
     assert.equal(await page.locator('#f-duration_s').inputValue(), '10');
     // A range-scaled amplitude shows mA: threshold + 0.6·(max − threshold).
     assert.equal(await page.locator('#f-amplitude_ma').inputValue(), '35');
-    await page.locator('#f-max_ma').fill('500');
+    await fillParameter(page, 'max_ma', '500');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#f-max_ma-error').filter({ hasText: /out of range/ }).waitFor();
-    await page.locator('#f-max_ma').fill('45');
+    await fillParameter(page, 'max_ma', '45');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#live[data-state="running"]').waitFor();
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.samples || 0) > 600 &&
@@ -247,32 +173,43 @@ try {
   await step('cancel a run', async () => {
     await page.goto(sessionUrl);
     await page.locator('#protocol').selectOption('active_random_binary');
-    await page.locator('#f-duration_s').fill('120');
+    await fillParameter(page, 'duration_s', '120');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#live[data-state="running"]').waitFor();
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.samples) > 100);
-    await page.getByRole('button', { name: 'Cancel run' }).click();
+    await page.locator('#cancel-run').click();
     await page.locator('#live[data-state="aborted"]').waitFor();
     await page.locator('#run-end .msg').filter({ hasText: /ended: aborted/ }).waitFor();
     console.log(`    ${await page.locator('#run-end .msg').textContent()}`);
   });
 
-  await step('e-stop during a run: the run ends, the latch shows, a start is refused, then cleared', async () => {
+  await step('e-stop during a run: the run ends, the latch shows, start disabled, cleared after confirming', async () => {
     await page.locator('#protocol').selectOption('active_random_binary');
-    await page.locator('#f-duration_s').fill('120');
+    await fillParameter(page, 'duration_s', '120');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#live[data-state="running"]').waitFor();
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.samples) > 100);
     await page.locator('#estop').click();
-    await page.locator('#estop-state').filter({ hasText: 'E-STOP LATCHED' }).waitFor();
+    await page.locator('#latch').filter({ hasText: 'E-STOP LATCHED' }).waitFor();
+    assert.equal(await page.locator('#estop-state').textContent(), 'Bench: LATCHED');
     await page.locator('#live[data-state="aborted"]').waitFor();
     const bench = await call(server, 'GET', '/bench');
     assert.equal(bench.body.state.estopped, true);
     await shot(page, 'estop');
-    await page.getByRole('button', { name: 'Start protocol' }).click();
-    await page.locator('#run-form-status .msg-error').filter({ hasText: /Cannot start/ }).waitFor();
+    // While latched nothing can start, and the page says why.
+    assert.equal(await page.getByRole('button', { name: 'Start protocol' }).isDisabled(), true);
+    await page.locator('#start-hint').filter({ hasText: 'e-stop is latched' }).waitFor();
+    // Clearing takes a dialog and a second, explicit confirmation.
     await page.locator('#estop-clear').click();
-    await page.locator('#estop-state').filter({ hasText: 'Bench idle' }).waitFor();
+    await page.locator('#estop-dialog').waitFor();
+    assert.equal(await page.locator('#estop-confirm').isDisabled(), true);
+    await page.locator('#estop-keep').click();
+    assert.equal((await call(server, 'GET', '/bench')).body.state.estopped, true);
+    await page.locator('#estop-clear').click();
+    await page.locator('#estop-confirm-check').check();
+    await page.locator('#estop-confirm').click();
+    await page.locator('#estop-state').filter({ hasText: 'Bench: idle' }).waitFor();
+    assert.equal(await page.locator('#latch').isHidden(), true);
   });
 
   await step('second parameter set (another rapid run) for history and comparison', async () => {
@@ -353,6 +290,7 @@ try {
     await page.getByRole('button', { name: 'Search' }).click();
     await page.locator('#banner').filter({ hasText: 'cannot be reached' }).waitFor();
     await page.locator('#main .msg-error').filter({ hasText: 'cannot be reached' }).waitFor();
+    await page.locator('#estop-state').filter({ hasText: 'Bench: unknown' }).waitFor();
     await shot(page, 'unreachable');
   });
 
@@ -367,8 +305,7 @@ try {
   } catch { /* best effort */ }
 } finally {
   if (context) await context.close();
-  if (server.child.exitCode === null) server.child.kill('SIGTERM');
-  rmSync(work, { recursive: true, force: true });
+  stopServer(server);
 }
 console.log(`${failed ? 'FAILED' : 'passed'} in ${((Date.now() - started) / 1000).toFixed(1)} s; screenshots in ${artefacts}`);
 process.exit(failed ? 1 : 0);

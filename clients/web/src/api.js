@@ -105,3 +105,36 @@ export async function waitForJob(job, { intervalMs = 150, signal } = {}) {
   }
   return current.result;
 }
+
+/// Downloads a file from the API with the bearer token (a link cannot send
+/// it): fetch, then save the Blob under the server's file name.
+export async function download(path, fallbackName) {
+  let res;
+  try {
+    res = await fetch(`/api/v1${path}`, { headers: authHeaders(), cache: 'no-store' });
+  } catch {
+    throw new ApiError(0, 'unreachable', UNREACHABLE_MESSAGE);
+  }
+  if (!res.ok) {
+    let message = `The download failed (${res.status}).`;
+    try {
+      const body = await res.json();
+      if (body.error) message = `The download failed: ${body.error.message}`;
+    } catch {
+      /* keep the generic message */
+    }
+    throw new ApiError(res.status, 'download', message);
+  }
+  const disposition = res.headers.get('Content-Disposition') || '';
+  const m = disposition.match(/filename="?([^";]+)"?/);
+  const name = m ? m[1] : fallbackName;
+  const url = URL.createObjectURL(await res.blob());
+  const a = document.createElement('a');
+  a.href = url;
+  a.download = name;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 1000);
+  return name;
+}

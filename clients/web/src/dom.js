@@ -41,9 +41,10 @@ export function say(slot, kind, text) {
   slot.replaceChildren(text ? message(kind, text) : '');
 }
 
-/// A labelled input row. options: {type, value, step, help, required, options (select)}.
+/// A labelled input row. options: {type, value, step, help, required, options (select),
+/// idPrefix (default 'f-': the input's id is prefix + name)}.
 export function field(name, label, options = {}) {
-  const id = `f-${name.replace(/[^a-z0-9_-]/gi, '-')}`;
+  const id = `${options.idPrefix || 'f-'}${name.replace(/[^a-z0-9_-]/gi, '-')}`;
   let input;
   if (options.options) {
     input = h('select', { id, name },
@@ -84,6 +85,21 @@ export function showFieldError(form, error) {
   if (slot) slot.textContent = error.message;
   input.focus();
   return true;
+}
+
+/// Shows every problem of a client-side check at once ([{field, message}]);
+/// focuses the first marked field.
+export function showFieldErrors(form, problems) {
+  let first = null;
+  for (const p of problems) {
+    const input = form.querySelector(`[name="${CSS.escape(p.field)}"]`);
+    if (!input) continue;
+    input.setAttribute('aria-invalid', 'true');
+    const slot = form.querySelector(`#${CSS.escape(input.id)}-error`);
+    if (slot) slot.textContent = p.message;
+    first = first || input;
+  }
+  if (first) first.focus();
 }
 
 /// A table from rows of cells; first row is the header.

@@ -2,7 +2,8 @@
 // button on every page, the connection banner) and the hash router.
 import './style.css';
 import { api, getToken, onConnectivity, setToken, UNREACHABLE_MESSAGE } from './api.js';
-import { h } from './dom.js';
+import { fmtDuration, h, say } from './dom.js';
+import { createRunController, isFinal, progressOf } from './runs.js';
 import { signInView } from './views/signin.js';
 import { subjectsView, subjectView } from './views/subjects.js';
 import { sessionView } from './views/session.js';
@@ -30,6 +31,32 @@ const ctx = {
     return state.user;
   },
   main: null,
+  /// The app's run controller (heartbeat, run bar): runs.control(run) after a start.
+  get runs() {
+    return runs;
+  },
+  /// The bench as last read (null: unknown) and its state object.
+  get bench() {
+    return bench;
+  },
+  get benchState() {
+    return benchStateOf(bench);
+  },
+  refreshBench: () => pollBench(),
+  /// Marks a button as a start control: disabled while the e-stop is latched,
+  /// the bench state is unknown or busy (the reason in the element `hint`),
+  /// or for the view's own reason `blocked` (e.g. the role).
+  startControl(button, hint, blocked = '') {
+    button.classList.add('start-control');
+    if (blocked) button.dataset.blocked = blocked;
+    if (hint) {
+      if (!hint.id) hint.id = `${button.id || 'start'}-hint`;
+      button.dataset.hint = hint.id;
+      button.setAttribute('aria-describedby', hint.id);
+    }
+    applyStartControl(button, benchBlock(), hint);
+    return button;
+  },
   onLeave(fn) {
     state.cleanup.push(fn);
   },
@@ -43,11 +70,14 @@ const ctx = {
       throw e;
     }
     renderChrome();
+    pollBench();
   },
   signOut() {
     setToken('');
     state.user = null;
+    runs.end();
     renderChrome();
+    pollBench();
     location.hash = '#/signin';
   },
 };
@@ -65,7 +95,7 @@ function renderChrome() {
     h('li', {}, link('#/subjects', 'Subjects')),
     h('li', {}, link('#/predict', 'Prediction'))));
   who.replaceChildren(
-    h('span', { id: 'who-name' }, `Signed in as ${state.user.name}`),
+    h('span', { id: 'who-name' }, h('span', { class: 'wide-only' }, 'Signed in as '), state.user.name),
     h('span', { class: `role role-${state.user.role}`, id: 'who-role' }, state.user.role),
     h('button', { type: 'button', class: 'link', onclick: () => ctx.signOut() }, 'Sign out'));
 }
@@ -120,51 +150,248 @@ async function checkHealth() {
   }
 }
 
-// --- e-stop (every page) ------------------------------------------------------
+// --- bench state, e-stop, run bar (every page) ----------------------------------
+// The bench as last read: null = unknown (not signed in, or the server does
+// not answer). GET /bench carries its state under "state" (contract §7).
+let bench = null;
+const benchStateOf = (b) => (b && b.state && typeof b.state === 'object' ? b.state : b);
+
+/// Why a start control is disabled now ('' = it may start).
+function benchBlock() {
+  const st = benchStateOf(bench);
+  if (!st) return 'The bench state is unknown (the server does not answer): nothing can start.';
+  if (st.estopped) return 'The e-stop is latched: nothing can start until it is cleared.';
+  if (st.busy || (st.run_id && !isFinal(st.run_state))) return `The bench is busy with run ${st.run_id}.`;
+  return '';
+}
+
+/// Every start control (ctx.startControl) follows the bench: disabled while
+/// the e-stop is latched, the bench state is unknown or another run holds it.
+function applyStartControl(button, why = benchBlock(), hint = null) {
+  const own = button.dataset.blocked || '';
+  button.disabled = !!(own || why);
+  const slot = hint || (button.dataset.hint && document.getElementById(button.dataset.hint));
+  if (slot) slot.textContent = own || why;
+}
+function applyStartControls() {
+  const why = benchBlock();
+  for (const button of document.querySelectorAll('.start-control')) applyStartControl(button, why);
+}
+
+function renderLatch() {
+  const latch = document.getElementById('latch');
+  const st = benchStateOf(bench);
+  const latched = !!(st && st.estopped);
+  document.body.classList.toggle('estopped', latched);
+  if (!latched) {
+    latch.hidden = true;
+    latch.replaceChildren();
+    return;
+  }
+  if (latch.dataset.shown === 'latched' && !latch.hidden) return;
+  latch.dataset.shown = 'latched';
+  const mayClear = state.user && (state.user.role === 'clinician' || state.user.role === 'admin');
+  latch.replaceChildren(
+    h('strong', {}, 'E-STOP LATCHED'),
+    h('span', {}, `Stimulation is off and the motor disabled${st.estop_source ? ` (e-stop from ${st.estop_source})` : ''}.` +
+      ' Nothing can start until the e-stop is cleared.'),
+    mayClear ? h('button', { type: 'button', id: 'estop-clear', onclick: openClearDialog }, 'Clear e-stop…') : '');
+  latch.hidden = false;
+}
+
+function showBench() {
+  const slot = estopState();
+  const st = benchStateOf(bench);
+  document.body.classList.toggle('bench-unknown', !st);
+  let text = 'idle';
+  if (!st) text = 'unknown';
+  else if (st.estopped) text = 'LATCHED';
+  else if (st.run_id && !isFinal(st.run_state)) text = `run ${st.run_id}`;
+  // "Bench: " folds away at narrow widths (the slot keeps its width).
+  slot.replaceChildren(h('span', { class: 'wide-only' }, 'Bench: '), text);
+  slot.title = `Bench: ${text}`;
+  renderLatch();
+  applyStartControls();
+}
+
 const estopState = () => document.getElementById('estop-state');
 
-function showBench(bench) {
-  const slot = estopState();
-  const st = bench && bench.state;
-  document.body.classList.toggle('estopped', !!(st && st.estopped));
-  if (!st) return;
-  if (st.estopped) {
-    const clear = h('button', { type: 'button', class: 'small', id: 'estop-clear',
-      onclick: async () => {
-        try {
-          await api('DELETE', '/bench/estop');
-          showBench(await api('GET', '/bench'));
-        } catch (e) {
-          slot.textContent = `Cannot clear the e-stop: ${e.message}`;
-        }
-      } }, 'Clear e-stop');
-    slot.replaceChildren(h('strong', {}, 'E-STOP LATCHED'), ' ', clear);
-  } else {
-    slot.textContent = st.busy ? `Bench busy: ${st.protocol}` : 'Bench idle';
-  }
+/// A failed e-stop is the loudest thing on the page.
+function estopFailed(text) {
+  const latch = document.getElementById('latch');
+  latch.dataset.shown = 'failed';
+  latch.replaceChildren(h('strong', {}, 'E-STOP NOT CONFIRMED'), h('span', {}, ` — ${text} Use the bench's hardware stop.`));
+  latch.hidden = false;
 }
 
 async function pressEstop() {
-  const slot = estopState();
   if (!getToken()) {
-    slot.textContent = 'Sign in to send the e-stop; use the bench\'s hardware stop now.';
+    estopFailed('Sign in to send the e-stop.');
     return;
   }
   try {
     await api('POST', '/bench/estop');
-    showBench(await api('GET', '/bench'));
+    await pollBench();
   } catch (e) {
-    slot.textContent = `E-STOP NOT CONFIRMED: ${e.message} Use the bench's hardware stop.`;
+    estopFailed(e.message);
+  }
+}
+
+// Clearing re-arms the bench: a dialog that says so and a second, explicit
+// confirmation (a checkbox, then the button it enables).
+function openClearDialog() {
+  const check = h('input', { type: 'checkbox', id: 'estop-confirm-check' });
+  const status = h('div', { id: 'estop-dialog-status' });
+  const confirm = h('button', { type: 'button', class: 'danger', id: 'estop-confirm', disabled: true }, 'Clear e-stop');
+  const dialog = h('dialog', { id: 'estop-dialog', 'aria-labelledby': 'estop-dialog-h' },
+    h('h2', { id: 'estop-dialog-h' }, 'Clear the e-stop?'),
+    h('p', {}, 'Clearing re-arms the bench: the stimulator and the motor can be driven again by the next protocol ' +
+      'anyone starts. The run the e-stop ended stays aborted; nothing restarts by itself.'),
+    h('p', {}, 'Before clearing, check the subject (skin under the electrodes, discomfort), the electrodes and the leg ' +
+      'fixation, and find out why the e-stop was pressed.'),
+    h('label', { class: 'inline' }, check, ' I have checked the subject and the bench; it is safe to stimulate again.'),
+    status,
+    h('div', { class: 'actions' },
+      h('button', { type: 'button', id: 'estop-keep', onclick: () => dialog.close() }, 'Keep latched'), confirm));
+  check.addEventListener('change', () => { confirm.disabled = !check.checked; });
+  confirm.addEventListener('click', async () => {
+    confirm.disabled = true;
+    try {
+      await api('DELETE', '/bench/estop');
+      dialog.close();
+      await pollBench();
+    } catch (e) {
+      say(status, 'error', `Cannot clear the e-stop: ${e.message}`);
+      confirm.disabled = !check.checked;
+    }
+  });
+  dialog.addEventListener('close', () => dialog.remove());
+  document.body.appendChild(dialog);
+  dialog.showModal();
+  document.getElementById('estop-keep').focus();
+}
+
+// --- the run bar ---------------------------------------------------------------
+let lastEnded = null; // {run_id, protocol, state, reason, session_id}: shown until dismissed
+
+function renderRunBar(run) {
+  const bar = document.getElementById('runbar');
+  document.body.classList.toggle('run-active', !!run);
+  if (run) {
+    const { fraction, eta_s } = progressOf(run);
+    const mayCancel = state.user && (state.user.role === 'clinician' || state.user.role === 'admin');
+    let progress = bar.querySelector('#runbar-progress');
+    if (!progress || bar.dataset.runId !== String(run.run_id)) {
+      lastEnded = null;
+      bar.dataset.runId = String(run.run_id);
+      bar.dataset.state = run.state || 'running';
+      progress = h('progress', { id: 'runbar-progress', max: 1, value: 0, 'aria-label': 'Run progress' });
+      bar.replaceChildren(
+        h('strong', { class: 'runbar-title' }, `Run ${run.run_id} in progress: `, h('span', { id: 'runbar-protocol' }, run.protocol || '')),
+        progress,
+        h('span', { id: 'runbar-text' }),
+        h('span', { id: 'runbar-link' }),
+        h('span', { id: 'runbar-owner', class: 'help' }),
+        mayCancel ? h('button', { type: 'button', class: 'danger small', id: 'runbar-cancel', onclick: async (e) => {
+          e.target.disabled = true;
+          try {
+            await runs.cancel();
+          } catch (err) {
+            const link = bar.querySelector('#runbar-link');
+    if (run.session_id && !link.firstChild) {
+      link.appendChild(h('a', { href: `#/sessions/${run.session_id}`, id: 'runbar-session' }, `Go to session ${run.session_id}`));
+    }
+    bar.querySelector('#runbar-owner').textContent = `Cancel failed: ${err.message}`;
+            e.target.disabled = false;
+          }
+        } }, 'Cancel run') : '');
+    }
+    bar.dataset.state = run.state || 'running';
+    progress.value = fraction;
+    bar.querySelector('#runbar-text').textContent =
+      `${run.state || 'running'} · ${Math.round(fraction * 100)} % · ETA ${fmtDuration(eta_s)}`;
+    const link = bar.querySelector('#runbar-link');
+    if (run.session_id && !link.firstChild) {
+      link.appendChild(h('a', { href: `#/sessions/${run.session_id}`, id: 'runbar-session' }, `Go to session ${run.session_id}`));
+    }
+    bar.querySelector('#runbar-owner').textContent = run.controlled ? '' : `controlled by ${run.owner || run.controller || 'another client'}`;
+    bar.hidden = false;
+    return;
+  }
+  if (lastEnded) {
+    bar.dataset.runId = String(lastEnded.run_id);
+    bar.dataset.state = lastEnded.state;
+    bar.replaceChildren(
+      h('span', { id: 'runbar-text', class: lastEnded.state === 'done' ? '' : 'runbar-bad' },
+        `Run ${lastEnded.run_id} (${lastEnded.protocol}) ended: ${lastEnded.state}${lastEnded.reason ? ` — ${lastEnded.reason}` : ''}.`),
+      lastEnded.session_id ? h('a', { href: `#/sessions/${lastEnded.session_id}` }, `Session ${lastEnded.session_id}`) : '',
+      h('button', { type: 'button', class: 'link', id: 'runbar-dismiss', onclick: () => { lastEnded = null; renderRunBar(null); } }, 'Dismiss'));
+    bar.hidden = false;
+    return;
+  }
+  bar.hidden = true;
+  bar.replaceChildren();
+  delete bar.dataset.runId;
+}
+
+const runs = createRunController();
+runs.onChange(renderRunBar);
+
+async function noteEnd(runId) {
+  const run = await api('GET', `/runs/${runId}`).catch(() => null);
+  if (run && isFinal(run.state)) {
+    lastEnded = { run_id: run.run_id, protocol: run.protocol, state: run.state, reason: run.reason, session_id: run.session_id };
+    renderRunBar(runs.current);
   }
 }
 
 async function pollBench() {
-  if (!state.user) return;
-  try {
-    showBench(await api('GET', '/bench'));
-  } catch {
-    /* the banner says it */
+  if (!state.user) {
+    bench = null;
+    showBench();
+    return;
   }
+  const generation = runs.generation;
+  try {
+    bench = await api('GET', '/bench');
+  } catch {
+    bench = null; // unknown, not idle; the banner says why
+    showBench();
+    return;
+  }
+  const st = benchStateOf(bench);
+  if (runs.generation !== generation) {
+    // A run was started or ended while this answer was on its way: the next
+    // poll decides (an old answer must not end a run's heartbeat).
+    showBench();
+    return;
+  }
+  const active = st.run_id && !isFinal(st.run_state) && !runs.hasEnded(st.run_id) ? st : null;
+  const current = runs.current;
+  if (current && (!active || active.run_id !== current.run_id)) {
+    const ended = current.run_id;
+    runs.end();
+    noteEnd(ended);
+  }
+  if (active) {
+    const fields = { run_id: active.run_id, protocol: active.protocol, state: active.run_state || 'running',
+      progress: active.progress, eta_s: active.eta_s, owner: active.owner };
+    const mine = state.user && (active.owner_user_id === state.user.id ||
+      (active.owner_user_id === undefined && active.owner === state.user.name));
+    if (runs.current && runs.current.run_id === active.run_id) {
+      runs.update(fields);
+    } else if (mine && (state.user.role === 'clinician' || state.user.role === 'admin')) {
+      // After a reload: the server says this user controls the run, so this
+      // page takes the heartbeat over again, at once (the watchdog allows 1 s).
+      runs.control(fields);
+      const run = await api('GET', `/runs/${active.run_id}`).catch(() => null);
+      if (run) runs.update({ session_id: run.session_id, state: run.state });
+    } else {
+      const run = await api('GET', `/runs/${active.run_id}`).catch(() => null);
+      runs.observe({ ...fields, session_id: run ? run.session_id : undefined });
+    }
+  }
+  showBench();
 }
 
 // --- start --------------------------------------------------------------------
@@ -179,11 +406,11 @@ async function start() {
     }
   }
   renderChrome();
+  await pollBench(); // before the first view: a run this user controls is re-attached at once
   await route();
   checkHealth();
   setInterval(checkHealth, 3000);
   setInterval(pollBench, 1000);
-  pollBench();
 }
 
 start();

@@ -4,6 +4,7 @@ import { api } from '../api.js';
 import { fmt, h, table } from '../dom.js';
 import { parameterCurves, parameterScalars, SCALAR_LABELS } from '../model.js';
 import { joinCurves, makePlot } from '../plot.js';
+import { legSide } from './subjects.js';
 
 function plotsOf(ctx, curvesBySet, labels) {
   const grid = h('div', { class: 'plot-grid', id: 'set-plots' });
@@ -32,7 +33,7 @@ function valueRows(sets) {
   rows.push(['IRC method', ...sets.map((s) => s.irc_method)]);
   rows.push(['passive method', ...sets.map((s) => s.passive_method)]);
   rows.push(['active method', ...sets.map((s) => s.active_method)]);
-  rows.push(['trials', ...sets.map((s) => (s.trial_ids || []).join(', '))]);
+  rows.push(['fitted on trials (training)', ...sets.map((s) => (s.trial_ids || []).join(', '))]);
   rows.push(['created (UTC)', ...sets.map((s) => s.created_at_utc.slice(0, 19).replace('T', ' '))]);
   if (sets.length === 2) {
     for (let i = 0; i < Object.keys(SCALAR_LABELS).length; i++) {
@@ -62,7 +63,7 @@ export async function parameterSetView(ctx, setId) {
   ctx.main.replaceChildren(
     h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ',
       h('a', { href: `#/subjects/${subject.id}` }, subject.code), ' › ', `Parameter set ${set.id}`),
-    h('h1', {}, `Parameter set ${set.id} (version ${set.version}) — ${subject.code}`),
+    h('h1', {}, `Parameter set ${set.id} (version ${set.version}) — ${subject.code}, ${legSide(subject, set.leg_id)} leg`),
     h('p', { class: 'row' },
       h('a', { href: `#/subjects/${subject.id}/history` }, 'History of this subject'),
       mayPredict ? h('a', { href: `#/predict/${set.id}`, id: 'predict-link' }, 'Run a prediction with this set') : ''),

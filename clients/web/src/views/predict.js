@@ -4,28 +4,59 @@
 import { api, listAll, waitForJob } from '../api.js';
 import { fmt, h, say, table } from '../dom.js';
 import { makePlot } from '../plot.js';
+import { legSide } from './subjects.js';
 
 export async function predictionView(ctx, presetId) {
   const mayPredict = ctx.user.role === 'analyst' || ctx.user.role === 'admin';
   const sets = await listAll('/parameter-sets');
+  const subjects = new Map();
+  await Promise.all([...new Set(sets.map((s) => s.subject_id))].map(async (id) => {
+    subjects.set(id, await api('GET', `/subjects/${id}`));
+  }));
   const status = h('div', { id: 'predict-status' });
   const result = h('div', { id: 'predict-result' });
+  const trainingNote = h('p', { id: 'predict-training-note', class: 'msg msg-info', hidden: true },
+    'This trial was used to fit the parameter set (training): its errors measure the fit, not how well the model predicts.');
+  // Newest first, so the set just made is the default.
+  sets.sort((a, b) => b.id - a.id);
   const setSelect = h('select', { id: 'predict-set', name: 'parameter_set_id' },
-    sets.map((s) => h('option', { value: s.id, selected: s.id === presetId },
-      `Parameter set ${s.id} (subject ${s.subject_id}, ${s.created_at_utc.slice(0, 10)})`)));
+    sets.map((s) => {
+      const subject = subjects.get(s.subject_id);
+      return h('option', { value: s.id, selected: s.id === presetId },
+        `Parameter set ${s.id} — ${subject ? subject.code : `subject ${s.subject_id}`}, ${legSide(subject, s.leg_id)} leg, ` +
+        `${s.created_at_utc.slice(0, 10)}`);
+    }));
   const trialSelect = h('select', { id: 'predict-trial', name: 'trial_id' });
+  let training = new Set();
+  const showTrainingNote = () => { trainingNote.hidden = !training.has(Number(trialSelect.value)); };
+  trialSelect.addEventListener('change', showTrainingNote);
 
   async function loadTrials() {
-    const set = sets.find((s) => String(s.id) === setSelect.value);
-    if (!set) return;
+    const summary = sets.find((s) => String(s.id) === setSelect.value);
+    if (!summary) return;
     trialSelect.replaceChildren(h('option', {}, 'Loading…'));
     try {
-      const sessions = await listAll(`/subjects/${set.subject_id}/sessions`);
-      const trials = (await Promise.all(sessions.map((s) => listAll(`/sessions/${s.id}/trials`)))).flat();
+      // Honest validation by default: the trials the set was NOT fitted on
+      // come first; its training trials are marked as such.
+      const [set, sessions] = await Promise.all([api('GET', `/parameter-sets/${summary.id}`),
+        listAll(`/subjects/${summary.subject_id}/sessions`)]);
+      training = new Set(set.trial_ids || []);
+      const legSessions = sessions.filter((s) => s.leg_id === undefined || s.leg_id === summary.leg_id);
+      const trials = (await Promise.all(legSessions.map((s) => listAll(`/sessions/${s.id}/trials`)))).flat();
       // Free-swing trials (the knee moves) are what a prediction of the angle is for.
-      trials.sort((a, b) => (b.name.includes('random_binary') ? 1 : 0) - (a.name.includes('random_binary') ? 1 : 0) || b.id - a.id);
-      trialSelect.replaceChildren(...trials.map((t) => h('option', { value: t.id }, `Trial ${t.id}: ${t.name} (session ${t.session_id})`)));
-      if (!trials.length) trialSelect.replaceChildren(h('option', { value: '' }, 'No stored trials for this subject'));
+      const freeSwing = (t) => /random_binary|step|free/.test(t.name || t.kind || '');
+      trials.sort((a, b) => Number(freeSwing(b)) - Number(freeSwing(a)) || b.id - a.id);
+      const option = (t) => h('option', { value: t.id, dataset: { training: training.has(t.id) ? '1' : '0' } },
+        `Trial ${t.id}: ${t.name || t.kind || '—'} (session ${t.session_id})${training.has(t.id) ? ' (training)' : ''}`);
+      const fresh = trials.filter((t) => !training.has(t.id));
+      const used = trials.filter((t) => training.has(t.id));
+      trialSelect.replaceChildren(
+        fresh.length ? h('optgroup', { label: 'Not used for fitting (validation)' }, fresh.map(option)) : '',
+        used.length ? h('optgroup', { label: 'Used to fit this set (training)' }, used.map(option)) : '');
+      if (!trials.length) trialSelect.replaceChildren(h('option', { value: '' }, 'No stored trials for this leg'));
+      else if (!fresh.length) say(status, 'info', 'Every stored trial of this leg was used to fit the set: record a prediction protocol for an honest check.');
+      else say(status, '', '');
+      showTrainingNote();
     } catch (e) {
       say(status, 'error', e.message);
     }
@@ -57,6 +88,7 @@ export async function predictionView(ctx, presetId) {
   h('div', { class: 'grid-form' },
     h('div', { class: 'field' }, h('label', { for: 'predict-set' }, 'Parameter set'), setSelect),
     h('div', { class: 'field' }, h('label', { for: 'predict-trial' }, 'Measured trial (its stimulation is replayed)'), trialSelect)),
+  trainingNote,
   h('div', { class: 'actions' }, h('button', { type: 'submit', class: 'primary', disabled: !mayPredict }, 'Run prediction'),
     mayPredict ? '' : h('small', {}, ' Predictions need the analyst or admin role.')));
 
@@ -72,7 +104,7 @@ export async function predictionView(ctx, presetId) {
     const plotBox = h('div', { class: 'plot-cell', id: 'predict-plot' });
     const errorBox = h('div', { class: 'plot-cell' });
     result.replaceChildren(
-      h('h2', {}, `Predicted vs measured knee angle — trial ${r.trial_id}`),
+      h('h2', {}, `Predicted vs measured knee angle — trial ${r.trial_id}${training.has(r.trial_id) ? ' (training)' : ''}`),
       table(['Error figure', `Value (${e.unit})`], [
         ['E_RMS', fmt(e.e_rms, 4)], ['E_ABS (mean absolute)', fmt(e.e_abs, 4)], ['E_AVE (mean)', fmt(e.e_ave, 4)],
         ['largest absolute', fmt(e.max_abs, 4)], ['normalised RMS', fmt(e.normalised_rms, 4)], ['samples', fmt(e.samples)]],

@@ -1,95 +1,223 @@
-// A session: start a protocol (parameters prefilled from the protocol
-// description and the session's threshold / max tolerated), follow it live
-// (progress with ETA, knee angle, torque and stimulation from the event
-// stream), cancel it; the session's runs.
-import { api, listAll } from '../api.js';
-import { clearErrors, field, fmt, fmtDuration, h, say, showFieldError, table } from '../dom.js';
+// A session: its details (correctable, with the revision history), start a
+// protocol (parameters labelled and prefilled by the server for this
+// session, advanced ones collapsed), follow a run live (progress with ETA,
+// knee angle, torque and stimulation from the event stream), the session's
+// runs and its recorded trials (plot, CSV / .sto download).
+// The run's heartbeat belongs to the app (ctx.runs), not to this view.
+import { api, download, listAll } from '../api.js';
+import { clearErrors, field, fmt, fmtDuration, h, message, say, showFieldError, showFieldErrors, table } from '../dom.js';
 import { makePlot } from '../plot.js';
+import { isFinal, progressOf } from '../runs.js';
 import { streamEvents } from '../sse.js';
+import { correctionForm, revisionHistory } from './corrections.js';
 
 const WINDOW_S = 30; // bench seconds shown in the live plots
 
-// The value the server will use when the field is left alone: the same
-// scaling as its DefaultFor (server/protocols/protocol.cc), so an mA field
-// shows mA and an angle field the range the run will use.
-function defaultFor(param, session, limits) {
-  const d = session.details;
-  const thr = d.threshold_ma, max = d.max_tolerated_ma;
-  const known = Number.isFinite(thr) && Number.isFinite(max);
-  switch (param.scales_to) {
-    case 'threshold': return Number.isFinite(thr) ? thr : param.default;
-    case 'max_tolerated': return Number.isFinite(max) ? max : param.default;
-    case 'stim_range':
-      return known ? Math.round((thr + param.default * (max - thr)) * 10) / 10 : param.default;
-    case 'range_min': return limits.min_angle_deg;
-    case 'range_max': return limits.max_angle_deg;
-    default: return param.default;
+export const SESSION_FIELDS = [
+  { name: 'date', label: 'Date (YYYY-MM-DD)', type: 'text' },
+  { name: 'threshold_ma', label: 'Stimulation threshold (mA)', type: 'number', unit: 'mA', min: 0 },
+  { name: 'max_tolerated_ma', label: 'Max tolerated (mA)', type: 'number', unit: 'mA', min: 0 },
+  { name: 'accelerometer_placement', label: 'Accelerometer placement', type: 'text' },
+  { name: 'notes', label: 'Notes', type: 'textarea' },
+];
+const SESSION_LABELS = Object.fromEntries(SESSION_FIELDS.map((f) => [f.name, f.label]));
+
+const utc = (iso) => (iso || '').slice(0, 19).replace('T', ' ');
+const unitText = (unit) => (unit === '1' ? '' : ` (${unit})`);
+
+/// Client-side checks of a protocol form from the parameter metadata: every
+/// problem at once ([{field, message}]); the server checks again.
+export function checkParameters(protocol, valueOf) {
+  const problems = [];
+  for (const p of protocol.parameters) {
+    const raw = valueOf(p.name);
+    if (raw === '') continue;
+    const n = Number(raw);
+    const unit = p.unit === '1' ? '' : ` ${p.unit}`;
+    if (!Number.isFinite(n)) problems.push({ field: p.name, message: `must be a number${unit ? ` in${unit}` : ''}` });
+    else if (p.integer && !Number.isInteger(n)) problems.push({ field: p.name, message: 'must be a whole number' });
+    else if ((Number.isFinite(p.min) && n < p.min) || (Number.isFinite(p.max) && n > p.max)) {
+      problems.push({ field: p.name, message: `out of range: ${p.min}–${p.max}${unit}` });
+    }
   }
+  return problems;
 }
 
 export async function sessionView(ctx, sessionId) {
-  const [session, protocolList, bench] = await Promise.all([
-    api('GET', `/sessions/${sessionId}`), api('GET', '/protocols'), api('GET', '/bench')]);
+  let [session, catalog, bench] = await Promise.all([
+    api('GET', `/sessions/${sessionId}`), api('GET', `/protocols?session_id=${sessionId}`), api('GET', '/bench')]);
   const subject = await api('GET', `/subjects/${session.subject_id}`);
-  const protocols = protocolList.protocols;
+  let protocols = catalog.protocols;
   const rate_hz = bench.limits.sample_rate_hz;
   const mayRun = ctx.user.role === 'clinician' || ctx.user.role === 'admin';
+  const sessionPath = `/sessions/${sessionId}`;
 
+  // --- details, correction, revisions ---------------------------------------------
+  const detailsSlot = h('div', { id: 'session-details-box' });
+  const editForm = correctionForm({ id: 'session-edit', path: sessionPath, fields: SESSION_FIELDS, mayEdit: mayRun,
+    current: () => ({ ...session.details, date: session.date }), onSaved: async () => refreshSession() });
+  async function renderDetails() {
+    const d = session.details;
+    detailsSlot.replaceChildren(
+      table(['Field', 'Value'], [['Threshold (mA)', h('span', { id: 'session-threshold' }, fmt(d.threshold_ma))],
+        ['Max tolerated (mA)', h('span', { id: 'session-max-tolerated' }, fmt(d.max_tolerated_ma))],
+        ['Accelerometer placement', d.accelerometer_placement || '—'], ['Notes', d.notes || '—'],
+        ['Revision', String(session.revision ?? 1)]],
+      { class: 'kv', id: 'session-details' }),
+      editForm,
+      await revisionHistory(sessionPath, SESSION_LABELS, 'session-revisions').catch((e) => message('error', `Revision history unavailable: ${e.message}`)));
+  }
+  async function refreshSession() {
+    [session, catalog] = await Promise.all([api('GET', sessionPath), api('GET', `/protocols?session_id=${sessionId}`)]);
+    protocols = catalog.protocols;
+    editForm.refresh();
+    await renderDetails();
+    renderParameters();
+  }
+
+  // --- runs and trials -----------------------------------------------------------------
   const runsSlot = h('div', { id: 'run-list' });
   async function loadRuns() {
     const runs = await listAll(`/sessions/${sessionId}/runs`);
     runsSlot.replaceChildren(runs.length
-      ? table(['Run', 'Protocol', 'State', 'Started (UTC)', 'Message'], runs.map((r) => [
-        `Run ${r.id}`, r.protocol, r.state, (r.started_at_utc || r.created_at_utc || '').slice(0, 19).replace('T', ' '),
-        r.message || '—']),
+      ? table(['Run', 'Protocol', 'State', 'Created (UTC)', 'Reason'], runs.map((r) => [
+        `Run ${r.run_id}`, r.protocol, r.state, utc(r.created_at_utc), r.reason || '—']),
       { id: 'runs-table' })
       : h('p', {}, 'No runs yet.'));
   }
 
-  // --- protocol form ------------------------------------------------------------
+  const trialsSlot = h('div', { id: 'trial-list' });
+  const trialPlot = h('div', { id: 'trial-plot', class: 'plots' });
+  const trialStatus = h('div', { id: 'trial-status' });
+  let trialCharts = [];
+  const dropTrialCharts = () => {
+    for (const c of trialCharts) c.disconnect();
+    trialCharts = [];
+  };
+  ctx.onLeave(dropTrialCharts);
+  async function plotTrial(t) {
+    say(trialStatus, 'info', `Loading trial ${t.id}…`);
+    try {
+      const trial = await api('GET', `/trials/${t.id}`);
+      const channel = (name) => (trial.channels.find((c) => c.name === name) || { values: [] }).values;
+      const time = channel('t_s');
+      dropTrialCharts();
+      trialPlot.replaceChildren(h('h3', { id: 'trial-plot-h' }, `Trial ${t.id}: ${t.name || t.kind || ''}`));
+      trialPlot.dataset.trialId = String(t.id);
+      const x = time.length ? time : channel('angle_deg').map((_, i) => i / trial.sample_rate_hz);
+      trialCharts.push(makePlot(trialPlot, [{ label: 'knee angle', color: '#1f5fbf' }], [x, channel('angle_deg')],
+        { title: 'Knee angle', xLabel: 'time (s)', yLabel: 'deg', height: 200, id: 'trial-angle' }));
+      trialCharts.push(makePlot(trialPlot, [{ label: 'stimulation', color: '#1e8449' }], [x, channel('stim_ma')],
+        { title: 'Stimulation', xLabel: 'time (s)', yLabel: 'mA', height: 150, id: 'trial-stim' }));
+      say(trialStatus, '', '');
+    } catch (e) {
+      say(trialStatus, 'error', `Cannot plot trial ${t.id}: ${e.message}`);
+    }
+  }
+  const fetchFile = async (t, format) => {
+    try {
+      const name = await download(`/trials/${t.id}?format=${format}`, `trial-${t.id}.${format}`);
+      say(trialStatus, 'ok', `Downloaded ${name}.`);
+    } catch (e) {
+      say(trialStatus, 'error', e.message);
+    }
+  };
+  async function loadTrials() {
+    const trials = await listAll(`/sessions/${sessionId}/trials`);
+    const duration = (t) => (Number.isFinite(t.duration_s) ? t.duration_s : t.num_samples / t.sample_rate_hz);
+    trialsSlot.replaceChildren(trials.length
+      ? table(['Trial', 'Run', 'Duration (s)', 'Samples', 'Recorded (UTC)', 'Plot / download'], trials.map((t) => [
+        `${t.id}: ${t.name || t.kind || '—'}`, t.run_id ? `Run ${t.run_id}` : '—', fmt(duration(t), 4), String(t.num_samples),
+        utc(t.created_at_utc),
+        h('span', { class: 'trial-actions' },
+          h('button', { type: 'button', class: 'small', 'data-trial': t.id, onclick: () => plotTrial(t) }, 'Plot'),
+          h('button', { type: 'button', class: 'small', 'data-csv': t.id, onclick: () => fetchFile(t, 'csv') }, 'CSV'),
+          h('button', { type: 'button', class: 'small', 'data-sto': t.id, onclick: () => fetchFile(t, 'sto') }, '.sto'))]),
+      { id: 'trials-table' })
+      : h('p', {}, 'No trials recorded yet.'));
+  }
+
+  // --- protocol form --------------------------------------------------------------------
   const select = h('select', { id: 'protocol', name: 'protocol' },
     protocols.map((p) => h('option', { value: p.name }, p.title)));
   const description = h('p', { class: 'help', id: 'protocol-description' });
-  const paramSlot = h('div', { class: 'grid-form', id: 'protocol-parameters' });
+  const paramSlot = h('div', { id: 'protocol-parameters' });
   const formStatus = h('div', { id: 'run-form-status' });
-  function renderParameters() {
-    const p = protocols.find((x) => x.name === select.value);
-    description.textContent = `${p.description} Bench mode: ${p.bench_mode}.`;
-    paramSlot.replaceChildren(...p.parameters.map((param) => field(param.name,
-      `${param.name.replace(/_/g, ' ')} (${param.unit})`,
-      { type: 'number', value: defaultFor(param, session, bench.limits), step: param.integer ? 1 : 'any',
-        help: `${param.description}; ${param.min}–${param.max}` })));
-    for (const input of paramSlot.querySelectorAll('input')) input.dataset.prefilled = input.value;
+  const current = () => protocols.find((x) => x.name === select.value);
+  function parameterField(param) {
+    const value = param.default === null || param.default === undefined ? '' : param.default;
+    const range = `${param.min}–${param.max}${param.unit === '1' ? '' : ` ${param.unit}`}`;
+    const help = [param.description, value === '' && param.default_rule ? `default: ${param.default_rule}` : '', range]
+      .filter(Boolean).join('; ');
+    const el = field(param.name, `${param.label || param.name}${unitText(param.unit)}`,
+      { type: 'number', value, step: param.integer ? 1 : 'any', help });
+    const input = el.querySelector('input');
+    input.dataset.prefilled = String(value);
+    if (value === '' && param.default_rule) input.placeholder = param.default_rule;
+    return el;
   }
+  function renderParameters() {
+    const p = current();
+    if (!p) return;
+    const tip = [p.description, p.thesis_section ? `Thesis ${p.thesis_section}.` : ''].filter(Boolean).join(' ');
+    const stim = p.stimulates === undefined ? '' : p.stimulates ? 'Stimulates; bench' : 'No stimulation; bench';
+    description.replaceChildren(`${stim || 'Bench'} mode ${p.bench_mode}.`,
+      h('a', { href: '#', class: 'help-tip', id: 'protocol-help', title: tip, 'aria-label': `About this protocol: ${tip}`,
+        onclick: (e) => { e.preventDefault(); helpText.hidden = !helpText.hidden; } }, '?'));
+    helpText.textContent = tip;
+    helpText.hidden = true;
+    const basic = p.parameters.filter((x) => !x.advanced);
+    const advanced = p.parameters.filter((x) => x.advanced);
+    paramSlot.replaceChildren(
+      h('div', { class: 'grid-form', id: 'basic-parameters' }, basic.map(parameterField)),
+      advanced.length ? h('details', { id: 'advanced-parameters' }, h('summary', {}, `Advanced parameters (${advanced.length})`),
+        h('div', { class: 'grid-form' }, advanced.map(parameterField))) : '');
+  }
+  const helpText = h('p', { class: 'msg msg-info', id: 'protocol-help-text', hidden: true });
   select.addEventListener('change', renderParameters);
-  const startButton = h('button', { type: 'submit', class: 'primary', id: 'start-run', disabled: !mayRun }, 'Start protocol');
+
+  const startButton = h('button', { type: 'submit', class: 'primary', id: 'start-run' }, 'Start protocol');
+  const startHint = h('span', { class: 'start-hint', id: 'start-hint', 'aria-live': 'polite' });
+  ctx.startControl(startButton, startHint, mayRun ? '' : 'Only a clinician or an admin may start protocols.');
   const form = h('form', { id: 'run-form', novalidate: true, onsubmit: async (event) => {
     event.preventDefault();
     clearErrors(form);
-    const p = protocols.find((x) => x.name === select.value);
-    const parameters = {};
+    const p = current();
+    const valueOf = (name) => form.elements[name].value.trim();
+    const problems = checkParameters(p, valueOf);
+    if (problems.length) {
+      const adv = form.querySelector('#advanced-parameters');
+      if (adv && problems.some((x) => adv.querySelector(`[name="${x.field}"]`))) adv.open = true;
+      showFieldErrors(form, problems);
+      say(formStatus, 'error', `Please correct the ${problems.length === 1 ? 'marked parameter' : `${problems.length} marked parameters`}.`);
+      return;
+    }
     // Only what the clinician changed: the server derives the rest from the
     // protocol's defaults and the session (some defaults depend on others).
+    const parameters = {};
     for (const param of p.parameters) {
       const input = form.elements[param.name];
       const raw = input.value.trim();
       if (raw === '' || raw === input.dataset.prefilled) continue;
-      const n = Number(raw);
-      parameters[param.name] = Number.isFinite(n) ? n : raw;
+      parameters[param.name] = Number(raw);
     }
     say(formStatus, 'info', 'Starting…');
     try {
       const run = await api('POST', `/sessions/${sessionId}/runs`, { protocol: p.name, parameters });
+      ctx.runs.control(run);
       say(formStatus, 'ok', `Run ${run.run_id} started.`);
       follow(run);
     } catch (e) {
+      const input = e.field && form.querySelector(`[name="${CSS.escape(e.field.split('.').pop())}"]`);
+      const adv = form.querySelector('#advanced-parameters');
+      if (input && adv && adv.contains(input)) adv.open = true;
       const onField = showFieldError(form, e);
       say(formStatus, 'error', onField ? `Please correct the marked parameter: ${e.message}` : `Cannot start: ${e.message}`);
     }
+    ctx.refreshBench();
   } },
-  h('div', { class: 'field' }, h('label', { for: 'protocol' }, 'Protocol'), select), description, paramSlot,
-  h('div', { class: 'actions' }, startButton,
-    mayRun ? '' : h('small', {}, ' Only a clinician or an admin may start protocols.')));
+  h('div', { class: 'field' }, h('label', { for: 'protocol' }, 'Protocol'), select), description, helpText, paramSlot,
+  h('div', { class: 'actions' }, startButton, startHint));
 
   // --- live run ------------------------------------------------------------------
   const live = h('section', { id: 'live', 'aria-labelledby': 'live-h', hidden: true });
@@ -107,7 +235,7 @@ export async function sessionView(ctx, sessionId) {
     const phase = h('span', { id: 'run-phase' }, '');
     const endSlot = h('div', { id: 'run-end', 'aria-live': 'polite' });
     const trialsText = h('span', { id: 'run-trials' }, '');
-    const cancel = h('button', { type: 'button', class: 'danger', id: 'cancel-run', onclick: async () => {
+    const cancel = h('button', { type: 'button', class: 'danger', id: 'cancel-run', disabled: !mayRun, onclick: async () => {
       try {
         await api('POST', `/runs/${runId}/cancel`);
       } catch (e) {
@@ -115,7 +243,7 @@ export async function sessionView(ctx, sessionId) {
       }
     } }, 'Cancel run');
     const stop = run.protocol === 'tolerance_test'
-      ? h('button', { type: 'button', id: 'stop-run', onclick: async () => {
+      ? h('button', { type: 'button', id: 'stop-run', disabled: !mayRun, onclick: async () => {
         try {
           await api('POST', `/runs/${runId}/stop`);
         } catch (e) {
@@ -147,48 +275,75 @@ export async function sessionView(ctx, sessionId) {
       drawPending = false;
       for (const key of ['angle', 'torque', 'stim']) plots[key].setData([data.t, data[key]]);
       live.dataset.samples = String(samplesSeen);
+      if (data.stim.length) live.dataset.lastStim = String(data.stim[data.stim.length - 1]);
+      let lo = Infinity;
+      let hi = -Infinity;
+      for (const v of data.torque) {
+        if (v < lo) lo = v;
+        if (v > hi) hi = v;
+      }
+      // The torque response seen in the window (a tolerance test stops on it).
+      if (data.torque.length) live.dataset.torqueSwing = String(hi - lo);
     };
-    const showProgress = (p) => {
-      if (!p) return;
-      progress.value = p.fraction;
-      progressText.textContent = `${Math.round(p.fraction * 100)} %`;
-      eta.textContent = `ETA ${fmtDuration(p.eta_s)} (bench ${fmt(p.bench_elapsed_s, 3)} of ${fmt(p.bench_total_s, 3)} s)`;
-      phase.textContent = `phase ${p.phase}, step ${p.step}`;
+    const showProgress = (x) => {
+      if (!x || x.progress === undefined) return;
+      const { fraction, eta_s } = progressOf(x);
+      progress.value = fraction;
+      progressText.textContent = `${Math.round(fraction * 100)} %`;
+      const p = typeof x.progress === 'object' ? x.progress : null;
+      eta.textContent = `ETA ${fmtDuration(eta_s)}` +
+        (p && Number.isFinite(p.bench_total_s) ? ` (bench ${fmt(p.bench_elapsed_s, 3)} of ${fmt(p.bench_total_s, 3)} s)` : '');
+      phase.textContent = p && p.phase ? `phase ${p.phase}, step ${p.step}` : '';
+      ctx.runs.update({ progress: x.progress, eta_s });
     };
-    showProgress(run.progress);
+    showProgress(run);
 
     let finished = false;
-    const heartbeat = mayRun && run.owner_user_id === ctx.user.id
-      ? setInterval(() => api('POST', `/runs/${runId}/heartbeat`).catch(() => {}), 400) : null;
     stopLive = () => {
       abort.abort();
-      if (heartbeat) clearInterval(heartbeat);
       for (const p of Object.values(plots)) p.disconnect();
       stopLive = () => {};
     };
     const finish = async (end) => {
       if (finished) return;
       finished = true;
-      if (heartbeat) clearInterval(heartbeat);
+      ctx.runs.update({ state: end.state });
       cancel.disabled = true;
       if (stop) stop.disabled = true;
       stateText.textContent = end.state;
-      live.dataset.state = end.state;
       const parts = [`Run ${runId} ended: ${end.state}.`];
       if (end.reason) parts.push(`Reason: ${end.reason}.`);
+      const r = end.result;
+      let recorded = '';
+      if (r && r.session_revision) {
+        recorded = h('p', { class: 'msg msg-ok', id: 'run-recorded' }, `Recorded in this session: threshold ${fmt(r.threshold_ma, 4)} mA, ` +
+          `max tolerated ${fmt(r.max_tolerated_ma, 4)} mA (revision ${r.session_revision}).`);
+      } else if (r && 'max_tolerated_ma' in r) {
+        recorded = h('p', { class: 'msg msg-error', id: 'run-not-recorded' }, Number.isFinite(r.threshold_ma)
+          ? `Measured threshold ${fmt(r.threshold_ma, 4)} mA and max tolerated ${fmt(r.max_tolerated_ma, 4)} mA, but they were not ` +
+            'stored in the session: correct the session by hand or repeat the test.'
+          : 'No threshold was detected (no torque response before the stop): the session\'s values are unchanged. ' +
+            'Repeat the test and stop only after a clear response.');
+      }
       endSlot.replaceChildren(h('p', { class: `msg ${end.state === 'done' ? 'msg-ok' : 'msg-error'}`, role: 'status' }, parts.join(' ')),
+        recorded,
         end.parameter_set_id ? h('p', {}, h('a', { href: `#/parameter-sets/${end.parameter_set_id}`, id: 'run-parameter-set' },
           `Open parameter set ${end.parameter_set_id}`)) : '');
-      await loadRuns().catch(() => {});
+      // A tolerance test writes threshold / max tolerated into the session:
+      // show them at once (and the defaults they give the next protocol).
+      await Promise.all([refreshSession(), loadRuns(), loadTrials()]).catch((e) => say(endSlot, 'error', e.message));
+      live.dataset.state = end.state;
+      ctx.refreshBench();
     };
 
     streamEvents(`/runs/${runId}/stream`, (name, ev) => {
       if (name === 'state') {
         stateText.textContent = ev.state;
         live.dataset.state = ev.state;
-        showProgress(ev.progress);
+        ctx.runs.update({ state: ev.state });
+        showProgress(ev);
       } else if (name === 'progress') {
-        showProgress(ev.progress);
+        showProgress(ev);
       } else if (name === 'samples') {
         const s = ev.samples;
         const n = s.angle_deg.length;
@@ -206,7 +361,7 @@ export async function sessionView(ctx, sessionId) {
           requestAnimationFrame(redraw);
         }
       } else if (name === 'trial') {
-        trialsText.textContent = `trial ${ev.name || ev.trial_id || ''} stored`;
+        trialsText.textContent = `trial ${ev.trial_name || ev.trial_id || ''} stored`;
       } else if (name === 'end') {
         redraw();
         finish(ev);
@@ -214,7 +369,7 @@ export async function sessionView(ctx, sessionId) {
     }, abort.signal).then(async () => {
       if (!finished && !abort.signal.aborted) {
         const view = await api('GET', `/runs/${runId}`).catch(() => null);
-        if (view && view.finished_at) finish(view);
+        if (view && isFinal(view.state)) finish(view);
       }
     }).catch((e) => say(endSlot, 'error', e.message));
   }
@@ -223,21 +378,23 @@ export async function sessionView(ctx, sessionId) {
     h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ',
       h('a', { href: `#/subjects/${subject.id}` }, subject.code), ' › ', `Session ${session.id}`),
     h('h1', {}, `Session ${session.id} — ${subject.code}, ${session.leg} leg, ${session.date}`),
-    table(['Field', 'Value'], [['Threshold (mA)', fmt(session.details.threshold_ma)],
-      ['Max tolerated (mA)', fmt(session.details.max_tolerated_ma)],
-      ['Accelerometer placement', session.details.accelerometer_placement || '—'], ['Notes', session.details.notes || '—']],
-    { class: 'kv' }),
+    detailsSlot,
     h('section', { 'aria-labelledby': 'start-h' }, h('h2', { id: 'start-h' }, 'Run a protocol'), form, formStatus),
     live,
-    h('section', { 'aria-labelledby': 'runs-h' }, h('h2', { id: 'runs-h' }, 'Runs of this session'), runsSlot));
-  const rapid = protocols.find((p) => p.name === 'rapid_parameterisation');
-  if (rapid) select.value = rapid.name;
+    h('section', { 'aria-labelledby': 'runs-h' }, h('h2', { id: 'runs-h' }, 'Runs of this session'), runsSlot),
+    h('section', { 'aria-labelledby': 'trials-h' }, h('h2', { id: 'trials-h' }, 'Trials of this session'), trialsSlot,
+      trialStatus, trialPlot));
+  // Without recorded limits only the tolerance test can run: offer it first.
+  const d = session.details;
+  const first = Number.isFinite(d.threshold_ma) && Number.isFinite(d.max_tolerated_ma) ? 'rapid_parameterisation' : 'tolerance_test';
+  if (protocols.some((p) => p.name === first)) select.value = first;
   renderParameters();
-  await loadRuns();
-  // A run of this session already on the bench: follow it.
-  const st = bench.state;
-  if (st.busy && st.run_id) {
+  await Promise.all([renderDetails(), loadRuns(), loadTrials()]);
+  // A run of this session already on the bench (started here before leaving
+  // the page, or re-attached after a reload): follow it.
+  const st = bench.state && typeof bench.state === 'object' ? bench.state : bench;
+  if (st.run_id && !isFinal(st.run_state)) {
     const run = await api('GET', `/runs/${st.run_id}`).catch(() => null);
-    if (run && run.session_id === sessionId && !run.finished_at) follow(run);
+    if (run && run.session_id === sessionId && !isFinal(run.state)) follow(run);
   }
 }

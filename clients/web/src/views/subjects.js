@@ -1,7 +1,29 @@
 // Subjects: list, search by code, create; one subject: its sessions (list,
 // create), its parameter sets (open, compare two, history).
 import { api, listAll } from '../api.js';
-import { clearErrors, field, fmt, h, say, showFieldError, table, todayIso } from '../dom.js';
+import { clearErrors, field, fmt, h, message, say, showFieldError, showFieldErrors, table, todayIso } from '../dom.js';
+import { correctionForm, revisionHistory } from './corrections.js';
+
+const SEX_OPTIONS = [{ value: '', label: '(not given)' }, { value: 'female', label: 'female' },
+  { value: 'male', label: 'male' }, { value: 'other', label: 'other' }, { value: 'undisclosed', label: 'undisclosed' }];
+
+export const SUBJECT_FIELDS = [
+  { name: 'age_years', label: 'Age (years)', type: 'number', unit: 'years', min: 0, max: 130 },
+  { name: 'sex', label: 'Sex', type: 'select', options: SEX_OPTIONS },
+  { name: 'height_cm', label: 'Height (cm)', type: 'number', unit: 'cm', min: 0 },
+  { name: 'weight_kg', label: 'Body mass (kg)', type: 'number', unit: 'kg', min: 0,
+    help: 'with the shank length gives the leg inertia (Eq. 4.13)' },
+  { name: 'shank_length_cm', label: 'Shank length (cm)', type: 'number', unit: 'cm', min: 0,
+    help: 'femoral condyle to medial malleolus' },
+  { name: 'calf_circumference_cm', label: 'Calf circumference (cm)', type: 'number', unit: 'cm', min: 0 },
+];
+const SUBJECT_LABELS = Object.fromEntries(SUBJECT_FIELDS.map((f) => [f.name, f.label]));
+
+/// "right" / "left" for a leg id of this subject (never the internal id).
+export function legSide(subject, legId) {
+  const leg = subject && subject.legs.find((l) => l.id === legId);
+  return leg ? leg.side : 'unknown leg';
+}
 
 function numberOrUndefined(form, name) {
   const v = form.elements[name].value.trim();
@@ -60,9 +82,23 @@ export async function subjectsView(ctx) {
     event.preventDefault();
     const f = event.target;
     const details = {};
-    for (const name of ['age_years', 'height_cm', 'weight_kg', 'shank_length_cm', 'calf_circumference_cm']) {
-      const v = numberOrUndefined(f, name);
-      if (v !== undefined) details[name] = v;
+    const problems = [];
+    if (!f.elements.code.value.trim()) problems.push({ field: 'code', message: 'a pseudonymous code is required' });
+    for (const spec of SUBJECT_FIELDS.filter((x) => x.type === 'number')) {
+      const v = numberOrUndefined(f, spec.name);
+      if (v === undefined) continue;
+      if (typeof v !== 'number') problems.push({ field: spec.name, message: `must be a number in ${spec.unit}` });
+      else if (v < spec.min || (spec.max !== undefined && v > spec.max)) {
+        problems.push({ field: spec.name, message: spec.max !== undefined ? `must be between ${spec.min} and ${spec.max} ${spec.unit}`
+          : `must be positive (${spec.unit})` });
+      }
+      details[spec.name] = v;
+    }
+    clearErrors(f);
+    if (problems.length) {
+      showFieldErrors(f, problems);
+      say(status, 'error', `Please correct the ${problems.length === 1 ? 'marked field' : `${problems.length} marked fields`}.`);
+      return;
     }
     if (f.elements.sex.value) details.sex = f.elements.sex.value;
     const legs = ['left', 'right'].filter((side) => f.elements[`leg_${side}`].checked);
@@ -76,8 +112,7 @@ export async function subjectsView(ctx) {
   } },
   field('code', 'Pseudonymous code', { required: true, help: 'letters, digits, _ and - (no names)' }),
   field('age_years', 'Age (years)', { type: 'number' }),
-  field('sex', 'Sex', { options: [{ value: '', label: '(not given)' }, { value: 'female', label: 'female' },
-    { value: 'male', label: 'male' }, { value: 'other', label: 'other' }, { value: 'undisclosed', label: 'undisclosed' }] }),
+  field('sex', 'Sex', { options: SEX_OPTIONS }),
   field('height_cm', 'Height (cm)', { type: 'number' }),
   field('weight_kg', 'Body mass (kg)', { type: 'number' }),
   field('shank_length_cm', 'Shank length (cm)', { type: 'number' }),
@@ -100,7 +135,8 @@ export async function subjectsView(ctx) {
 }
 
 export async function subjectView(ctx, subjectId) {
-  const subject = await api('GET', `/subjects/${subjectId}`);
+  let subject = await api('GET', `/subjects/${subjectId}`);
+  const mayEdit = ctx.user.role === 'clinician' || ctx.user.role === 'admin';
   const sessionsSlot = h('div', { id: 'session-list' });
   const setsSlot = h('div', { id: 'set-list' });
 
@@ -127,7 +163,7 @@ export async function subjectView(ctx, subjectId) {
     setsSlot.replaceChildren(
       table(['Set', 'Created', 'Leg', 'Model', 'Methods'], sets.map((s) => [
         h('a', { href: `#/parameter-sets/${s.id}` }, `Parameter set ${s.id}`),
-        s.created_at_utc.slice(0, 19).replace('T', ' '), String(s.leg_id), s.model,
+        s.created_at_utc.slice(0, 19).replace('T', ' '), legSide(subject, s.leg_id), s.model,
         `${s.irc_method}, ${s.passive_method}, ${s.active_method}`]), { id: 'sets-table' }),
       h('p', {}, h('a', { href: `#/subjects/${subjectId}/history`, id: 'history-link' }, 'Parameter history over time')),
       h('form', { class: 'row', id: 'compare-form', onsubmit: (e) => { e.preventDefault(); location.hash = `#/compare/${a.value}/${b.value}`; } },
@@ -154,22 +190,39 @@ export async function subjectView(ctx, subjectId) {
   } },
   field('leg', 'Leg', { options: legOptions }),
   field('date', 'Date (YYYY-MM-DD)', { value: todayIso(), required: true }),
-  field('threshold_ma', 'Stimulation threshold (mA)', { type: 'number', help: 'from the tolerance test' }),
-  field('max_tolerated_ma', 'Max tolerated (mA)', { type: 'number' }),
+  field('threshold_ma', 'Stimulation threshold (mA)', { type: 'number',
+    help: 'leave empty: the tolerance test records it in the session' }),
+  field('max_tolerated_ma', 'Max tolerated (mA)', { type: 'number',
+    help: 'leave empty: the tolerance test records it in the session' }),
   field('accelerometer_placement', 'Accelerometer placement', { help: 'e.g. 20 cm below the knee, lateral' }),
   field('notes', 'Notes', { type: 'textarea' }),
   h('div', { class: 'actions' }, h('button', { type: 'submit', class: 'primary' }, 'Open session')));
 
-  const d = subject.details;
+  const detailsSlot = h('div', { id: 'subject-details-box' });
+  const subjectPath = `/subjects/${subjectId}`;
+  const editForm = correctionForm({ id: 'subject-edit', path: subjectPath, fields: SUBJECT_FIELDS, mayEdit,
+    current: () => subject.details,
+    onSaved: async () => {
+      subject = await api('GET', subjectPath);
+      await renderDetails();
+    } });
+  async function renderDetails() {
+    const d = subject.details;
+    detailsSlot.replaceChildren(
+      table(['Field', 'Value'], [
+        ['Legs', subject.legs.map((l) => l.side).join(', ') || '—'], ['Age (years)', fmt(d.age_years)], ['Sex', d.sex || '—'],
+        ['Height (cm)', fmt(d.height_cm)], ['Body mass (kg)', fmt(d.weight_kg)], ['Shank length (cm)', fmt(d.shank_length_cm)],
+        ['Calf circumference (cm)', fmt(d.calf_circumference_cm)], ['Revision', String(subject.revision ?? 1)]],
+      { class: 'kv', id: 'subject-details' }),
+      editForm,
+      await revisionHistory(subjectPath, SUBJECT_LABELS, 'subject-revisions').catch((e) => message('error', `Revision history unavailable: ${e.message}`)));
+  }
   ctx.main.replaceChildren(
     h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ', subject.code),
     h('h1', {}, `Subject ${subject.code}`),
-    table(['Field', 'Value'], [
-      ['Legs', subject.legs.map((l) => l.side).join(', ') || '—'], ['Age (years)', fmt(d.age_years)], ['Sex', d.sex || '—'],
-      ['Height (cm)', fmt(d.height_cm)], ['Body mass (kg)', fmt(d.weight_kg)], ['Shank length (cm)', fmt(d.shank_length_cm)],
-      ['Calf circumference (cm)', fmt(d.calf_circumference_cm)]], { class: 'kv', id: 'subject-details' }),
+    detailsSlot,
     h('section', { 'aria-labelledby': 'sess-h' }, h('h2', { id: 'sess-h' }, 'Sessions'), sessionsSlot),
     h('section', { 'aria-labelledby': 'newsess-h' }, h('h2', { id: 'newsess-h' }, 'New session'), form, status),
     h('section', { 'aria-labelledby': 'sets-h' }, h('h2', { id: 'sets-h' }, 'Parameter sets'), setsSlot));
-  await Promise.all([loadSessions(), loadSets()]);
+  await Promise.all([renderDetails(), loadSessions(), loadSets()]);
 }

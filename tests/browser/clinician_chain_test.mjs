@@ -1,0 +1,328 @@
+// Browser test of issue 14: a clinician's first session with a new subject,
+// the whole chain in the web client on a fresh server — sign in → new
+// subject without body mass / shank length → add them by correction (with a
+// reason) → session without threshold / max tolerated → tolerance test,
+// "Stop here" → the session shows the recorded values → rapid
+// parameterisation while switching views (the run survives, the run bar
+// shows throughout) → prediction_random_binary and prediction_step runs →
+// the prediction page (an analyst colleague) on those fresh trials with the
+// error figures → e-stop during a run, confirmed clear. Viewport
+// screenshots of each step at 1280 and 820 px.
+//
+//   node clinician_chain_test.mjs --server BIN --web-root DIR --node-modules DIR
+//                                 --chromium BIN --artefacts DIR
+import assert from 'node:assert/strict';
+import { join } from 'node:path';
+import { arg, call, expectEstopVisible, fillParameter, launch, makeUser, shooter, startServer, step, stopServer } from './harness.mjs';
+
+// Runs last a few seconds of wall time (rapid ≈ 7 s), so switching views
+// really happens while the run goes on.
+const TIME_SCALE = 5;
+const artefacts = arg('--artefacts');
+const shots = shooter(artefacts);
+const started = Date.now();
+
+const server = await startServer({ timeScale: TIME_SCALE });
+let context;
+let page;
+let failed = false;
+const notes = [];
+
+async function signIn(token) {
+  if (await page.locator('#who-name').count()) {
+    await page.getByRole('button', { name: 'Sign out' }).click();
+  }
+  await page.waitForURL(/#\/signin$/);
+  await page.getByLabel('Access token').fill(token);
+  await page.getByRole('button', { name: 'Sign in' }).click();
+  await page.waitForURL(/#\/subjects$/);
+}
+
+// Starts the selected protocol; resolves the run id, or null with the
+// refusal the page shows.
+async function startProtocol(name) {
+  if ((await page.locator('#protocol').inputValue()) !== name) await page.locator('#protocol').selectOption(name);
+  await page.locator('#start-run:not([disabled])').waitFor();
+  await page.locator('#start-run').click();
+  const status = page.locator('#run-form-status .msg');
+  await status.filter({ hasText: /started|Cannot start|correct/ }).waitFor();
+  const text = await status.textContent();
+  const m = text.match(/Run (\d+) started/);
+  return m ? { runId: Number(m[1]) } : { refusal: text };
+}
+
+try {
+  const { context: c, page: p, external, consoleErrors } = await launch(server);
+  context = c;
+  page = p;
+  const clinician = await makeUser(server, 'dr_chain', 'clinician');
+  const analyst = await makeUser(server, 'an_chain', 'analyst');
+  let subjectId;
+  let sessionId;
+  let setId;
+  const freshRuns = [];
+
+  await step('sign in as a clinician', async () => {
+    await page.goto(`${server.url}/`);
+    await page.waitForURL(/#\/signin$/);
+    await page.getByLabel('Access token').fill(clinician.token);
+    await page.keyboard.press('Enter');
+    await page.waitForURL(/#\/subjects$/);
+    assert.equal(await page.locator('#who-role').textContent(), 'clinician');
+    await page.locator('#estop-state').filter({ hasText: 'Bench: idle' }).waitFor();
+    await shots.both(page, 'signed-in');
+  });
+
+  await step('a new subject without body mass or shank length', async () => {
+    await page.getByLabel('Pseudonymous code').fill('N01');
+    await page.getByLabel('Age (years)').fill('41');
+    await page.getByRole('button', { name: 'Create subject' }).click();
+    await page.locator('#subject-form-status').filter({ hasText: 'Subject N01 created.' }).waitFor();
+    await page.locator('#subjects-table').getByRole('link', { name: 'N01' }).click();
+    await page.getByRole('heading', { name: 'Subject N01' }).waitFor();
+    subjectId = Number(page.url().match(/subjects\/(\d+)/)[1]);
+    const details = await page.locator('#subject-details').textContent();
+    assert.match(details, /Body mass \(kg\)—/);
+    assert.match(details, /Shank length \(cm\)—/);
+    await shots.both(page, 'subject-new');
+  });
+
+  await step('correction: every invalid field at once, then body mass and shank length with a reason', async () => {
+    await page.locator('#subject-edit-box summary').click();
+    await page.locator('#subject-edit-weight_kg').fill('-72');
+    await page.locator('#subject-edit-shank_length_cm').fill('43');
+    await page.getByRole('button', { name: 'Save correction' }).click();
+    // Both problems of one submit are shown together, before any request.
+    await page.locator('#subject-edit-weight_kg-error').filter({ hasText: /at least 0 kg/ }).waitFor();
+    await page.locator('#subject-edit-reason-error').filter({ hasText: /why/ }).waitFor();
+    assert.equal(await page.locator('#subject-edit [aria-invalid=true]').count(), 2);
+    await shots.both(page, 'subject-correction-invalid');
+    await page.locator('#subject-edit-weight_kg').fill('72');
+    await page.locator('#subject-edit-reason').fill('body mass and shank length measured at the first visit');
+    await page.getByRole('button', { name: 'Save correction' }).click();
+    await page.locator('#subject-edit-status').filter({ hasText: /Saved as revision 2/ }).waitFor();
+    await page.locator('#subject-details').filter({ hasText: /Body mass \(kg\)72/ }).waitFor();
+    assert.match(await page.locator('#subject-details').textContent(), /Shank length \(cm\)43/);
+    const history = page.locator('#subject-revisions-table tbody tr');
+    assert.equal(await history.count(), 2);
+    assert.match(await history.nth(1).textContent(), /measured at the first visit/);
+    assert.match(await history.nth(1).textContent(), /dr_chain/);
+    const subject = await call(server, 'GET', `/subjects/${subjectId}`);
+    assert.deepEqual([subject.body.revision, subject.body.details.weight_kg, subject.body.details.shank_length_cm], [2, 72, 43]);
+    await page.locator('#subject-revisions').scrollIntoViewIfNeeded();
+    await shots.both(page, 'subject-corrected');
+  });
+
+  await step('a session without threshold or max tolerated (nothing prefilled)', async () => {
+    assert.equal(await page.locator('#f-threshold_ma').inputValue(), '');
+    assert.equal(await page.locator('#f-max_tolerated_ma').inputValue(), '');
+    await page.getByLabel('Accelerometer placement').fill('shank, 20 cm below the knee');
+    await page.getByRole('button', { name: 'Open session' }).click();
+    await page.locator('#session-form-status').filter({ hasText: /Session \d+ opened/ }).waitFor();
+    await page.locator('#sessions-table a').first().click();
+    await page.locator('#run-form').waitFor();
+    sessionId = Number(page.url().match(/sessions\/(\d+)/)[1]);
+    assert.equal(await page.locator('#session-threshold').textContent(), '—');
+    assert.equal(await page.locator('#session-max-tolerated').textContent(), '—');
+    // Without recorded limits the tolerance test is what can run.
+    assert.equal(await page.locator('#protocol').inputValue(), 'tolerance_test');
+    // Labels in the clinician's words, the thesis section behind a help link.
+    assert.doesNotMatch(await page.locator('#protocol-parameters').textContent(), /§/);
+    assert.match(await page.locator('#protocol-help').getAttribute('title'), /§/);
+    await shots.both(page, 'session-new');
+  });
+
+  await step('tolerance test, "Stop here": the session shows the recorded values at once', async () => {
+    const { runId } = await startProtocol('tolerance_test');
+    assert.ok(runId, 'tolerance test refused');
+    await page.locator('#live[data-state="running"]').waitFor();
+    await page.locator('#runbar[data-state="running"]').waitFor();
+    // The clinician stops when the subject has had enough: a clear torque
+    // response, above this virtual subject's threshold.
+    await page.waitForFunction(() => Number(document.querySelector('#live').dataset.torqueSwing || 0) >= 3, null, { timeout: 60000 });
+    await shots.both(page, 'tolerance-running');
+    await page.getByRole('button', { name: 'Stop here (max tolerated)' }).click();
+    await page.locator('#live[data-state="done"]').waitFor();
+    await page.locator('#run-recorded').waitFor();
+    const session = (await call(server, 'GET', `/sessions/${sessionId}`)).body;
+    const { threshold_ma: thr, max_tolerated_ma: max } = session.details;
+    assert.ok(Number.isFinite(thr) && Number.isFinite(max) && max > thr, JSON.stringify(session.details));
+    const shown = (sel) => page.locator(sel).textContent().then(Number);
+    assert.ok(Math.abs((await shown('#session-threshold')) - thr) < 0.01 * thr, 'threshold shown');
+    assert.ok(Math.abs((await shown('#session-max-tolerated')) - max) < 0.01 * max, 'max tolerated shown');
+    assert.match(await page.locator('#session-revisions-table').textContent(), new RegExp(`tolerance_test run ${runId}`));
+    notes.push(`tolerance test: threshold ${thr} mA, max tolerated ${max} mA`);
+    await shots.both(page, 'tolerance-recorded');
+  });
+
+  await step('rapid parameterisation while switching views: the run survives, the run bar shows throughout', async () => {
+    const { runId, refusal } = await startProtocol('rapid_parameterisation');
+    assert.ok(runId, `rapid refused: ${refusal}`);
+    await page.locator('#live[data-state="running"]').waitFor();
+    await page.getByRole('navigation').getByRole('link', { name: 'Subjects' }).click();
+    await page.locator('#subjects-table').waitFor();
+    await page.locator(`#runbar[data-run-id="${runId}"][data-state="running"]`).waitFor();
+    const p0 = await page.locator('#runbar-progress').evaluate((e) => e.value);
+    await page.waitForFunction((v) => document.querySelector('#runbar-progress').value > v, p0);
+    await expectEstopVisible(page);
+    await shots.both(page, 'rapid-on-subjects');
+    await page.locator('#subjects-table').getByRole('link', { name: 'N01' }).click();
+    await page.getByRole('heading', { name: 'Subject N01' }).waitFor();
+    await page.locator(`#runbar[data-run-id="${runId}"]`).waitFor();
+    await page.getByRole('navigation').getByRole('link', { name: 'Prediction' }).click();
+    await page.locator(`#runbar[data-run-id="${runId}"]`).waitFor();
+    await shots.both(page, 'rapid-on-prediction');
+    // Back through the bar's link: the session follows the same run live.
+    await page.locator('#runbar-session').click();
+    await page.locator(`#live[data-run-id="${runId}"]`).waitFor();
+    await page.locator('#live[data-state="done"]').waitFor({ timeout: 90000 });
+    const run = (await call(server, 'GET', `/runs/${runId}`)).body;
+    assert.equal(run.state, 'done', `rapid ended ${run.state}: ${run.reason}`);
+    setId = run.parameter_set_id;
+    assert.ok(setId, 'no parameter set from rapid');
+    await page.locator('#run-parameter-set').waitFor();
+    await shots.both(page, 'rapid-done');
+  });
+
+  let gateRefusal = null;
+  await step('prediction_random_binary and prediction_step runs (fresh trials)', async () => {
+    for (const protocol of ['prediction_random_binary', 'prediction_step']) {
+      const { runId, refusal } = await startProtocol(protocol);
+      if (!runId) {
+        // The model gate refused: the page must say so plainly.
+        assert.match(refusal, /Cannot start: .{20,}/);
+        gateRefusal = refusal;
+        notes.push(`${protocol} refused by the model gate: ${refusal}`);
+        await shots.both(page, `${protocol}-refused`);
+        continue;
+      }
+      await page.locator(`#live[data-run-id="${runId}"][data-state="done"]`).waitFor({ timeout: 60000 });
+      freshRuns.push(runId);
+      await shots.both(page, `${protocol}-done`);
+    }
+    // The session lists its trials: plot one and download it as CSV.
+    await page.locator('#trials-table').waitFor();
+    await page.locator('#trials-table button[data-trial]').last().click();
+    await page.locator('#trial-plot figure[data-plot="trial-angle"] canvas').waitFor();
+    const [csv] = await Promise.all([page.waitForEvent('download'), page.locator('#trials-table button[data-csv]').last().click()]);
+    assert.match(csv.suggestedFilename(), /\.csv$/);
+    const [sto] = await Promise.all([page.waitForEvent('download'), page.locator('#trials-table button[data-sto]').last().click()]);
+    assert.match(sto.suggestedFilename(), /\.sto$/);
+    await page.locator('#trial-plot').scrollIntoViewIfNeeded();
+    await shots.both(page, 'session-trials');
+  });
+
+  await step('prediction page (analyst): the new set on trials it was not fitted on, with error figures', async () => {
+    await signIn(analyst.token);
+    await page.goto(`${server.url}/#/predict/${setId}`);
+    await page.locator('#predict-set').waitFor();
+    assert.equal(await page.locator('#predict-set').inputValue(), String(setId));
+    const set = (await call(server, 'GET', `/parameter-sets/${setId}`)).body;
+    await page.locator('#predict-trial option:not([value=""])').first().waitFor({ state: 'attached' });
+    const chosen = Number(await page.locator('#predict-trial').inputValue());
+    // Training trials are marked; the default is not one of them.
+    const trainingOptions = await page.locator('#predict-trial option[data-training="1"]').allTextContents();
+    assert.ok(trainingOptions.length >= 1 && trainingOptions.every((t) => t.includes('(training)')), String(trainingOptions));
+    if (freshRuns.length) {
+      assert.ok(!set.trial_ids.includes(chosen), `default trial ${chosen} is a training trial`);
+      const trial = (await call(server, 'GET', `/sessions/${sessionId}/trials`)).body.items.find((t) => t.id === chosen);
+      assert.ok(trial && freshRuns.includes(trial.run_id), `default trial ${chosen} is not from the prediction runs`);
+      assert.equal(await page.locator('#predict-training-note').isHidden(), true);
+    } else {
+      // Nothing fresh was recorded (gate refusal): choosing a training trial says so.
+      await page.locator('#predict-trial').selectOption(String(set.trial_ids[set.trial_ids.length - 1]));
+      await page.locator('#predict-training-note').waitFor();
+    }
+    await page.getByRole('button', { name: 'Run prediction' }).click();
+    await page.locator('#error-table').waitFor({ timeout: 60000 });
+    const rms = Number((await page.locator('#error-table tbody tr').first().locator('td').textContent()).trim());
+    assert.ok(rms > 0 && Number.isFinite(rms), `E_RMS ${rms}`);
+    notes.push(`prediction of set ${setId} on trial ${chosen}: E_RMS ${rms} deg`);
+    await page.locator('figure[data-plot="prediction"] canvas').waitFor();
+    await shots.both(page, 'prediction');
+    await signIn(clinician.token);
+  });
+
+  await step('closing the tab during a run asks first; a reload re-attaches to the run', async () => {
+    await page.goto(`${server.url}/#/sessions/${sessionId}`);
+    await page.locator('#run-form').waitFor();
+    await page.locator('#protocol').selectOption('active_random_binary');
+    await fillParameter(page, 'duration_s', '120'); // long enough for the reload and the e-stop below
+    const { runId } = await startProtocol('active_random_binary');
+    assert.ok(runId);
+    await page.locator('#live[data-state="running"]').waitFor();
+    // A reload asks (beforeunload); accepting it reloads, and the page takes
+    // the heartbeat over again because the server says this user controls it.
+    const asked = page.waitForEvent('dialog').then(async (dialog) => {
+      assert.equal(dialog.type(), 'beforeunload');
+      await dialog.accept();
+    });
+    await page.evaluate(() => location.reload()).catch(() => {});
+    await asked;
+    await page.locator(`#runbar[data-run-id="${runId}"][data-state="running"]`).waitFor();
+    await page.locator(`#live[data-run-id="${runId}"]`).waitFor();
+    const p0 = await page.locator('#runbar-progress').evaluate((e) => e.value);
+    await page.waitForFunction((v) => document.querySelector('#runbar-progress').value > v + 0.02, p0);
+    assert.equal((await call(server, 'GET', `/runs/${runId}`)).body.state, 'running');
+    await shots.both(page, 'reattached');
+  });
+
+  await step('e-stop during a run: latch banner, every start disabled, confirmed clear', async () => {
+    await page.locator('#estop').click();
+    await page.locator('#latch').filter({ hasText: 'E-STOP LATCHED' }).waitFor();
+    await page.locator('#live[data-state="aborted"]').waitFor();
+    await page.locator('#start-hint').filter({ hasText: 'e-stop is latched' }).waitFor();
+    assert.equal(await page.locator('#start-run').isDisabled(), true);
+    // The latch is the most visible thing: full width, right under the header.
+    const latch = await page.locator('#latch').boundingBox();
+    assert.ok(latch.width >= page.viewportSize().width - 20, `latch ${latch.width} px wide`);
+    await shots.both(page, 'estop-latched');
+    await page.locator('#estop-clear').click();
+    await page.locator('#estop-dialog').waitFor();
+    assert.equal(await page.locator('#estop-confirm').isDisabled(), true);
+    await shots.both(page, 'estop-clear-dialog');
+    await page.locator('#estop-confirm-check').check();
+    await page.locator('#estop-confirm').click();
+    await page.locator('#estop-state').filter({ hasText: 'Bench: idle' }).waitFor();
+    assert.equal((await call(server, 'GET', '/bench')).body.state.estopped, false);
+    await page.locator('#start-run:not([disabled])').waitFor();
+    await shots.both(page, 'estop-cleared');
+  });
+
+  await step('the header never shifts: the E-STOP button keeps its place at 1280 and 820 px', async () => {
+    for (const width of [1280, 820]) {
+      await page.setViewportSize({ width, height: 900 });
+      const idle = await page.locator('#estop').boundingBox();
+      const header = await page.locator('.top').boundingBox();
+      await page.locator('#protocol').selectOption('active_random_binary');
+      const { runId } = await startProtocol('active_random_binary');
+      await page.locator(`#runbar[data-run-id="${runId}"][data-state="running"]`).waitFor();
+      const busy = await page.locator('#estop').boundingBox();
+      assert.deepEqual([busy.x, busy.y, busy.width], [idle.x, idle.y, idle.width], `E-STOP moved at ${width} px`);
+      assert.equal((await page.locator('.top').boundingBox()).height, header.height, `header grew at ${width} px`);
+      // The run's progress stays in view.
+      const bar = await page.locator('#runbar-progress').boundingBox();
+      assert.ok(bar && bar.y >= header.height - 1 && bar.y + bar.height <= 900, `run progress hidden at ${width} px`);
+      await page.locator('#runbar-cancel').click();
+      await page.locator('#live[data-state="aborted"]').waitFor();
+      await page.locator('#start-run:not([disabled])').waitFor();
+    }
+    await page.setViewportSize({ width: 1280, height: 800 });
+  });
+
+  assert.deepEqual(external, [], 'the page requested something from elsewhere');
+  assert.deepEqual(consoleErrors, [], 'uncaught errors in the page');
+  if (gateRefusal) console.log('NOTE: the model gate refused a prediction protocol after a default rapid run');
+} catch (e) {
+  failed = true;
+  console.error('FAILED:', e);
+  try {
+    if (page) await page.screenshot({ path: join(artefacts, 'failure.png'), fullPage: true });
+  } catch { /* best effort */ }
+} finally {
+  if (context) await context.close();
+  stopServer(server);
+}
+for (const n of notes) console.log(`    ${n}`);
+console.log(`${failed ? 'FAILED' : 'passed'} in ${((Date.now() - started) / 1000).toFixed(1)} s; screenshots in ${artefacts}`);
+process.exit(failed ? 1 : 0);

@@ -1,0 +1,135 @@
+// Shared pieces of the browser tests: command-line arguments, a
+// fesbench-server on loopback (temporary database, simulated bench in
+// accelerated time), API calls with a token, Debian's chromium through
+// Playwright, screenshots and timed steps. Waits are on page state
+// (selectors, texts, data attributes), never fixed sleeps.
+import { spawn } from 'node:child_process';
+import { mkdirSync, mkdtempSync, readFileSync, rmSync } from 'node:fs';
+import { createRequire } from 'node:module';
+import { tmpdir } from 'node:os';
+import { join, resolve } from 'node:path';
+import assert from 'node:assert/strict';
+
+export const arg = (name) => {
+  const i = process.argv.indexOf(name);
+  if (i < 0) throw new Error(`missing ${name}`);
+  return process.argv[i + 1];
+};
+
+export function playwright() {
+  return createRequire(join(resolve(arg('--node-modules')), 'index.js'))('playwright-core');
+}
+
+/// Starts fesbench-server; resolves {child, url, token (admin), work}.
+export function startServer({ timeScale, seed = 3 }) {
+  const work = mkdtempSync(join(tmpdir(), 'fesbench-browser-'));
+  const child = spawn(arg('--server'), ['--port', '0', '--db', join(work, 'fesbench.db'), '--time-scale', String(timeScale),
+    '--web-root', arg('--web-root'), '--seed', String(seed), '--dds-transport', 'off'], { stdio: ['ignore', 'pipe', 'pipe'] });
+  let out = '';
+  child.stderr.on('data', (d) => process.stderr.write(`[server] ${d}`));
+  return new Promise((resolve, reject) => {
+    const timer = setTimeout(() => reject(new Error(`server did not start: ${out}`)), 20000);
+    child.on('exit', (code) => reject(new Error(`server exited ${code}: ${out}`)));
+    child.stdout.on('data', (d) => {
+      out += d;
+      const m = out.match(/listening on (http:\/\/127\.0\.0\.1:\d+)\//);
+      if (m) {
+        clearTimeout(timer);
+        const token = readFileSync(join(work, 'admin.token'), 'utf8').trim();
+        resolve({ child, url: m[1], token, work });
+      }
+    });
+  });
+}
+
+export function stopServer(server) {
+  if (server.child.exitCode === null) server.child.kill('SIGTERM');
+  rmSync(server.work, { recursive: true, force: true });
+}
+
+export async function call(server, method, path, body, token = server.token) {
+  const res = await fetch(`${server.url}/api/v1${path}`, {
+    method, headers: { Authorization: `Bearer ${token}`, ...(body ? { 'Content-Type': 'application/json' } : {}) },
+    body: body ? JSON.stringify(body) : undefined });
+  const text = await res.text();
+  return { status: res.status, body: text ? JSON.parse(text) : null };
+}
+
+/// A user with a role and their token (through the admin API).
+export async function makeUser(server, name, role) {
+  const user = await call(server, 'POST', '/users', { name, role });
+  assert.equal(user.status, 201, JSON.stringify(user.body));
+  const token = await call(server, 'POST', '/tokens', { user_id: user.body.id });
+  return { ...user.body, token: token.body.token };
+}
+
+/// Headless Debian chromium in a persistent profile (so session storage
+/// survives a reload), 1280×800.
+export async function launch(server) {
+  const { chromium } = playwright();
+  const context = await chromium.launchPersistentContext(join(server.work, 'profile'), {
+    executablePath: arg('--chromium'),
+    headless: true,
+    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
+      '--disable-component-update', '--disable-sync'],
+    viewport: { width: 1280, height: 800 },
+    acceptDownloads: true,
+  });
+  context.setDefaultTimeout(20000);
+  const page = context.pages()[0] || (await context.newPage());
+  const external = [];
+  page.on('request', (r) => { if (!r.url().startsWith(server.url)) external.push(r.url()); });
+  const consoleErrors = [];
+  page.on('pageerror', (e) => consoleErrors.push(String(e)));
+  page.on('console', (m) => { if (m.type() === 'error' && !/Failed to load resource/.test(m.text())) consoleErrors.push(m.text()); });
+  return { context, page, external, consoleErrors };
+}
+
+/// Numbered screenshots under `dir`.
+export function shooter(dir) {
+  mkdirSync(dir, { recursive: true });
+  let shots = 0;
+  return {
+    /// A full-page capture with the sticky header at the top (not mid-page).
+    async full(page, name) {
+      shots += 1;
+      await page.evaluate(() => { document.querySelector('.chrome').style.position = 'static'; });
+      await page.screenshot({ path: join(dir, `${String(shots).padStart(2, '0')}-${name}.png`), fullPage: true });
+      await page.evaluate(() => { document.querySelector('.chrome').style.position = ''; });
+    },
+    /// What the user sees now (the viewport), at the current width.
+    async view(page, name) {
+      shots += 1;
+      const w = page.viewportSize().width;
+      await page.screenshot({ path: join(dir, `${String(shots).padStart(2, '0')}-${name}-${w}.png`) });
+    },
+    /// The viewport at 1280 and at 820 px width (back to 1280 after).
+    async both(page, name) {
+      await this.view(page, name);
+      await page.setViewportSize({ width: 820, height: 1000 });
+      await this.view(page, name);
+      await page.setViewportSize({ width: 1280, height: 800 });
+    },
+  };
+}
+
+export async function step(name, fn) {
+  const t0 = Date.now();
+  await fn();
+  console.log(`ok  ${name} (${Date.now() - t0} ms)`);
+}
+
+/// The e-stop button is inside the viewport on this page.
+export async function expectEstopVisible(page) {
+  const box = await page.locator('#estop').boundingBox();
+  const vp = page.viewportSize();
+  assert.ok(box && box.y >= 0 && box.y + box.height <= vp.height && box.x + box.width <= vp.width,
+    `e-stop not in the viewport: ${JSON.stringify(box)}`);
+}
+
+/// Fills a protocol parameter, unfolding the advanced parameters if it is one of them.
+export async function fillParameter(page, name, value) {
+  const input = page.locator(`#f-${name}`);
+  if (!(await input.isVisible())) await page.locator('#advanced-parameters > summary').click();
+  await input.fill(value);
+}
