@@ -1,9 +1,11 @@
-// `fesbench run start|show|cancel` and `fesbench estop`: protocol runs on the
+// `fesbench run start|show|stop|cancel` and `fesbench estop`: protocol runs on the
 // bench (DESIGN.md §5, §6, §8). `run start` follows the run's event stream to
 // its end while heart-beating it (issue 14), because the server's watchdog
 // stops a run whose controlling user goes silent for more than a second;
 // Ctrl-C cancels the run and exits 130 once the server confirms. `--detach`
 // is refused for any protocol the watchdog would abort a second later.
+// A tolerance test followed on a terminal stops at the amplitude reached when
+// the clinician presses Enter (`run stop` does the same from elsewhere).
 
 #include <atomic>
 #include <chrono>
@@ -14,10 +16,14 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include <poll.h>
+#include <unistd.h>
 
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
@@ -124,6 +130,45 @@ class Heartbeat {
   std::thread thread_;
 };
 
+// While alive, Enter on a terminal's standard input asks the server to stop
+// the run "here" (POST /runs/{id}/stop: a tolerance test records the amplitude
+// reached as the max tolerated, Appendix F part II.K). Polls, so that it ends
+// with the run; end of input only stops the listening.
+class StopKey {
+ public:
+  StopKey(const CliConfig& connection, std::int64_t run_id, std::ostream& out)
+      : thread_([this, connection, run_id, &out] {
+          char buffer[256];
+          while (!done_) {
+            pollfd fd{STDIN_FILENO, POLLIN, 0};
+            if (::poll(&fd, 1, 100) <= 0) continue;
+            const ssize_t n = ::read(STDIN_FILENO, buffer, sizeof buffer);
+            if (n <= 0) return;  // end of input: nobody can press Enter
+            if (std::string_view(buffer, static_cast<std::size_t>(n)).find('\n') ==
+                std::string_view::npos) {
+              continue;
+            }
+            try {
+              ApiClient(connection).Post("/runs/" + std::to_string(run_id) + "/stop");
+              out << "\nstop requested: the amplitude reached is recorded\n" << std::flush;
+            } catch (const CliError& e) {
+              out << "\nstop: " << e.what() << "\n" << std::flush;
+            }
+            return;
+          }
+        }) {}
+  ~StopKey() {
+    done_ = true;
+    thread_.join();
+  }
+  StopKey(const StopKey&) = delete;
+  StopKey& operator=(const StopKey&) = delete;
+
+ private:
+  std::atomic<bool> done_ = false;
+  std::thread thread_;
+};
+
 // Ctrl-C while following a run: the handler only raises this flag; the
 // stream loop cancels the run and waits for the server to confirm its end.
 volatile std::sig_atomic_t g_interrupted = 0;
@@ -146,10 +191,18 @@ class InterruptGuard {
 
 // Follows a run's stream to its end; throws CliError unless it ends "done"
 // (exit 130 when Ctrl-C cancelled it). Progress goes to `progress_out`.
+// `stop_key`: Enter on a terminal stops the run where it is (StopKey).
 void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connection,
-               std::int64_t run_id, std::ostream& progress_out) {
+               std::int64_t run_id, std::ostream& progress_out, bool stop_key) {
   InterruptGuard interrupt_guard;
   Heartbeat heartbeat(connection, run_id);
+  std::optional<StopKey> stopper;
+  if (stop_key && ::isatty(STDIN_FILENO)) {
+    progress_out << "press Enter to stop here and record the amplitude reached as the max "
+                    "tolerated; Ctrl-C cancels without recording\n"
+                 << std::flush;
+    stopper.emplace(connection, run_id, progress_out);
+  }
   ProgressPrinter printer(progress_out, context.out_is_terminal && &progress_out == &context.out);
   json end;
   std::string last_state;
@@ -252,7 +305,7 @@ std::string DetachRefusal(const json& protocol) {
 }  // namespace
 
 void RegisterRunCommands(CLI::App& app, CliContext& context) {
-  CLI::App* run = app.add_subcommand("run", "Protocol runs: start, show, cancel.");
+  CLI::App* run = app.add_subcommand("run", "Protocol runs: start, show, stop, cancel.");
   run->require_subcommand(1);
   {
     auto form = std::make_shared<StartForm>();
@@ -306,7 +359,8 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
                  << ")\n"
                  << std::flush;
         try {
-          FollowRun(context, client, connection, run_id, progress);
+          FollowRun(context, client, connection, run_id, progress,
+                    form->protocol == "tolerance_test");
         } catch (const CliError&) {
           if (context.options.json) {
             context.out << client.Get("/runs/" + std::to_string(run_id)).dump(2) << "\n";
@@ -328,6 +382,27 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         const std::int64_t run_id = ParseId(*id, "run");
         auto client = Connect(context);
         PrintRun(context, client->Get("/runs/" + std::to_string(run_id)));
+      };
+    });
+  }
+  {
+    auto id = std::make_shared<std::string>();
+    CLI::App* stop = run->add_subcommand(
+        "stop",
+        "Stop a run where it is and keep what it recorded: a tolerance test records the "
+        "amplitude reached as the max tolerated (clinician or admin).");
+    stop->add_option("run", *id, "run id")->required();
+    stop->callback([id, &context] {
+      context.action = [id, &context] {
+        const std::int64_t run_id = ParseId(*id, "run");
+        auto client = Connect(context);
+        const json view = client->Post("/runs/" + std::to_string(run_id) + "/stop");
+        if (context.options.json) {
+          context.out << view.dump(2) << "\n";
+          return;
+        }
+        context.out << "run " << run_id << ": stop requested ("
+                    << Cell(view.value("state", json(nullptr))) << ")\n";
       };
     });
   }

@@ -499,7 +499,7 @@ TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
 // Issue 14: a new leg from the tolerance test to a validated model, by
 // default, as a clinician walks it on a fresh server: new subject without
 // inertia inputs → corrected → session without values → tolerance test
-// (stopped over the API at a chosen amplitude) → the session shows the
+// (stopped with `run stop` at a chosen amplitude) → the session shows the
 // recorded values → rapid parameterisation (followed by default) →
 // prediction_random_binary and prediction_step → predict the new set on
 // those fresh trials (not its training trials) with error figures.
@@ -542,9 +542,12 @@ void WalkANewLeg(const std::string& max_stop_impact_deg_s, bool expect_gate_refu
   EXPECT_EQ(early.exit_code, 1);
   EXPECT_THAT(early.err, HasSubstr("tolerance_test"));
 
-  // 3. The tolerance test, followed by the CLI, stopped over the API when
-  // the ramp reaches the chosen amplitude (what the clinician's Stop does).
+  // 3. The tolerance test, followed by the CLI, stopped with `run stop` when
+  // the ramp reaches the chosen amplitude (the clinician's "stop here").
   const double rate = 2.0, settle = 1.5, chosen_ma = std::floor(true_max) - 2.0;
+  // `run stop` comes from a second terminal (Enter in the following one does the same).
+  Cli second_terminal;
+  ASSERT_EQ(second_terminal.Run({"login", Url(server), "--token", clinician}).exit_code, 0);
   const pid_t pid = cli.Start(
       {"run", "start", sid, "tolerance_test", "--param", "rate_ma_per_s=" + std::to_string(rate)});
   std::int64_t run_id = -1;
@@ -559,8 +562,9 @@ void WalkANewLeg(const std::string& max_stop_impact_deg_s, bool expect_gate_refu
     if (view.body.value("bench_elapsed_s", 0.0) >= settle + chosen_ma / rate) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
-  auto stop = Call(http, "POST", run_path + "/stop", clinician);
-  ASSERT_EQ(stop.status, 200) << stop.text;
+  auto stop = second_terminal.Run({"run", "stop", std::to_string(run_id)});
+  ASSERT_TRUE(step_ok(stop));
+  EXPECT_THAT(stop.out, HasSubstr("stop requested"));
   auto tolerance = cli.Finish(pid);
   ASSERT_TRUE(step_ok(tolerance));
   std::smatch recorded;
@@ -570,7 +574,9 @@ void WalkANewLeg(const std::string& max_stop_impact_deg_s, bool expect_gate_refu
           R"(end done threshold_ma ([0-9.]+) max_tolerated_ma ([0-9.]+) session_revision 2)")))
       << tolerance.out;
   const double max_tolerated = std::stod(recorded[2]);
-  EXPECT_NEAR(max_tolerated, chosen_ma, 1.0) << "stopped at the chosen amplitude";
+  // Starting `run stop` takes tens of ms of wall time: at time scale 10 and
+  // 2 mA/s that is up to about 1 mA more of the ramp.
+  EXPECT_NEAR(max_tolerated, chosen_ma + 0.5, 1.5) << "stopped at the chosen amplitude";
 
   // 4. The session shows the recorded values at once.
   auto shown = cli.Run({"sessions", "show", sid});
