@@ -46,6 +46,15 @@ double AnthropometricInertia(double body_mass_kg, double leg_length_m) {
   return 0.061 * body_mass_kg * r * r;    // Eq. 4.13
 }
 
+double AnthropometricGravityMoment(double body_mass_kg, double leg_length_m) {
+  if (!(body_mass_kg > 0.0) || !(leg_length_m > 0.0) || !std::isfinite(body_mass_kg) ||
+      !std::isfinite(leg_length_m)) {
+    throw std::invalid_argument(
+        "AnthropometricGravityMoment: mass and length must be finite and > 0");
+  }
+  return 0.061 * body_mass_kg * kStandardGravity_m_s2 * 0.606 * leg_length_m;
+}
+
 PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
                                         const TrialColumns& velocities,
                                         const SequentialPassiveOptions& options) {

@@ -34,6 +34,12 @@ struct PassiveResult {
 /// @throws std::invalid_argument unless both are finite and > 0.
 double AnthropometricInertia(double body_mass_kg, double leg_length_m);
 
+/// The shank-and-foot gravity moment m·g·l, N·m, with Eq. 4.13's mass
+/// fraction 0.061 and the segment's centre of mass at 0.606 of its length
+/// (Winter, Table 4.1): the amplitude of the gravity term of Eq. 7.3.
+/// @throws std::invalid_argument unless both are finite and > 0.
+double AnthropometricGravityMoment(double body_mass_kg, double leg_length_m);
+
 /// Options of the sequential method.
 struct SequentialPassiveOptions {
   HoldOptions holds;                          ///< hold detection, 50-sample means.

@@ -280,13 +280,16 @@ std::vector<ProtocolDescription> MakeCatalog() {
 
   c.push_back(
       {"rapid_parameterisation",
-       1,
+       2,
        "Rapid parameterisation",
-       "The < 30 s routine of §7.4.1: a 7 s isometric ramp IRC trial (2 impulses, one "
-       "4 s cosine ramp) → contraction pole and IRC by ramp correlation; a 10 s "
-       "free-swing sparse random-binary trial and a 10 s dense active random-binary "
-       "trial → τ_pta and τ_ptv with known inertia, then the active curves (Eq. 4.40); "
-       "ends with a complete parameter set.",
+       "The < 30 s routine of §7.4.1 over the whole range of motion: a 7 s isometric ramp "
+       "IRC trial (2 impulses, one 4 s cosine ramp) → contraction pole and IRC by ramp "
+       "correlation; the motor takes the knee near full flexion and near full extension "
+       "and releases it twice (free swings through the range, §4.2.3); a ≤ 3 s ascending "
+       "amplitude search on the decoupled leg that stops at full extension (§5.4.3); a 10 s "
+       "dense random-binary free-swing trial at the amplitude found → τ_pta and τ_ptv with "
+       "known inertia from the passive samples of every swing, "
+       "→ the active curves (Eq. 4.40); ends with a complete parameter set.",
        BenchMode::kMixed,
        ProtocolKind::kRapid,
        1.0,
@@ -300,15 +303,36 @@ std::vector<ProtocolDescription> MakeCatalog() {
         {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0, false},
         {"ramp_duration_s", "whole ramp (half up, half down), s", 4.0, 0.5, 30.0, false},
         Rest("rest_s", "zero stimulation after each isometric element, s", 1.0, 1.0, 60.0),
-        {"swing_settle_s", "swing after decoupling before recording, s", 0.5, 0.2, 30.0, false},
+        {"release_margin_fraction",
+         "the knee is released this fraction of the range of motion inside each end of it", 0.05,
+         0.02, 0.3, false},
+        {"release_move_s", "motor move to each release angle, s", 0.8, 0.5, 10.0, false},
+        {"release_hold_s", "hold at the release angle before releasing, s", 0.2, 0.0, 5.0, false},
+        {"release_swing_s", "free swing recorded after each release, s", 2.0, 1.0, 20.0, false},
+        {"swing_settle_s", "swing after the last release before the extension search, s", 0.3, 0.0,
+         30.0, false},
+        {"search_s",
+         "the extension search raises the amplitude from threshold to max in this time, s", 3.0,
+         1.0, 20.0, false},
+        {"fall_s", "free swing recorded after the extension search, s", 0.6, 0.0, 10.0, false},
         AmplitudeMa(0.6),
         {"rb_torque_nm",
-         "if > 0, the random-binary amplitude is chosen after the ramp trial to give this "
-         "isometric torque at the lock angle (else amplitude_ma is used), N·m",
-         6.0, 0.0, 60.0, false},
-        {"duration_s", "length of each random-binary trial, s", 10.0, 3.0, 60.0, false},
-        {"passive_seed", "seed of the passive (sparse) train", 1.0, 0.0, 4294967295.0, true},
-        {"active_seed", "seed of the active (dense) train", 2.0, 0.0, 4294967295.0, true}}});
+         "0 (default): the random-binary amplitude is the one that just reaches full extension "
+         "(§5.4.3), found during the run by the extension search, within the max "
+         "tolerated; > 0: the amplitude giving this isometric torque at the lock angle; "
+         "amplitude_ma is used if neither can be found, N·m",
+         0.0, 0.0, 60.0, false},
+        {"extension_target_fraction",
+         "full extension for that amplitude: this fraction of the range of motion inside its "
+         "extension end",
+         0.1, 0.0, 0.45, false},
+        {"rb_level_min_fraction",
+         "each ON burst of the random-binary train takes a seeded level between threshold + this "
+         "fraction of threshold→amplitude and the amplitude (1 = one level)",
+         0.5, 0.1, 1.0, false},
+        {"duration_s", "length of the random-binary trial, s", 10.0, 3.0, 60.0, false},
+        {"active_seed", "seed of the dense random-binary train and its levels", 2.0, 0.0,
+         4294967295.0, true}}});
   return c;
 }
 

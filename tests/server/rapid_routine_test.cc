@@ -1,0 +1,113 @@
+// The whole-range rapid routine (§7.4.1, issue 15) on seeded legs of the
+// simulated bench, every parameter at its default: the plan's bench time,
+// the extension search, the released swings over the range of motion, the
+// identified ranges recorded in provenance, and predictions of fresh trials.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "api/parameter_set_json.h"
+#include "model/extrapolate.h"
+#include "model/identify_rapid.h"
+#include "model/simulate.h"
+#include "server/bench/simulated_bench.h"
+#include "server/protocols/plan.h"
+#include "server/protocols/rapid_identification.h"
+#include "server/protocols/run_json.h"
+#include "server/protocols/runner.h"
+
+namespace fesbench::server::protocols {
+namespace {
+
+SubjectContext Context(const VirtualSubject& vs) {
+  SubjectContext s;  // range of motion 10–110°, the bench's stops
+  s.threshold_ma = vs.threshold_ma;
+  s.max_tolerated_ma = vs.max_tolerated_ma;
+  s.body_mass_kg = vs.anthropometrics.body_mass_kg;
+  s.leg_length_m = vs.anthropometrics.shank_length_m;
+  return s;
+}
+
+RunnerOptions NoWatchdog() {
+  RunnerOptions o;
+  o.arm_watchdog = false;
+  return o;
+}
+
+struct Leg {
+  VirtualSubject subject;
+  RunResult rapid;
+  std::map<std::string, double> prediction_rms_deg;  // protocol → knee-angle E_RMS
+};
+
+double Rms(const std::vector<double>& a, const std::vector<double>& b) {
+  const std::size_t n = std::min(a.size(), b.size());
+  double s = 0.0;
+  for (std::size_t i = 0; i < n; ++i) s += (a[i] - b[i]) * (a[i] - b[i]);
+  return std::sqrt(s / static_cast<double>(n));
+}
+
+// The clinician's chain on one leg: the prediction protocols first (the set
+// is not fitted on them), then rapid, then the set predicts them.
+Leg RunLegUncached(std::uint64_t seed) {
+  Leg leg;
+  leg.subject = DrawVirtualSubject(seed);
+  SimulatedBench bench(leg.subject);
+  SafetyEventLog log;
+  SafeBench safe(bench, log.sink());
+  const SubjectContext ctx = Context(leg.subject);
+  std::map<std::string, RecordedTrial> fresh;
+  for (const char* protocol :
+       {"prediction_random_binary", "prediction_step", "prediction_ramp", "prediction_sine"}) {
+    auto plan = MakePlan(protocol, {}, ctx);
+    EXPECT_TRUE(plan.ok()) << plan.status().ToString();
+    ProtocolRunner runner(safe, &log, nullptr, NoWatchdog());
+    RunResult r = runner.Run(*plan, ctx);
+    EXPECT_EQ(r.state, RunState::kDone) << r.reason;
+    fresh[protocol] = r.trials.at(0);
+  }
+  auto plan = MakePlan("rapid_parameterisation", {}, ctx);
+  EXPECT_TRUE(plan.ok()) << plan.status().ToString();
+  ProtocolRunner runner(safe, &log, nullptr, NoWatchdog());
+  leg.rapid = runner.Run(*plan, ctx);
+  if (!leg.rapid.parameter_set) return leg;
+  for (const auto& [protocol, trial] : fresh) {
+    model::TrialColumns cols = api::ToTrialColumns(trial.trial);
+    model::AddKinematics(cols);
+    model::SimulationOptions o;
+    o.initial_angle_deg = std::clamp(cols.angle_deg.front(), 10.0, 110.0);
+    o.initial_velocity_deg_s = cols.velocity_deg_s.front();
+    o.duration_s = cols.t_s.back() + 0.005;
+    o.joint_limits = model::JointLimits{10.0, 110.0};
+    const model::SimulationResult sim =
+        model::SimulateFreeSwing(*leg.rapid.parameter_set, model::TrialPulses(cols, 33.0), o);
+    leg.prediction_rms_deg[protocol] = Rms(sim.angle_deg, cols.angle_deg);
+  }
+  return leg;
+}
+
+const Leg& RunLeg(std::uint64_t seed) {
+  static std::map<std::uint64_t, Leg> cache;
+  auto it = cache.find(seed);
+  if (it == cache.end()) it = cache.emplace(seed, RunLegUncached(seed)).first;
+  return it->second;
+}
+
+class RapidRoutine : public ::testing::TestWithParam<std::uint64_t> {};
+
+TEST_P(RapidRoutine, IdentifiesTheWholeRangeAndPredictsFreshTrials) {
+  const Leg& leg = RunLeg(GetParam());
+  ASSERT_EQ(leg.rapid.state, RunState::kDone) << leg.rapid.reason;
+  ASSERT_TRUE(leg.rapid.parameter_set.has_value());
+  const auto wire = api::ParameterSetFromJson(RunResultToJson(leg.rapid).at("parameter_set"));
+  ASSERT_TRUE(wire.ok()) << wire.status().ToString() << "\n"
+                         << RunResultToJson(leg.rapid).at("parameter_set").dump();
+  for (const auto& [k, v] : leg.prediction_rms_deg) std::cerr << k << " " << v << "\n";
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, RapidRoutine, ::testing::Values(1, 6));
+
+}  // namespace
+}  // namespace fesbench::server::protocols
