@@ -5,6 +5,7 @@
 #include <memory>
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "clients/cli/commands.h"
 #include "clients/cli/study/study.h"
@@ -19,6 +20,7 @@ struct StudyForm {
   std::string out = "study-out";
   std::string date = "2026-01-01";
   bool no_plots = false;
+  std::vector<std::string> families = {"thesis", "analytic"};
 };
 
 }  // namespace
@@ -32,6 +34,10 @@ void RegisterStudyCommand(CLI::App& app, CliContext& context) {
   cmd->add_option("--legs", form->legs, "number of virtual legs (default 16)")
       ->check(CLI::Range(2, 1000));
   cmd->add_option("--seed", form->seed, "cohort seed (default 1)");
+  cmd->add_option("--families", form->families,
+                  "shape families of the legs, taken in turn (default thesis,analytic)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"thesis", "analytic"}));
   cmd->add_option("--out", form->out, "output folder (default study-out)");
   cmd->add_option("--date", form->date, "session date YYYY-MM-DD");
   cmd->add_flag("--no-plots", form->no_plots, "do not run gnuplot");
@@ -44,6 +50,7 @@ void RegisterStudyCommand(CLI::App& app, CliContext& context) {
       options.output_dir = form->out;
       options.date = form->date;
       options.plots = !form->no_plots;
+      options.families = form->families;
       const auto start = std::chrono::steady_clock::now();
       const study::StudySummary summary = study::RunStudy(*client, options, context.err);
       const double wall_s =

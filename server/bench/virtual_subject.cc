@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "model/evaluation.h"
+#include "model/identify_passive.h"
 #include "model/units.h"
 
 namespace fesbench::server {
@@ -177,6 +179,148 @@ VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& range
   s.truth.active.torque_angle = PiecewiseLinear(angles, fata);
   s.truth.active.torque_velocity = PiecewiseLinear(atv_v, fatv);
   s.truth.active.torque_scale_nm = max_torque_nm / s.truth.irc(s.max_tolerated_ma);
+  s.truth.provenance.passive_method = "virtual_subject";
+  return s;
+}
+
+std::string_view SubjectFamilyName(SubjectFamily family) {
+  return family == SubjectFamily::kAnalytic ? "analytic" : "thesis";
+}
+
+std::optional<SubjectFamily> SubjectFamilyFromName(std::string_view name) {
+  if (name == "thesis") return SubjectFamily::kThesis;
+  if (name == "analytic") return SubjectFamily::kAnalytic;
+  return std::nullopt;
+}
+
+VirtualSubject DrawSubject(std::uint64_t seed, SubjectFamily family, const SubjectRanges& ranges) {
+  return family == SubjectFamily::kAnalytic ? DrawAnalyticSubject(seed, ranges)
+                                            : DrawVirtualSubject(seed, ranges);
+}
+
+VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& ranges) {
+  // Its own stream: the analytic leg of seed N shares nothing with the
+  // thesis-family leg of seed N.
+  Draw draw(seed ^ 0x9E3779B97F4A7C15ULL);
+  VirtualSubject s;
+  s.name = "analytic-" + std::to_string(seed);
+  s.seed = seed;
+  s.fidelity = Fidelity::Default();
+
+  // Anthropometrics and J (Eq. 4.13 plus the brace, ±10 %), redrawn until J
+  // is in range so the body measures and J always agree.
+  Anthropometrics& a = s.anthropometrics;
+  double j = 0.0;
+  for (int attempt = 0;; ++attempt) {
+    a.height_m = draw.Uniform(1.55, 1.93);
+    a.body_mass_kg = draw.Uniform(19.0, 29.0) * a.height_m * a.height_m;
+    a.shank_length_m = kShankOfHeight * a.height_m;
+    j = (model::AnthropometricInertia(a.body_mass_kg, a.shank_length_m) + kBraceInertiaKgm2) *
+        draw.Uniform(0.9, 1.1);
+    if (j >= ranges.min_inertia_kgm2 && j <= ranges.max_inertia_kgm2) break;
+    if (attempt == 1000) {
+      throw std::invalid_argument("DrawAnalyticSubject: the inertia range admits no subject");
+    }
+  }
+  a.accel_distance_m = draw.Uniform(0.24, 0.31);  // ≈ 11 in (§5.1)
+  a.thigh_elevation_deg = draw.Uniform(4.0, 14.0);
+  const double mgl_nm = kShankFootMassFraction * a.body_mass_kg * model::kStandardGravity_m_s2 *
+                        kShankFootComFraction * a.shank_length_m;
+  const double hang_deg = HangingAngleDeg(a);
+
+  // τ_pta: gravity plus exponential end-range stiffness (Eq. 7.3, §7.4.4),
+  // each end term at most kEndCapNm at the ends of the sampled range.
+  constexpr double kEndCapNm = 50.0, kMinDeg = 0.0, kMaxDeg = 120.0;
+  constexpr int kPoints = 41;
+  const double hi_deg = draw.Uniform(100.0, 115.0), k1 = draw.Uniform(0.5, 3.0);
+  const double k2 =
+      std::min(draw.Uniform(0.06, 0.15), std::log(kEndCapNm / k1) / (kMaxDeg - hi_deg));
+  const double lo_deg = draw.Uniform(5.0, 20.0), k3 = draw.Uniform(0.5, 4.0);
+  const double k4 =
+      std::min(draw.Uniform(0.08, 0.2), std::log(kEndCapNm / k3) / (lo_deg - kMinDeg));
+  std::vector<double> angles, pta;
+  for (int i = 0; i < kPoints; ++i) {
+    const double th = kMinDeg + (kMaxDeg - kMinDeg) * i / (kPoints - 1);
+    angles.push_back(th);
+    pta.push_back(mgl_nm * std::sin(DegToRad(th - hang_deg)) + k1 * std::exp(k2 * (th - hi_deg)) -
+                  k3 * std::exp(-k4 * (th - lo_deg)));
+  }
+  model::PassiveParams passive;
+  passive.inertia_kgm2 = j;
+  passive.torque_angle = PiecewiseLinear(angles, pta);
+  passive.torque_velocity = PiecewiseLinear::Constant(0.0);
+
+  // τ_ptv: two lines through 0 with different slopes for extension (v < 0)
+  // and flexion (v > 0) velocity; their mean (the central slope at 0) gives
+  // the drawn linearised ζ about the rest angle (Table 6.4, §6.9).
+  const double zeta = draw.Uniform(ranges.min_zeta + 0.1 * (ranges.max_zeta - ranges.min_zeta),
+                                   ranges.max_zeta - 0.1 * (ranges.max_zeta - ranges.min_zeta));
+  const double rest_deg = model::PassiveRestAngle(passive);
+  const double k_nm_per_rad = model::LinearisePassive(passive, rest_deg, 0.0).stiffness_nm_per_rad;
+  const double b_mean = 2.0 * zeta * std::sqrt(k_nm_per_rad * j) * kRadPerDeg;
+  const double ratio = draw.Uniform(1.3, 2.5);
+  const bool flexion_stiffer = draw.Uniform(0.0, 1.0) < 0.5;
+  const double b_small = 2.0 * b_mean / (1.0 + ratio), b_large = ratio * b_small;
+  const double b_neg = flexion_stiffer ? b_small : b_large;
+  const double b_pos = flexion_stiffer ? b_large : b_small;
+  constexpr double kMaxVel = 400.0;
+  std::vector<double> vel, ptv;
+  for (int i = 0; i < kPoints; ++i) {
+    const double v = -kMaxVel + 2.0 * kMaxVel * i / (kPoints - 1);
+    vel.push_back(v);
+    ptv.push_back(v * (v < 0.0 ? b_neg : b_pos));
+  }
+  passive.torque_velocity = PiecewiseLinear(vel, ptv);
+  s.truth.passive = model::ReferencePassive(passive);
+
+  // Contraction dynamics: 3rd order, pole 20–30 s⁻¹ (§6.2).
+  s.truth.model = model::ModelKind::kFull;
+  s.truth.contraction.order = 3;
+  s.truth.contraction.pole_per_s = ranges.nominal_pole_per_s * draw.Uniform(0.8, 1.2);
+
+  // IRC: zero to threshold, then (1 − e^{−a·x²}) / (1 − e^{−a}) to saturation.
+  s.max_tolerated_ma = draw.Uniform(ranges.min_max_tolerated_ma, ranges.max_max_tolerated_ma);
+  s.threshold_ma = s.max_tolerated_ma * draw.Uniform(0.3, 0.55);
+  const double sat_ma = s.max_tolerated_ma * draw.Uniform(1.0, 1.3);
+  const double irc_a = draw.Uniform(2.0, 5.0);
+  std::vector<double> irc_u = {0.0}, irc_r = {0.0};
+  constexpr int kIrcPoints = 13;
+  for (int i = 0; i < kIrcPoints; ++i) {
+    const double x = static_cast<double>(i) / (kIrcPoints - 1);
+    irc_u.push_back(s.threshold_ma + x * (sat_ma - s.threshold_ma));
+    irc_r.push_back((1.0 - std::exp(-irc_a * x * x)) / (1.0 - std::exp(-irc_a)));
+  }
+  s.truth.irc = PiecewiseLinear(irc_u, irc_r);
+
+  // f_ata: a Gaussian outside the thesis generator's centres and widths,
+  // keeping f_ata(90°) ≥ 0.3 of the peak (the reference of §6.7).
+  const bool flexed = draw.Uniform(0.0, 1.0) < 0.5;
+  const double centre_deg = flexed ? draw.Uniform(78.0, 95.0) : draw.Uniform(40.0, 52.0);
+  const double min_width =
+      std::abs(model::kReferenceAngleDeg - centre_deg) / std::sqrt(2.0 * std::log(1.0 / 0.3));
+  const bool narrow = draw.Uniform(0.0, 1.0) < 0.5 && min_width <= 28.0;
+  const double width_deg = narrow ? draw.Uniform(std::max(20.0, min_width), 30.0)
+                                  : draw.Uniform(std::max(46.0, min_width), 60.0);
+  std::vector<double> fata;
+  for (double th : angles) {
+    fata.push_back(
+        std::exp(-(th - centre_deg) * (th - centre_deg) / (2.0 * width_deg * width_deg)));
+  }
+  // f_atv: 1 + A·tanh(v/v0), its own A and v0 on each side of 0.
+  const double a_con = draw.Uniform(0.4, 0.85), v_con = draw.Uniform(120.0, 400.0);
+  const double a_ecc = draw.Uniform(0.2, 0.6), v_ecc = draw.Uniform(60.0, 200.0);
+  std::vector<double> fatv;
+  for (double v : vel) {
+    fatv.push_back(v < 0.0 ? 1.0 + a_con * std::tanh(v / v_con)
+                           : 1.0 + a_ecc * std::tanh(v / v_ecc));
+  }
+  // Max isometric torque at the Gaussian's peak (1 there) and max tolerated.
+  const double max_torque_nm = draw.Uniform(ranges.min_max_torque_nm, ranges.max_max_torque_nm);
+  model::ActiveParams active;
+  active.torque_angle = PiecewiseLinear(angles, fata);
+  active.torque_velocity = PiecewiseLinear(vel, fatv);
+  active.torque_scale_nm = max_torque_nm / s.truth.irc(s.max_tolerated_ma);
+  s.truth.active = model::NormaliseActive(active);
   s.truth.provenance.passive_method = "virtual_subject";
   return s;
 }

@@ -11,7 +11,9 @@
 /// DESIGN.md §3 (the anchor test against model/simulate.h).
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include "model/parameter_set.h"
 
@@ -119,6 +121,46 @@ struct SubjectRanges {
 /// Gaussian f_ata, Hill-like f_atv; τ_scale from the drawn max isometric
 /// torque. Same seed → identical subject. Fidelity is Fidelity::Default().
 VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& ranges = {});
+
+/// Shape families of drawn subjects. kThesis is DrawVirtualSubject's
+/// generator (the default); kAnalytic (DrawAnalyticSubject) samples other
+/// analytic shapes, so a study is not tuned to one generator.
+enum class SubjectFamily { kThesis, kAnalytic };
+
+/// "thesis" / "analytic".
+std::string_view SubjectFamilyName(SubjectFamily family);
+/// The family named `name`, or nullopt for an unknown name.
+std::optional<SubjectFamily> SubjectFamilyFromName(std::string_view name);
+
+/// Draws a subject of the analytic family from the seed (an independent
+/// random stream: seed N here is unrelated to DrawVirtualSubject(N)):
+/// - anthropometrics: height 1.55–1.93 m, body-mass index 19–29 kg/m²;
+///   J = (Eq. 4.13 + brace)·(0.9–1.1), redrawn until inside the ranges (so
+///   the anthropometrics and J always agree);
+/// - τ_pta(θ) = m·g·l·sin(θ − θ_hang) + k1·e^{k2(θ−θ_hi)} − k3·e^{−k4(θ−θ_lo)}
+///   (gravity plus exponential end-range stiffness, Eq. 7.3 of §7.4.4 with an
+///   extension-end term), θ_hi 100–115°, θ_lo 5–20°, each end term ≤ 50 N·m
+///   at 0° and 120°;
+/// - τ_ptv: two lines with different slopes for flexion and extension
+///   velocity (ratio 1.3–2.5; "two line segments with a discontinuity at zero",
+///   §8.2 item 4), their mean slope giving
+///   the drawn free-swing ζ about the rest angle;
+/// - 3rd-order contraction, pole 20–30 s⁻¹; IRC
+///   (1 − e^{−a·x²})/(1 − e^{−a}), a 2–5, x from threshold to saturation;
+/// - f_ata a Gaussian centred at 40–52° or 78–95° (the thesis generator's
+///   55–75° excluded), width 20–30° or 46–60° (30–45° excluded) with
+///   f_ata(90°) ≥ 0.3 of its peak; f_atv = 1 + A·tanh(v/v0) with its own A, v0
+///   for concentric (v < 0: A 0.4–0.85, v0 120–400 deg/s) and eccentric
+///   (A 0.2–0.6, v0 60–200 deg/s) velocity;
+/// - max isometric torque (at the f_ata peak, max tolerated) 10–60 N·m.
+/// Curves are sampled at 41 breakpoints over 0–120° and ±400 deg/s into the
+/// piecewise-linear truth (referenced and normalised, §6.5, §6.7).
+/// Fidelity is Fidelity::Default().
+VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& ranges = {});
+
+/// DrawVirtualSubject or DrawAnalyticSubject by family.
+VirtualSubject DrawSubject(std::uint64_t seed, SubjectFamily family,
+                           const SubjectRanges& ranges = {});
 
 /// Steady isometric torque at stim_ma with the knee locked at angle_deg in
 /// the model without fidelity effects (Eqs. 3.18–3.20):

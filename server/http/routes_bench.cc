@@ -42,6 +42,28 @@ struct EventStream {
 
 json RunViewJson(const services::RunView& view) { return services::RunViewToJson(view); }
 
+// PUT /bench/virtual-subject: a seeded draw of a shape family, or a full
+// subject (server/bench/virtual_subject_json.h).
+json VirtualSubjectPutSchema() {
+  const json draw = {
+      {"type", "object"},
+      {"required", {"draw_seed"}},
+      {"additionalProperties", false},
+      {"properties",
+       {{"draw_seed", {{"type", "integer"}, {"minimum", 0}}},
+        {"family",
+         {{"type", "string"},
+          {"enum", {"thesis", "analytic"}},
+          {"default", "thesis"},
+          {"description",
+           "thesis: the server's generator; analytic: gravity + exponential end-range "
+           "stiffness, asymmetric damping, other Gaussian f_ata, tanh f_atv"}}}}}};
+  const json full = {{"type", "object"},
+                     {"required", {"truth", "threshold_ma", "max_tolerated_ma"}},
+                     {"description", "a full virtual subject (DESIGN.md §6)"}};
+  return {{"oneOf", {draw, full}}};
+}
+
 }  // namespace
 
 void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
@@ -227,10 +249,12 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply(std::move(*subject));
              }});
   table.Add({"PUT", "/api/v1/bench/virtual-subject", kAdmin, true, "bench",
-             "Replace the virtual subject between runs: a full subject, or {\"draw_seed\": N} "
-             "(N a non-negative integer, no other key) for the server's seeded draw "
+             "Replace the virtual subject between runs: a full subject, or {\"draw_seed\": N, "
+             "\"family\": F} (N a non-negative integer; F \"thesis\", the default, or "
+             "\"analytic\": gravity + exponential end-range stiffness, asymmetric damping, "
+             "other Gaussian f_ata, tanh f_atv; no other key) for the server's seeded draw "
              "(simulation only; 409 on a real bench or while a run holds the bench)",
-             {}, 200, "application/json", nullptr, nullptr,
+             {}, 200, "application/json", VirtualSubjectPutSchema(), nullptr,
              [bench](RequestContext& ctx) -> api::Result<Reply> {
                if (!bench) return NotAvailable("the bench");
                auto subject = bench->PutVirtualSubject(ActorOf(*ctx.user), ctx.body);

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <exception>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -104,19 +105,43 @@ api::Status NeedAdmin(const Actor& actor, const char* what) {
                      std::string(what) + " needs the admin role");
 }
 
-// {"draw_seed": N}: N a non-negative integer and no other key.
-api::Result<std::uint64_t> DrawSeedFromJson(const nlohmann::json& json) {
+// {"draw_seed": N, "family": F}: N a non-negative integer, F "thesis" (the
+// default) or "analytic", no other key.
+struct DrawRequest {
+  std::uint64_t seed = 0;
+  SubjectFamily family = SubjectFamily::kThesis;
+};
+
+api::Result<DrawRequest> DrawRequestFromJson(const nlohmann::json& json) {
   for (const auto& [key, value] : json.items()) {
-    if (key != "draw_seed") {
-      return api::Status::InvalidArgument("unknown field (a draw takes only draw_seed)", key);
+    if (key != "draw_seed" && key != "family") {
+      return api::Status::InvalidArgument("unknown field (a draw takes only draw_seed and family)",
+                                          key);
     }
   }
-  const nlohmann::json& seed = json.at("draw_seed");
-  if (seed.is_number_unsigned()) return seed.get<std::uint64_t>();
-  if (seed.is_number_integer() && seed.get<std::int64_t>() >= 0) {
-    return static_cast<std::uint64_t>(seed.get<std::int64_t>());
+  DrawRequest request;
+  const auto found = json.find("draw_seed");
+  if (found == json.end()) {
+    return api::Status::InvalidArgument("missing required field (the seed of the draw)",
+                                        "draw_seed");
   }
-  return api::Status::InvalidArgument("must be a non-negative integer", "draw_seed");
+  const nlohmann::json& seed = *found;
+  if (seed.is_number_unsigned()) {
+    request.seed = seed.get<std::uint64_t>();
+  } else if (seed.is_number_integer() && seed.get<std::int64_t>() >= 0) {
+    request.seed = static_cast<std::uint64_t>(seed.get<std::int64_t>());
+  } else {
+    return api::Status::InvalidArgument("must be a non-negative integer", "draw_seed");
+  }
+  if (const auto it = json.find("family"); it != json.end()) {
+    const std::optional<SubjectFamily> family =
+        it->is_string() ? SubjectFamilyFromName(it->get<std::string>()) : std::nullopt;
+    if (!family) {
+      return api::Status::InvalidArgument("must be \"thesis\" or \"analytic\"", "family");
+    }
+    request.family = *family;
+  }
+  return request;
 }
 
 }  // namespace
@@ -137,11 +162,12 @@ api::Result<nlohmann::json> BenchService::PutVirtualSubject(const Actor& actor,
   if (api::Status st = NeedAdmin(actor, "replacing the virtual subject"); !st.ok()) return st;
   if (simulated_ == nullptr) return api::Status::Conflict("not a simulated bench");
   try {
-    if (json.is_object() && json.contains("draw_seed")) {
-      api::Result<std::uint64_t> seed = DrawSeedFromJson(json);
-      if (!seed.ok()) return seed.status();
-      return ReplaceVirtualSubject(actor, DrawVirtualSubject(*seed),
-                                   "virtual subject drawn from seed " + std::to_string(*seed));
+    if (json.is_object() && (json.contains("draw_seed") || json.contains("family"))) {
+      api::Result<DrawRequest> draw = DrawRequestFromJson(json);
+      if (!draw.ok()) return draw.status();
+      return ReplaceVirtualSubject(actor, DrawSubject(draw->seed, draw->family),
+                                   "virtual subject drawn from seed " + std::to_string(draw->seed) +
+                                       ", family " + std::string(SubjectFamilyName(draw->family)));
     }
     api::Result<VirtualSubject> subject = VirtualSubjectFromJson(json);
     if (!subject.ok()) return subject.status();

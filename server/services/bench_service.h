@@ -93,13 +93,14 @@ class BenchService {
   /// unless admin; kConflict "not a simulated bench".
   api::Result<nlohmann::json> GetVirtualSubject(const Actor& actor) const;
   /// Replaces the virtual subject between runs. The body is either a full
-  /// subject (VirtualSubjectFromJson) or exactly {"draw_seed": N}, N a
-  /// non-negative integer, for DrawVirtualSubject(N). kPermissionDenied
-  /// unless admin; kConflict "not a simulated bench" or while a run holds
-  /// the bench; kInvalidArgument naming the field (a non-integer or
-  /// negative draw_seed, a key beside draw_seed, VirtualSubjectFromJson's
-  /// errors). Audited. Returns the stored subject's JSON (defaults filled
-  /// in).
+  /// subject (VirtualSubjectFromJson) or a draw {"draw_seed": N,
+  /// "family": F}, N a non-negative integer, F "thesis" (default:
+  /// DrawVirtualSubject(N)) or "analytic" (DrawAnalyticSubject(N)).
+  /// kPermissionDenied unless admin; kConflict "not a simulated bench" or
+  /// while a run holds the bench; kInvalidArgument naming the field (a
+  /// missing, non-integer or negative draw_seed, an unknown family, a key
+  /// beside draw_seed and family, VirtualSubjectFromJson's errors). Audited. Returns the stored
+  /// subject's JSON (defaults filled in).
   api::Result<nlohmann::json> PutVirtualSubject(const Actor& actor, const nlohmann::json& json);
 
  private:

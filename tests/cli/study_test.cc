@@ -1,13 +1,17 @@
-// Integration: `fesbench study` (issue 10) with 2 virtual legs against a real
-// fesbench-server on loopback (--time-scale 0, no DDS): the tables' files and
-// structure, the inertia truth column against the seeded generator, t-test
-// df = n − 1, and determinism (two servers, same seeds → identical CSVs).
+// Integration: `fesbench study` (issues 10, 15) with 2 virtual legs, one of
+// each shape family, against a real fesbench-server on loopback
+// (--time-scale 0, no DDS): the tables' files and structure, the inertia
+// truth column against the seeded generators, t-test df = n − 1, the
+// clinician-chain table (families, medians and worst values of its own
+// rows), and determinism (two servers, same seeds → identical CSVs).
 
 #include "clients/cli/study/study.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -54,7 +58,8 @@ std::vector<std::vector<std::string>> ReadCsv(const fs::path& path) {
   return rows;
 }
 
-const std::vector<std::string> kCsvs = {"table_6_1_isometric_irc",
+const std::vector<std::string> kCsvs = {"clinician_chain",
+                                        "table_6_1_isometric_irc",
                                         "table_6_2_isometric_order",
                                         "table_6_3_inertia",
                                         "table_6_4_linearised",
@@ -96,7 +101,10 @@ TEST(StudyTest, TwoLegStudyWritesTablesAndIsDeterministic) {
   ASSERT_EQ(inertia.size(), 1u + 2u + 2u);
   ASSERT_EQ(inertia[0].back(), "truth");
   for (int leg = 1; leg <= 2; ++leg) {
-    const auto truth = server::DrawVirtualSubject(3 * 1000 + static_cast<std::uint64_t>(leg));
+    // Families in turn: leg 1 thesis, leg 2 analytic.
+    const std::uint64_t draw_seed = 3 * 1000 + static_cast<std::uint64_t>(leg);
+    const auto truth =
+        leg == 1 ? server::DrawVirtualSubject(draw_seed) : server::DrawAnalyticSubject(draw_seed);
     EXPECT_NEAR(std::stod(inertia[static_cast<std::size_t>(leg)].back()),
                 truth.truth.passive.inertia_kgm2, 1e-4);
     // The anthropometric (column 1) and simultaneous (column 2) inertias
@@ -107,6 +115,55 @@ TEST(StudyTest, TwoLegStudyWritesTablesAndIsDeterministic) {
       EXPECT_GT(std::stod(cell), 0.5 * truth.truth.passive.inertia_kgm2) << inertia[0][c];
       EXPECT_LT(std::stod(cell), 2.0 * truth.truth.passive.inertia_kgm2) << inertia[0][c];
     }
+  }
+
+  // Clinician chain: 2 legs, then median and worst over all legs and per
+  // family; each summary cell is the median (mean of two) / the value of
+  // larger magnitude of the legs' cells.
+  const auto chain = ReadCsv(a / "clinician_chain.csv");
+  ASSERT_EQ(chain.size(), 1u + 2u + 6u);
+  ASSERT_EQ(chain[0][1], "family");
+  ASSERT_EQ(chain[0][3], "rb_seed3_e_rms_deg");
+  ASSERT_EQ(chain[0].back(), "notes");
+  EXPECT_EQ(chain[1][1], "thesis");
+  EXPECT_EQ(chain[2][1], "analytic");
+  EXPECT_EQ(chain[1][2], "3001");
+  EXPECT_EQ(chain[2][2], "3002");
+  EXPECT_EQ(chain[3][0], "median");
+  EXPECT_EQ(chain[3][1], "all");
+  EXPECT_EQ(chain[4][0], "worst");
+  EXPECT_EQ(chain[5][1], "thesis");
+  EXPECT_EQ(chain[7][1], "analytic");
+  int chain_values = 0;
+  for (std::size_t c = 3; c + 1 < chain[0].size(); ++c) {
+    SCOPED_TRACE(chain[0][c]);
+    ASSERT_EQ(chain[1].size(), chain[0].size());
+    ASSERT_EQ(chain[3].size(), chain[0].size());
+    if (chain[0][c].starts_with("identified_range")) continue;
+    const std::string& x1 = chain[1][c];
+    const std::string& x2 = chain[2][c];
+    // The per-family rows repeat their one leg.
+    EXPECT_EQ(chain[5][c], x1);
+    EXPECT_EQ(chain[7][c], x2);
+    if (x1 == "n/a" || x2 == "n/a") continue;
+    const double v1 = std::stod(x1), v2 = std::stod(x2);
+    if (chain[0][c].ends_with("e_rms_deg")) {
+      EXPECT_GE(v1, 0.0);
+      EXPECT_GE(v2, 0.0);
+    }
+    EXPECT_NEAR(std::stod(chain[3][c]), 0.5 * (v1 + v2), 2e-3);
+    EXPECT_EQ(std::stod(chain[4][c]), std::abs(v1) >= std::abs(v2) ? v1 : v2);
+    ++chain_values;
+  }
+  EXPECT_GE(chain_values, 6);
+  // J, pole and τ_scale errors are computed for both legs (a rapid set
+  // exists), and the rapid routine's bench time is that of bench_time.csv.
+  for (const char* col : {"j_error_pct", "pole_error_pct", "tau_scale_error_pct"}) {
+    const auto it = std::find(chain[0].begin(), chain[0].end(), col);
+    ASSERT_NE(it, chain[0].end()) << col;
+    const auto c = static_cast<std::size_t>(it - chain[0].begin());
+    EXPECT_NE(chain[1][c], "n/a") << col;
+    EXPECT_NE(chain[2][c], "n/a") << col;
   }
 
   // t-tests: df = n − 1 wherever computed; n ≤ 2; at least one computed.
@@ -142,6 +199,10 @@ TEST(StudyTest, TwoLegStudyWritesTablesAndIsDeterministic) {
   const auto bench = ReadCsv(a / "bench_time.csv");
   ASSERT_EQ(bench.size(), 4u);
   EXPECT_LT(std::stod(bench[3][1]), std::stod(bench[3][2]));
+  for (int leg = 1; leg <= 2; ++leg) {
+    EXPECT_EQ(chain[static_cast<std::size_t>(leg)][chain[0].size() - 2],
+              bench[static_cast<std::size_t>(leg)][1]);
+  }
 
   // Determinism: a second fresh server with the same seeds.
   const fs::path b = RunTwoLegStudy("b", false);

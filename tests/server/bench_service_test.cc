@@ -150,7 +150,7 @@ TEST(BenchService, ADrawSeedReplacesTheSubjectWithTheSeededDraw) {
   for (const auto& row : *audit) {
     EXPECT_EQ(row.entry.action, "bench.virtual_subject.put");
     EXPECT_EQ(row.entry.user_id, rig.admin.user_id);
-    seen = seen || row.entry.request_summary == "virtual subject drawn from seed 33";
+    seen = seen || row.entry.request_summary == "virtual subject drawn from seed 33, family thesis";
   }
   EXPECT_TRUE(seen);
 
@@ -169,8 +169,32 @@ TEST(BenchService, ADrawSeedReplacesTheSubjectWithTheSeededDraw) {
   expect_refused({{"draw_seed", nullptr}}, "draw_seed");
   expect_refused({{"draw_seed", 7}, {"fidelity", nlohmann::json::object()}}, "fidelity");
   expect_refused({{"draw_seed", 7}, {"name", "x"}}, "name");
+  expect_refused({{"draw_seed", 7}, {"family", "gaussian"}}, "family");
+  expect_refused({{"draw_seed", 7}, {"family", 2}}, "family");
+  expect_refused({{"draw_seed", 7}, {"family", nullptr}}, "family");
+  expect_refused({{"family", "analytic"}}, "draw_seed");
   EXPECT_EQ(rig.bench->subject(), DrawVirtualSubject(18446744073709551615ULL));
   EXPECT_EQ(storage::AuditLog(*rig.db).List({})->size(), 2u);
+}
+
+TEST(BenchService, ADrawTakesAFamily) {
+  Rig rig;
+  auto analytic =
+      rig.service->PutVirtualSubject(rig.admin, {{"draw_seed", 8}, {"family", "analytic"}});
+  ASSERT_TRUE(analytic.ok()) << analytic.status().ToString();
+  EXPECT_EQ(rig.bench->subject(), DrawAnalyticSubject(8));
+  EXPECT_EQ(*analytic, VirtualSubjectToJson(DrawAnalyticSubject(8)));
+  auto thesis = rig.service->PutVirtualSubject(rig.admin, {{"draw_seed", 8}, {"family", "thesis"}});
+  ASSERT_TRUE(thesis.ok()) << thesis.status().ToString();
+  EXPECT_EQ(rig.bench->subject(), DrawVirtualSubject(8));
+  auto audit = storage::AuditLog(*rig.db).List({});
+  ASSERT_TRUE(audit.ok());
+  bool seen = false;
+  for (const auto& row : *audit) {
+    seen =
+        seen || row.entry.request_summary == "virtual subject drawn from seed 8, family analytic";
+  }
+  EXPECT_TRUE(seen);
 }
 
 TEST(BenchService, TheSubjectCannotChangeDuringARun) {

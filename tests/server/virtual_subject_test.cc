@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <string>
@@ -63,6 +64,121 @@ TEST(VirtualSubject, DrawnSubjectsAreInsideTheThesisRanges) {
 TEST(VirtualSubject, SameSeedSameSubjectOtherSeedOtherSubject) {
   EXPECT_EQ(DrawVirtualSubject(42), DrawVirtualSubject(42));
   EXPECT_NE(DrawVirtualSubject(42).truth, DrawVirtualSubject(43).truth);
+}
+
+// Analytic family (DrawAnalyticSubject): every draw within the plausible
+// ranges of a human knee, checked on the sampled truth curves.
+TEST(AnalyticSubject, DrawsAreInsideThePlausibleRanges) {
+  double min_centre = 1e9, max_centre = -1e9;
+  int flexion_stiffer = 0;
+  for (std::uint64_t seed = 1; seed <= 200; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    const VirtualSubject s = DrawAnalyticSubject(seed);
+    ASSERT_TRUE(ValidateVirtualSubject(s).ok()) << ValidateVirtualSubject(s).ToString();
+    EXPECT_EQ(s.fidelity, Fidelity::Default());
+    const auto& p = s.truth.passive;
+    // J and the body measures agree: Eq. 4.13 plus the 0.02 kg·m² brace, ±10 %.
+    const auto& a = s.anthropometrics;
+    const double eq_4_13 = 0.061 * a.body_mass_kg * std::pow(0.735 * a.shank_length_m, 2);
+    EXPECT_GE(p.inertia_kgm2, 0.9 * (eq_4_13 + 0.02) - 1e-12);
+    EXPECT_LE(p.inertia_kgm2, 1.1 * (eq_4_13 + 0.02) + 1e-12);
+    EXPECT_NEAR(a.shank_length_m, 0.246 * a.height_m, 1e-12);
+    const double bmi = a.body_mass_kg / (a.height_m * a.height_m);
+    EXPECT_GE(bmi, 19.0);
+    EXPECT_LE(bmi, 29.0);
+    EXPECT_GE(p.inertia_kgm2, 0.17);
+    EXPECT_LE(p.inertia_kgm2, 0.70);
+    EXPECT_GE(s.max_tolerated_ma, 30.0);
+    EXPECT_LE(s.max_tolerated_ma, 60.0);
+    EXPECT_GT(s.threshold_ma, 0.0);
+    EXPECT_LT(s.threshold_ma, s.max_tolerated_ma);
+    EXPECT_EQ(s.truth.irc(s.threshold_ma), 0.0);
+    EXPECT_GT(s.truth.irc(s.threshold_ma + 1.0), 0.0);
+    EXPECT_LE(s.truth.irc(100.0), 1.0 + 1e-12);
+    // Max isometric torque over the range at max tolerated: 10–60 N·m (the
+    // sampled peak is at most 1 % below the analytic one).
+    double max_torque = 0.0, peak_deg = 0.0;
+    for (double th = 0.0; th <= 120.0; th += 0.5) {
+      const double t = SteadyIsometricActiveTorqueNm(s.truth, s.max_tolerated_ma, th);
+      if (t > max_torque) max_torque = t, peak_deg = th;
+    }
+    EXPECT_GE(max_torque, 0.99 * 10.0);
+    EXPECT_LE(max_torque, 60.0 + 1e-9);
+    // f_ata: other centres than the thesis generator's 55–75°; ≥ 0 everywhere.
+    EXPECT_TRUE((peak_deg >= 38.0 && peak_deg <= 54.0) || (peak_deg >= 76.0 && peak_deg <= 97.0))
+        << peak_deg;
+    min_centre = std::min(min_centre, peak_deg);
+    max_centre = std::max(max_centre, peak_deg);
+    EXPECT_NEAR(s.truth.active.torque_angle(90.0), 1.0, 1e-9);  // §6.7
+    for (double th = 0.0; th <= 120.0; th += 3.0) EXPECT_GE(s.truth.active.torque_angle(th), 0.0);
+    // f_atv: tanh on each side, 1 at 0, positive, rising with velocity.
+    const auto& fatv = s.truth.active.torque_velocity;
+    EXPECT_NEAR(fatv(0.0), 1.0, 1e-9);
+    for (double v = -400.0; v < 400.0; v += 20.0) {
+      EXPECT_GT(fatv(v), 0.1);
+      EXPECT_LT(fatv(v), fatv(v + 20.0));
+    }
+    EXPECT_LT(fatv(-400.0), 1.0 - 0.4 * std::tanh(1.0) + 1e-9);  // A ≥ 0.4, v0 ≤ 400
+    EXPECT_GT(fatv(400.0), 1.15);
+    EXPECT_EQ(s.truth.contraction.order, 3);
+    EXPECT_GE(s.truth.contraction.pole_per_s, 20.0);
+    EXPECT_LE(s.truth.contraction.pole_per_s, 30.0);
+    // A stable rest angle in 10–110° with ζ in range (Table 6.4).
+    const double rest_deg = model::PassiveRestAngle(p);
+    EXPECT_GE(rest_deg, 10.0);
+    EXPECT_LE(rest_deg, 110.0);
+    const model::PassiveLinearisation lin = model::LinearisePassive(p, rest_deg, 0.0);
+    EXPECT_GT(lin.stiffness_nm_per_rad, 0.0);
+    EXPECT_GE(lin.damping_ratio, 0.02);
+    EXPECT_LE(lin.damping_ratio, 0.15);
+    // Damping: two lines with different slopes (ratio 1.3–2.5).
+    const double b_ext = (p.torque_velocity(0.0) - p.torque_velocity(-200.0)) / 200.0;
+    const double b_flex = (p.torque_velocity(200.0) - p.torque_velocity(0.0)) / 200.0;
+    EXPECT_GT(b_ext, 0.0);
+    EXPECT_GT(b_flex, 0.0);
+    const double ratio = std::max(b_ext, b_flex) / std::min(b_ext, b_flex);
+    EXPECT_GE(ratio, 1.3 - 1e-9);
+    EXPECT_LE(ratio, 2.5 + 1e-9);
+    if (b_flex > b_ext) ++flexion_stiffer;
+    // τ_pta: gravity plus stiffening at both ends (each end segment steeper
+    // than gravity's over it) and bounded; referenced (§6.5).
+    const double mgl = 0.061 * a.body_mass_kg * 9.80665 * 0.606 * a.shank_length_m;
+    const double hang = HangingAngleDeg(a);
+    const auto gravity_chord = [&](double th0, double th1) {
+      return mgl * (std::sin(model::DegToRad(th1 - hang)) - std::sin(model::DegToRad(th0 - hang))) /
+             (th1 - th0);
+    };
+    EXPECT_GT((p.torque_angle(3.0) - p.torque_angle(0.0)) / 3.0, gravity_chord(0.0, 3.0));
+    EXPECT_GT((p.torque_angle(120.0) - p.torque_angle(117.0)) / 3.0, gravity_chord(117.0, 120.0));
+    EXPECT_LT(std::abs(p.torque_angle(0.0)), 2.0 * mgl + 60.0);
+    EXPECT_LT(std::abs(p.torque_angle(120.0)), 2.0 * mgl + 60.0);
+    EXPECT_NEAR(p.torque_angle(90.0), 0.0, 1e-9);
+    EXPECT_EQ(p.torque_angle.x().size(), 41u);
+    EXPECT_EQ(p.torque_velocity.x().size(), 41u);
+  }
+  // Both branches of the centre and of the asymmetry occur.
+  EXPECT_LT(min_centre, 55.0);
+  EXPECT_GT(max_centre, 75.0);
+  EXPECT_GT(flexion_stiffer, 40);
+  EXPECT_LT(flexion_stiffer, 160);
+}
+
+TEST(AnalyticSubject, SeededAndIndependentOfTheThesisFamily) {
+  EXPECT_EQ(DrawAnalyticSubject(42), DrawAnalyticSubject(42));
+  EXPECT_NE(DrawAnalyticSubject(42).truth, DrawAnalyticSubject(43).truth);
+  EXPECT_NE(DrawAnalyticSubject(42).anthropometrics, DrawVirtualSubject(42).anthropometrics);
+  EXPECT_EQ(DrawAnalyticSubject(42).name, "analytic-42");
+  EXPECT_EQ(DrawSubject(42, SubjectFamily::kAnalytic), DrawAnalyticSubject(42));
+  EXPECT_EQ(DrawSubject(42, SubjectFamily::kThesis), DrawVirtualSubject(42));
+  EXPECT_EQ(SubjectFamilyFromName("analytic"), SubjectFamily::kAnalytic);
+  EXPECT_EQ(SubjectFamilyFromName("thesis"), SubjectFamily::kThesis);
+  EXPECT_EQ(SubjectFamilyFromName("Analytic"), std::nullopt);
+  EXPECT_EQ(SubjectFamilyName(SubjectFamily::kAnalytic), "analytic");
+  // The truth survives the JSON the server sends.
+  const VirtualSubject s = DrawAnalyticSubject(7);
+  const auto back = VirtualSubjectFromJson(nlohmann::json::parse(VirtualSubjectToJson(s).dump()));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(*back, s);
 }
 
 TEST(VirtualSubjectJson, RoundTripsThroughText) {

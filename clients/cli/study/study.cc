@@ -36,18 +36,49 @@ namespace fs = std::filesystem;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// The protocols run per leg, in order (§5.2–5.4, Appendix F).
-const std::vector<std::string> kProtocols = {
-    "isometric_ramp_irc",   "isometric_step_irc", "isometric_prediction",   "passive_sequential",
-    "passive_simultaneous", "free_swing_passive", "active_random_binary",   "prediction_step",
-    "prediction_ramp",      "prediction_sine",    "rapid_parameterisation",
+// The runs per leg, in order (§5.2–5.4, Appendix F), every parameter at its
+// default but the second prediction train's seed. Every prediction protocol
+// runs before the rapid routine: the server's model gate checks a
+// prediction protocol against the leg's latest parameter set, and before
+// the rapid run there is none, so each leg's fresh prediction trials exist
+// whatever the rapid set is like (docs/STUDY.md, method).
+struct RunSpec {
+  std::string protocol;
+  json parameters;
+  std::string label;  // the run's key and its (single) trial's name in the study
 };
+const std::vector<RunSpec> kRuns = {
+    {"isometric_ramp_irc", json::object(), "isometric_ramp_irc"},
+    {"isometric_step_irc", json::object(), "isometric_step_irc"},
+    {"isometric_prediction", json::object(), "isometric_prediction"},
+    {"passive_sequential", json::object(), "passive_sequential"},
+    {"passive_simultaneous", json::object(), "passive_simultaneous"},
+    {"free_swing_passive", json::object(), "free_swing_passive"},
+    {"active_random_binary", json::object(), "active_random_binary"},
+    {"prediction_step", json::object(), "prediction_step"},
+    {"prediction_ramp", json::object(), "prediction_ramp"},
+    {"prediction_sine", json::object(), "prediction_sine"},
+    {"prediction_random_binary", json::object(), "prediction_random_binary_seed3"},
+    {"prediction_random_binary", {{"seed", 4}}, "prediction_random_binary_seed4"},
+    {"rapid_parameterisation", json::object(), "rapid_parameterisation"},
+};
+constexpr const char* kRapid = "rapid_parameterisation";
 
-// Prediction inputs (§5.4.5): label and the trial name the runner stores.
+// The clinician chain (issue 15): the rapid set predicting each default
+// prediction protocol's fresh trial. Label and trial name.
 struct Input {
   std::string label;
   std::string trial;
 };
+const std::vector<Input> kChainInputs = {
+    {"rb_seed3", "prediction_random_binary_seed3"},
+    {"rb_seed4", "prediction_random_binary_seed4"},
+    {"step", "prediction_step"},
+    {"ramp", "prediction_ramp"},
+    {"sine", "prediction_sine"},
+};
+
+// Prediction inputs of the thesis tables (§5.4.5): label and trial name.
 const std::vector<Input> kInputs = {
     {"step", "prediction_step"},         {"ramp", "prediction_ramp"},
     {"sine", "prediction_sine"},         {"rb1", "active_random_binary_rb1"},
@@ -85,6 +116,8 @@ void Pause(std::chrono::milliseconds d) { std::this_thread::sleep_for(d); }
 // A leg's virtual subject as the server drew it (PUT /bench/virtual-subject
 // {"draw_seed": N}): the truth for the tables and what the session records.
 struct DrawnSubject {
+  std::string family;
+  std::uint64_t draw_seed = 0;
   model::ParameterSet truth;
   double threshold_ma = 0.0;
   double max_tolerated_ma = 0.0;
@@ -93,9 +126,12 @@ struct DrawnSubject {
   double shank_length_m = 0.0;
 };
 
-DrawnSubject DrawSubject(ApiClient& client, std::uint64_t draw_seed) {
-  const json drawn = client.Put("/bench/virtual-subject", {{"draw_seed", draw_seed}});
+DrawnSubject DrawSubject(ApiClient& client, std::uint64_t draw_seed, const std::string& family) {
+  const json drawn =
+      client.Put("/bench/virtual-subject", {{"draw_seed", draw_seed}, {"family", family}});
   DrawnSubject subject;
+  subject.family = family;
+  subject.draw_seed = draw_seed;
   try {
     auto truth = api::ParameterSetFromJson(drawn.at("truth"));
     if (!truth.ok()) {
@@ -122,8 +158,10 @@ struct LegData {
   std::map<std::string, double> bench_s;            // protocol → bench seconds
   std::map<std::string, std::int64_t> sets;         // set key → parameter set id
   std::map<std::string, std::string> set_failures;  // set key → message
-  std::map<std::string, std::string> run_failures;  // protocol → message
+  std::map<std::string, std::string> run_failures;  // run label → message
   std::map<std::string, model::ParameterSet> params;
+  json rapid_provenance;                                   // the rapid set's, as stored
+  std::map<std::string, std::string> prediction_failures;  // "set|input" → message
   // set key → input label → {e_rms, e_abs} (deg; isometric: N·m)
   std::map<std::string, std::map<std::string, std::pair<double, double>>> errors;
   std::map<std::string, json> plot_columns;  // "set|input" → predicted columns
@@ -214,6 +252,15 @@ void FetchParams(ApiClient& client, LegData& leg) {
     const json stored = client.Get("/parameter-sets/" + std::to_string(id));
     auto parsed = api::ParameterSetFromJson(stored.at("parameters"));
     if (parsed.ok()) leg.params[key] = std::move(parsed).value();
+    if (key != "rapid") continue;
+    // The provenance as the server stored it: fields this client does not
+    // parse (e.g. identified ranges) are kept.
+    const json& parameters = stored.at("parameters");
+    if (parameters.is_object() && parameters.contains("provenance")) {
+      leg.rapid_provenance = parameters["provenance"];
+    } else if (stored.contains("provenance")) {
+      leg.rapid_provenance = stored["provenance"];
+    }
   }
 }
 
@@ -235,10 +282,21 @@ void Predict(ApiClient& client, LegData& leg, const std::string& key, const std:
   }
   json request = {{"parameter_set_id", set->second}, {"trial_id", trial_id}};
   if (isometric) request["fit_scale"] = true;
-  const JobOutcome outcome = Submit(client, "/predictions", request);
-  if (!outcome.error.empty() || !outcome.result.contains("errors") ||
-      !outcome.result["errors"].is_object()) {
+  JobOutcome outcome;
+  try {
+    outcome = Submit(client, "/predictions", request);
+  } catch (const CliError& e) {
+    // A refusal (e.g. 409: the set cannot simulate this input) is a result.
+    if (e.exit_code() != kExitServer) throw;
+    outcome.error = e.what();
+  }
+  if (outcome.error.empty() &&
+      (!outcome.result.contains("errors") || !outcome.result["errors"].is_object())) {
+    outcome.error = "the prediction returned no errors";
+  }
+  if (!outcome.error.empty()) {
     leg.errors[key][input] = {kNaN, kNaN};
+    leg.prediction_failures[key + "|" + input] = outcome.error;
     return;
   }
   const json& e = outcome.result["errors"];
@@ -256,7 +314,10 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
                std::ostream& log) {
   LegData leg;
   leg.index = index;
-  leg.subject = DrawSubject(client, options.seed * 1000 + static_cast<std::uint64_t>(index));
+  const std::string& family =
+      options.families[static_cast<std::size_t>(index - 1) % options.families.size()];
+  leg.subject =
+      DrawSubject(client, options.seed * 1000 + static_cast<std::uint64_t>(index), family);
   const DrawnSubject& vs = leg.subject;
 
   // Codes are unique per server (a second study on one server gets new ones);
@@ -280,33 +341,35 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   leg.session_id = session.at("id").get<std::int64_t>();
 
   std::int64_t rapid_set = 0;
-  for (const auto& protocol : kProtocols) {
-    // The rapid routine's random-binary trains at the same amplitude as the
-    // free-swing protocols ("the free swing identification routine",
-    // §7.4.1), not its default 6 N·m adaptive level, which keeps the swing
-    // to mid-range and so leaves the curves unidentified near the stops.
-    const json parameters =
-        protocol == "rapid_parameterisation" ? json{{"rb_torque_nm", 0.0}} : json::object();
+  std::map<std::int64_t, std::string> relabel;  // run id → its trial's study name
+  for (const auto& spec : kRuns) {
     json run;
     try {
-      run = RunProtocol(client, leg.session_id, protocol, parameters);
+      run = RunProtocol(client, leg.session_id, spec.protocol, spec.parameters);
     } catch (const CliError& e) {
-      // A failed run (e.g. a fit it could not store) costs its trials or
-      // set; the fits that need them fail and are listed.
+      // A failed or refused run (e.g. the model gate's 409) costs its
+      // trials or set; the fits and predictions that need them are listed
+      // as failed.
       if (e.exit_code() != kExitServer) throw;
       ++failures;
-      leg.run_failures[protocol] = e.what();
+      leg.run_failures[spec.label] = e.what();
       log << "  leg " << index << ": " << e.what() << "\n";
       continue;
     }
-    leg.bench_s[protocol] = run.at("progress").value("bench_total_s", kNaN);
-    if (protocol == "rapid_parameterisation" && run["parameter_set_id"].is_number_integer()) {
+    leg.bench_s[spec.label] = run.at("progress").value("bench_total_s", kNaN);
+    if (spec.label != spec.protocol) relabel[run.at("run_id").get<std::int64_t>()] = spec.label;
+    if (spec.protocol == kRapid && run["parameter_set_id"].is_number_integer()) {
       rapid_set = run["parameter_set_id"].get<std::int64_t>();
     }
   }
   for (const auto& trial :
        client.GetAllPages("/sessions/" + std::to_string(leg.session_id) + "/trials", "")) {
-    leg.trials[trial.at("name").get<std::string>()] = trial.at("id").get<std::int64_t>();
+    std::string name = trial.at("name").get<std::string>();
+    if (const auto run_id = trial.find("run_id"); run_id != trial.end() && run_id->is_number()) {
+      const auto it = relabel.find(run_id->get<std::int64_t>());
+      if (it != relabel.end()) name = it->second;
+    }
+    leg.trials[name] = trial.at("id").get<std::int64_t>();
   }
   if (rapid_set != 0) leg.sets["rapid"] = rapid_set;
 
@@ -378,6 +441,15 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
     for (const auto& m : kSimplified) keys.push_back(m);
     for (const auto& key : keys) Predict(client, leg, key, input.label, trial->second, keep);
   }
+  // The clinician chain: the rapid set on the fresh random-binary trials
+  // (step, ramp and sine are above).
+  for (const auto& input : kChainInputs) {
+    const bool done = std::any_of(kInputs.begin(), kInputs.end(),
+                                  [&](const Input& in) { return in.label == input.label; });
+    if (done) continue;
+    auto trial = leg.trials.find(input.trial);
+    if (trial != leg.trials.end()) Predict(client, leg, "rapid", input.label, trial->second, false);
+  }
   auto iso = leg.trials.find("isometric_prediction");
   for (const auto& variant : kIrcVariants) {
     if (iso != leg.trials.end()) {
@@ -444,6 +516,23 @@ double Sd(const std::vector<double>& v) {
   return n > 1 ? std::sqrt(ss / static_cast<double>(n - 1)) : kNaN;
 }
 
+// Median of the finite values; NaN if none.
+double Median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return kNaN;
+  std::sort(v.begin(), v.end());
+  const std::size_t h = v.size() / 2;
+  return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
+}
+
+// The finite value of largest magnitude (sign kept); NaN if none.
+double Worst(const std::vector<double>& v) {
+  double worst = kNaN;
+  for (double x : v)
+    if (std::isfinite(x) && !(std::abs(x) <= std::abs(worst))) worst = x;
+  return worst;
+}
+
 double ErrorOf(const LegData& leg, const std::string& key, const std::string& input) {
   auto s = leg.errors.find(key);
   if (s == leg.errors.end()) return kNaN;
@@ -476,8 +565,131 @@ const std::vector<std::string> kTTestHeader = {"input",  "set_a",     "set_b",  
                                                "mean_b", "mean_diff", "sd_diff",    "t", "df",
                                                "p",      "t_crit_95", "significant"};
 
+// An identified range from the provenance, compactly: [lo, hi] → "lo..hi",
+// {curve: [lo, hi], …} → "curve lo..hi; …", anything else as JSON; "n/a"
+// when the set does not record it.
+std::string RangeText(const json& provenance, const char* key) {
+  if (!provenance.is_object() || !provenance.contains(key) || provenance[key].is_null()) {
+    return "n/a";
+  }
+  const auto pair = [](const json& r) -> std::string {
+    if (r.is_array() && r.size() == 2 && r[0].is_number() && r[1].is_number()) {
+      return Num(r[0].get<double>(), 1) + ".." + Num(r[1].get<double>(), 1);
+    }
+    return r.dump();
+  };
+  const json& range = provenance[key];
+  if (!range.is_object()) return pair(range);
+  std::string text;
+  for (const auto& [curve, r] : range.items())
+    text += (text.empty() ? "" : "; ") + curve + " " + pair(r);
+  return text;
+}
+
+double RelativeErrorPct(double identified, double truth) {
+  return std::isfinite(identified) && truth != 0.0 ? 100.0 * (identified - truth) / truth : kNaN;
+}
+
+// The clinician chain (issue 15): per leg, the default rapid set predicting
+// the default prediction protocols' fresh trials, its J, pole and τ_scale
+// errors against the truth, its identified ranges and the routine's bench
+// time; then medians and worst values, over all legs and per family.
+Table BuildChainTable(const std::vector<LegData>& legs) {
+  Table t{"clinician_chain",
+          "Clinician chain: default rapid set -> default prediction protocols (E_RMS deg), "
+          "rapid set vs truth (%), bench time",
+          {"leg", "family", "draw_seed"},
+          {},
+          "Every protocol parameter at its default (prediction_random_binary seeds 3 and 4). "
+          "Each leg runs its prediction protocols before the rapid routine, then the rapid set "
+          "predicts those trials (POST /predictions). Errors vs truth: (identified - truth) / "
+          "truth. identified_range_*: from the rapid set's provenance (n/a if not recorded). "
+          "worst: largest E_RMS, largest |error|, longest bench time. A refused or failed run or "
+          "prediction is n/a with its reason in notes."};
+  for (const auto& in : kChainInputs) t.header.push_back(in.label + "_e_rms_deg");
+  const std::vector<std::string> numeric_tail = {"j_error_pct", "pole_error_pct",
+                                                 "tau_scale_error_pct"};
+  for (const auto& h : numeric_tail) t.header.push_back(h);
+  for (const std::string h :
+       {"identified_range_deg", "identified_range_deg_s", "rapid_bench_s", "notes"})
+    t.header.push_back(h);
+
+  // Per leg the numeric columns, in header order (E_RMS…, J, pole, τ_scale, bench).
+  const auto values = [](const LegData& leg) {
+    std::vector<double> v;
+    for (const auto& in : kChainInputs) v.push_back(ErrorOf(leg, "rapid", in.label));
+    const auto p = leg.params.find("rapid");
+    const model::ParameterSet* set = p == leg.params.end() ? nullptr : &p->second;
+    const model::ParameterSet& truth = leg.subject.truth;
+    v.push_back(set ? RelativeErrorPct(set->passive.inertia_kgm2, truth.passive.inertia_kgm2)
+                    : kNaN);
+    v.push_back(set ? RelativeErrorPct(set->contraction.pole_per_s, truth.contraction.pole_per_s)
+                    : kNaN);
+    v.push_back(set ? RelativeErrorPct(set->active.torque_scale_nm, truth.active.torque_scale_nm)
+                    : kNaN);
+    const auto b = leg.bench_s.find(kRapid);
+    v.push_back(b == leg.bench_s.end() ? kNaN : b->second);
+    return v;
+  };
+  for (const auto& leg : legs) {
+    const std::vector<double> v = values(leg);
+    std::vector<std::string> row = {std::to_string(leg.index), leg.subject.family,
+                                    std::to_string(leg.subject.draw_seed)};
+    for (std::size_t i = 0; i + 1 < v.size(); ++i) row.push_back(Num(v[i], 3));
+    row.push_back(RangeText(leg.rapid_provenance, "identified_range_deg"));
+    row.push_back(RangeText(leg.rapid_provenance, "identified_range_deg_s"));
+    row.push_back(Num(v.back(), 2));
+    std::string notes;
+    const auto note = [&](const std::string& text) { notes += (notes.empty() ? "" : "; ") + text; };
+    for (const auto& in : kChainInputs) {
+      if (auto f = leg.run_failures.find(in.trial); f != leg.run_failures.end()) {
+        note(in.trial + " run: " + f->second);
+      }
+      if (auto f = leg.prediction_failures.find("rapid|" + in.label);
+          f != leg.prediction_failures.end()) {
+        note("rapid -> " + in.label + ": " + f->second);
+      }
+    }
+    if (auto f = leg.run_failures.find(kRapid); f != leg.run_failures.end()) {
+      note(std::string(kRapid) + " run: " + f->second);
+    }
+    row.push_back(notes);
+    t.rows.push_back(row);
+  }
+  // Summary rows: all legs, then each family when there are several.
+  std::vector<std::string> families;
+  for (const auto& leg : legs)
+    if (std::find(families.begin(), families.end(), leg.subject.family) == families.end())
+      families.push_back(leg.subject.family);
+  std::vector<std::string> groups = {"all"};
+  if (families.size() > 1) groups.insert(groups.end(), families.begin(), families.end());
+  for (const auto& group : groups) {
+    std::vector<std::vector<double>> cols;
+    int n = 0;
+    for (const auto& leg : legs) {
+      if (group != "all" && leg.subject.family != group) continue;
+      ++n;
+      const std::vector<double> v = values(leg);
+      cols.resize(v.size());
+      for (std::size_t i = 0; i < v.size(); ++i) cols[i].push_back(v[i]);
+    }
+    for (const std::string stat : {"median", "worst"}) {
+      std::vector<std::string> row = {stat, group, std::to_string(n) + " legs"};
+      for (std::size_t i = 0; i < cols.size(); ++i) {
+        const double x = stat == "median" ? Median(cols[i]) : Worst(cols[i]);
+        row.push_back(Num(x, i + 1 == cols.size() ? 2 : 3));
+        if (i + 2 == cols.size()) row.insert(row.end(), {"", ""});  // the ranges
+      }
+      row.push_back("");
+      t.rows.push_back(row);
+    }
+  }
+  return t;
+}
+
 std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
   std::vector<Table> tables;
+  tables.push_back(BuildChainTable(legs));
   // 6.1 / 6.2: isometric prediction, scaled by its best-fit constant
   // (§6.1.2), judged by Eq. 6.1 (normalised RMS), Eq. 6.2 (E_AVE) and the
   // torque E_RMS (Eq. 6.9, N·m).
@@ -651,17 +863,8 @@ std::vector<Table> BuildTables(const std::vector<LegData>& legs) {
       std::vector<std::string> row = {key};
       for (const auto& input : kInputs) {
         std::vector<double> v;
-        for (const auto& leg : legs) {
-          const double e = ErrorOf(leg, key, input.label);
-          if (std::isfinite(e)) v.push_back(e);
-        }
-        double median = kNaN;
-        if (!v.empty()) {
-          std::sort(v.begin(), v.end());
-          const std::size_t h = v.size() / 2;
-          median = v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
-        }
-        row.push_back(Num(median, 3));
+        for (const auto& leg : legs) v.push_back(ErrorOf(leg, key, input.label));
+        row.push_back(Num(Median(v), 3));
       }
       md.rows.push_back(row);
     }
@@ -760,6 +963,13 @@ bool WritePlots(ApiClient& client, const LegData& leg, const fs::path& dir, bool
 
 StudySummary RunStudy(ApiClient& client, const StudyOptions& options, std::ostream& log) {
   if (options.legs < 2) throw CliError::Usage("study: --legs must be at least 2");
+  if (options.families.empty()) throw CliError::Usage("study: --families must name a family");
+  for (const auto& family : options.families) {
+    if (family != "thesis" && family != "analytic") {
+      throw CliError::Usage("study: --families: unknown family '" + family +
+                            "' (thesis, analytic)");
+    }
+  }
   fs::create_directories(options.output_dir);
   StudySummary summary;
   std::vector<LegData> legs;
@@ -770,8 +980,10 @@ StudySummary RunStudy(ApiClient& client, const StudyOptions& options, std::ostre
   const std::vector<Table> tables = BuildTables(legs);
   std::ofstream markdown(options.output_dir / "study.md");
   markdown << "# Virtual cohort study\n\n"
-           << options.legs << " legs, seed " << options.seed
-           << ". Generated by `fesbench study`.\n\n";
+           << options.legs << " legs, seed " << options.seed << ", families";
+  for (std::size_t i = 0; i < options.families.size(); ++i)
+    markdown << (i ? ", " : " ") << options.families[i];
+  markdown << " (in turn). Generated by `fesbench study`.\n\n";
   for (const auto& table : tables) WriteTable(options.output_dir, table, markdown);
   std::map<std::string, std::string> failures;
   for (const auto& leg : legs)

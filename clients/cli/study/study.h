@@ -3,15 +3,19 @@
 /// @file
 /// The virtual-cohort study (`fesbench study`, thesis ch. 6 and §7.4.1):
 /// drives a running fesbench-server with a simulated bench through its
-/// public HTTP API for N seeded virtual legs, then writes the equivalents of
-/// Tables 6.1–6.9, per-leg error tables (Appendices J, K) and bench times as
-/// Markdown and CSV, and gnuplot PNGs of predicted vs measured knee angle.
+/// public HTTP API for N seeded virtual legs of one or more shape families,
+/// then writes the clinician-chain table (issue 15: the default rapid set
+/// predicting the default prediction protocols, its errors against the
+/// truth), the equivalents of Tables 6.1–6.9, per-leg error tables
+/// (Appendices J, K) and bench times as Markdown and CSV, and gnuplot PNGs
+/// of predicted vs measured knee angle.
 /// Deterministic for a seed given a fresh server with the same --seed.
 
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
 #include <string>
+#include <vector>
 
 #include "clients/cli/api_client.h"
 
@@ -22,6 +26,10 @@ struct StudyOptions {
   /// leg i's virtual subject is the server's draw from seed·1000 + i
   /// (PUT /bench/virtual-subject {"draw_seed"}).
   std::uint64_t seed = 1;
+  /// Shape families of the drawn legs ("thesis", "analytic"; PUT
+  /// /bench/virtual-subject {"family"}), taken in turn: leg i is
+  /// families[(i − 1) mod size].
+  std::vector<std::string> families = {"thesis", "analytic"};
   std::filesystem::path output_dir;  ///< created; tables, data files and PNGs go here.
   std::string date = "2026-01-01";   ///< session date (fixed for determinism).
   bool plots = true;                 ///< run gnuplot (if found on PATH).
