@@ -388,6 +388,7 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, std::span<const TrialCo
   ao.velocity = options.active_velocity;
   ao.min_activation = options.max_passive_activation;
   ao.relative_tolerance = options.relative_tolerance;
+  ao.smoothness = options.active_smoothness;
   const ActiveResult act = IdentifyActive(fit, ps.passive, ao);
   ps.active = act.active;
   out.report.Merge(act.report);

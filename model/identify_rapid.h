@@ -50,6 +50,8 @@ struct RapidOptions {
   BreakpointSpec active_angle{7, {}};
   BreakpointSpec active_velocity{7, {}};
   double max_passive_activation = 0.01;  ///< §5.4.3.
+  /// ActiveOptions::smoothness of the active fit.
+  double active_smoothness = 0.02;
   double relative_tolerance = 1e-8;      ///< SVD truncation (Eq. 4.26).
   /// Output-error iterations after the linear fits (RefineOutputError);
   /// 0 keeps the thesis's linear estimates.

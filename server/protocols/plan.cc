@@ -379,8 +379,8 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
                                       v.at("rb_level_min_fraction")),
                   MotorMode::kDecoupled, lock, 0.0);
   plan.rapid = RapidSettings{ramp, swings.front(), active, swings};
-  plan.adaptive_amplitude =
-      AdaptiveAmplitude{ramp, v.at("rb_torque_nm"), amp, thr, max_ma, {active}};
+  plan.adaptive_amplitude = AdaptiveAmplitude{
+      ramp, v.at("rb_torque_nm"), amp, thr, max_ma, {active}, v.at("rb_min_top_fraction")};
 }
 
 }  // namespace

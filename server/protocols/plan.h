@@ -107,6 +107,10 @@ struct AdaptiveAmplitude {
   double min_ma = 0.0;      ///< bounds of the chosen amplitude.
   double max_ma = 0.0;
   std::vector<int> trials;
+  /// After the search: the trains' top level is at least min_ma +
+  /// min_top_fraction·(max_ma − min_ma), so they also visit the levels the
+  /// prediction inputs use beyond full extension (0 = the found amplitude).
+  double min_top_fraction = 0.0;
 };
 
 /// Steps, trials and what follows them.

@@ -330,6 +330,10 @@ std::vector<ProtocolDescription> MakeCatalog() {
          "each ON burst of the random-binary train takes a seeded level between threshold + this "
          "fraction of threshold→amplitude and the amplitude (1 = one level)",
          0.5, 0.1, 1.0, false},
+        {"rb_min_top_fraction",
+         "the random-binary train's top level is at least threshold + this fraction of "
+         "threshold→max (the prediction inputs' levels), even above full extension",
+         0.75, 0.0, 1.0, false},
         {"duration_s", "length of the random-binary trial, s", 10.0, 3.0, 60.0, false},
         {"active_seed", "seed of the dense random-binary train and its levels", 2.0, 0.0,
          4294967295.0, true}}});

@@ -29,7 +29,8 @@ api::Result<double> KnownInertia(const SubjectContext& subject) {
 
 api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedTrial>& trials,
                                                      const RapidSettings& settings,
-                                                     const SubjectContext& subject) {
+                                                     const SubjectContext& subject,
+                                                     std::optional<model::JointLimits> stops) {
   const api::Result<double> inertia = KnownInertia(subject);
   if (!inertia.ok()) return inertia.status();
   const auto pick = [&](int index) -> const RecordedTrial* {
@@ -52,8 +53,8 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
   }
   model::RapidOptions options;
   options.inertia_kgm2 = *inertia;
-  // The bench's stops are the ends of the subject's range of motion.
-  options.joint_limits = model::JointLimits{subject.min_angle_deg, subject.max_angle_deg};
+  options.joint_limits =
+      stops.value_or(model::JointLimits{subject.min_angle_deg, subject.max_angle_deg});
   if (subject.body_mass_kg && subject.leg_length_m && *subject.body_mass_kg > 0.0 &&
       *subject.leg_length_m > 0.0) {
     options.mgl_prior_nm =

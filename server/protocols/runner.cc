@@ -45,15 +45,18 @@ void ApplySearchedAmplitude(const Plan& plan, std::optional<double> reached_ma,
   // §5.4.3: the amplitude that just reaches full extension; the max
   // tolerated (the search's end) when the knee never got there.
   const double chosen = std::clamp(reached_ma.value_or(adapt.max_ma), adapt.min_ma, adapt.max_ma);
-  values["rb_amplitude_ma"] = chosen;
+  values["full_extension_amplitude_ma"] = chosen;
   values["full_extension_reached"] = reached_ma ? 1.0 : 0.0;
+  const double top = std::max(chosen, adapt.min_ma + std::clamp(adapt.min_top_fraction, 0.0, 1.0) *
+                                                         (adapt.max_ma - adapt.min_ma));
+  values["rb_amplitude_ma"] = top;
   for (int t : adapt.trials) {
     if (t < 0 || static_cast<std::size_t>(t) >= stim_scale.size()) continue;
     // Levels above threshold keep their place between threshold and the
-    // amplitude: u → min + (u − min)·(chosen − min)/(planned − min).
+    // top level: u → min + (u − min)·(top − min)/(planned − min).
     stim_floor[static_cast<std::size_t>(t)] = adapt.min_ma;
     stim_scale[static_cast<std::size_t>(t)] =
-        (chosen - adapt.min_ma) / (adapt.planned_ma - adapt.min_ma);
+        (top - adapt.min_ma) / (adapt.planned_ma - adapt.min_ma);
   }
 }
 
@@ -434,7 +437,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       observer_->OnStep(plan.steps.size(), identify);
     }
     api::Result<model::ParameterSet> params =
-        IdentifyRapidTrials(result.trials, *plan.rapid, subject);
+        IdentifyRapidTrials(result.trials, *plan.rapid, subject,
+                            model::JointLimits{hw.min_angle_deg, hw.max_angle_deg});
     if (!params.ok()) {
       Transition(RunTransition::kError, "identification failed: " + params.status().message());
       return finish();
