@@ -187,6 +187,13 @@ PiecewiseLinear ExtendVelocityCurve(const PiecewiseLinear& c, double lo, double 
   const double y_lo = c(lo), y_hi = c(hi);
   std::vector<double> xo;
   if (out_lo < lo - 0.5) xo.push_back(out_lo);
+  // A gain continued to 0 stays 0 from there on: a breakpoint where it gets there.
+  if (!passive && s_lo > 0.0 && y_lo > 0.0 && lo - y_lo / s_lo > out_lo + 0.5) {
+    xo.push_back(lo - y_lo / s_lo);
+  }
+  if (!passive && s_hi < 0.0 && y_hi > 0.0 && hi - y_hi / s_hi < out_hi - 0.5) {
+    xo.push_back(hi - y_hi / s_hi);
+  }
   if (out_hi > hi + 0.5) xo.push_back(out_hi);
   return Merge(c, lo, hi, xo, [&](double x) {
     const double edge = x < lo ? y_lo : y_hi;
