@@ -71,6 +71,7 @@ TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
                                           "release_margin_fraction",
                                           "extension_target_fraction",
                                           "rb_level_min_fraction",
+                                          "rb_min_top_fraction",
                                           "dense"};
   for (const ProtocolDescription& p : ProtocolCatalog()) {
     std::set<std::string> names;
@@ -311,7 +312,7 @@ TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
     }
   }
   EXPECT_EQ(release_angles, (std::vector<double>{subject.max_angle_deg - 0.05 * rom,
-                                                  subject.min_angle_deg + 0.05 * rom}));
+                                                 subject.min_angle_deg + 0.05 * rom}));
   EXPECT_EQ(TrialEnvelope(*plan, 1).size(), 400u);  // 2 s swings
   EXPECT_EQ(TrialEnvelope(*plan, 2).size(), 400u);
   // The extension search: threshold → max in 3 s, ending at 10 % of the range
@@ -333,8 +334,7 @@ TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
   // threshold→amplitude and the amplitude (60 % of threshold→max as planned).
   const model::SampledSignal rb = TrialEnvelope(*plan, 4);
   EXPECT_EQ(rb.size(), 10u + 2000u);
-  const double amp =
-      subject.threshold_ma + 0.6 * (subject.max_tolerated_ma - subject.threshold_ma);
+  const double amp = subject.threshold_ma + 0.6 * (subject.max_tolerated_ma - subject.threshold_ma);
   std::set<double> levels;
   for (double u : rb.values) {
     if (u == 0.0) continue;
