@@ -4,6 +4,7 @@
 #include <cmath>
 #include <random>
 #include <stdexcept>
+#include <tuple>
 
 #include "model/stimulus_generators.h"
 #include "model/trajectory.h"
@@ -334,10 +335,13 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
   const double lo = subject.min_angle_deg + margin, hi = subject.max_angle_deg - margin;
   if (!(hi > lo)) throw std::invalid_argument("release_margin_fraction: leaves no range of motion");
   std::vector<int> swings;
-  for (const auto& [name, angle] :
-       {std::pair{"rapid_release_flexion", hi}, std::pair{"rapid_release_extension", lo}}) {
-    b.Prepare(std::string("move to ") + std::string(name).substr(14), MotorMode::kPosition, angle,
-              v.at("release_move_s"), true);
+  // The flexion release keeps the name the identification service and
+  // clients know for the rapid routine's passive free swing.
+  for (const auto& [name, where, angle] :
+       {std::tuple{"rapid_free_swing_passive", "flexion", hi},
+        std::tuple{"rapid_release_extension", "extension", lo}}) {
+    b.Prepare(std::string("move to ") + where, MotorMode::kPosition, angle, v.at("release_move_s"),
+              true);
     b.Prepare("hold", MotorMode::kPosition, angle, v.at("release_hold_s"));
     const int t = b.AddTrial(name, MotorMode::kDecoupled);
     b.Rest("free swing", v.at("release_swing_s"), 0.0, t, MotorMode::kDecoupled, angle);
