@@ -343,7 +343,8 @@ TEST(RunService, RapidProtocolStoresAParameterSetWhoseProvenanceTrialsExist) {
   std::vector<std::int64_t> used = {
       view->trial_ids[static_cast<std::size_t>(plan.rapid->ramp_trial)],
       view->trial_ids[static_cast<std::size_t>(plan.rapid->active_trial)]};
-  for (int k : plan.rapid->swing_trials) used.push_back(view->trial_ids[static_cast<std::size_t>(k)]);
+  for (int k : plan.rapid->swing_trials)
+    used.push_back(view->trial_ids[static_cast<std::size_t>(k)]);
   std::sort(used.begin(), used.end());
   EXPECT_EQ(set->trial_ids, used);
   EXPECT_EQ(set->params.provenance.trial_ids, used);
