@@ -204,6 +204,27 @@ bool ReadProvenance(Reader& r, const json& j, model::Provenance& out) {
       out.fit_rms[it.key()] = v;
     }
   }
+  // Ranges the curves were identified over: {"tau_pta": [lo, hi], …}.
+  for (const auto& [key, target] :
+       {std::pair{"identified_range_deg", &out.identified_range_deg},
+        std::pair{"identified_range_deg_s", &out.identified_range_deg_s}}) {
+    const json* ranges = r.Member(j, key, path, false);
+    if (ranges == nullptr || ranges->is_null()) continue;
+    const std::string where = path + "." + key;
+    if (!ranges->is_object()) return r.Fail("must be an object of [lo, hi] pairs", where);
+    for (auto it = ranges->begin(); it != ranges->end(); ++it) {
+      const std::string field = where + "." + it.key();
+      const json& pair = it.value();
+      if (!pair.is_array() || pair.size() != 2) return r.Fail("must be [lo, hi]", field);
+      model::CurveRange range;
+      if (!r.ReadFinite(pair[0], field + "[0]", range.lo) ||
+          !r.ReadFinite(pair[1], field + "[1]", range.hi)) {
+        return false;
+      }
+      if (range.lo > range.hi) return r.Fail("lo must not exceed hi", field);
+      (*target)[it.key()] = range;
+    }
+  }
   if (const json* w = r.Member(j, "warnings", path, false); w && !w->is_null()) {
     if (!w->is_array()) return r.Fail("must be an array of strings", path + ".warnings");
     for (std::size_t i = 0; i < w->size(); ++i) {
@@ -386,6 +407,11 @@ json ParameterSetToJson(const model::ParameterSet& p) {
   const model::Provenance& prov = p.provenance;
   json fit_rms = json::object();
   for (const auto& [key, value] : prov.fit_rms) fit_rms[key] = value;
+  const auto ranges = [](const std::map<std::string, model::CurveRange>& m) {
+    json o = json::object();
+    for (const auto& [key, range] : m) o[key] = json::array({range.lo, range.hi});
+    return o;
+  };
   j["provenance"] = {
       {"irc_method", prov.irc_method},
       {"passive_method", prov.passive_method},
@@ -395,6 +421,8 @@ json ParameterSetToJson(const model::ParameterSet& p) {
       {"fit_rms", std::move(fit_rms)},
       {"warnings", prov.warnings},
       {"software_version", prov.software_version},
+      {"identified_range_deg", ranges(prov.identified_range_deg)},
+      {"identified_range_deg_s", ranges(prov.identified_range_deg_s)},
   };
   return j;
 }

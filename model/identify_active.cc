@@ -62,11 +62,29 @@ ActiveResult IdentifyActive(std::span<const TrialColumns> trials, const PassiveP
     throw std::invalid_argument(std::string(what) + ": fewer active samples than parameters");
   }
   // Eq. 4.40.
-  Eigen::MatrixXd a = AngleVelocityDesign(bp_a, angle, bp_v, vel, 1);
-  a.col(ma + mv).setOnes();
-  Eigen::VectorXd b(static_cast<Eigen::Index>(total));
+  Eigen::MatrixXd design = AngleVelocityDesign(bp_a, angle, bp_v, vel, 1);
+  design.col(ma + mv).setOnes();
+  // Smoothness rows (ActiveOptions::smoothness) below the Eq. 4.40 rows.
+  const Eigen::Index bends =
+      options.smoothness > 0.0 ? std::max<Eigen::Index>(0, ma - 2) + std::max<Eigen::Index>(0, mv - 2)
+                               : 0;
+  const auto n_rows = static_cast<Eigen::Index>(total);
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n_rows + bends, design.cols());
+  a.topRows(n_rows) = design;
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(n_rows + bends);
   for (std::size_t i = 0; i < total; ++i) {
     b(static_cast<Eigen::Index>(i)) = std::log(tau[i] / act[i]);  // Eq. 4.39
+  }
+  if (bends > 0) {
+    const double w = std::sqrt(options.smoothness * static_cast<double>(total));
+    Eigen::Index row = n_rows;
+    for (const auto& [first, count] : {std::pair{Eigen::Index{0}, ma}, std::pair{ma, mv}}) {
+      for (Eigen::Index j = 1; j + 1 < count; ++j, ++row) {
+        a(row, first + j - 1) = w;
+        a(row, first + j) = -2.0 * w;
+        a(row, first + j + 1) = w;
+      }
+    }
   }
   const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, options.relative_tolerance);
   std::vector<double> fata(static_cast<std::size_t>(ma)), fatv(static_cast<std::size_t>(mv));
@@ -84,7 +102,8 @@ ActiveResult IdentifyActive(std::span<const TrialColumns> trials, const PassiveP
                         res.active.torque_velocity(vel[i]);
     ss += (pred - tau[i]) * (pred - tau[i]);
   }
-  res.report.fit_rms["active_log"] = sol.rms;
+  res.report.fit_rms["active_log"] =
+      std::sqrt((design * sol.c - b.head(n_rows)).squaredNorm() / static_cast<double>(total));
   res.report.fit_rms["active_nm"] = std::sqrt(ss / static_cast<double>(total));
   res.report.values["active_rank"] = sol.rank;
   res.report.values["active_parameters"] = static_cast<double>(ma + mv + 1);

@@ -34,6 +34,13 @@ struct ActiveOptions {
   double relative_tolerance = 1e-10;
   double min_support = 1.0;
   double coverage_warn_below = 0.25;
+  /// Smoothness of ln f_ata and ln f_atv (beyond the thesis): rows
+  /// √(smoothness·N)·(c_{j−1} − 2c_j + c_{j+1}) = 0 for every interior
+  /// breakpoint of either curve (N the active samples), so a bend of one
+  /// log unit costs as much as raising the mean squared log residual by
+  /// `smoothness`. Keeps sparsely supported breakpoints (e.g. 90°, visited
+  /// only at the onset of a burst) from bumps no muscle has (≥ 0; 0 = off).
+  double smoothness = 0.0;
 };
 
 /// An active parameter set with its report.

@@ -6,8 +6,10 @@
 #include <string>
 #include <vector>
 
+#include "model/grid_golden_search.h"
 #include "model/identify_least_squares.h"
 #include "model/quality.h"
+#include "model/simulate.h"
 #include "model/units.h"
 
 namespace fesbench::model {
@@ -44,6 +46,15 @@ double AnthropometricInertia(double body_mass_kg, double leg_length_m) {
   }
   const double r = 0.735 * leg_length_m;  // radius of gyration
   return 0.061 * body_mass_kg * r * r;    // Eq. 4.13
+}
+
+double AnthropometricGravityMoment(double body_mass_kg, double leg_length_m) {
+  if (!(body_mass_kg > 0.0) || !(leg_length_m > 0.0) || !std::isfinite(body_mass_kg) ||
+      !std::isfinite(leg_length_m)) {
+    throw std::invalid_argument(
+        "AnthropometricGravityMoment: mass and length must be finite and > 0");
+  }
+  return 0.061 * body_mass_kg * kStandardGravity_m_s2 * 0.606 * leg_length_m;
 }
 
 PassiveResult IdentifyPassiveSequential(const TrialColumns& positions,
@@ -252,6 +263,97 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
   p.torque_velocity = PiecewiseLinear(bp_v, std::vector<double>(sol.c.data(), sol.c.data() + mv));
   p.inertia_kgm2 = sol.c(mv);
   PassiveResult res;
+  if (options.output_error_inertia) {
+    // τ_ptv for a fixed J: Eq. 4.35 with J·θ̈ moved to the left.
+    const Eigen::MatrixXd av = a.leftCols(mv);
+    const auto ptv_for = [&](double j) {
+      const Eigen::VectorXd c =
+          SolveTruncatedSvd(av, b - j * a.col(mv), options.relative_tolerance).c;
+      return PiecewiseLinear(bp_v, std::vector<double>(c.data(), c.data() + mv));
+    };
+    // Passive stretches of the trials (first state measured, muscle at rest).
+    struct Segment {
+      const TrialColumns* trial;
+      std::size_t begin, end;
+    };
+    std::vector<Segment> segments;
+    for (std::size_t k = 0; k < trials.size(); ++k) {
+      const TrialColumns& tr = trials[k];
+      const double rate = tr.SampleRateHz();
+      const auto min_n = static_cast<std::size_t>(std::ceil(options.min_segment_s * rate));
+      const auto max_n =
+          std::max<std::size_t>(min_n, static_cast<std::size_t>(options.max_segment_s * rate));
+      const std::vector<std::size_t>& idx = rows[k];
+      std::size_t i = 0;
+      while (i < idx.size()) {
+        std::size_t j = i;
+        const auto free = [&](std::size_t q) {
+          if (!options.joint_limits) return true;
+          const double th = tr.angle_deg[idx[q]];
+          return th > options.joint_limits->min_angle_deg + options.stop_margin_deg &&
+                 th < options.joint_limits->max_angle_deg - options.stop_margin_deg;
+        };
+        if (!free(i) || tr.activation[idx[i]] > options.segment_max_activation) {
+          ++i;
+          continue;
+        }
+        while (j + 1 < idx.size() && idx[j + 1] == idx[j] + 1 && j + 1 - i < max_n && free(j + 1) &&
+               tr.activation[idx[j + 1]] <= options.segment_max_activation)
+          ++j;
+        // Stretches inside 0–180° (the simulation's domain).
+        const auto [lo, hi] =
+            std::minmax_element(tr.angle_deg.begin() + idx[i], tr.angle_deg.begin() + idx[j] + 1);
+        if (j + 1 - i >= min_n && *lo >= 0.0 && *hi <= 180.0) {
+          segments.push_back({&tr, idx[i], idx[j] + 1});
+        }
+        i = j + 1;
+      }
+    }
+    if (!segments.empty()) {
+      ParameterSet sim_set = ExampleParameterSet();
+      sim_set.active.torque_scale_nm = 0.0;  // passive stretches only
+      double samples = 0.0;
+      for (const Segment& sg : segments) samples += static_cast<double>(sg.end - sg.begin);
+      const auto angle_cost = [&](double log_j) {
+        const double j = std::exp(log_j);
+        sim_set.passive.inertia_kgm2 = j;
+        sim_set.passive.torque_angle = torque_angle;
+        sim_set.passive.torque_velocity = ptv_for(j);
+        double ss = 0.0;
+        for (const Segment& sg : segments) {
+          const TrialColumns& tr = *sg.trial;
+          SimulationOptions o;
+          o.initial_angle_deg = tr.angle_deg[sg.begin];
+          o.initial_velocity_deg_s = tr.velocity_deg_s[sg.begin];
+          o.output_rate_hz = tr.SampleRateHz();
+          o.duration_s = static_cast<double>(sg.end - sg.begin) / o.output_rate_hz;
+          SimulationResult sim;
+          try {
+            sim = SimulateFreeSwing(sim_set, {}, o);
+          } catch (const std::exception&) {
+            return std::numeric_limits<double>::infinity();
+          }
+          for (std::size_t i = sg.begin; i < sg.end; ++i) {
+            const std::size_t m = i - sg.begin;
+            const double e = m < sim.angle_deg.size() ? sim.angle_deg[m] - tr.angle_deg[i]
+                                                      : std::numeric_limits<double>::infinity();
+            ss += e * e;
+          }
+        }
+        return std::isfinite(ss) ? ss : std::numeric_limits<double>::infinity();
+      };
+      const GridGoldenResult best = GridGoldenSearch(angle_cost, std::log(options.min_inertia_kgm2),
+                                                     std::log(options.max_inertia_kgm2), 24, 30);
+      const ScalarMinimum& m = best.golden.cost <= best.grid.cost ? best.golden : best.grid;
+      if (std::isfinite(m.cost)) {
+        res.report.values["free_swing_inertia_equation_error_kgm2"] = p.inertia_kgm2;
+        p.inertia_kgm2 = std::exp(m.x);
+        p.torque_velocity = ptv_for(p.inertia_kgm2);
+        res.report.fit_rms["free_swing_output_error_deg"] = std::sqrt(m.cost / samples);
+      }
+    }
+    res.report.values["free_swing_inertia_segments"] = static_cast<double>(segments.size());
+  }
   res.passive = ReferencePassive(p);
   res.report.fit_rms["free_swing_passive_nm"] = sol.rms;
   res.report.values["free_swing_rank"] = sol.rank;

@@ -20,6 +20,7 @@
 #include "model/conditioning.h"
 #include "model/identify_common.h"
 #include "model/parameter_set.h"
+#include "model/simulate.h"
 
 namespace fesbench::model {
 
@@ -33,6 +34,12 @@ struct PassiveResult {
 /// femoral condyle to medial malleolus length in m.
 /// @throws std::invalid_argument unless both are finite and > 0.
 double AnthropometricInertia(double body_mass_kg, double leg_length_m);
+
+/// The shank-and-foot gravity moment m·g·l, N·m, with Eq. 4.13's mass
+/// fraction 0.061 and the segment's centre of mass at 0.606 of its length
+/// (Winter, Table 4.1): the amplitude of the gravity term of Eq. 7.3.
+/// @throws std::invalid_argument unless both are finite and > 0.
+double AnthropometricGravityMoment(double body_mass_kg, double leg_length_m);
 
 /// Options of the sequential method.
 struct SequentialPassiveOptions {
@@ -80,11 +87,32 @@ struct FreeSwingPassiveOptions {
   double max_activation = 0.01;    ///< §5.4.3: passive samples only.
   double relative_tolerance = 1e-10;
   double min_support = 1.0;
+  /// J by output error (beyond the thesis): Eq. 4.35's least squares puts
+  /// the noisy θ̈ among the regressors, which attenuates J (errors in
+  /// variables: −29…−97 % on the virtual cohort). With this set, J is
+  /// instead the value whose free swing, simulated through every passive
+  /// stretch of at least min_segment_s (split at max_segment_s) from its
+  /// measured first state, best matches the measured knee angle, τ_ptv
+  /// refitted by Eq. 4.35 with that J fixed (θ̈ then only on the left).
+  bool output_error_inertia = true;
+  double min_segment_s = 0.4;
+  double max_segment_s = 2.0;
+  /// Stretches are cut where the knee comes within stop_margin_deg of a
+  /// stop (contact torque is not in the model); unset = no stops.
+  std::optional<JointLimits> joint_limits;
+  double stop_margin_deg = 3.0;
+  /// Stretches start once the activation is below this (the muscle's
+  /// residual pull after a burst biases J more than the fit's samples).
+  double segment_max_activation = 0.001;
+  double min_inertia_kgm2 = 0.05;  ///< search bracket of J, kg·m².
+  double max_inertia_kgm2 = 3.0;
 };
 
 /// Free-swing identification (§4.2.3, Eq. 4.35): with τ_pta known (from the
 /// sequential method), −τ_pta(θ) = Σ c_k·X_k(θ̇) + J·θ̈ on the samples with
-/// activation ≤ max_activation.
+/// activation ≤ max_activation; with output_error_inertia J by output error
+/// (report values "free_swing_inertia_equation_error_kgm2" and
+/// "free_swing_inertia_segments", fit_rms "free_swing_output_error_deg").
 /// @throws std::invalid_argument on missing columns, an empty τ_pta or too
 ///   few passive samples.
 PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,

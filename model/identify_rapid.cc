@@ -3,12 +3,13 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "model/conditioning.h"
 #include "model/contraction.h"
+#include "model/extrapolate.h"
 #include "model/identify_least_squares.h"
 #include "model/simulate.h"
 #include "model/units.h"
@@ -169,8 +170,13 @@ class OutputError {
       o.pulse_rate_hz = options_.pulse_rate_hz;
       o.initial_angle_deg = tr.angle_deg.front();
       o.initial_velocity_deg_s = tr.velocity_deg_s.front();
-      o.duration_s = tr.t_s.back() - tr.t_s.front() + 0.5 / tr.SampleRateHz();
+      o.duration_s = tr.t_s.back() - tr.t_s.front() + 1.0 / tr.SampleRateHz();
       o.output_rate_hz = tr.SampleRateHz();
+      o.joint_limits = options_.joint_limits;
+      if (o.joint_limits) {
+        o.initial_angle_deg = std::clamp(o.initial_angle_deg, o.joint_limits->min_angle_deg,
+                                         o.joint_limits->max_angle_deg);
+      }
       const SimulationResult sim = SimulateFreeSwing(p, pulses_[k], o);
       for (std::size_t i = 0; i < tr.size(); i += static_cast<std::size_t>(options_.stride)) {
         r(row++) = i < sim.angle_deg.size() ? sim.angle_deg[i] - tr.angle_deg[i]
@@ -178,8 +184,8 @@ class OutputError {
       }
     }
     for (Eigen::Index j = 0; j < size(); ++j) {
-      r(row++) = prior_ * (x(j) - x0_[static_cast<std::size_t>(j)]) /
-                 scale_[static_cast<std::size_t>(j)];
+      r(row++) =
+          prior_ * (x(j) - x0_[static_cast<std::size_t>(j)]) / scale_[static_cast<std::size_t>(j)];
     }
     return r;
   }
@@ -273,13 +279,15 @@ OutputErrorResult RefineOutputError(const ParameterSet& start, std::span<const T
     ++done;
   }
   ParameterSet p = UnpackCurves(start, x);
-  if (!(p.active.torque_angle(kReferenceAngleDeg) > 0.0) || !(p.active.torque_velocity(0.0) > 0.0)) {
+  if (!(p.active.torque_angle(kReferenceAngleDeg) > 0.0) ||
+      !(p.active.torque_velocity(0.0) > 0.0)) {
     // Not normalisable (§6.7): keep the start.
     p = start;
     r = error(error.start());
     done = 0;
-    out.report.warnings.push_back("output-error refinement left f_ata(90°) or f_atv(0) ≤ 0; "
-                                  "kept the linear estimates");
+    out.report.warnings.push_back(
+        "output-error refinement left f_ata(90°) or f_atv(0) ≤ 0; "
+        "kept the linear estimates");
   }
   p.passive = ReferencePassive(p.passive);  // §6.5
   p.active = NormaliseActive(p.active);     // §6.7
@@ -289,11 +297,55 @@ OutputErrorResult RefineOutputError(const ParameterSet& start, std::span<const T
   return out;
 }
 
+namespace {
+
+// The trial without the samples near a stop (and guard_s either side): the
+// stop's contact torque is not in the model.
+TrialColumns WithoutStopContact(const TrialColumns& tr, const JointLimits& stops, double margin_deg,
+                                double guard_s) {
+  const std::size_t n = tr.size();
+  std::vector<bool> drop(n, false);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (tr.angle_deg[i] > stops.min_angle_deg + margin_deg &&
+        tr.angle_deg[i] < stops.max_angle_deg - margin_deg) {
+      continue;
+    }
+    for (std::size_t j = i; j-- > 0 && tr.t_s[i] - tr.t_s[j] <= guard_s;) drop[j] = true;
+    for (std::size_t j = i; j < n && tr.t_s[j] - tr.t_s[i] <= guard_s; ++j) drop[j] = true;
+  }
+  TrialColumns out;
+  for (std::vector<double> TrialColumns::*col :
+       {&TrialColumns::t_s, &TrialColumns::stim_ma, &TrialColumns::angle_deg,
+        &TrialColumns::velocity_deg_s, &TrialColumns::accel_deg_s2, &TrialColumns::torque_nm,
+        &TrialColumns::activation, &TrialColumns::emg}) {
+    const std::vector<double>& in = tr.*col;
+    if (in.size() != n) continue;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!drop[i]) (out.*col).push_back(in[i]);
+    }
+  }
+  return out;
+}
+
+CurveRange RangeOf(const std::vector<double>& v) {
+  const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+  return {*lo, *hi};
+}
+
+}  // namespace
+
 RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& passive,
                           const TrialColumns& active, const RapidOptions& options) {
+  const TrialColumns swings[] = {passive, active};
+  return IdentifyRapid(isometric, swings, options);
+}
+
+RapidResult IdentifyRapid(const TrialColumns& isometric, std::span<const TrialColumns> swings_in,
+                          const RapidOptions& options) {
   if (!(options.inertia_kgm2 > 0.0) || !std::isfinite(options.inertia_kgm2)) {
     throw std::invalid_argument("IdentifyRapid: inertia_kgm2 must be finite and > 0");
   }
+  if (swings_in.empty()) throw std::invalid_argument("IdentifyRapid: no free-swing trials");
   RapidResult out;
   ParameterSet& ps = out.parameters;
   ps.model = ModelKind::kFull;
@@ -309,22 +361,25 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& pas
   out.report.Merge(irc.report);
   out.report.values["irc_torque_scale_nm"] = irc.torque_scale_nm;
 
-  // 2. Kinematics and activation of the free-swing trials.
-  TrialColumns swing[] = {passive, active};
+  // 2. Kinematics and activation of the free-swing trials; the samples the
+  //    equation-error fits use (stop contact left out).
+  std::vector<TrialColumns> swing(swings_in.begin(), swings_in.end());
+  std::vector<TrialColumns> fit;
   for (TrialColumns& tr : swing) {
     AddKinematics(tr);
+    std::vector<double> t(tr.t_s.size());
+    for (std::size_t i = 0; i < t.size(); ++i) t[i] = tr.t_s[i] - tr.t_s.front();
     tr.activation = ActivationAt(ps.contraction, ps.irc, TrialPulses(tr, options.pulse_rate_hz),
-                                 options.pulse_rate_hz, [&] {
-                                   std::vector<double> t(tr.t_s.size());
-                                   for (std::size_t i = 0; i < t.size(); ++i)
-                                     t[i] = tr.t_s[i] - tr.t_s.front();
-                                   return t;
-                                 }());
+                                 options.pulse_rate_hz, t);
+    fit.push_back(options.joint_limits
+                      ? WithoutStopContact(tr, *options.joint_limits, options.stop_margin_deg,
+                                           options.stop_guard_s)
+                      : tr);
   }
 
   // 3. Passive with known inertia (§7.4.1), then active (Eq. 4.40).
   const PassiveResult pas = IdentifyPassiveKnownInertia(
-      swing, options.inertia_kgm2, options.passive_angle, options.passive_velocity,
+      fit, options.inertia_kgm2, options.passive_angle, options.passive_velocity,
       options.max_passive_activation, options.relative_tolerance);
   ps.passive = pas.passive;
   out.report.Merge(pas.report);
@@ -333,19 +388,71 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& pas
   ao.velocity = options.active_velocity;
   ao.min_activation = options.max_passive_activation;
   ao.relative_tolerance = options.relative_tolerance;
-  const ActiveResult act = IdentifyActive(swing, ps.passive, ao);
+  ao.smoothness = options.active_smoothness;
+  const ActiveResult act = IdentifyActive(fit, ps.passive, ao);
   ps.active = act.active;
   out.report.Merge(act.report);
 
-  // 4. Output-error refinement on both free-swing trials (see the file
+  // The ranges the curves were identified over.
+  std::vector<double> pa, pv, aa, av;
+  for (const TrialColumns& tr : fit) {
+    for (std::size_t i = 0; i < tr.size(); ++i) {
+      const bool passive_sample = tr.activation[i] <= options.max_passive_activation;
+      (passive_sample ? pa : aa).push_back(tr.angle_deg[i]);
+      (passive_sample ? pv : av).push_back(tr.velocity_deg_s[i]);
+    }
+  }
+  Provenance& prov = ps.provenance;
+  if (!pa.empty()) {
+    prov.identified_range_deg["tau_pta"] = RangeOf(pa);
+    prov.identified_range_deg_s["tau_ptv"] = RangeOf(pv);
+  }
+  if (!aa.empty()) {
+    prov.identified_range_deg["f_ata"] = RangeOf(aa);
+    prov.identified_range_deg_s["f_atv"] = RangeOf(av);
+  }
+
+  // 3b. No curve held flat beyond its data (model/extrapolate.h).
+  if (options.extrapolate) {
+    const double out_lo =
+        options.joint_limits ? std::max(0.0, options.joint_limits->min_angle_deg - 10.0) : 0.0;
+    const double out_hi =
+        options.joint_limits ? std::min(180.0, options.joint_limits->max_angle_deg + 10.0) : 130.0;
+    const double vmax = options.extend_velocity_deg_s;
+    const CurveRange& ra = prov.identified_range_deg["tau_pta"];
+    if (ra.hi - ra.lo >= 5.0) {
+      const PassiveAngleForm form =
+          FitPassiveAngleForm(ps.passive.torque_angle, ra.lo, ra.hi, options.mgl_prior_nm);
+      ps.passive.torque_angle = ExtendPassiveAngle(ps.passive.torque_angle, form, out_lo, out_hi);
+      out.report.fit_rms["tau_pta_form_nm"] = form.rms_nm;
+      out.report.values["tau_pta_form_mgl_nm"] = form.mgl_nm();
+      out.report.values["tau_pta_form_hang_deg"] = form.hang_deg();
+    }
+    const CurveRange& rv = prov.identified_range_deg_s["tau_ptv"];
+    ps.passive.torque_velocity =
+        ExtendVelocityCurve(ps.passive.torque_velocity, rv.lo, rv.hi, -vmax, vmax, true);
+    const CurveRange& fa = prov.identified_range_deg["f_ata"];
+    ps.active.torque_angle =
+        ExtendActiveAngle(ps.active.torque_angle, fa.lo, fa.hi, out_lo, out_hi);
+    const CurveRange& fv = prov.identified_range_deg_s["f_atv"];
+    ps.active.torque_velocity =
+        ExtendVelocityCurve(ps.active.torque_velocity, fv.lo, fv.hi, -vmax, vmax, false);
+    ps.passive = ReferencePassive(ps.passive);
+    ps.active = NormaliseActive(ps.active);
+  }
+
+  // 4. Output-error refinement on the free-swing trials (see the file
   //    comment); the linear estimates above are its start and prior.
   if (options.refine_iterations > 0) {
     OutputErrorOptions oe;
     oe.iterations = options.refine_iterations;
     oe.pulse_rate_hz = options.pulse_rate_hz;
     oe.prior_weight = options.refine_prior_weight;
+    oe.joint_limits = options.joint_limits;
     const OutputErrorResult refined = RefineOutputError(ps, swing, oe);
+    const Provenance keep = ps.provenance;
     ps = refined.parameters;
+    ps.provenance = keep;
     out.report.Merge(refined.report);
   }
 

@@ -35,6 +35,7 @@
 #include "model/identify_passive.h"
 #include "model/parameter_set.h"
 #include "model/signal.h"
+#include "model/simulate.h"
 
 namespace fesbench::model {
 
@@ -49,20 +50,37 @@ struct RapidOptions {
   BreakpointSpec active_angle{7, {}};
   BreakpointSpec active_velocity{7, {}};
   double max_passive_activation = 0.01;  ///< §5.4.3.
+  /// ActiveOptions::smoothness of the active fit.
+  double active_smoothness = 0.02;
   double relative_tolerance = 1e-8;      ///< SVD truncation (Eq. 4.26).
   /// Output-error iterations after the linear fits (RefineOutputError);
   /// 0 keeps the thesis's linear estimates.
   int refine_iterations = 6;
   /// Weight of the pull toward the linear estimates (OutputErrorOptions).
   double refine_prior_weight = 0.01;
+  /// The bench's stops (the subject's range of motion). When set, samples
+  /// within stop_margin_deg of a stop, and stop_guard_s either side of them,
+  /// are left out of the equation-error fits (the stop's contact torque is
+  /// not in the model), and the output-error simulations stop there.
+  std::optional<JointLimits> joint_limits;
+  double stop_margin_deg = 2.0;
+  double stop_guard_s = 0.1;
+  /// Extrapolate every curve beyond the range it was identified over
+  /// (model/extrapolate.h) out to extend_angle_deg (the stops ± 10° when
+  /// joint_limits is set, else 0–130°) and ±extend_velocity_deg_s.
+  bool extrapolate = true;
+  double extend_velocity_deg_s = 1000.0;
+  /// m·g·l of the shank, N·m, for the gravity term when the passive data
+  /// span under 60° (0 = fit it; FitPassiveAngleForm).
+  double mgl_prior_nm = 0.0;
 };
 
 /// Options of RefineOutputError.
 struct OutputErrorOptions {
-  int iterations = 6;             ///< Levenberg–Marquardt iterations (≥ 0).
-  double pulse_rate_hz = 33.0;    ///< stimulator pulse rate, Hz (> 0).
-  double step_s = 5e-3;           ///< RK4 step of the simulations, s (> 0).
-  int stride = 2;                 ///< every stride-th sample enters the error (≥ 1).
+  int iterations = 6;           ///< Levenberg–Marquardt iterations (≥ 0).
+  double pulse_rate_hz = 33.0;  ///< stimulator pulse rate, Hz (> 0).
+  double step_s = 5e-3;         ///< RK4 step of the simulations, s (> 0).
+  int stride = 2;               ///< every stride-th sample enters the error (≥ 1).
   /// Prior: each ordinate's distance from its start value, divided by its
   /// scale below, enters the cost with weight prior_weight·(number of angle
   /// samples), so a change of one scale costs as much as raising the mean
@@ -70,8 +88,9 @@ struct OutputErrorOptions {
   double prior_weight = 0.01;
   double passive_torque_scale_nm = 0.5;  ///< τ_pta and τ_ptv ordinates.
   double passive_velocity_scale_nm = 0.3;
-  double active_gain_scale = 0.2;        ///< f_ata and f_atv ordinates.
-  double log_torque_scale = 0.2;         ///< ln τ_scale.
+  double active_gain_scale = 0.2;           ///< f_ata and f_atv ordinates.
+  double log_torque_scale = 0.2;            ///< ln τ_scale.
+  std::optional<JointLimits> joint_limits;  ///< stops of the simulations.
 };
 
 /// What RefineOutputError returns: the refined set (passive referenced,
@@ -138,5 +157,16 @@ PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, 
 ///   precondition fails (the message names it).
 RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& passive,
                           const TrialColumns& active, const RapidOptions& options);
+
+/// The same from any number of free-swing trials (each needs t_s, stim_ma,
+/// angle_deg): passive samples of all of them give τ_pta, τ_ptv, stimulated
+/// samples f_ata, f_atv, τ_scale; the refinement runs on all of them. With
+/// options.extrapolate the curves are extended beyond their data
+/// (model/extrapolate.h) and provenance.identified_range_deg /
+/// identified_range_deg_s record the ranges of the data ("tau_pta",
+/// "f_ata"; "tau_ptv", "f_atv").
+/// @throws std::invalid_argument as above, or if `swings` is empty.
+RapidResult IdentifyRapid(const TrialColumns& isometric, std::span<const TrialColumns> swings,
+                          const RapidOptions& options);
 
 }  // namespace fesbench::model

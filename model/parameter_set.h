@@ -26,11 +26,11 @@ namespace fesbench::model {
 /// Model variants selectable by name (DESIGN.md §3, thesis §5.5.1, §7.3,
 /// §7.4.4).
 enum class ModelKind {
-  kFull,                    ///< PWL f_ata(θ), PWL f_atv(θ̇) (Fig. 3-9).
-  kTorqueGenerator,         ///< f_ata = f_atv = 1 (§5.5.1).
-  kSingleSegment,           ///< f_ata = Aθ + B, f_atv = Cθ̇ + D (Eqs. 5.1–5.2).
-  kStaticGainPwlVelocity,   ///< f_ata constant (in τ_scale), PWL f_atv (§7.3).
-  kParametric,              ///< Eq. 7.3 τ_pta, Gaussian f_ata, two-segment f_atv (§7.4.4).
+  kFull,                   ///< PWL f_ata(θ), PWL f_atv(θ̇) (Fig. 3-9).
+  kTorqueGenerator,        ///< f_ata = f_atv = 1 (§5.5.1).
+  kSingleSegment,          ///< f_ata = Aθ + B, f_atv = Cθ̇ + D (Eqs. 5.1–5.2).
+  kStaticGainPwlVelocity,  ///< f_ata constant (in τ_scale), PWL f_atv (§7.3).
+  kParametric,             ///< Eq. 7.3 τ_pta, Gaussian f_ata, two-segment f_atv (§7.4.4).
 };
 
 /// The wire name of a model kind: "full", "torque_generator",
@@ -44,25 +44,25 @@ const std::vector<ModelKind>& AllModelKinds();
 /// Linear contraction dynamics H_n(s) = a^n / (s + a)^n, unit DC gain
 /// (Eqs. 3.21, 4.1–4.4).
 struct ContractionParams {
-  int order = 3;              ///< n: 2 or 3.
-  double pole_per_s = 25.0;   ///< a > 0, s⁻¹. Twitch peak at (n − 1)/a.
+  int order = 3;             ///< n: 2 or 3.
+  double pole_per_s = 25.0;  ///< a > 0, s⁻¹. Twitch peak at (n − 1)/a.
   friend bool operator==(const ContractionParams&, const ContractionParams&) = default;
 };
 
 /// Passive joint properties (§4.2). τ_pta includes gravity. Only the sum
 /// τ_pta + τ_ptv is identifiable (§6.5); see ReferencePassive.
 struct PassiveParams {
-  double inertia_kgm2 = 0.36;        ///< J > 0, kg·m² (= N·m·s²/rad).
-  PiecewiseLinear torque_angle;      ///< τ_pta: angle_deg → torque_nm.
-  PiecewiseLinear torque_velocity;   ///< τ_ptv: velocity_deg_s → torque_nm.
+  double inertia_kgm2 = 0.36;       ///< J > 0, kg·m² (= N·m·s²/rad).
+  PiecewiseLinear torque_angle;     ///< τ_pta: angle_deg → torque_nm.
+  PiecewiseLinear torque_velocity;  ///< τ_ptv: velocity_deg_s → torque_nm.
   friend bool operator==(const PassiveParams&, const PassiveParams&) = default;
 };
 
 /// Active properties (Eq. 3.16): τ_act = τ_scale · f_stim · f_ata(θ) · f_atv(θ̇).
 struct ActiveParams {
-  double torque_scale_nm = 40.0;     ///< τ_scale ≥ 0, N·m.
-  PiecewiseLinear torque_angle;      ///< f_ata: angle_deg → gain ≥ 0 (1 at 90°).
-  PiecewiseLinear torque_velocity;   ///< f_atv: velocity_deg_s → gain ≥ 0 (1 at 0 deg/s).
+  double torque_scale_nm = 40.0;    ///< τ_scale ≥ 0, N·m.
+  PiecewiseLinear torque_angle;     ///< f_ata: angle_deg → gain ≥ 0 (1 at 90°).
+  PiecewiseLinear torque_velocity;  ///< f_atv: velocity_deg_s → gain ≥ 0 (1 at 0 deg/s).
   friend bool operator==(const ActiveParams&, const ActiveParams&) = default;
 };
 
@@ -82,27 +82,41 @@ struct SingleSegmentParams {
 ///   f_atv(θ̇) = 1 + s₋·θ̇ for θ̇ < 0, 1 + s₊·θ̇ for θ̇ ≥ 0 (two segments),
 /// gains clamped at 0. τ_ptv stays the PWL curve of PassiveParams.
 struct ParametricParams {
-  double mgl_nm = 0.0;                  ///< m·g·l, N·m.
-  double k1_nm = 0.0;                   ///< k₁, N·m.
-  double k2_per_rad = 0.0;              ///< k₂, rad⁻¹.
-  double offset_nm = 0.0;               ///< referencing constant (§6.5), N·m.
-  double ata_peak_deg = 90.0;           ///< μ, deg.
-  double ata_width_deg = 60.0;          ///< σ > 0, deg.
-  double atv_slope_neg_per_deg_s = 0.0; ///< s₋, per deg/s.
-  double atv_slope_pos_per_deg_s = 0.0; ///< s₊, per deg/s.
+  double mgl_nm = 0.0;                   ///< m·g·l, N·m.
+  double k1_nm = 0.0;                    ///< k₁, N·m.
+  double k2_per_rad = 0.0;               ///< k₂, rad⁻¹.
+  double offset_nm = 0.0;                ///< referencing constant (§6.5), N·m.
+  double ata_peak_deg = 90.0;            ///< μ, deg.
+  double ata_width_deg = 60.0;           ///< σ > 0, deg.
+  double atv_slope_neg_per_deg_s = 0.0;  ///< s₋, per deg/s.
+  double atv_slope_pos_per_deg_s = 0.0;  ///< s₊, per deg/s.
   friend bool operator==(const ParametricParams&, const ParametricParams&) = default;
+};
+
+/// A closed interval [lo, hi] of a curve's abscissa.
+struct CurveRange {
+  double lo = 0.0;
+  double hi = 0.0;
+  bool Contains(double x) const { return x >= lo && x <= hi; }
+  friend bool operator==(const CurveRange&, const CurveRange&) = default;
 };
 
 /// Where a parameter set came from (DESIGN.md §3 "provenance").
 struct Provenance {
-  std::string irc_method;       ///< e.g. "ramp_correlation".
-  std::string passive_method;   ///< "sequential", "simultaneous", "free_swing".
-  std::string active_method;    ///< e.g. "log_least_squares".
+  std::string irc_method;      ///< e.g. "ramp_correlation".
+  std::string passive_method;  ///< "sequential", "simultaneous", "free_swing".
+  std::string active_method;   ///< e.g. "log_least_squares".
   std::optional<std::int64_t> active_trial_id;
   std::vector<std::int64_t> trial_ids;
   std::map<std::string, double> fit_rms;  ///< per fitted part, in that part's unit.
   std::vector<std::string> warnings;
   std::string software_version;
+  /// The range each curve was identified over (the data it was fitted to;
+  /// beyond it the curve is extrapolated, model/extrapolate.h): angle ranges
+  /// (deg) keyed "tau_pta", "f_ata"; velocity ranges (deg/s) keyed
+  /// "tau_ptv", "f_atv". Empty when the method did not record them.
+  std::map<std::string, CurveRange> identified_range_deg;
+  std::map<std::string, CurveRange> identified_range_deg_s;
   friend bool operator==(const Provenance&, const Provenance&) = default;
 };
 
@@ -110,7 +124,7 @@ struct Provenance {
 /// and are ignored by that variant.
 struct ParameterSet {
   ModelKind model = ModelKind::kFull;
-  PiecewiseLinear irc;                 ///< R(u): stim_ma → activation in [0, 1].
+  PiecewiseLinear irc;  ///< R(u): stim_ma → activation in [0, 1].
   ContractionParams contraction;
   PassiveParams passive;
   ActiveParams active;

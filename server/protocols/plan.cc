@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <stdexcept>
+#include <tuple>
 
 #include "model/stimulus_generators.h"
 #include "model/trajectory.h"
@@ -288,7 +290,38 @@ void BuildPrediction(const std::string& name, const ParameterValues& v, Builder&
   b.EnvelopeTrial(t, env, MotorMode::kDecoupled, 90.0, 0.0);
 }
 
-void BuildRapid(const ParameterValues& v, double min_rest_s, Plan& plan, Builder& b) {
+// A dense random-binary train whose ON bursts take seeded levels
+// threshold + x·(amplitude − threshold), x in [min_fraction, 1], so the active
+// trial visits the amplitudes between mid-range and full extension (a second
+// mt19937_64 stream of the seed).
+model::SampledSignal LeveledRandomBinary(double amplitude_ma, double threshold_ma,
+                                         double duration_s, double seed, double min_fraction) {
+  model::SampledSignal env = RandomBinary(true, amplitude_ma, duration_s, seed);
+  std::mt19937_64 rng(static_cast<std::uint64_t>(seed) ^ 0x9e3779b97f4a7c15ULL);
+  double level = 1.0;
+  bool was_on = false;
+  for (double& u : env.values) {
+    const bool on = u > 0.0;
+    if (on && !was_on) {
+      const double x = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+      level = min_fraction + (1.0 - min_fraction) * x;
+    }
+    if (on) u = threshold_ma + level * (amplitude_ma - threshold_ma);
+    was_on = on;
+  }
+  return env;
+}
+
+// §7.4.1 over the whole range: the isometric ramp trial (IRC, pole); two
+// releases of the knee near each end of the range of motion (free swings,
+// §4.2.3: τ_pta and τ_ptv with known J over the whole range); an ascending
+// amplitude search on the decoupled leg that stops when the knee reaches full
+// extension (§5.4.3, "the amplitude that just reaches full extension"; its
+// slow sweep of the range under stimulation and the fall after it are active
+// and passive free-swing data too); then a dense random-binary free-swing
+// trial at that amplitude (AdaptiveAmplitude).
+void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContext& subject,
+                Plan& plan, Builder& b) {
   const double lock = v.at("lock_angle_deg");
   b.Prepare("lock", MotorMode::kLocked, lock, v.at("settle_s"));
   const int ramp = b.AddTrial("rapid_isometric_ramp_irc", MotorMode::kLocked);
@@ -297,19 +330,61 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, Plan& plan, Builder
                            Pick(v, {"threshold_ma", "max_ma", "conditioning_s", "impulses", "ramps",
                                     "below_threshold_ma", "ramp_duration_s", "rest_s"})),
                   MotorMode::kLocked, lock, min_rest_s);
-  b.Prepare("decouple", MotorMode::kDecoupled, lock, v.at("swing_settle_s"));
-  const double amp = v.at("amplitude_ma");
-  const int passive = b.AddTrial("rapid_free_swing_passive", MotorMode::kDecoupled);
-  b.EnvelopeTrial(passive, RandomBinary(false, amp, v.at("duration_s"), v.at("passive_seed")),
-                  MotorMode::kDecoupled, lock, 0.0);
-  const int active = b.AddTrial("rapid_active_random_binary", MotorMode::kDecoupled);
-  b.EnvelopeTrial(active, RandomBinary(true, amp, v.at("duration_s"), v.at("active_seed")),
-                  MotorMode::kDecoupled, lock, 0.0);
-  plan.rapid = RapidSettings{ramp, passive, active};
-  if (v.at("rb_torque_nm") > 0.0) {
-    plan.adaptive_amplitude = AdaptiveAmplitude{
-        ramp, v.at("rb_torque_nm"), amp, v.at("threshold_ma"), v.at("max_ma"), {passive, active}};
+  const double rom = subject.max_angle_deg - subject.min_angle_deg;
+  const double margin = v.at("release_margin_fraction") * rom;
+  const double lo = subject.min_angle_deg + margin, hi = subject.max_angle_deg - margin;
+  if (!(hi > lo)) throw std::invalid_argument("release_margin_fraction: leaves no range of motion");
+  std::vector<int> swings;
+  // The flexion release keeps the name the identification service and
+  // clients know for the rapid routine's passive free swing.
+  for (const auto& [name, where, angle] :
+       {std::tuple{"rapid_free_swing_passive", "flexion", hi},
+        std::tuple{"rapid_release_extension", "extension", lo}}) {
+    b.Prepare(std::string("move to ") + where, MotorMode::kPosition, angle, v.at("release_move_s"),
+              true);
+    b.Prepare("hold", MotorMode::kPosition, angle, v.at("release_hold_s"));
+    const int t = b.AddTrial(name, MotorMode::kDecoupled);
+    b.Rest("free swing", v.at("release_swing_s"), 0.0, t, MotorMode::kDecoupled, angle);
+    swings.push_back(t);
   }
+  b.Prepare("swing", MotorMode::kDecoupled, lock, v.at("swing_settle_s"));
+  // Ascending search: threshold → max in search_s, ended at full extension.
+  const double thr = v.at("threshold_ma"), max_ma = v.at("max_ma");
+  if (!(max_ma > thr)) throw std::invalid_argument("max_ma: must be above threshold_ma");
+  const int search = b.AddTrial("rapid_extension_search", MotorMode::kDecoupled);
+  {
+    const double search_s = v.at("search_s");
+    auto env = std::make_shared<model::SampledSignal>();
+    env->rate_hz = model::kStimulusRateHz;
+    const auto n = static_cast<std::size_t>(std::llround(search_s * model::kStimulusRateHz));
+    for (std::size_t i = 0; i < n; ++i) {
+      env->values.push_back(thr +
+                            (max_ma - thr) * static_cast<double>(i + 1) / static_cast<double>(n));
+    }
+    Step s;
+    s.phase = StepPhase::kStimulate;
+    s.label = "search for full extension";
+    s.ticks = static_cast<std::int64_t>(n) * kTicksPerSample;
+    s.motor_mode = MotorMode::kDecoupled;
+    s.setpoint_deg = lock;
+    s.envelope = std::move(env);
+    s.trial = search;
+    if (v.at("rb_torque_nm") <= 0.0) {
+      s.end_below_angle_deg = subject.min_angle_deg + v.at("extension_target_fraction") * rom;
+    }
+    b.Push(std::move(s));
+    b.Rest("fall", v.at("fall_s"), 0.0, search, MotorMode::kDecoupled, lock);
+  }
+  swings.push_back(search);
+  const double amp = v.at("amplitude_ma");
+  const int active = b.AddTrial("rapid_active_random_binary", MotorMode::kDecoupled);
+  b.EnvelopeTrial(active,
+                  LeveledRandomBinary(amp, thr, v.at("duration_s"), v.at("active_seed"),
+                                      v.at("rb_level_min_fraction")),
+                  MotorMode::kDecoupled, lock, 0.0);
+  plan.rapid = RapidSettings{ramp, swings.front(), active, swings};
+  plan.adaptive_amplitude = AdaptiveAmplitude{
+      ramp, v.at("rb_torque_nm"), amp, thr, max_ma, {active}, v.at("rb_min_top_fraction")};
 }
 
 }  // namespace
@@ -362,7 +437,7 @@ api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const Parameter
     } else if (name.starts_with("prediction_")) {
       BuildPrediction(name, values, b);
     } else if (name == "rapid_parameterisation") {
-      BuildRapid(values, protocol.min_rest_s, plan, b);
+      BuildRapid(values, protocol.min_rest_s, subject, plan, b);
     } else {
       return api::Status::NotFound("no plan for protocol " + name);
     }

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -56,6 +57,10 @@ struct Step {
   bool tolerance_ramp = false;
   double ramp_start_ma = 0.0;
   double ramp_ma_per_s = 0.0;
+  /// Ascending search (rapid_parameterisation): the step ends as soon as the
+  /// recorded knee angle is at or below this (full extension); the amplitude
+  /// then applied becomes the plan's adaptive amplitude (AdaptiveAmplitude).
+  std::optional<double> end_below_angle_deg;
   /// Index of the trial the step's samples go to, or −1.
   int trial = -1;
   /// The step is a rest period with this protocol minimum (s); the engine
@@ -79,16 +84,22 @@ struct ToleranceSettings {
 /// The identification the rapid protocol ends with.
 struct RapidSettings {
   int ramp_trial = 0;
-  int passive_trial = 1;
+  int passive_trial = 1;  ///< the first released free swing.
   int active_trial = 2;
+  /// Every free-swing trial besides active_trial (the released swings and
+  /// the extension search), passive_trial first.
+  std::vector<int> swing_trials;
 };
 
-/// Random-binary amplitude chosen during the run (rapid_parameterisation):
-/// after `source_trial` (an isometric ramp trial) the engine identifies the
-/// IRC by ramp correlation and scales the envelopes of `trials` so their ON
-/// amplitude gives `target_torque_nm` of isometric torque at the lock angle
-/// (the thesis's "lowest level to produce full extension", §5.4.3, found
-/// from the measured IRC instead of by trial and error).
+/// Random-binary amplitude chosen during the run (rapid_parameterisation),
+/// applied by scaling the envelopes of `trials` by chosen/planned_ma, within
+/// [min_ma, max_ma] (planned_ma if it cannot be found):
+///  - target_torque_nm > 0: after `source_trial` (an isometric ramp trial),
+///    the amplitude whose isometric torque at the lock angle (IRC by ramp
+///    correlation) is target_torque_nm (AmplitudeForTorque);
+///  - target_torque_nm = 0: the amplitude at which the ascending search step
+///    (Step::end_below_angle_deg) brought the knee to full extension (§5.4.3,
+///    "the amplitude that just reaches full extension"), max_ma if it never did.
 struct AdaptiveAmplitude {
   int source_trial = 0;
   double target_torque_nm = 6.0;
@@ -96,6 +107,10 @@ struct AdaptiveAmplitude {
   double min_ma = 0.0;      ///< bounds of the chosen amplitude.
   double max_ma = 0.0;
   std::vector<int> trials;
+  /// After the search: the trains' top level is at least min_ma +
+  /// min_top_fraction·(max_ma − min_ma), so they also visit the levels the
+  /// prediction inputs use beyond full extension (0 = the found amplitude).
+  double min_top_fraction = 0.0;
 };
 
 /// Steps, trials and what follows them.

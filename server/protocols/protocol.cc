@@ -282,13 +282,16 @@ std::vector<ProtocolDescription> MakeCatalog() {
 
   c.push_back(
       {"rapid_parameterisation",
-       1,
+       2,
        "Rapid parameterisation",
-       "The < 30 s routine of §7.4.1: a 7 s isometric ramp IRC trial (2 impulses, one "
-       "4 s cosine ramp) → contraction pole and IRC by ramp correlation; a 10 s "
-       "free-swing sparse random-binary trial and a 10 s dense active random-binary "
-       "trial → τ_pta and τ_ptv with known inertia, then the active curves (Eq. 4.40); "
-       "ends with a complete parameter set.",
+       "The < 30 s routine of §7.4.1 over the whole range of motion: a 7 s isometric ramp "
+       "IRC trial (2 impulses, one 4 s cosine ramp) → contraction pole and IRC by ramp "
+       "correlation; the motor takes the knee near full flexion and near full extension "
+       "and releases it twice (free swings through the range, §4.2.3); a ≤ 3 s ascending "
+       "amplitude search on the decoupled leg that stops at full extension (§5.4.3); a 10 s "
+       "dense random-binary free-swing trial at the amplitude found → τ_pta and τ_ptv with "
+       "known inertia from the passive samples of every swing, "
+       "→ the active curves (Eq. 4.40); ends with a complete parameter set.",
        BenchMode::kMixed,
        ProtocolKind::kRapid,
        1.0,
@@ -302,19 +305,40 @@ std::vector<ProtocolDescription> MakeCatalog() {
         {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0, false},
         {"ramp_duration_s", "whole ramp (half up, half down), s", 4.0, 0.5, 30.0, false},
         Rest("rest_s", "zero stimulation after each isometric element, s", 1.0, 1.0, 60.0),
-        {"swing_settle_s", "swing after decoupling before recording, s", 0.5, 0.2, 30.0, false},
+        {"release_margin_fraction",
+         "the knee is released this fraction of the range of motion inside each end of it", 0.05,
+         0.02, 0.3, false},
+        {"release_move_s", "motor move to each release angle, s", 0.8, 0.5, 10.0, false},
+        {"release_hold_s", "hold at the release angle before releasing, s", 0.2, 0.0, 5.0, false},
+        {"release_swing_s", "free swing recorded after each release, s", 2.0, 1.0, 20.0, false},
+        {"swing_settle_s", "swing after the last release before the extension search, s", 0.3, 0.0,
+         30.0, false},
+        {"search_s",
+         "the extension search raises the amplitude from threshold to max in this time, s", 3.0,
+         1.0, 20.0, false},
+        {"fall_s", "free swing recorded after the extension search, s", 0.6, 0.0, 10.0, false},
         AmplitudeMa(0.6),
         {"rb_torque_nm",
-         "if > 0, the random-binary amplitude is chosen after the ramp trial to give this "
-         "isometric torque at the lock angle (else amplitude_ma is used), N·m",
-         6.0, 0.0, 60.0, false},
-        {"duration_s", "length of each random-binary trial, s", 10.0, 3.0, 60.0, false},
-        {"passive_seed", "seed of the passive (sparse) train", 1.0, 0.0, 4294967295.0, true},
-        {"active_seed", "seed of the active (dense) train", 2.0, 0.0, 4294967295.0, true},
-        {"inertia_kgm2",
-         "limb inertia about the knee if known, kg·m²; 0 = from a prior parameter set or the "
-         "subject's weight and shank length (Eq. 4.13)",
-         0.0, 0.0, 5.0, false}}});
+         "0 (default): the random-binary amplitude is the one that just reaches full extension "
+         "(§5.4.3), found during the run by the extension search, within the max "
+         "tolerated; > 0: the amplitude giving this isometric torque at the lock angle; "
+         "amplitude_ma is used if neither can be found, N·m",
+         0.0, 0.0, 60.0, false},
+        {"extension_target_fraction",
+         "full extension for that amplitude: this fraction of the range of motion inside its "
+         "extension end",
+         0.1, 0.0, 0.45, false},
+        {"rb_level_min_fraction",
+         "each ON burst of the random-binary train takes a seeded level between threshold + this "
+         "fraction of threshold→amplitude and the amplitude (1 = one level)",
+         0.5, 0.1, 1.0, false},
+        {"rb_min_top_fraction",
+         "the random-binary train's top level is at least threshold + this fraction of "
+         "threshold→max (the prediction inputs' levels), even above full extension",
+         0.75, 0.0, 1.0, false},
+        {"duration_s", "length of the random-binary trial, s", 10.0, 3.0, 60.0, false},
+        {"active_seed", "seed of the dense random-binary train and its levels", 2.0, 0.0,
+         4294967295.0, true}}});
   return c;
 }
 
@@ -489,7 +513,15 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"conditioning_fraction", {"Conditioning level (fraction of threshold→max)", "1", true}},
       {"below_threshold_ma", {"Start below threshold", "mA", true}},
       {"above_threshold_ma", {"Lowest level above threshold", "mA", true}},
-      {"rb_torque_nm", {"Random-binary target torque (0 = use the amplitude)", "N·m", true}},
+      {"rb_torque_nm",
+       {"Random-binary target torque (0 = the amplitude that reaches full extension)", "N·m",
+        true}},
+      {"rb_level_min_fraction", {"Lowest random-binary level (fraction of the amplitude)", "1", true}},
+      {"rb_min_top_fraction", {"Least top random-binary level (fraction of threshold→max)", "1", true}},
+      {"extension_target_fraction",
+       {"Full extension for the search (fraction of the range inside its end)", "1", true}},
+      {"release_margin_fraction",
+       {"Release angles inside the range ends (fraction of the range)", "1", true}},
       // Tolerance test.
       {"start_ma", {"Starting amplitude", "mA", false}},
       {"rate_ma_per_s", {"Amplitude rise rate", "mA/s", false}},
@@ -507,6 +539,11 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"duration_s", {"Length of each stimulation train", "s", false}},
       {"settle_s", {"Settling time before recording", "s", true}},
       {"swing_settle_s", {"Free swing before recording", "s", true}},
+      {"release_move_s", {"Motor move to each release angle", "s", true}},
+      {"release_hold_s", {"Hold before each release", "s", true}},
+      {"release_swing_s", {"Free swing recorded after each release", "s", true}},
+      {"search_s", {"Full-extension search length", "s", true}},
+      {"fall_s", {"Free swing recorded after the search", "s", true}},
       {"rest_s", {"Rest between elements", "s", true}},
       {"interval_s", {"Time between pulses", "s", true}},
       {"pause_s", {"Pause before each motor move", "s", true}},

@@ -31,7 +31,8 @@ api::Result<double> KnownInertia(const SubjectContext& subject) {
 
 api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedTrial>& trials,
                                                      const RapidSettings& settings,
-                                                     const SubjectContext& subject) {
+                                                     const SubjectContext& subject,
+                                                     std::optional<model::JointLimits> stops) {
   const api::Result<double> inertia = KnownInertia(subject);
   if (!inertia.ok()) return inertia.status();
   const auto pick = [&](int index) -> const RecordedTrial* {
@@ -39,16 +40,30 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
     return &trials[static_cast<std::size_t>(index)];
   };
   const RecordedTrial* iso = pick(settings.ramp_trial);
-  const RecordedTrial* pas = pick(settings.passive_trial);
-  const RecordedTrial* act = pick(settings.active_trial);
-  if (iso == nullptr || pas == nullptr || act == nullptr) {
+  std::vector<int> swing_indices = settings.swing_trials;
+  if (swing_indices.empty()) swing_indices.push_back(settings.passive_trial);
+  swing_indices.push_back(settings.active_trial);
+  std::vector<model::TrialColumns> swings;
+  for (int k : swing_indices) {
+    const RecordedTrial* t = pick(k);
+    if (t == nullptr)
+      return api::Status::FailedPrecondition("rapid parameterisation: a trial is missing");
+    swings.push_back(api::ToTrialColumns(t->trial));
+  }
+  if (iso == nullptr) {
     return api::Status::FailedPrecondition("rapid parameterisation: a trial is missing");
   }
   model::RapidOptions options;
   options.inertia_kgm2 = *inertia;
+  options.joint_limits =
+      stops.value_or(model::JointLimits{subject.min_angle_deg, subject.max_angle_deg});
+  if (subject.body_mass_kg && subject.leg_length_m && *subject.body_mass_kg > 0.0 &&
+      *subject.leg_length_m > 0.0) {
+    options.mgl_prior_nm =
+        model::AnthropometricGravityMoment(*subject.body_mass_kg, *subject.leg_length_m);
+  }
   try {
-    model::RapidResult r = model::IdentifyRapid(api::ToTrialColumns(iso->trial), api::ToTrialColumns(pas->trial),
-                                                api::ToTrialColumns(act->trial), options);
+    model::RapidResult r = model::IdentifyRapid(api::ToTrialColumns(iso->trial), swings, options);
     r.parameters.provenance.software_version = "fesbench 0.1.0";
     return r.parameters;
   } catch (const std::exception& e) {

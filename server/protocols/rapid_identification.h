@@ -6,10 +6,12 @@
 /// else the prior parameter set's, else Eq. 4.13 from body mass and leg
 /// length) and runs model::IdentifyRapid.
 
+#include <optional>
 #include <vector>
 
 #include "api/status.h"
 #include "model/parameter_set.h"
+#include "model/simulate.h"
 #include "server/protocols/plan.h"
 
 namespace fesbench::server::protocols {
@@ -22,9 +24,14 @@ struct RecordedTrial;
 api::Result<double> KnownInertia(const SubjectContext& subject);
 
 /// kFailedPrecondition without an inertia or when a trial is missing;
-/// kFailedPrecondition naming the fit if identification fails.
-api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedTrial>& trials,
-                                                     const RapidSettings& settings,
-                                                     const SubjectContext& subject);
+/// kFailedPrecondition naming the fit if identification fails. `stops` are
+/// the bench's hard stops (samples in contact are left out of the fits and
+/// the output-error simulations stop there); unset = the subject's range
+/// of motion. The free swings are settings.swing_trials (else
+/// passive_trial) and active_trial; with the subject's body mass and leg
+/// length the gravity term of a short τ_pta range is m·g·l from them.
+api::Result<model::ParameterSet> IdentifyRapidTrials(
+    const std::vector<RecordedTrial>& trials, const RapidSettings& settings,
+    const SubjectContext& subject, std::optional<model::JointLimits> stops = std::nullopt);
 
 }  // namespace fesbench::server::protocols

@@ -36,6 +36,30 @@ struct Recorder {
 
 }  // namespace
 
+void ApplySearchedAmplitude(const Plan& plan, std::optional<double> reached_ma,
+                            std::map<std::string, double>& values, std::vector<double>& stim_scale,
+                            std::vector<double>& stim_floor) {
+  if (!plan.adaptive_amplitude) return;
+  const AdaptiveAmplitude& adapt = *plan.adaptive_amplitude;
+  if (!(adapt.planned_ma > adapt.min_ma)) return;
+  // §5.4.3: the amplitude that just reaches full extension; the max
+  // tolerated (the search's end) when the knee never got there.
+  const double chosen = std::clamp(reached_ma.value_or(adapt.max_ma), adapt.min_ma, adapt.max_ma);
+  values["full_extension_amplitude_ma"] = chosen;
+  values["full_extension_reached"] = reached_ma ? 1.0 : 0.0;
+  const double top = std::max(chosen, adapt.min_ma + std::clamp(adapt.min_top_fraction, 0.0, 1.0) *
+                                                         (adapt.max_ma - adapt.min_ma));
+  values["rb_amplitude_ma"] = top;
+  for (int t : adapt.trials) {
+    if (t < 0 || static_cast<std::size_t>(t) >= stim_scale.size()) continue;
+    // Levels above threshold keep their place between threshold and the
+    // top level: u → min + (u − min)·(top − min)/(planned − min).
+    stim_floor[static_cast<std::size_t>(t)] = adapt.min_ma;
+    stim_scale[static_cast<std::size_t>(t)] =
+        (top - adapt.min_ma) / (adapt.planned_ma - adapt.min_ma);
+  }
+}
+
 // --- SafetyEventLog -----------------------------------------------------------
 
 SafeBench::EventSink SafetyEventLog::sink() {
@@ -158,6 +182,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   std::optional<Recorder> rec;
   int rec_trial = -1;
   std::vector<double> stim_scale(plan.trials.size(), 1.0);
+  std::vector<double> stim_floor(plan.trials.size(), 0.0);  // ApplySearchedAmplitude
 
   // Tolerance test state.
   ToleranceResult tol;
@@ -214,7 +239,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     result.trials.push_back(std::move(rec->rec));
     const AdaptiveAmplitude* adapt = plan.adaptive_amplitude ? &*plan.adaptive_amplitude : nullptr;
     if (complete && adapt != nullptr && adapt->source_trial == rec_trial &&
-        adapt->planned_ma > 0.0) {
+        adapt->planned_ma > 0.0 && adapt->target_torque_nm > 0.0) {
       const api::Result<double> u = AmplitudeForTorque(
           result.trials.back().trial, adapt->target_torque_nm, adapt->min_ma, adapt->max_ma);
       const double chosen = u.ok() ? *u : adapt->planned_ma;
@@ -269,6 +294,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     }
     double offset_sum = 0.0, offset_sq = 0.0;
     std::int64_t offset_count = 0;
+    std::optional<double> search_reached_ma;  // Step::end_below_angle_deg
 
     for (std::int64_t k = 0; k < step.ticks; ++k, ++n) {
       if ((aborted = abort_reason())) break;
@@ -276,6 +302,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         tol.stopped_by_clinician = true;
         break;
       }
+      if (search_reached_ma) break;
       // Set-point (1 kHz) and stimulation (200 Hz envelope, held).
       if (step.motor_mode == MotorMode::kPosition || step.motor_mode == MotorMode::kLocked) {
         double sp = step.setpoint_deg;
@@ -302,7 +329,10 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         if (idx >= 0 && idx < static_cast<std::int64_t>(step.envelope->values.size())) {
           u = step.envelope->values[static_cast<std::size_t>(idx)];
         }
-        if (step.trial >= 0) u *= stim_scale[static_cast<std::size_t>(step.trial)];
+        if (step.trial >= 0 && u > 0.0) {
+          const auto t = static_cast<std::size_t>(step.trial);
+          u = stim_floor[t] + (u - stim_floor[t]) * stim_scale[t];
+        }
       }
       if (u != last_stim) {
         bench_.SetStimAmplitude(u);
@@ -328,6 +358,9 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         if (rec->record_setpoint) rec->setpoint_deg.push_back(last_setpoint);
         for (double v : bench_.bench().DrainEmg_mv()) rec->emg_mv.push_back(v);
         emit_batch(false);
+        if (step.end_below_angle_deg && f.angle_deg <= *step.end_below_angle_deg) {
+          search_reached_ma = applied;
+        }
         if (step.tolerance_ramp) {
           // Threshold: first amplitude whose 50 ms mean torque leaves the
           // offset's noise band (Appendix F part II.K).
@@ -370,6 +403,9 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       }
     }
     if (step.tolerance_ramp && stop_.load()) tol.stopped_by_clinician = true;
+    if (step.end_below_angle_deg && !aborted) {
+      ApplySearchedAmplitude(plan, search_reached_ma, result.values, stim_scale, stim_floor);
+    }
   }
 
   // An e-stop, watchdog or cancel during the very last tick still counts.
@@ -401,7 +437,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       observer_->OnStep(plan.steps.size(), identify);
     }
     api::Result<model::ParameterSet> params =
-        IdentifyRapidTrials(result.trials, *plan.rapid, subject);
+        IdentifyRapidTrials(result.trials, *plan.rapid, subject,
+                            model::JointLimits{hw.min_angle_deg, hw.max_angle_deg});
     if (!params.ok()) {
       Transition(RunTransition::kError, "identification failed: " + params.status().message());
       return finish();

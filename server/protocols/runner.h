@@ -162,6 +162,19 @@ class ProtocolRunner {
   RunResult* result_ = nullptr;
 };
 
+/// After the ascending search step (Step::end_below_angle_deg) of a plan with
+/// an AdaptiveAmplitude: the amplitude at which the knee reached full
+/// extension (`reached_ma`, or max_ma if it never did), clamped to
+/// [min_ma, max_ma], becomes values["rb_amplitude_ma"]
+/// (values["full_extension_reached"] 1 or 0); every non-zero envelope value u
+/// of the adaptive trials then runs as min_ma + (u − min_ma)·scale with
+/// scale = (chosen − min_ma)/(planned_ma − min_ma) (stim_floor[trial] =
+/// min_ma, stim_scale[trial] = scale), so levels planned between threshold
+/// and planned_ma keep their place between threshold and the chosen amplitude.
+void ApplySearchedAmplitude(const Plan& plan, std::optional<double> reached_ma,
+                            std::map<std::string, double>& values, std::vector<double>& stim_scale,
+                            std::vector<double>& stim_floor);
+
 /// The amplitude (mA, in [min_ma, max_ma], 0.1 mA steps) whose isometric
 /// torque τ_scale·R(u) from an IRC identified by ramp correlation on
 /// `ramp_trial` first reaches target_torque_nm (max_ma if never);

@@ -425,8 +425,15 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
     ns.params = *result.parameter_set;
     ns.supersedes_id = run->prior_parameter_set_id;
     std::vector<std::int64_t> ids;
+    std::size_t expected = 0;  // trials the rapid set was fitted to
     if (run->rapid) {
-      for (int k : {run->rapid->ramp_trial, run->rapid->passive_trial, run->rapid->active_trial}) {
+      std::vector<int> fitted = {run->rapid->ramp_trial, run->rapid->passive_trial,
+                                 run->rapid->active_trial};
+      fitted.insert(fitted.end(), run->rapid->swing_trials.begin(), run->rapid->swing_trials.end());
+      std::sort(fitted.begin(), fitted.end());
+      fitted.erase(std::unique(fitted.begin(), fitted.end()), fitted.end());
+      expected = fitted.size();
+      for (int k : fitted) {
         if (auto id = stored_id(k)) ids.push_back(*id);
       }
       ns.params.provenance.active_trial_id = stored_id(run->rapid->active_trial);
@@ -439,7 +446,7 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
     ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
     ns.params.provenance.trial_ids = ids;
     new_set = std::move(ns);
-    if (ids.size() != 3 && run->rapid) {
+    if (ids.size() != expected && run->rapid) {
       state = RunState::kFailed;
       reason = "the run's trials could not all be stored; its parameter set is not stored";
       new_set.reset();

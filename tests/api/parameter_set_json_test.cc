@@ -31,6 +31,8 @@ ParameterSet WithProvenance(ParameterSet p) {
   p.provenance.fit_rms = {{"passive_nm", 0.123456789012345678}, {"active_nm", 1.0 / 3.0}};
   p.provenance.warnings = {"low phase-plane coverage"};
   p.provenance.software_version = "0.1.0";
+  p.provenance.identified_range_deg = {{"tau_pta", {16.25, 105.5}}, {"f_ata", {12.3, 1.0 / 0.011}}};
+  p.provenance.identified_range_deg_s = {{"tau_ptv", {-145.4, 238.2}}, {"f_atv", {-219.6, 151.2}}};
   return p;
 }
 
@@ -71,6 +73,30 @@ TEST(ParameterSetJson, ExampleRoundTripsExactly) {
   Result<ParameterSet> back = RoundTrip(p);
   ASSERT_TRUE(back.ok()) << back.status().ToString();
   EXPECT_EQ(*back, p);  // operator== compares doubles bit for bit
+}
+
+TEST(ParameterSetJson, IdentifiedRangesAreLoHiPairsPerCurve) {
+  const json j = ParameterSetToJson(WithProvenance(model::ExampleParameterSet()));
+  EXPECT_EQ(j["provenance"]["identified_range_deg"]["tau_pta"], json::array({16.25, 105.5}));
+  EXPECT_EQ(j["provenance"]["identified_range_deg_s"]["f_atv"], json::array({-219.6, 151.2}));
+  // Without ranges: empty objects, and a document without the keys reads.
+  const json none = ParameterSetToJson(model::ExampleParameterSet());
+  EXPECT_TRUE(none["provenance"]["identified_range_deg"].empty());
+  json old = none;
+  old["provenance"].erase("identified_range_deg");
+  old["provenance"].erase("identified_range_deg_s");
+  EXPECT_TRUE(ParameterSetFromJson(old).ok());
+  // Bad ranges name the field.
+  const auto with = [](json range) {
+    return [range](json& d) { d["provenance"]["identified_range_deg"]["tau_pta"] = range; };
+  };
+  EXPECT_EQ(RejectedField(with(json::array({1.0}))), "provenance.identified_range_deg.tau_pta");
+  EXPECT_EQ(RejectedField(with(json::array({20.0, 10.0}))),
+            "provenance.identified_range_deg.tau_pta");
+  EXPECT_EQ(RejectedField(with(json::array({"a", 10.0}))),
+            "provenance.identified_range_deg.tau_pta[0]");
+  EXPECT_EQ(RejectedField([](json& d) { d["provenance"]["identified_range_deg_s"] = 3; }),
+            "provenance.identified_range_deg_s");
 }
 
 TEST(ParameterSetJson, EveryVariantRoundTripsExactly) {

@@ -68,6 +68,10 @@ TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
                                           "passive_seed",
                                           "active_seed",
                                           "level_fraction",
+                                          "release_margin_fraction",
+                                          "extension_target_fraction",
+                                          "rb_level_min_fraction",
+                                          "rb_min_top_fraction",
                                           "dense"};
   for (const ProtocolDescription& p : ProtocolCatalog()) {
     std::set<std::string> names;
@@ -336,22 +340,68 @@ TEST(Plan, PredictionStepRampSineTimings) {
 }
 
 TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
-  auto plan = MakePlan("rapid_parameterisation", {}, Subject());
+  const SubjectContext subject = Subject();
+  auto plan = MakePlan("rapid_parameterisation", {}, subject);
   ASSERT_TRUE(plan.ok());
-  EXPECT_LT(plan->duration_s(), 30.0);  // §7.4.1
-  ASSERT_EQ(plan->trials.size(), 3u);
+  EXPECT_LT(plan->duration_s(), 30.0);  // §7.4.1 (the search may end sooner)
+  ASSERT_EQ(plan->trials.size(), 5u);
   ASSERT_TRUE(plan->rapid.has_value());
   EXPECT_EQ(plan->trials[0].mode, MotorMode::kLocked);
-  EXPECT_EQ(plan->trials[1].mode, MotorMode::kDecoupled);
-  EXPECT_EQ(plan->trials[2].mode, MotorMode::kDecoupled);
+  for (std::size_t k = 1; k < 5; ++k) EXPECT_EQ(plan->trials[k].mode, MotorMode::kDecoupled);
+  EXPECT_EQ(plan->rapid->swing_trials, (std::vector<int>{1, 2, 3}));
+  EXPECT_EQ(plan->rapid->active_trial, 4);
   // The isometric part: 2 impulses and one 4 s ramp.
   const auto runs = Runs(TrialEnvelope(*plan, 0).values);
   ASSERT_EQ(runs.size(), 3u);
   EXPECT_EQ(runs[0].second, 1u);
   EXPECT_EQ(runs[1].second, 1u);
   EXPECT_NEAR(runs[2].second / 200.0, 4.0, 0.01);
-  EXPECT_EQ(TrialEnvelope(*plan, 1).size(), 10u + 2000u);  // 10 s trains
-  EXPECT_EQ(TrialEnvelope(*plan, 2).size(), 10u + 2000u);
+  // Releases 5 % of the range inside each end, after a motor move there.
+  const double rom = subject.max_angle_deg - subject.min_angle_deg;
+  std::vector<double> release_angles;
+  for (std::size_t i = 1; i < plan->steps.size(); ++i) {
+    const Step& s = plan->steps[i];
+    if ((s.trial == 1 || s.trial == 2) && plan->steps[i - 1].trial != s.trial) {
+      EXPECT_EQ(s.motor_mode, MotorMode::kDecoupled);
+      EXPECT_EQ(plan->steps[i - 1].motor_mode, MotorMode::kPosition);
+      release_angles.push_back(plan->steps[i - 1].setpoint_deg);
+    }
+  }
+  EXPECT_EQ(release_angles, (std::vector<double>{subject.max_angle_deg - 0.05 * rom,
+                                                 subject.min_angle_deg + 0.05 * rom}));
+  EXPECT_EQ(TrialEnvelope(*plan, 1).size(), 400u);  // 2 s swings
+  EXPECT_EQ(TrialEnvelope(*plan, 2).size(), 400u);
+  // The extension search: threshold → max in 3 s, ending at 10 % of the range
+  // inside full extension; then 0.6 s of fall.
+  const model::SampledSignal search = TrialEnvelope(*plan, 3);
+  ASSERT_EQ(search.size(), 600u + 120u);
+  EXPECT_NEAR(search.values[0], subject.threshold_ma, 0.1);
+  EXPECT_NEAR(search.values[599], subject.max_tolerated_ma, 1e-9);
+  EXPECT_EQ(search.values[600], 0.0);
+  bool has_end = false;
+  for (const Step& s : plan->steps) {
+    if (s.end_below_angle_deg) {
+      has_end = true;
+      EXPECT_DOUBLE_EQ(*s.end_below_angle_deg, subject.min_angle_deg + 0.1 * rom);
+    }
+  }
+  EXPECT_TRUE(has_end);
+  // The dense train: 10 s, every ON level between threshold + 50 % of
+  // threshold→amplitude and the amplitude (60 % of threshold→max as planned).
+  const model::SampledSignal rb = TrialEnvelope(*plan, 4);
+  EXPECT_EQ(rb.size(), 10u + 2000u);
+  const double amp = subject.threshold_ma + 0.6 * (subject.max_tolerated_ma - subject.threshold_ma);
+  std::set<double> levels;
+  for (double u : rb.values) {
+    if (u == 0.0) continue;
+    EXPECT_GE(u, subject.threshold_ma + 0.5 * (amp - subject.threshold_ma) - 1e-9);
+    EXPECT_LE(u, amp + 1e-9);
+    levels.insert(u);
+  }
+  EXPECT_GT(levels.size(), 3u);
+  ASSERT_TRUE(plan->adaptive_amplitude.has_value());
+  EXPECT_EQ(plan->adaptive_amplitude->target_torque_nm, 0.0);
+  EXPECT_EQ(plan->adaptive_amplitude->trials, std::vector<int>{4});
 }
 
 TEST(Plan, MotorProtocolsCoverTheRangeAndSequentialTimings) {

@@ -339,10 +339,12 @@ TEST(RunService, RapidProtocolStoresAParameterSetWhoseProvenanceTrialsExist) {
   EXPECT_EQ(set->summary.subject_id, rig.subject_id);
   EXPECT_EQ(set->summary.leg_id, rig.leg_id);
   EXPECT_EQ(set->summary.version, 1);
+  // Every trial the set was fitted to: ramp, the free swings, random binary.
   std::vector<std::int64_t> used = {
       view->trial_ids[static_cast<std::size_t>(plan.rapid->ramp_trial)],
-      view->trial_ids[static_cast<std::size_t>(plan.rapid->passive_trial)],
       view->trial_ids[static_cast<std::size_t>(plan.rapid->active_trial)]};
+  for (int k : plan.rapid->swing_trials)
+    used.push_back(view->trial_ids[static_cast<std::size_t>(k)]);
   std::sort(used.begin(), used.end());
   EXPECT_EQ(set->trial_ids, used);
   EXPECT_EQ(set->params.provenance.trial_ids, used);
