@@ -290,8 +290,8 @@ std::vector<ProtocolDescription> MakeCatalog() {
        "and releases it twice (free swings through the range, §4.2.3); a ≤ 3 s ascending "
        "amplitude search on the decoupled leg that stops at full extension (§5.4.3); a 10 s "
        "dense random-binary free-swing trial at the amplitude found → τ_pta and τ_ptv with "
-       "known inertia from the passive samples of every swing, "
-       "→ the active curves (Eq. 4.40); ends with a complete parameter set.",
+       "known inertia from the passive samples of every swing → the active curves "
+       "(Eq. 4.40); ends with a complete parameter set (§7.4.1).",
        BenchMode::kMixed,
        ProtocolKind::kRapid,
        1.0,
@@ -338,7 +338,11 @@ std::vector<ProtocolDescription> MakeCatalog() {
          0.75, 0.0, 1.0, false},
         {"duration_s", "length of the random-binary trial, s", 10.0, 3.0, 60.0, false},
         {"active_seed", "seed of the dense random-binary train and its levels", 2.0, 0.0,
-         4294967295.0, true}}});
+         4294967295.0, true},
+        {"inertia_kgm2",
+         "limb inertia about the knee if known, kg·m²; 0 = from a prior parameter set or the "
+         "subject's weight and shank length (Eq. 4.13)",
+         0.0, 0.0, 5.0, false}}});
   return c;
 }
 
@@ -516,8 +520,10 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"rb_torque_nm",
        {"Random-binary target torque (0 = the amplitude that reaches full extension)", "N·m",
         true}},
-      {"rb_level_min_fraction", {"Lowest random-binary level (fraction of the amplitude)", "1", true}},
-      {"rb_min_top_fraction", {"Least top random-binary level (fraction of threshold→max)", "1", true}},
+      {"rb_level_min_fraction",
+       {"Lowest random-binary level (fraction of the amplitude)", "1", true}},
+      {"rb_min_top_fraction",
+       {"Least top random-binary level (fraction of threshold→max)", "1", true}},
       {"extension_target_fraction",
        {"Full extension for the search (fraction of the range inside its end)", "1", true}},
       {"release_margin_fraction",
@@ -572,10 +578,11 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"seed", {"Random pattern number", "1", true}},
       {"rb1_seed", {"First pattern number", "1", true}},
       {"rb2_seed", {"Second pattern number", "1", true}},
-      {"passive_seed", {"Passive-swing pattern number", "1", true}},
       {"active_seed", {"Active-swing pattern number", "1", true}},
       // Anthropometrics.
-      {"inertia_kgm2", {"Leg inertia (0 = from weight and shank length)", "kg·m²", false}},
+      {"inertia_kgm2",
+       {"Leg inertia (0 = the last parameter set's, else from weight and shank length)", "kg·m²",
+        false}},
   };
   return table;
 }
