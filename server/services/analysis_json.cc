@@ -288,7 +288,8 @@ json PredictionResultToJson(const PredictionResult& r, bool include_columns) {
             {"initial_velocity_deg_s", r.initial_velocity_deg_s},
             {"samples", r.predicted.size()},
             {"errors", r.errors ? PredictionErrorsToJson(*r.errors) : json(nullptr)},
-            {"fitted_scale", Nullable(r.fitted_scale)}};
+            {"fitted_scale", Nullable(r.fitted_scale)},
+            {"share_outside_identified_ranges", Nullable(r.share_outside_identified_ranges)}};
   j["joint_limits"] = r.joint_limits ? json{{"min_angle_deg", r.joint_limits->min_angle_deg},
                                             {"max_angle_deg", r.joint_limits->max_angle_deg}}
                                      : json(nullptr);

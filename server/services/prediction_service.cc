@@ -8,6 +8,7 @@
 
 #include "model/conditioning.h"
 #include "model/evaluation.h"
+#include "model/extrapolate.h"
 #include "model/identify_rapid.h"
 #include "model/signal.h"
 #include "server/protocols/model_gate.h"
@@ -252,6 +253,11 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
     out.predicted = out.mode == PredictionMode::kIsometric
                         ? model::SimulateIsometric(params, pulses, out.initial_angle_deg, options)
                         : protocols::SimulateStimulatedSwing(params, pulses, options);
+    if (out.mode == PredictionMode::kFreeSwing) {
+      // Where the prediction leans on extrapolated curves (issue 15).
+      out.share_outside_identified_ranges = model::ShareOutsideIdentifiedRanges(
+          params.provenance, out.predicted.angle_deg, out.predicted.velocity_deg_s);
+    }
     if (out.mode == PredictionMode::kIsometric && !out.predicted.torque_nm.empty()) {
       // The torque before any activation is the offset the bench removes (§5.3).
       const double offset = out.predicted.torque_nm.front();

@@ -103,6 +103,10 @@ struct PredictionResult {
   std::optional<PredictionErrors> errors;          ///< with a trial.
   std::optional<double> fitted_scale;              ///< the §6.1.2 constant, with fit_scale.
   std::optional<model::JointLimits> joint_limits;  ///< free swing: the stops used.
+  /// Free swing: the share (0–1) of predicted samples outside the ranges the
+  /// set's curves were identified over (model::ShareOutsideIdentifiedRanges);
+  /// unset if the set records none.
+  std::optional<double> share_outside_identified_ranges;
 };
 
 /// Checks the request alone: kInvalidArgument naming the field.

@@ -450,6 +450,35 @@ TEST_F(AnalysisServicesTest, FreeSwingPredictionStopsAtTheRangeOfMotion) {
   EXPECT_EQ(PredictionService(*db_).Compute(stim).status().field(), "initial_angle_deg");
 }
 
+// A prediction reports the share of its samples where the set's curves are
+// extrapolated (outside the ranges recorded in its provenance), and nothing
+// for a set that records no ranges.
+TEST_F(AnalysisServicesTest, FreeSwingPredictionReportsTheShareOutsideTheIdentifiedRanges) {
+  const model::ParameterSet truth = Truth();
+  const storage::Session s = MakeSession("S8");
+  model::ParameterSet ranged = truth;
+  ranged.provenance.identified_range_deg["tau_pta"] = {60.0, 100.0};
+  const std::int64_t ranged_id = StoreSet(s, ranged);
+  const std::int64_t plain_id = StoreSet(s, truth);
+  PredictionRequest req;
+  req.stimulus = StimulusSpec{"prediction_step", {}};
+  req.parameter_set_id = ranged_id;
+  auto with_ranges = PredictionService(*db_).Compute(req);
+  ASSERT_TRUE(with_ranges.ok()) << with_ranges.status().ToString();
+  const auto& a = with_ranges->predicted.angle_deg;
+  ASSERT_FALSE(a.empty());
+  const auto outside =
+      std::count_if(a.begin(), a.end(), [](double x) { return x < 60.0 || x > 100.0; });
+  ASSERT_GT(outside, 0) << "the step swings the knee out of 60–100°";
+  ASSERT_TRUE(with_ranges->share_outside_identified_ranges.has_value());
+  EXPECT_NEAR(*with_ranges->share_outside_identified_ranges,
+              static_cast<double>(outside) / static_cast<double>(a.size()), 1e-12);
+  req.parameter_set_id = plain_id;
+  auto without = PredictionService(*db_).Compute(req);
+  ASSERT_TRUE(without.ok()) << without.status().ToString();
+  EXPECT_FALSE(without->share_outside_identified_ranges.has_value());
+}
+
 TEST_F(AnalysisServicesTest, PredictionRejectsBadInputNamingTheField) {
   const storage::Session s = MakeSession("S4");
   const std::int64_t set_id = StoreSet(s, Truth());
