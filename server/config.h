@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "api/status.h"
+#include "server/bench/bench.h"
 
 namespace fesbench::server {
 
@@ -27,7 +28,7 @@ struct ServerConfig {
   double time_scale = 1.0;                ///< --time-scale: 1 real time, 0 as fast as possible.
   /// --max-stop-impact-deg-s: the model gate's limit on the predicted speed
   /// of the knee at a stop of the range of motion (BenchLimits), (0, 2000].
-  double max_stop_impact_deg_s = 90.0;
+  double max_stop_impact_deg_s = kDefaultBenchMaxStopImpactDegS;
   int dds_domain = 0;  ///< --dds-domain: 0–232 (DDS front end, DESIGN.md §9).
   /// --dds-transport: auto (Fast DDS default: shm + UDP), shm, udp,
   /// udp-loopback, or off (no DDS front end).

@@ -17,20 +17,27 @@
 
 namespace fesbench::server {
 
+/// The model gate's default limit on the predicted speed of the knee at a
+/// stop of the range of motion, deg/s (BenchLimits::max_stop_impact_deg_s).
+inline constexpr double kDefaultBenchMaxStopImpactDegS = 500.0;
+
 /// Fixed properties of a bench (DESIGN.md §2, §6; thesis §5.1).
 struct BenchLimits {
-  double max_stim_ma = 100.0;           ///< stimulator hardware range 0–100 mA.
-  double pulse_rate_hz = 33.0;          ///< stimulation pulse rate.
-  double pulse_width_us = 300.0;        ///< stimulation pulse width.
-  double min_angle_deg = 10.0;          ///< mechanical range of motion.
+  double max_stim_ma = 100.0;     ///< stimulator hardware range 0–100 mA.
+  double pulse_rate_hz = 33.0;    ///< stimulation pulse rate.
+  double pulse_width_us = 300.0;  ///< stimulation pulse width.
+  double min_angle_deg = 10.0;    ///< mechanical range of motion.
   double max_angle_deg = 110.0;
   /// Model gate (DESIGN.md §6): the fastest a predicted knee may reach a
-  /// stop of the range of motion, deg/s.
-  double max_stop_impact_deg_s = 90.0;
-  double max_motor_torque_nm = 50.0;    ///< servo torque limit at the knee.
-  double control_rate_hz = 1000.0;      ///< motor set-point updates.
-  double sample_rate_hz = 200.0;        ///< position, torque, acceleration.
-  double emg_rate_hz = 1000.0;          ///< EMG sampling.
+  /// stop of the range of motion, deg/s. The thesis's own prediction inputs
+  /// (§5.4.5) take the knee to full extension at up to about 400 deg/s on the
+  /// simulated cohort (the amplitudes reach full extension by design,
+  /// §5.4.3); a faster arrival is refused.
+  double max_stop_impact_deg_s = kDefaultBenchMaxStopImpactDegS;
+  double max_motor_torque_nm = 50.0;  ///< servo torque limit at the knee.
+  double control_rate_hz = 1000.0;    ///< motor set-point updates.
+  double sample_rate_hz = 200.0;      ///< position, torque, acceleration.
+  double emg_rate_hz = 1000.0;        ///< EMG sampling.
 };
 
 /// How the motor holds the brace.
@@ -44,13 +51,13 @@ enum class MotorMode : std::uint8_t {
 /// One reading of the slow sensors, at bench time t_s.
 struct SensorFrame {
   double t_s = 0.0;
-  double angle_deg = 0.0;      ///< potentiometer.
-  double torque_nm = 0.0;      ///< strut strain gauge (brace on shank, + flexion).
-  double accel_m_s2 = 0.0;     ///< tangential accelerometer on the calf (includes gravity).
-  double stim_ma = 0.0;        ///< amplitude the stimulator is delivering.
-  bool limit_flexion = false;  ///< limit switch near the 110° stop.
-  bool limit_extension = false;///< limit switch near the 10° stop.
-  bool estop = false;          ///< hardware e-stop engaged.
+  double angle_deg = 0.0;        ///< potentiometer.
+  double torque_nm = 0.0;        ///< strut strain gauge (brace on shank, + flexion).
+  double accel_m_s2 = 0.0;       ///< tangential accelerometer on the calf (includes gravity).
+  double stim_ma = 0.0;          ///< amplitude the stimulator is delivering.
+  bool limit_flexion = false;    ///< limit switch near the 110° stop.
+  bool limit_extension = false;  ///< limit switch near the 10° stop.
+  bool estop = false;            ///< hardware e-stop engaged.
 };
 
 class Bench {

@@ -23,10 +23,9 @@
 
 namespace fesbench::server::protocols {
 
-/// Default impact-speed limit at a joint stop, deg/s (BenchLimits): a knee
-/// reaching the brace's end stop slower than this is stopped by it without
-/// harm; faster is refused before stimulating.
-inline constexpr double kDefaultMaxStopImpactDegS = 90.0;
+/// Default impact-speed limit at a joint stop, deg/s: the bench's default
+/// (BenchLimits::max_stop_impact_deg_s, where the choice is explained).
+inline constexpr double kDefaultMaxStopImpactDegS = kDefaultBenchMaxStopImpactDegS;
 
 /// Start angle of a free-swing prediction without a measured start (POST
 /// /predictions and the gate): the passive rest angle (τ_pta(θ) = 0,

@@ -503,8 +503,13 @@ TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
 // recorded values → rapid parameterisation (followed by default) →
 // prediction_random_binary and prediction_step → predict the new set on
 // those fresh trials (not its training trials) with error figures.
+// `max_stop_impact_deg_s` empty: the server's default gate limit.
 void WalkANewLeg(const std::string& max_stop_impact_deg_s, bool expect_gate_refusal) {
-  ServerProcess server({"--time-scale", "10", "--max-stop-impact-deg-s", max_stop_impact_deg_s});
+  std::vector<std::string> flags = {"--time-scale", "10"};
+  if (!max_stop_impact_deg_s.empty()) {
+    flags.insert(flags.end(), {"--max-stop-impact-deg-s", max_stop_impact_deg_s});
+  }
+  ServerProcess server(flags);
   auto http = server.Client();
   const std::string admin = server.admin_token();
   const std::string clinician = CreateUserToken(http, admin, "clara", "clinician");
@@ -654,17 +659,15 @@ void WalkANewLeg(const std::string& max_stop_impact_deg_s, bool expect_gate_refu
   EXPECT_EQ(server.Terminate(), 0);
 }
 
-// At the default 90 deg/s the gate refuses the prediction protocols on this
-// leg: both drive the knee into the extension stop at 150–400 deg/s (the
-// simulated leg itself does too: §5.4.3's amplitude is the lowest giving
-// full extension). Fresh trials then come from active_random_binary.
-TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) { WalkANewLeg("90", true); }
+// Every setting at its default: the prediction protocols run after the
+// default rapid run, and the new set is validated on their fresh trials.
+TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) { WalkANewLeg("", false); }
 
-// A bench whose stops take 500 deg/s runs the prediction protocols after
-// the default rapid run, and the new set is validated on those trials.
-TEST(CliSessionTest, NewLegWithPredictionProtocolsOnABenchWithFirmerStops) {
-  WalkANewLeg("500", false);
-}
+// A stricter gate (90 deg/s) refuses the prediction protocols on this leg:
+// they take the knee to full extension faster (§5.4.3's amplitude is the
+// lowest giving full extension), and the refusal names burst, stop and
+// speed. Fresh trials then come from active_random_binary.
+TEST(CliSessionTest, NewLegWithAStricterModelGate) { WalkANewLeg("90", true); }
 
 // An older config file with wider permissions is narrowed to 0600.
 TEST(CliConfigTest, SaveNarrowsAnExistingFileTo0600) {

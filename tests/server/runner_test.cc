@@ -613,13 +613,13 @@ TEST(ModelGate, RefusesOnlyAFastArrivalAtAStopAndNamesIt) {
   const StopImpact& first = hit->impacts.front();
   EXPECT_TRUE(first.extension);
   EXPECT_DOUBLE_EQ(first.stop_deg, 15.0);
-  EXPECT_GT(first.speed_deg_s, kDefaultMaxStopImpactDegS);
+  EXPECT_GT(first.speed_deg_s, 90.0);
   ASSERT_TRUE(first.onset_s.has_value());
   EXPECT_LT(*first.onset_s, first.t_s);
   auto free = PredictPlanSwing(*step, *ctx.parameter_set, model::JointLimits{0.1, 179.9}, 33.0);
   ASSERT_TRUE(free.ok());
   EXPECT_LT(free->min_angle_deg, 15.0);
-  const api::Status refused = CheckModelGate(*step, ctx);
+  const api::Status refused = CheckModelGate(*step, ctx, 33.0, 90.0);
   EXPECT_EQ(refused.code(), api::ErrorCode::kFailedPrecondition);
   const std::string m = refused.message();
   EXPECT_NE(m.find("parameter set 4"), std::string::npos) << m;
@@ -649,10 +649,13 @@ TEST(ModelGate, RefusesOnlyAFastArrivalAtAStopAndNamesIt) {
   SubjectContext none = ctx;
   none.parameter_set.reset();
   EXPECT_TRUE(CheckModelGate(*step, none).ok());
-  // The owner applies the gate before touching the bench: the step at max
-  // would drive this model's knee into the 15° stop.
+  // The owner applies the gate, with the bench's limit, before touching the
+  // bench: the step at max would drive this model's knee into the 15° stop
+  // faster than a bench that allows 90 deg/s.
   const VirtualSubject vs = Subject(7);
-  SimulatedBench bench(vs);
+  SimulatedBenchOptions strict;
+  strict.limits.max_stop_impact_deg_s = 90.0;
+  SimulatedBench bench(vs, strict);
   BenchOwner own(bench);
   const api::Status st = own.Start({"prediction_step", {}, ctx, "a"});
   EXPECT_EQ(st.code(), api::ErrorCode::kFailedPrecondition) << st.ToString();

@@ -2,13 +2,14 @@
 // reading, paging cursors, the status mapping, the OpenAPI builder and the
 // server config reader.
 
+#include "server/http/router.h"
+
 #include <gtest/gtest.h>
 
 #include "server/config.h"
 #include "server/http/errors.h"
 #include "server/http/json_fields.h"
 #include "server/http/openapi.h"
-#include "server/http/router.h"
 #include "server/http/routes_common.h"
 
 namespace fesbench::server::http {
@@ -58,8 +59,8 @@ TEST(RouterTest, MatchesTemplatesAndIds) {
 }
 
 TEST(JsonFieldsTest, ReadsStrictlyWithFieldPaths) {
-  json body = {{"name", "x"}, {"n", 3}, {"f", 2.5}, {"flag", true}, {"ids", {1, 2}},
-               {"inner", {{"a", 1}}}};
+  json body = {{"name", "x"},  {"n", 3},        {"f", 2.5},
+               {"flag", true}, {"ids", {1, 2}}, {"inner", {{"a", 1}}}};
   JsonFields f(body);
   EXPECT_EQ(f.String("name", true), "x");
   EXPECT_EQ(f.Integer("n", true, 0, 10), 3);
@@ -88,7 +89,8 @@ TEST(JsonFieldsTest, ReadsStrictlyWithFieldPaths) {
   EXPECT_EQ(st.field(), "outer.typo");
   st = first_error({{"ids", {1, -2}}}, [](JsonFields& f) { (void)f.IdList("ids", true); });
   EXPECT_EQ(st.field(), "outer.ids[1]");
-  st = first_error({{"s", std::string(20, 'a')}}, [](JsonFields& f) { (void)f.String("s", true, 10); });
+  st = first_error({{"s", std::string(20, 'a')}},
+                   [](JsonFields& f) { (void)f.String("s", true, 10); });
   EXPECT_EQ(st.field(), "outer.s");
   // null counts as absent.
   st = first_error({{"s", nullptr}}, [](JsonFields& f) { EXPECT_FALSE(f.String("s", false)); });
@@ -101,12 +103,13 @@ TEST(JsonFieldsTest, ParseRefusesMalformedDeepAndNonObjects) {
   EXPECT_FALSE(ParseJsonObject("{").ok());
   EXPECT_FALSE(ParseJsonObject("[]").ok());
   EXPECT_FALSE(ParseJsonObject("{\"a\": NaN}").ok());
-  std::string deep = "{\"a\":" + std::string(kMaxJsonDepth, '[') + std::string(kMaxJsonDepth, ']') + "}";
+  std::string deep =
+      "{\"a\":" + std::string(kMaxJsonDepth, '[') + std::string(kMaxJsonDepth, ']') + "}";
   auto r = ParseJsonObject(deep);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("nested"), std::string::npos);
-  std::string shallow = "{\"a\":" + std::string(kMaxJsonDepth - 1, '[') +
-                        std::string(kMaxJsonDepth - 1, ']') + "}";
+  std::string shallow =
+      "{\"a\":" + std::string(kMaxJsonDepth - 1, '[') + std::string(kMaxJsonDepth - 1, ']') + "}";
   EXPECT_TRUE(ParseJsonObject(shallow).ok());
 }
 
@@ -118,10 +121,12 @@ TEST(PagingTest, CursorRoundTripsAndRejectsForgeries) {
   EXPECT_FALSE(DecodeCursor("!!!").has_value());
   EXPECT_FALSE(DecodeCursor(EncodeCursor(5).substr(1)).has_value());
   std::vector<int> items = {1, 2, 3, 4, 5};
-  auto page = MakePage(items, PageRequest{2, 2}, [](int i) { return i; }, [](int i) { return i; });
+  auto page = MakePage(
+      items, PageRequest{2, 2}, [](int i) { return i; }, [](int i) { return i; });
   EXPECT_EQ(page["items"], json({3, 4}));
   EXPECT_EQ(DecodeCursor(page["next_cursor"].get<std::string>()), 4);
-  auto last = MakePage(items, PageRequest{2, 4}, [](int i) { return i; }, [](int i) { return i; });
+  auto last = MakePage(
+      items, PageRequest{2, 4}, [](int i) { return i; }, [](int i) { return i; });
   EXPECT_EQ(last["items"], json({5}));
   EXPECT_TRUE(last["next_cursor"].is_null());
 }
@@ -138,8 +143,10 @@ TEST(ErrorsTest, OneMappingForEveryCode) {
   EXPECT_EQ(HttpStatusFor(ErrorCode::kUnavailable), 503);
   EXPECT_EQ(HttpStatusFor(ErrorCode::kInternal), 500);
   auto j = ErrorJson(ToHttpError(api::Status::InvalidArgument("must be positive", "a.b")));
-  EXPECT_EQ(j, json({{"error", {{"code", "invalid_argument"}, {"message", "must be positive"},
-                                {"field", "a.b"}}}}));
+  EXPECT_EQ(
+      j,
+      json({{"error",
+             {{"code", "invalid_argument"}, {"message", "must be positive"}, {"field", "a.b"}}}}));
   EXPECT_FALSE(ErrorJson(ToHttpError(api::Status::NotFound("x")))["error"].contains("field"));
 }
 
@@ -169,7 +176,8 @@ TEST(OpenApiTest, DocumentsEveryRouteOfTheTable) {
 
 TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
   ServerConfig c;
-  ASSERT_TRUE(ApplyConfigJson(R"({"port": 0, "bench": "sim", "time-scale": 0, "db": "x.db"})", c).ok());
+  ASSERT_TRUE(
+      ApplyConfigJson(R"({"port": 0, "bench": "sim", "time-scale": 0, "db": "x.db"})", c).ok());
   EXPECT_EQ(c.port, 0);
   EXPECT_EQ(c.db, "x.db");
   EXPECT_EQ(c.time_scale, 0.0);
@@ -182,9 +190,9 @@ TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
   c = ServerConfig{};
   c.tls_cert = "cert.pem";
   EXPECT_EQ(ValidateServerConfig(c).field(), "tls-cert");
-  // The model gate's impact limit (default 90 deg/s), in (0, 2000].
+  // The model gate's impact limit (default 500 deg/s), in (0, 2000].
   c = ServerConfig{};
-  EXPECT_EQ(c.max_stop_impact_deg_s, 90.0);
+  EXPECT_EQ(c.max_stop_impact_deg_s, 500.0);
   ASSERT_TRUE(ApplyConfigJson(R"({"max-stop-impact-deg-s": 300})", c).ok());
   EXPECT_EQ(c.max_stop_impact_deg_s, 300.0);
   c.max_stop_impact_deg_s = 0.0;
