@@ -41,6 +41,19 @@ constexpr double kShankFootGyrationFraction = 0.735;
 constexpr double kShankOfHeight = 0.246;  // knee–ankle length / height.
 constexpr double kBraceInertiaKgm2 = 0.02;
 
+// A free-swing damping ratio drawn inside the central 80 % of the ranges'
+// ζ, and the linear damping (N·m per deg/s) that gives it about the rest
+// angle of `passive` with inertia j (Table 6.4, §6.9: k = dτ_pta/dθ there,
+// τ_ptv still 0).
+double DrawDampingNmPerDegS(Draw& draw, const SubjectRanges& ranges,
+                            const model::PassiveParams& passive, double j) {
+  const double zeta = draw.Uniform(ranges.min_zeta + 0.1 * (ranges.max_zeta - ranges.min_zeta),
+                                   ranges.max_zeta - 0.1 * (ranges.max_zeta - ranges.min_zeta));
+  const double rest_deg = model::PassiveRestAngle(passive);
+  const double k_nm_per_rad = model::LinearisePassive(passive, rest_deg, 0.0).stiffness_nm_per_rad;
+  return 2.0 * zeta * std::sqrt(k_nm_per_rad * j) * kRadPerDeg;
+}
+
 }  // namespace
 
 Fidelity Fidelity::Off() {
@@ -120,12 +133,7 @@ VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& range
 
   // τ_ptv: linear with slope b through ±20 deg/s so the linearised ζ is the
   // drawn one, mildly progressive and asymmetric beyond (Fig. 6-20, I-2).
-  const double zeta = draw.Uniform(ranges.min_zeta + 0.1 * (ranges.max_zeta - ranges.min_zeta),
-                                   ranges.max_zeta - 0.1 * (ranges.max_zeta - ranges.min_zeta));
-  // Table 6.4, §6.9: k = dτ_pta/dθ at the rest angle (τ_ptv is still 0 here).
-  const double rest_deg = model::PassiveRestAngle(passive);
-  const double k_nm_per_rad = model::LinearisePassive(passive, rest_deg, 0.0).stiffness_nm_per_rad;
-  const double b_per_deg_s = 2.0 * zeta * std::sqrt(k_nm_per_rad * j) * kRadPerDeg;
+  const double b_per_deg_s = DrawDampingNmPerDegS(draw, ranges, passive, j);
   const double grow_neg = draw.Uniform(0.0, 0.6), grow_pos = draw.Uniform(0.0, 0.6);
   const std::vector<double> vel = {-300, -150, -60, -20, 0, 20, 60, 150, 300};
   std::vector<double> ptv;
@@ -253,11 +261,7 @@ VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& rang
   // τ_ptv: two lines through 0 with different slopes for extension (v < 0)
   // and flexion (v > 0) velocity; their mean (the central slope at 0) gives
   // the drawn linearised ζ about the rest angle (Table 6.4, §6.9).
-  const double zeta = draw.Uniform(ranges.min_zeta + 0.1 * (ranges.max_zeta - ranges.min_zeta),
-                                   ranges.max_zeta - 0.1 * (ranges.max_zeta - ranges.min_zeta));
-  const double rest_deg = model::PassiveRestAngle(passive);
-  const double k_nm_per_rad = model::LinearisePassive(passive, rest_deg, 0.0).stiffness_nm_per_rad;
-  const double b_mean = 2.0 * zeta * std::sqrt(k_nm_per_rad * j) * kRadPerDeg;
+  const double b_mean = DrawDampingNmPerDegS(draw, ranges, passive, j);
   const double ratio = draw.Uniform(1.3, 2.5);
   const bool flexion_stiffer = draw.Uniform(0.0, 1.0) < 0.5;
   const double b_small = 2.0 * b_mean / (1.0 + ratio), b_large = ratio * b_small;
