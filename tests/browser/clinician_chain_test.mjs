@@ -218,7 +218,8 @@ try {
     await page.locator('#predict-set').waitFor();
     assert.equal(await page.locator('#predict-set').inputValue(), String(setId));
     const set = (await call(server, 'GET', `/parameter-sets/${setId}`)).body;
-    await page.locator('#predict-trial option:not([value=""])').first().waitFor({ state: 'attached' });
+    // The options are there once the set's trials are loaded (not the "Loading…" placeholder).
+    await page.locator('#predict-trial option[data-training]').first().waitFor({ state: 'attached' });
     const chosen = Number(await page.locator('#predict-trial').inputValue());
     // Training trials are marked; the default is not one of them.
     const trainingOptions = await page.locator('#predict-trial option[data-training="1"]').allTextContents();
