@@ -239,6 +239,8 @@ try {
     const rms = Number((await page.locator('#error-table tbody tr').first().locator('td').textContent()).trim());
     assert.ok(rms > 0 && Number.isFinite(rms), `E_RMS ${rms}`);
     notes.push(`prediction of set ${setId} on trial ${chosen}: E_RMS ${rms} deg`);
+    // The rapid set records where its curves were identified; the page says how much is extrapolated.
+    assert.match(await page.locator('#predict-extrapolated').textContent(), /% of the predicted samples lie outside/);
     await page.locator('figure[data-plot="prediction"] canvas').waitFor();
     await shots.both(page, 'prediction');
     await signIn(clinician.token);

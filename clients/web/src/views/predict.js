@@ -109,6 +109,9 @@ export async function predictionView(ctx, presetId) {
         ['E_RMS', fmt(e.e_rms, 4)], ['E_ABS (mean absolute)', fmt(e.e_abs, 4)], ['E_AVE (mean)', fmt(e.e_ave, 4)],
         ['largest absolute', fmt(e.max_abs, 4)], ['normalised RMS', fmt(e.normalised_rms, 4)], ['samples', fmt(e.samples)]],
       { id: 'error-table', class: 'kv' }),
+      r.share_outside_identified_ranges == null ? ''
+        : h('p', { id: 'predict-extrapolated', class: 'msg msg-info' },
+          `${fmt(100 * r.share_outside_identified_ranges, 3)} % of the predicted samples lie outside the ranges the set's curves were identified over (there the model extrapolates).`),
       plotBox, errorBox);
     const c1 = makePlot(plotBox, [{ label: 'measured' }, { label: 'predicted', dash: [6, 3] }], [t, m, predicted],
       { title: 'Knee angle', xLabel: 'time (s)', yLabel: 'deg', height: 260, id: 'prediction' });
