@@ -43,12 +43,37 @@ void PrintSessions(CliContext& context, const json& items) {
              rows);
 }
 
-struct SubjectForm {
-  std::string code;
-  std::vector<std::string> legs;
+// A subject's details as flags, shared by `subjects create` and `edit`.
+struct SubjectDetailsFlags {
   std::optional<int> age_years;
   std::optional<std::string> sex;
   std::optional<double> height_cm, weight_kg, shank_length_cm, calf_circumference_cm;
+
+  void Register(CLI::App* app) {
+    app->add_option("--age", age_years, "age, years");
+    app->add_option("--sex", sex, "female, male, other or undisclosed")
+        ->check(CLI::IsMember({"female", "male", "other", "undisclosed"}));
+    app->add_option("--height-cm", height_cm, "height, cm");
+    app->add_option("--weight-kg", weight_kg, "body mass, kg");
+    app->add_option("--shank-length-cm", shank_length_cm, "shank length, cm");
+    app->add_option("--calf-circumference-cm", calf_circumference_cm, "calf circumference, cm");
+  }
+
+  // The given flags into `details` (API field names).
+  void AddTo(json& details) const {
+    if (age_years) details["age_years"] = *age_years;
+    if (sex) details["sex"] = *sex;
+    if (height_cm) details["height_cm"] = *height_cm;
+    if (weight_kg) details["weight_kg"] = *weight_kg;
+    if (shank_length_cm) details["shank_length_cm"] = *shank_length_cm;
+    if (calf_circumference_cm) details["calf_circumference_cm"] = *calf_circumference_cm;
+  }
+};
+
+struct SubjectForm {
+  std::string code;
+  std::vector<std::string> legs;
+  SubjectDetailsFlags details;
 };
 
 // A correction: --reason and the fields to change; "--clear FIELD" clears one.
@@ -56,9 +81,7 @@ struct SubjectEditForm {
   std::string subject;
   std::string reason;
   std::vector<std::string> clear;
-  std::optional<int> age_years;
-  std::optional<std::string> sex;
-  std::optional<double> height_cm, weight_kg, shank_length_cm, calf_circumference_cm;
+  SubjectDetailsFlags details;
 };
 
 struct SessionEditForm {
@@ -142,25 +165,11 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
     create->add_option("code", form->code, "pseudonymous code, [A-Za-z0-9_-]{1,32}")->required();
     create->add_option("--leg", form->legs, "a leg to record (left, right; repeatable)")
         ->check(CLI::IsMember({"left", "right"}));
-    create->add_option("--age", form->age_years, "age, years");
-    create->add_option("--sex", form->sex, "female, male, other or undisclosed")
-        ->check(CLI::IsMember({"female", "male", "other", "undisclosed"}));
-    create->add_option("--height-cm", form->height_cm, "height, cm");
-    create->add_option("--weight-kg", form->weight_kg, "body mass, kg");
-    create->add_option("--shank-length-cm", form->shank_length_cm, "shank length, cm");
-    create->add_option("--calf-circumference-cm", form->calf_circumference_cm,
-                       "calf circumference, cm");
+    form->details.Register(create);
     create->callback([form, &context] {
       context.action = [form, &context] {
         json details = json::object();
-        if (form->age_years) details["age_years"] = *form->age_years;
-        if (form->sex) details["sex"] = *form->sex;
-        if (form->height_cm) details["height_cm"] = *form->height_cm;
-        if (form->weight_kg) details["weight_kg"] = *form->weight_kg;
-        if (form->shank_length_cm) details["shank_length_cm"] = *form->shank_length_cm;
-        if (form->calf_circumference_cm) {
-          details["calf_circumference_cm"] = *form->calf_circumference_cm;
-        }
+        form->details.AddTo(details);
         json body = {{"code", form->code}, {"legs", form->legs}};
         if (!details.empty()) body["details"] = details;
         auto client = Connect(context);
@@ -181,14 +190,7 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
         "edit", "Correct a subject's details: a new revision with a reason (clinician or admin).");
     edit->add_option("subject", form->subject, "subject id or code")->required();
     edit->add_option("--reason", form->reason, "why the record is corrected")->required();
-    edit->add_option("--age", form->age_years, "age, years");
-    edit->add_option("--sex", form->sex, "female, male, other or undisclosed")
-        ->check(CLI::IsMember({"female", "male", "other", "undisclosed"}));
-    edit->add_option("--height-cm", form->height_cm, "height, cm");
-    edit->add_option("--weight-kg", form->weight_kg, "body mass, kg");
-    edit->add_option("--shank-length-cm", form->shank_length_cm, "shank length, cm");
-    edit->add_option("--calf-circumference-cm", form->calf_circumference_cm,
-                     "calf circumference, cm");
+    form->details.Register(edit);
     edit->add_option("--clear", form->clear, "a field to clear (repeatable), e.g. height_cm")
         ->check(CLI::IsMember({"age_years", "sex", "height_cm", "weight_kg", "shank_length_cm",
                                "calf_circumference_cm"}));
@@ -196,14 +198,7 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
       context.action = [form, &context] {
         json details = json::object();
         for (const std::string& field : form->clear) details[field] = nullptr;
-        if (form->age_years) details["age_years"] = *form->age_years;
-        if (form->sex) details["sex"] = *form->sex;
-        if (form->height_cm) details["height_cm"] = *form->height_cm;
-        if (form->weight_kg) details["weight_kg"] = *form->weight_kg;
-        if (form->shank_length_cm) details["shank_length_cm"] = *form->shank_length_cm;
-        if (form->calf_circumference_cm) {
-          details["calf_circumference_cm"] = *form->calf_circumference_cm;
-        }
+        form->details.AddTo(details);
         if (details.empty()) throw CliError::Usage("name at least one field to correct");
         auto client = Connect(context);
         const std::int64_t id = ResolveSubject(*client, form->subject);
