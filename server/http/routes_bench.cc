@@ -77,14 +77,16 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
              {}, 201, "application/json",
              ObjectSchema({{"protocol", {{"type", "string"}}},
                            {"parameters",
-                            {{"type", "object"}, {"additionalProperties", {{"type", "number"}}}}}},
+                            {{"type", "object"}, {"additionalProperties", {{"type", "number"}}}}},
+                           {"ceiling_reason", {{"type", "string"}, {"maxLength", 500}}}},
                           {"protocol"}),
              nullptr, [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                auto request = StartRunFromJson(ctx.body);
                if (!request.ok()) return request.status();
                auto view = runs->Start(ActorOf(*ctx.user), ctx.Id("session_id"),
-                                       request->protocol, request->parameters);
+                                       request->protocol, request->parameters,
+                                       request->ceiling_reason);
                if (!view.ok()) return view.status();
                ctx.audited = true;  // RunService audits the start with the stored run
                ctx.res.set_header("Location", "/api/v1/runs/" + std::to_string(view->run_id));

@@ -22,6 +22,7 @@ api::Result<StartRunRequest> StartRunFromJson(const json& body) {
     }
     if (auto st = p.Finish(); !st.ok()) return st;
   }
+  if (auto reason = f.String("ceiling_reason", false, 500)) out.ceiling_reason = *reason;
   if (auto st = f.Finish(); !st.ok()) return st;
   if (!protocols::FindProtocol(out.protocol)) {
     return api::Status(api::ErrorCode::kNotFound, "protocol " + out.protocol + " not found",

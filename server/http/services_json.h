@@ -7,6 +7,7 @@
 /// (server/services/analysis_json.h).
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "api/status.h"
@@ -19,10 +20,12 @@ namespace fesbench::server::http {
 /// The services' Actor for an authenticated user.
 services::Actor ActorOf(const storage::User& user);
 
-/// POST /sessions/{id}/runs: {"protocol": "<name>", "parameters"?: {"<name>": number}}.
+/// POST /sessions/{id}/runs: {"protocol": "<name>", "parameters"?: {"<name>": number},
+/// "ceiling_reason"?: "<why a tolerance test goes above the recorded max>"}.
 struct StartRunRequest {
   std::string protocol;
   protocols::ParameterValues parameters;
+  std::optional<std::string> ceiling_reason;
 };
 api::Result<StartRunRequest> StartRunFromJson(const nlohmann::json& body);
 

@@ -67,7 +67,11 @@ std::vector<ProtocolDescription> MakeCatalog() {
         SettleS(1.5, "time to move to and lock the angle, s"),
         {"start_ma", "amplitude at the start of the ramp, mA", 0.0, 0.0, 100.0, false},
         {"rate_ma_per_s", "amplitude rise rate, mA/s", 0.5, 0.05, 5.0, false},
-        {"ceiling_ma", "amplitude where the ramp ends if not stopped, mA", 60.0, 1.0, 100.0, false},
+        {"ceiling_ma",
+         "amplitude where the ramp ends if not stopped, mA: the session's max tolerated "
+         "amplitude; 60 mA for a session without one. Above a recorded max only with an "
+         "explicit, audited ceiling_reason",
+         60.0, 1.0, 100.0, false, Scaling::kToleranceCeiling},
         {"threshold_torque_nm", "torque above the offset taken as a response, N·m", 0.5, 0.05, 10.0,
          false},
         {"min_torque_at_max_nm", "torque the subject must produce at max (warning), N·m", 6.0, 0.0,
@@ -374,6 +378,8 @@ std::string_view ScalingName(Scaling scaling) {
       return "range_min";
     case Scaling::kRangeMax:
       return "range_max";
+    case Scaling::kToleranceCeiling:
+      return "tolerance_ceiling";
   }
   return "none";
 }
@@ -449,9 +455,50 @@ double DefaultFor(const ParameterSpec& spec, const SubjectContext& s) {
       return s.min_angle_deg;
     case Scaling::kRangeMax:
       return s.max_angle_deg;
+    case Scaling::kToleranceCeiling:
+      return s.max_tolerated_recorded ? s.max_tolerated_ma : spec.default_value;
   }
   return spec.default_value;
 }
+
+namespace {
+
+// DESIGN.md §6: stimulation never above the session's max tolerated
+// amplitude. The tolerance test measures that maximum, so on a session with
+// a recorded one it may go above it only by a clinician's explicit, audited
+// decision; its ramp starts below its ceiling.
+api::Status CheckToleranceCeiling(const ParameterValues& v, const SubjectContext& subject) {
+  const double ceiling = v.at("ceiling_ma");
+  if (subject.ceiling_above_max) {
+    if (subject.ceiling_above_max->empty()) {
+      return api::Status::InvalidArgument("must say why the ceiling goes above the max",
+                                          "ceiling_reason");
+    }
+    if (!subject.max_tolerated_recorded) {
+      return api::Status::InvalidArgument(
+          "the session has no recorded max tolerated amplitude: ceiling_ma needs no reason",
+          "ceiling_reason");
+    }
+    if (!(ceiling > subject.max_tolerated_ma)) {
+      return api::Status::InvalidArgument(
+          "ceiling_ma " + Format(ceiling) + " mA is not above the session's max tolerated " +
+              Format(subject.max_tolerated_ma) + " mA: no reason is needed",
+          "ceiling_reason");
+    }
+  } else if (subject.max_tolerated_recorded && ceiling > subject.max_tolerated_ma) {
+    return api::Status::InvalidArgument(
+        "above the session's max tolerated amplitude " + Format(subject.max_tolerated_ma) +
+            " mA: a ceiling above it needs an explicit ceiling_reason (audited)",
+        "parameters.ceiling_ma");
+  }
+  if (!(v.at("start_ma") < ceiling)) {
+    return api::Status::InvalidArgument(
+        "at or above the ramp's ceiling " + Format(ceiling) + " mA", "parameters.start_ma");
+  }
+  return api::Status::Ok();
+}
+
+}  // namespace
 
 api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protocol,
                                                const ParameterValues& values,
@@ -500,6 +547,12 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
                                           field);
     }
     out[p.name] = v;
+  }
+  if (protocol.kind == ProtocolKind::kTolerance) {
+    if (api::Status st = CheckToleranceCeiling(out, subject); !st.ok()) return st;
+  } else if (subject.ceiling_above_max) {
+    return api::Status::InvalidArgument("only a tolerance_test has a ceiling above the max",
+                                        "ceiling_reason");
   }
   return out;
 }
@@ -601,6 +654,9 @@ std::string DefaultRule(const ParameterSpec& p) {
       return "the lower end of the range of motion";
     case Scaling::kRangeMax:
       return "the upper end of the range of motion";
+    case Scaling::kToleranceCeiling:
+      return "the session's max tolerated amplitude; " + Format(p.default_value) +
+             " mA when none is recorded";
   }
   return "";
 }

@@ -35,9 +35,14 @@ enum class Scaling {
   kStimRange,
   kRangeMin,  ///< default = the subject's range-of-motion minimum, deg.
   kRangeMax,  ///< default = the subject's range-of-motion maximum, deg.
+  /// The tolerance test's ceiling: default = the session's recorded max
+  /// tolerated amplitude; default_value (mA) when the session has none yet.
+  /// Above the recorded max only with SubjectContext::ceiling_above_max.
+  kToleranceCeiling,
 };
 
-/// "none", "threshold", "max_tolerated", "stim_range", "range_min", "range_max".
+/// "none", "threshold", "max_tolerated", "stim_range", "range_min", "range_max",
+/// "tolerance_ceiling".
 std::string_view ScalingName(Scaling scaling);
 
 /// One protocol parameter. The name ends in its unit (`_ma`, `_s`, `_deg`,
@@ -91,6 +96,15 @@ const ProtocolDescription* FindProtocol(std::string_view name);
 struct SubjectContext {
   double threshold_ma = 20.0;      ///< lowest amplitude giving torque.
   double max_tolerated_ma = 45.0;  ///< highest amplitude the subject accepts.
+  /// True when max_tolerated_ma is the session's recorded value; false for a
+  /// session without one yet (first session of a new subject), where
+  /// max_tolerated_ma is the stimulator's range and only tolerance_test,
+  /// which measures it, may run.
+  bool max_tolerated_recorded = true;
+  /// A clinician's explicit decision to let a tolerance test's ceiling_ma go
+  /// above the recorded max tolerated amplitude (up to the stimulator's
+  /// limit); the reason, never empty when set, is audited with the run.
+  std::optional<std::string> ceiling_above_max;
   double min_angle_deg = 10.0;     ///< subject's range of motion.
   double max_angle_deg = 110.0;
   /// Limb inertia known from elsewhere (a slow accurate method, §7.4.1, or a
@@ -120,7 +134,12 @@ double DefaultFor(const ParameterSpec& spec, const SubjectContext& subject);
 /// field "parameters.<name>" for an unknown name, a non-finite, non-integer
 /// or out-of-range value, a stimulation parameter above the session's max
 /// tolerated amplitude, an angle outside the subject's range of motion, or
-/// a rest below the protocol's minimum ("rest below minimum").
+/// a rest below the protocol's minimum ("rest below minimum"). The tolerance
+/// test's ceiling_ma defaults to the recorded max tolerated amplitude
+/// (60 mA without one); above a recorded max it needs
+/// subject.ceiling_above_max, and start_ma must lie below the ceiling
+/// (field "parameters.start_ma"). kInvalidArgument field "ceiling_reason"
+/// for a ceiling_above_max that authorises nothing.
 api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protocol,
                                                const ParameterValues& values,
                                                const SubjectContext& subject);

@@ -155,14 +155,17 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   Transition(RunTransition::kStart, "");
 
   // Interlock limits of this run (DESIGN.md §6): the session's max tolerated
-  // amplitude, whatever the plan says, except in the tolerance test, whose
-  // ceiling is what it measures against.
+  // amplitude, whatever the plan says. The tolerance test measures it: its
+  // ceiling stands alone on a session without a recorded max, or above the
+  // recorded max by a clinician's explicit, audited decision.
   SafetyLimits limits;
   const double plan_max_ma =
       std::isfinite(plan.max_stim_ma) ? std::max(plan.max_stim_ma, 0.0) : 0.0;
-  limits.max_stim_ma = plan.kind == ProtocolKind::kTolerance
-                           ? plan_max_ma
-                           : std::min(plan_max_ma, subject.max_tolerated_ma);
+  const bool ceiling_alone =
+      plan.kind == ProtocolKind::kTolerance &&
+      (!subject.max_tolerated_recorded || subject.ceiling_above_max.has_value());
+  limits.max_stim_ma =
+      ceiling_alone ? plan_max_ma : std::min(plan_max_ma, subject.max_tolerated_ma);
   limits.min_angle_deg = subject.min_angle_deg;
   limits.max_angle_deg = subject.max_angle_deg;
   limits.heartbeat_timeout_s = options_.heartbeat_timeout_s;

@@ -188,6 +188,61 @@ TEST(ResolveParameters, ScalesDefaultsToTheSubject) {
   EXPECT_DOUBLE_EQ(sim->at("max_angle_deg"), 105.0);
 }
 
+// Issue 16 §1: the tolerance test's ceiling is the recorded max by default
+// (60 mA, stated, without one); above a recorded max only with a reason.
+TEST(ResolveParameters, ToleranceCeilingFollowsTheRecordedMax) {
+  const ProtocolDescription& d = *FindProtocol("tolerance_test");
+  SubjectContext recorded = Subject();
+  recorded.max_tolerated_ma = 8.5;
+  recorded.threshold_ma = 3.0;
+  auto v = ResolveParameters(d, {}, recorded);
+  ASSERT_TRUE(v.ok()) << v.status().ToString();
+  EXPECT_DOUBLE_EQ(v->at("ceiling_ma"), 8.5);
+  auto above = ResolveParameters(d, {{"ceiling_ma", 59.998}}, recorded);
+  EXPECT_EQ(above.status().field(), "parameters.ceiling_ma");
+  auto start = ResolveParameters(d, {{"start_ma", 8.5}}, recorded);
+  EXPECT_EQ(start.status().field(), "parameters.start_ma");
+  SubjectContext decided = recorded;
+  decided.ceiling_above_max = "re-test after four weeks of training";
+  auto explicit_ceiling = ResolveParameters(d, {{"ceiling_ma", 20.0}}, decided);
+  ASSERT_TRUE(explicit_ceiling.ok()) << explicit_ceiling.status().ToString();
+  EXPECT_DOUBLE_EQ(explicit_ceiling->at("ceiling_ma"), 20.0);
+  EXPECT_EQ(ResolveParameters(d, {}, decided).status().field(), "ceiling_reason")
+      << "a reason that authorises nothing";
+  decided.ceiling_above_max = "";
+  EXPECT_EQ(ResolveParameters(d, {{"ceiling_ma", 20.0}}, decided).status().field(),
+            "ceiling_reason");
+  EXPECT_EQ(ResolveParameters(*FindProtocol("isometric_ramp_irc"), {},
+                              SubjectContext{.ceiling_above_max = "x"})
+                .status()
+                .field(),
+            "ceiling_reason");
+
+  SubjectContext first = Subject();  // first session of a new subject
+  first.max_tolerated_recorded = false;
+  first.threshold_ma = 0.0;
+  first.max_tolerated_ma = 100.0;
+  auto found = ResolveParameters(d, {}, first);
+  ASSERT_TRUE(found.ok());
+  EXPECT_DOUBLE_EQ(found->at("ceiling_ma"), 60.0);
+  EXPECT_TRUE(ResolveParameters(d, {{"ceiling_ma", 80.0}}, first).ok());
+  EXPECT_EQ(ResolveParameters(d, {{"start_ma", 61.0}}, first).status().field(),
+            "parameters.start_ma");
+
+  // The catalogue states the rule, and the default for a session.
+  const auto ceiling_of = [](const nlohmann::json& j) {
+    for (const auto& p : j.at("parameters")) {
+      if (p.at("name") == "ceiling_ma") return p;
+    }
+    return nlohmann::json();
+  };
+  const nlohmann::json bare = ceiling_of(ProtocolToJson(d));
+  EXPECT_TRUE(bare.at("default").is_null());
+  EXPECT_EQ(bare.at("default_rule"), "the session's max tolerated amplitude; 60 mA when none is recorded");
+  EXPECT_DOUBLE_EQ(ceiling_of(ProtocolToJson(d, &recorded, true)).at("default").get<double>(), 8.5);
+  EXPECT_DOUBLE_EQ(ceiling_of(ProtocolToJson(d, &first, false)).at("default").get<double>(), 60.0);
+}
+
 TEST(ResolveParameters, RejectsBadValuesNamingTheParameter) {
   const SubjectContext s = Subject();
   const ProtocolDescription& step = *FindProtocol("isometric_step_irc");
