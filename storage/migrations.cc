@@ -271,6 +271,19 @@ ALTER TABLE run_events_v6 RENAME TO run_events;
 CREATE INDEX run_events_run ON run_events(run_id, id);
 )sql";
 
+// The e-stop latch outlives the process (issue 16 §2): each press and each
+// clearing is a row; the latch is set when the last row says so. A restart
+// re-latches it until a person clears it.
+const char* const kMigration7 = R"sql(
+CREATE TABLE estop_events (
+  id          INTEGER PRIMARY KEY,
+  latched     INTEGER NOT NULL CHECK (latched IN (0, 1)),
+  source      TEXT NOT NULL DEFAULT '',
+  recorded_by TEXT NOT NULL DEFAULT '',
+  at_utc      TEXT NOT NULL
+);
+)sql";
+
 }  // namespace
 
 const std::vector<Migration>& AllMigrations() {
@@ -289,6 +302,8 @@ const std::vector<Migration>& AllMigrations() {
       {5, "who recorded each subject and session revision", kMigration5},
       {6, "run states named as everywhere else (done, aborted)",
        std::string(kMigration6) + AppendOnly({"run_events"})},
+      {7, "the e-stop latch, kept across restarts",
+       std::string(kMigration7) + AppendOnly({"estop_events"})},
   };
   return kMigrations;
 }

@@ -89,7 +89,9 @@ constexpr std::string_view kRunSql =
     "    AND state IN ('done', 'failed', 'aborted'))"
     " FROM runs r ";
 
-api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where, std::int64_t id) {
+template <typename... Values>
+api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where,
+                                        const Values&... values) {
   return internal::QueryRows(
       c, std::string(kRunSql) + std::string(where) + " ORDER BY r.id",
       [](const Statement& s) -> api::Result<Run> {
@@ -109,7 +111,7 @@ api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where, s
         if (!s.IsNull(9)) run.finished_at = ParseUtc(s.Text(9));
         return run;
       },
-      id);
+      values...);
 }
 
 api::Result<Run> GetRunIn(Connection& c, std::int64_t id) {
@@ -244,6 +246,14 @@ api::Result<std::vector<Run>> SessionRepository::ListRuns(std::int64_t session_i
       return s;
     }
     return QueryRuns(c, "WHERE r.session_id = ?1", session_id);
+  });
+}
+
+api::Result<std::vector<Run>> SessionRepository::ListUnfinishedRuns() {
+  return db_.Read([&](Connection& c) {
+    return QueryRuns(c,
+                     "WHERE (SELECT state FROM run_events WHERE run_id = r.id"
+                     " ORDER BY id DESC LIMIT 1) IN ('queued', 'running')");
   });
 }
 

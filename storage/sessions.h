@@ -93,6 +93,9 @@ class SessionRepository {
   api::Result<Run> CreateRun(std::int64_t session_id, const NewRun& run);
   api::Result<Run> GetRun(std::int64_t run_id);
   api::Result<std::vector<Run>> ListRuns(std::int64_t session_id);
+  /// Every run whose last state is queued or running, oldest first (at a
+  /// start: the runs a stopped process left unfinished).
+  api::Result<std::vector<Run>> ListUnfinishedRuns();
   /// Appends a state event. Allowed: queued → running | failed | aborted;
   /// running → done | failed | aborted. Anything else (including from
   /// a terminal state) is kFailedPrecondition naming both states.
