@@ -128,6 +128,18 @@ int main(int argc, char** argv) {
   server::services::RunServiceConfig run_config;
   run_config.time_scale = config.time_scale;
   server::services::RunService runs(**db, *bench, hub, run_config);
+  // Before anything can start a run: runs a crash left open end failed,
+  // and an e-stop latched before the stop is latched again.
+  auto recovered = runs.RecoverAfterRestart();
+  if (!recovered.ok()) return Fail("recovery at start", recovered.status());
+  for (const std::int64_t id : recovered->failed_run_ids) {
+    std::cout << "fesbench-server: run " << id << " was left unfinished: failed ("
+              << server::services::kStoppedDuringRunReason << ")\n";
+  }
+  if (recovered->estop_source) {
+    std::cout << "fesbench-server: e-stop still latched (" << *recovered->estop_source
+              << "): clear it with DELETE /api/v1/bench/estop\n";
+  }
   server::services::BenchService bench_service(**db, runs, simulated);
   server::services::JobPoolConfig job_config;
   job_config.workers = config.job_workers;
@@ -149,6 +161,7 @@ int main(int argc, char** argv) {
     dds_options.participant.domain_id = config.dds_domain;
     dds_options.participant.transport = *fesbench::dds::ParseTransport(config.dds_transport);
     dds_options.participant.profile_file = config.dds_profile;
+    dds_options.participant.profile_name = config.dds_profile_name;
     dds_options.participant.name = "fesbench-server";
     dds_options.bench_id = config.dds_bench_id;
     auto started = server::dds::DdsServer::Start(dds_options, **db, runs, hub, dds_commands);
@@ -156,7 +169,10 @@ int main(int argc, char** argv) {
     dds = std::move(*started);
   }
 
-  server::http::Authenticator auth(**db);
+  server::http::AuthenticatorOptions auth_options;
+  auth_options.failed_tokens.burst = config.auth_failure_burst;
+  auth_options.failed_tokens.refill_per_s = config.auth_failure_refill_per_s;
+  server::http::Authenticator auth(**db, auth_options);
   server::http::StreamSlots slots(static_cast<std::size_t>(config.max_streams));
   server::http::ApiDependencies deps;
   deps.db = db->get();

@@ -12,6 +12,7 @@
 #include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_json.h"
 #include "storage/audit_log.h"
+#include "storage/estop_latch.h"
 #include "storage/parameter_sets.h"
 #include "storage/subjects.h"
 #include "storage/trials.h"
@@ -125,9 +126,11 @@ api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64
   const storage::SessionDetails& d = session->current.details;
   out.has_stimulation_limits = d.threshold_ma.has_value() && d.max_tolerated_ma.has_value();
   // Without recorded limits only tolerance_test may run (it measures them):
-  // the stimulator's range, which the test's ceiling_ma bounds.
+  // without a recorded max, the stimulator's range, which the test's
+  // ceiling_ma bounds; with one, the recorded max bounds the test too.
   c.threshold_ma = d.threshold_ma.value_or(0.0);
-  c.max_tolerated_ma = out.has_stimulation_limits ? *d.max_tolerated_ma : limits.max_stim_ma;
+  c.max_tolerated_recorded = d.max_tolerated_ma.has_value();
+  c.max_tolerated_ma = c.max_tolerated_recorded ? *d.max_tolerated_ma : limits.max_stim_ma;
   // Storage keeps no range of motion: the bench's mechanical range (DESIGN.md §2).
   c.min_angle_deg = limits.min_angle_deg;
   c.max_angle_deg = limits.max_angle_deg;
@@ -734,9 +737,10 @@ BenchState RunService::State() const {
 
 api::Result<RunView> RunService::Start(const Actor& actor, std::int64_t session_id,
                                        const std::string& protocol,
-                                       const protocols::ParameterValues& parameters) {
+                                       const protocols::ParameterValues& parameters,
+                                       const std::optional<std::string>& ceiling_reason) {
   try {
-    return StartImpl(actor, session_id, protocol, parameters);
+    return StartImpl(actor, session_id, protocol, parameters, ceiling_reason);
   } catch (const std::exception& e) {
     Log(std::string("Start: ") + e.what());
     return api::Status::Internal("starting the run failed");
@@ -745,7 +749,8 @@ api::Result<RunView> RunService::Start(const Actor& actor, std::int64_t session_
 
 api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t session_id,
                                            const std::string& protocol,
-                                           const protocols::ParameterValues& parameters) {
+                                           const protocols::ParameterValues& parameters,
+                                           const std::optional<std::string>& ceiling_reason) {
   if (!MayOperateBench(actor)) {
     return api::Status(api::ErrorCode::kPermissionDenied,
                        "starting a run needs the clinician or admin role");
@@ -786,7 +791,15 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   request.protocol = protocol;
   request.parameters = parameters;
   request.subject = context->subject;
+  request.subject.ceiling_above_max = ceiling_reason;
   request.client = actor.user_name;
+  // The stimulator's limit bounds every ceiling, explicit or not.
+  if (const auto it = parameters.find("ceiling_ma");
+      it != parameters.end() && it->second > bench_.limits().max_stim_ma) {
+    return api::Status::InvalidArgument(
+        "above the stimulator's limit " + FormatNumber(bench_.limits().max_stim_ma) + " mA",
+        "parameters.ceiling_ma");
+  }
   api::Result<protocols::Plan> plan = owner_.Prepare(request);
   if (!plan.ok()) return plan.status();
   if (plan->rapid) {
@@ -815,6 +828,17 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
         for (const auto& [k, v] : parameters) summary += ", " + k + "=" + FormatNumber(v);
         if (api::Status a = Audit(actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
           return a;
+        }
+        if (ceiling_reason) {
+          const std::string why =
+              "tolerance test ceiling " + FormatNumber(plan->parameters.at("ceiling_ma")) +
+              " mA above the session's recorded max tolerated " +
+              FormatNumber(context->subject.max_tolerated_ma) + " mA; reason: " + *ceiling_reason;
+          if (api::Status a =
+                  Audit(actor, "run.ceiling_above_max", RunTarget(r->id), why, "ok");
+              !a.ok()) {
+            return a;
+          }
         }
         return r;
       });
@@ -960,9 +984,15 @@ api::Status RunService::EStop(const Actor& actor, std::string_view source) {
     }
     const std::shared_ptr<LiveRun> run = Current();
     const std::string target = run && !run->final ? RunTarget(run->run_id) : std::string("bench");
-    if (api::Status a = Audit(actor, "bench.estop", target, "e-stop from " + who, "ok"); !a.ok()) {
-      Log("audit of e-stop: " + a.ToString());
-    }
+    // The latch outlives this process: stored with its audit row, before the answer.
+    const api::Status stored = db_.Write([&](storage::Connection&) -> api::Status {
+      if (api::Status st = storage::EStopLatchRepository(db_).RecordLatched(who, actor.user_name);
+          !st.ok()) {
+        return st;
+      }
+      return Audit(actor, "bench.estop", target, "e-stop from " + who, "ok");
+    });
+    if (!stored.ok()) Log("storing the e-stop latch: " + stored.ToString());
   } catch (const std::exception& e) {
     Log(std::string("EStop (after latching): ") + e.what());
   }
@@ -975,7 +1005,24 @@ api::Status RunService::ClearEStop(const Actor& actor) {
       return api::Status(api::ErrorCode::kPermissionDenied,
                          "clearing the e-stop needs the clinician or admin role");
     }
-    const bool was = owner_.safe_bench().estopped();
+    if (owner_.busy()) {
+      return api::Status::Conflict("a run is still stopping; clear the e-stop after it ends");
+    }
+    // While latched no run can start, so the bench stays idle from here on.
+    const bool was = owner_.safe_bench().estopped() || bench_.HardwareEStopped();
+    // Stored and audited first, in one transaction: if that fails the latch
+    // stays set in both places and the person can try again.
+    const api::Status stored = db_.Write([&](storage::Connection&) -> api::Status {
+      storage::EStopLatchRepository latch(db_);
+      api::Result<std::optional<storage::LatchedEStop>> current = latch.Current();
+      if (!current.ok()) return current.status();
+      if (*current || was) {
+        if (api::Status st = latch.RecordCleared(actor.user_name); !st.ok()) return st;
+      }
+      return Audit(actor, "bench.clear_estop", "bench",
+                   *current || was ? "e-stop cleared" : "e-stop was not latched", "ok");
+    });
+    if (!stored.ok()) return stored;
     if (api::Status st = owner_.ClearEStop("cleared by " + actor.user_name); !st.ok()) return st;
     // A hardware e-stop (the bench button) is cleared with it.
     if (bench_.HardwareEStopped()) bench_.ClearHardwareEStop();
@@ -983,16 +1030,55 @@ api::Status RunService::ClearEStop(const Actor& actor) {
       std::lock_guard lock(mu_);
       estop_source_.clear();
     }
-    if (api::Status a = Audit(actor, "bench.clear_estop", "bench",
-                              was ? "e-stop cleared" : "e-stop was not latched", "ok");
-        !a.ok()) {
-      Log("audit of clear e-stop: " + a.ToString());
-    }
     return api::Status::Ok();
   } catch (const std::exception& e) {
     Log(std::string("ClearEStop: ") + e.what());
     return api::Status::Internal("clearing the e-stop failed");
   }
+}
+
+api::Result<Recovery> RunService::RecoverAfterRestart() {
+  const Actor system = SystemActor();
+  Recovery out;
+  api::Result<std::vector<storage::Run>> unfinished =
+      storage::SessionRepository(db_).ListUnfinishedRuns();
+  if (!unfinished.ok()) return unfinished.status();
+  for (const storage::Run& run : *unfinished) {
+    if (FindLive(run.id)) continue;  // never ours: called before any start
+    const api::Status closed = db_.Write([&](storage::Connection&) -> api::Status {
+      api::Result<storage::Run> r = storage::SessionRepository(db_).RecordRunState(
+          run.id, RunState::kFailed, kStoppedDuringRunReason);
+      if (!r.ok()) return r.status();
+      return Audit(system, "run.recovered", RunTarget(run.id),
+                   std::string("was ") + std::string(api::RunStateName(run.state)) + ": " +
+                       kStoppedDuringRunReason,
+                   "ok");
+    });
+    if (!closed.ok()) return closed;
+    out.failed_run_ids.push_back(run.id);
+  }
+
+  api::Result<std::optional<storage::LatchedEStop>> latched =
+      storage::EStopLatchRepository(db_).Current();
+  if (!latched.ok()) return latched.status();
+  if (*latched) {
+    const std::string who = (*latched)->source.empty() ? std::string("e-stop before the restart")
+                                                       : (*latched)->source;
+    owner_.EStop(who);
+    {
+      std::lock_guard lock(mu_);
+      estop_source_ = who;
+    }
+    if (api::Status a = Audit(system, "bench.estop_restored", "bench",
+                              "e-stop latched since " + storage::FormatUtc((*latched)->at) +
+                                  " by " + who + ": latched again at start",
+                              "ok");
+        !a.ok()) {
+      return a;
+    }
+    out.estop_source = who;
+  }
+  return out;
 }
 
 api::Status RunService::WithIdleBench(const std::function<api::Status()>& fn) {

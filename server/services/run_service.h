@@ -143,6 +143,15 @@ struct SessionContext {
 api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64_t session_id,
                                                const BenchLimits& limits);
 
+/// The reason stored for a run that a stopped process left unfinished.
+inline constexpr const char* kStoppedDuringRunReason = "server stopped during the run";
+
+/// What RunService::RecoverAfterRestart found and did.
+struct Recovery {
+  std::vector<std::int64_t> failed_run_ids;  ///< runs closed as failed, oldest first.
+  std::optional<std::string> estop_source;   ///< source of the re-latched e-stop, if any.
+};
+
 class RunService {
  public:
   /// @param db, bench and hub must outlive the service.
@@ -159,9 +168,13 @@ class RunService {
   /// (any protocol but tolerance_test), the model gate refuses, or the rapid
   /// protocol has no inertia source; kConflict while another run holds the
   /// bench or an e-stop is latched; kUnavailable after Shutdown.
+  /// `ceiling_reason`: a clinician's reason for a tolerance test whose
+  /// ceiling_ma goes above the session's recorded max tolerated amplitude
+  /// (up to the stimulator's limit); audited as "run.ceiling_above_max".
   api::Result<RunView> Start(const Actor& actor, std::int64_t session_id,
                              const std::string& protocol,
-                             const protocols::ParameterValues& parameters);
+                             const protocols::ParameterValues& parameters,
+                             const std::optional<std::string>& ceiling_reason = std::nullopt);
 
   /// The run's view: live (this process) or from storage. kNotFound.
   api::Result<RunView> Get(std::int64_t run_id);
@@ -188,6 +201,14 @@ class RunService {
   /// Clears a latched e-stop. kPermissionDenied unless clinician/admin;
   /// kConflict while a run is still winding down. Audited.
   api::Status ClearEStop(const Actor& actor);
+
+  /// At start, before serving (no run of this process exists yet): closes
+  /// every run that a stopped process left queued or running — state failed,
+  /// reason kStoppedDuringRunReason, audited "run.recovered" by "system";
+  /// the trials it stored stay readable — and latches the e-stop again if it
+  /// was stored as latched (audited "bench.estop_restored"), until a person
+  /// clears it. Errors: storage errors (the server must not serve then).
+  api::Result<Recovery> RecoverAfterRestart();
 
   BenchState State() const;
 
@@ -223,7 +244,8 @@ class RunService {
   api::Status CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRun>* run);
   api::Result<RunView> StartImpl(const Actor& actor, std::int64_t session_id,
                                  const std::string& protocol,
-                                 const protocols::ParameterValues& parameters);
+                                 const protocols::ParameterValues& parameters,
+                                 const std::optional<std::string>& ceiling_reason);
   void Log(std::string_view message) const;
   void Forget();
 

@@ -20,6 +20,7 @@
 #include "server/protocols/plan.h"
 #include "server/services/bench_service.h"
 #include "storage/audit_log.h"
+#include "storage/estop_latch.h"
 #include "storage/parameter_sets.h"
 #include "storage/subjects.h"
 #include "storage/trials.h"
@@ -650,6 +651,172 @@ TEST(RunService, ASessionWithoutLimitsRunsOnlyTheToleranceTest) {
   EXPECT_NEAR(view->tolerance->max_tolerated_ma, 3.0, 0.025 + 1e-9);
   EXPECT_FALSE(view->tolerance->stopped_by_clinician);
   EXPECT_EQ(view->trial_ids.size(), 1u);
+}
+
+/// The highest stimulation stored in a run's trials, mA.
+double MaxStoredStim(storage::Database& db, const RunView& view) {
+  double max_ma = 0.0;
+  storage::TrialRepository trials(db);
+  for (const auto& id : view.trial_ids) {
+    if (!id) continue;
+    auto trial = trials.Get(*id);
+    EXPECT_TRUE(trial.ok()) << trial.status().ToString();
+    if (!trial.ok() || trial->Values("stim_ma") == nullptr) continue;
+    for (double u : *trial->Values("stim_ma")) max_ma = std::max(max_ma, u);
+  }
+  return max_ma;
+}
+
+// Issue 16 §1: a tolerance test on a session with a recorded max tolerated
+// amplitude ramps at most to it unless a clinician gives an explicit,
+// audited ceiling above it.
+TEST(RunService, ToleranceTestNeverGoesAboveTheRecordedMaxByDefault) {
+  Rig rig;
+  const double max_ma = rig.vs.max_tolerated_ma;
+  const protocols::ParameterValues fast = {{"settle_s", 0.2}, {"rate_ma_per_s", 5.0}};
+  auto run = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", fast);
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  EXPECT_DOUBLE_EQ(run->parameters.at("ceiling_ma"), max_ma) << "the ceiling is stated";
+  auto view = rig.service->Wait(run->run_id, kWait);
+  ASSERT_TRUE(view.ok());
+  ASSERT_EQ(view->state, RunState::kDone) << view->reason;
+  const double delivered = MaxStoredStim(*rig.db, *view);
+  EXPECT_LE(delivered, max_ma + 1e-9);
+  EXPECT_GT(delivered, max_ma - 0.1) << "the ramp reached the recorded max";
+
+  // start_ma at or above the ceiling, or a ceiling above the max without a
+  // reason: 400 naming the field.
+  auto start_above =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", {{"start_ma", max_ma + 5.0}});
+  ASSERT_FALSE(start_above.ok());
+  EXPECT_EQ(start_above.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(start_above.status().field(), "parameters.start_ma");
+  auto ceiling_above = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test",
+                                          {{"ceiling_ma", max_ma + 4.0}});
+  EXPECT_EQ(ceiling_above.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(ceiling_above.status().field(), "parameters.ceiling_ma");
+  auto empty_reason = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test",
+                                         {{"ceiling_ma", max_ma + 4.0}}, std::string());
+  EXPECT_EQ(empty_reason.status().field(), "ceiling_reason");
+  auto needless_reason = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test",
+                                            {{"ceiling_ma", max_ma - 1.0}}, std::string("why"));
+  EXPECT_EQ(needless_reason.status().field(), "ceiling_reason");
+  auto other_protocol = rig.service->Start(rig.clinician, rig.session_id, "isometric_ramp_irc",
+                                           {}, std::string("why"));
+  EXPECT_EQ(other_protocol.status().field(), "ceiling_reason");
+  auto above_hardware = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test",
+                                           {{"ceiling_ma", 100.5}}, std::string("why"));
+  EXPECT_EQ(above_hardware.status().field(), "parameters.ceiling_ma");
+
+  // An explicit ceiling above the max, with a reason: allowed and audited.
+  protocols::ParameterValues above = fast;
+  above["ceiling_ma"] = max_ma + 4.0;
+  auto explicit_run = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", above,
+                                         std::string("re-test after training"));
+  ASSERT_TRUE(explicit_run.ok()) << explicit_run.status().ToString();
+  auto explicit_view = rig.service->Wait(explicit_run->run_id, kWait);
+  ASSERT_TRUE(explicit_view.ok());
+  ASSERT_EQ(explicit_view->state, RunState::kDone) << explicit_view->reason;
+  const double explicit_max = MaxStoredStim(*rig.db, *explicit_view);
+  EXPECT_GT(explicit_max, max_ma + 3.9);
+  EXPECT_LE(explicit_max, max_ma + 4.0 + 1e-9);
+  storage::AuditQuery q;
+  auto entries = storage::AuditLog(*rig.db).List(q);
+  ASSERT_TRUE(entries.ok());
+  const auto audited = std::find_if(entries->begin(), entries->end(), [](const auto& e) {
+    return e.entry.action == "run.ceiling_above_max";
+  });
+  ASSERT_NE(audited, entries->end());
+  EXPECT_EQ(audited->entry.actor, "cora");
+  EXPECT_EQ(audited->entry.target, "runs/" + std::to_string(explicit_run->run_id));
+  EXPECT_NE(audited->entry.request_summary.find("re-test after training"), std::string::npos);
+  const std::vector<std::string> actions = rig.AuditActions();
+  EXPECT_EQ(std::count(actions.begin(), actions.end(), "run.ceiling_above_max"), 1);
+}
+
+// A session without a recorded max (the first session of a new subject):
+// the tolerance test finds it, up to the stated 60 mA default ceiling.
+TEST(RunService, ToleranceTestWithoutARecordedMaxStatesItsDefaultCeiling) {
+  Rig rig({.with_limits = false});
+  auto context = LoadSessionContext(*rig.db, rig.session_id, rig.bench->limits());
+  ASSERT_TRUE(context.ok());
+  EXPECT_FALSE(context->subject.max_tolerated_recorded);
+  auto run = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test",
+                                {{"settle_s", 0.2}, {"start_ma", 55.0}, {"rate_ma_per_s", 5.0}});
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  EXPECT_DOUBLE_EQ(run->parameters.at("ceiling_ma"), 60.0);
+  auto view = rig.service->Wait(run->run_id, kWait);
+  ASSERT_TRUE(view.ok());
+  EXPECT_EQ(view->state, RunState::kDone) << view->reason;
+  const double delivered = MaxStoredStim(*rig.db, *view);
+  EXPECT_LE(delivered, 60.0 + 1e-9);
+  EXPECT_GT(delivered, 59.9);
+}
+
+// Issue 16 §2–§3 in process: a new RunService on the same database (a
+// restart) closes the runs left open and latches a stored e-stop again.
+TEST(RunService, RecoveryClosesRunsLeftOpenAndLatchesAStoredEStopAgain) {
+  Rig rig;
+  storage::SessionRepository sessions(*rig.db);
+  auto queued = sessions.CreateRun(rig.session_id, {"tolerance_test", "1", "{}"});
+  auto running = sessions.CreateRun(rig.session_id, {"isometric_ramp_irc", "1", "{}"});
+  auto done = sessions.CreateRun(rig.session_id, {"isometric_ramp_irc", "1", "{}"});
+  ASSERT_TRUE(queued.ok() && running.ok() && done.ok());
+  ASSERT_TRUE(sessions.RecordRunState(running->id, RunState::kRunning).ok());
+  ASSERT_TRUE(sessions.RecordRunState(done->id, RunState::kRunning).ok());
+  ASSERT_TRUE(sessions.RecordRunState(done->id, RunState::kDone).ok());
+  // The previous process's e-stop, as it stored it.
+  ASSERT_TRUE(rig.service->EStop(rig.analyst, "http").ok());
+  storage::EStopLatchRepository latch(*rig.db);
+  auto stored = latch.Current();
+  ASSERT_TRUE(stored.ok());
+  ASSERT_TRUE(stored->has_value()) << "the e-stop is stored as it latches";
+  EXPECT_EQ((*stored)->source, "http (ana)");
+
+  // Restart: a new service (a fresh SafeBench, not latched) on the same database.
+  rig.service.reset();
+  rig.service = std::make_unique<RunService>(*rig.db, *rig.bench, rig.hub, rig.config);
+  EXPECT_FALSE(rig.service->State().estopped);
+  auto recovery = rig.service->RecoverAfterRestart();
+  ASSERT_TRUE(recovery.ok()) << recovery.status().ToString();
+  EXPECT_EQ(recovery->failed_run_ids, (std::vector<std::int64_t>{queued->id, running->id}));
+  ASSERT_TRUE(recovery->estop_source.has_value());
+  EXPECT_EQ(*recovery->estop_source, "http (ana)");
+  for (const std::int64_t id : recovery->failed_run_ids) {
+    auto run = sessions.GetRun(id);
+    ASSERT_TRUE(run.ok());
+    EXPECT_EQ(run->state, RunState::kFailed);
+    EXPECT_EQ(run->message, "server stopped during the run");
+    auto view = rig.service->Get(id);
+    ASSERT_TRUE(view.ok());
+    EXPECT_EQ(view->reason, "server stopped during the run");
+  }
+  EXPECT_EQ(sessions.GetRun(done->id)->state, RunState::kDone);
+  EXPECT_TRUE(rig.service->State().estopped);
+  EXPECT_EQ(rig.service->State().estop_source, "http (ana)");
+  auto refused =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
+  EXPECT_EQ(refused.status().code(), api::ErrorCode::kConflict);
+  std::vector<std::string> actions = rig.AuditActions();
+  EXPECT_EQ(std::count(actions.begin(), actions.end(), "run.recovered"), 2);
+  EXPECT_EQ(std::count(actions.begin(), actions.end(), "bench.estop_restored"), 1);
+
+  // Only a person clears it; then the stored latch is clear too.
+  EXPECT_EQ(rig.service->ClearEStop(rig.analyst).code(), api::ErrorCode::kPermissionDenied);
+  EXPECT_TRUE(latch.Current()->has_value());
+  ASSERT_TRUE(rig.service->ClearEStop(rig.clinician).ok());
+  EXPECT_FALSE(latch.Current()->has_value());
+  actions = rig.AuditActions();
+  EXPECT_EQ(std::count(actions.begin(), actions.end(), "bench.clear_estop"), 1);
+
+  // Another restart: nothing left to close, nothing latched.
+  rig.service.reset();
+  rig.service = std::make_unique<RunService>(*rig.db, *rig.bench, rig.hub, rig.config);
+  auto again = rig.service->RecoverAfterRestart();
+  ASSERT_TRUE(again.ok());
+  EXPECT_TRUE(again->failed_run_ids.empty());
+  EXPECT_FALSE(again->estop_source.has_value());
+  EXPECT_FALSE(rig.service->State().estopped);
 }
 
 TEST(RunService, LoadSessionContextTakesLimitsAnthropometricsAndTheLatestSet) {

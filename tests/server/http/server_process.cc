@@ -135,6 +135,13 @@ int ServerProcess::Terminate(std::chrono::seconds timeout) {
   return -1;
 }
 
+void ServerProcess::Kill() {
+  if (pid_ <= 0) return;
+  ::kill(pid_, SIGKILL);
+  ::waitpid(pid_, nullptr, 0);
+  pid_ = -1;
+}
+
 httplib::Client ServerProcess::Client() const {
   httplib::Client client("127.0.0.1", port_);
   client.set_connection_timeout(5);

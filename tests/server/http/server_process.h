@@ -44,6 +44,8 @@ class ServerProcess {
   /// SIGTERM, then waits up to `timeout`; the exit code (−1 on timeout or a
   /// signal death).
   int Terminate(std::chrono::seconds timeout = std::chrono::seconds(20));
+  /// SIGKILL (a crash: no clean-up of any kind), then waits for the process.
+  void Kill();
 
   /// A client for this server (5 s timeouts).
   httplib::Client Client() const;
