@@ -50,6 +50,17 @@ api::Status ValidateServerConfig(const ServerConfig& c) {
   if (c.max_streams < 1 || c.max_streams > 256) {
     return api::Status::InvalidArgument("must be in [1, 256]", "max-streams");
   }
+  if (c.auth_failure_burst < 1 || c.auth_failure_burst > 100000) {
+    return api::Status::InvalidArgument("must be in [1, 100000]", "auth-failure-burst");
+  }
+  if (!std::isfinite(c.auth_failure_refill_per_s) || c.auth_failure_refill_per_s <= 0 ||
+      c.auth_failure_refill_per_s > 1000) {
+    return api::Status::InvalidArgument("must be in (0, 1000]", "auth-failure-refill-per-s");
+  }
+  if (!c.dds_profile_name.empty() && c.dds_profile.empty()) {
+    return api::Status::InvalidArgument("--dds-profile-name needs --dds-profile",
+                                        "dds-profile-name");
+  }
   return api::Status::Ok();
 }
 
@@ -74,6 +85,7 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.Integer("dds-domain", false, 0, 232)) c.dds_domain = static_cast<int>(*v);
   if (auto v = f.String("dds-transport", false, 16)) c.dds_transport = *v;
   if (auto v = f.String("dds-profile", false, 4096)) c.dds_profile = *v;
+  if (auto v = f.String("dds-profile-name", false, 255)) c.dds_profile_name = *v;
   if (auto v = f.String("dds-bench-id", false, 255)) c.dds_bench_id = *v;
   if (auto v = f.String("tls-cert", false, 4096)) c.tls_cert = *v;
   if (auto v = f.String("tls-key", false, 4096)) c.tls_key = *v;
@@ -92,6 +104,10 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.Integer("max-connections", false, 1, 1024))
     c.max_connections = static_cast<int>(*v);
   if (auto v = f.Integer("max-streams", false, 1, 256)) c.max_streams = static_cast<int>(*v);
+  if (auto v = f.Integer("auth-failure-burst", false, 1, 100000))
+    c.auth_failure_burst = static_cast<int>(*v);
+  if (auto v = f.Number("auth-failure-refill-per-s", false, 0.0, 1000.0))
+    c.auth_failure_refill_per_s = *v;
   if (auto v = f.String("web-root", false, 4096)) c.web_root = *v;
   return f.Finish();
 }
@@ -120,6 +136,8 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
       ->check(CLI::IsMember({"auto", "shm", "udp", "udp-loopback", "off"}));
   app.add_option("--dds-profile", flags.dds_profile, "Fast DDS XML profile file")
       ->check(CLI::ExistingFile);
+  app.add_option("--dds-profile-name", flags.dds_profile_name,
+                 "participant profile of --dds-profile to use (default: its default profile)");
   app.add_option("--dds-bench-id", flags.dds_bench_id,
                  "DDS key of this bench's state (default: the host name)");
   app.add_option("--tls-cert", flags.tls_cert, "PEM certificate for HTTPS");
@@ -130,6 +148,10 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   app.add_option("--max-connections", flags.max_connections,
                  "keep-alive connections served at once (default 48)");
   app.add_option("--max-streams", flags.max_streams, "open event streams (default 16)");
+  app.add_option("--auth-failure-burst", flags.auth_failure_burst,
+                 "failed tokens one address may present at once before 429 (default 30)");
+  app.add_option("--auth-failure-refill-per-s", flags.auth_failure_refill_per_s,
+                 "failed tokens an address regains per second (default 1)");
   app.add_option("--web-root", flags.web_root,
                  "folder of the built web client served at / (\"\": none)");
   try {
@@ -170,6 +192,7 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--dds-domain")) config.dds_domain = flags.dds_domain;
   if (given("--dds-transport")) config.dds_transport = flags.dds_transport;
   if (given("--dds-profile")) config.dds_profile = flags.dds_profile;
+  if (given("--dds-profile-name")) config.dds_profile_name = flags.dds_profile_name;
   if (given("--dds-bench-id")) config.dds_bench_id = flags.dds_bench_id;
   if (given("--tls-cert")) config.tls_cert = flags.tls_cert;
   if (given("--tls-key")) config.tls_key = flags.tls_key;
@@ -179,6 +202,9 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--max-connections")) config.max_connections = flags.max_connections;
   if (given("--max-streams")) config.max_streams = flags.max_streams;
   if (given("--web-root")) config.web_root = flags.web_root;
+  if (given("--auth-failure-burst")) config.auth_failure_burst = flags.auth_failure_burst;
+  if (given("--auth-failure-refill-per-s"))
+    config.auth_failure_refill_per_s = flags.auth_failure_refill_per_s;
 
   if (auto st = ValidateServerConfig(config); !st.ok()) {
     err << "fesbench-server: " << st.ToString() << "\n";

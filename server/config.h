@@ -34,6 +34,9 @@ struct ServerConfig {
   /// udp-loopback, or off (no DDS front end).
   std::string dds_transport = "auto";
   std::string dds_profile;   ///< --dds-profile: Fast DDS XML profile file.
+  /// --dds-profile-name: the participant profile of that file to create the
+  /// participant from ("" = the file's default participant profile).
+  std::string dds_profile_name;
   std::string dds_bench_id;  ///< --dds-bench-id: key of the bench state (default: host name).
   std::string tls_cert;      ///< --tls-cert: PEM certificate (with --tls-key: HTTPS).
   std::string tls_key;       ///< --tls-key: PEM private key.
@@ -42,6 +45,11 @@ struct ServerConfig {
   int job_workers = 2;              ///< --job-workers: identification/prediction threads.
   int max_connections = 48;         ///< --max-connections: connections served at once.
   int max_streams = 16;             ///< --max-streams: open event streams.
+  /// --auth-failure-burst: failed tokens one client address may present at
+  /// once before it is slowed down (429 with Retry-After), 1–100000.
+  int auth_failure_burst = 30;
+  /// --auth-failure-refill-per-s: failed tokens an address regains per second, (0, 1000].
+  double auth_failure_refill_per_s = 1.0;
   /// --web-root: the web client's built files, served at / (default: the
   /// build tree's clients/web/dist; "" serves none).
   std::string web_root = DefaultWebRoot();
@@ -63,8 +71,9 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
 
 /// Applies a JSON config object's keys ("bind", "port", "db", "bench",
 /// "time-scale", "max-stop-impact-deg-s", "dds-domain", "dds-transport", "dds-profile",
-/// "dds-bench-id", "tls-cert", "tls-key", "seed", "replay", "job-workers", "max-connections",
-/// "max-streams") to `config`. kInvalidArgument naming the key for unknown keys, wrong types and
+/// "dds-profile-name", "dds-bench-id", "tls-cert", "tls-key", "seed", "replay", "job-workers",
+/// "max-connections", "max-streams", "auth-failure-burst", "auth-failure-refill-per-s") to
+/// `config`. kInvalidArgument naming the key for unknown keys, wrong types and
 /// out-of-range values.
 api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& config);
 

@@ -7,15 +7,26 @@
 /// database read per request. Revoking a token or deactivating a user
 /// through the server calls Invalidate(), so the change is effective at
 /// once; a change made behind the server's back takes up to cache_ttl.
+///
+/// Admit() is the front end's one gate (issue 16 §9): it audits every
+/// failed sign-in (a presented token that is not valid: 401) and every
+/// request refused for its role (403, any method), and slows down a burst
+/// of failed tokens from one client address with a token bucket: while the
+/// address's bucket is empty its requests get 429 with Retry-After without
+/// their token being looked up, except tokens that signed in successfully
+/// within the cache's lifetime.
 
 #include <chrono>
 #include <cstddef>
+#include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <unordered_map>
 
 #include "api/status.h"
+#include "storage/database.h"
 #include "storage/users.h"
 
 namespace fesbench::server::http {
@@ -28,11 +39,34 @@ inline constexpr RoleMask kAnalyst = RoleBit(storage::Role::kAnalyst);
 inline constexpr RoleMask kAdmin = RoleBit(storage::Role::kAdmin);
 inline constexpr RoleMask kAnyRole = kClinician | kAnalyst | kAdmin;
 
+/// The per-address budget of failed tokens: a bucket of `burst` failures
+/// that refills at `refill_per_s`.
+struct FailedTokenLimits {
+  double burst = 30.0;        ///< failed tokens an address may present at once, ≥ 1.
+  double refill_per_s = 1.0;  ///< failures regained per second, > 0.
+  std::size_t max_addresses = 10000;  ///< addresses tracked; the fullest buckets are dropped.
+};
+
+struct AuthenticatorOptions {
+  std::chrono::milliseconds cache_ttl = std::chrono::seconds(2);
+  std::size_t cache_capacity = 4096;
+  FailedTokenLimits failed_tokens;
+  /// Monotonic time (tests); steady_clock when empty.
+  std::function<std::chrono::steady_clock::time_point()> clock;
+};
+
+/// Admit's answer for one request.
+struct Admission {
+  std::optional<storage::User> user;  ///< set when admitted.
+  api::Status status;                 ///< kUnauthenticated or kPermissionDenied otherwise.
+  /// > 0 when the address is slowed down: answer 429 with Retry-After: this
+  /// many seconds (status then says so).
+  int retry_after_s = 0;
+};
+
 class Authenticator {
  public:
-  explicit Authenticator(storage::Database& db,
-                         std::chrono::milliseconds cache_ttl = std::chrono::seconds(2),
-                         std::size_t cache_capacity = 4096);
+  explicit Authenticator(storage::Database& db, AuthenticatorOptions options = {});
 
   /// The user behind an `Authorization` header value ("Bearer fsb_…").
   /// kUnauthenticated (one message for every reason) when the header is
@@ -41,6 +75,16 @@ class Authenticator {
   /// kPermissionDenied naming the roles allowed, unless user's role is in
   /// `allowed`.
   static api::Status Authorise(const storage::User& user, RoleMask allowed);
+
+  /// Authenticates and authorises a request from client `address` for a
+  /// route allowing `allowed`. `action` ("GET /api/v1/users") and `target`
+  /// (the path) name it in the audit log. Audited: a presented token that
+  /// fails (actor = the address, never the token), a role refusal (actor =
+  /// the user), and the first request of a slowed-down burst. A request
+  /// without an Authorization header is 401 but neither audited nor counted.
+  Admission Admit(std::string_view authorization_header, std::string_view address,
+                  RoleMask allowed, std::string_view action, std::string_view target);
+
   /// Drops every cached answer.
   void Invalidate();
 
@@ -49,11 +93,25 @@ class Authenticator {
     storage::User user;
     std::chrono::steady_clock::time_point expires;
   };
+  struct Bucket {
+    double tokens = 0.0;
+    std::chrono::steady_clock::time_point at;
+    bool throttle_audited = false;  // this empty spell's audit row is written
+  };
+  std::chrono::steady_clock::time_point Now() const;
+  std::optional<storage::User> Cached(const std::string& token);
+  /// Refills the address's bucket; seconds until it holds one failure, 0 if it does.
+  int WaitFor(const std::string& address, bool* first_refusal);
+  void TakeFailure(const std::string& address);
+  void AuditEntry(std::optional<std::int64_t> user_id, std::string actor, std::string_view action,
+                  std::string_view target, std::string summary, std::string outcome);
+
+  storage::Database& db_;
   storage::UserRepository users_;
-  std::chrono::milliseconds ttl_;
-  std::size_t capacity_;
+  AuthenticatorOptions options_;
   std::mutex mu_;
   std::unordered_map<std::string, Entry> cache_;
+  std::unordered_map<std::string, Bucket> buckets_;
 };
 
 /// "clinician, admin" for a mask.

@@ -249,17 +249,23 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
   };
   try {
     if (route.roles != 0) {
-      auto user = auth_.Authenticate(req.get_header_value("Authorization"));
-      if (!user.ok()) {
-        res.set_header("WWW-Authenticate", "Bearer");
-        WriteError(res, user.status());
+      // 401, 403 and a slowed-down burst (429) are audited by the Authenticator.
+      Admission admitted =
+          auth_.Admit(req.get_header_value("Authorization"), req.remote_addr, route.roles,
+                      req.method + " " + Clip(req.path, 200), Clip(req.path, 200));
+      if (!admitted.user) {
+        if (admitted.retry_after_s > 0) {
+          res.set_header("Retry-After", std::to_string(admitted.retry_after_s));
+          WriteError(res, HttpError{429, "too_many_requests", admitted.status.message(), {}});
+        } else {
+          if (admitted.status.code() == api::ErrorCode::kUnauthenticated) {
+            res.set_header("WWW-Authenticate", "Bearer");
+          }
+          WriteError(res, admitted.status);
+        }
         return;
       }
-      ctx.user = std::move(*user);
-      if (auto allowed = Authenticator::Authorise(*ctx.user, route.roles); !allowed.ok()) {
-        refuse(ToHttpError(allowed));
-        return;
-      }
+      ctx.user = std::move(*admitted.user);
     }
     if (route.json_body && !IsJsonContentType(req.get_header_value("Content-Type"))) {
       refuse(HttpError{415, "unsupported_media_type",

@@ -7,7 +7,9 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <set>
+#include <thread>
 
 #include "server_process.h"
 
@@ -97,7 +99,8 @@ bool IsNoRoute(const JsonResponse& r) {
 }
 
 TEST(RolesTest, EveryRouteWithNoTokenEachRoleAndARevokedToken) {
-  ServerProcess server;
+  // Two failed tokens per route: more than a burst the server lets through.
+  ServerProcess server({"--auth-failure-burst", "100000"});
   auto client = server.Client();
   const std::string admin = server.admin_token();
   const std::string clinician = CreateUserToken(client, admin, "cli", "clinician");
@@ -177,6 +180,54 @@ TEST(RolesTest, OpenApiDocumentsExactlyTheServedRoutes) {
   // A path outside the document is not served.
   auto unknown = Call(client, "GET", "/api/v1/not-a-resource", server.admin_token());
   EXPECT_TRUE(IsNoRoute(unknown));
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+// Issue 16 §9 over HTTP: failed sign-ins and role refusals (also of a GET)
+// are audited; a burst of failed tokens from one address gets 429 with
+// Retry-After (audited once) and no token lookup.
+TEST(RolesTest, FailedTokensAreAuditedAndABurstIsSlowedDown) {
+  ServerProcess server({"--auth-failure-burst", "5"});
+  auto client = server.Client();
+  const std::string admin = server.admin_token();
+  const std::string analyst = CreateUserToken(client, admin, "ana", "analyst");
+  EXPECT_EQ(Call(client, "GET", "/api/v1/users", analyst).status, 403);
+  const std::string wrong = "fsb_" + std::string(64, '7');
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_EQ(Call(client, "GET", "/api/v1/subjects", wrong).status, 401) << k;
+  }
+  auto slowed = Call(client, "GET", "/api/v1/subjects", wrong);
+  EXPECT_EQ(slowed.status, 429) << slowed.text;
+  EXPECT_EQ(slowed.body["error"]["code"], "too_many_requests");
+  const auto retry = slowed.headers.find("Retry-After");
+  ASSERT_NE(retry, slowed.headers.end());
+  EXPECT_EQ(retry->second, "1") << "one failure regained per second";
+  EXPECT_EQ(Call(client, "GET", "/api/v1/subjects", wrong).status, 429);
+
+  // After Retry-After the address may present a token again (the admin's
+  // token may have left the 2 s cache by now: it is checked, not refused).
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+
+  auto audit = Call(client, "GET", "/api/v1/audit?limit=500", admin);
+  ASSERT_EQ(audit.status, 200) << audit.text;
+  int failed = 0, slowed_rows = 0, denied = 0;
+  for (const json& e : audit.body["items"]) {
+    const std::string outcome = e["outcome"];
+    if (outcome == "401 unauthenticated") {
+      ++failed;
+      EXPECT_EQ(e["actor"], "127.0.0.1");
+      EXPECT_EQ(e["action"], "GET /api/v1/subjects");
+      EXPECT_EQ(e.dump().find(wrong), std::string::npos) << "never the token";
+    }
+    if (outcome == "429 too_many_requests") ++slowed_rows;
+    if (outcome == "403 permission_denied" && e["action"] == "GET /api/v1/users") {
+      ++denied;
+      EXPECT_EQ(e["actor"], "ana");
+    }
+  }
+  EXPECT_EQ(failed, 5);
+  EXPECT_EQ(slowed_rows, 1);
+  EXPECT_EQ(denied, 1);
   EXPECT_EQ(server.Terminate(), 0);
 }
 
