@@ -78,15 +78,31 @@ api::Result<std::unique_ptr<Participant>> Participant::Create(const ParticipantO
   if (options.domain_id < 0 || options.domain_id > 232) {
     return api::Status::InvalidArgument("DDS domain id must be 0-232", "domain");
   }
+  using eprosima::fastrtps::types::ReturnCode_t;
   auto* factory = fdds::DomainParticipantFactory::get_instance();
+  // The default XML (FASTRTPS_DEFAULT_PROFILES_FILE or ./DEFAULT_FASTRTPS_PROFILES.xml)
+  // first, so the factory's default QoS follows the loaded profiles at all.
+  factory->load_profiles();
+  fdds::DomainParticipantQos qos = factory->get_default_participant_qos();
+  if (!options.profile_name.empty() && options.profile_file.empty()) {
+    return api::Status::InvalidArgument("a profile name needs a profile file", "profile_name");
+  }
   if (!options.profile_file.empty()) {
-    if (factory->load_XML_profiles_file(options.profile_file) !=
-        eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+    if (factory->load_XML_profiles_file(options.profile_file) != ReturnCode_t::RETCODE_OK) {
       return api::Status::InvalidArgument(
           "cannot load Fast DDS XML profile " + options.profile_file, "profile");
     }
+    if (options.profile_name.empty()) {
+      // Loading a file with a default participant profile resets the
+      // factory's default QoS to it.
+      qos = factory->get_default_participant_qos();
+    } else if (factory->get_participant_qos_from_profile(options.profile_name, qos) !=
+               ReturnCode_t::RETCODE_OK) {
+      return api::Status::InvalidArgument("no participant profile '" + options.profile_name +
+                                              "' in " + options.profile_file,
+                                          "profile_name");
+    }
   }
-  fdds::DomainParticipantQos qos = factory->get_default_participant_qos();
   qos.name(options.name);
   ApplyTransport(options.transport, qos);
 

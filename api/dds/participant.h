@@ -58,9 +58,13 @@ api::Result<Transport> ParseTransport(std::string_view name);
 struct ParticipantOptions {
   int domain_id = 0;  ///< 0–232.
   Transport transport = Transport::kBuiltin;
-  /// A Fast DDS XML profile file: its default participant profile is the
-  /// base QoS (the transport above is applied on top unless kBuiltin).
+  /// A Fast DDS XML profile file. The participant is created from its
+  /// participant profile `profile_name`, or, when that is empty, from its
+  /// default participant profile (is_default_profile="true"): QoS, transports
+  /// and properties (e.g. DDS Security) as written. The transport above is
+  /// applied on top unless kBuiltin; the participant name is `name`.
   std::string profile_file;
+  std::string profile_name;  ///< a participant profile of profile_file; "" = its default.
   std::string name = "fesbench";  ///< participant name (seen by DDS tools).
 };
 
@@ -68,7 +72,8 @@ struct ParticipantOptions {
 /// Destroying it deletes every entity it contains (writers/readers too).
 class Participant {
  public:
-  /// kInvalidArgument for a bad domain id or an unloadable profile;
+  /// kInvalidArgument for a bad domain id, an unloadable profile file
+  /// (field "profile") or an unknown profile name (field "profile_name");
   /// kUnavailable if Fast DDS cannot create the participant.
   static api::Result<std::unique_ptr<Participant>> Create(const ParticipantOptions& options);
   ~Participant();
