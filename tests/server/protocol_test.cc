@@ -212,10 +212,9 @@ TEST(ResolveParameters, ToleranceCeilingFollowsTheRecordedMax) {
   decided.ceiling_above_max = "";
   EXPECT_EQ(ResolveParameters(d, {{"ceiling_ma", 20.0}}, decided).status().field(),
             "ceiling_reason");
-  EXPECT_EQ(ResolveParameters(*FindProtocol("isometric_ramp_irc"), {},
-                              SubjectContext{.ceiling_above_max = "x"})
-                .status()
-                .field(),
+  SubjectContext other = Subject();
+  other.ceiling_above_max = "x";
+  EXPECT_EQ(ResolveParameters(*FindProtocol("isometric_ramp_irc"), {}, other).status().field(),
             "ceiling_reason");
 
   SubjectContext first = Subject();  // first session of a new subject

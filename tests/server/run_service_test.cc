@@ -657,9 +657,8 @@ TEST(RunService, ASessionWithoutLimitsRunsOnlyTheToleranceTest) {
 double MaxStoredStim(storage::Database& db, const RunView& view) {
   double max_ma = 0.0;
   storage::TrialRepository trials(db);
-  for (const auto& id : view.trial_ids) {
-    if (!id) continue;
-    auto trial = trials.Get(*id);
+  for (const std::int64_t id : view.trial_ids) {
+    auto trial = trials.Get(id);
     EXPECT_TRUE(trial.ok()) << trial.status().ToString();
     if (!trial.ok() || trial->Values("stim_ma") == nullptr) continue;
     for (double u : *trial->Values("stim_ma")) max_ma = std::max(max_ma, u);
@@ -773,8 +772,10 @@ TEST(RunService, RecoveryClosesRunsLeftOpenAndLatchesAStoredEStopAgain) {
   ASSERT_TRUE(stored->has_value()) << "the e-stop is stored as it latches";
   EXPECT_EQ((*stored)->source, "http (ana)");
 
-  // Restart: a new service (a fresh SafeBench, not latched) on the same database.
+  // Restart: a new service (a fresh SafeBench, not latched) on the same
+  // database, and a simulated bench that starts unlatched as a new process's does.
   rig.service.reset();
+  rig.bench->ClearHardwareEStop();
   rig.service = std::make_unique<RunService>(*rig.db, *rig.bench, rig.hub, rig.config);
   EXPECT_FALSE(rig.service->State().estopped);
   auto recovery = rig.service->RecoverAfterRestart();
