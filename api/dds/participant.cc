@@ -93,8 +93,9 @@ api::Result<std::unique_ptr<Participant>> Participant::Create(const ParticipantO
           "cannot load Fast DDS XML profile " + options.profile_file, "profile");
     }
     if (options.profile_name.empty()) {
-      // Loading a file with a default participant profile resets the
-      // factory's default QoS to it.
+      // Loading a file does not change the factory's default QoS: setting
+      // the default to PARTICIPANT_QOS_DEFAULT re-reads the default profile.
+      factory->set_default_participant_qos(fdds::PARTICIPANT_QOS_DEFAULT);
       qos = factory->get_default_participant_qos();
     } else if (factory->get_participant_qos_from_profile(options.profile_name, qos) !=
                ReturnCode_t::RETCODE_OK) {
