@@ -129,6 +129,9 @@ std::string AddressText(const sockaddr_storage& addr, int& port) {
 class HttpServer::Engine : public httplib::Server {
  public:
   using httplib::Server::process_request;
+  // Content providers (event streams) run only while the library believes
+  // it is listening: it checks its own listening socket, which we hold.
+  void SetServing(socket_t listening) { svr_sock_ = listening; }
 };
 
 // One client connection. Owned by connections_; a worker holds `mutex`
@@ -249,8 +252,7 @@ struct HttpServer::Connection {
 namespace {
 
 // One buffered request as httplib's Stream: reads come from memory, writes
-// go to the connection's output buffer (sent when it fills, when a content
-// provider asks whether the client can take more, and after the response).
+// go to the connection (the head joined with what follows it).
 class RequestStream final : public httplib::Stream {
  public:
   RequestStream(HttpServer::Connection& c, std::string_view request,
@@ -259,8 +261,8 @@ class RequestStream final : public httplib::Stream {
 
   bool is_readable() const override { return pos_ < request_.size(); }
   bool is_writable() const override {
-    // Asked by content providers (event streams) between writes: flush, and
-    // report a departed client so its worker is freed.
+    // Asked by content providers (event streams): report a departed client
+    // so its worker is freed.
     return !failed_ && c_.Flush(write_timeout_) && !c_.PeerGone() &&
            c_.WaitFor(POLLOUT, write_timeout_);
   }
@@ -273,7 +275,10 @@ class RequestStream final : public httplib::Stream {
   ssize_t write(const char* ptr, size_t size) override {
     if (failed_) return -1;
     c_.out.append(ptr, size);
-    if (c_.out.size() >= kWriteBuffer && !c_.Flush(write_timeout_)) {
+    // The library writes the response head first: keep it until the body
+    // (or the end) so both leave in one segment; send every later write at
+    // once (event-stream chunks must not wait).
+    if ((writes_++ > 0 || c_.out.size() >= kWriteBuffer) && !c_.Flush(write_timeout_)) {
       failed_ = true;
       return -1;
     }
@@ -297,6 +302,7 @@ class RequestStream final : public httplib::Stream {
   HttpServer::Connection& c_;
   std::string_view request_;
   std::size_t pos_ = 0;
+  std::size_t writes_ = 0;
   std::chrono::milliseconds write_timeout_;
   mutable bool failed_ = false;
 };
@@ -443,6 +449,7 @@ bool HttpServer::Run() {
     if (stop_requested_.load()) return true;
     running_.store(true);
   }
+  engine_->SetServing(listen_fd_);
   std::vector<std::thread> threads;
   threads.reserve(workers_ + 1);
   for (std::size_t i = 0; i < workers_; ++i) threads.emplace_back([this] { WorkerLoop(); });
@@ -469,6 +476,7 @@ bool HttpServer::Run() {
 void HttpServer::Stop() {
   stop_requested_.store(true);
   slots_.Shutdown();
+  if (engine_) engine_->SetServing(INVALID_SOCKET);  // ends event streams
   if (wake_fd_ >= 0) {
     const std::uint64_t one = 1;
     [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
