@@ -1,37 +1,57 @@
 #pragma once
 
 /// @file
-/// The HTTP front end (DESIGN.md §8) on cpp-httplib 0.11, hardened as
-/// NOTES-deps.md says it must be: explicit payload limit, read/write
-/// timeouts, keep-alive limits, TCP_NODELAY, a worker pool sized for
-/// connections plus event streams, request bodies sent chunked refused,
-/// header count bounded, JSON errors for everything (including errors the
-/// library produces itself), and a catch-all that turns an unexpected
-/// exception into a logged 500.
+/// The HTTP front end (DESIGN.md §8). cpp-httplib 0.11 (Debian's) parses
+/// each request and writes each response, but the connections are ours
+/// (httplib's own loop gives every connection a thread for its whole life,
+/// so slow clients lock everyone out, and it binds with SO_REUSEPORT):
+///
+/// - We bind the listening socket ourselves (SO_REUSEADDR, never
+///   SO_REUSEPORT): a second server on a port in use fails "address in use".
+/// - Worker threads share one epoll set. A worker reads what a connection
+///   has sent (non-blocking) and frames it (request_framing.h); only a whole
+///   request (head and body) is handed to httplib, from memory. A request
+///   must be complete within `request_timeout` of its first byte (408
+///   otherwise), whatever pace the bytes come at, and an idle keep-alive
+///   connection is closed after `keep_alive_timeout`. Slow clients therefore
+///   hold no thread. Pipelined requests are answered in order; a request
+///   whose client half-closed is still answered.
+/// - Admission: at most `max_connections` requests are handled at once
+///   (plus `max_streams` event streams); a request beyond that is answered
+///   503 at once. Two more workers are kept for the urgent routes (e-stop,
+///   health), which are never refused and never wait behind other requests.
+///   At most `max_open_connections` connections are open; beyond: 503.
+/// - HTTPS (both TLS paths set) runs in the same loop over OpenSSL.
 ///
 /// Dispatch order for each request: route (404 / 405 with Allow), bearer
 /// token (401), role (403), Content-Type (415), JSON body (400), handler.
+/// Any exception from a client's bytes ends as a 400 (never a 500).
 /// State-changing requests (POST, PUT, DELETE) by an authenticated user are
 /// audited: handlers that change storage audit in the same transaction;
 /// refusals are audited here.
 
 #include <atomic>
+#include <condition_variable>
+#include <map>
+#include <mutex>
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "api/status.h"
 #include "server/http/auth.h"
+#include "server/http/errors.h"
 #include "server/http/router.h"
 #include "server/http/static_files.h"
 #include "server/http/stream_slots.h"
 #include "storage/database.h"
 
-namespace httplib {
-class Server;
-}
+typedef struct ssl_ctx_st SSL_CTX;
 
 namespace fesbench::server::http {
 
@@ -42,12 +62,20 @@ struct HttpServerOptions {
   std::string tls_key_path;
   std::size_t max_body_bytes = 1 << 20;  ///< larger bodies: 413.
   std::size_t max_headers = 64;          ///< more header lines: 431.
-  std::chrono::seconds read_timeout{5};
-  std::chrono::seconds write_timeout{5};
-  std::chrono::seconds keep_alive_timeout{5};
+  std::size_t max_head_bytes = 16 * 1024;  ///< request line and headers; beyond: 431.
+  /// A whole request (head and body) must arrive within this of its first
+  /// byte; otherwise 408 and the connection is closed.
+  std::chrono::milliseconds request_timeout{5000};
+  std::chrono::milliseconds write_timeout{5000};  ///< per blocked write.
+  std::chrono::milliseconds keep_alive_timeout{5000};  ///< idle connection: closed.
   std::size_t keep_alive_max_count = 10000;  ///< requests per connection.
-  std::size_t max_connections = 48;  ///< concurrent keep-alive connections served at once.
+  std::size_t max_connections = 48;  ///< requests handled at once (beyond: 503).
   std::size_t max_streams = 16;      ///< open event streams (beyond: 503).
+  std::size_t max_open_connections = 512;  ///< open connections (beyond: 503).
+  /// "METHOD /path" of routes that are never refused for load and never
+  /// wait behind other requests.
+  std::vector<std::string> urgent_routes = {"POST /api/v1/bench/estop", "GET /api/v1/health",
+                                            "HEAD /api/v1/health"};
   /// The web client's built files, served at / without a token for GET
   /// and HEAD of paths no route matches (static_files.h). Empty: none.
   std::string web_root;
@@ -64,19 +92,37 @@ class HttpServer {
   HttpServer& operator=(const HttpServer&) = delete;
 
   /// Binds the listening socket; the port bound. kUnavailable if it cannot
-  /// be bound, kInvalidArgument for unreadable TLS files.
+  /// be bound (the message says "address in use" when another process
+  /// listens there), kInvalidArgument for unreadable TLS files.
   api::Result<int> Bind();
   /// Serves until Stop(); returns false if the server failed.
   bool Run();
-  /// Stops accepting, ends event streams, waits for workers. Thread-safe,
-  /// may be called before Run returns.
+  /// Stops accepting, ends event streams, lets requests in progress finish,
+  /// closes every connection. Thread-safe, may be called before Run
+  /// returns; returns once Run has returned (or at once if it never ran).
   void Stop();
 
   const RouteTable& routes() const { return routes_; }
 
+  struct Connection;  ///< one client connection (http_server.cc).
+
  private:
+  class Engine;
+
   void Dispatch(const httplib::Request& req, httplib::Response& res);
   void AuditRefusal(const RequestContext& ctx, int status, const std::string& code);
+
+  // The connection loop (http_server.cc).
+  void WorkerLoop();
+  void SweepLoop();
+  void Accept();
+  void Serve(std::uint64_t id);
+  void HandleBytes(Connection& c);
+  bool ProcessOne(Connection& c, std::size_t skip, std::size_t total, bool last);
+  void Rearm(Connection& c, bool want_write = false);
+  void Refuse(Connection& c, const HttpError& error, bool close);
+  void Close(Connection& c, bool graceful);
+  bool IsUrgent(std::string_view method, std::string_view path) const;
 
   HttpServerOptions options_;
   RouteTable routes_;
@@ -84,7 +130,18 @@ class HttpServer {
   storage::Database& db_;
   StreamSlots& slots_;
   std::optional<StaticFiles> static_files_;
-  std::unique_ptr<httplib::Server> server_;
+  std::unique_ptr<Engine> engine_;
+  SSL_CTX* tls_ = nullptr;
+  int listen_fd_ = -1;
+  int epoll_fd_ = -1;
+  int wake_fd_ = -1;  ///< eventfd: set once on Stop, wakes every worker.
+  std::size_t workers_ = 0;
+  std::atomic<std::size_t> busy_{0};  ///< requests being handled now.
+  std::mutex connections_mutex_;
+  std::map<std::uint64_t, std::shared_ptr<Connection>> connections_;
+  std::uint64_t next_id_ = 1;
+  std::mutex run_mutex_;
+  std::condition_variable run_cv_;
   std::atomic<bool> running_{false};
   std::atomic<bool> stop_requested_{false};
 };

@@ -1,6 +1,8 @@
 #include "server/http/json_fields.h"
 
 #include <cmath>
+#include <functional>
+#include <vector>
 
 namespace fesbench::server::http {
 
@@ -37,6 +39,53 @@ int NestingDepth(std::string_view text, int limit) {
 
 std::string TypeName(const nlohmann::json& j) { return j.type_name(); }
 
+// The dotted path of the value being parsed, kept up to date by the parser
+// callback, so that an error inside a value (a number beyond double range:
+// 1e400) can name its field.
+class PathTracker {
+ public:
+  bool operator()(int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+    using Event = nlohmann::json::parse_event_t;
+    switch (event) {
+      case Event::object_start:
+      case Event::array_start:
+        frames_.push_back({event == Event::array_start, {}, 0});
+        break;
+      case Event::object_end:
+      case Event::array_end:
+        if (!frames_.empty()) frames_.pop_back();
+        if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
+        break;
+      case Event::key:
+        if (!frames_.empty() && parsed.is_string()) frames_.back().key = parsed.get<std::string>();
+        break;
+      case Event::value:
+        if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
+        break;
+    }
+    return true;
+  }
+  std::string Path() const {
+    std::string path;
+    for (const auto& f : frames_) {
+      if (f.array) {
+        path += "[" + std::to_string(f.index) + "]";
+      } else if (!f.key.empty()) {
+        path += (path.empty() ? "" : ".") + f.key;
+      }
+    }
+    return path;
+  }
+
+ private:
+  struct Frame {
+    bool array;
+    std::string key;
+    std::size_t index;
+  };
+  std::vector<Frame> frames_;
+};
+
 }  // namespace
 
 api::Result<nlohmann::json> ParseJsonObject(std::string_view body) {
@@ -46,11 +95,15 @@ api::Result<nlohmann::json> ParseJsonObject(std::string_view body) {
                                         std::to_string(kMaxJsonDepth) + " levels");
   }
   nlohmann::json json;
+  PathTracker tracker;
   try {
-    json = nlohmann::json::parse(body);
+    json = nlohmann::json::parse(body, std::ref(tracker));
   } catch (const nlohmann::json::parse_error& e) {
     return api::Status::InvalidArgument("malformed JSON at byte " + std::to_string(e.byte) +
                                         ": " + e.what());
+  } catch (const nlohmann::json::exception&) {
+    // out_of_range.406: a number beyond the range of a double (1e400).
+    return api::Status::InvalidArgument("number out of range (beyond ±1.8e308)", tracker.Path());
   }
   if (!json.is_object()) {
     return api::Status::InvalidArgument("expected a JSON object, got " + TypeName(json));

@@ -240,3 +240,78 @@ std::string CreateUserToken(httplib::Client& client, const std::string& admin_to
 }
 
 }  // namespace fesbench::testing
+
+namespace fesbench::testing {
+
+RawConnection::RawConnection(int port) {
+  fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (fd_ >= 0 && ::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd_);
+    fd_ = -1;
+  }
+}
+
+RawConnection::~RawConnection() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+bool RawConnection::Send(const std::string& bytes) {
+  std::size_t sent = 0;
+  while (fd_ >= 0 && sent < bytes.size()) {
+    const ssize_t n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
+    if (n <= 0) return false;
+    sent += static_cast<std::size_t>(n);
+  }
+  return fd_ >= 0;
+}
+
+void RawConnection::HalfClose() { ::shutdown(fd_, SHUT_WR); }
+
+std::string RawConnection::ReadUntil(const std::function<bool(const std::string&)>& done,
+                                     std::chrono::milliseconds timeout) {
+  std::string received;
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (!done(received)) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) break;
+    pollfd p{fd_, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) break;
+    char buffer[8192];
+    const ssize_t n = ::recv(fd_, buffer, sizeof buffer, 0);
+    if (n <= 0) break;
+    received.append(buffer, static_cast<std::size_t>(n));
+  }
+  return received;
+}
+
+bool RawConnection::ClosedByPeer() {
+  pollfd p{fd_, POLLIN, 0};
+  if (::poll(&p, 1, 0) <= 0) return false;
+  char byte;
+  const ssize_t n = ::recv(fd_, &byte, 1, MSG_PEEK | MSG_DONTWAIT);
+  return n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK);
+}
+
+int CountResponses(const std::string& bytes) {
+  int count = 0;
+  std::size_t pos = 0;
+  while (pos < bytes.size()) {
+    const std::size_t head_end = bytes.find("\r\n\r\n", pos);
+    if (head_end == std::string::npos || bytes.compare(pos, 5, "HTTP/") != 0) break;
+    const std::string head = bytes.substr(pos, head_end - pos);
+    std::size_t length = 0;
+    const std::size_t at = head.find("Content-Length: ");
+    if (at != std::string::npos) length = std::stoul(head.substr(at + 16));
+    if (bytes.size() < head_end + 4 + length) break;
+    ++count;
+    pos = head_end + 4 + length;
+  }
+  return count;
+}
+
+}  // namespace fesbench::testing

@@ -9,6 +9,7 @@
 #include <httplib.h>
 
 #include <chrono>
+#include <functional>
 #include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -86,5 +87,39 @@ int RawStatus(const std::string& response);
 /// Creates a user with `role` and returns a token for it (admin token used).
 std::string CreateUserToken(httplib::Client& client, const std::string& admin_token,
                             const std::string& name, const std::string& role);
+
+}  // namespace fesbench::testing
+
+namespace fesbench::testing {
+
+/// A raw loopback connection for protocol-edge tests (half-close,
+/// pipelining, slow clients). Closed by the destructor.
+class RawConnection {
+ public:
+  explicit RawConnection(int port);
+  ~RawConnection();
+  RawConnection(const RawConnection&) = delete;
+  RawConnection& operator=(const RawConnection&) = delete;
+
+  bool ok() const { return fd_ >= 0; }
+  int fd() const { return fd_; }
+  /// Sends all of `bytes`; false if the connection failed.
+  bool Send(const std::string& bytes);
+  /// shutdown(SHUT_WR): the request is complete, nothing more comes.
+  void HalfClose();
+  /// Reads until `done(received)` is true, the server closes, or `timeout`.
+  std::string ReadUntil(const std::function<bool(const std::string&)>& done,
+                        std::chrono::milliseconds timeout);
+  /// Whether the server has closed this connection (a FIN or reset is
+  /// waiting); does not consume data.
+  bool ClosedByPeer();
+
+ private:
+  int fd_ = -1;
+};
+
+/// The number of HTTP responses in `bytes` (status lines of whole
+/// responses framed by Content-Length).
+int CountResponses(const std::string& bytes);
 
 }  // namespace fesbench::testing
