@@ -35,12 +35,12 @@ TEST_F(StorageTest, OpensInWalWithForeignKeysAndFullSync) {
   auto version = db_->SchemaVersion();
   ASSERT_TRUE(version.ok());
   EXPECT_EQ(*version, LatestSchemaVersion());
-  EXPECT_EQ(LatestSchemaVersion(), 6);
+  EXPECT_EQ(LatestSchemaVersion(), 8);
   auto recorded = db_->Read([](Connection& c) {
     return c.QueryText("SELECT group_concat(version) FROM schema_migrations");
   });
   ASSERT_TRUE(recorded.ok());
-  EXPECT_EQ(*recorded, "1,2,3,4,5,6");
+  EXPECT_EQ(*recorded, "1,2,3,4,5,6,8");
 }
 
 TEST_F(StorageTest, ReopeningAppliesNothingTwice) {
@@ -50,7 +50,7 @@ TEST_F(StorageTest, ReopeningAppliesNothingTwice) {
   auto count = (*db)->Read(
       [](Connection& c) { return c.QueryText("SELECT count(*) FROM schema_migrations"); });
   ASSERT_TRUE(count.ok());
-  EXPECT_EQ(*count, "6");
+  EXPECT_EQ(*count, "7");
 }
 
 TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
