@@ -363,8 +363,9 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       // A run of the envelope too short to hold a grid time of the pulse
       // clock is one single pulse at its start (model::PulsesFromEnvelope).
       if (step.envelope && u > 0.0 && !(prev_u > 0.0)) {
+        // The run in the envelope (a trial's steps share it, one step per run).
         std::int64_t end = k + 1;
-        while (end < step.ticks) {
+        for (;;) {
           const std::int64_t idx = (step.stim_offset_ticks + end) / kTicksPerSample;
           if (idx < 0 || idx >= static_cast<std::int64_t>(step.envelope->values.size()) ||
               !(step.envelope->values[static_cast<std::size_t>(idx)] > 0.0)) {
@@ -374,8 +375,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         }
         const double from_s = static_cast<double>(n - clock_tick) / kTicksPerSecond;
         const double to_s = from_s + static_cast<double>(end - k) / kTicksPerSecond;
-        // (A run going on into the next step is never short enough.)
-        if (end < step.ticks && !model::FirstGridTimeIn(from_s, to_s, hw.pulse_rate_hz)) {
+        if (!model::FirstGridTimeIn(from_s, to_s, hw.pulse_rate_hz)) {
           bench_.TriggerPulse(u);
           single_pulse_end = n + (end - k);
         }

@@ -362,9 +362,11 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
     EXPECT_NEAR(est, truth, 0.35 * truth + 1.0) << "u = " << u;
   }
   // Passive torque (τ_pta + τ_ptv(0), both referenced) over the middle of
-  // the angles the free swing visited: within 0.6 N·m (measured over seeds
-  // 1–16: ≤ 0.52; the output-error refinement trades some of the torque
-  // fit for the angle fit, as hysteresis and friction bias either).
+  // the angles the free swing visited: within 0.75 N·m (measured over seeds
+  // 1–16: ≤ 0.71 since the pulse clock runs continuously through each trial
+  // (DESIGN.md §3), ≤ 0.52 before; the output-error refinement trades some
+  // of the torque fit for the angle fit, as hysteresis and friction bias
+  // either).
   const std::vector<double> angles = *out.run.trials.at(1).trial.Values("angle_deg");
   std::vector<double> sorted = angles;
   std::sort(sorted.begin(), sorted.end());
@@ -372,7 +374,7 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   for (double th = lo; th <= hi; th += 2.0) {
     const double est = p.passive.torque_angle(th) + p.passive.torque_velocity(0.0);
     const double truth = vs.truth.passive.torque_angle(th) + vs.truth.passive.torque_velocity(0.0);
-    EXPECT_NEAR(est, truth, 0.6) << "theta = " << th;
+    EXPECT_NEAR(est, truth, 0.75) << "theta = " << th;
   }
   EXPECT_NEAR(p.passive.inertia_kgm2, vs.truth.passive.inertia_kgm2, 1e-12);
   // The refinement ran and fits both free-swing trials better than the
