@@ -7,6 +7,7 @@
 #include <sstream>
 #include <system_error>
 #include <unordered_set>
+#include <utility>
 
 namespace fesbench::api {
 namespace {
@@ -179,9 +180,51 @@ Status ValidateChannelGroup(const ChannelGroup& group, std::string_view field_pr
   return Status::Ok();
 }
 
+model::PulseTrain PulseRecord::Train() const {
+  model::PulseTrain out;
+  out.reserve(t_s.size());
+  for (std::size_t i = 0; i < t_s.size() && i < stim_ma.size(); ++i) out.push_back({t_s[i], stim_ma[i]});
+  return out;
+}
+
+void PulseRecord::Append(double t_s_value, double stim_ma_value) {
+  t_s.push_back(t_s_value);
+  stim_ma.push_back(stim_ma_value);
+}
+
+Status ValidatePulseRecord(const PulseRecord& pulses) {
+  if (!std::isfinite(pulses.pulse_rate_hz) || pulses.pulse_rate_hz <= 0.0) {
+    return Status::InvalidArgument("must be a finite number > 0", "pulses.pulse_rate_hz");
+  }
+  if (!std::isfinite(pulses.pulse_width_us) || pulses.pulse_width_us <= 0.0) {
+    return Status::InvalidArgument("must be a finite number > 0", "pulses.pulse_width_us");
+  }
+  if (pulses.stim_ma.size() != pulses.t_s.size()) {
+    return Status::InvalidArgument("has " + std::to_string(pulses.stim_ma.size()) +
+                                       " values, t_s has " + std::to_string(pulses.t_s.size()),
+                                   "pulses.stim_ma");
+  }
+  for (std::size_t k = 0; k < pulses.t_s.size(); ++k) {
+    const std::string at = "[" + std::to_string(k) + "]";
+    if (!std::isfinite(pulses.t_s[k])) {
+      return Status::InvalidArgument("value is not finite", "pulses.t_s" + at);
+    }
+    if (k > 0 && !(pulses.t_s[k] >= pulses.t_s[k - 1])) {
+      return Status::InvalidArgument("pulse times decrease", "pulses.t_s" + at);
+    }
+    if (!std::isfinite(pulses.stim_ma[k]) || pulses.stim_ma[k] < 0.0) {
+      return Status::InvalidArgument("must be a finite number >= 0", "pulses.stim_ma" + at);
+    }
+  }
+  return Status::Ok();
+}
+
 Status ValidateTrial(const Trial& trial) {
   if (Status s = ValidateChannelGroup(trial.MainGroup()); !s.ok()) return s;
-  if (trial.emg) return ValidateChannelGroup(*trial.emg, "emg.");
+  if (trial.emg) {
+    if (Status s = ValidateChannelGroup(*trial.emg, "emg."); !s.ok()) return s;
+  }
+  if (trial.pulses) return ValidatePulseRecord(*trial.pulses);
   return Status::Ok();
 }
 
@@ -417,6 +460,12 @@ nlohmann::json TrialToJson(const Trial& trial) {
   json["sample_rate_hz"] = trial.sample_rate_hz;
   json["channels"] = ChannelsToJson(trial.channels);
   if (trial.emg) json["emg"] = GroupToJson(*trial.emg);
+  if (trial.pulses) {
+    json["pulses"] = {{"pulse_rate_hz", trial.pulses->pulse_rate_hz},
+                      {"pulse_width_us", trial.pulses->pulse_width_us},
+                      {"t_s", trial.pulses->t_s},
+                      {"stim_ma", trial.pulses->stim_ma}};
+  }
   return json;
 }
 
@@ -446,6 +495,35 @@ Result<Trial> TrialFromJson(const nlohmann::json& json) {
     ChannelGroup group;
     if (Status s = GroupFromJsonInto(*emg, "emg.", group); !s.ok()) return s;
     trial.emg = std::move(group);
+  }
+  if (const auto pulses = json.find("pulses"); pulses != json.end() && !pulses->is_null()) {
+    if (!pulses->is_object()) return Status::InvalidArgument("must be an object", "pulses");
+    PulseRecord record;
+    for (const auto& [key, target] : {std::pair{"pulse_rate_hz", &record.pulse_rate_hz},
+                                      std::pair{"pulse_width_us", &record.pulse_width_us}}) {
+      const auto v = pulses->find(key);
+      if (v == pulses->end()) return Status::InvalidArgument("missing", std::string("pulses.") + key);
+      if (!v->is_number()) {
+        return Status::InvalidArgument("must be a number", std::string("pulses.") + key);
+      }
+      *target = v->get<double>();
+    }
+    for (const auto& [key, target] :
+         {std::pair{"t_s", &record.t_s}, std::pair{"stim_ma", &record.stim_ma}}) {
+      const std::string field = std::string("pulses.") + key;
+      const auto v = pulses->find(key);
+      if (v == pulses->end()) return Status::InvalidArgument("missing", field);
+      if (!v->is_array()) return Status::InvalidArgument("must be an array", field);
+      target->reserve(v->size());
+      for (std::size_t k = 0; k < v->size(); ++k) {
+        if (!(*v)[k].is_number()) {
+          return Status::InvalidArgument("must be a number", field + "[" + std::to_string(k) + "]");
+        }
+        target->push_back((*v)[k].get<double>());
+      }
+    }
+    if (Status s = ValidatePulseRecord(record); !s.ok()) return s;
+    trial.pulses = std::move(record);
   }
   return trial;
 }

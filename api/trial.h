@@ -29,6 +29,7 @@
 
 #include "api/status.h"
 #include "model/identify_common.h"
+#include "model/signal.h"
 
 namespace fesbench::api {
 
@@ -62,6 +63,28 @@ struct ChannelGroup {
   friend bool operator==(const ChannelGroup&, const ChannelGroup&) = default;
 };
 
+/// The stimulation pulses delivered during a trial (DESIGN.md §3), as the
+/// stimulator read them back: what reached the leg, not what was commanded.
+/// Times on the trial's `t_s` axis (the bench's pulse clock restarts at the
+/// trial's t_s = 0, so grid pulses fall on k / pulse_rate_hz). Predictions on
+/// a stored trial replay these pulses. Two parallel columns, like a channel.
+struct PulseRecord {
+  double pulse_rate_hz = 33.0;    ///< the stimulator's pulse clock, Hz, > 0.
+  double pulse_width_us = 300.0;  ///< pulse width, µs, > 0.
+  /// Finite, non-decreasing (two pulses may be read back at one instant,
+  /// e.g. a single pulse fired at a grid time).
+  std::vector<double> t_s;
+  std::vector<double> stim_ma;    ///< delivered amplitude, mA, finite, ≥ 0.
+
+  std::size_t size() const { return t_s.size(); }
+  /// The pulses as a model pulse train (times unchanged).
+  model::PulseTrain Train() const;
+  /// Appends one pulse (no check: see ValidatePulseRecord).
+  void Append(double t_s_value, double stim_ma_value);
+
+  friend bool operator==(const PulseRecord&, const PulseRecord&) = default;
+};
+
 /// A recorded (or simulated) trial.
 struct Trial {
   std::optional<std::int64_t> id;                  ///< storage id, once stored.
@@ -70,6 +93,7 @@ struct Trial {
   double sample_rate_hz = 200.0;                   ///< > 0, rate of `channels`.
   std::vector<Channel> channels;                   ///< includes `t_s`.
   std::optional<ChannelGroup> emg;                 ///< EMG at its own rate (1 kHz).
+  std::optional<PulseRecord> pulses;               ///< delivered pulses, if recorded.
 
   /// The main group's channel called `name`, or nullptr.
   const Channel* FindChannel(std::string_view name) const;
@@ -101,7 +125,11 @@ bool IsValidChannelName(std::string_view name);
 /// increasing. The reported field is `<prefix>channels[i]...` (prefix "" or
 /// "emg.").
 Status ValidateChannelGroup(const ChannelGroup& group, std::string_view field_prefix = {});
-/// Checks the main group and, if present, the EMG group.
+/// Checks a pulse record: rate and width finite and > 0, columns of equal
+/// length, times finite and non-decreasing, amplitudes finite and ≥ 0.
+/// The reported field is "pulses.<name>" (e.g. "pulses.t_s[3]").
+Status ValidatePulseRecord(const PulseRecord& pulses);
+/// Checks the main group and, if present, the EMG group and the pulses.
 Status ValidateTrial(const Trial& trial);
 
 // --- CSV --------------------------------------------------------------------
@@ -142,8 +170,11 @@ std::string TrialToSto(const Trial& trial);
 /// JSON form:
 /// `{"id": 3, "name": "...", "start_time_unix_ms": ..., "sample_rate_hz": 200,
 ///   "channels": [{"name": "t_s", "unit": "s", "values": [...]}, ...],
-///   "emg": {"sample_rate_hz": 1000, "channels": [...]}}`;
-/// absent optionals are omitted. Never fails.
+///   "emg": {"sample_rate_hz": 1000, "channels": [...]},
+///   "pulses": {"pulse_rate_hz": 33, "pulse_width_us": 300,
+///              "t_s": [...], "stim_ma": [...]}}`;
+/// absent optionals are omitted. Never fails. (CSV and .sto carry the main
+/// group only.)
 nlohmann::json TrialToJson(const Trial& trial);
 nlohmann::json GroupToJson(const ChannelGroup& group);
 /// Parses and validates (ValidateTrial) the JSON form; the unit of a channel

@@ -60,6 +60,8 @@ class ClockBench final : public Bench {
   const BenchLimits& limits() const override { return limits_; }
   void SetStimAmplitude(double) override {}
   void TriggerPulse(double) override {}
+  void RestartPulseClock() override {}
+  std::vector<model::Pulse> DrainDeliveredPulses() override { return {}; }
   void SetMotorMode(MotorMode) override {}
   void SetMotorSetpoint(double) override {}
   double Now_s() const override { return t_; }

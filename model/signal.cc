@@ -25,16 +25,37 @@ double SampledSignal::InterpolateAt(double t_s) const {
   return (1.0 - w) * values[i] + w * values[i + 1];
 }
 
+PulseClock::PulseClock(double rate_hz, double origin_s) : rate_hz_(rate_hz), origin_s_(origin_s) {
+  if (!(rate_hz > 0.0) || !std::isfinite(rate_hz)) {
+    throw std::invalid_argument("PulseClock: pulse_rate_hz must be finite and > 0");
+  }
+  if (!std::isfinite(origin_s)) throw std::invalid_argument("PulseClock: origin_s must be finite");
+}
+
+std::int64_t PulseClock::FirstAtOrAfter(double t_s) const {
+  const double x = (t_s - kPulseTimeToleranceS - origin_s_) * rate_hz_;
+  if (!(x > 0.0)) return 0;
+  auto k = static_cast<std::int64_t>(std::ceil(x));
+  // ceil of a rounded product can be one off either way: settle on TimeOf.
+  while (k > 0 && TimeOf(k - 1) >= t_s - kPulseTimeToleranceS) --k;
+  while (TimeOf(k) < t_s - kPulseTimeToleranceS) ++k;
+  return k;
+}
+
+std::optional<double> FirstGridTimeIn(double from_s, double to_s, double pulse_rate_hz) {
+  const PulseClock clock(pulse_rate_hz);
+  const double t = clock.TimeOf(clock.FirstAtOrAfter(from_s));
+  if (t < to_s - kPulseTimeToleranceS) return t;
+  return std::nullopt;
+}
+
 PulseTrain PulsesFromEnvelope(const SampledSignal& envelope, double pulse_rate_hz) {
   if (!(pulse_rate_hz > 0.0) || !std::isfinite(pulse_rate_hz)) {
     throw std::invalid_argument("PulsesFromEnvelope: pulse rate must be positive");
   }
-  if (!(envelope.rate_hz > 0.0)) {
+  if (!(envelope.rate_hz > 0.0) || !std::isfinite(envelope.rate_hz)) {
     throw std::invalid_argument("PulsesFromEnvelope: sample rate must be positive");
   }
-  const double period_s = 1.0 / pulse_rate_hz;
-  PulseTrain pulses;
-  std::size_t i = 0;
   const std::size_t n = envelope.size();
   for (std::size_t k = 0; k < n; ++k) {
     const double v = envelope.values[k];
@@ -43,23 +64,30 @@ PulseTrain PulsesFromEnvelope(const SampledSignal& envelope, double pulse_rate_h
                                   std::to_string(k) + ")");
     }
   }
+  const PulseClock clock(pulse_rate_hz);
+  PulseTrain pulses;
+  std::size_t i = 0;
   while (i < n) {
     if (envelope.values[i] == 0.0) {
       ++i;
       continue;
     }
-    // A run of non-zero samples [i, j): pulses at its onset and every period.
+    // A run of non-zero samples [i, j), held over [TimeAt(i), TimeAt(j)).
     std::size_t j = i;
     while (j < n && envelope.values[j] != 0.0) ++j;
     const double start = envelope.TimeAt(i);
     const double end = envelope.TimeAt(j);
-    for (int m = 0;; ++m) {
-      const double t = start + m * period_s;
-      if (t >= end - 1e-12) break;
-      const auto idx = std::min(
-          j - 1, i + static_cast<std::size_t>(std::floor((t - start) * envelope.rate_hz + 1e-9)));
+    const std::size_t first = pulses.size();
+    for (std::int64_t k = clock.FirstAtOrAfter(start);; ++k) {
+      const double t = clock.TimeOf(k);
+      if (t >= end - kPulseTimeToleranceS) break;
+      const double pos =
+          std::floor((t - envelope.t0_s + kPulseTimeToleranceS) * envelope.rate_hz);
+      const std::size_t idx = std::clamp<std::size_t>(
+          pos < 0.0 ? 0 : static_cast<std::size_t>(pos), i, j - 1);
       pulses.push_back({t, envelope.values[idx]});
     }
+    if (pulses.size() == first) pulses.push_back({start, envelope.values[i]});  // an impulse
     i = j;
   }
   return pulses;

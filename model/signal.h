@@ -7,6 +7,8 @@
 /// DESIGN.md §3) and prescribed knee trajectories (motor mode, §4.2.2).
 
 #include <cstddef>
+#include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace fesbench::model {
@@ -39,15 +41,61 @@ struct Pulse {
 /// Pulses in strictly increasing time.
 using PulseTrain = std::vector<Pulse>;
 
-/// The pulses a stimulator triggered by a sampled amplitude envelope
-/// (stim_ma) delivers: a pulse at the start of every run of non-zero
-/// samples, then one every 1 / pulse_rate_hz while the envelope stays
-/// non-zero, each with the envelope's held amplitude at its time. A single
-/// non-zero sample therefore gives exactly one pulse (an impulse, §4.1.2),
-/// and a burst gives a train at the pulse rate (33 Hz, §5.1).
-/// @throws std::invalid_argument if pulse_rate_hz <= 0 or any value is
-///   negative or not finite.
+/// Two times closer than this are the same instant of the pulse clock, s
+/// (absorbs the round-off of origin + k / f on a bench clock).
+inline constexpr double kPulseTimeToleranceS = 1e-9;
+
+/// The stimulator's pulse clock (DESIGN.md §3, one rule for bench, model,
+/// CLI, predictions and the model gate): it runs continuously from its
+/// origin — the start of a trial — and offers a pulse at every grid time
+/// t_k = origin_s + k / rate_hz, k = 0, 1, …; the amplitude envelope decides
+/// whether a grid time fires (amplitude > 0) and with what amplitude. A
+/// burst therefore does not restart the grid.
+class PulseClock {
+ public:
+  /// @throws std::invalid_argument unless rate_hz is finite and > 0 and
+  ///   origin_s is finite.
+  explicit PulseClock(double rate_hz, double origin_s = 0.0);
+
+  double rate_hz() const { return rate_hz_; }
+  double origin_s() const { return origin_s_; }
+  /// Grid time k, s: origin_s + k / rate_hz (computed as a division so that
+  /// k / f is exact wherever it can be, e.g. 132 / 33 = 4).
+  double TimeOf(std::int64_t k) const {
+    return origin_s_ + static_cast<double>(k) / rate_hz_;
+  }
+  /// The smallest k ≥ 0 with TimeOf(k) ≥ t_s − kPulseTimeToleranceS.
+  std::int64_t FirstAtOrAfter(double t_s) const;
+
+ private:
+  double rate_hz_;
+  double origin_s_;
+};
+
+/// The pulses a stimulator with a continuous pulse clock delivers for a
+/// sampled amplitude envelope (stim_ma held from each sample to the next, as
+/// a D/A holds its set-point), with the clock's origin at t = 0 of the
+/// envelope's time axis (the trial's start; envelope.t0_s is the time of its
+/// first sample on that axis):
+///  - every grid time t_k = k / pulse_rate_hz at which the held envelope is
+///    non-zero is a pulse with that amplitude (a burst fires on the grid; its
+///    first pulse is at the first grid time inside it, not at its onset);
+///  - a run of non-zero samples that holds no grid time (shorter than one
+///    pulse period and between two grid times, e.g. a single 5 ms sample:
+///    an impulse, §4.1.2) is one single pulse at the run's first sample with
+///    that sample's amplitude — the stimulator's single-pulse command, which
+///    the protocol runner issues for such a run (Bench::TriggerPulse).
+/// So an isolated impulse is exactly one pulse, however the envelope was
+/// sampled, and a train at amplitude u is a 33 Hz train on the trial's grid.
+/// @throws std::invalid_argument if pulse_rate_hz or the envelope's rate is
+///   not finite and > 0, or any value is negative or not finite.
 PulseTrain PulsesFromEnvelope(const SampledSignal& envelope_ma, double pulse_rate_hz);
+
+/// The first grid time of a pulse clock with origin 0 in [from_s, to_s)
+/// (both within kPulseTimeToleranceS), if any: the test PulsesFromEnvelope
+/// applies to a run of non-zero samples, shared with the protocol runner.
+/// @throws std::invalid_argument as PulseClock.
+std::optional<double> FirstGridTimeIn(double from_s, double to_s, double pulse_rate_hz);
 
 /// Knee kinematics at one instant.
 struct Kinematics {

@@ -82,12 +82,28 @@ std::size_t ValidateOptions(const SimulationOptions& options, double default_dur
 
 std::vector<double> StimulusColumn(const PulseTrain& pulses, double pulse_rate_hz,
                                    const std::vector<double>& t_s) {
-  const double hold_s = 1.0 / pulse_rate_hz + 1e-6;
+  // A train continues from one pulse to the next if they are one period
+  // apart (1 µs slack); single pulses and the last pulse of a train do not.
+  const double period_s = 1.0 / pulse_rate_hz;
+  const auto continues = [&](std::size_t j) {
+    return j + 1 < pulses.size() && pulses[j + 1].t_s - pulses[j].t_s < period_s + 1e-6;
+  };
   std::vector<double> out(t_s.size(), 0.0);
-  std::size_t p = 0;  // number of pulses at or before the current time
+  std::size_t p = 0;  // pulses before the current sample's start
   for (std::size_t i = 0; i < t_s.size(); ++i) {
-    while (p < pulses.size() && pulses[p].t_s <= t_s[i]) ++p;
-    if (p > 0 && t_s[i] - pulses[p - 1].t_s < hold_s) out[i] = pulses[p - 1].stim_ma;
+    const double begin = t_s[i] - kPulseTimeToleranceS;
+    const double span = i + 1 < t_s.size() ? t_s[i + 1] - t_s[i]
+                        : i > 0            ? t_s[i] - t_s[i - 1]
+                                           : period_s;
+    const double end = t_s[i] + span - kPulseTimeToleranceS;
+    while (p < pulses.size() && pulses[p].t_s < begin) ++p;
+    std::size_t q = p;
+    while (q < pulses.size() && pulses[q].t_s < end) ++q;
+    if (q > p) {
+      out[i] = pulses[q - 1].stim_ma;  // a pulse in this sample's interval
+    } else if (p > 0 && continues(p - 1)) {
+      out[i] = pulses[p - 1].stim_ma;  // between two pulses of a train
+    }
   }
   return out;
 }

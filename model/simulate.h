@@ -68,10 +68,10 @@ struct SimulationOptions {
 /// Equal-length columns, one row per output sample.
 struct SimulationResult {
   std::vector<double> t_s;
-  /// Amplitude of the most recent pulse at or before t_i if it came less than
-  /// one pulse period (1/pulse_rate_hz, plus 1 µs slack) before t_i, else 0:
-  /// a steady train reads as its amplitude, a stopped train as 0, and a
-  /// single pulse shows for one period.
+  /// The delivered stimulation as an envelope (StimulusColumn): the
+  /// amplitude of the pulse in [t_i, t_{i+1}), else of the previous pulse
+  /// while its train goes on, else 0. PulsesFromEnvelope of this column gives
+  /// the pulses back (a single pulse is one sample, never two pulses).
   std::vector<double> stim_ma;
   std::vector<double> angle_deg;
   std::vector<double> velocity_deg_s;
@@ -119,8 +119,17 @@ SimulationResult SimulateIsometric(const ParameterSet& params, const PulseTrain&
 SimulationResult SimulateTrajectory(const ParameterSet& params, const PulseTrain& pulses,
                                     const Trajectory& trajectory, const SimulationOptions& options);
 
-/// The stim_ma column rule of SimulationResult at the given sample times
-/// (non-decreasing; pulses validated by the caller).
+/// The stim_ma column of SimulationResult, also the stim_delivered_ma
+/// channel of a bench trial (server/protocols/runner.cc): sample i, which
+/// covers [t_i, t_{i+1}) (the last sample as long as the one before it),
+/// reads the amplitude of the last pulse in that interval; without one, the
+/// amplitude of the previous pulse if the next pulse follows it one pulse
+/// period later (a train going on), else 0. A train thus reads as its
+/// envelope from the sample of its first pulse to that of its last, and a
+/// single pulse as one sample, so PulsesFromEnvelope of the column at a
+/// sample rate above the pulse rate returns the pulses of the continuous
+/// grid (DESIGN.md §3) and single pulses at sample times unchanged.
+/// Sample times non-decreasing; pulses validated by the caller.
 std::vector<double> StimulusColumn(const PulseTrain& pulses, double pulse_rate_hz,
                                    const std::vector<double>& t_s);
 

@@ -7,8 +7,11 @@
 ///
 /// Every generator returns a model::SampledSignal of stimulation amplitude
 /// (stim_ma) at kStimulusRateHz, starting at t = 0. The stimulator turns it
-/// into pulses with PulsesFromEnvelope: a single non-zero sample is one
-/// impulse, a run of non-zero samples a train at the pulse rate (33 Hz).
+/// into pulses with PulsesFromEnvelope (DESIGN.md §3): its pulse clock runs
+/// continuously from t = 0 at the pulse rate (33 Hz), a run of non-zero
+/// samples fires at the grid times inside it, and a run too short to hold
+/// one (a single non-zero sample: an impulse) is exactly one pulse at its
+/// start.
 /// Amplitudes are scaled to the subject through threshold_ma (the torque
 /// threshold) and max_ma (the maximum tolerated amplitude); "range" below
 /// means [threshold_ma, max_ma] unless stated otherwise.

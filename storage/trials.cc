@@ -57,6 +57,22 @@ api::Result<api::Trial> GetTrialIn(Connection& c, std::int64_t id) {
       },
       id);
   if (!channels.ok()) return channels.status();
+  auto pulses = internal::QueryRows(
+      c,
+      "SELECT pulse_rate_hz, pulse_width_us, pulse_count, t_s_f64le, stim_ma_f64le"
+      " FROM trial_pulses WHERE trial_id = ?1",
+      [&](const Statement& s) -> api::Result<api::PulseRecord> {
+        auto t = UnpackFloat64Le(s.Blob(3));
+        auto u = UnpackFloat64Le(s.Blob(4));
+        const auto count = static_cast<std::size_t>(s.Int64(2));
+        if (!t || !u || t->size() != count || u->size() != count) {
+          return internal::BadStoredValue("pulses of trial " + std::to_string(id));
+        }
+        return api::PulseRecord{s.Double(0), s.Double(1), std::move(*t), std::move(*u)};
+      },
+      id);
+  if (!pulses.ok()) return pulses.status();
+  if (!pulses->empty()) trial.pulses = std::move(pulses->front());
   for (StoredChannel& stored : *channels) {
     if (stored.group == "main") {
       trial.sample_rate_hz = stored.rate_hz;
@@ -101,6 +117,18 @@ api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner,
     }
     if (trial.emg) {
       if (auto s = InsertChannels(c, id, "emg", trial.emg->sample_rate_hz, trial.emg->channels);
+          !s.ok()) {
+        return s;
+      }
+    }
+    if (trial.pulses) {
+      const api::PulseRecord& p = *trial.pulses;
+      if (auto s = internal::Execute(
+              c,
+              "INSERT INTO trial_pulses (trial_id, pulse_rate_hz, pulse_width_us, pulse_count,"
+              " t_s_f64le, stim_ma_f64le) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+              id, p.pulse_rate_hz, p.pulse_width_us, static_cast<std::int64_t>(p.size()),
+              PackFloat64Le(p.t_s), PackFloat64Le(p.stim_ma));
           !s.ok()) {
         return s;
       }

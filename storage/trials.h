@@ -3,7 +3,8 @@
 /// @file
 /// Recorded trials (DESIGN.md §7): every channel with its name, unit and
 /// sample rate; samples as one BLOB per channel of little-endian IEEE-754
-/// float64 values. Trials are immutable once stored.
+/// float64 values; the delivered pulses (api::PulseRecord), if any, as two
+/// such BLOBs in trial_pulses. Trials are immutable once stored.
 
 #include <cstdint>
 #include <optional>

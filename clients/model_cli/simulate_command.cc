@@ -65,6 +65,10 @@ api::Trial RunSimulation(const model::ParameterSet& params, const model::Sampled
   trial.SetChannel("accel_deg_s2", std::move(r.accel_deg_s2));
   trial.SetChannel("torque_nm", std::move(r.torque_nm));
   trial.SetChannel("activation", std::move(r.activation));
+  api::PulseRecord record;
+  record.pulse_rate_hz = options.pulse_rate_hz;
+  for (const model::Pulse& p : pulses) record.Append(p.t_s, p.stim_ma);
+  trial.pulses = std::move(record);
   return trial;
 }
 

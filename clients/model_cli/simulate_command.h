@@ -27,13 +27,15 @@ inline constexpr std::string_view kSimulationColumns[] = {
     "t_s", "stim_ma", "angle_deg", "velocity_deg_s", "accel_deg_s2", "torque_nm", "activation"};
 
 /// Simulates `params` driven by the pulses the stimulator makes of
-/// `envelope_ma` (model::PulsesFromEnvelope at options.pulse_rate_hz).
+/// `envelope_ma` (model::PulsesFromEnvelope at options.pulse_rate_hz: the
+/// pulse clock runs continuously from the envelope's t = 0, DESIGN.md §3).
 /// `angle_deg` is the held angle (isometric) or θ(0) (free swing; it
 /// overrides options.initial_angle_deg). When options.duration_s is unset
 /// the run covers the envelope, [0, envelope.EndTime()), or in trajectory
 /// mode the trajectory's samples, [0, trajectory_end_s).
 /// @returns a trial with the kSimulationColumns channels at
-///   options.output_rate_hz.
+///   options.output_rate_hz (stim_ma: model::StimulusColumn of the pulses)
+///   and the pulses themselves (Trial::pulses, in its JSON form).
 /// @throws std::invalid_argument for invalid inputs (see model/simulate.h);
 ///   trajectory must be non-null in trajectory mode.
 api::Trial RunSimulation(const model::ParameterSet& params, const model::SampledSignal& envelope_ma,

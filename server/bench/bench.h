@@ -15,6 +15,8 @@
 #include <string_view>
 #include <vector>
 
+#include "model/signal.h"
+
 namespace fesbench::server {
 
 /// The model gate's default limit on the predicted speed of the knee at a
@@ -54,7 +56,9 @@ struct SensorFrame {
   double angle_deg = 0.0;        ///< potentiometer.
   double torque_nm = 0.0;        ///< strut strain gauge (brace on shank, + flexion).
   double accel_m_s2 = 0.0;       ///< tangential accelerometer on the calf (includes gravity).
-  double stim_ma = 0.0;          ///< amplitude the stimulator is delivering.
+  /// Read-back: amplitude of the last pulse delivered if it came less than
+  /// one pulse period ago, else 0.
+  double stim_ma = 0.0;
   bool limit_flexion = false;    ///< limit switch near the 110° stop.
   bool limit_extension = false;  ///< limit switch near the 10° stop.
   bool estop = false;            ///< hardware e-stop engaged.
@@ -68,11 +72,26 @@ class Bench {
   virtual std::string_view kind() const = 0;
   virtual const BenchLimits& limits() const = 0;
 
-  /// Stimulation envelope: while amplitude > 0 the stimulator fires pulses
-  /// at the pulse rate, the first one at once when it rises from 0.
+  /// Stimulation envelope (DESIGN.md §3): the stimulator's pulse clock
+  /// fires at every grid time t_k = origin + k / pulse_rate_hz (origin: the
+  /// last RestartPulseClock) while the amplitude is > 0, each pulse with the
+  /// amplitude set at its time. Setting an amplitude fires nothing by itself;
+  /// a pulse due at the very instant AdvanceTo stops at fires on the next
+  /// AdvanceTo, with the amplitude set in between.
   virtual void SetStimAmplitude(double stim_ma) = 0;
-  /// One single pulse now (impulse-response protocols, §4.1.2).
+  /// One single pulse now, off the grid (impulse-response protocols,
+  /// §4.1.2: a run of the envelope too short to hold a grid time).
   virtual void TriggerPulse(double stim_ma) = 0;
+  /// Restarts the pulse clock's grid at the current bench time (the start of
+  /// a trial: a ScienceMode stimulator (re)initialising channel-list mode).
+  /// The first grid time is now.
+  virtual void RestartPulseClock() = 0;
+  /// Read-back of the stimulator's output stage: every pulse it delivered
+  /// since the previous call (bench time, delivered amplitude), in order —
+  /// the simulated stimulator reports what reached the leg; a real driver
+  /// reads the measured pulses back from the stimulator. Nothing a caller
+  /// commanded appears here unless it was delivered.
+  virtual std::vector<model::Pulse> DrainDeliveredPulses() = 0;
 
   virtual void SetMotorMode(MotorMode mode) = 0;
   /// Position set-point for kPosition and the lock angle for kLocked.

@@ -48,6 +48,11 @@ api::Result<std::unique_ptr<ReplayBench>> ReplayBench::Create(std::vector<api::T
     p.accel = track(bench_channels::kAccel, main);
     p.stim = track(bench_channels::kStim, main);
     p.emg = trial.emg ? track(bench_channels::kEmg, *trial.emg) : track(bench_channels::kEmg, main);
+    if (trial.pulses) {
+      for (const model::Pulse& pulse : trial.pulses->Train()) {
+        p.pulses.push_back({start + (pulse.t_s - t0), pulse.stim_ma});
+      }
+    }
     start = p.end_s;
     bench->trials_.push_back(std::move(p));
   }
@@ -76,6 +81,7 @@ void ReplayBench::SetStimAmplitude(double stim_ma) {
   Record(ReplayCommand::Kind::kStimAmplitude, stim_ma);
 }
 void ReplayBench::TriggerPulse(double stim_ma) { Record(ReplayCommand::Kind::kTriggerPulse, stim_ma); }
+void ReplayBench::RestartPulseClock() { Record(ReplayCommand::Kind::kRestartPulseClock, 0.0); }
 void ReplayBench::SetMotorMode(MotorMode mode) {
   Record(ReplayCommand::Kind::kMotorMode, static_cast<double>(mode));
 }
@@ -157,6 +163,19 @@ std::vector<double> ReplayBench::DrainEmg_mv() {
     }
   }
   emg_drained_to_s_ = t_;
+  return out;
+}
+
+std::vector<model::Pulse> ReplayBench::DrainDeliveredPulses() {
+  std::vector<model::Pulse> out;
+  const auto before = [](double t, const model::Pulse& p) { return t < p.t_s; };
+  for (const Playing& p : trials_) {
+    const auto lo = std::upper_bound(p.pulses.begin(), p.pulses.end(),
+                                     pulses_drained_to_s_ + 1e-9, before);
+    const auto hi = std::upper_bound(p.pulses.begin(), p.pulses.end(), t_ + 1e-9, before);
+    if (lo < hi) out.insert(out.end(), lo, hi);
+  }
+  pulses_drained_to_s_ = t_;
   return out;
 }
 

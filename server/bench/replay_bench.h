@@ -15,6 +15,9 @@
 /// EMG comes from the trial's `emg` group (channel `emg_mv`, its own rate),
 /// or from a main-group `emg_mv` channel if there is no group.
 /// While the hardware e-stop is latched the stim channel reads 0.
+/// The stimulator read-back (DrainDeliveredPulses) plays each trial's
+/// recorded pulses (api::Trial::pulses) as bench time passes them; a trial
+/// without recorded pulses delivers none. Commands deliver nothing.
 /// Storage-backed replay: load the trials with the storage repositories and
 /// pass them here.
 
@@ -43,7 +46,15 @@ inline constexpr std::string_view kEmg = "emg_mv";
 
 /// One command the replay bench received.
 struct ReplayCommand {
-  enum class Kind { kStimAmplitude, kTriggerPulse, kMotorMode, kMotorSetpoint, kEStop, kClearEStop };
+  enum class Kind {
+    kStimAmplitude,
+    kTriggerPulse,
+    kRestartPulseClock,
+    kMotorMode,
+    kMotorSetpoint,
+    kEStop,
+    kClearEStop
+  };
   Kind kind;
   double t_s;    ///< bench time.
   double value;  ///< mA, deg, or the MotorMode as a number; 0 for e-stop.
@@ -70,6 +81,9 @@ class ReplayBench final : public Bench {
 
   void SetStimAmplitude(double stim_ma) override;
   void TriggerPulse(double stim_ma) override;
+  /// Recorded as a command; the recorded pulses keep their own times.
+  void RestartPulseClock() override;
+  std::vector<model::Pulse> DrainDeliveredPulses() override;
   void SetMotorMode(MotorMode mode) override;
   void SetMotorSetpoint(double angle_deg) override;
 
@@ -101,6 +115,7 @@ class ReplayBench final : public Bench {
     double start_s = 0.0;
     double end_s = 0.0;
     Track angle, torque, accel, stim, emg;
+    std::vector<model::Pulse> pulses;  // bench time
   };
   explicit ReplayBench(ReplayBenchOptions options);
   static double Sample(const Track& track, double t_s);
@@ -116,6 +131,7 @@ class ReplayBench final : public Bench {
   std::atomic<bool> estop_{false};
   double t_ = 0.0;
   double emg_drained_to_s_ = -1e300;
+  double pulses_drained_to_s_ = -1e300;
 };
 
 }  // namespace fesbench::server

@@ -48,6 +48,7 @@ constexpr double kMWavePeriodS = 0.012;
 constexpr double kMWaveDecayS = 0.006;
 constexpr double kMWaveSpanS = 0.04;
 constexpr std::size_t kMaxEmgSamples = 600'000;  // 10 min at 1 kHz.
+constexpr std::size_t kMaxPulses = 1'000'000;     // ~8 h at 33 Hz.
 
 enum NoiseChannel { kNoiseAngle = 1, kNoiseTorque, kNoiseAccel, kNoiseEmg, kNoiseBurstEmg };
 
@@ -105,6 +106,7 @@ SimulatedBench::SimulatedBench(VirtualSubject subject, SimulatedBenchOptions opt
         return model::JointModel::FromParameters(subject_.truth);
       }()),
       pacer_(options_.clock, options_.time_scale),
+      pulse_clock_(options_.limits.pulse_rate_hz),
       primary_(subject_.truth.contraction),
       alternate_(AlternateContraction(subject_.truth.contraction)),
       burst_rng_(SplitMix64(subject_.seed ^ SplitMix64(options_.seed ^ 0xB0B5ULL))) {
@@ -136,12 +138,9 @@ void SimulatedBench::set_time_scale(double time_scale) {
 
 void SimulatedBench::SetStimAmplitude(double stim_ma) {
   std::lock_guard lock(mu_);
-  const double a = (std::isfinite(stim_ma) && stim_ma > 0.0)
-                       ? std::min(stim_ma, options_.limits.max_stim_ma)
-                       : 0.0;
-  commanded_ma_ = a;
-  if (a == 0.0) train_active_ = false;
-  StartTrainIfDue();
+  commanded_ma_ = (std::isfinite(stim_ma) && stim_ma > 0.0)
+                      ? std::min(stim_ma, options_.limits.max_stim_ma)
+                      : 0.0;
 }
 
 void SimulatedBench::TriggerPulse(double stim_ma) {
@@ -150,26 +149,18 @@ void SimulatedBench::TriggerPulse(double stim_ma) {
   FirePulse(std::min(stim_ma, options_.limits.max_stim_ma));
 }
 
-void SimulatedBench::StartTrainIfDue() {
-  // The first pulse at once when the amplitude rises from 0 (§5.1;
-  // model::PulsesFromEnvelope), then every 1/f_pulse.
-  if (train_active_ || commanded_ma_ <= 0.0 || HardwareEStopped()) return;
-  train_active_ = true;
-  train_start_s_ = t_;
-  train_count_ = 0;
-  FireDuePulses();
+void SimulatedBench::RestartPulseClock() {
+  std::lock_guard lock(mu_);
+  pulse_clock_ = model::PulseClock(options_.limits.pulse_rate_hz, t_);
+  next_grid_k_ = 0;
 }
 
 void SimulatedBench::FireDuePulses() {
-  if (HardwareEStopped()) {
-    train_active_ = false;
-    return;
-  }
-  const double period_s = 1.0 / options_.limits.pulse_rate_hz;
-  while (train_active_ &&
-         train_start_s_ + static_cast<double>(train_count_) * period_s <= t_ + 1e-12) {
-    FirePulse(commanded_ma_);
-    ++train_count_;
+  // DESIGN.md §3: every grid time reached fires if the amplitude is > 0
+  // (and the e-stop is not latched); the grid runs on either way.
+  while (pulse_clock_.TimeOf(next_grid_k_) <= t_ + model::kPulseTimeToleranceS) {
+    if (commanded_ma_ > 0.0 && !HardwareEStopped()) FirePulse(commanded_ma_);
+    ++next_grid_k_;
   }
 }
 
@@ -184,7 +175,10 @@ void SimulatedBench::FirePulse(double stim_ma) {
   last_pulse_t_s_ = t_;
   last_pulse_ma_ = stim_ma;
   last_pulse_r_ = r;
-  delivered_.push_back({t_, stim_ma});
+  for (auto* log : {&delivered_, &readback_}) {
+    if (log->size() >= kMaxPulses) log->erase(log->begin(), log->begin() + kMaxPulses / 2);
+    log->push_back({t_, stim_ma});
+  }
 }
 
 double SimulatedBench::RawActivationAfter(double dt_s) {
@@ -394,14 +388,9 @@ void SimulatedBench::IntegratePiece(double t_end) {
 
 void SimulatedBench::ControlStepStart() {
   // E-stop: stimulator and motor power cut (the motor falls to kDisabled
-  // behaviour in EffectiveMode, a lock opens).
-  if (HardwareEStopped()) {
-    train_active_ = false;
-    lock_engaged_ = false;
-  } else {
-    StartTrainIfDue();
-    FireDuePulses();  // a pulse due exactly where the last AdvanceTo stopped
-  }
+  // behaviour in EffectiveMode, a lock opens; FireDuePulses fires nothing).
+  if (HardwareEStopped()) lock_engaged_ = false;
+  FireDuePulses();  // a grid time exactly where the last AdvanceTo stopped
   if (t_ - setpoint_time_s_ > 2.5 * kControlDtS) setpoint_velocity_deg_s_ = 0.0;
   TryEngageLock();
   if (t_ >= burst_end_s_) ScheduleBursts();
@@ -425,11 +414,9 @@ void SimulatedBench::AdvanceTo(double t_target) {
     const double grid_next = static_cast<double>(step_index_ + 1) * kControlDtS;
     const double seg_end = std::min(t_target, grid_next);
     while (t_ < seg_end - 1e-12) {
-      const double period_s = 1.0 / options_.limits.pulse_rate_hz;
-      double next = seg_end;
-      if (train_active_) {
-        next = std::min(next, train_start_s_ + static_cast<double>(train_count_) * period_s);
-      }
+      // Integration pieces end at every grid time, so a pulse falls between
+      // two pieces at its exact time.
+      const double next = std::min(seg_end, pulse_clock_.TimeOf(next_grid_k_));
       if (next > t_) IntegratePiece(next);
       // Pulses due at the very end wait for the caller's commands at that
       // time (a stimulator samples its amplitude when it fires).
@@ -547,6 +534,13 @@ std::vector<double> SimulatedBench::DrainEmg_mv() {
 model::PulseTrain SimulatedBench::DeliveredPulses() {
   std::lock_guard lock(mu_);
   return delivered_;
+}
+
+std::vector<model::Pulse> SimulatedBench::DrainDeliveredPulses() {
+  std::lock_guard lock(mu_);
+  std::vector<model::Pulse> out;
+  out.swap(readback_);
+  return out;
 }
 
 }  // namespace fesbench::server

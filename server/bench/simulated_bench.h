@@ -7,9 +7,11 @@
 /// Physics (θ in degrees of flexion, torques + flexion, DESIGN.md §2):
 ///   J·θ̈ = τ_brace − τ_pta(θ) − τ_ptv(θ̇) − τ_hyst − τ_fric − τ_muscle − τ_vol
 /// with τ_brace = τ_motor + τ_stop, θ̈ in rad/s².
-/// - Stimulator: pulses at the pulse rate while the amplitude is > 0, the
-///   first at once when it rises from 0 (model::PulsesFromEnvelope's rule);
-///   TriggerPulse fires one now. Each pulse is an impulse of weight
+/// - Stimulator: a continuous pulse clock (model::PulseClock, DESIGN.md §3)
+///   restarted by RestartPulseClock (at bench start and by the runner at each
+///   trial's start); every grid time at which the amplitude is > 0 fires a
+///   pulse of that amplitude (model::PulsesFromEnvelope's rule); TriggerPulse
+///   fires one now, off the grid. Each pulse is an impulse of weight
 ///   R(u)/f_pulse into H_n (DESIGN.md §3), propagated exactly between events;
 ///   with twitch variation a fraction goes to a chain of the other order
 ///   peaking at the same time (Fig. 3-8).
@@ -116,6 +118,8 @@ class SimulatedBench final : public Bench {
 
   void SetStimAmplitude(double stim_ma) override;
   void TriggerPulse(double stim_ma) override;
+  void RestartPulseClock() override;
+  std::vector<model::Pulse> DrainDeliveredPulses() override;
   void SetMotorMode(MotorMode mode) override;
   void SetMotorSetpoint(double angle_deg) override;
 
@@ -133,14 +137,15 @@ class SimulatedBench final : public Bench {
   void set_time_scale(double time_scale);
   const VirtualSubject& subject() const { return subject_; }
   LegTruth Truth();
-  /// Every pulse the stimulator delivered (time, amplitude), in order.
+  /// Every pulse the stimulator delivered (time, amplitude), in order (the
+  /// oldest half is dropped beyond 10⁶ pulses, ~8 h at 33 Hz). Unlike
+  /// DrainDeliveredPulses, reading does not consume.
   model::PulseTrain DeliveredPulses();
 
  private:
   using State = Eigen::Matrix<double, 3, 1>;  // θ (deg), θ̇ (deg/s), τ_hyst (N·m)
   struct Forces;
 
-  void StartTrainIfDue();
   void FirePulse(double stim_ma);
   void FireDuePulses();
   void ControlStepStart();
@@ -176,13 +181,13 @@ class SimulatedBench final : public Bench {
 
   // Stimulator.
   double commanded_ma_ = 0.0;
-  bool train_active_ = false;
-  double train_start_s_ = 0.0;
-  std::int64_t train_count_ = 0;
+  model::PulseClock pulse_clock_;
+  std::int64_t next_grid_k_ = 0;  // the next grid time not yet passed
   double last_pulse_t_s_ = -1e9;
   double last_pulse_ma_ = 0.0;
   double last_pulse_r_ = 0.0;
   model::PulseTrain delivered_;
+  std::vector<model::Pulse> readback_;  // since the last DrainDeliveredPulses
 
   // Contraction chains (primary order n and the same-peak alternate).
   model::ContractionPropagator primary_, alternate_;

@@ -39,7 +39,10 @@ model::SimulationResult SimulateStimulatedSwing(const model::ParameterSet& param
                                                 const model::PulseTrain& pulses,
                                                 const model::SimulationOptions& options);
 
-/// The pulses of a stimulation envelope (mA) at the stimulator's pulse rate.
+/// The pulses of a stimulation envelope (mA) at the stimulator's pulse rate:
+/// model::PulsesFromEnvelope, the pulse clock running continuously from the
+/// envelope's t = 0 (a trial's start), as the bench delivers a plan's trial
+/// (the runner restarts the clock at each trial, DESIGN.md §3).
 model::PulseTrain EnvelopePulses(const model::SampledSignal& envelope_ma, double pulse_rate_hz);
 
 /// The knee arriving at a stop in a simulated trial.

@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include "model/identify_isometric.h"
+#include "model/simulate.h"
 #include "server/protocols/rapid_identification.h"
 
 namespace fesbench::server::protocols {
@@ -28,6 +29,7 @@ struct Recorder {
   RecordedTrial rec;
   std::vector<double> t_s, stim_ma, angle_deg, torque_nm, accel_m_s2, setpoint_deg;
   std::vector<double> emg_mv;
+  api::PulseRecord pulses;  // read back from the stimulator, trial time
   bool record_setpoint = false;
   std::int64_t start_tick = 0;
   double offset_nm = 0.0;
@@ -174,6 +176,11 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   if (options_.arm_watchdog) bench_.ArmWatchdog();
 
   const double t0 = bench_.Now_s();
+  // DESIGN.md §3: the pulse clock restarts with the run and with each trial
+  // and then runs on; pulses read back outside a trial belong to none.
+  bench_.RestartPulseClock();
+  bench_.DrainDeliveredPulses();
+  std::int64_t clock_tick = 0;  // global tick of the last restart
   const std::int64_t total = plan.total_ticks();
   const auto progress_every =
       std::max<std::int64_t>(1, std::llround(options_.progress_interval_s * kTicksPerSecond));
@@ -184,6 +191,8 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   double last_stim = -1.0;
   std::optional<Recorder> rec;
   int rec_trial = -1;
+  double prev_u = 0.0;                 // the plan's amplitude at the previous tick
+  std::int64_t single_pulse_end = -1;  // global tick: a run delivered as one pulse ends here
   std::vector<double> stim_scale(plan.trials.size(), 1.0);
   std::vector<double> stim_floor(plan.trials.size(), 0.0);  // ApplySearchedAmplitude
 
@@ -215,9 +224,16 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     observer_->OnSamples(b);
   };
 
+  const auto collect_pulses = [&] {
+    for (const model::Pulse& p : bench_.DrainDeliveredPulses()) {
+      if (rec) rec->pulses.Append(p.t_s - rec->rec.bench_start_s, p.stim_ma);
+    }
+  };
+
   const auto close_trial = [&](bool complete) {
     if (!rec) return;
     emit_batch(true);
+    collect_pulses();
     for (double v : bench_.bench().DrainEmg_mv()) rec->emg_mv.push_back(v);
     api::Trial& t = rec->rec.trial;
     t.name = plan.trials[static_cast<std::size_t>(rec_trial)].name;
@@ -228,6 +244,13 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     t.SetChannel("torque_nm", std::move(rec->torque_nm));
     t.SetChannel("accel_m_s2", std::move(rec->accel_m_s2));
     if (rec->record_setpoint) t.SetChannel("setpoint_deg", std::move(rec->setpoint_deg));
+    // What the stimulator delivered, from its read-back (issue 16): the
+    // pulses, and the same as an envelope channel (model::StimulusColumn).
+    rec->pulses.pulse_rate_hz = hw.pulse_rate_hz;
+    rec->pulses.pulse_width_us = hw.pulse_width_us;
+    t.SetChannel("stim_delivered_ma",
+                 model::StimulusColumn(rec->pulses.Train(), hw.pulse_rate_hz, *t.Values("t_s")));
+    t.pulses = std::move(rec->pulses);
     if (!rec->emg_mv.empty()) {
       api::ChannelGroup emg;
       emg.sample_rate_hz = bench_.bench_limits().emg_rate_hz;
@@ -281,6 +304,9 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         rec->rec.bench_start_s = t0 + static_cast<double>(n) / kTicksPerSecond;
         rec->record_setpoint = plan.trials[static_cast<std::size_t>(step.trial)].record_setpoint;
         bench_.bench().DrainEmg_mv();  // EMG from the trial's first sample on
+        bench_.RestartPulseClock();    // the trial's grid: k / f from its t_s = 0
+        bench_.DrainDeliveredPulses();
+        clock_tick = n;
       }
     }
     // Motor mode first, so a move starts from where the knee is.
@@ -337,9 +363,31 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
           u = stim_floor[t] + (u - stim_floor[t]) * stim_scale[t];
         }
       }
-      if (u != last_stim) {
-        bench_.SetStimAmplitude(u);
-        last_stim = u;
+      // A run of the envelope too short to hold a grid time of the pulse
+      // clock is one single pulse at its start (model::PulsesFromEnvelope).
+      if (step.envelope && u > 0.0 && !(prev_u > 0.0)) {
+        // The run in the envelope (a trial's steps share it, one step per run).
+        std::int64_t end = k + 1;
+        for (;;) {
+          const std::int64_t idx = (step.stim_offset_ticks + end) / kTicksPerSample;
+          if (idx < 0 || idx >= static_cast<std::int64_t>(step.envelope->values.size()) ||
+              !(step.envelope->values[static_cast<std::size_t>(idx)] > 0.0)) {
+            break;
+          }
+          ++end;
+        }
+        const double from_s = static_cast<double>(n - clock_tick) / kTicksPerSecond;
+        const double to_s = from_s + static_cast<double>(end - k) / kTicksPerSecond;
+        if (!model::FirstGridTimeIn(from_s, to_s, hw.pulse_rate_hz)) {
+          bench_.TriggerPulse(u);
+          single_pulse_end = n + (end - k);
+        }
+      }
+      prev_u = u;
+      const double command = n < single_pulse_end ? 0.0 : u;
+      if (command != last_stim) {
+        bench_.SetStimAmplitude(command);
+        last_stim = command;
       }
       if (step.phase == StepPhase::kOffset) {
         const double raw = bench_.ReadSensors().torque_nm;
@@ -360,6 +408,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         rec->accel_m_s2.push_back(f.accel_m_s2);
         if (rec->record_setpoint) rec->setpoint_deg.push_back(last_setpoint);
         for (double v : bench_.bench().DrainEmg_mv()) rec->emg_mv.push_back(v);
+        collect_pulses();
         emit_batch(false);
         if (step.end_below_angle_deg && f.angle_deg <= *step.end_below_angle_deg) {
           search_reached_ma = applied;

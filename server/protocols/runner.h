@@ -10,6 +10,16 @@
 /// torque offset-corrected by the 50-sample offset measured before each
 /// stimulation segment (§5.3).
 ///
+/// Stimulation (DESIGN.md §3): `stim_ma` is the plan's amplitude after the
+/// interlock's clamp (what was commanded); the stimulator's pulse clock is
+/// restarted at the run's and at each trial's start, so a trial's pulses fall
+/// on k / f_pulse from its t_s = 0; a run of the envelope too short to hold a
+/// grid time goes out as one TriggerPulse at its start (the rule of
+/// model::PulsesFromEnvelope). What the stimulator delivered, read back
+/// (SafeBench::DrainDeliveredPulses), is stored with the trial: every pulse
+/// in `Trial::pulses` (trial time, delivered mA) and the same as the channel
+/// `stim_delivered_ma` (model::StimulusColumn).
+///
 /// Cancel, Stop and the safety conditions are checked at every tick: a
 /// cancel, an e-stop (SafeBench::EStop from any thread) or a fired heartbeat
 /// watchdog abort the run within one control period, leaving stimulation at

@@ -8,6 +8,10 @@
 namespace fesbench::server {
 namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// A delivered amplitude may differ from the commanded one by the output
+// stage's resolution; the simulated stimulator delivers exactly.
+constexpr double kReadBackToleranceMa = 1e-6;
+constexpr std::size_t kMaxReadBackPulses = 100'000;
 }  // namespace
 
 SafeBench::SafeBench(Bench& bench, EventSink sink, WallClock wall_clock)
@@ -113,6 +117,36 @@ void SafeBench::MakeSafe() {
 void SafeBench::AdvanceTo(double t_s) {
   CheckWatchdog();
   bench_.AdvanceTo(t_s);
+  CheckReadBack();
+}
+
+void SafeBench::CheckReadBack() {
+  std::vector<model::Pulse> pulses = bench_.DrainDeliveredPulses();
+  if (pulses.empty()) return;
+  const double max_ma = StimCeiling();
+  for (const model::Pulse& p : pulses) {
+    // The clamp in SetStimAmplitude / TriggerPulse should make this
+    // impossible; if it happens, something below this layer bypassed it.
+    if (!(p.stim_ma <= max_ma + kReadBackToleranceMa)) {
+      EStop("stimulator read-back: a " + std::to_string(p.stim_ma) + " mA pulse at " +
+            std::to_string(p.t_s) + " s exceeds the " + std::to_string(max_ma) + " mA limit");
+      break;
+    }
+  }
+  std::lock_guard lock(readback_mu_);
+  if (readback_.size() + pulses.size() > kMaxReadBackPulses) {
+    readback_.erase(readback_.begin(),
+                    readback_.begin() + static_cast<std::ptrdiff_t>(std::min(
+                                            readback_.size(), kMaxReadBackPulses / 2)));
+  }
+  readback_.insert(readback_.end(), pulses.begin(), pulses.end());
+}
+
+std::vector<model::Pulse> SafeBench::DrainDeliveredPulses() {
+  std::lock_guard lock(readback_mu_);
+  std::vector<model::Pulse> out;
+  out.swap(readback_);
+  return out;
 }
 
 void SafeBench::EStop(const std::string& source) {

@@ -11,13 +11,18 @@
 ///   thread, and latches until cleared;
 /// - a controlling client whose heartbeat stops for longer than the timeout
 ///   trips the watchdog, which stops stimulation and the motor like an
-///   e-stop (without latching the hardware).
+///   e-stop (without latching the hardware);
+/// - the stimulator's read-back (Bench::DrainDeliveredPulses) is checked
+///   after every AdvanceTo: a delivered pulse above the stimulation ceiling —
+///   a fault below this layer, a stimulator or a caller of the Bench itself —
+///   latches the e-stop at once (within the control period that delivered it).
 
 #include <atomic>
 #include <functional>
 #include <mutex>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "server/bench/bench.h"
 
@@ -63,7 +68,16 @@ class SafeBench {
   void SetMotorMode(MotorMode mode);
   void SetMotorSetpoint(double angle_deg);
 
+  /// Restarts the stimulator's pulse clock now (Bench::RestartPulseClock).
+  void RestartPulseClock() { bench_.RestartPulseClock(); }
+  /// The pulses the stimulator delivered (read back and checked by
+  /// AdvanceTo) since the previous call, in bench time. Holds at most the
+  /// last 100,000 pulses between calls. Thread-safe.
+  std::vector<model::Pulse> DrainDeliveredPulses();
+
   double Now_s() const { return bench_.Now_s(); }
+  /// Advances the bench, then reads the stimulator back and e-stops on a
+  /// pulse above the ceiling (see the file comment).
   void AdvanceTo(double t_s);
   SensorFrame ReadSensors() { return bench_.ReadSensors(); }
 
@@ -94,6 +108,8 @@ class SafeBench {
   std::pair<double, double> AngleRange() const;
   void CheckWatchdog();
   void MakeSafe();
+  /// Reads the stimulator back into readback_ and checks every pulse.
+  void CheckReadBack();
 
   Bench& bench_;
   EventSink sink_;
@@ -105,6 +121,8 @@ class SafeBench {
   std::atomic<bool> watchdog_armed_{false};
   std::atomic<bool> watchdog_fired_{false};
   std::atomic<double> last_heartbeat_s_{0.0};
+  std::mutex readback_mu_;  // guards readback_
+  std::vector<model::Pulse> readback_;
 };
 
 }  // namespace fesbench::server

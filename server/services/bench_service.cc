@@ -34,6 +34,10 @@ void SwappableSimulatedBench::SetStimAmplitude(double stim_ma) {
   current()->SetStimAmplitude(stim_ma);
 }
 void SwappableSimulatedBench::TriggerPulse(double stim_ma) { current()->TriggerPulse(stim_ma); }
+void SwappableSimulatedBench::RestartPulseClock() { current()->RestartPulseClock(); }
+std::vector<model::Pulse> SwappableSimulatedBench::DrainDeliveredPulses() {
+  return current()->DrainDeliveredPulses();
+}
 void SwappableSimulatedBench::SetMotorMode(MotorMode mode) { current()->SetMotorMode(mode); }
 void SwappableSimulatedBench::SetMotorSetpoint(double angle_deg) {
   current()->SetMotorSetpoint(angle_deg);

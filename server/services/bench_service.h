@@ -40,6 +40,8 @@ class SwappableSimulatedBench final : public Bench {
   const BenchLimits& limits() const override { return options_.limits; }
   void SetStimAmplitude(double stim_ma) override;
   void TriggerPulse(double stim_ma) override;
+  void RestartPulseClock() override;
+  std::vector<model::Pulse> DrainDeliveredPulses() override;
   void SetMotorMode(MotorMode mode) override;
   void SetMotorSetpoint(double angle_deg) override;
   double Now_s() const override;

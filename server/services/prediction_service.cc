@@ -206,7 +206,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
                                                " has no torque_nm channel to compare");
       }
       stage = "trial stimulation";
-      pulses = model::TrialPulses(c, config_.pulse_rate_hz);
+      pulses = TrialStimulation(trial->trial, c, config_.pulse_rate_hz, options.pulse_rate_hz);
       const std::size_t n = c.size();
       options.output_rate_hz = rate;
       options.duration_s = std::max((static_cast<double>(n) + 0.5) / rate, span + 1.5 / rate);

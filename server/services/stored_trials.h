@@ -13,6 +13,7 @@
 #include "api/status.h"
 #include "api/trial.h"
 #include "model/identify_common.h"
+#include "model/signal.h"
 #include "storage/database.h"
 
 namespace fesbench::server::services {
@@ -29,6 +30,17 @@ struct LoadedTrial {
 /// Loads trial `trial_id` and its session's subject and leg, in one read
 /// transaction. kNotFound ("trial <id>") for an unknown trial.
 api::Result<LoadedTrial> LoadTrial(storage::Database& db, std::int64_t trial_id);
+
+/// The pulses that drove a stored trial, on a time axis starting at its first
+/// sample (t_s[0] = 0), as predictions replay them (DESIGN.md §3): the
+/// delivered pulses it stores (trial.pulses), else those the pulse clock
+/// makes of its `stim_ma` channel (model::PulsesFromEnvelope at
+/// `default_rate_hz`, the continuous grid from the first sample).
+/// `pulse_rate_hz` receives the rate of the pulses' weights R(u)/f: the
+/// stored record's, else default_rate_hz.
+/// @throws std::invalid_argument for columns PulsesFromEnvelope rejects.
+model::PulseTrain TrialStimulation(const api::Trial& trial, const model::TrialColumns& columns,
+                                   double default_rate_hz, double& pulse_rate_hz);
 
 /// The Status for an exception thrown by model code during `what`:
 /// std::invalid_argument (broken precondition: bad data or options) →

@@ -220,6 +220,51 @@ TEST(TrialJson, RoundTripsLosslesslyIncludingEmg) {
   EXPECT_EQ(*back, trial);
 }
 
+TEST(TrialJson, RoundTripsTheDeliveredPulses) {
+  Trial trial = SampleTrial();
+  PulseRecord pulses;
+  pulses.pulse_rate_hz = 33.0;
+  pulses.pulse_width_us = 300.0;
+  pulses.Append(0.0, 20.0);
+  pulses.Append(1.0 / 33.0, 20.5);
+  pulses.Append(0.25, 40.0);
+  trial.pulses = pulses;
+  const nlohmann::json json = TrialToJson(trial);
+  EXPECT_EQ(json["pulses"]["pulse_rate_hz"], 33.0);
+  EXPECT_EQ(json["pulses"]["stim_ma"].size(), 3u);
+  Result<Trial> back = TrialFromJson(nlohmann::json::parse(json.dump()));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(*back, trial);
+  EXPECT_EQ(back->pulses->Train()[2], (model::Pulse{0.25, 40.0}));
+}
+
+TEST(TrialJson, RejectsBadPulsesWithTheirPath) {
+  auto field_of = [](std::string_view pulses) {
+    const std::string text = R"({"sample_rate_hz": 200, "channels": [{"name": "t_s",
+        "values": [0]}], "pulses": )" + std::string(pulses) + "}";
+    Result<Trial> r = TrialFromJson(nlohmann::json::parse(text));
+    EXPECT_FALSE(r.ok()) << text;
+    return r.ok() ? std::string("<accepted>") : r.status().field();
+  };
+  EXPECT_EQ(field_of("[]"), "pulses");
+  EXPECT_EQ(field_of(R"({"pulse_width_us": 300, "t_s": [], "stim_ma": []})"),
+            "pulses.pulse_rate_hz");
+  EXPECT_EQ(field_of(R"({"pulse_rate_hz": 0, "pulse_width_us": 300, "t_s": [], "stim_ma": []})"),
+            "pulses.pulse_rate_hz");
+  EXPECT_EQ(field_of(R"({"pulse_rate_hz": 33, "pulse_width_us": 300, "t_s": [0, "a"],
+      "stim_ma": [1, 2]})"),
+            "pulses.t_s[1]");
+  EXPECT_EQ(field_of(R"({"pulse_rate_hz": 33, "pulse_width_us": 300, "t_s": [0, -1],
+      "stim_ma": [1, 2]})"),
+            "pulses.t_s[1]");
+  EXPECT_EQ(field_of(R"({"pulse_rate_hz": 33, "pulse_width_us": 300, "t_s": [0, 1],
+      "stim_ma": [1, -2]})"),
+            "pulses.stim_ma[1]");
+  EXPECT_EQ(field_of(R"({"pulse_rate_hz": 33, "pulse_width_us": 300, "t_s": [0, 1],
+      "stim_ma": [1]})"),
+            "pulses.stim_ma");
+}
+
 TEST(TrialJson, OmitsAbsentOptionalsAndDefaultsUnits) {
   Trial trial;
   trial.SetChannel("t_s", {0.0});

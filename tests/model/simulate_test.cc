@@ -255,8 +255,43 @@ TEST(SimulateTest, StimulusColumnRule) {
   const PulseTrain pulses = {{0.1, 30.0}, {0.1 + 1 / 33.0, 35.0}, {0.5, 40.0}};
   const std::vector<double> t = {0.0, 0.1, 0.12, 0.135, 0.16, 0.3, 0.5, 0.52, 0.54};
   const auto s = StimulusColumn(pulses, 33.0, t);
-  const std::vector<double> expected = {0, 30, 30, 35, 35, 0, 40, 40, 0};
+  // Sample i covers [t_i, t_{i+1}): the pulse inside it, else the previous
+  // pulse while its train goes on (the next one period later), else 0.
+  const std::vector<double> expected = {0, 30, 35, 0, 0, 0, 40, 0, 0};
   EXPECT_EQ(s, expected);
+  // A train holds its amplitude between pulses.
+  PulseTrain train;
+  for (int k = 10; k < 20; ++k) train.push_back({k / 33.0, 25.0});
+  const std::vector<double> t2 = {0.30, 0.31, 0.32, 0.33, 0.5, 0.57, 0.58, 0.59};
+  const std::vector<double> expected2 = {25, 25, 25, 25, 25, 25, 0, 0};  // last pulse 19/33 ≈ 0.576
+  EXPECT_EQ(StimulusColumn(train, 33.0, t2), expected2);
+}
+
+// The simulator's stim_ma column read as an envelope gives the pulses back:
+// isolated impulses are not doubled (issue 15), trains stay on their grid.
+TEST(SimulateTest, StimulusColumnRoundTripsThroughPulsesFromEnvelope) {
+  SampledSignal env{200.0, 0.0, std::vector<double>(2400, 0.0)};
+  env.values[50] = 40.0;  // impulse off the grid (0.25 s)
+  env.values[800] = 45.0;  // impulse on the grid (4 s)
+  for (int i = 230; i < 530; ++i) env.values[i] = 20.0 + 0.05 * i;  // a ramp burst
+  for (int i = 1203; i < 1260; ++i) env.values[i] = 30.0;
+  env.values[1500] = 33.0;  // impulse (7.5 s)
+  const PulseTrain pulses = PulsesFromEnvelope(env, 33.0);
+  SimulationOptions o;
+  o.duration_s = env.EndTime();
+  const SimulationResult r = SimulateIsometric(ExampleParameterSet(), pulses, 90.0, o);
+  const PulseTrain again = PulsesFromEnvelope(SampledSignal{200.0, 0.0, r.stim_ma}, 33.0);
+  ASSERT_EQ(again.size(), pulses.size());
+  for (std::size_t i = 0; i < pulses.size(); ++i) {
+    EXPECT_NEAR(again[i].t_s, pulses[i].t_s, 1e-12) << i;
+    EXPECT_EQ(again[i].stim_ma, pulses[i].stim_ma) << i;
+  }
+  // Each impulse is one sample of the column.
+  for (double t : {0.25, 4.0, 7.5}) {
+    const auto i = static_cast<std::size_t>(std::llround(t * 200.0));
+    EXPECT_GT(r.stim_ma[i], 0.0);
+    EXPECT_EQ(r.stim_ma[i + 1], 0.0) << t;
+  }
 }
 
 TEST(SimulateTest, OutputGridAndDefaults) {

@@ -363,6 +363,36 @@ TEST_F(AnalysisServicesTest, PredictionOfATrialMadeFromTheSameParametersHasZeroE
               0.01 * truth.active.torque_scale_nm);
 }
 
+// DESIGN.md §3: a prediction on a stored trial replays the pulses the trial
+// stores (what the stimulator delivered), not pulses rebuilt from stim_ma.
+TEST_F(AnalysisServicesTest, PredictionOfAStoredTrialReplaysItsStoredPulses) {
+  const model::ParameterSet truth = Truth();
+  const storage::Session s = MakeSession("S9");
+  const std::int64_t set_id = StoreSet(s, truth);
+  const model::SampledSignal env =
+      model::MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 99}});
+  // A stimulator whose pulses came 7 ms after the grid of the envelope.
+  model::PulseTrain delivered = model::PulsesFromEnvelope(env, model::kDefaultPulseRateHz);
+  for (model::Pulse& p : delivered) p.t_s += 0.007;
+  api::Trial trial = TrialOf("prediction_random_binary",
+                             model::SimulateFreeSwing(truth, delivered, Whole(env)), &env, true);
+  const auto predict = [&](const api::Trial& t) {
+    PredictionRequest req;
+    req.parameter_set_id = set_id;
+    req.trial_id = Store(s, t);
+    auto r = PredictionService(*db_).Predict(kAnalyst, req);
+    EXPECT_TRUE(r.ok()) << r.status().ToString();
+    return r.ok() && r->errors ? r->errors->e_rms : -1.0;
+  };
+  const double without_pulses = predict(trial);  // the envelope on the grid
+  api::PulseRecord record;
+  for (const model::Pulse& p : delivered) record.Append(p.t_s, p.stim_ma);
+  trial.pulses = record;
+  const double with_pulses = predict(trial);
+  EXPECT_LT(with_pulses, 1e-9) << "without stored pulses: " << without_pulses;
+  EXPECT_GT(without_pulses, 1e-3);
+}
+
 // §6.1.2: the isometric prediction's torque is scaled by the best-fit
 // constant; a set whose τ_scale is twice the truth's fits with k = 1/2 and no
 // error left.

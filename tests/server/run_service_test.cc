@@ -260,10 +260,14 @@ TEST(RunService, IsometricRampRunStoresStatesTrialsAndAudit) {
     ASSERT_TRUE(trial.ok()) << trial.status().ToString();
     EXPECT_EQ(trial->name, plan.trials[k].name);
     EXPECT_DOUBLE_EQ(trial->sample_rate_hz, 200.0);
-    for (const char* channel : {"t_s", "stim_ma", "angle_deg", "torque_nm", "accel_m_s2"}) {
+    for (const char* channel :
+         {"t_s", "stim_ma", "stim_delivered_ma", "angle_deg", "torque_nm", "accel_m_s2"}) {
       ASSERT_NE(trial->Values(channel), nullptr) << channel;
       EXPECT_EQ(trial->Values(channel)->size(), trial->num_samples()) << channel;
     }
+    // The delivered pulses went through storage with the trial.
+    ASSERT_TRUE(trial->pulses.has_value());
+    EXPECT_EQ(trial->pulses->pulse_rate_hz, 33.0);
     EXPECT_GT(trial->num_samples(), 200u);
     EXPECT_EQ(stream.samples_per_trial.at(static_cast<int>(k)), trial->num_samples());
     stored_samples += trial->num_samples();

@@ -30,6 +30,8 @@ class FakeBench final : public Bench {
   const BenchLimits& limits() const override { return limits_; }
   void SetStimAmplitude(double stim_ma) override { Stim(stim_ma); }
   void TriggerPulse(double stim_ma) override { Stim(stim_ma); }
+  void RestartPulseClock() override {}
+  std::vector<model::Pulse> DrainDeliveredPulses() override { return {}; }
   void SetMotorMode(MotorMode mode) override {
     mode_ = mode;
     if (estop_ && mode != MotorMode::kDisabled) ++violations_after_estop;

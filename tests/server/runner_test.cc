@@ -363,9 +363,11 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
     EXPECT_NEAR(est, truth, 0.35 * truth + 1.0) << "u = " << u;
   }
   // Passive torque (τ_pta + τ_ptv(0), both referenced) over the middle of
-  // the angles the free swing visited: within 0.6 N·m (measured over seeds
-  // 1–16: ≤ 0.52; the output-error refinement trades some of the torque
-  // fit for the angle fit, as hysteresis and friction bias either).
+  // the angles the free swing visited: within 0.75 N·m (measured over seeds
+  // 1–16: ≤ 0.71 since the pulse clock runs continuously through each trial
+  // (DESIGN.md §3), ≤ 0.52 before; the output-error refinement trades some
+  // of the torque fit for the angle fit, as hysteresis and friction bias
+  // either).
   const std::vector<double> angles = *out.run.trials.at(1).trial.Values("angle_deg");
   std::vector<double> sorted = angles;
   std::sort(sorted.begin(), sorted.end());
@@ -373,7 +375,7 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   for (double th = lo; th <= hi; th += 2.0) {
     const double est = p.passive.torque_angle(th) + p.passive.torque_velocity(0.0);
     const double truth = vs.truth.passive.torque_angle(th) + vs.truth.passive.torque_velocity(0.0);
-    EXPECT_NEAR(est, truth, 0.6) << "theta = " << th;
+    EXPECT_NEAR(est, truth, 0.75) << "theta = " << th;
   }
   EXPECT_NEAR(p.passive.inertia_kgm2, vs.truth.passive.inertia_kgm2, 1e-12);
   // The refinement ran and fits both free-swing trials better than the
@@ -428,6 +430,105 @@ TEST(Runner, RapidWithoutInertiaFailsWithTheReason) {
 }
 
 // --- e-stop, watchdog, cancel, one run at a time, model gate -----------------------------
+
+// --- one pulse-timing rule and the stimulator read-back (issues 15, 16) --------
+
+// Every pulse of a trial is on the trial's grid k/f or a single pulse at an
+// envelope sample; the pulses the runner stores are those PulsesFromEnvelope
+// makes of the trial's stim_ma channel and of its stim_delivered_ma channel.
+void ExpectTrialFollowsThePulseRule(const api::Trial& t, bool expect_singles) {
+  ASSERT_TRUE(t.pulses.has_value()) << *t.name;
+  const model::PulseTrain stored = t.pulses->Train();
+  ASSERT_FALSE(stored.empty()) << *t.name;
+  EXPECT_EQ(t.pulses->pulse_rate_hz, 33.0);
+  EXPECT_EQ(t.pulses->pulse_width_us, 300.0);
+  std::size_t singles = 0;
+  for (const model::Pulse& p : stored) {
+    const double k = p.t_s * 33.0;
+    if (std::abs(k - std::round(k)) > 1e-7) ++singles;
+  }
+  EXPECT_EQ(singles > 0, expect_singles) << *t.name << ": " << singles << " off-grid pulses";
+  for (const char* channel : {"stim_ma", "stim_delivered_ma"}) {
+    const std::vector<double>* v = t.Values(channel);
+    ASSERT_NE(v, nullptr) << channel;
+    const model::PulseTrain rebuilt =
+        model::PulsesFromEnvelope(model::SampledSignal{t.sample_rate_hz, 0.0, *v}, 33.0);
+    ASSERT_EQ(rebuilt.size(), stored.size()) << *t.name << " " << channel;
+    for (std::size_t i = 0; i < stored.size(); ++i) {
+      EXPECT_NEAR(rebuilt[i].t_s, stored[i].t_s, 1e-9) << *t.name << " " << channel << " " << i;
+      EXPECT_NEAR(rebuilt[i].stim_ma, stored[i].stim_ma, 1e-12) << channel << " " << i;
+    }
+  }
+}
+
+TEST(Runner, TrialsStoreTheDeliveredPulsesOnTheTrialsGrid) {
+  for (const char* protocol : {"prediction_random_binary", "isometric_ramp_irc"}) {
+    Rig rig(7);
+    const SubjectContext ctx = Context(rig.subject);
+    auto plan = MakePlan(protocol, {}, ctx);
+    ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+    ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+    const RunResult r = runner.Run(*plan, ctx);
+    ASSERT_EQ(r.state, RunState::kDone) << r.reason;
+    std::size_t stored = 0;
+    for (const RecordedTrial& rt : r.trials) {
+      // isometric_ramp_irc has impulses off the trial's grid: single pulses.
+      ExpectTrialFollowsThePulseRule(rt.trial, std::string(protocol) == "isometric_ramp_irc");
+      stored += rt.trial.pulses->size();
+    }
+    // Every pulse the leg got during the run is in a trial.
+    EXPECT_EQ(stored, rig.bench.DeliveredPulses().size()) << protocol;
+  }
+}
+
+// Issue 16 item 4: a command above the limit injected below the runner — a
+// faulty caller of the safety layer, in the middle of a run — never reaches
+// the leg, and the trial's read-back shows the clamp (the runner's own
+// stim_ma channel does not see the injection at all).
+TEST(Runner, OverLimitCommandInjectedBelowTheRunnerNeverReachesTheLeg) {
+  SafeBench* safe = nullptr;
+  SimulatedBenchOptions o;
+  o.on_control_step = [&](double t_s) {
+    // Inside the step's stimulation (lead 0.5 s + offset), while the runner
+    // holds its amplitude and so does not overwrite the injected one.
+    if (safe != nullptr && t_s > 1.5 && t_s < 1.502) {
+      safe->SetStimAmplitude(150.0);
+      safe->TriggerPulse(150.0);
+    }
+  };
+  Rig rig(7, o);
+  safe = &rig.safe;
+  const SubjectContext ctx = Context(rig.subject);
+  const double limit = ctx.max_tolerated_ma;
+  auto plan = MakePlan("prediction_step", {}, ctx);
+  ASSERT_TRUE(plan.ok());
+  ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+  const RunResult r = runner.Run(*plan, ctx);
+  ASSERT_EQ(r.state, RunState::kDone) << r.reason;
+  ASSERT_EQ(r.trials.size(), 1u);
+  const api::Trial& t = r.trials[0].trial;
+  const std::vector<double>& commanded = *t.Values("stim_ma");
+  const std::vector<double>& delivered = *t.Values("stim_delivered_ma");
+  const double max_commanded = *std::max_element(commanded.begin(), commanded.end());
+  const double max_delivered = *std::max_element(delivered.begin(), delivered.end());
+  EXPECT_LT(max_commanded, limit - 1.0);  // the plan's own level
+  EXPECT_DOUBLE_EQ(max_delivered, limit);  // the injection, clamped
+  ASSERT_TRUE(t.pulses.has_value());
+  std::size_t at_limit = 0;
+  for (double u : t.pulses->stim_ma) {
+    EXPECT_LE(u, limit);
+    at_limit += u == limit ? 1 : 0;
+  }
+  EXPECT_GT(at_limit, 1u);  // a single pulse and the train it set, both clamped
+  // The leg itself (the bench's truth) never got more.
+  for (const model::Pulse& p : rig.bench.DeliveredPulses()) EXPECT_LE(p.stim_ma, limit);
+  std::size_t clamps = 0;
+  for (const SafetyEvent& e : r.safety_events) {
+    if (e.kind == SafetyEvent::Kind::kStimClamped && e.requested == 150.0) ++clamps;
+  }
+  EXPECT_GE(clamps, 2u);
+  EXPECT_FALSE(rig.safe.estopped());  // the clamp held: the read-back found nothing to stop
+}
 
 TEST(Runner, EStopCutsStimulationWithinOneControlPeriodAndLatches) {
   SafeBench* safe = nullptr;

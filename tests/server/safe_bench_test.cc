@@ -20,7 +20,17 @@ class RecordingBench final : public Bench {
     stim_ma_ = hw_estop_ ? 0.0 : stim_ma;
     stim_history_.push_back(stim_ma);
   }
-  void TriggerPulse(double stim_ma) override { pulses_.push_back(stim_ma); }
+  void TriggerPulse(double stim_ma) override {
+    pulses_.push_back(stim_ma);
+    // The output stage delivers fault_gain times the command (1 = healthy).
+    if (!hw_estop_) delivered_.push_back({t_s_, fault_gain * stim_ma});
+  }
+  void RestartPulseClock() override { ++clock_restarts_; }
+  std::vector<model::Pulse> DrainDeliveredPulses() override {
+    std::vector<model::Pulse> out;
+    out.swap(delivered_);
+    return out;
+  }
   void SetMotorMode(MotorMode mode) override { mode_ = mode; }
   void SetMotorSetpoint(double angle_deg) override { setpoints_.push_back(angle_deg); }
   double Now_s() const override { return t_s_; }
@@ -41,6 +51,9 @@ class RecordingBench final : public Bench {
   std::atomic<bool> hw_estop_{false};
   MotorMode mode_ = MotorMode::kDisabled;
   std::vector<double> stim_history_, pulses_, setpoints_;
+  std::vector<model::Pulse> delivered_;
+  double fault_gain = 1.0;
+  int clock_restarts_ = 0;
 };
 
 struct Fixture {
@@ -197,6 +210,56 @@ TEST(SafeBench, RandomCommandSequencesNeverBreachLimits) {
       ASSERT_LE(a, angle_hi + 1e-12);
     }
   }
+}
+
+
+// --- stimulator read-back (issue 16 item 4) -------------------------------------
+
+TEST(SafeBench, ReadBackShowsTheClampOfAnOverLimitCommand) {
+  Fixture f;
+  f.safe.Configure({.max_stim_ma = 30.0});
+  f.safe.TriggerPulse(80.0);  // a faulty caller of the safety layer
+  f.safe.AdvanceTo(0.001);
+  const std::vector<model::Pulse> delivered = f.safe.DrainDeliveredPulses();
+  ASSERT_EQ(delivered.size(), 1u);
+  EXPECT_EQ(delivered[0].stim_ma, 30.0);  // what reached the leg: the clamp
+  EXPECT_FALSE(f.safe.estopped());
+  EXPECT_TRUE(f.safe.DrainDeliveredPulses().empty());  // drained once
+}
+
+TEST(SafeBench, ReadBackAboveTheCeilingLatchesTheEStop) {
+  Fixture f;
+  f.safe.Configure({.max_stim_ma = 30.0});
+  f.hw.fault_gain = 2.0;  // the output stage delivers twice the command
+  f.safe.TriggerPulse(20.0);
+  EXPECT_FALSE(f.safe.estopped());
+  f.safe.AdvanceTo(0.001);  // read back at the end of the control period
+  EXPECT_TRUE(f.safe.estopped());
+  EXPECT_TRUE(f.hw.hw_estop_.load());
+  ASSERT_FALSE(f.events.empty());
+  EXPECT_EQ(f.events.back().kind, SafetyEvent::Kind::kEStop);
+  EXPECT_NE(f.events.back().detail.find("read-back"), std::string::npos) << f.events.back().detail;
+  // The pulse is still reported as delivered: the read-back does not hide it.
+  const std::vector<model::Pulse> delivered = f.safe.DrainDeliveredPulses();
+  ASSERT_EQ(delivered.size(), 1u);
+  EXPECT_EQ(delivered[0].stim_ma, 40.0);
+}
+
+TEST(SafeBench, ReadBackCatchesACallerOfTheBenchItself) {
+  Fixture f;
+  f.safe.Configure({.max_stim_ma = 30.0});
+  f.hw.TriggerPulse(80.0);  // below the safety layer: nothing clamps it
+  f.safe.AdvanceTo(0.001);
+  EXPECT_TRUE(f.safe.estopped());
+  f.safe.TriggerPulse(10.0);  // latched: nothing more goes out
+  f.safe.AdvanceTo(0.002);
+  EXPECT_EQ(f.hw.pulses_.size(), 1u);
+}
+
+TEST(SafeBench, RestartPulseClockReachesTheBench) {
+  Fixture f;
+  f.safe.RestartPulseClock();
+  EXPECT_EQ(f.hw.clock_restarts_, 1);
 }
 
 }  // namespace

@@ -10,6 +10,37 @@ namespace {
 using testing::MakeTrial;
 using testing::StorageTest;
 
+TEST_F(StorageTest, TrialRoundTripKeepsItsDeliveredPulsesExactly) {
+  const Session session = MakeSession("T1");
+  api::Trial trial = MakeTrial(400);
+  api::PulseRecord pulses;
+  pulses.pulse_rate_hz = 33.0;
+  pulses.pulse_width_us = 250.0;
+  for (int k = 17; k < 50; ++k) pulses.Append(k / 33.0, 20.0 + 0.1 * k);
+  pulses.Append(1.7512345, 45.0);  // a single pulse off the grid
+  trial.pulses = pulses;
+  TrialRepository trials(*db_);
+  auto id = trials.Insert({session.id, std::nullopt}, trial);
+  ASSERT_TRUE(id.ok()) << id.status().ToString();
+  auto back = trials.Get(*id);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_TRUE(back->pulses.has_value());
+  EXPECT_EQ(*back->pulses, pulses);  // bit-exact
+  // A trial without pulses stays without.
+  auto plain = trials.Insert({session.id, std::nullopt}, MakeTrial(10));
+  ASSERT_TRUE(plain.ok());
+  EXPECT_FALSE(trials.Get(*plain)->pulses.has_value());
+  // Invalid pulses are refused with the field named.
+  trial.pulses->t_s[3] = trial.pulses->t_s[2] - 0.01;
+  auto bad = trials.Insert({session.id, std::nullopt}, trial);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().field(), "pulses.t_s[3]");
+  // Append-only like every trial row.
+  auto update = db_->Write(
+      [](Connection& c) { return c.ExecScript("UPDATE trial_pulses SET pulse_count = 0"); });
+  EXPECT_FALSE(update.ok());
+}
+
 TEST_F(StorageTest, TrialRoundTripKeepsEveryChannelExactly) {
   const Session session = MakeSession("T1");
   auto run = SessionRepository(*db_).CreateRun(session.id, {"free_swing", "1.0", "{}"});
