@@ -180,6 +180,7 @@ bool ReadProvenance(Reader& r, const json& j, model::Provenance& out) {
   if (!r.ReadString(j, "irc_method", path, out.irc_method) ||
       !r.ReadString(j, "passive_method", path, out.passive_method) ||
       !r.ReadString(j, "active_method", path, out.active_method) ||
+      !r.ReadString(j, "inertia_method", path, out.inertia_method) ||
       !r.ReadString(j, "software_version", path, out.software_version)) {
     return false;
   }
@@ -416,6 +417,7 @@ json ParameterSetToJson(const model::ParameterSet& p) {
       {"irc_method", prov.irc_method},
       {"passive_method", prov.passive_method},
       {"active_method", prov.active_method},
+      {"inertia_method", prov.inertia_method},
       {"active_trial_id", prov.active_trial_id ? json(*prov.active_trial_id) : json(nullptr)},
       {"trial_ids", prov.trial_ids},
       {"fit_rms", std::move(fit_rms)},

@@ -340,8 +340,84 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& pas
   return IdentifyRapid(isometric, swings, options);
 }
 
+HoldScale InertiaScaleFromHolds(const PiecewiseLinear& torque_angle,
+                                std::span<const TrialColumns> holds, double min_span_deg) {
+  const char* what = "InertiaScaleFromHolds";
+  std::vector<double> angle, torque;
+  for (const TrialColumns& h : holds) {
+    const std::size_t n = h.t_s.size();
+    RequireColumn(what, "angle_deg", h.angle_deg, n);
+    RequireColumn(what, "torque_nm", h.torque_nm, n);
+    if (n < 4) throw std::invalid_argument(std::string(what) + ": a hold has fewer than 4 samples");
+    // The second half: the servo has settled (§5.4.1 averages the end of a hold).
+    double a = 0.0, t = 0.0;
+    for (std::size_t i = n / 2; i < n; ++i) {
+      a += h.angle_deg[i];
+      t += h.torque_nm[i];
+    }
+    const double m = static_cast<double>(n - n / 2);
+    angle.push_back(a / m);
+    torque.push_back(t / m);
+  }
+  HoldScale out;
+  out.holds = static_cast<int>(angle.size());
+  if (angle.size() < 2) {
+    throw std::invalid_argument(std::string(what) + ": needs at least 2 holds");
+  }
+  const auto [lo, hi] = std::minmax_element(angle.begin(), angle.end());
+  out.span_deg = *hi - *lo;
+  if (!(out.span_deg >= min_span_deg)) {
+    throw std::invalid_argument(std::string(what) + ": the holds span " +
+                                std::to_string(out.span_deg) + "°, under " +
+                                std::to_string(min_span_deg) + "°");
+  }
+  // torque_i = c + s·τ_pta(θ_i): least squares in (c, s).
+  const std::size_t n = angle.size();
+  double mx = 0.0, my = 0.0;
+  std::vector<double> x(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] = torque_angle(angle[i]);
+    mx += x[i] / static_cast<double>(n);
+    my += torque[i] / static_cast<double>(n);
+  }
+  double sxx = 0.0, sxy = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    sxx += (x[i] - mx) * (x[i] - mx);
+    sxy += (x[i] - mx) * (torque[i] - my);
+  }
+  if (!(sxx > 1e-12)) {
+    throw std::invalid_argument(std::string(what) + ": τ_pta does not change across the holds");
+  }
+  out.scale = sxy / sxx;
+  double ss = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double e = torque[i] - (my + out.scale * (x[i] - mx));
+    ss += e * e;
+  }
+  out.rms_nm = std::sqrt(ss / static_cast<double>(n));
+  return out;
+}
+
+ParameterSet ScaleTorques(const ParameterSet& p, double scale) {
+  ParameterSet out = p;
+  out.passive.inertia_kgm2 *= scale;
+  out.passive.torque_angle = p.passive.torque_angle.Scaled(scale);
+  out.passive.torque_velocity = p.passive.torque_velocity.Scaled(scale);
+  out.active.torque_scale_nm *= scale;
+  return out;
+}
+
 RapidResult IdentifyRapid(const TrialColumns& isometric, std::span<const TrialColumns> swings_in,
                           const RapidOptions& options) {
+  RapidTrials trials;
+  trials.isometric = isometric;
+  trials.swings.assign(swings_in.begin(), swings_in.end());
+  return IdentifyRapid(trials, options);
+}
+
+RapidResult IdentifyRapid(const RapidTrials& trials, const RapidOptions& options) {
+  const TrialColumns& isometric = trials.isometric;
+  const std::span<const TrialColumns> swings_in = trials.swings;
   if (!(options.inertia_kgm2 > 0.0) || !std::isfinite(options.inertia_kgm2)) {
     throw std::invalid_argument("IdentifyRapid: inertia_kgm2 must be finite and > 0");
   }
@@ -454,6 +530,32 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, std::span<const TrialCo
     ps = refined.parameters;
     ps.provenance = keep;
     out.report.Merge(refined.report);
+  }
+
+  // 5. J measured: the holds fix the torque scale the swings leave free.
+  out.report.values["inertia_given_kgm2"] = options.inertia_kgm2;
+  if (!trials.holds.empty()) {
+    try {
+      const HoldScale hs =
+          InertiaScaleFromHolds(ps.passive.torque_angle, trials.holds, options.min_hold_span_deg);
+      out.report.values["inertia_hold_scale"] = hs.scale;
+      out.report.values["inertia_hold_span_deg"] = hs.span_deg;
+      out.report.fit_rms["inertia_holds_nm"] = hs.rms_nm;
+      if (hs.scale >= 1.0 / options.max_inertia_scale && hs.scale <= options.max_inertia_scale) {
+        const Provenance keep = ps.provenance;
+        ps = ScaleTorques(ps, hs.scale);
+        ps.provenance = keep;
+        ps.provenance.inertia_method = "release_holds";
+      } else {
+        out.report.warnings.push_back(
+            "the holds give J = " + std::to_string(hs.scale * options.inertia_kgm2) +
+            " kg·m², outside the allowed factor of the given " +
+            std::to_string(options.inertia_kgm2) + " kg·m²; kept the given J");
+      }
+    } catch (const std::invalid_argument& e) {
+      out.report.warnings.push_back(std::string("J not measured: ") + e.what() +
+                                    "; kept the given J");
+    }
   }
 
   ps.provenance.irc_method = std::string(IrcMethodName(IrcMethod::kRampCorrelation));

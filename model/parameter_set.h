@@ -106,6 +106,10 @@ struct Provenance {
   std::string irc_method;      ///< e.g. "ramp_correlation".
   std::string passive_method;  ///< "sequential", "simultaneous", "free_swing".
   std::string active_method;   ///< e.g. "log_least_squares".
+  /// How J was obtained: "given" (a value or a stored set), "anthropometric"
+  /// (Eq. 4.13), "free_swing" (fitted, §4.2.3), "release_holds" (measured by
+  /// the rapid routine's holds, IdentifyRapid); "" when not recorded.
+  std::string inertia_method;
   std::optional<std::int64_t> active_trial_id;
   std::vector<std::int64_t> trial_ids;
   std::map<std::string, double> fit_rms;  ///< per fitted part, in that part's unit.

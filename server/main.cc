@@ -144,7 +144,10 @@ int main(int argc, char** argv) {
   server::services::JobPoolConfig job_config;
   job_config.workers = config.job_workers;
   server::services::JobPool jobs(job_config);
-  server::services::IdentificationService identification(**db);
+  server::services::IdentificationConfig identification_config;
+  identification_config.joint_limits =
+      model::JointLimits{bench->limits().min_angle_deg, bench->limits().max_angle_deg};
+  server::services::IdentificationService identification(**db, identification_config);
   // Predictions stop at the bench's range of motion, as the knee does.
   server::services::PredictionConfig prediction_config;
   prediction_config.joint_limits =

@@ -334,6 +334,30 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
   const double margin = v.at("release_margin_fraction") * rom;
   const double lo = subject.min_angle_deg + margin, hi = subject.max_angle_deg - margin;
   if (!(hi > lo)) throw std::invalid_argument("release_margin_fraction: leaves no range of motion");
+  // Two holds of the relaxed knee, both approached moving toward extension
+  // (the tissue's hysteresis, Fig. 3-7, is then the same in both): their
+  // torques measure τ_pta in N·m, which fixes J (InertiaScaleFromHolds).
+  // The upper one at least 10° below the lock angle, so the move to it
+  // already sets the approach direction; else a move above it first.
+  std::vector<int> holds;
+  const double hold_s = v.at("inertia_hold_s");
+  if (hold_s > 0.0) {
+    const double low = lo + 0.2 * (hi - lo);
+    double high = lo + 0.8 * (hi - lo);
+    if (lock - 10.0 >= low + 25.0) {
+      high = std::min(high, lock - 10.0);
+    } else {
+      b.Prepare("move above the first hold", MotorMode::kPosition, std::min(high + 10.0, hi),
+                0.4, true);
+    }
+    int k = 0;
+    for (const double angle : {high, low}) {
+      b.Prepare("move to hold", MotorMode::kPosition, angle, angle == high ? 0.3 : 0.45, true);
+      const int t = b.AddTrial("rapid_passive_hold_" + std::to_string(++k), MotorMode::kPosition);
+      b.Rest("hold", hold_s, 0.0, t, MotorMode::kPosition, angle);
+      holds.push_back(t);
+    }
+  }
   std::vector<int> swings;
   // The flexion release keeps the name the identification service and
   // clients know for the rapid routine's passive free swing.
@@ -382,7 +406,7 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
                   LeveledRandomBinary(amp, thr, v.at("duration_s"), v.at("active_seed"),
                                       v.at("rb_level_min_fraction")),
                   MotorMode::kDecoupled, lock, 0.0);
-  plan.rapid = RapidSettings{ramp, swings.front(), active, swings};
+  plan.rapid = RapidSettings{ramp, swings.front(), active, swings, holds};
   plan.adaptive_amplitude = AdaptiveAmplitude{
       ramp, v.at("rb_torque_nm"), amp, thr, max_ma, {active}, v.at("rb_min_top_fraction")};
 }

@@ -89,6 +89,8 @@ struct RapidSettings {
   /// Every free-swing trial besides active_trial (the released swings and
   /// the extension search), passive_trial first.
   std::vector<int> swing_trials;
+  /// The relaxed-knee position holds that measure J (may be empty).
+  std::vector<int> hold_trials;
 };
 
 /// Random-binary amplitude chosen during the run (rapid_parameterisation),

@@ -29,6 +29,15 @@ api::Result<double> KnownInertia(const SubjectContext& subject) {
       "parameters.inertia_kgm2");
 }
 
+std::string InertiaSource(const SubjectContext& subject) {
+  if (subject.inertia_kgm2) return "given";
+  if (subject.parameter_set && subject.parameter_set->passive.inertia_kgm2 > 0.0) {
+    return "prior_set";
+  }
+  if (subject.body_mass_kg && subject.leg_length_m) return "anthropometric";
+  return "";
+}
+
 api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedTrial>& trials,
                                                      const RapidSettings& settings,
                                                      const SubjectContext& subject,
@@ -43,15 +52,23 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
   std::vector<int> swing_indices = settings.swing_trials;
   if (swing_indices.empty()) swing_indices.push_back(settings.passive_trial);
   swing_indices.push_back(settings.active_trial);
-  std::vector<model::TrialColumns> swings;
+  model::RapidTrials rapid;
   for (int k : swing_indices) {
     const RecordedTrial* t = pick(k);
     if (t == nullptr)
       return api::Status::FailedPrecondition("rapid parameterisation: a trial is missing");
-    swings.push_back(api::ToTrialColumns(t->trial));
+    rapid.swings.push_back(api::ToTrialColumns(t->trial));
   }
   if (iso == nullptr) {
     return api::Status::FailedPrecondition("rapid parameterisation: a trial is missing");
+  }
+  rapid.isometric = api::ToTrialColumns(iso->trial);
+  const std::string source = InertiaSource(subject);
+  // An explicit J is kept: the holds are not used.
+  if (source != "given") {
+    for (int k : settings.hold_trials) {
+      if (const RecordedTrial* t = pick(k)) rapid.holds.push_back(api::ToTrialColumns(t->trial));
+    }
   }
   model::RapidOptions options;
   options.inertia_kgm2 = *inertia;
@@ -63,7 +80,10 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
         model::AnthropometricGravityMoment(*subject.body_mass_kg, *subject.leg_length_m);
   }
   try {
-    model::RapidResult r = model::IdentifyRapid(api::ToTrialColumns(iso->trial), swings, options);
+    model::RapidResult r = model::IdentifyRapid(rapid, options);
+    if (r.parameters.provenance.inertia_method.empty()) {
+      r.parameters.provenance.inertia_method = source;
+    }
     r.parameters.provenance.software_version = "fesbench 0.1.0";
     return r.parameters;
   } catch (const std::exception& e) {

@@ -7,6 +7,7 @@
 /// length) and runs model::IdentifyRapid.
 
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "api/status.h"
@@ -23,6 +24,11 @@ struct RecordedTrial;
 /// sources is available.
 api::Result<double> KnownInertia(const SubjectContext& subject);
 
+/// Where KnownInertia's value comes from: "given" (an explicit
+/// inertia_kgm2), "prior_set" (the leg's latest parameter set),
+/// "anthropometric" (Eq. 4.13), or "" if none.
+std::string InertiaSource(const SubjectContext& subject);
+
 /// kFailedPrecondition without an inertia or when a trial is missing;
 /// kFailedPrecondition naming the fit if identification fails. `stops` are
 /// the bench's hard stops (samples in contact are left out of the fits and
@@ -30,6 +36,8 @@ api::Result<double> KnownInertia(const SubjectContext& subject);
 /// of motion. The free swings are settings.swing_trials (else
 /// passive_trial) and active_trial; with the subject's body mass and leg
 /// length the gravity term of a short τ_pta range is m·g·l from them.
+/// With settings.hold_trials J is then measured by their torques
+/// (model::IdentifyRapid), unless it was given explicitly.
 api::Result<model::ParameterSet> IdentifyRapidTrials(
     const std::vector<RecordedTrial>& trials, const RapidSettings& settings,
     const SubjectContext& subject, std::optional<model::JointLimits> stops = std::nullopt);

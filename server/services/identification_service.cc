@@ -41,6 +41,9 @@ enum class TrialKind {
   kActive,
   kRapidRamp,
   kRapidPassive,
+  kRapidRelease,
+  kRapidSearch,
+  kRapidHold,
   kRapidActive,
 };
 
@@ -55,6 +58,9 @@ std::optional<TrialKind> KindOfName(std::string_view name) {
   if (name.starts_with("active_random_binary")) return TrialKind::kActive;
   if (name == "rapid_isometric_ramp_irc") return TrialKind::kRapidRamp;
   if (name == "rapid_free_swing_passive") return TrialKind::kRapidPassive;
+  if (name == "rapid_release_extension") return TrialKind::kRapidRelease;
+  if (name == "rapid_extension_search") return TrialKind::kRapidSearch;
+  if (name.starts_with("rapid_passive_hold_")) return TrialKind::kRapidHold;
   if (name == "rapid_active_random_binary") return TrialKind::kRapidActive;
   return std::nullopt;
 }
@@ -387,9 +393,29 @@ class Fitter {
           "method rapid needs the limb inertia (§7.4.1): give inertia_kgm2, record the subject's "
           "weight and shank length (Eq. 4.13), or store a parameter set of the leg first");
     }
+    // Every trial of the rapid routine the run would use (plan.cc
+    // BuildRapid): the releases, the extension search, the random-binary
+    // trial, and the holds that measure J unless it is given.
+    model::RapidTrials trials;
+    trials.isometric = Columns(*iso);
+    trials.swings.push_back(Columns(*pas));
+    for (TrialKind kind : {TrialKind::kRapidRelease, TrialKind::kRapidSearch}) {
+      if (const LoadedTrial* t = sel_.Latest(kind)) trials.swings.push_back(Columns(*t));
+    }
+    trials.swings.push_back(Columns(*act));
+    const std::vector<LoadedTrial>& holds = sel_.Of(TrialKind::kRapidHold);
+    if (!req_.inertia_kgm2 && holds.size() >= 2) {
+      for (std::size_t k = holds.size() - 2; k < holds.size(); ++k) {
+        trials.holds.push_back(Columns(holds[k]));
+      }
+    }
     model::RapidOptions o;
     o.inertia_kgm2 = *inertia;
     o.pulse_rate_hz = config_.pulse_rate_hz;
+    o.joint_limits = config_.joint_limits;
+    if (ctx_.body_mass_kg && ctx_.leg_length_m) {
+      o.mgl_prior_nm = model::AnthropometricGravityMoment(*ctx_.body_mass_kg, *ctx_.leg_length_m);
+    }
     const auto& bp = req_.breakpoints;
     if (bp.passive_angle) o.passive_angle = *bp.passive_angle;
     if (bp.passive_velocity) o.passive_velocity = *bp.passive_velocity;
@@ -397,10 +423,14 @@ class Fitter {
     if (bp.active_velocity) o.active_velocity = *bp.active_velocity;
     stage_ = "rapid parameterisation";
     TrialColumns active = Columns(*act);
-    const model::RapidResult r =
-        model::IdentifyRapid(Columns(*iso), Columns(*pas), active, o);  // §7.4.1
+    const model::RapidResult r = model::IdentifyRapid(trials, o);  // §7.4.1
     common_.values["inertia_kgm2"] = *inertia;
     model::ParameterSet base = r.parameters;
+    if (base.provenance.inertia_method.empty()) {
+      base.provenance.inertia_method = req_.inertia_kgm2                       ? "given"
+                                       : (ctx_.body_mass_kg && ctx_.leg_length_m) ? "anthropometric"
+                                                                                  : "prior_set";
+    }
     base.provenance.active_trial_id = act->id;
     FitOutcome out;
     std::vector<TrialColumns> active_trials;

@@ -35,6 +35,7 @@
 
 #include "api/status.h"
 #include "model/identify_common.h"
+#include "model/simulate.h"
 #include "server/services/actor.h"
 #include "storage/database.h"
 
@@ -42,6 +43,9 @@ namespace fesbench::server::services {
 
 struct IdentificationConfig {
   double pulse_rate_hz = 33.0;  ///< stimulator pulse rate of the recorded trials, Hz.
+  /// The bench's stops (method rapid: samples in contact are left out of the
+  /// fits and the output-error simulations stop there, as in the run).
+  std::optional<model::JointLimits> joint_limits;
 };
 
 /// Breakpoints of the fitted curves: a count over the visited range or

@@ -149,6 +149,70 @@ TEST(RefineOutputError, RecoversAPerturbedSetFromItsOwnSwings) {
   EXPECT_THROW(RefineOutputError(start, {&no_velocity, 1}), std::invalid_argument);
 }
 
+// A hold of the relaxed knee: the motor holds angle_deg, the brace reads
+// offset + τ_pta(angle) (Eq. 4.9 at rest) with a little alternating noise.
+TrialColumns Hold(const PiecewiseLinear& pta, double angle_deg, double offset_nm) {
+  TrialColumns h;
+  for (int i = 0; i < 50; ++i) {
+    h.t_s.push_back(0.005 * i);
+    h.angle_deg.push_back(angle_deg);
+    h.torque_nm.push_back(offset_nm + pta(angle_deg) + (i % 2 == 0 ? 0.01 : -0.01));
+  }
+  return h;
+}
+
+TEST(InertiaScaleFromHolds, RecoversTheTorqueScaleWhateverTheOffset) {
+  const ParameterSet truth = ExampleParameterSet();
+  // A set identified with J 20 % low has every torque 20 % low (Eq. 4.35).
+  const ParameterSet low = ScaleTorques(truth, 0.8);
+  EXPECT_DOUBLE_EQ(low.passive.inertia_kgm2, 0.8 * truth.passive.inertia_kgm2);
+  EXPECT_DOUBLE_EQ(low.active.torque_scale_nm, 0.8 * truth.active.torque_scale_nm);
+  const std::vector<TrialColumns> holds = {Hold(truth.passive.torque_angle, 80.0, 1.7),
+                                           Hold(truth.passive.torque_angle, 35.0, 1.7)};
+  const HoldScale s = InertiaScaleFromHolds(low.passive.torque_angle, holds, 20.0);
+  EXPECT_NEAR(s.scale, 1.25, 1e-9);  // closed form: 1 / 0.8
+  EXPECT_NEAR(s.span_deg, 45.0, 1e-12);
+  EXPECT_LT(s.rms_nm, 1e-9);
+  EXPECT_EQ(s.holds, 2);
+  const ParameterSet back = ScaleTorques(low, s.scale);
+  EXPECT_NEAR(back.passive.inertia_kgm2, truth.passive.inertia_kgm2, 1e-12);
+  // Too close together, too few, or a flat τ_pta: refused with the reason.
+  const std::vector<TrialColumns> close = {Hold(truth.passive.torque_angle, 80.0, 0.0),
+                                           Hold(truth.passive.torque_angle, 70.0, 0.0)};
+  EXPECT_THROW(InertiaScaleFromHolds(low.passive.torque_angle, close, 20.0),
+               std::invalid_argument);
+  EXPECT_THROW(InertiaScaleFromHolds(low.passive.torque_angle, std::span(holds).first(1), 20.0),
+               std::invalid_argument);
+  EXPECT_THROW(InertiaScaleFromHolds(PiecewiseLinear::Constant(2.0), holds, 20.0),
+               std::invalid_argument);
+}
+
+TEST(IdentifyRapid, HoldsMeasureTheInertiaAGivenValueMissed) {
+  Data d;
+  RapidTrials trials;
+  trials.isometric = d.isometric;
+  trials.swings = {d.passive, d.active};
+  // Holds inside the range the swings visited (τ_pta is identified there).
+  double lo = 180.0, hi = 0.0;
+  for (const TrialColumns* tr : {&d.passive, &d.active}) {
+    for (double th : tr->angle_deg) lo = std::min(lo, th), hi = std::max(hi, th);
+  }
+  trials.holds = {Hold(d.truth.passive.torque_angle, lo + 0.8 * (hi - lo), 0.4),
+                  Hold(d.truth.passive.torque_angle, lo + 0.2 * (hi - lo), 0.4)};
+  RapidOptions o;
+  o.inertia_kgm2 = 0.85 * d.truth.passive.inertia_kgm2;  // e.g. Eq. 4.13 15 % low
+  const RapidResult r = IdentifyRapid(trials, o);
+  EXPECT_EQ(r.parameters.provenance.inertia_method, "release_holds");
+  EXPECT_NEAR(r.parameters.passive.inertia_kgm2, d.truth.passive.inertia_kgm2,
+              0.03 * d.truth.passive.inertia_kgm2);
+  // Without holds J stays as given.
+  o.inertia_kgm2 = 0.85 * d.truth.passive.inertia_kgm2;
+  trials.holds.clear();
+  const RapidResult given = IdentifyRapid(trials, o);
+  EXPECT_DOUBLE_EQ(given.parameters.passive.inertia_kgm2, o.inertia_kgm2);
+  EXPECT_EQ(given.parameters.provenance.inertia_method, "");
+}
+
 TEST(IdentifyRapid, RecoversTheModelAndPredictsItsResponse) {
   Data d;
   RapidOptions o;
