@@ -61,7 +61,7 @@ class ClockBench final : public Bench {
   void SetStimAmplitude(double) override {}
   void TriggerPulse(double) override {}
   void RestartPulseClock() override {}
-  std::vector<model::Pulse> DrainDeliveredPulses() override { return {}; }
+  std::vector<fesbench::model::Pulse> DrainDeliveredPulses() override { return {}; }
   void SetMotorMode(MotorMode) override {}
   void SetMotorSetpoint(double) override {}
   double Now_s() const override { return t_; }
