@@ -340,58 +340,59 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& pas
   return IdentifyRapid(isometric, swings, options);
 }
 
-HoldScale InertiaScaleFromHolds(const PiecewiseLinear& torque_angle,
-                                std::span<const TrialColumns> holds, double min_span_deg) {
-  const char* what = "InertiaScaleFromHolds";
-  std::vector<double> angle, torque;
-  for (const TrialColumns& h : holds) {
-    const std::size_t n = h.t_s.size();
-    RequireColumn(what, "angle_deg", h.angle_deg, n);
-    RequireColumn(what, "torque_nm", h.torque_nm, n);
-    if (n < 4) throw std::invalid_argument(std::string(what) + ": a hold has fewer than 4 samples");
-    // The second half: the servo has settled (§5.4.1 averages the end of a hold).
-    double a = 0.0, t = 0.0;
-    for (std::size_t i = n / 2; i < n; ++i) {
-      a += h.angle_deg[i];
-      t += h.torque_nm[i];
+ReleaseInertia InertiaFromReleases(std::span<const TrialColumns> swings,
+                                   std::span<const RapidTrials::Release> releases,
+                                   double window_s) {
+  const char* what = "InertiaFromReleases";
+  if (releases.size() < 2) throw std::invalid_argument(std::string(what) + ": needs 2 releases");
+  ReleaseInertia out;
+  for (const RapidTrials::Release& r : releases) {
+    const TrialColumns& h = r.hold;
+    const std::size_t nh = h.t_s.size();
+    RequireColumn(what, "torque_nm", h.torque_nm, nh);
+    if (nh < 4) throw std::invalid_argument(std::string(what) + ": a hold has under 4 samples");
+    double tq = 0.0;
+    for (std::size_t i = nh / 2; i < nh; ++i) tq += h.torque_nm[i];
+    out.hold_torque_nm.push_back(tq / static_cast<double>(nh - nh / 2));
+    if (r.swing >= swings.size()) throw std::invalid_argument(std::string(what) + ": no such swing");
+    const TrialColumns& sw = swings[r.swing];
+    RequireColumn(what, "angle_deg", sw.angle_deg, sw.t_s.size());
+    std::size_t n = 0;
+    while (n < sw.t_s.size() && sw.t_s[n] - sw.t_s.front() <= window_s + 1e-9) ++n;
+    if (n < 6) throw std::invalid_argument(std::string(what) + ": a swing is shorter than the window");
+    // θ = c0 + c1·τ + c2·τ²/2 + c3·τ³/6, τ from the first sample.
+    Eigen::MatrixXd a(static_cast<Eigen::Index>(n), 4);
+    Eigen::VectorXd b(static_cast<Eigen::Index>(n));
+    for (std::size_t i = 0; i < n; ++i) {
+      const double t = sw.t_s[i] - sw.t_s.front();
+      const auto k = static_cast<Eigen::Index>(i);
+      a(k, 0) = 1.0;
+      a(k, 1) = t;
+      a(k, 2) = 0.5 * t * t;
+      a(k, 3) = t * t * t / 6.0;
+      b(k) = sw.angle_deg[i];
     }
-    const double m = static_cast<double>(n - n / 2);
-    angle.push_back(a / m);
-    torque.push_back(t / m);
+    const Eigen::VectorXd c = a.colPivHouseholderQr().solve(b);
+    out.accel_deg_s2.push_back(c(2));
   }
-  HoldScale out;
-  out.holds = static_cast<int>(angle.size());
-  if (angle.size() < 2) {
-    throw std::invalid_argument(std::string(what) + ": needs at least 2 holds");
-  }
-  const auto [lo, hi] = std::minmax_element(angle.begin(), angle.end());
-  out.span_deg = *hi - *lo;
-  if (!(out.span_deg >= min_span_deg)) {
-    throw std::invalid_argument(std::string(what) + ": the holds span " +
-                                std::to_string(out.span_deg) + "°, under " +
-                                std::to_string(min_span_deg) + "°");
-  }
-  // torque_i = c + s·τ_pta(θ_i): least squares in (c, s).
-  const std::size_t n = angle.size();
+  // τ_hold = c − J·θ̈₀ (θ̈₀ in rad/s²).
+  const std::size_t n = releases.size();
   double mx = 0.0, my = 0.0;
-  std::vector<double> x(n);
   for (std::size_t i = 0; i < n; ++i) {
-    x[i] = torque_angle(angle[i]);
-    mx += x[i] / static_cast<double>(n);
-    my += torque[i] / static_cast<double>(n);
+    mx += -DegToRad(out.accel_deg_s2[i]) / static_cast<double>(n);
+    my += out.hold_torque_nm[i] / static_cast<double>(n);
   }
   double sxx = 0.0, sxy = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
-    sxx += (x[i] - mx) * (x[i] - mx);
-    sxy += (x[i] - mx) * (torque[i] - my);
+    const double x = -DegToRad(out.accel_deg_s2[i]) - mx;
+    sxx += x * x;
+    sxy += x * (out.hold_torque_nm[i] - my);
   }
-  if (!(sxx > 1e-12)) {
-    throw std::invalid_argument(std::string(what) + ": τ_pta does not change across the holds");
-  }
-  out.scale = sxy / sxx;
+  if (!(sxx > 1e-12)) throw std::invalid_argument(std::string(what) + ": the releases do not differ");
+  out.inertia_kgm2 = sxy / sxx;
   double ss = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
-    const double e = torque[i] - (my + out.scale * (x[i] - mx));
+    const double e = out.hold_torque_nm[i] - (my + out.inertia_kgm2 * (-DegToRad(out.accel_deg_s2[i]) - mx));
     ss += e * e;
   }
   out.rms_nm = std::sqrt(ss / static_cast<double>(n));
@@ -532,25 +533,25 @@ RapidResult IdentifyRapid(const RapidTrials& trials, const RapidOptions& options
     out.report.Merge(refined.report);
   }
 
-  // 5. J measured: the holds fix the torque scale the swings leave free.
+  // 5. J measured: the releases fix the torque scale the swings leave free.
   out.report.values["inertia_given_kgm2"] = options.inertia_kgm2;
-  if (!trials.holds.empty()) {
+  if (trials.releases.size() >= 2) {
     try {
-      const HoldScale hs =
-          InertiaScaleFromHolds(ps.passive.torque_angle, trials.holds, options.min_hold_span_deg);
-      out.report.values["inertia_hold_scale"] = hs.scale;
-      out.report.values["inertia_hold_span_deg"] = hs.span_deg;
-      out.report.fit_rms["inertia_holds_nm"] = hs.rms_nm;
-      if (hs.scale >= 1.0 / options.max_inertia_scale && hs.scale <= options.max_inertia_scale) {
+      const ReleaseInertia ri =
+          InertiaFromReleases(trials.swings, trials.releases, options.release_window_s);
+      const double scale = ri.inertia_kgm2 / ps.passive.inertia_kgm2;
+      out.report.values["inertia_release_kgm2"] = ri.inertia_kgm2;
+      out.report.fit_rms["inertia_releases_nm"] = ri.rms_nm;
+      if (scale >= 1.0 / options.max_inertia_scale && scale <= options.max_inertia_scale) {
         const Provenance keep = ps.provenance;
-        ps = ScaleTorques(ps, hs.scale);
+        ps = ScaleTorques(ps, scale);
         ps.provenance = keep;
-        ps.provenance.inertia_method = "release_holds";
+        ps.provenance.inertia_method = "releases";
       } else {
-        out.report.warnings.push_back(
-            "the holds give J = " + std::to_string(hs.scale * options.inertia_kgm2) +
-            " kg·m², outside the allowed factor of the given " +
-            std::to_string(options.inertia_kgm2) + " kg·m²; kept the given J");
+        out.report.warnings.push_back("the releases give J = " + std::to_string(ri.inertia_kgm2) +
+                                      " kg·m², outside the allowed factor of the given " +
+                                      std::to_string(options.inertia_kgm2) +
+                                      " kg·m²; kept the given J");
       }
     } catch (const std::invalid_argument& e) {
       out.report.warnings.push_back(std::string("J not measured: ") + e.what() +

@@ -43,7 +43,10 @@ namespace fesbench::model {
 struct RapidOptions {
   double inertia_kgm2 = 0.0;            ///< known limb inertia J > 0, kg·m².
   double pulse_rate_hz = 33.0;          ///< stimulator pulse rate, Hz (> 0).
-  ContractionOptions contraction{};     ///< order 3, pole from the peak.
+  /// Order 3, pole by least squares on the whole averaged twitch (the peak
+  /// time alone is 2–7 % off on the cohort, the whole shape −2.7…−4.5 %:
+  /// docs/MODEL.md).
+  ContractionOptions contraction{TwitchOptions{}, 3, PoleMethod::kLeastSquares};
   IrcOptions irc{};                     ///< ramp-correlation settings.
   BreakpointSpec passive_angle{9, {}};  ///< τ_pta breakpoints over the visited range.
   BreakpointSpec passive_velocity{7, {}};
@@ -73,11 +76,12 @@ struct RapidOptions {
   /// m·g·l of the shank, N·m, for the gravity term when the passive data
   /// span under 60° (0 = fit it; FitPassiveAngleForm).
   double mgl_prior_nm = 0.0;
-  /// Holds (RapidTrials::holds) closer than this in angle do not fix the
-  /// torque scale (InertiaScaleFromHolds), deg.
-  double min_hold_span_deg = 20.0;
-  /// A scale outside [1/max_inertia_scale, max_inertia_scale] of the given
-  /// inertia is reported and not applied.
+  /// InertiaFromReleases's window: the first window_s of each released
+  /// swing, s (0.16 s: shorter is noisier, longer lets the changing torque in;
+  /// measured on the cohort, docs/STUDY.md).
+  double release_window_s = 0.16;
+  /// A J from the releases outside [1/max_inertia_scale, max_inertia_scale]
+  /// of the given inertia is reported and not applied.
   double max_inertia_scale = 1.6;
 };
 
@@ -85,34 +89,40 @@ struct RapidOptions {
 struct RapidTrials {
   TrialColumns isometric;             ///< the isometric ramp trial (t_s, stim_ma, torque_nm).
   std::vector<TrialColumns> swings;   ///< free swings (t_s, stim_ma, angle_deg).
-  /// Position holds of the relaxed knee (t_s, angle_deg, torque_nm; the
-  /// motor still, every hold approached in the same direction so that the
-  /// tissue's hysteresis is the same in each): they measure τ_pta in N·m,
-  /// which the free swings alone cannot (their motion fixes every torque
-  /// only relative to J). Empty: J stays options.inertia_kgm2.
-  std::vector<TrialColumns> holds;
+  /// Releases: the hold just before a release (t_s, angle_deg, torque_nm)
+  /// and the index in `swings` of the free swing that starts at the
+  /// release. With two or more, J is measured from them
+  /// (InertiaFromReleases); else it stays options.inertia_kgm2.
+  struct Release {
+    TrialColumns hold;
+    std::size_t swing = 0;
+  };
+  std::vector<Release> releases;
 };
 
-/// What InertiaScaleFromHolds returns.
-struct HoldScale {
-  double scale = 1.0;      ///< measured / modelled τ_pta differences (J_true / J_given).
-  double span_deg = 0.0;   ///< angle between the outermost holds.
-  double rms_nm = 0.0;     ///< misfit of the holds after scaling, N·m.
-  int holds = 0;           ///< holds used.
+/// What InertiaFromReleases returns.
+struct ReleaseInertia {
+  double inertia_kgm2 = 0.0;
+  std::vector<double> hold_torque_nm;   ///< per release.
+  std::vector<double> accel_deg_s2;     ///< per release, at its first sample.
+  double rms_nm = 0.0;                  ///< misfit of torque = c − J·θ̈₀.
 };
 
-/// The factor s by which every torque of a free-swing set (and its J) must
-/// be multiplied so that its τ_pta matches the held torques: the
-/// least-squares slope of the holds' torque against τ_pta at their angles,
-/// torque_i ≈ c + s·τ_pta(θ_i) (c absorbs any torque offset, §5.3). The
-/// motion of a free swing is unchanged by scaling J and every torque by
-/// one factor (Eq. 4.35), so this fixes J without touching the fit. Each
-/// hold is the mean of the second half of its trial.
-/// @throws std::invalid_argument if a hold lacks t_s, angle_deg or
-///   torque_nm, or has fewer than 4 samples; or if fewer than 2 holds span
-///   `min_span_deg`, or τ_pta does not change across them.
-HoldScale InertiaScaleFromHolds(const PiecewiseLinear& torque_angle,
-                                std::span<const TrialColumns> holds, double min_span_deg);
+/// J from the start of each release (beyond the thesis): at the instant the
+/// motor lets go of the still knee, nothing but the held torque moves it,
+/// J·θ̈₀ = −τ_hold (Eq. 4.9 with θ̇ = 0 and no brace torque; the tissue's
+/// hysteresis is in the held torque and acts the same just after). θ̈₀ is
+/// the t² term of a cubic fitted to the first window_s of the swing's angle;
+/// τ_hold the mean of the hold's second half. J is the least-squares slope
+/// of τ_hold against −θ̈₀ over the releases (the intercept takes the torque
+/// sensor's offset). Friction opposing the first motion biases J by about
+/// 2·F/Δτ_hold (a few %).
+/// @throws std::invalid_argument if fewer than 2 releases, a column is
+///   missing, a swing is shorter than window_s, or the held torques do not
+///   differ.
+ReleaseInertia InertiaFromReleases(std::span<const TrialColumns> swings,
+                                   std::span<const RapidTrials::Release> releases,
+                                   double window_s = 0.16);
 
 /// Every torque of a set times `scale`, J with them: τ_pta, τ_ptv ordinates,
 /// τ_scale and inertia (the free-swing motion is unchanged, Eq. 4.35).
@@ -212,13 +222,14 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& pas
 RapidResult IdentifyRapid(const TrialColumns& isometric, std::span<const TrialColumns> swings,
                           const RapidOptions& options);
 
-/// The same, and with holds (RapidTrials::holds) J is then measured: the
-/// set identified with options.inertia_kgm2 is scaled by
-/// InertiaScaleFromHolds (report values "inertia_given_kgm2",
-/// "inertia_hold_scale", "inertia_hold_span_deg"; fit_rms
-/// "inertia_holds_nm"; provenance.inertia_method "release_holds"). A scale
-/// outside the allowed range, or holds that cannot fix it, leave J as
-/// given with a warning naming why.
+/// The same, and with releases (RapidTrials::releases) J is then measured:
+/// the swings fix every torque only relative to J (scaling J and every
+/// torque by one factor leaves Eq. 4.35's motion unchanged), so the set
+/// identified with options.inertia_kgm2 is scaled by ScaleTorques to the J
+/// of InertiaFromReleases (report value "inertia_release_kgm2", fit_rms
+/// "inertia_releases_nm"; provenance.inertia_method "releases"). A J outside
+/// the allowed factor, or releases that cannot give one, leave J as given
+/// with a warning naming why.
 RapidResult IdentifyRapid(const RapidTrials& trials, const RapidOptions& options);
 
 }  // namespace fesbench::model

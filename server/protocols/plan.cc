@@ -334,31 +334,8 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
   const double margin = v.at("release_margin_fraction") * rom;
   const double lo = subject.min_angle_deg + margin, hi = subject.max_angle_deg - margin;
   if (!(hi > lo)) throw std::invalid_argument("release_margin_fraction: leaves no range of motion");
-  // Two holds of the relaxed knee, both approached moving toward extension
-  // (the tissue's hysteresis, Fig. 3-7, is then the same in both): their
-  // torques measure τ_pta in N·m, which fixes J (InertiaScaleFromHolds).
-  // The upper one at least 10° below the lock angle, so the move to it
-  // already sets the approach direction; else a move above it first.
-  std::vector<int> holds;
-  const double hold_s = v.at("inertia_hold_s");
-  if (hold_s > 0.0) {
-    const double low = lo + 0.2 * (hi - lo);
-    double high = lo + 0.8 * (hi - lo);
-    if (lock - 10.0 >= low + 25.0) {
-      high = std::min(high, lock - 10.0);
-    } else {
-      b.Prepare("move above the first hold", MotorMode::kPosition, std::min(high + 10.0, hi),
-                0.4, true);
-    }
-    int k = 0;
-    for (const double angle : {high, low}) {
-      b.Prepare("move to hold", MotorMode::kPosition, angle, angle == high ? 0.3 : 0.45, true);
-      const int t = b.AddTrial("rapid_passive_hold_" + std::to_string(++k), MotorMode::kPosition);
-      b.Rest("hold", hold_s, 0.0, t, MotorMode::kPosition, angle);
-      holds.push_back(t);
-    }
-  }
   std::vector<int> swings;
+  std::vector<std::pair<int, int>> releases;
   // The flexion release keeps the name the identification service and
   // clients know for the rapid routine's passive free swing.
   for (const auto& [name, where, angle] :
@@ -366,10 +343,14 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
         std::tuple{"rapid_release_extension", "extension", lo}}) {
     b.Prepare(std::string("move to ") + where, MotorMode::kPosition, angle, v.at("release_move_s"),
               true);
-    b.Prepare("hold", MotorMode::kPosition, angle, v.at("release_hold_s"));
+    // The hold before the release is recorded: its torque is what moves the
+    // knee at the release (InertiaFromReleases).
+    const int h = b.AddTrial(std::string("rapid_release_hold_") + where, MotorMode::kPosition);
+    b.Rest("hold", v.at("release_hold_s"), 0.0, h, MotorMode::kPosition, angle);
     const int t = b.AddTrial(name, MotorMode::kDecoupled);
     b.Rest("free swing", v.at("release_swing_s"), 0.0, t, MotorMode::kDecoupled, angle);
     swings.push_back(t);
+    releases.emplace_back(h, t);
   }
   b.Prepare("swing", MotorMode::kDecoupled, lock, v.at("swing_settle_s"));
   // Ascending search: threshold → max in search_s, ended at full extension.
@@ -406,7 +387,7 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
                   LeveledRandomBinary(amp, thr, v.at("duration_s"), v.at("active_seed"),
                                       v.at("rb_level_min_fraction")),
                   MotorMode::kDecoupled, lock, 0.0);
-  plan.rapid = RapidSettings{ramp, swings.front(), active, swings, holds};
+  plan.rapid = RapidSettings{ramp, swings.front(), active, swings, releases};
   plan.adaptive_amplitude = AdaptiveAmplitude{
       ramp, v.at("rb_torque_nm"), amp, thr, max_ma, {active}, v.at("rb_min_top_fraction")};
 }

@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "api/status.h"
@@ -89,8 +90,9 @@ struct RapidSettings {
   /// Every free-swing trial besides active_trial (the released swings and
   /// the extension search), passive_trial first.
   std::vector<int> swing_trials;
-  /// The relaxed-knee position holds that measure J (may be empty).
-  std::vector<int> hold_trials;
+  /// (recorded hold before a release, the free swing after it): they
+  /// measure J (model::InertiaFromReleases).
+  std::vector<std::pair<int, int>> release_trials;
 };
 
 /// Random-binary amplitude chosen during the run (rapid_parameterisation),

@@ -290,9 +290,9 @@ std::vector<ProtocolDescription> MakeCatalog() {
        "Rapid parameterisation",
        "The < 30 s routine of §7.4.1 over the whole range of motion: a 7 s isometric ramp "
        "IRC trial (2 impulses, one 4 s cosine ramp) → contraction pole and IRC by ramp "
-       "correlation; two 0.25 s holds of the relaxed knee whose torques measure J; the motor "
-       "takes the knee near full flexion and near full extension "
-       "and releases it twice (free swings through the range, §4.2.3); a ≤ 3 s ascending "
+       "correlation; the motor takes the knee near full flexion and near full extension "
+       "and releases it twice (free swings through the range, §4.2.3; the held torque and "
+       "the first 0.16 s of each swing measure J); a ≤ 3 s ascending "
        "amplitude search on the decoupled leg that stops at full extension (§5.4.3); a 10 s "
        "dense random-binary free-swing trial at the amplitude found → τ_pta and τ_ptv with "
        "known inertia from the passive samples of every swing → the active curves "
@@ -314,11 +314,9 @@ std::vector<ProtocolDescription> MakeCatalog() {
          "the knee is released this fraction of the range of motion inside each end of it", 0.05,
          0.02, 0.3, false},
         {"release_move_s", "motor move to each release angle, s", 0.8, 0.5, 10.0, false},
-        {"release_hold_s", "hold at the release angle before releasing, s", 0.2, 0.0, 5.0, false},
-        {"inertia_hold_s",
-         "each of the two relaxed-knee holds whose torques measure J (0 = J from "
-         "inertia_kgm2 or Eq. 4.13), s",
-         0.25, 0.0, 5.0, false},
+        {"release_hold_s",
+         "hold at the release angle before releasing (recorded: its torque measures J), s", 0.2,
+         0.0, 5.0, false},
         {"release_swing_s", "free swing recorded after each release, s", 1.8, 1.0, 20.0, false},
         {"swing_settle_s", "swing after the last release before the extension search, s", 0.3, 0.0,
          30.0, false},
@@ -605,7 +603,6 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"swing_settle_s", {"Free swing before recording", "s", true}},
       {"release_move_s", {"Motor move to each release angle", "s", true}},
       {"release_hold_s", {"Hold before each release", "s", true}},
-      {"inertia_hold_s", {"Relaxed-knee holds that measure J", "s", true}},
       {"release_swing_s", {"Free swing recorded after each release", "s", true}},
       {"search_s", {"Full-extension search length", "s", true}},
       {"fall_s", {"Free swing recorded after the search", "s", true}},

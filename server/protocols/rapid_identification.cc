@@ -1,5 +1,6 @@
 #include "server/protocols/rapid_identification.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "model/identify_passive.h"
@@ -64,10 +65,14 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
   }
   rapid.isometric = api::ToTrialColumns(iso->trial);
   const std::string source = InertiaSource(subject);
-  // An explicit J is kept: the holds are not used.
+  // An explicit J is kept: the releases are not used to measure it.
   if (source != "given") {
-    for (int k : settings.hold_trials) {
-      if (const RecordedTrial* t = pick(k)) rapid.holds.push_back(api::ToTrialColumns(t->trial));
+    for (const auto& [hold, swing] : settings.release_trials) {
+      const RecordedTrial* h = pick(hold);
+      const auto at = std::find(swing_indices.begin(), swing_indices.end(), swing);
+      if (h == nullptr || at == swing_indices.end()) continue;
+      rapid.releases.push_back(
+          {api::ToTrialColumns(h->trial), static_cast<std::size_t>(at - swing_indices.begin())});
     }
   }
   model::RapidOptions options;

@@ -36,8 +36,8 @@ std::string InertiaSource(const SubjectContext& subject);
 /// of motion. The free swings are settings.swing_trials (else
 /// passive_trial) and active_trial; with the subject's body mass and leg
 /// length the gravity term of a short τ_pta range is m·g·l from them.
-/// With settings.hold_trials J is then measured by their torques
-/// (model::IdentifyRapid), unless it was given explicitly.
+/// With settings.release_trials J is then measured by the releases
+/// (model::InertiaFromReleases), unless it was given explicitly.
 api::Result<model::ParameterSet> IdentifyRapidTrials(
     const std::vector<RecordedTrial>& trials, const RapidSettings& settings,
     const SubjectContext& subject, std::optional<model::JointLimits> stops = std::nullopt);

@@ -43,7 +43,8 @@ enum class TrialKind {
   kRapidPassive,
   kRapidRelease,
   kRapidSearch,
-  kRapidHold,
+  kRapidHoldFlexion,
+  kRapidHoldExtension,
   kRapidActive,
 };
 
@@ -60,7 +61,8 @@ std::optional<TrialKind> KindOfName(std::string_view name) {
   if (name == "rapid_free_swing_passive") return TrialKind::kRapidPassive;
   if (name == "rapid_release_extension") return TrialKind::kRapidRelease;
   if (name == "rapid_extension_search") return TrialKind::kRapidSearch;
-  if (name.starts_with("rapid_passive_hold_")) return TrialKind::kRapidHold;
+  if (name == "rapid_release_hold_flexion") return TrialKind::kRapidHoldFlexion;
+  if (name == "rapid_release_hold_extension") return TrialKind::kRapidHoldExtension;
   if (name == "rapid_active_random_binary") return TrialKind::kRapidActive;
   return std::nullopt;
 }
@@ -395,19 +397,22 @@ class Fitter {
     }
     // Every trial of the rapid routine the run would use (plan.cc
     // BuildRapid): the releases, the extension search, the random-binary
-    // trial, and the holds that measure J unless it is given.
+    // trial, and the holds before the releases that measure J unless it is
+    // given.
     model::RapidTrials trials;
     trials.isometric = Columns(*iso);
     trials.swings.push_back(Columns(*pas));
-    for (TrialKind kind : {TrialKind::kRapidRelease, TrialKind::kRapidSearch}) {
-      if (const LoadedTrial* t = sel_.Latest(kind)) trials.swings.push_back(Columns(*t));
+    const LoadedTrial* release = sel_.Latest(TrialKind::kRapidRelease);
+    if (release) trials.swings.push_back(Columns(*release));
+    if (const LoadedTrial* t = sel_.Latest(TrialKind::kRapidSearch)) {
+      trials.swings.push_back(Columns(*t));
     }
     trials.swings.push_back(Columns(*act));
-    const std::vector<LoadedTrial>& holds = sel_.Of(TrialKind::kRapidHold);
-    if (!req_.inertia_kgm2 && holds.size() >= 2) {
-      for (std::size_t k = holds.size() - 2; k < holds.size(); ++k) {
-        trials.holds.push_back(Columns(holds[k]));
-      }
+    const LoadedTrial* hold_flexion = sel_.Latest(TrialKind::kRapidHoldFlexion);
+    const LoadedTrial* hold_extension = sel_.Latest(TrialKind::kRapidHoldExtension);
+    if (!req_.inertia_kgm2 && hold_flexion && hold_extension && release) {
+      trials.releases.push_back({Columns(*hold_flexion), 0});
+      trials.releases.push_back({Columns(*hold_extension), 1});
     }
     model::RapidOptions o;
     o.inertia_kgm2 = *inertia;
