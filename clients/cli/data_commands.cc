@@ -59,9 +59,9 @@ std::string CheckDate(const std::string& date) {
 // With --json a command that writes a file reports what it wrote.
 void PrintWritten(CliContext& context, const std::string& what, std::int64_t id,
                   const std::string& format, const std::string& path, std::size_t bytes) {
-  context.out << nlohmann::json{{what, id}, {"format", format}, {"out", path}, {"bytes", bytes}}
-                     .dump(2)
-              << "\n";
+  context.out
+      << nlohmann::json{{what, id}, {"format", format}, {"out", path}, {"bytes", bytes}}.dump(2)
+      << "\n";
 }
 
 }  // namespace
@@ -124,8 +124,9 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
         "One parameter set: the parameter-set JSON of docs/MODEL.md (as fesbench-model reads "
         "it) or CSV; with --json and no --out, the stored set with its provenance.");
     get->add_option("id", *id, "parameter set id")->required();
-    CLI::Option* format_option = get->add_option("--format", *format, "json or csv (field,value rows)")
-        ->check(CLI::IsMember({"json", "csv"}));
+    CLI::Option* format_option =
+        get->add_option("--format", *format, "json or csv (field,value rows)")
+            ->check(CLI::IsMember({"json", "csv"}));
     get->add_option("--out", *out_path, "output file ('-' for standard output, the default)");
     get->callback([id, format, format_option, out_path, &context] {
       context.action = [id, format, format_option, out_path, &context] {

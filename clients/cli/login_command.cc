@@ -27,8 +27,9 @@ void RegisterLoginCommand(CLI::App& app, CliContext& context) {
       std::string secret = *token == "-" ? ReadToken("-") : *token;
       if (secret.empty()) secret = context.options.token;  // --token-file
       if (secret.empty()) {
-        throw CliError::Usage("login needs --token T, --token - (standard input) or "
-                              "--token-file PATH");
+        throw CliError::Usage(
+            "login needs --token T, --token - (standard input) or "
+            "--token-file PATH");
       }
       CliConfig config{NormaliseServerUrl(*url), secret};
       // The token must be valid: /me names its user for any signed-in role.
@@ -46,8 +47,8 @@ void RegisterLoginCommand(CLI::App& app, CliContext& context) {
         return;
       }
       context.out << "logged in to " << config.server << " as " << Cell(me.value("name", ""))
-                  << " (" << Cell(me.value("role", "")) << "); configuration in "
-                  << path->string() << "\n";
+                  << " (" << Cell(me.value("role", "")) << "); configuration in " << path->string()
+                  << "\n";
     };
   });
 }

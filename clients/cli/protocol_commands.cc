@@ -107,7 +107,8 @@ void RegisterProtocolCommands(CLI::App& app, CliContext& context) {
     show->callback([name, session, &context] {
       context.action = [name, session, &context] {
         auto client = Connect(context);
-        const json protocol = client->Get("/protocols/" + UrlEncode(*name) + SessionQuery(*session));
+        const json protocol =
+            client->Get("/protocols/" + UrlEncode(*name) + SessionQuery(*session));
         if (context.options.json) {
           context.out << protocol.dump(2) << "\n";
           return;

@@ -383,8 +383,8 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         if (context.options.json) {
           JsonLine(context, "started", run_id, started);
         } else {
-          progress << "started run " << run_id << " (" << form->protocol << ", session "
-                   << session << ")\n"
+          progress << "started run " << run_id << " (" << form->protocol << ", session " << session
+                   << ")\n"
                    << std::flush;
         }
         FollowRun(context, client, connection, run_id, progress,

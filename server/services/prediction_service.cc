@@ -114,9 +114,9 @@ api::Status ValidatePredictionRequest(const PredictionRequest& r, const Predicti
     }
   }
   if (r.initial_angle_deg && !InRange(*r.initial_angle_deg, 0.0, 180.0)) {
-    return api::Status::InvalidArgument("initial_angle_deg must be 0–180 deg, got " +
-                                            std::to_string(*r.initial_angle_deg),
-                                        "initial_angle_deg");
+    return api::Status::InvalidArgument(
+        "initial_angle_deg must be 0–180 deg, got " + std::to_string(*r.initial_angle_deg),
+        "initial_angle_deg");
   }
   if (!InRange(r.initial_velocity_deg_s, -2000.0, 2000.0)) {
     return api::Status::InvalidArgument("initial_velocity_deg_s must be -2000–2000 deg/s, got " +

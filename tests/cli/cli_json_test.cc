@@ -53,9 +53,8 @@ TEST(CliJsonTest, EveryCommandAnswersJson) {
   const fs::path token_file = WriteTokenFile(cli, "admin.token", admin + "\n");
 
   // login with the token from a file: the user it belongs to, as JSON.
-  const json login =
-      ParseOut(cli.Run({"login", Url(server), "--token-file", token_file.string(), "--json"}),
-               "login");
+  const json login = ParseOut(
+      cli.Run({"login", Url(server), "--token-file", token_file.string(), "--json"}), "login");
   EXPECT_EQ(login["server"], Url(server));
   EXPECT_EQ(login["user"]["name"], "admin");
   EXPECT_EQ(login["user"]["role"], "admin");
@@ -87,9 +86,9 @@ TEST(CliJsonTest, EveryCommandAnswersJson) {
   const json alias = ParseOut(cli.Run({"subjects", "create", "JS02", "--age", "50", "--json"}),
                               "subjects create --age");
   EXPECT_EQ(alias["details"]["age_years"], 50);
-  const json edited = ParseOut(cli.Run({"subjects", "edit", "JS02", "--reason", "measured",
-                                        "--age-years", "51", "--json"}),
-                               "subjects edit");
+  const json edited = ParseOut(
+      cli.Run({"subjects", "edit", "JS02", "--reason", "measured", "--age-years", "51", "--json"}),
+      "subjects edit");
   EXPECT_EQ(edited["details"]["age_years"], 51);
   EXPECT_EQ(edited["revision"], 2);
   const json subjects = ParseOut(cli.Run({"subjects", "list", "--json"}), "subjects list");
@@ -117,13 +116,13 @@ TEST(CliJsonTest, EveryCommandAnswersJson) {
   // with --session it is resolved in mA, as GET /protocols/{name} says.
   const json general = ParseOut(cli.Run({"protocols", "show", "rapid_parameterisation", "--json"}),
                                 "protocols show");
-  const json resolved = ParseOut(cli.Run({"protocols", "show", "rapid_parameterisation",
-                                          "--session", session_id, "--json"}),
-                                 "protocols show --session");
-  EXPECT_EQ(resolved, Call(http, "GET",
-                           "/api/v1/protocols/rapid_parameterisation?session_id=" + session_id,
-                           admin)
-                          .body);
+  const json resolved = ParseOut(
+      cli.Run({"protocols", "show", "rapid_parameterisation", "--session", session_id, "--json"}),
+      "protocols show --session");
+  EXPECT_EQ(
+      resolved,
+      Call(http, "GET", "/api/v1/protocols/rapid_parameterisation?session_id=" + session_id, admin)
+          .body);
   bool saw_rule = false;
   for (std::size_t i = 0; i < general["parameters"].size(); ++i) {
     const json& g = general["parameters"][i];
@@ -218,19 +217,17 @@ TEST(CliJsonTest, EveryCommandAnswersJson) {
       0u);
 
   // analysis jobs.
-  const json prediction = ParseOut(
-      cli.Run({"predict", "--params", set_id, "--stimulus", "step", "--json"}), "predict");
+  const json prediction =
+      ParseOut(cli.Run({"predict", "--params", set_id, "--stimulus", "step", "--json"}), "predict");
   EXPECT_EQ(prediction["parameter_set_id"].get<std::int64_t>(), std::stoll(set_id));
-  const json identified =
-      ParseOut(cli.Run({"identify", "--session", session_id, "--method", "rapid",
-                        "--passive-method", "free_swing", "--json"}),
-               "identify");
+  const json identified = ParseOut(cli.Run({"identify", "--session", session_id, "--method",
+                                            "rapid", "--passive-method", "free_swing", "--json"}),
+                                   "identify");
   EXPECT_FALSE(identified["parameter_sets"].empty());
 
   // e-stop and its clear.
   EXPECT_EQ(ParseOut(cli.Run({"estop", "--json"}), "estop")["estopped"], true);
-  EXPECT_EQ(ParseOut(cli.Run({"estop", "--clear", "--json"}), "estop --clear")["estopped"],
-            false);
+  EXPECT_EQ(ParseOut(cli.Run({"estop", "--clear", "--json"}), "estop --clear")["estopped"], false);
 
   // The server's range message names the field, its unit and the range.
   auto bad = cli.Run({"subjects", "create", "JS03", "--weight-kg", "-5"});
@@ -253,8 +250,8 @@ TEST(CliJsonTest, TokenFromAFileOrStandardInput) {
       "--token-file");
   EXPECT_EQ(me, json::array());
   // The file wins over FESBENCH_TOKEN.
-  auto over_env = cli.Run(
-      {"--server", url, "--token-file", file.string(), "subjects", "list"}, "fsb_wrong");
+  auto over_env =
+      cli.Run({"--server", url, "--token-file", file.string(), "subjects", "list"}, "fsb_wrong");
   EXPECT_EQ(over_env.exit_code, 0) << over_env.err;
 
   // From standard input.
@@ -273,8 +270,7 @@ TEST(CliJsonTest, TokenFromAFileOrStandardInput) {
   EXPECT_EQ(refused.exit_code, 1);
   ExpectOneErrorLine(refused);
   const fs::path empty = WriteTokenFile(cli, "empty", "\n");
-  for (const auto& args :
-       std::vector<std::vector<std::string>>{
+  for (const auto& args : std::vector<std::vector<std::string>>{
            {"--server", url, "--token-file", empty.string(), "subjects", "list"},
            {"--server", url, "--token-file", (cli.dir() / "missing").string(), "subjects", "list"},
            {"login", url}}) {

@@ -138,5 +138,4 @@ inline std::int64_t LastNumber(const std::string& text, const std::string& after
   return value;
 }
 
-
 }  // namespace fesbench::testing

@@ -25,9 +25,9 @@
 
 #include "api/parameter_set_json.h"
 #include "api/trial.h"
+#include "cli_runner.h"
 #include "clients/cli/cli.h"
 #include "clients/cli/config.h"
-#include "cli_runner.h"
 #include "server_process.h"
 
 namespace fesbench::testing {

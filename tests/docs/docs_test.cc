@@ -57,8 +57,8 @@ std::vector<fs::path> DocFiles() {
 
 bool InsideRoot(const fs::path& path) {
   const fs::path canonical = fs::weakly_canonical(path);
-  const auto [root_end, _] = std::mismatch(kRoot.begin(), kRoot.end(), canonical.begin(),
-                                           canonical.end());
+  const auto [root_end, _] =
+      std::mismatch(kRoot.begin(), kRoot.end(), canonical.begin(), canonical.end());
   return root_end == kRoot.end();
 }
 
@@ -85,15 +85,15 @@ TEST(DocsTest, ReferencesStayInsideTheRepository) {
         }
         target = target.substr(0, target.find('#'));
         ++checked_links;
-        EXPECT_TRUE(InsideRoot(dir / target)) << Where(file, n) << ": link leaves the repository: "
-                                              << target;
-        EXPECT_TRUE(fs::exists(dir / target)) << Where(file, n) << ": link to a missing file: "
-                                              << target;
+        EXPECT_TRUE(InsideRoot(dir / target))
+            << Where(file, n) << ": link leaves the repository: " << target;
+        EXPECT_TRUE(fs::exists(dir / target))
+            << Where(file, n) << ": link to a missing file: " << target;
       }
       for (std::sregex_iterator it(line.begin(), line.end(), parent_path), end; it != end; ++it) {
         const std::string path = (*it)[0];
-        EXPECT_TRUE(InsideRoot(dir / path)) << Where(file, n) << ": path leaves the repository: "
-                                            << path;
+        EXPECT_TRUE(InsideRoot(dir / path))
+            << Where(file, n) << ": path leaves the repository: " << path;
       }
       std::smatch machine;
       EXPECT_FALSE(std::regex_search(line, machine, machine_path))
@@ -108,8 +108,8 @@ TEST(DocsTest, ReferencesStayInsideTheRepository) {
         }
         // Relative to the document, the root or docs/; a bare file name
         // (e.g. an output of the study, "study.md") anywhere under docs/.
-        bool found = fs::exists(dir / name) || fs::exists(kRoot / name) ||
-                     fs::exists(kRoot / "docs" / name);
+        bool found =
+            fs::exists(dir / name) || fs::exists(kRoot / name) || fs::exists(kRoot / "docs" / name);
         if (!found && name.find('/') == std::string::npos) {
           for (const auto& entry : fs::recursive_directory_iterator(kRoot / "docs")) {
             found = found || entry.path().filename() == name;
@@ -171,8 +171,10 @@ std::vector<std::vector<std::string>> ShellCommands(const std::string& line) {
   for (std::size_t i = 0; i < line.size(); ++i) {
     const char c = line[i];
     if (quote) {
-      if (c == quote) quote = 0;
-      else word += c;
+      if (c == quote)
+        quote = 0;
+      else
+        word += c;
       continue;
     }
     if (c == '(' && i > 0 && line[i - 1] == '$') ++paren;
@@ -347,15 +349,14 @@ TEST(DocsTest, EveryReadmeCommandExists) {
       if (!flag.starts_with("--")) continue;
       flag = flag.substr(0, flag.find('='));
       const std::regex listed("(^|[\\s,])" + flag + "([\\s,=]|$)");
-      EXPECT_TRUE(std::regex_search(helps, listed))
-          << shown.where << ": " << flag << " is not an option of `" << exe->first
-          << (argv.size() > 1 ? " " : "")
-          << [&] {
-               std::string path;
-               for (std::size_t k = 1; k < argv.size(); ++k) path += (k > 1 ? " " : "") + argv[k];
-               return path;
-             }()
-          << "`";
+      EXPECT_TRUE(std::regex_search(helps, listed)) << shown.where << ": " << flag
+                                                    << " is not an option of `" << exe->first
+                                                    << (argv.size() > 1 ? " " : "") <<
+          [&] {
+            std::string path;
+            for (std::size_t k = 1; k < argv.size(); ++k) path += (k > 1 ? " " : "") + argv[k];
+            return path;
+          }() << "`";
     }
     ++checked;
     ++per_program[exe->first];
