@@ -24,7 +24,7 @@ inline std::string OneLine(std::string message) {
 
 /// The outcome of ParseCommandLine.
 struct ParseOutcome {
-  bool help_printed = false;  ///< --help was asked for and written to `out`.
+  bool help_printed = false;  ///< --help or --version was asked for and written to `out`.
   std::string usage_error;    ///< non-empty: a usage error, one line.
 };
 
@@ -39,6 +39,9 @@ inline ParseOutcome ParseCommandLine(CLI::App& app, int argc, const char* const*
     return {true, {}};
   } catch (const CLI::CallForAllHelp&) {
     out << app.help("", CLI::AppFormatMode::All);
+    return {true, {}};
+  } catch (const CLI::CallForVersion& e) {
+    out << e.what() << "\n";
     return {true, {}};
   } catch (const CLI::ParseError& e) {
     if (app.get_subcommands().empty() && argc > 1 && argv[1][0] != '-') {

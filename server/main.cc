@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <string_view>
 #include <thread>
 
 #include "server/bench/replay_bench.h"
@@ -73,6 +74,12 @@ int Fail(const std::string& what, const api::Status& status) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    if (std::string_view(argv[i]) == "--version") {
+      std::cout << "fesbench-server " << FESBENCH_VERSION << std::endl;
+      return 0;
+    }
+  }
   auto parsed = server::ParseServerConfig(argc, argv, std::cout, std::cerr);
   if (parsed.exit_code) return *parsed.exit_code;
   const server::ServerConfig& config = parsed.config;

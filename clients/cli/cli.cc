@@ -15,7 +15,7 @@ namespace {
 
 // Every command, in the order `--help` lists them.
 constexpr CommandRegistrar kCommands[] = {
-    RegisterLoginCommand, RegisterRecordCommands,   RegisterRunCommands,
+    RegisterLoginCommand, RegisterRecordCommands,   RegisterProtocolCommands, RegisterRunCommands,
     RegisterDataCommands, RegisterAnalysisCommands, RegisterStudyCommand,
 };
 
@@ -74,12 +74,21 @@ int RunFesbenchCli(int argc, const char* const* argv, std::ostream& out, std::os
     app.fallthrough(true);  // global options may follow the subcommand
     app.add_option("--server", context.options.server,
                    "server URL, e.g. https://lab:8443 (overrides the config file)");
-    app.add_flag("--json", context.options.json, "machine-readable JSON output (read commands)");
+    app.add_option("--token-file", context.options.token_file,
+                   "read the bearer token from this file ('-': standard input) instead of the "
+                   "config file or FESBENCH_TOKEN (keeps it out of the process list)");
+    app.add_flag("--json", context.options.json,
+                 "machine-readable output: one JSON document, or one JSON object per line while "
+                 "`run start` follows a run");
+    app.set_version_flag("--version", std::string("fesbench ") + FESBENCH_VERSION);
     for (CommandRegistrar registrar : kCommands) registrar(app, context);
     const ParseOutcome parsed = ParseCommandLine(app, argc, argv, out);
     if (parsed.help_printed) return kExitOk;
     if (!parsed.usage_error.empty()) return Fail(err, kExitUsage, parsed.usage_error);
     if (!context.action) return Fail(err, kExitUsage, "no command given (see --help)");
+    if (!context.options.token_file.empty()) {
+      context.options.token = ReadToken(context.options.token_file);
+    }
     context.action();
     out.flush();
     return kExitOk;

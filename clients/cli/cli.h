@@ -48,8 +48,10 @@ class CliError : public std::runtime_error {
 
 /// Global options, filled by the parse.
 struct GlobalOptions {
-  std::string server;  ///< --server URL (overrides the config file).
-  bool json = false;   ///< --json: machine-readable output of read commands.
+  std::string server;      ///< --server URL (overrides the config file).
+  std::string token_file;  ///< --token-file PATH ("-": standard input); overrides the rest.
+  std::string token;       ///< the token read from token_file once the command line parsed.
+  bool json = false;       ///< --json: machine-readable JSON output of every command.
 };
 
 /// What a command writes to and where it runs.

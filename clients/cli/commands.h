@@ -14,13 +14,15 @@
 
 namespace fesbench::cli {
 
-/// `login URL --token T` (login_command.cc).
+/// `login URL --token T|- | --token-file PATH` (login_command.cc).
 void RegisterLoginCommand(CLI::App& app, CliContext& context);
 /// `subjects list|show|create`, `sessions list|show|create` (records_commands.cc).
 void RegisterRecordCommands(CLI::App& app, CliContext& context);
-/// `run start|show|cancel`, `estop` (run_commands.cc).
+/// `protocols list|show` (protocol_commands.cc).
+void RegisterProtocolCommands(CLI::App& app, CliContext& context);
+/// `run start|show|stop|cancel`, `estop` (run_commands.cc).
 void RegisterRunCommands(CLI::App& app, CliContext& context);
-/// `params list|get`, `trials get` (data_commands.cc).
+/// `params list|get`, `trials list|get` (data_commands.cc).
 void RegisterDataCommands(CLI::App& app, CliContext& context);
 /// `identify`, `predict`, `compare` (analysis_commands.cc).
 void RegisterAnalysisCommands(CLI::App& app, CliContext& context);

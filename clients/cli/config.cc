@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "api/trial.h"
@@ -89,6 +90,29 @@ std::string NormaliseServerUrl(const std::string& url) {
   return u;
 }
 
+std::string ReadToken(const std::string& source) {
+  std::string text;
+  if (source == "-") {
+    std::getline(std::cin, text);
+  } else {
+    auto read = api::ReadTextFile(source);
+    if (!read.ok()) throw CliError::Usage("token file: " + read.status().ToString());
+    text = *read;
+  }
+  const auto first = text.find_first_not_of(" \t\r\n");
+  const auto last = text.find_last_not_of(" \t\r\n");
+  if (first == std::string::npos) {
+    throw CliError::Usage(source == "-" ? "no token on standard input"
+                                        : "token file " + source + " is empty");
+  }
+  text = text.substr(first, last - first + 1);
+  if (text.find_first_of(" \t\r\n") != std::string::npos) {
+    throw CliError::Usage("the token must be one word (" +
+                          (source == "-" ? std::string("standard input") : source) + ")");
+  }
+  return text;
+}
+
 CliConfig ResolveConnection(const GlobalOptions& options) {
   CliConfig config;
   if (auto path = ConfigPath(); path.ok()) {
@@ -100,6 +124,7 @@ CliConfig ResolveConnection(const GlobalOptions& options) {
   if (const char* token = std::getenv("FESBENCH_TOKEN"); token != nullptr && token[0] != '\0') {
     config.token = token;
   }
+  if (!options.token.empty()) config.token = options.token;
   if (config.server.empty()) {
     throw CliError::Usage("no server: run 'fesbench login URL --token T' or pass --server URL");
   }

@@ -5,7 +5,8 @@
 /// token stored by `fesbench login`, in
 /// `$XDG_CONFIG_HOME/fesbench/config.json` (or `$HOME/.config/fesbench/...`)
 /// as `{"server": "...", "token": "..."}`, created with mode 0600 in a 0700
-/// folder. `--server` and the FESBENCH_TOKEN environment variable override it.
+/// folder. `--server`, `--token-file` and the FESBENCH_TOKEN environment
+/// variable override it.
 
 #include <filesystem>
 #include <string>
@@ -32,9 +33,14 @@ api::Result<CliConfig> LoadConfig(const std::filesystem::path& path);
 /// wider permissions); its folder is created with mode 0700.
 api::Status SaveConfig(const std::filesystem::path& path, const CliConfig& config);
 
+/// A bearer token read from `source`: a file path, or "-" for the first
+/// line of standard input; surrounding white space is dropped. Throws
+/// CliError (usage) when it cannot be read or is empty.
+std::string ReadToken(const std::string& source);
+
 /// The server and token to use: --server over the file's server, and
-/// FESBENCH_TOKEN over the file's token. Throws CliError (usage) when no
-/// server is known.
+/// --token-file over FESBENCH_TOKEN over the file's token. Throws CliError
+/// (usage) when no server is known.
 CliConfig ResolveConnection(const GlobalOptions& options);
 
 /// Checks and normalises a server URL: http:// or https://, a host, no

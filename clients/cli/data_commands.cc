@@ -47,8 +47,22 @@ struct ListForm {
   std::string subject;
   std::string leg;
   std::string method;
-  std::string since;
+  std::string from;
+  std::string to;
 };
+
+std::string CheckDate(const std::string& date) {
+  return date.size() == 10 && date[4] == '-' && date[7] == '-' ? std::string()
+                                                               : "must be YYYY-MM-DD";
+}
+
+// With --json a command that writes a file reports what it wrote.
+void PrintWritten(CliContext& context, const std::string& what, std::int64_t id,
+                  const std::string& format, const std::string& path, std::size_t bytes) {
+  context.out
+      << nlohmann::json{{what, id}, {"format", format}, {"out", path}, {"bytes", bytes}}.dump(2)
+      << "\n";
+}
 
 }  // namespace
 
@@ -61,11 +75,11 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
     list->add_option("--subject", form->subject, "subject id or code")->required();
     list->add_option("--leg", form->leg, "left or right")->check(CLI::IsMember({"left", "right"}));
     list->add_option("--method", form->method, "identification method (IRC, passive or active)");
-    list->add_option("--since", form->since, "created on or after this date (YYYY-MM-DD)")
-        ->check([](const std::string& date) {
-          return date.size() == 10 && date[4] == '-' && date[7] == '-' ? std::string()
-                                                                       : "must be YYYY-MM-DD";
-        });
+    list->add_option("--from", form->from, "created on or after this date (YYYY-MM-DD)")
+        ->check(CheckDate);
+    list->add_option("--since", form->from, "old spelling of --from")->check(CheckDate)->group("");
+    list->add_option("--to", form->to, "created on or before this date (YYYY-MM-DD)")
+        ->check(CheckDate);
     list->callback([form, &context] {
       context.action = [form, &context] {
         auto client = Connect(context);
@@ -73,7 +87,8 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
         std::string query = "subject_id=" + std::to_string(subject_id);
         if (!form->leg.empty()) query += "&leg=" + form->leg;
         if (!form->method.empty()) query += "&method=" + UrlEncode(form->method);
-        if (!form->since.empty()) query += "&from=" + UrlEncode(form->since);
+        if (!form->from.empty()) query += "&from=" + UrlEncode(form->from);
+        if (!form->to.empty()) query += "&to=" + UrlEncode(form->to);
         const json items = client->GetAllPages("/parameter-sets", query);
         if (context.options.json) {
           context.out << items.dump(2) << "\n";
@@ -105,16 +120,28 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
     auto format = std::make_shared<std::string>("json");
     auto out_path = std::make_shared<std::string>("-");
     CLI::App* get = params->add_subcommand(
-        "get", "One parameter set: DESIGN.md §3 JSON (as fesbench-model reads it) or CSV.");
+        "get",
+        "One parameter set: the parameter-set JSON of docs/MODEL.md (as fesbench-model reads "
+        "it) or CSV; with --json and no --out, the stored set with its provenance.");
     get->add_option("id", *id, "parameter set id")->required();
-    get->add_option("--format", *format, "json or csv (field,value rows)")
-        ->check(CLI::IsMember({"json", "csv"}));
+    CLI::Option* format_option =
+        get->add_option("--format", *format, "json or csv (field,value rows)")
+            ->check(CLI::IsMember({"json", "csv"}));
     get->add_option("--out", *out_path, "output file ('-' for standard output, the default)");
-    get->callback([id, format, out_path, &context] {
-      context.action = [id, format, out_path, &context] {
+    get->callback([id, format, format_option, out_path, &context] {
+      context.action = [id, format, format_option, out_path, &context] {
         const std::int64_t set_id = ParseId(*id, "parameter set");
+        const bool to_stdout = *out_path == "-";
+        if (context.options.json && to_stdout && format_option->count() > 0 && *format != "json") {
+          throw CliError::Usage("--json writes JSON: drop --format " + *format +
+                                " or write it to a file with --out FILE");
+        }
         auto client = Connect(context);
         const json stored = client->Get("/parameter-sets/" + std::to_string(set_id));
+        if (context.options.json && to_stdout) {
+          context.out << stored.dump(2) << "\n";
+          return;
+        }
         if (!stored.contains("parameters")) {
           throw CliError::Server("server: parameter set " + *id + " has no parameters");
         }
@@ -125,15 +152,19 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
                                  parsed.status().ToString());
         }
         const json params_json = api::ParameterSetToJson(*parsed);
+        std::string text;
         if (*format == "json") {
-          WriteOutput(context, *out_path, params_json.dump(2) + "\n");
+          text = params_json.dump(2) + "\n";
         } else {
-          std::string csv = "field,value\n";
+          text = "field,value\n";
           json provenance = stored;
           provenance.erase("parameters");
-          Flatten(provenance, "provenance", csv);
-          Flatten(params_json, "", csv);
-          WriteOutput(context, *out_path, csv);
+          Flatten(provenance, "provenance", text);
+          Flatten(params_json, "", text);
+        }
+        WriteOutput(context, *out_path, text);
+        if (context.options.json) {
+          PrintWritten(context, "parameter_set_id", set_id, *format, *out_path, text.size());
         }
       };
     });
@@ -171,12 +202,21 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
     auto out_path = std::make_shared<std::string>("-");
     CLI::App* get = trials->add_subcommand("get", "A recorded trial as CSV or OpenSim .sto.");
     get->add_option("id", *id, "trial id")->required();
-    get->add_option("--format", *format, "csv, sto (OpenSim Storage) or json")
-        ->check(CLI::IsMember({"csv", "sto", "json"}));
+    CLI::Option* format_option =
+        get->add_option("--format", *format, "csv, sto (OpenSim Storage) or json")
+            ->check(CLI::IsMember({"csv", "sto", "json"}));
     get->add_option("--out", *out_path, "output file ('-' for standard output, the default)");
-    get->callback([id, format, out_path, &context] {
-      context.action = [id, format, out_path, &context] {
+    get->callback([id, format, format_option, out_path, &context] {
+      context.action = [id, format, format_option, out_path, &context] {
         const std::int64_t trial_id = ParseId(*id, "trial");
+        if (context.options.json && *out_path == "-") {
+          // Machine-readable on standard output: the trial's JSON form.
+          if (format_option->count() > 0 && *format != "json") {
+            throw CliError::Usage("--json writes JSON: drop --format " + *format +
+                                  " or write it to a file with --out FILE");
+          }
+          *format = "json";
+        }
         auto client = Connect(context);
         auto trial = api::TrialFromJson(client->Get("/trials/" + std::to_string(trial_id)));
         if (!trial.ok()) {
@@ -191,6 +231,9 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
           text = api::TrialToJson(*trial).dump() + "\n";
         }
         WriteOutput(context, *out_path, text);
+        if (context.options.json && *out_path != "-") {
+          PrintWritten(context, "trial_id", trial_id, *format, *out_path, text.size());
+        }
       };
     });
   }

@@ -1,5 +1,7 @@
-// `fesbench login URL --token T`: checks the server answers, then stores the
-// server and token in the per-user config file (mode 0600, config.h).
+// `fesbench login URL (--token T | --token - | --token-file PATH)`: checks
+// the token with the server (GET /me), then stores the server and token in
+// the per-user config file (mode 0600, config.h). `--token -` and
+// `--token-file` keep the token out of the process list.
 
 #include <memory>
 #include <ostream>
@@ -7,6 +9,7 @@
 
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
+#include "clients/cli/output.h"
 
 namespace fesbench::cli {
 
@@ -16,17 +19,35 @@ void RegisterLoginCommand(CLI::App& app, CliContext& context) {
   CLI::App* sub = app.add_subcommand(
       "login", "Store the server URL and bearer token in the per-user config file (mode 0600).");
   sub->add_option("url", *url, "server URL, e.g. http://127.0.0.1:8080")->required();
-  sub->add_option("--token", *token, "bearer token (fsb_...) issued by an admin")->required();
+  sub->add_option("--token", *token,
+                  "bearer token (fsb_...) issued by an admin; '-' reads it from standard input "
+                  "(or give --token-file PATH)");
   sub->callback([url, token, &context] {
     context.action = [url, token, &context] {
-      CliConfig config{NormaliseServerUrl(*url), *token};
-      // The token must be valid: /subjects needs any signed-in role.
+      std::string secret = *token == "-" ? ReadToken("-") : *token;
+      if (secret.empty()) secret = context.options.token;  // --token-file
+      if (secret.empty()) {
+        throw CliError::Usage(
+            "login needs --token T, --token - (standard input) or "
+            "--token-file PATH");
+      }
+      CliConfig config{NormaliseServerUrl(*url), secret};
+      // The token must be valid: /me names its user for any signed-in role.
       ApiClient client(config);
-      client.Get("/subjects?limit=1");
+      const nlohmann::json me = client.Get("/me");
       auto path = ConfigPath();
       if (!path.ok()) throw CliError::Usage(path.status().ToString());
       if (auto st = SaveConfig(*path, config); !st.ok()) throw CliError(kExitServer, st.ToString());
-      context.out << "logged in to " << config.server << "; configuration in " << path->string()
+      if (context.options.json) {
+        context.out << nlohmann::json{{"server", config.server},
+                                      {"config_file", path->string()},
+                                      {"user", me}}
+                           .dump(2)
+                    << "\n";
+        return;
+      }
+      context.out << "logged in to " << config.server << " as " << Cell(me.value("name", ""))
+                  << " (" << Cell(me.value("role", "")) << "); configuration in " << path->string()
                   << "\n";
     };
   });

@@ -12,13 +12,25 @@ namespace fesbench::cli {
 
 using nlohmann::json;
 
+namespace {
+
+// Columns a UTF-8 cell takes on a terminal: its code points (units such as
+// "N·m" and "kg·m²" are multi-byte).
+std::size_t DisplayWidth(const std::string& text) {
+  return static_cast<std::size_t>(std::count_if(text.begin(), text.end(), [](char c) {
+    return (static_cast<unsigned char>(c) & 0xC0) != 0x80;
+  }));
+}
+
+}  // namespace
+
 void PrintTable(std::ostream& out, const std::vector<std::string>& headers,
                 const std::vector<std::vector<std::string>>& rows) {
   std::vector<std::size_t> widths(headers.size(), 0);
-  for (std::size_t c = 0; c < headers.size(); ++c) widths[c] = headers[c].size();
+  for (std::size_t c = 0; c < headers.size(); ++c) widths[c] = DisplayWidth(headers[c]);
   for (const auto& row : rows) {
     for (std::size_t c = 0; c < row.size() && c < widths.size(); ++c) {
-      widths[c] = std::max(widths[c], row[c].size());
+      widths[c] = std::max(widths[c], DisplayWidth(row[c]));
     }
   }
   auto print_row = [&](const std::vector<std::string>& row) {
@@ -26,7 +38,7 @@ void PrintTable(std::ostream& out, const std::vector<std::string>& headers,
     for (std::size_t c = 0; c < widths.size(); ++c) {
       const std::string cell = c < row.size() ? row[c] : std::string();
       line += cell;
-      if (c + 1 < widths.size()) line += std::string(widths[c] - cell.size() + 2, ' ');
+      if (c + 1 < widths.size()) line += std::string(widths[c] - DisplayWidth(cell) + 2, ' ');
     }
     while (!line.empty() && line.back() == ' ') line.pop_back();
     out << line << "\n";

@@ -1,5 +1,6 @@
 // `fesbench subjects list|show|create|edit` and `sessions
-// list|show|create|edit`: the records a clinician keeps (DESIGN.md §7, §8).
+// list|show|create|edit`: the records a clinician keeps (docs/ARCHITECTURE.md,
+// "Storage"; docs/API.md).
 // `edit` records a correction as a new revision with a reason (issue 14).
 
 #include <memory>
@@ -50,13 +51,16 @@ struct SubjectDetailsFlags {
   std::optional<double> height_cm, weight_kg, shank_length_cm, calf_circumference_cm;
 
   void Register(CLI::App* app) {
-    app->add_option("--age", age_years, "age, years");
+    app->add_option("--age-years", age_years, "age, years (0-130)");
+    app->add_option("--age", age_years, "old spelling of --age-years")->group("");
     app->add_option("--sex", sex, "female, male, other or undisclosed")
         ->check(CLI::IsMember({"female", "male", "other", "undisclosed"}));
-    app->add_option("--height-cm", height_cm, "height, cm");
-    app->add_option("--weight-kg", weight_kg, "body mass, kg");
-    app->add_option("--shank-length-cm", shank_length_cm, "shank length, cm");
-    app->add_option("--calf-circumference-cm", calf_circumference_cm, "calf circumference, cm");
+    app->add_option("--height-cm", height_cm, "height, cm (30-250)");
+    app->add_option("--weight-kg", weight_kg, "body mass, kg (1-400)");
+    app->add_option("--shank-length-cm", shank_length_cm,
+                    "shank length, cm (10-80; femoral condyle to medial malleolus)");
+    app->add_option("--calf-circumference-cm", calf_circumference_cm,
+                    "calf circumference, cm (10-100)");
   }
 
   // The given flags into `details` (API field names).
@@ -285,9 +289,9 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
         ->required()
         ->check(CLI::IsMember({"left", "right"}));
     create->add_option("--date", form->date, "session date YYYY-MM-DD")->required();
-    create->add_option("--threshold-ma", form->threshold_ma, "torque threshold, mA");
+    create->add_option("--threshold-ma", form->threshold_ma, "torque threshold, mA (0-100)");
     create->add_option("--max-tolerated-ma", form->max_tolerated_ma,
-                       "maximum tolerated stimulation, mA");
+                       "maximum tolerated stimulation, mA (0-100)");
     create->add_option("--notes", form->notes, "free text");
     create->add_option("--accelerometer-placement", form->placement, "free text");
     create->callback([form, &context] {
@@ -318,9 +322,9 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
     edit->add_option("session", form->session, "session id")->required();
     edit->add_option("--reason", form->reason, "why the record is corrected")->required();
     edit->add_option("--date", form->date, "session date YYYY-MM-DD");
-    edit->add_option("--threshold-ma", form->threshold_ma, "torque threshold, mA");
+    edit->add_option("--threshold-ma", form->threshold_ma, "torque threshold, mA (0-100)");
     edit->add_option("--max-tolerated-ma", form->max_tolerated_ma,
-                     "maximum tolerated stimulation, mA");
+                     "maximum tolerated stimulation, mA (0-100)");
     edit->add_option("--notes", form->notes, "free text");
     edit->add_option("--accelerometer-placement", form->placement, "free text");
     edit->add_option("--clear", form->clear, "a field to clear (repeatable), e.g. notes")

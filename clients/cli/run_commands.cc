@@ -189,11 +189,24 @@ class InterruptGuard {
   void (*previous_)(int) = SIG_DFL;
 };
 
+// One line of `run start --json` on standard output: {"event": E, "run_id":
+// N, "data": the stream event's data}, flushed at once so that a reading
+// script sees each event as it happens.
+void JsonLine(CliContext& context, const std::string& event, std::int64_t run_id,
+              const json& data) {
+  context.out << nlohmann::ordered_json{{"event", event}, {"run_id", run_id}, {"data", data}}.dump()
+              << "\n"
+              << std::flush;
+}
+
 // Follows a run's stream to its end; throws CliError unless it ends "done"
-// (exit 130 when Ctrl-C cancelled it). Progress goes to `progress_out`.
+// (exit 130 when Ctrl-C cancelled it). Progress goes to `progress_out` as
+// text, or, with --json, every stream event to standard output as a JSON
+// line (JsonLine) and only notes to `progress_out`.
 // `stop_key`: Enter on a terminal stops the run where it is (StopKey).
 void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connection,
                std::int64_t run_id, std::ostream& progress_out, bool stop_key) {
+  const bool json_lines = context.options.json;
   InterruptGuard interrupt_guard;
   Heartbeat heartbeat(connection, run_id);
   std::optional<StopKey> stopper;
@@ -219,6 +232,14 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
                       printer.Line(std::string("cancel: ") + e.what());
                     }
                   }
+                  if (json_lines) {
+                    JsonLine(context, event, run_id, data);
+                    if (event == "end" && data.is_object()) {
+                      end = data;
+                      return false;
+                    }
+                    return true;
+                  }
                   if (!data.is_object()) return true;
                   if (event == "state") {
                     const std::string state = data.value("state", "");
@@ -243,6 +264,9 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
                                 " closed before the run ended");
   }
   const std::string state = end.value("state", "");
+  if (json_lines) {
+    JsonLine(context, "run", run_id, client.Get("/runs/" + std::to_string(run_id)));
+  }
   std::string line = "end " + state;
   if (end.contains("parameter_set_id") && end["parameter_set_id"].is_number_integer()) {
     line += " parameter_set " + Cell(end["parameter_set_id"]);
@@ -253,7 +277,7 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
             " max_tolerated_ma " + Cell(result.value("max_tolerated_ma", json(nullptr))) +
             " session_revision " + Cell(result["session_revision"]);
   }
-  printer.Line(line);
+  if (!json_lines) printer.Line(line);
   if (cancel_sent) {
     throw CliError(kExitInterrupted, "run " + std::to_string(run_id) + " cancelled (Ctrl-C): " +
                                          state + " " + end.value("reason", ""));
@@ -353,23 +377,18 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
           }
           return;
         }
-        // With --json the progress goes to stderr and stdout gets the final run.
+        // With --json, stdout gets one JSON object per line: "started",
+        // every stream event, and the final run ("run"); notes go to stderr.
         std::ostream& progress = context.options.json ? context.err : context.out;
-        progress << "started run " << run_id << " (" << form->protocol << ", session " << session
-                 << ")\n"
-                 << std::flush;
-        try {
-          FollowRun(context, client, connection, run_id, progress,
-                    form->protocol == "tolerance_test");
-        } catch (const CliError&) {
-          if (context.options.json) {
-            context.out << client.Get("/runs/" + std::to_string(run_id)).dump(2) << "\n";
-          }
-          throw;
-        }
         if (context.options.json) {
-          context.out << client.Get("/runs/" + std::to_string(run_id)).dump(2) << "\n";
+          JsonLine(context, "started", run_id, started);
+        } else {
+          progress << "started run " << run_id << " (" << form->protocol << ", session " << session
+                   << ")\n"
+                   << std::flush;
         }
+        FollowRun(context, client, connection, run_id, progress,
+                  form->protocol == "tolerance_test");
       };
     });
   }
@@ -415,6 +434,10 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         const std::int64_t run_id = ParseId(*id, "run");
         auto client = Connect(context);
         const json view = client->Post("/runs/" + std::to_string(run_id) + "/cancel");
+        if (context.options.json) {
+          context.out << view.dump(2) << "\n";
+          return;
+        }
         context.out << "run " << run_id << ": " << Cell(view.value("state", json(nullptr))) << "\n";
       };
     });
@@ -429,6 +452,10 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
       context.action = [clear, &context] {
         auto client = Connect(context);
         const json state = *clear ? client->Delete("/bench/estop") : client->Post("/bench/estop");
+        if (context.options.json) {
+          context.out << state.dump(2) << "\n";
+          return;
+        }
         context.out << (*clear ? "e-stop cleared" : "e-stop latched")
                     << "; bench estopped: " << Cell(state.value("estopped", json(nullptr))) << "\n";
       };

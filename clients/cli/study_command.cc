@@ -55,6 +55,17 @@ void RegisterStudyCommand(CLI::App& app, CliContext& context) {
       const study::StudySummary summary = study::RunStudy(*client, options, context.err);
       const double wall_s =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (context.options.json) {
+        context.out << nlohmann::json{{"legs_done", summary.legs_done},
+                                      {"identifications_failed", summary.identifications_failed},
+                                      {"wall_s", wall_s},
+                                      {"out", form->out},
+                                      {"plots_drawn", summary.plots_drawn},
+                                      {"plot_note", summary.plot_note}}
+                           .dump(2)
+                    << "\n";
+        return;
+      }
       context.out << "study: " << summary.legs_done << " legs, " << summary.identifications_failed
                   << " identifications failed, wall " << wall_s << " s; tables in " << form->out
                   << "\n";

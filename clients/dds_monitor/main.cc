@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   using namespace fesbench;
   CLI::App app{"fesbench-dds-monitor: watch and e-stop fesbench benches over DDS"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("fesbench-dds-monitor ") + FESBENCH_VERSION);
   int domain = 0;
   std::string transport = "auto";
   std::string profile;

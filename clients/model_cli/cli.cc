@@ -35,6 +35,7 @@ int RunModelCli(int argc, const char* const* argv, std::ostream& out, std::ostre
         "fesbench-model");
     app.require_subcommand(1);
     app.fallthrough(false);
+    app.set_version_flag("--version", std::string("fesbench-model ") + FESBENCH_VERSION);
     for (CommandRegistrar registrar : kCommands) registrar(app, context);
     const ParseOutcome parsed = ParseCommandLine(app, argc, argv, out);
     if (parsed.help_printed) return kExitOk;

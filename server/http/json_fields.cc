@@ -1,7 +1,10 @@
 #include "server/http/json_fields.h"
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
+#include <limits>
+#include <utility>
 #include <vector>
 
 namespace fesbench::server::http {
@@ -85,6 +88,46 @@ class PathTracker {
   };
   std::vector<Frame> frames_;
 };
+// The unit a field name carries as its suffix (STYLE.md: `weight_kg`,
+// `threshold_ma`, `max_stop_impact_deg_s`), "" if none.
+std::string UnitOf(std::string_view key) {
+  static constexpr std::pair<std::string_view, std::string_view> kSuffixes[] = {
+      {"_deg_s", "deg/s"}, {"_kgm2", "kg·m²"}, {"_years", "years"}, {"_deg", "deg"},
+      {"_kg", "kg"},       {"_cm", "cm"},      {"_ma", "mA"},       {"_hz", "Hz"},
+      {"_nm", "N·m"},      {"_ms", "ms"},      {"_s", "s"},         {"_m", "m"},
+  };
+  for (const auto& [suffix, unit] : kSuffixes) {
+    if (key.ends_with(suffix)) return std::string(unit);
+  }
+  return "";
+}
+
+std::string Shortest(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.10g", value);
+  return buffer;
+}
+
+// "weight_kg must be 1–400 kg, got -5": the field, its allowed range with
+// the unit its name carries, and the value sent.
+template <typename T>
+std::string RangeMessage(std::string_view key, T min, T max, const std::string& got) {
+  const std::string unit = UnitOf(key);
+  const std::string with_unit = unit.empty() ? "" : " " + unit;
+  const bool has_min = min > std::numeric_limits<T>::lowest();
+  const bool has_max = max < std::numeric_limits<T>::max();
+  std::string range;
+  if (has_min && has_max) {
+    range = Shortest(static_cast<double>(min)) + "–" + Shortest(static_cast<double>(max));
+  } else if (has_min) {
+    range = "≥ " + Shortest(static_cast<double>(min));
+  } else if (has_max) {
+    range = "≤ " + Shortest(static_cast<double>(max));
+  } else {
+    range = "finite";
+  }
+  return std::string(key) + " must be " + range + with_unit + ", got " + got;
+}
 
 }  // namespace
 
@@ -163,8 +206,7 @@ std::optional<double> JsonFields::Number(std::string_view key, bool required, do
   }
   const double value = j->get<double>();
   if (!std::isfinite(value) || value < min || value > max) {
-    Fail(key, "must be in [" + nlohmann::json(min).dump() + ", " + nlohmann::json(max).dump() +
-                  "], got " + j->dump());
+    Fail(key, RangeMessage(key, min, max, std::isfinite(value) ? Shortest(value) : j->dump()));
     return std::nullopt;
   }
   return value;
@@ -185,8 +227,7 @@ std::optional<std::int64_t> JsonFields::Integer(std::string_view key, bool requi
   }
   const auto value = j->get<std::int64_t>();
   if (value < min || value > max) {
-    Fail(key, "must be in [" + std::to_string(min) + ", " + std::to_string(max) + "], got " +
-                  std::to_string(value));
+    Fail(key, RangeMessage(key, min, max, std::to_string(value)));
     return std::nullopt;
   }
   return value;

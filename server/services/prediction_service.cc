@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <stdexcept>
 #include <vector>
@@ -102,9 +103,10 @@ api::Status ValidatePredictionRequest(const PredictionRequest& r, const Predicti
         return api::Status::InvalidArgument("not a parameter of " + g->name, field);
       }
       if (!InRange(value, p->min_value, p->max_value)) {
-        return api::Status::InvalidArgument("must be in [" + std::to_string(p->min_value) + ", " +
-                                                std::to_string(p->max_value) + "]",
-                                            field);
+        char range[96];
+        std::snprintf(range, sizeof range, " must be %.10g–%.10g, got %.10g", p->min_value,
+                      p->max_value, value);
+        return api::Status::InvalidArgument(name + range, field);
       }
       if (p->integer && value != std::floor(value)) {
         return api::Status::InvalidArgument("must be a whole number", field);
@@ -112,10 +114,14 @@ api::Status ValidatePredictionRequest(const PredictionRequest& r, const Predicti
     }
   }
   if (r.initial_angle_deg && !InRange(*r.initial_angle_deg, 0.0, 180.0)) {
-    return api::Status::InvalidArgument("must be in [0, 180] deg", "initial_angle_deg");
+    return api::Status::InvalidArgument(
+        "initial_angle_deg must be 0–180 deg, got " + std::to_string(*r.initial_angle_deg),
+        "initial_angle_deg");
   }
   if (!InRange(r.initial_velocity_deg_s, -2000.0, 2000.0)) {
-    return api::Status::InvalidArgument("must be in [-2000, 2000] deg/s", "initial_velocity_deg_s");
+    return api::Status::InvalidArgument("initial_velocity_deg_s must be -2000–2000 deg/s, got " +
+                                            std::to_string(r.initial_velocity_deg_s),
+                                        "initial_velocity_deg_s");
   }
   if (r.duration_s && !(std::isfinite(*r.duration_s) && *r.duration_s > 0.0 &&
                         *r.duration_s <= config.max_duration_s)) {

@@ -93,7 +93,7 @@ try {
     await page.locator('#subject-edit-shank_length_cm').fill('43');
     await page.getByRole('button', { name: 'Save correction' }).click();
     // Both problems of one submit are shown together, before any request.
-    await page.locator('#subject-edit-weight_kg-error').filter({ hasText: /at least 0 kg/ }).waitFor();
+    await page.locator('#subject-edit-weight_kg-error').filter({ hasText: /must be 1–400 kg, got -72/ }).waitFor();
     await page.locator('#subject-edit-reason-error').filter({ hasText: /why/ }).waitFor();
     assert.equal(await page.locator('#subject-edit [aria-invalid=true]').count(), 2);
     await shots.both(page, 'subject-correction-invalid');

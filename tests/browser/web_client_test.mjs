@@ -141,7 +141,7 @@ try {
     assert.equal(await page.locator('#f-amplitude_ma').inputValue(), '35');
     await fillParameter(page, 'max_ma', '500');
     await page.getByRole('button', { name: 'Start protocol' }).click();
-    await page.locator('#f-max_ma-error').filter({ hasText: /out of range/ }).waitFor();
+    await page.locator('#f-max_ma-error').filter({ hasText: /must be [0-9.]+–[0-9.]+ mA, got 500/ }).waitFor();
     await fillParameter(page, 'max_ma', '45');
     await page.getByRole('button', { name: 'Start protocol' }).click();
     await page.locator('#live[data-state="running"]').waitFor();

@@ -2,6 +2,7 @@
 // a session's details that PATCHes only what changed (an emptied field is
 // cleared with null) with a required reason, and the revision history.
 import { api } from '../api.js';
+import { dateProblem, numberProblem } from '../checks.js';
 import { clearErrors, field, fmt, h, say, showFieldError, showFieldErrors, table } from '../dom.js';
 
 const REASON_MAX = 500;
@@ -11,7 +12,8 @@ const wide = (el) => {
   return el;
 };
 
-/// fields: [{name, label, type: 'number'|'text'|'date'|'textarea'|'select', options, min, max, unit}].
+/// fields: [{name, label, type: 'number'|'text'|'date'|'textarea'|'select', options, min, max, unit,
+/// integer}]; a field named 'date' is checked as YYYY-MM-DD.
 /// current(): the details object now. path: '/subjects/3'. onSaved(updated).
 export function correctionForm({ id, path, fields, current, onSaved, mayEdit }) {
   const status = h('div', { id: `${id}-status` });
@@ -32,13 +34,11 @@ export function correctionForm({ id, path, fields, current, onSaved, mayEdit }) 
         continue;
       }
       if (f.type === 'number') {
-        const n = Number(raw);
-        if (!Number.isFinite(n)) problems.push({ field: f.name, message: `must be a number${f.unit ? ` in ${f.unit}` : ''}` });
-        else if ((f.min !== undefined && n < f.min) || (f.max !== undefined && n > f.max)) {
-          const range = f.max === undefined ? `at least ${f.min}` : `between ${f.min} and ${f.max}`;
-          problems.push({ field: f.name, message: `must be ${range} ${f.unit || ''}`.trim() });
-        }
-        details[f.name] = n;
+        const problem = numberProblem(f, raw);
+        if (problem) problems.push({ field: f.name, message: problem });
+        details[f.name] = Number(raw);
+      } else if (f.name === 'date' && dateProblem(raw)) {
+        problems.push({ field: f.name, message: dateProblem(raw) });
       } else {
         details[f.name] = raw;
       }

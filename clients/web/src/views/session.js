@@ -9,14 +9,15 @@ import { clearErrors, field, fmt, fmtDuration, h, message, say, showFieldError, 
 import { makePlot } from '../plot.js';
 import { isFinal, progressOf } from '../runs.js';
 import { streamEvents } from '../sse.js';
+import { numberProblem, SESSION_LIMITS } from '../checks.js';
 import { correctionForm, revisionHistory } from './corrections.js';
 
 const WINDOW_S = 30; // bench seconds shown in the live plots
 
 export const SESSION_FIELDS = [
   { name: 'date', label: 'Date (YYYY-MM-DD)', type: 'text' },
-  { name: 'threshold_ma', label: 'Stimulation threshold (mA)', type: 'number', unit: 'mA', min: 0 },
-  { name: 'max_tolerated_ma', label: 'Max tolerated (mA)', type: 'number', unit: 'mA', min: 0 },
+  { name: 'threshold_ma', label: 'Stimulation threshold (mA)', type: 'number', ...SESSION_LIMITS.threshold_ma },
+  { name: 'max_tolerated_ma', label: 'Max tolerated (mA)', type: 'number', ...SESSION_LIMITS.max_tolerated_ma },
   { name: 'accelerometer_placement', label: 'Accelerometer placement', type: 'text' },
   { name: 'notes', label: 'Notes', type: 'textarea' },
 ];
@@ -30,15 +31,8 @@ const unitText = (unit) => (unit === '1' ? '' : ` (${unit})`);
 export function checkParameters(protocol, valueOf) {
   const problems = [];
   for (const p of protocol.parameters) {
-    const raw = valueOf(p.name);
-    if (raw === '') continue;
-    const n = Number(raw);
-    const unit = p.unit === '1' ? '' : ` ${p.unit}`;
-    if (!Number.isFinite(n)) problems.push({ field: p.name, message: `must be a number${unit ? ` in${unit}` : ''}` });
-    else if (p.integer && !Number.isInteger(n)) problems.push({ field: p.name, message: 'must be a whole number' });
-    else if ((Number.isFinite(p.min) && n < p.min) || (Number.isFinite(p.max) && n > p.max)) {
-      problems.push({ field: p.name, message: `out of range: ${p.min}–${p.max}${unit}` });
-    }
+    const message = numberProblem(p, String(valueOf(p.name)).trim());
+    if (message) problems.push({ field: p.name, message });
   }
   return problems;
 }

@@ -2,20 +2,21 @@
 // create), its parameter sets (open, compare two, history).
 import { api, listAll } from '../api.js';
 import { clearErrors, field, fmt, h, message, say, showFieldError, showFieldErrors, table, todayIso } from '../dom.js';
+import { codeProblem, dateProblem, numberProblem, sessionProblems, SUBJECT_LIMITS } from '../checks.js';
 import { correctionForm, revisionHistory } from './corrections.js';
 
 const SEX_OPTIONS = [{ value: '', label: '(not given)' }, { value: 'female', label: 'female' },
   { value: 'male', label: 'male' }, { value: 'other', label: 'other' }, { value: 'undisclosed', label: 'undisclosed' }];
 
 export const SUBJECT_FIELDS = [
-  { name: 'age_years', label: 'Age (years)', type: 'number', unit: 'years', min: 0, max: 130 },
+  { name: 'age_years', label: 'Age (years)', type: 'number', ...SUBJECT_LIMITS.age_years },
   { name: 'sex', label: 'Sex', type: 'select', options: SEX_OPTIONS },
-  { name: 'height_cm', label: 'Height (cm)', type: 'number', unit: 'cm', min: 0 },
-  { name: 'weight_kg', label: 'Body mass (kg)', type: 'number', unit: 'kg', min: 0,
+  { name: 'height_cm', label: 'Height (cm)', type: 'number', ...SUBJECT_LIMITS.height_cm },
+  { name: 'weight_kg', label: 'Body mass (kg)', type: 'number', ...SUBJECT_LIMITS.weight_kg,
     help: 'with the shank length gives the leg inertia (Eq. 4.13)' },
-  { name: 'shank_length_cm', label: 'Shank length (cm)', type: 'number', unit: 'cm', min: 0,
+  { name: 'shank_length_cm', label: 'Shank length (cm)', type: 'number', ...SUBJECT_LIMITS.shank_length_cm,
     help: 'femoral condyle to medial malleolus' },
-  { name: 'calf_circumference_cm', label: 'Calf circumference (cm)', type: 'number', unit: 'cm', min: 0 },
+  { name: 'calf_circumference_cm', label: 'Calf circumference (cm)', type: 'number', ...SUBJECT_LIMITS.calf_circumference_cm },
 ];
 const SUBJECT_LABELS = Object.fromEntries(SUBJECT_FIELDS.map((f) => [f.name, f.label]));
 
@@ -23,13 +24,6 @@ const SUBJECT_LABELS = Object.fromEntries(SUBJECT_FIELDS.map((f) => [f.name, f.l
 export function legSide(subject, legId) {
   const leg = subject && subject.legs.find((l) => l.id === legId);
   return leg ? leg.side : 'unknown leg';
-}
-
-function numberOrUndefined(form, name) {
-  const v = form.elements[name].value.trim();
-  if (v === '') return undefined;
-  const n = Number(v);
-  return Number.isFinite(n) ? n : v; // a non-number goes to the server, which names the field
 }
 
 async function submitForm(form, status, send, success) {
@@ -83,16 +77,13 @@ export async function subjectsView(ctx) {
     const f = event.target;
     const details = {};
     const problems = [];
-    if (!f.elements.code.value.trim()) problems.push({ field: 'code', message: 'a pseudonymous code is required' });
+    const codeMessage = codeProblem(f.elements.code.value.trim());
+    if (codeMessage) problems.push({ field: 'code', message: codeMessage });
     for (const spec of SUBJECT_FIELDS.filter((x) => x.type === 'number')) {
-      const v = numberOrUndefined(f, spec.name);
-      if (v === undefined) continue;
-      if (typeof v !== 'number') problems.push({ field: spec.name, message: `must be a number in ${spec.unit}` });
-      else if (v < spec.min || (spec.max !== undefined && v > spec.max)) {
-        problems.push({ field: spec.name, message: spec.max !== undefined ? `must be between ${spec.min} and ${spec.max} ${spec.unit}`
-          : `must be positive (${spec.unit})` });
-      }
-      details[spec.name] = v;
+      const raw = f.elements[spec.name].value.trim();
+      const problem = numberProblem(spec, raw);
+      if (problem) problems.push({ field: spec.name, message: problem });
+      else if (raw !== '') details[spec.name] = Number(raw);
     }
     clearErrors(f);
     if (problems.length) {
@@ -178,9 +169,19 @@ export async function subjectView(ctx, subjectId) {
     event.preventDefault();
     const f = event.target;
     const body = { leg: f.elements.leg.value, date: f.elements.date.value.trim() };
+    const values = {};
+    for (const name of ['threshold_ma', 'max_tolerated_ma']) values[name] = f.elements[name].value.trim();
+    const problems = sessionProblems(values);
+    const dateMessage = dateProblem(body.date);
+    if (dateMessage) problems.unshift({ field: 'date', message: dateMessage });
+    clearErrors(f);
+    if (problems.length) {
+      showFieldErrors(f, problems);
+      say(status, 'error', `Please correct the ${problems.length === 1 ? 'marked field' : `${problems.length} marked fields`}.`);
+      return;
+    }
     for (const name of ['threshold_ma', 'max_tolerated_ma']) {
-      const v = numberOrUndefined(f, name);
-      if (v !== undefined) body[name] = v;
+      if (values[name] !== '') body[name] = Number(values[name]);
     }
     if (f.elements.accelerometer_placement.value.trim()) body.accelerometer_placement = f.elements.accelerometer_placement.value.trim();
     if (f.elements.notes.value.trim()) body.notes = f.elements.notes.value.trim();
