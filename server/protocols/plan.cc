@@ -345,7 +345,8 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
               true);
     // The hold before the release is recorded: its torque is what moves the
     // knee at the release (InertiaFromReleases).
-    const int h = b.AddTrial(std::string("rapid_release_hold_") + where, MotorMode::kPosition);
+    const int h =
+        b.AddTrial(std::string("rapid_release_hold_") + where, MotorMode::kPosition, true);
     b.Rest("hold", v.at("release_hold_s"), 0.0, h, MotorMode::kPosition, angle);
     const int t = b.AddTrial(name, MotorMode::kDecoupled);
     b.Rest("free swing", v.at("release_swing_s"), 0.0, t, MotorMode::kDecoupled, angle);

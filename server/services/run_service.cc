@@ -419,7 +419,8 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
   };
 
   // The rapid protocol's set, its provenance naming the stored trials it
-  // was fitted to (§7.4.1: ramp IRC, free swing, random binary).
+  // was fitted to (§7.4.1: ramp IRC, the holds before the releases, the
+  // free swings, random binary).
   std::optional<storage::NewParameterSet> new_set;
   if (state == RunState::kDone && result.parameter_set) {
     storage::NewParameterSet ns;
@@ -433,6 +434,7 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
       std::vector<int> fitted = {run->rapid->ramp_trial, run->rapid->passive_trial,
                                  run->rapid->active_trial};
       fitted.insert(fitted.end(), run->rapid->swing_trials.begin(), run->rapid->swing_trials.end());
+      for (const auto& [hold, swing] : run->rapid->release_trials) fitted.push_back(hold);
       std::sort(fitted.begin(), fitted.end());
       fitted.erase(std::unique(fitted.begin(), fitted.end()), fitted.end());
       expected = fitted.size();

@@ -398,12 +398,15 @@ TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
   auto plan = MakePlan("rapid_parameterisation", {}, subject);
   ASSERT_TRUE(plan.ok());
   EXPECT_LT(plan->duration_s(), 30.0);  // §7.4.1 (the search may end sooner)
-  ASSERT_EQ(plan->trials.size(), 5u);
+  ASSERT_EQ(plan->trials.size(), 7u);
   ASSERT_TRUE(plan->rapid.has_value());
   EXPECT_EQ(plan->trials[0].mode, MotorMode::kLocked);
-  for (std::size_t k = 1; k < 5; ++k) EXPECT_EQ(plan->trials[k].mode, MotorMode::kDecoupled);
-  EXPECT_EQ(plan->rapid->swing_trials, (std::vector<int>{1, 2, 3}));
-  EXPECT_EQ(plan->rapid->active_trial, 4);
+  // The held knee before each release (its torque measures J), then the swing.
+  for (std::size_t k : {1u, 3u}) EXPECT_EQ(plan->trials[k].mode, MotorMode::kPosition);
+  for (std::size_t k : {2u, 4u, 5u, 6u}) EXPECT_EQ(plan->trials[k].mode, MotorMode::kDecoupled);
+  EXPECT_EQ(plan->rapid->swing_trials, (std::vector<int>{2, 4, 5}));
+  EXPECT_EQ(plan->rapid->release_trials, (std::vector<std::pair<int, int>>{{1, 2}, {3, 4}}));
+  EXPECT_EQ(plan->rapid->active_trial, 6);
   // The isometric part: 2 impulses and one 4 s ramp.
   const auto runs = Runs(TrialEnvelope(*plan, 0).values);
   ASSERT_EQ(runs.size(), 3u);
@@ -415,19 +418,20 @@ TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
   std::vector<double> release_angles;
   for (std::size_t i = 1; i < plan->steps.size(); ++i) {
     const Step& s = plan->steps[i];
-    if ((s.trial == 1 || s.trial == 2) && plan->steps[i - 1].trial != s.trial) {
+    if ((s.trial == 2 || s.trial == 4) && plan->steps[i - 1].trial != s.trial) {
       EXPECT_EQ(s.motor_mode, MotorMode::kDecoupled);
       EXPECT_EQ(plan->steps[i - 1].motor_mode, MotorMode::kPosition);
+      EXPECT_EQ(plan->steps[i - 1].trial, s.trial - 1);  // the recorded hold
       release_angles.push_back(plan->steps[i - 1].setpoint_deg);
     }
   }
   EXPECT_EQ(release_angles, (std::vector<double>{subject.max_angle_deg - 0.05 * rom,
                                                  subject.min_angle_deg + 0.05 * rom}));
-  EXPECT_EQ(TrialEnvelope(*plan, 1).size(), 400u);  // 2 s swings
-  EXPECT_EQ(TrialEnvelope(*plan, 2).size(), 400u);
+  EXPECT_EQ(TrialEnvelope(*plan, 2).size(), 360u);  // 1.8 s swings
+  EXPECT_EQ(TrialEnvelope(*plan, 4).size(), 360u);
   // The extension search: threshold → max in 3 s, ending at 10 % of the range
   // inside full extension; then 0.6 s of fall.
-  const model::SampledSignal search = TrialEnvelope(*plan, 3);
+  const model::SampledSignal search = TrialEnvelope(*plan, 5);
   ASSERT_EQ(search.size(), 600u + 120u);
   EXPECT_NEAR(search.values[0], subject.threshold_ma, 0.1);
   EXPECT_NEAR(search.values[599], subject.max_tolerated_ma, 1e-9);
@@ -442,7 +446,7 @@ TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
   EXPECT_TRUE(has_end);
   // The dense train: 10 s, every ON level between threshold + 50 % of
   // threshold→amplitude and the amplitude (60 % of threshold→max as planned).
-  const model::SampledSignal rb = TrialEnvelope(*plan, 4);
+  const model::SampledSignal rb = TrialEnvelope(*plan, 6);
   EXPECT_EQ(rb.size(), 10u + 2000u);
   const double amp = subject.threshold_ma + 0.6 * (subject.max_tolerated_ma - subject.threshold_ma);
   std::set<double> levels;
@@ -455,7 +459,7 @@ TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
   EXPECT_GT(levels.size(), 3u);
   ASSERT_TRUE(plan->adaptive_amplitude.has_value());
   EXPECT_EQ(plan->adaptive_amplitude->target_torque_nm, 0.0);
-  EXPECT_EQ(plan->adaptive_amplitude->trials, std::vector<int>{4});
+  EXPECT_EQ(plan->adaptive_amplitude->trials, std::vector<int>{6});
 }
 
 TEST(Plan, MotorProtocolsCoverTheRangeAndSequentialTimings) {

@@ -344,12 +344,15 @@ TEST(RunService, RapidProtocolStoresAParameterSetWhoseProvenanceTrialsExist) {
   EXPECT_EQ(set->summary.subject_id, rig.subject_id);
   EXPECT_EQ(set->summary.leg_id, rig.leg_id);
   EXPECT_EQ(set->summary.version, 1);
-  // Every trial the set was fitted to: ramp, the free swings, random binary.
+  // Every trial the set was fitted to: ramp, the holds before the releases,
+  // the free swings, random binary.
   std::vector<std::int64_t> used = {
       view->trial_ids[static_cast<std::size_t>(plan.rapid->ramp_trial)],
       view->trial_ids[static_cast<std::size_t>(plan.rapid->active_trial)]};
   for (int k : plan.rapid->swing_trials)
     used.push_back(view->trial_ids[static_cast<std::size_t>(k)]);
+  for (const auto& [hold, swing] : plan.rapid->release_trials)
+    used.push_back(view->trial_ids[static_cast<std::size_t>(hold)]);
   std::sort(used.begin(), used.end());
   EXPECT_EQ(set->trial_ids, used);
   EXPECT_EQ(set->params.provenance.trial_ids, used);
@@ -361,11 +364,11 @@ TEST(RunService, RapidProtocolStoresAParameterSetWhoseProvenanceTrialsExist) {
     ASSERT_TRUE(owner.ok()) << id;
     EXPECT_EQ(owner->run_id, started->run_id);
   }
-  // Eq. 4.13 inertia from the stored anthropometrics (no prior set).
-  EXPECT_NEAR(set->params.passive.inertia_kgm2,
-              0.061 * rig.vs.anthropometrics.body_mass_kg *
-                  std::pow(0.735 * rig.vs.anthropometrics.shank_length_m, 2),
-              1e-9);
+  // J measured by the releases, starting from Eq. 4.13 on the stored
+  // anthropometrics (no prior set): near the leg's, not Eq. 4.13's.
+  EXPECT_EQ(set->params.provenance.inertia_method, "releases");
+  EXPECT_NEAR(set->params.passive.inertia_kgm2, rig.vs.truth.passive.inertia_kgm2,
+              0.1 * rig.vs.truth.passive.inertia_kgm2);
   auto latest = sets.Latest(rig.subject_id, rig.leg_id);
   ASSERT_TRUE(latest.ok());
   EXPECT_EQ(latest->summary.id, *view->parameter_set_id);

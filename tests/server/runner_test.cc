@@ -419,7 +419,7 @@ TEST(Runner, RapidWithoutInertiaFailsWithTheReason) {
   const RunResult r = runner.Run(*plan, ctx);
   EXPECT_EQ(r.state, RunState::kFailed);
   EXPECT_NE(r.reason.find("inertia"), std::string::npos) << r.reason;
-  EXPECT_EQ(r.trials.size(), 5u);  // the trials are kept
+  EXPECT_EQ(r.trials.size(), 7u);  // the trials are kept
   // Eq. 4.13 from anthropometrics works instead.
   ctx.body_mass_kg = rig.subject.anthropometrics.body_mass_kg;
   ctx.leg_length_m = rig.subject.anthropometrics.shank_length_m;

@@ -153,7 +153,8 @@ TEST(ApiFlowTest, RapidParameterisationEndToEnd) {
   ASSERT_EQ(run_view.status, 200);
   EXPECT_EQ(run_view.body["state"], "done");
   EXPECT_EQ(run_view.body["parameter_set_id"], set_id);
-  EXPECT_EQ(run_view.body["trial_ids"].size(), 5u);  // ramp, 2 releases, search, RB
+  // ramp, 2 × (hold, release), search, RB
+  EXPECT_EQ(run_view.body["trial_ids"].size(), 7u);
 
   // The identified parameter set against the virtual subject (§7.4.1).
   auto set = Call(client, "GET", "/api/v1/parameter-sets/" + std::to_string(set_id), analyst);
