@@ -316,7 +316,7 @@ std::vector<ProtocolDescription> MakeCatalog() {
         {"release_move_s", "motor move to each release angle, s", 0.8, 0.5, 10.0, false},
         {"release_hold_s",
          "hold at the release angle before releasing (recorded: its torque measures J), s", 0.2,
-         0.0, 5.0, false},
+         0.05, 5.0, false},
         {"release_swing_s", "free swing recorded after each release, s", 1.8, 1.0, 20.0, false},
         {"swing_settle_s", "swing after the last release before the extension search, s", 0.3, 0.0,
          30.0, false},
