@@ -530,9 +530,11 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
                                           field);
     }
     if (v < p.min_value || v > p.max_value) {
-      return api::Status::InvalidArgument(
-          "out of range [" + Format(p.min_value) + ", " + Format(p.max_value) + "]: " + Format(v),
-          field);
+      const std::string unit = Unit(p.name);
+      const std::string u = unit == "1" ? "" : " " + unit;
+      return api::Status::InvalidArgument(p.name + " must be " + Format(p.min_value) + "–" +
+                                              Format(p.max_value) + u + ", got " + Format(v) + u,
+                                          field);
     }
     const bool stim = p.scaling == Scaling::kThreshold || p.scaling == Scaling::kMaxTolerated ||
                       p.scaling == Scaling::kStimRange;
