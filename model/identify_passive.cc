@@ -276,39 +276,64 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
       const TrialColumns* trial;
       std::size_t begin, end;
     };
-    std::vector<Segment> segments;
-    for (std::size_t k = 0; k < trials.size(); ++k) {
-      const TrialColumns& tr = trials[k];
-      const double rate = tr.SampleRateHz();
-      const auto min_n = static_cast<std::size_t>(std::ceil(options.min_segment_s * rate));
-      const auto max_n =
-          std::max<std::size_t>(min_n, static_cast<std::size_t>(options.max_segment_s * rate));
-      const std::vector<std::size_t>& idx = rows[k];
-      std::size_t i = 0;
-      while (i < idx.size()) {
-        std::size_t j = i;
-        const auto free = [&](std::size_t q) {
-          if (!options.joint_limits) return true;
-          const double th = tr.angle_deg[idx[q]];
-          return th > options.joint_limits->min_angle_deg + options.stop_margin_deg &&
-                 th < options.joint_limits->max_angle_deg - options.stop_margin_deg;
-        };
-        if (!free(i) || tr.activation[idx[i]] > options.segment_max_activation) {
-          ++i;
-          continue;
+    const auto find_segments = [&](double excursion_deg) {
+      std::vector<Segment> segments;
+      for (std::size_t k = 0; k < trials.size(); ++k) {
+        const TrialColumns& tr = trials[k];
+        const double rate = tr.SampleRateHz();
+        const auto min_n = static_cast<std::size_t>(std::ceil(options.min_segment_s * rate));
+        const auto max_n =
+            std::max<std::size_t>(min_n, static_cast<std::size_t>(options.max_segment_s * rate));
+        const std::vector<std::size_t>& idx = rows[k];
+        std::size_t i = 0;
+        while (i < idx.size()) {
+          std::size_t j = i;
+          const auto free = [&](std::size_t q) {
+            if (!options.joint_limits) return true;
+            const double th = tr.angle_deg[idx[q]];
+            return th > options.joint_limits->min_angle_deg + options.stop_margin_deg &&
+                   th < options.joint_limits->max_angle_deg - options.stop_margin_deg;
+          };
+          if (!free(i) || tr.activation[idx[i]] > options.segment_max_activation) {
+            ++i;
+            continue;
+          }
+          while (j + 1 < idx.size() && idx[j + 1] == idx[j] + 1 && j + 1 - i < max_n &&
+                 free(j + 1) && tr.activation[idx[j + 1]] <= options.segment_max_activation)
+            ++j;
+          // The small-oscillation tail cut off (min_segment_excursion_deg).
+          std::size_t end = idx[j] + 1;
+          if (excursion_deg > 0.0) {
+            double tail_lo = tr.angle_deg[end - 1], tail_hi = tail_lo;
+            while (end - 1 > idx[i]) {
+              const double th = tr.angle_deg[end - 2];
+              if (std::max(tail_hi, th) - std::min(tail_lo, th) >= excursion_deg) break;
+              tail_lo = std::min(tail_lo, th);
+              tail_hi = std::max(tail_hi, th);
+              --end;
+            }
+          }
+          // Stretches inside 0–180° (the simulation's domain).
+          const auto [lo, hi] =
+              std::minmax_element(tr.angle_deg.begin() + idx[i], tr.angle_deg.begin() + end);
+          if (end - idx[i] >= min_n && *lo >= 0.0 && *hi <= 180.0 && *hi - *lo >= excursion_deg) {
+            segments.push_back({&tr, idx[i], end});
+          }
+          i = j + 1;
         }
-        while (j + 1 < idx.size() && idx[j + 1] == idx[j] + 1 && j + 1 - i < max_n && free(j + 1) &&
-               tr.activation[idx[j + 1]] <= options.segment_max_activation)
-          ++j;
-        // Stretches inside 0–180° (the simulation's domain).
-        const auto [lo, hi] =
-            std::minmax_element(tr.angle_deg.begin() + idx[i], tr.angle_deg.begin() + idx[j] + 1);
-        if (j + 1 - i >= min_n && *lo >= 0.0 && *hi <= 180.0) {
-          segments.push_back({&tr, idx[i], idx[j] + 1});
-        }
-        i = j + 1;
       }
+      return segments;
+    };
+    // The largest excursion that leaves a stretch: 1, ¾, ½, ¼ of
+    // min_segment_excursion_deg, then every stretch.
+    std::vector<Segment> segments;
+    double excursion_used = 0.0;
+    for (const double f : {1.0, 0.75, 0.5, 0.25, 0.0}) {
+      excursion_used = f * options.min_segment_excursion_deg;
+      segments = find_segments(excursion_used);
+      if (!segments.empty() || options.min_segment_excursion_deg <= 0.0) break;
     }
+    res.report.values["free_swing_segment_excursion_deg"] = excursion_used;
     if (!segments.empty()) {
       ParameterSet sim_set = ExampleParameterSet();
       sim_set.active.torque_scale_nm = 0.0;  // passive stretches only

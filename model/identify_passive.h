@@ -97,6 +97,14 @@ struct FreeSwingPassiveOptions {
   bool output_error_inertia = true;
   double min_segment_s = 0.4;
   double max_segment_s = 2.0;
+  /// A stretch ends once the rest of it spans less than this, and stretches
+  /// spanning less are left out: in a small oscillation the tissue's
+  /// hysteresis (Fig. 3-7) acts as an extra spring the model does not have,
+  /// and J fitted there comes out low (−29 % and −31 % on two legs of the
+  /// cohort with every stretch, −1…−7 % with this). If no stretch spans it,
+  /// ¾, ½, ¼ of it and then every stretch are tried, deg (0 = keep all;
+  /// report value "free_swing_segment_excursion_deg" is the one used).
+  double min_segment_excursion_deg = 20.0;
   /// Stretches are cut where the knee comes within stop_margin_deg of a
   /// stop (contact torque is not in the model); unset = no stops.
   std::optional<JointLimits> joint_limits;
