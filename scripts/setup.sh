@@ -20,7 +20,7 @@ packages=(
   libsqlite3-dev libssl-dev libcpp-httplib-dev
   libfastrtps-dev libfastcdr-dev fastddsgen
   libgtest-dev libgmock-dev libbenchmark-dev
-  libcli11-dev
+  libcli11-dev openssl
   nodejs chromium
   gnuplot-nox
 )

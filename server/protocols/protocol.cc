@@ -532,7 +532,7 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
     if (v < p.min_value || v > p.max_value) {
       const std::string unit = Unit(p.name);
       const std::string u = unit == "1" ? "" : " " + unit;
-      return api::Status::InvalidArgument(p.name + " must be " + Format(p.min_value) + "–" +
+      return api::Status::InvalidArgument("must be " + Format(p.min_value) + "–" +
                                               Format(p.max_value) + u + ", got " + Format(v) + u,
                                           field);
     }
