@@ -326,6 +326,28 @@ std::string DetachRefusal(const json& protocol) {
          "heart-beating, and Ctrl-C cancels it cleanly)";
 }
 
+// `run VERB RUN`: POST /runs/{id}/VERB, then the run's state (after
+// `lead`, closed by ")" when lead is not empty) or, with --json, its view.
+void AddRunRequest(CLI::App& run, CliContext& context, const std::string& verb,
+                   const std::string& description, const std::string& lead) {
+  auto id = std::make_shared<std::string>();
+  CLI::App* sub = run.add_subcommand(verb, description);
+  sub->add_option("run", *id, "run id")->required();
+  sub->callback([id, &context, verb, lead] {
+    context.action = [id, &context, verb, lead] {
+      const std::int64_t run_id = ParseId(*id, "run");
+      auto client = Connect(context);
+      const json view = client->Post("/runs/" + std::to_string(run_id) + "/" + verb);
+      if (context.options.json) {
+        context.out << view.dump(2) << "\n";
+        return;
+      }
+      context.out << "run " << run_id << ": " << lead << Cell(view.value("state", json(nullptr)))
+                  << (lead.empty() ? "" : ")") << "\n";
+    };
+  });
+}
+
 }  // namespace
 
 void RegisterRunCommands(CLI::App& app, CliContext& context) {
@@ -404,44 +426,11 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
       };
     });
   }
-  {
-    auto id = std::make_shared<std::string>();
-    CLI::App* stop = run->add_subcommand(
-        "stop",
-        "Stop a run where it is and keep what it recorded: a tolerance test records the "
-        "amplitude reached as the max tolerated (clinician or admin).");
-    stop->add_option("run", *id, "run id")->required();
-    stop->callback([id, &context] {
-      context.action = [id, &context] {
-        const std::int64_t run_id = ParseId(*id, "run");
-        auto client = Connect(context);
-        const json view = client->Post("/runs/" + std::to_string(run_id) + "/stop");
-        if (context.options.json) {
-          context.out << view.dump(2) << "\n";
-          return;
-        }
-        context.out << "run " << run_id << ": stop requested ("
-                    << Cell(view.value("state", json(nullptr))) << ")\n";
-      };
-    });
-  }
-  {
-    auto id = std::make_shared<std::string>();
-    CLI::App* cancel = run->add_subcommand("cancel", "Cancel a run (stimulation to zero).");
-    cancel->add_option("run", *id, "run id")->required();
-    cancel->callback([id, &context] {
-      context.action = [id, &context] {
-        const std::int64_t run_id = ParseId(*id, "run");
-        auto client = Connect(context);
-        const json view = client->Post("/runs/" + std::to_string(run_id) + "/cancel");
-        if (context.options.json) {
-          context.out << view.dump(2) << "\n";
-          return;
-        }
-        context.out << "run " << run_id << ": " << Cell(view.value("state", json(nullptr))) << "\n";
-      };
-    });
-  }
+  AddRunRequest(*run, context, "stop",
+                "Stop a run where it is and keep what it recorded: a tolerance test records the "
+                "amplitude reached as the max tolerated (clinician or admin).",
+                "stop requested (");
+  AddRunRequest(*run, context, "cancel", "Cancel a run (stimulation to zero).", "");
   {
     auto clear = std::make_shared<bool>(false);
     CLI::App* estop = app.add_subcommand(

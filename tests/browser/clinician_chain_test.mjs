@@ -12,8 +12,7 @@
 //   node clinician_chain_test.mjs --server BIN --web-root DIR --node-modules DIR
 //                                 --chromium BIN --artefacts DIR
 import assert from 'node:assert/strict';
-import { join } from 'node:path';
-import { arg, call, expectEstopVisible, fillParameter, launch, makeUser, shooter, startServer, step, stopServer } from './harness.mjs';
+import { arg, call, expectEstopVisible, fillParameter, finish, launch, makeUser, shooter, startServer, step } from './harness.mjs';
 
 // Runs last a few seconds of wall time (rapid ≈ 7 s), so switching views
 // really happens while the run goes on.
@@ -25,7 +24,7 @@ const started = Date.now();
 const server = await startServer({ timeScale: TIME_SCALE });
 let context;
 let page;
-let failed = false;
+let error;
 const notes = [];
 
 async function signIn(token) {
@@ -317,15 +316,6 @@ try {
   assert.deepEqual(consoleErrors, [], 'uncaught errors in the page');
   if (gateRefusal) console.log('NOTE: the model gate refused a prediction protocol after a default rapid run');
 } catch (e) {
-  failed = true;
-  console.error('FAILED:', e);
-  try {
-    if (page) await page.screenshot({ path: join(artefacts, 'failure.png'), fullPage: true });
-  } catch { /* best effort */ }
-} finally {
-  if (context) await context.close();
-  stopServer(server);
+  error = e;
 }
-for (const n of notes) console.log(`    ${n}`);
-console.log(`${failed ? 'FAILED' : 'passed'} in ${((Date.now() - started) / 1000).toFixed(1)} s; screenshots in ${artefacts}`);
-process.exit(failed ? 1 : 0);
+await finish({ error, page, context, server, artefacts, started, notes });

@@ -7,8 +7,7 @@
 //   node form_errors_test.mjs --server BIN --web-root DIR --node-modules DIR
 //                             --chromium BIN --artefacts DIR
 import assert from 'node:assert/strict';
-import { join } from 'node:path';
-import { arg, call, launch, shooter, startServer, step, stopServer } from './harness.mjs';
+import { arg, call, finish, launch, shooter, startServer, step } from './harness.mjs';
 
 const artefacts = arg('--artefacts');
 const shots = shooter(artefacts);
@@ -16,7 +15,7 @@ const started = Date.now();
 const server = await startServer({ timeScale: 0 });
 let context;
 let page;
-let failed = false;
+let error;
 
 // The messages of every field of `form` that has one, by input name.
 async function fieldMessages(form) {
@@ -100,14 +99,6 @@ try {
   assert.deepEqual(launched.external, [], 'the page requested something from elsewhere');
   assert.deepEqual(launched.consoleErrors, [], 'uncaught errors in the page');
 } catch (e) {
-  failed = true;
-  console.error('FAILED:', e);
-  try {
-    if (page) await page.screenshot({ path: join(artefacts, 'failure.png'), fullPage: true });
-  } catch { /* best effort */ }
-} finally {
-  if (context) await context.close();
-  stopServer(server);
+  error = e;
 }
-console.log(`${failed ? 'FAILED' : 'passed'} in ${((Date.now() - started) / 1000).toFixed(1)} s; screenshots in ${artefacts}`);
-process.exit(failed ? 1 : 0);
+await finish({ error, page, context, server, artefacts, started });

@@ -133,3 +133,21 @@ export async function fillParameter(page, name, value) {
   if (!(await input.isVisible())) await page.locator('#advanced-parameters > summary').click();
   await input.fill(value);
 }
+
+// The end of every browser test: on an error its message and a screenshot
+// of the page, then the browser context and the server closed, the notes
+// and the verdict printed, and the process ends with the verdict.
+export async function finish({ error, page, context, server, artefacts, started, notes = [] }) {
+  if (error) {
+    console.error('FAILED:', error);
+    try {
+      const shown = page || (context && context.pages()[0]);
+      if (shown) await shown.screenshot({ path: join(artefacts, 'failure.png'), fullPage: true });
+    } catch { /* best effort */ }
+  }
+  if (context) await context.close();
+  stopServer(server);
+  for (const n of notes) console.log(`    ${n}`);
+  console.log(`${error ? 'FAILED' : 'passed'} in ${((Date.now() - started) / 1000).toFixed(1)} s; screenshots in ${artefacts}`);
+  process.exit(error ? 1 : 0);
+}

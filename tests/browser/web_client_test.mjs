@@ -7,9 +7,8 @@
 //   node web_client_test.mjs --server BIN --web-root DIR --node-modules DIR
 //                            --chromium BIN --artefacts DIR
 import net from 'node:net';
-import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { arg, call, expectEstopVisible, fillParameter, launch, shooter, startServer, step, stopServer } from './harness.mjs';
+import { arg, call, expectEstopVisible, fillParameter, finish, launch, shooter, startServer, step } from './harness.mjs';
 
 const TIME_SCALE = 8;
 const artefacts = arg('--artefacts');
@@ -32,7 +31,7 @@ function rawStatus(url, target) {
 const started = Date.now();
 const server = await startServer({ timeScale: TIME_SCALE });
 let context;
-let failed = false;
+let error;
 try {
   await step('static files: index, hashed assets, content types, caching, no traversal', async () => {
     const index = await fetch(`${server.url}/`);
@@ -297,15 +296,6 @@ try {
   assert.deepEqual(external, [], 'the page requested something from elsewhere');
   assert.deepEqual(consoleErrors, [], 'uncaught errors in the page');
 } catch (e) {
-  failed = true;
-  console.error('FAILED:', e);
-  try {
-    const page = context && context.pages()[0];
-    if (page) await page.screenshot({ path: join(artefacts, 'failure.png'), fullPage: true });
-  } catch { /* best effort */ }
-} finally {
-  if (context) await context.close();
-  stopServer(server);
+  error = e;
 }
-console.log(`${failed ? 'FAILED' : 'passed'} in ${((Date.now() - started) / 1000).toFixed(1)} s; screenshots in ${artefacts}`);
-process.exit(failed ? 1 : 0);
+await finish({ error, context, server, artefacts, started });

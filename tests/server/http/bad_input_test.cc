@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "hostile_client_fixture.h"
 #include "server_process.h"
 
 namespace fesbench::testing {
@@ -11,21 +12,8 @@ namespace {
 
 using nlohmann::json;
 
-class BadInputTest : public ::testing::Test {
+class BadInputTest : public HostileClientTest {
  protected:
-  void SetUp() override {
-    server_ = std::make_unique<ServerProcess>();
-    client_ = std::make_unique<httplib::Client>(server_->Client());
-    admin_ = server_->admin_token();
-  }
-  void TearDown() override {
-    // Healthy afterwards, and a clean exit.
-    auto health = Call(*client_, "GET", "/api/v1/health", "");
-    EXPECT_EQ(health.status, 200);
-    EXPECT_EQ(server_->Terminate(), 0);
-    // No client input reached the catch-all (it logs every 500).
-    EXPECT_EQ(server_->Stderr().find("internal error"), std::string::npos) << server_->Stderr();
-  }
   // Expects `status` with a JSON error whose code is `code` (and whose field
   // is `field` when given).
   void ExpectError(const JsonResponse& r, int status, const std::string& code,
@@ -42,9 +30,6 @@ class BadInputTest : public ::testing::Test {
     return RawExchange(server_->port(), head + "\r\n" + body);
   }
 
-  std::unique_ptr<ServerProcess> server_;
-  std::unique_ptr<httplib::Client> client_;
-  std::string admin_;
 };
 
 TEST_F(BadInputTest, MalformedJson) {

@@ -13,6 +13,7 @@
 
 #include <thread>
 
+#include "hostile_client_fixture.h"
 #include "server_process.h"
 
 namespace fesbench::testing {
@@ -21,23 +22,9 @@ namespace {
 using nlohmann::json;
 using std::chrono::milliseconds;
 
-class ProtocolEdgesTest : public ::testing::Test {
+class ProtocolEdgesTest : public HostileClientTest {
  protected:
-  void SetUp() override {
-    server_ = std::make_unique<ServerProcess>();
-    client_ = std::make_unique<httplib::Client>(server_->Client());
-    admin_ = server_->admin_token();
-  }
-  void TearDown() override {
-    EXPECT_EQ(Call(*client_, "GET", "/api/v1/health", "").status, 200);
-    EXPECT_EQ(server_->Terminate(), 0);
-    EXPECT_EQ(server_->Stderr().find("internal error"), std::string::npos) << server_->Stderr();
-  }
   static bool HasWholeResponse(const std::string& bytes) { return CountResponses(bytes) >= 1; }
-
-  std::unique_ptr<ServerProcess> server_;
-  std::unique_ptr<httplib::Client> client_;
-  std::string admin_;
 };
 
 int StatusOf(const std::string& response) { return RawStatus(response); }
