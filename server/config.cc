@@ -57,6 +57,10 @@ api::Status ValidateServerConfig(const ServerConfig& c) {
       c.auth_failure_refill_per_s > 1000) {
     return api::Status::InvalidArgument("must be in (0, 1000]", "auth-failure-refill-per-s");
   }
+  if (!c.dds_security.empty() && c.dds_transport == "off") {
+    return api::Status::InvalidArgument("--dds-security needs DDS on (--dds-transport is off)",
+                                        "dds-security");
+  }
   if (!c.dds_profile_name.empty() && c.dds_profile.empty()) {
     return api::Status::InvalidArgument("--dds-profile-name needs --dds-profile",
                                         "dds-profile-name");
@@ -87,6 +91,8 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.String("dds-profile", false, 4096)) c.dds_profile = *v;
   if (auto v = f.String("dds-profile-name", false, 255)) c.dds_profile_name = *v;
   if (auto v = f.String("dds-bench-id", false, 255)) c.dds_bench_id = *v;
+  if (auto v = f.String("dds-security", false, 4096)) c.dds_security = *v;
+  if (auto v = f.String("dds-identity", false, 64)) c.dds_identity = *v;
   if (auto v = f.String("tls-cert", false, 4096)) c.tls_cert = *v;
   if (auto v = f.String("tls-key", false, 4096)) c.tls_key = *v;
   if (auto v = f.Integer("seed", false, 0)) c.seed = static_cast<std::uint64_t>(*v);
@@ -140,6 +146,11 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
                  "participant profile of --dds-profile to use (default: its default profile)");
   app.add_option("--dds-bench-id", flags.dds_bench_id,
                  "DDS key of this bench's state (default: the host name)");
+  app.add_option("--dds-security", flags.dds_security,
+                 "secured DDS: a lab PKI directory made by scripts/make-dds-pki.sh")
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--dds-identity", flags.dds_identity,
+                 "this server's identity in --dds-security (default server)");
   app.add_option("--tls-cert", flags.tls_cert, "PEM certificate for HTTPS");
   app.add_option("--tls-key", flags.tls_key, "PEM private key for HTTPS");
   app.add_option("--seed", flags.seed, "seed of the simulated virtual subject (default 1)");
@@ -194,6 +205,8 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--dds-profile")) config.dds_profile = flags.dds_profile;
   if (given("--dds-profile-name")) config.dds_profile_name = flags.dds_profile_name;
   if (given("--dds-bench-id")) config.dds_bench_id = flags.dds_bench_id;
+  if (given("--dds-security")) config.dds_security = flags.dds_security;
+  if (given("--dds-identity")) config.dds_identity = flags.dds_identity;
   if (given("--tls-cert")) config.tls_cert = flags.tls_cert;
   if (given("--tls-key")) config.tls_key = flags.tls_key;
   if (given("--seed")) config.seed = flags.seed;

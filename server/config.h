@@ -33,18 +33,22 @@ struct ServerConfig {
   /// --dds-transport: auto (Fast DDS default: shm + UDP), shm, udp,
   /// udp-loopback, or off (no DDS front end).
   std::string dds_transport = "auto";
-  std::string dds_profile;   ///< --dds-profile: Fast DDS XML profile file.
+  std::string dds_profile;  ///< --dds-profile: Fast DDS XML profile file.
   /// --dds-profile-name: the participant profile of that file to create the
   /// participant from ("" = the file's default participant profile).
   std::string dds_profile_name;
   std::string dds_bench_id;  ///< --dds-bench-id: key of the bench state (default: host name).
-  std::string tls_cert;      ///< --tls-cert: PEM certificate (with --tls-key: HTTPS).
-  std::string tls_key;       ///< --tls-key: PEM private key.
-  std::uint64_t seed = 1;    ///< --seed: virtual subject of the simulated bench.
-  std::vector<std::string> replay;  ///< --replay: CSV trials for --bench replay.
-  int job_workers = 2;              ///< --job-workers: identification/prediction threads.
-  int max_connections = 48;         ///< --max-connections: connections served at once.
-  int max_streams = 16;             ///< --max-streams: open event streams.
+  /// --dds-security: a lab PKI directory (scripts/make-dds-pki.sh); secured
+  /// DDS (authentication, encryption, access control) when set.
+  std::string dds_security;
+  std::string dds_identity = "server";  ///< --dds-identity: this server's identity in it.
+  std::string tls_cert;                 ///< --tls-cert: PEM certificate (with --tls-key: HTTPS).
+  std::string tls_key;                  ///< --tls-key: PEM private key.
+  std::uint64_t seed = 1;               ///< --seed: virtual subject of the simulated bench.
+  std::vector<std::string> replay;      ///< --replay: CSV trials for --bench replay.
+  int job_workers = 2;                  ///< --job-workers: identification/prediction threads.
+  int max_connections = 48;             ///< --max-connections: connections served at once.
+  int max_streams = 16;                 ///< --max-streams: open event streams.
   /// --auth-failure-burst: failed tokens one client address may present at
   /// once before it is slowed down (429 with Retry-After), 1–100000.
   int auth_failure_burst = 30;
@@ -71,10 +75,10 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
 
 /// Applies a JSON config object's keys ("bind", "port", "db", "bench",
 /// "time-scale", "max-stop-impact-deg-s", "dds-domain", "dds-transport", "dds-profile",
-/// "dds-profile-name", "dds-bench-id", "tls-cert", "tls-key", "seed", "replay", "job-workers",
-/// "max-connections", "max-streams", "auth-failure-burst", "auth-failure-refill-per-s") to
-/// `config`. kInvalidArgument naming the key for unknown keys, wrong types and
-/// out-of-range values.
+/// "dds-profile-name", "dds-bench-id", "dds-security", "dds-identity", "tls-cert", "tls-key",
+/// "seed", "replay", "job-workers", "max-connections", "max-streams", "auth-failure-burst",
+/// "auth-failure-refill-per-s") to `config`. kInvalidArgument naming the key for unknown keys,
+/// wrong types and out-of-range values.
 api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& config);
 
 /// Range checks shared by flags and file (kInvalidArgument naming the key).

@@ -173,6 +173,11 @@ int main(int argc, char** argv) {
     dds_options.participant.profile_file = config.dds_profile;
     dds_options.participant.profile_name = config.dds_profile_name;
     dds_options.participant.name = "fesbench-server";
+    if (!config.dds_security.empty()) {
+      auto files = fesbench::dds::SecurityFilesIn(config.dds_security, config.dds_identity);
+      if (!files.ok()) return Fail("DDS", files.status());
+      dds_options.participant.security = *files;
+    }
     dds_options.bench_id = config.dds_bench_id;
     auto started = server::dds::DdsServer::Start(dds_options, **db, runs, hub, dds_commands);
     if (!started.ok()) return Fail("DDS", started.status());
@@ -212,22 +217,24 @@ int main(int argc, char** argv) {
 
   const std::string scheme = config.tls_cert.empty() ? "http" : "https";
   const std::string host = config.bind == "0.0.0.0" ? "127.0.0.1" : config.bind;
-  std::cout << "fesbench-server: bench " << bench->kind() << ", time scale " << config.time_scale
-            << ", database " << db_path.string() << "\n"
-            << "fesbench-server: admin token file " << token_path.string() << "\n"
-            << "fesbench-server: DDS "
-            << (dds ? "domain " + std::to_string(config.dds_domain) + ", transport " +
-                          config.dds_transport + ", bench id " + dds->bench_id()
-                    : std::string("off"))
-            << "\n"
-            << "fesbench-server: web client "
-            << (std::filesystem::is_regular_file(std::filesystem::path(config.web_root) /
-                                                 "index.html")
-                    ? "from " + config.web_root
-                    : "not built (no index.html in --web-root \"" + config.web_root + "\")")
-            << "\n"
-            << "fesbench-server: listening on " << scheme << "://" << host << ":" << *port << "/"
-            << std::endl;
+  std::cout
+      << "fesbench-server: bench " << bench->kind() << ", time scale " << config.time_scale
+      << ", database " << db_path.string() << "\n"
+      << "fesbench-server: admin token file " << token_path.string() << "\n"
+      << "fesbench-server: DDS "
+      << (dds ? "domain " + std::to_string(config.dds_domain) + ", transport " +
+                    config.dds_transport + ", bench id " + dds->bench_id() +
+                    (config.dds_security.empty() ? std::string(", unsecured")
+                                                 : ", secured as identity " + config.dds_identity)
+              : std::string("off"))
+      << "\n"
+      << "fesbench-server: web client "
+      << (std::filesystem::is_regular_file(std::filesystem::path(config.web_root) / "index.html")
+              ? "from " + config.web_root
+              : "not built (no index.html in --web-root \"" + config.web_root + "\")")
+      << "\n"
+      << "fesbench-server: listening on " << scheme << "://" << host << ":" << *port << "/"
+      << std::endl;
 
   std::thread waiter([&] {
     int signal = 0;

@@ -7,6 +7,8 @@
 
 #include <chrono>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <filesystem>
+#include <utility>
 
 #include "api/dds/fesbench.h"
 #include "api/dds/fesbenchPubSubTypes.h"
@@ -39,6 +41,31 @@ void ApplyTransport(Transport transport, fdds::DomainParticipantQos& qos) {
     qos.wire_protocol().builtin.initialPeersList.push_back(peer);
   }
   qos.transport().user_transports.push_back(udp);
+}
+
+// The builtin plugins' properties (Fast DDS "DDS Security" documentation,
+// OMG DDS Security 1.1 §9.3.1, §9.4.1); file URIs of absolute paths.
+void ApplySecurity(const SecurityFiles& files, fdds::DomainParticipantQos& qos) {
+  auto& props = qos.properties().properties();
+  const auto set = [&props](const std::string& name, const std::string& value) {
+    for (auto& p : props) {
+      if (p.name() == name) {
+        p.value(value);
+        return;
+      }
+    }
+    props.emplace_back(name, value);
+  };
+  const auto uri = [](const std::string& path) { return "file://" + path; };
+  set("dds.sec.auth.plugin", "builtin.PKI-DH");
+  set("dds.sec.auth.builtin.PKI-DH.identity_ca", uri(files.identity_ca));
+  set("dds.sec.auth.builtin.PKI-DH.identity_certificate", uri(files.identity_certificate));
+  set("dds.sec.auth.builtin.PKI-DH.private_key", uri(files.private_key));
+  set("dds.sec.access.plugin", "builtin.Access-Permissions");
+  set("dds.sec.access.builtin.Access-Permissions.permissions_ca", uri(files.permissions_ca));
+  set("dds.sec.access.builtin.Access-Permissions.governance", uri(files.governance));
+  set("dds.sec.access.builtin.Access-Permissions.permissions", uri(files.permissions));
+  set("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
 }
 
 template <class PubSubType>
@@ -74,6 +101,45 @@ api::Result<Transport> ParseTransport(std::string_view name) {
       "transport");
 }
 
+api::Result<SecurityFiles> SecurityFilesIn(const std::string& directory,
+                                           const std::string& identity) {
+  if (identity.empty() || identity.size() > 64 ||
+      identity.find_first_not_of(
+          "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-") !=
+          std::string::npos) {
+    return api::Status::InvalidArgument(
+        "a DDS identity name is 1-64 letters, digits, '_' or '-' (got '" + identity + "')",
+        "dds-identity");
+  }
+  std::error_code ec;
+  const std::filesystem::path dir = std::filesystem::absolute(directory, ec);
+  if (ec || !std::filesystem::is_directory(dir, ec)) {
+    return api::Status::InvalidArgument(
+        "no DDS security directory " + directory + " (make one with scripts/make-dds-pki.sh)",
+        "dds-security");
+  }
+  SecurityFiles files;
+  const std::pair<std::string*, std::string> wanted[] = {
+      {&files.identity_ca, "ca.cert.pem"},
+      {&files.identity_certificate, identity + ".cert.pem"},
+      {&files.private_key, identity + ".key.pem"},
+      {&files.governance, "governance.p7s"},
+      {&files.permissions, identity + ".permissions.p7s"},
+  };
+  for (const auto& [field, name] : wanted) {
+    const auto path = dir / name;
+    if (!std::filesystem::is_regular_file(path, ec)) {
+      return api::Status::InvalidArgument(
+          "DDS identity '" + identity + "': no " + path.string() +
+              " (scripts/make-dds-pki.sh DIR --add NAME --role R makes one)",
+          "dds-security");
+    }
+    *field = path.lexically_normal().string();
+  }
+  files.permissions_ca = files.identity_ca;
+  return files;
+}
+
 api::Result<std::unique_ptr<Participant>> Participant::Create(const ParticipantOptions& options) {
   if (options.domain_id < 0 || options.domain_id > 232) {
     return api::Status::InvalidArgument("DDS domain id must be 0-232", "domain");
@@ -99,16 +165,26 @@ api::Result<std::unique_ptr<Participant>> Participant::Create(const ParticipantO
       qos = factory->get_default_participant_qos();
     } else if (factory->get_participant_qos_from_profile(options.profile_name, qos) !=
                ReturnCode_t::RETCODE_OK) {
-      return api::Status::InvalidArgument("no participant profile '" + options.profile_name +
-                                              "' in " + options.profile_file,
-                                          "profile_name");
+      return api::Status::InvalidArgument(
+          "no participant profile '" + options.profile_name + "' in " + options.profile_file,
+          "profile_name");
     }
   }
   qos.name(options.name);
   ApplyTransport(options.transport, qos);
+  if (options.security) ApplySecurity(*options.security, qos);
 
   std::unique_ptr<Participant> out(new Participant());
+  out->secured_ = options.security.has_value();
   out->participant_ = factory->create_participant(options.domain_id, qos);
+  if (!out->participant_ && options.security) {
+    return api::Status::InvalidArgument(
+        "Fast DDS refused the DDS Security files of " + options.security->identity_certificate +
+            ": the certificate and key must match and be signed by the CA, governance and "
+            "permissions signed by the permissions CA, the permissions granted to this "
+            "certificate's subject and valid now (Fast DDS's log above says which)",
+        "dds-security");
+  }
   if (!out->participant_)
     return api::Status::Unavailable("Fast DDS could not create a participant");
   auto* p = out->participant_;

@@ -28,6 +28,7 @@
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -55,6 +56,29 @@ std::string_view TransportName(Transport transport);
 /// Parses TransportName's names; kInvalidArgument (field "transport") otherwise.
 api::Result<Transport> ParseTransport(std::string_view name);
 
+/// DDS Security (OMG DDS Security 1.1, Fast DDS's builtin plugins
+/// builtin.PKI-DH, builtin.Access-Permissions, builtin.AES-GCM-GMAC): the
+/// files of one identity of a lab PKI. With these set, the participant
+/// authenticates every peer against the CA, encrypts what governance says
+/// (scripts/make-dds-pki.sh: discovery, liveliness and data, every topic),
+/// and may publish and subscribe only what its signed permissions grant.
+struct SecurityFiles {
+  std::string identity_ca;           ///< CA certificate (PEM) that signed every identity.
+  std::string identity_certificate;  ///< this participant's certificate (PEM).
+  std::string private_key;           ///< its private key (PEM).
+  std::string permissions_ca;        ///< CA certificate that signed governance and permissions.
+  std::string governance;            ///< signed governance (S/MIME).
+  std::string permissions;           ///< this identity's signed permissions (S/MIME).
+};
+
+/// The files of identity `identity` in a directory made by
+/// scripts/make-dds-pki.sh (ca.cert.pem, governance.p7s, NAME.cert.pem,
+/// NAME.key.pem, NAME.permissions.p7s), as absolute paths. kInvalidArgument
+/// naming the missing file (field "dds-security") or a bad identity name
+/// (field "dds-identity").
+api::Result<SecurityFiles> SecurityFilesIn(const std::string& directory,
+                                           const std::string& identity);
+
 struct ParticipantOptions {
   int domain_id = 0;  ///< 0–232.
   Transport transport = Transport::kBuiltin;
@@ -64,8 +88,10 @@ struct ParticipantOptions {
   /// and properties (e.g. DDS Security) as written. The transport above is
   /// applied on top unless kBuiltin; the participant name is `name`.
   std::string profile_file;
-  std::string profile_name;  ///< a participant profile of profile_file; "" = its default.
+  std::string profile_name;       ///< a participant profile of profile_file; "" = its default.
   std::string name = "fesbench";  ///< participant name (seen by DDS tools).
+  /// Secured DDS when set (on top of the profile's properties); unsecured otherwise.
+  std::optional<SecurityFiles> security;
 };
 
 /// A participant with one publisher, one subscriber and the six topics.
@@ -73,14 +99,18 @@ struct ParticipantOptions {
 class Participant {
  public:
   /// kInvalidArgument for a bad domain id, an unloadable profile file
-  /// (field "profile") or an unknown profile name (field "profile_name");
-  /// kUnavailable if Fast DDS cannot create the participant.
+  /// (field "profile"), an unknown profile name (field "profile_name") or
+  /// security files Fast DDS refuses (field "dds-security": a certificate
+  /// not signed by the CA, an unsigned or wrongly signed governance or
+  /// permissions document, permissions for another subject);
+  /// kUnavailable if Fast DDS cannot create the participant otherwise.
   static api::Result<std::unique_ptr<Participant>> Create(const ParticipantOptions& options);
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
 
   eprosima::fastdds::dds::DomainParticipant* participant() { return participant_; }
+  bool secured() const { return secured_; }
   eprosima::fastdds::dds::Publisher* publisher() { return publisher_; }
   eprosima::fastdds::dds::Subscriber* subscriber() { return subscriber_; }
   eprosima::fastdds::dds::Topic* samples() { return samples_; }
@@ -91,7 +121,8 @@ class Participant {
   eprosima::fastdds::dds::Topic* replies() { return replies_; }
 
   /// A writer / reader on `topic` with the topic's QoS (WriterQosFor /
-  /// ReaderQosFor); nullptr if Fast DDS refuses.
+  /// ReaderQosFor); nullptr if Fast DDS refuses (with DDS Security: also
+  /// when the identity's permissions do not grant it).
   eprosima::fastdds::dds::DataWriter* MakeWriter(
       eprosima::fastdds::dds::Topic* topic,
       eprosima::fastdds::dds::DataWriterListener* listener = nullptr);
@@ -102,6 +133,7 @@ class Participant {
  private:
   Participant() = default;
   eprosima::fastdds::dds::DomainParticipant* participant_ = nullptr;
+  bool secured_ = false;
   eprosima::fastdds::dds::Publisher* publisher_ = nullptr;
   eprosima::fastdds::dds::Subscriber* subscriber_ = nullptr;
   eprosima::fastdds::dds::Topic* samples_ = nullptr;

@@ -1,5 +1,6 @@
 // fesbench-dds-monitor: a DDS client of fesbench-server (DESIGN.md §9).
-//   fesbench-dds-monitor [--domain N] [--transport T] [--profile F] [--timeout S] <command>
+//   fesbench-dds-monitor [--domain N] [--transport T] [--profile F]
+//                        [--security DIR [--identity NAME]] [--timeout S] <command>
 //   benches                          live benches and their state
 //   samples --run ID [--csv FILE] [--max N]   print (or record) a run's samples until it ends
 //   params --subject ID --leg ID     the latest parameter set of a subject's leg
@@ -35,6 +36,12 @@ int main(int argc, char** argv) {
   app.add_option("--transport", transport, "auto, shm, udp, udp-loopback (default auto)")
       ->check(CLI::IsMember({"auto", "shm", "udp", "udp-loopback"}));
   app.add_option("--profile", profile, "Fast DDS XML profile file")->check(CLI::ExistingFile);
+  std::string security_dir, identity = "operator";
+  app.add_option("--security", security_dir,
+                 "secured DDS: a lab PKI directory made by scripts/make-dds-pki.sh")
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--identity", identity,
+                 "this monitor's identity in --security (default operator)");
   app.add_option("--timeout", timeout_s, "seconds to wait for a server (default 5)")
       ->check(CLI::Range(0.1, 3600.0));
 
@@ -62,6 +69,14 @@ int main(int argc, char** argv) {
   options.participant.domain_id = domain;
   options.participant.transport = *fesbench::dds::ParseTransport(transport);
   options.participant.profile_file = profile;
+  if (!security_dir.empty()) {
+    auto files = fesbench::dds::SecurityFilesIn(security_dir, identity);
+    if (!files.ok()) {
+      std::cerr << "fesbench-dds-monitor: " << files.status().ToString() << std::endl;
+      return 2;
+    }
+    options.participant.security = *files;
+  }
   options.timeout_s = timeout_s;
 
   if (benches->parsed()) {

@@ -241,6 +241,11 @@ api::Status SendEStop(const MonitorOptions& options, const std::string& token,
   auto& p = **participant;
   fdds::DataWriter* writer = p.MakeWriter(p.commands());
   fdds::DataReader* replies = p.MakeReader(p.replies());
+  if (!writer && p.secured()) {
+    return api::Status(api::ErrorCode::kPermissionDenied,
+                       "this DDS identity's permissions do not grant publishing fesbench/commands "
+                       "(an e-stop needs an identity of role 'operator')");
+  }
   if (!writer || !replies) return api::Status::Unavailable("cannot create a DDS writer/reader");
   auto deadline = Deadline(options.timeout_s);
   while (!Matched(writer) || !Matched(replies)) {

@@ -81,6 +81,13 @@ api::Status DdsServer::Init() {
   replies_ = p.MakeWriter(p.replies());
   commands_reader_ = p.MakeReader(p.commands());
   if (!samples_ || !state_ || !events_ || !parameter_sets_ || !replies_ || !commands_reader_) {
+    if (p.secured()) {
+      return api::Status::InvalidArgument(
+          "the DDS identity's permissions do not grant the server's topics (publish samples, "
+          "state, run events, parameter sets and replies; subscribe commands): give the server "
+          "an identity of role 'server' (scripts/make-dds-pki.sh)",
+          "dds-identity");
+    }
     return api::Status::Unavailable("Fast DDS could not create the fesbench writers/readers");
   }
   services::SubscribeOptions sub;

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <optional>
 #include <thread>
 
 #include "api/dds/fesbench.h"
@@ -123,8 +124,9 @@ struct Rig {
     return stored.ok() ? stored->id : 0;
   }
 
-  void StartServer() {
+  void StartServer(std::optional<wire::SecurityFiles> security = std::nullopt) {
     DdsServerOptions options;
+    options.participant.security = std::move(security);
     options.participant.domain_id = domain;
     options.participant.transport = wire::Transport::kUdpLoopback;
     options.participant.name = "fesbench-test-server";
@@ -135,8 +137,10 @@ struct Rig {
     server = std::move(*started);
   }
 
-  std::unique_ptr<wire::Participant> Client() {
+  std::unique_ptr<wire::Participant> Client(
+      std::optional<wire::SecurityFiles> security = std::nullopt) {
     wire::ParticipantOptions options;
+    options.security = std::move(security);
     options.domain_id = domain;
     options.transport = wire::Transport::kUdpLoopback;
     options.name = "fesbench-test-client";

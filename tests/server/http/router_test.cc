@@ -197,6 +197,15 @@ TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
   EXPECT_EQ(c.max_stop_impact_deg_s, 300.0);
   c.max_stop_impact_deg_s = 0.0;
   EXPECT_EQ(ValidateServerConfig(c).field(), "max-stop-impact-deg-s");
+  // Secured DDS: a PKI directory and an identity (default "server"); not with DDS off.
+  c = ServerConfig{};
+  EXPECT_EQ(c.dds_identity, "server");
+  ASSERT_TRUE(ApplyConfigJson(R"({"dds-security": "pki", "dds-identity": "knee2"})", c).ok());
+  EXPECT_EQ(c.dds_security, "pki");
+  EXPECT_EQ(c.dds_identity, "knee2");
+  EXPECT_TRUE(ValidateServerConfig(c).ok());
+  c.dds_transport = "off";
+  EXPECT_EQ(ValidateServerConfig(c).field(), "dds-security");
 
   std::ostringstream out, err;
   const char* argv[] = {"fesbench-server", "--port", "0", "--time-scale", "0.5", "--bench", "sim"};
