@@ -153,6 +153,14 @@ api::Result<TrialOwner> TrialRepository::Owner(std::int64_t trial_id) {
   });
 }
 
+api::Result<std::vector<std::int64_t>> TrialRepository::IdsOfRun(std::int64_t run_id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<std::int64_t>> {
+    return internal::QueryRows(
+        c, "SELECT id FROM trials WHERE run_id = ?1 ORDER BY id",
+        [](const Statement& s) -> api::Result<std::int64_t> { return s.Int64(0); }, run_id);
+  });
+}
+
 api::Result<std::vector<TrialSummary>> TrialRepository::ListForSession(std::int64_t session_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<TrialSummary>> {
     if (auto s =

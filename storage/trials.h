@@ -50,6 +50,9 @@ class TrialRepository {
   api::Result<TrialOwner> Owner(std::int64_t trial_id);
   /// Summaries of a session's trials, oldest first.
   api::Result<std::vector<TrialSummary>> ListForSession(std::int64_t session_id);
+  /// Ids of the trials a run recorded, oldest first (index trials_run:
+  /// O(log n), whatever the session's size).
+  api::Result<std::vector<std::int64_t>> IdsOfRun(std::int64_t run_id);
 
  private:
   Database& db_;

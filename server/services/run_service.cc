@@ -641,12 +641,9 @@ api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
   v.finished_at = run->finished_at;
   if (v.state == RunState::kDone) v.progress.fraction = 1.0;
 
-  api::Result<std::vector<storage::TrialSummary>> trials =
-      storage::TrialRepository(db_).ListForSession(run->session_id);
-  if (!trials.ok()) return trials.status();
-  for (const storage::TrialSummary& t : *trials) {
-    if (t.run_id == run_id) v.trial_ids.push_back(t.id);
-  }
+  api::Result<std::vector<std::int64_t>> trial_ids = storage::TrialRepository(db_).IdsOfRun(run_id);
+  if (!trial_ids.ok()) return trial_ids.status();
+  v.trial_ids = std::move(*trial_ids);
   if (v.state == RunState::kDone && v.protocol == "tolerance_test") {
     api::Result<std::vector<storage::SessionRevision>> revisions =
         storage::SessionRepository(db_).Revisions(run->session_id);
@@ -836,8 +833,7 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
               "tolerance test ceiling " + FormatNumber(plan->parameters.at("ceiling_ma")) +
               " mA above the session's recorded max tolerated " +
               FormatNumber(context->subject.max_tolerated_ma) + " mA; reason: " + *ceiling_reason;
-          if (api::Status a =
-                  Audit(actor, "run.ceiling_above_max", RunTarget(r->id), why, "ok");
+          if (api::Status a = Audit(actor, "run.ceiling_above_max", RunTarget(r->id), why, "ok");
               !a.ok()) {
             return a;
           }
@@ -1064,8 +1060,8 @@ api::Result<Recovery> RunService::RecoverAfterRestart() {
       storage::EStopLatchRepository(db_).Current();
   if (!latched.ok()) return latched.status();
   if (*latched) {
-    const std::string who = (*latched)->source.empty() ? std::string("e-stop before the restart")
-                                                       : (*latched)->source;
+    const std::string who =
+        (*latched)->source.empty() ? std::string("e-stop before the restart") : (*latched)->source;
     owner_.EStop(who);
     {
       std::lock_guard lock(mu_);

@@ -81,12 +81,24 @@ TEST_F(StorageTest, TrialRoundTripKeepsEveryChannelExactly) {
   EXPECT_EQ(list->front().sample_rate_hz, 200.0);
   EXPECT_EQ(list->front().name, "free_swing");
 
+  // A run's trials by the run: only its own, oldest first.
+  auto second_run = SessionRepository(*db_).CreateRun(session.id, {"free_swing", "1.0", "{}"});
+  ASSERT_TRUE(second_run.ok());
+  auto other = trials.Insert({session.id, second_run->id}, MakeTrial(5));
+  auto later = trials.Insert({session.id, run->id}, MakeTrial(5));
+  ASSERT_TRUE(other.ok() && later.ok());
+  auto of_run = trials.IdsOfRun(run->id);
+  ASSERT_TRUE(of_run.ok());
+  EXPECT_EQ(*of_run, (std::vector<std::int64_t>{*id, *later}));
+  EXPECT_EQ(*trials.IdsOfRun(second_run->id), std::vector<std::int64_t>{*other});
+  EXPECT_TRUE(trials.IdsOfRun(31337)->empty());
+
   // The BLOB is 8 bytes per sample.
   auto bytes = db_->Read([&](Connection& c) {
     return c.QueryText("SELECT sum(length(samples_f64le)) FROM trial_channels WHERE grp = 'main'");
   });
   ASSERT_TRUE(bytes.ok());
-  EXPECT_EQ(*bytes, std::to_string(4 * 2000 * 8));
+  EXPECT_EQ(*bytes, std::to_string(4 * 2000 * 8 + 2 * 4 * 5 * 8));
 }
 
 TEST_F(StorageTest, TrialBadInputNamesTheProblem) {
