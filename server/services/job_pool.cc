@@ -103,9 +103,29 @@ std::size_t JobPool::queued() const {
   return queue_.size();
 }
 
+std::size_t ApproximateJsonBytes(const nlohmann::json& value) {
+  std::size_t bytes = sizeof(nlohmann::json);
+  if (value.is_string()) {
+    bytes += sizeof(std::string) + value.get_ref<const std::string&>().size();
+  } else if (value.is_array()) {
+    bytes += sizeof(nlohmann::json::array_t);
+    for (const auto& item : value) bytes += ApproximateJsonBytes(item);
+  } else if (value.is_object()) {
+    bytes += sizeof(nlohmann::json::object_t);
+    for (const auto& [key, item] : value.items()) {
+      bytes += 48 + key.size() + ApproximateJsonBytes(item);  // a map node and its key
+    }
+  }
+  return bytes;
+}
+
 void JobPool::Forget() {
-  while (finished_order_.size() > config_.history) {
-    records_.erase(finished_order_.front());
+  while (!finished_order_.empty() &&
+         (finished_order_.size() > config_.history ||
+          (finished_bytes_ > config_.history_bytes && finished_order_.size() > 1))) {
+    auto it = records_.find(finished_order_.front());
+    finished_bytes_ -= std::min(finished_bytes_, it->second.result_bytes);
+    records_.erase(it);
     finished_order_.pop_front();
   }
 }
@@ -135,12 +155,15 @@ void JobPool::WorkerLoop() {
       out = api::Status::Internal("job threw a non-standard exception");
     }
     const storage::UtcTime finished = Now();
+    const std::size_t result_bytes = out.ok() ? ApproximateJsonBytes(*out) : 0;
     std::lock_guard lock(mu_);
     JobRecord& r = records_.at(id);
     r.finished_at = finished;
     if (out.ok()) {
       r.state = JobState::kDone;
       r.result = std::move(out).value();
+      r.result_bytes = result_bytes;
+      finished_bytes_ += result_bytes;
     } else {
       r.state = JobState::kFailed;
       r.error = out.status();

@@ -6,7 +6,9 @@
 /// fit never delays a control tick (server plan, issue 6). A job is a
 /// function returning JSON or a Status; its record (state, times, result or
 /// error) stays queryable after it finishes, for the most recent
-/// `history` jobs.
+/// `history` jobs whose results together stay within `history_bytes`
+/// (a prediction's result holds its columns: a few hundred KiB each, so a
+/// count alone would let the pool hold hundreds of MiB; issue 16 §14).
 ///
 /// Thread-safe. Submit never blocks: a full queue is kUnavailable ("job queue
 /// full"), which a client retries later.
@@ -35,6 +37,9 @@ struct JobPoolConfig {
   int workers = 2;                  ///< worker threads, 1–64.
   std::size_t queue_capacity = 64;  ///< queued (not yet running) jobs, ≥ 1.
   std::size_t history = 1000;       ///< finished records kept (oldest dropped), ≥ 1.
+  /// Memory the kept results may take together (ApproximateJsonBytes); the
+  /// oldest finished records are dropped beyond it, except the newest one.
+  std::size_t history_bytes = 32u << 20;
   /// Clock of the submitted/started/finished stamps; storage::NowUtc when empty.
   std::function<storage::UtcTime()> clock;
 };
@@ -59,8 +64,9 @@ struct JobRecord {
   storage::UtcTime submitted_at;
   std::optional<storage::UtcTime> started_at;
   std::optional<storage::UtcTime> finished_at;
-  nlohmann::json result;  ///< done: the function's value; otherwise null.
-  api::Status error;      ///< failed: why; otherwise OK.
+  nlohmann::json result;         ///< done: the function's value; otherwise null.
+  std::size_t result_bytes = 0;  ///< ApproximateJsonBytes(result) once done.
+  api::Status error;             ///< failed: why; otherwise OK.
 };
 
 /// JSON of a record: {"id", "kind", "state", "submitted_by": {"user_id",
@@ -68,6 +74,10 @@ struct JobRecord {
 /// "finished_at_utc" (null until set), "result" (done) or "error": {"code",
 /// "message", "field"} (failed)}.
 nlohmann::json JobToJson(const JobRecord& job);
+
+/// The heap a JSON value takes, approximately: one nlohmann::json node per
+/// value (16 bytes), strings' characters, arrays' and objects' containers.
+std::size_t ApproximateJsonBytes(const nlohmann::json& value);
 
 class JobPool {
  public:
@@ -97,7 +107,8 @@ class JobPool {
  private:
   void WorkerLoop();
   storage::UtcTime Now() const;
-  void Forget();  // drops the oldest finished records beyond history (mu_ held)
+  // Drops the oldest finished records beyond history or history_bytes (mu_ held).
+  void Forget();
 
   JobPoolConfig config_;
   mutable std::mutex mu_;
@@ -106,6 +117,7 @@ class JobPool {
   std::map<std::int64_t, JobRecord> records_;
   std::map<std::int64_t, JobFunction> functions_;  // of queued jobs
   std::deque<std::int64_t> finished_order_;
+  std::size_t finished_bytes_ = 0;  // ApproximateJsonBytes of the kept results
   std::int64_t next_id_ = 1;
   bool stopping_ = false;
   bool drain_ = false;

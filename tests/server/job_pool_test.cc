@@ -135,5 +135,49 @@ TEST(JobPool, ForgetsOldestFinishedBeyondHistory) {
   EXPECT_TRUE(pool.Get(4).ok());
 }
 
+TEST(JobPool, ApproximateJsonBytesCountsNodesStringsAndContainers) {
+  EXPECT_EQ(ApproximateJsonBytes(nlohmann::json(1.5)), sizeof(nlohmann::json));
+  EXPECT_EQ(ApproximateJsonBytes(nlohmann::json("abc")),
+            sizeof(nlohmann::json) + sizeof(std::string) + 3);
+  const nlohmann::json column(std::vector<double>(1000, 0.5));
+  EXPECT_EQ(ApproximateJsonBytes(column), sizeof(nlohmann::json) + sizeof(nlohmann::json::array_t) +
+                                              1000 * sizeof(nlohmann::json));
+  const nlohmann::json object = {{"t_s", column}};
+  EXPECT_EQ(ApproximateJsonBytes(object), sizeof(nlohmann::json) +
+                                              sizeof(nlohmann::json::object_t) + 48 + 3 +
+                                              ApproximateJsonBytes(column));
+}
+
+// Big results (a prediction's columns) are bounded by bytes, not only by
+// count: the oldest go first, the newest always stays.
+TEST(JobPool, ForgetsOldestFinishedBeyondHistoryBytes) {
+  JobPoolConfig c;
+  c.history = 1000;
+  c.history_bytes = 100'000;
+  c.workers = 1;
+  JobPool pool(c);
+  const auto big = [] {  // ≈ 40 kB
+    return api::Result<nlohmann::json>(nlohmann::json{{"columns", std::vector<double>(2500, 1.0)}});
+  };
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(pool.Submit("prediction", kAnalyst, big).ok());
+  pool.Shutdown(true);
+  const std::size_t one = ApproximateJsonBytes(*big());
+  ASSERT_GT(one, 30'000u);
+  ASSERT_LT(one, 50'000u);
+  const int kept = static_cast<int>(c.history_bytes / one);  // 2
+  for (int id = 1; id <= 5; ++id) {
+    EXPECT_EQ(pool.Get(id).ok(), id > 5 - kept) << "job " << id;
+  }
+  EXPECT_EQ(pool.Get(5)->result_bytes, one);
+
+  JobPoolConfig tiny = c;
+  tiny.history_bytes = 1;  // smaller than any result: the newest still stays
+  JobPool keeps_newest(tiny);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(keeps_newest.Submit("prediction", kAnalyst, big).ok());
+  keeps_newest.Shutdown(true);
+  EXPECT_FALSE(keeps_newest.Get(2).ok());
+  EXPECT_TRUE(keeps_newest.Get(3).ok());
+}
+
 }  // namespace
 }  // namespace fesbench::server::services
