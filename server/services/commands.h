@@ -7,10 +7,19 @@
 /// cancel, heartbeat: clinician or admin), then call the same RunService
 /// methods HTTP calls, so the safety interlocks, the run/e-stop audit
 /// entries and the refusals are one code path. A refusal of a signed-in
-/// user is audited like HTTP's (outcome "<code>"); an unknown token is not
-/// (there is no user to name). Thread-safe.
+/// user is audited like HTTP's (outcome "<code>"). A command with a token
+/// that fails (unknown, revoked, expired) is audited too, as actor
+/// "<transport> client" with outcome "unauthenticated" (never the token):
+/// the first `kFailedSignInBurst` of a burst one by one, then at most one
+/// row per second carrying how many more failed meanwhile, so a flood cannot
+/// fill the audit log. Failed tokens are never slowed down here: a DDS
+/// command carries no client address to single out, and a valid e-stop
+/// must never wait behind someone else's failures (with DDS Security only
+/// the lab's operator identities can send commands at all). Thread-safe.
 
+#include <chrono>
 #include <cstdint>
+#include <mutex>
 #include <string>
 #include <string_view>
 
@@ -23,6 +32,10 @@ namespace fesbench::server::services {
 
 class CommandService {
  public:
+  /// Failed sign-ins audited one by one before rows are rate-limited
+  /// (the bucket refills one row per second).
+  static constexpr double kFailedSignInBurst = 30.0;
+
   /// @param transport names the source in audit entries and e-stops ("dds").
   CommandService(storage::Database& db, RunService& runs, std::string transport);
 
@@ -39,7 +52,10 @@ class CommandService {
   api::Status Heartbeat(std::string_view token, std::int64_t run_id);
 
  private:
-  api::Result<Actor> Authenticate(std::string_view token);
+  /// The token's user; kUnauthenticated (audited, see above) otherwise.
+  api::Result<Actor> Authenticate(std::string_view token, const std::string& action,
+                                  const std::string& target);
+  void AuditFailedSignIn(const std::string& action, const std::string& target);
   /// kPermissionDenied unless clinician/admin (the HTTP message).
   static api::Status RequireOperator(const Actor& actor);
   void AuditRefusal(const Actor& actor, const std::string& action, const std::string& target,
@@ -48,6 +64,10 @@ class CommandService {
   storage::Database& db_;
   RunService& runs_;
   std::string transport_;
+  std::mutex failed_mu_;
+  double failed_rows_ = kFailedSignInBurst;  // audit rows left in the bucket
+  std::chrono::steady_clock::time_point failed_at_ = std::chrono::steady_clock::now();
+  std::uint64_t failed_unaudited_ = 0;  // failures since the last audited row
 };
 
 }  // namespace fesbench::server::services

@@ -181,6 +181,50 @@ TEST(DdsServer, EStopStopsARunningProtocolWithinOneControlPeriodAndBadTokensAreR
   EXPECT_GT(max_stim_ma, 1.0);
 }
 
+// Failed tokens in DDS commands are audited (never the token), a flood
+// only up to a burst plus one row per second that counts the rest, and a
+// valid e-stop right after the flood still latches.
+TEST(DdsCommands, FailedSignInsAreAuditedWithoutFloodingTheLog) {
+  Rig rig(0.0);
+  const int kFlood = 40;
+  for (int i = 0; i < kFlood; ++i) {
+    EXPECT_EQ(rig.commands->EStop("fsb_not_a_token_" + std::to_string(i)).code(),
+              api::ErrorCode::kUnauthenticated);
+  }
+  EXPECT_EQ(rig.commands->CancelRun("", 7).code(), api::ErrorCode::kUnauthenticated);
+  const auto failed_rows = [&rig] {
+    std::vector<storage::AuditEntry> rows;
+    auto all = storage::AuditLog(*rig.db).List({});
+    EXPECT_TRUE(all.ok());
+    for (const auto& e : *all) {
+      if (e.entry.outcome == "unauthenticated") rows.push_back(e);
+    }
+    return rows;
+  };
+  auto rows = failed_rows();
+  const int burst = static_cast<int>(services::CommandService::kFailedSignInBurst);
+  ASSERT_GE(static_cast<int>(rows.size()), burst);
+  ASSERT_LE(static_cast<int>(rows.size()), burst + 1);  // a refill if the loop took > 1 s
+  for (const auto& e : rows) {
+    EXPECT_EQ(e.entry.actor, "dds client");
+    EXPECT_EQ(e.entry.action, "dds estop");
+    EXPECT_EQ(e.entry.target, "bench");
+    EXPECT_EQ(e.entry.request_summary.find("fsb_"), std::string::npos);
+    EXPECT_FALSE(e.entry.user_id.has_value());
+  }
+  std::this_thread::sleep_for(1100ms);
+  EXPECT_EQ(rig.commands->Heartbeat("fsb_still_wrong", 9).code(), api::ErrorCode::kUnauthenticated);
+  rows = failed_rows();
+  const auto& last = rows.front();  // newest first
+  EXPECT_EQ(last.entry.action, "dds heartbeat");
+  EXPECT_EQ(last.entry.target, "runs/9");
+  EXPECT_NE(last.entry.request_summary.find("more failed since the last row"), std::string::npos)
+      << last.entry.request_summary;
+
+  EXPECT_TRUE(rig.commands->EStop(rig.analyst_token).ok());
+  EXPECT_TRUE(rig.runs->State().estopped);
+}
+
 TEST(DdsServer, RealTimeRunSamplesArriveCompleteAndInOrderAt200Hz) {
   Rig rig(1.0);
   rig.StartServer();
