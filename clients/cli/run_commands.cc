@@ -7,6 +7,9 @@
 // A tolerance test followed on a terminal stops at the amplitude reached when
 // the clinician presses Enter (`run stop` does the same from elsewhere).
 
+#include <poll.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -21,9 +24,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <poll.h>
-#include <unistd.h>
 
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
@@ -303,7 +303,8 @@ struct StartForm {
   std::string session;
   std::string protocol;
   std::vector<std::string> params;
-  bool follow = false;  // the default; kept so that older scripts still work
+  std::string ceiling_reason;  // a tolerance test above the recorded max: why
+  bool follow = false;         // the default; kept so that older scripts still work
   bool detach = false;
 };
 
@@ -363,6 +364,9 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
     start->add_option("protocol", form->protocol, "protocol name, e.g. rapid_parameterisation")
         ->required();
     start->add_option("--param", form->params, "protocol parameter key=value (repeatable)");
+    start->add_option("--ceiling-reason", form->ceiling_reason,
+                      "tolerance_test only: why its ceiling_ma goes above the session's recorded "
+                      "max tolerated amplitude (required then; audited)");
     start->add_flag("--follow", form->follow,
                     "follow the run to its end (the default; progress bar on a terminal, lines "
                     "when piped)");
@@ -386,9 +390,9 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
           const std::string refusal = DetachRefusal(client.Get("/protocols/" + form->protocol));
           if (!refusal.empty()) throw CliError::Usage(refusal);
         }
-        const json started =
-            client.Post("/sessions/" + std::to_string(session) + "/runs",
-                        {{"protocol", form->protocol}, {"parameters", parameters}});
+        json body = {{"protocol", form->protocol}, {"parameters", parameters}};
+        if (!form->ceiling_reason.empty()) body["ceiling_reason"] = form->ceiling_reason;
+        const json started = client.Post("/sessions/" + std::to_string(session) + "/runs", body);
         const std::int64_t run_id = started["run_id"].get<std::int64_t>();
         if (form->detach) {
           if (context.options.json) {

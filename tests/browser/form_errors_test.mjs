@@ -87,6 +87,32 @@ try {
     await shots.view(page, 'session-three-invalid');
   });
 
+  await step('a tolerance test above the recorded max needs a reason, which is sent and audited', async () => {
+    const subject = (await call(server, 'GET', '/subjects?code=S01')).body.items[0];
+    const side = (await call(server, 'GET', `/subjects/${subject.id}`)).body.legs[0].side;
+    const session = await call(server, 'POST', `/subjects/${subject.id}/sessions`,
+      { leg: side, date: '2026-11-24', threshold_ma: 5, max_tolerated_ma: 12 });
+    assert.equal(session.status, 201, JSON.stringify(session.body));
+    await page.goto(`${server.url}/#/sessions/${session.body.id}`);
+    await page.locator('#protocol').selectOption('tolerance_test');
+    await page.locator('#advanced-parameters').evaluate((d) => { d.open = true; });
+    await page.locator('#f-ceiling_ma').fill('14');
+    await page.locator('#start-run:not([disabled])').waitFor();
+    await page.locator('#start-run').click();
+    const status = page.locator('#run-form-status .msg');
+    await status.filter({ hasText: /correct|Cannot start/ }).waitFor();
+    assert.match(await page.locator('#f-ceiling_ma-error').textContent(), /needs an explicit ceiling_reason/);
+    await page.getByLabel('Reason for a ceiling above the recorded max').fill('re-test after four weeks of training');
+    await page.locator('#start-run').click();
+    await status.filter({ hasText: /Run \d+ started/ }).waitFor();
+    const runId = Number((await status.textContent()).match(/Run (\d+) started/)[1]);
+    const audit = (await call(server, 'GET', '/audit?limit=20')).body.items
+      .find((e) => e.action === 'run.ceiling_above_max' && e.target === `runs/${runId}`);
+    assert.ok(audit, 'the decision is not audited');
+    assert.match(audit.request_summary, /ceiling 14 mA above the session's recorded max tolerated 12 mA; reason: re-test after four weeks/);
+    await page.locator('#run-end').filter({ hasText: /done|aborted|failed/ }).waitFor({ timeout: 60000 });
+  });
+
   await step("the server's 400 names the field, its unit and its range", async () => {
     const bad = await call(server, 'POST', '/subjects', { code: 'S02', details: { weight_kg: -5 } });
     assert.equal(bad.status, 400);

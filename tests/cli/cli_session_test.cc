@@ -568,6 +568,47 @@ TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) { WalkANewLeg("",
 // speed. Fresh trials then come from active_random_binary.
 TEST(CliSessionTest, NewLegWithAStricterModelGate) { WalkANewLeg("90", true); }
 
+// Issue 16 §1 from the command line: a tolerance test above the session's
+// recorded max is refused without a reason, and started with
+// --ceiling-reason, which is audited with the run.
+TEST(CliSessionTest, AToleranceTestAboveTheRecordedMaxNeedsACeilingReason) {
+  ServerProcess server({"--time-scale", "0"});
+  auto http = server.Client();
+  const std::string admin = server.admin_token();
+  const std::string clinician = CreateUserToken(http, admin, "clara", "clinician");
+  Cli cli;
+  ASSERT_EQ(cli.Run({"login", Url(server), "--token", clinician}).exit_code, 0);
+  ASSERT_EQ(cli.Run({"subjects", "create", "RE-01", "--leg", "right"}).exit_code, 0);
+  auto session = cli.Run({"sessions", "create", "--subject", "RE-01", "--leg", "right", "--date",
+                          "2026-11-24", "--threshold-ma", "5", "--max-tolerated-ma", "12"});
+  ASSERT_EQ(session.exit_code, 0) << session.err;
+  const std::string sid = std::to_string(LastNumber(session.out, "created session"));
+  const std::vector<std::string> above = {"run",     "start",        sid, "tolerance_test",
+                                          "--param", "ceiling_ma=14"};
+
+  auto refused = cli.Run(above);
+  EXPECT_EQ(refused.exit_code, 1);
+  ExpectOneErrorLine(refused);
+  EXPECT_THAT(refused.err, HasSubstr("needs an explicit ceiling_reason"));
+
+  std::vector<std::string> with_reason = above;
+  with_reason.insert(with_reason.end(), {"--ceiling-reason", "re-test after four weeks"});
+  auto started = cli.Run(with_reason);
+  ASSERT_EQ(started.exit_code, 0) << started.out << started.err;
+  const std::int64_t run_id = LastNumber(started.out, "started run");
+  auto audit = Call(http, "GET", "/api/v1/audit?limit=50", admin);
+  ASSERT_EQ(audit.status, 200);
+  bool audited = false;
+  for (const auto& e : audit.body["items"]) {
+    audited = audited || (e["action"] == "run.ceiling_above_max" &&
+                          e["target"] == "runs/" + std::to_string(run_id) &&
+                          e["request_summary"].get<std::string>().find(
+                              "reason: re-test after four weeks") != std::string::npos);
+  }
+  EXPECT_TRUE(audited) << audit.text;
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
 // An older config file with wider permissions is narrowed to 0600.
 TEST(CliConfigTest, SaveNarrowsAnExistingFileTo0600) {
   Cli cli;

@@ -162,10 +162,18 @@ export async function sessionView(ctx, sessionId) {
     helpText.hidden = true;
     const basic = p.parameters.filter((x) => !x.advanced);
     const advanced = p.parameters.filter((x) => x.advanced);
+    // A tolerance test above the session's recorded max is the clinician's
+    // explicit decision, with its reason audited (docs/SAFETY.md).
+    const reason = p.name === 'tolerance_test'
+      ? field('ceiling_reason', 'Reason for a ceiling above the recorded max', {
+        help: 'Only when the ceiling goes above the session\'s max tolerated amplitude (e.g. a re-test after training); audited.',
+      })
+      : '';
     paramSlot.replaceChildren(
       h('div', { class: 'grid-form', id: 'basic-parameters' }, basic.map(parameterField)),
       advanced.length ? h('details', { id: 'advanced-parameters' }, h('summary', {}, `Advanced parameters (${advanced.length})`),
-        h('div', { class: 'grid-form' }, advanced.map(parameterField))) : '');
+        h('div', { class: 'grid-form' }, advanced.map(parameterField))) : '',
+      reason);
   }
   const helpText = h('p', { class: 'msg msg-info', id: 'protocol-help-text', hidden: true });
   select.addEventListener('change', renderParameters);
@@ -197,7 +205,10 @@ export async function sessionView(ctx, sessionId) {
     }
     say(formStatus, 'info', 'Starting…');
     try {
-      const run = await api('POST', `/sessions/${sessionId}/runs`, { protocol: p.name, parameters });
+      const body = { protocol: p.name, parameters };
+      const reason = form.elements.ceiling_reason ? form.elements.ceiling_reason.value.trim() : '';
+      if (reason) body.ceiling_reason = reason;
+      const run = await api('POST', `/sessions/${sessionId}/runs`, body);
       ctx.runs.control(run);
       say(formStatus, 'ok', `Run ${run.run_id} started.`);
       follow(run);
