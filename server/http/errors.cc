@@ -48,6 +48,8 @@ void WriteJson(httplib::Response& res, int status, const nlohmann::json& body) {
 
 void WriteError(httplib::Response& res, const HttpError& error) {
   WriteJson(res, error.http_status, ErrorJson(error));
+  // Every 503 is a momentary refusal (busy, full, shutting down): say when to retry.
+  if (error.http_status == 503 && !res.has_header("Retry-After")) res.set_header("Retry-After", "1");
 }
 
 void WriteError(httplib::Response& res, const api::Status& status) {

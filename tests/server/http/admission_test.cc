@@ -1,0 +1,106 @@
+// Integration: admission beyond the server's limits is answered 503 with
+// Retry-After, at once, and the server stays healthy (issue 16 items 6, 15):
+// an event stream beyond --max-streams, and a connection beyond the open
+// connection limit (512).
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+
+#include "server_process.h"
+
+namespace fesbench::testing {
+namespace {
+
+using std::chrono::milliseconds;
+
+bool HeadersDone(const std::string& r) { return r.find("\r\n\r\n") != std::string::npos; }
+
+TEST(AdmissionTest, AStreamBeyondMaxStreamsIs503WithRetryAfterAndTheFirstKeepsFlowing) {
+  ServerProcess server({"--time-scale", "1", "--max-streams", "1"});
+  auto client = server.Client();
+  const std::string token = server.admin_token();
+  auto subject =
+      Call(client, "POST", "/api/v1/subjects", token, {{"code", "ADM-01"}, {"legs", {"right"}}});
+  ASSERT_EQ(subject.status, 201) << subject.text;
+  auto session =
+      Call(client, "POST",
+           "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) + "/sessions", token,
+           {{"leg", "right"}, {"date", "2026-11-24"}});
+  ASSERT_EQ(session.status, 201) << session.text;
+  auto run = Call(client, "POST",
+                  "/api/v1/sessions/" + std::to_string(session.body["id"].get<int>()) + "/runs",
+                  token, {{"protocol", "tolerance_test"}});
+  ASSERT_EQ(run.status, 201) << run.text;
+  const std::string run_path = "/api/v1/runs/" + std::to_string(run.body["run_id"].get<int>());
+  std::atomic<bool> beating{true};
+  std::thread heart([&] {
+    auto hc = server.Client();
+    while (beating.load()) {
+      Call(hc, "POST", run_path + "/heartbeat", token);
+      std::this_thread::sleep_for(milliseconds(200));
+    }
+  });
+
+  const std::string request = "GET " + run_path +
+                              "/stream HTTP/1.1\r\nHost: t\r\nAuthorization: Bearer " + token +
+                              "\r\n\r\n";
+  RawConnection first(server.port());
+  ASSERT_TRUE(first.Send(request));
+  const std::string open = first.ReadUntil(HeadersDone, milliseconds(5000));
+  EXPECT_EQ(RawStatus(open), 200) << open;
+
+  RawConnection second(server.port());
+  ASSERT_TRUE(second.Send(request));
+  const std::string refused = second.ReadUntil(
+      [](const std::string& r) { return CountResponses(r) >= 1; }, milliseconds(5000));
+  EXPECT_EQ(RawStatus(refused), 503) << refused;
+  EXPECT_NE(refused.find("Retry-After:"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("too many open event streams"), std::string::npos) << refused;
+
+  // The first stream still delivers events; health answers.
+  const std::string more = first.ReadUntil(
+      [](const std::string& r) { return r.find("event: samples") != std::string::npos; },
+      milliseconds(5000));
+  EXPECT_NE(more.find("event: samples"), std::string::npos);
+  EXPECT_EQ(Call(client, "GET", "/api/v1/health", "").status, 200);
+
+  beating.store(false);
+  heart.join();
+  EXPECT_EQ(Call(client, "POST", run_path + "/cancel", token).status, 200);
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+TEST(AdmissionTest, AConnectionBeyondTheOpenLimitIs503AndTheServerRecovers) {
+  ServerProcess server;
+  constexpr int kOpenLimit = 512;  // HttpServerOptions::max_open_connections
+  std::vector<std::unique_ptr<RawConnection>> held;
+  for (int i = 0; i < kOpenLimit; ++i) {
+    held.push_back(std::make_unique<RawConnection>(server.port()));
+    ASSERT_TRUE(held.back()->ok()) << i;
+  }
+  // The server accepts in its own time: wait until one more is refused.
+  std::string refused;
+  for (int attempt = 0; attempt < 50 && RawStatus(refused) != 503; ++attempt) {
+    RawConnection extra(server.port());
+    refused = extra.ReadUntil([](const std::string& r) { return CountResponses(r) >= 1; },
+                              milliseconds(200));
+  }
+  EXPECT_EQ(RawStatus(refused), 503) << refused;
+  EXPECT_NE(refused.find("Retry-After: 1"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("too many open connections"), std::string::npos) << refused;
+
+  held.clear();
+  auto client = server.Client();
+  JsonResponse health;
+  for (int attempt = 0; attempt < 50 && health.status != 200; ++attempt) {
+    health = Call(client, "GET", "/api/v1/health", "");
+    if (health.status != 200) std::this_thread::sleep_for(milliseconds(20));
+  }
+  EXPECT_EQ(health.status, 200) << health.text;
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+}  // namespace
+}  // namespace fesbench::testing
