@@ -185,5 +185,40 @@ void BM_HistoryQueryDateRangeAndMethod(benchmark::State& state) {
 }
 BENCHMARK(BM_HistoryQueryDateRangeAndMethod)->Unit(benchmark::kMicrosecond);
 
+// GET /parameter-sets?limit=50 (the list's keyset page, one row more to
+// know a next page exists): the first page, and the last page after
+// 9,950 sets; range(0) = 1 filters by one subject.
+void BM_ParameterSetListPage(benchmark::State& state) {
+  BenchDb& bench = HistoryDb();
+  ParameterSetRepository sets(*bench.db);
+  ParameterSetListQuery q;
+  q.limit = 51;
+  if (state.range(0) == 1) q.subject_id = bench.subject_ids[57];
+  if (state.range(1) == 1) {
+    ParameterSetListQuery all;
+    all.subject_id = q.subject_id;
+    all.limit = 100000;
+    auto every = sets.List(all);
+    if (!every.ok() || every->size() < 51) {
+      state.SkipWithError("list failed");
+      return;
+    }
+    q.after_id = (*every)[every->size() - 51].id;  // the deepest full page
+  }
+  for (auto _ : state) {
+    auto page = sets.List(q);
+    if (!page.ok() || page->size() < 50) state.SkipWithError("page failed");
+    benchmark::DoNotOptimize(page);
+  }
+  state.SetLabel(std::string(state.range(0) == 1 ? "one subject's " : "all ") +
+                 (state.range(1) == 1 ? "deepest page" : "first page") + " of 10000 sets");
+}
+BENCHMARK(BM_ParameterSetListPage)
+    ->Args({0, 0})
+    ->Args({0, 1})
+    ->Args({1, 0})
+    ->Args({1, 1})
+    ->Unit(benchmark::kMicrosecond);
+
 }  // namespace
 }  // namespace fesbench::storage

@@ -299,6 +299,13 @@ CREATE TABLE trial_pulses (
 );
 )sql";
 
+// Keyset paging of the parameter-set list filtered by subject (and leg):
+// the rows of one subject in id order, so a deep page is a range seek.
+const char* const kMigration9 = R"sql(
+CREATE INDEX parameter_sets_subject_id ON parameter_sets(subject_id, id);
+CREATE INDEX parameter_sets_leg_id ON parameter_sets(subject_id, leg_id, id);
+)sql";
+
 }  // namespace
 
 const std::vector<Migration>& AllMigrations() {
@@ -321,6 +328,7 @@ const std::vector<Migration>& AllMigrations() {
        std::string(kMigration7) + AppendOnly({"estop_events"})},
       {8, "the pulses delivered in each trial",
        std::string(kMigration8) + AppendOnly({"trial_pulses"})},
+      {9, "indexes for keyset paging of parameter sets", kMigration9},
   };
   return kMigrations;
 }

@@ -215,6 +215,36 @@ api::Result<std::vector<ParameterSetSummary>> ParameterSetRepository::History(
   });
 }
 
+api::Result<std::vector<ParameterSetSummary>> ParameterSetRepository::List(
+    const ParameterSetListQuery& query) {
+  // As History: fixed fragments per filter, every value bound.
+  std::string sql = "SELECT " + std::string(kSummaryColumns) + " FROM parameter_sets WHERE id > ?1";
+  if (query.subject_id) sql += " AND subject_id = ?2";
+  if (query.subject_id && query.leg_id) sql += " AND leg_id = ?3";
+  if (query.method) sql += " AND ?4 IN (irc_method, passive_method, active_method)";
+  if (query.from) sql += " AND created_at_utc >= ?5";
+  if (query.to) sql += " AND created_at_utc < ?6";
+  sql += " ORDER BY id LIMIT ?7";
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<ParameterSetSummary>> {
+    if (query.subject_id) {
+      if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1",
+                                        *query.subject_id, "subject");
+          !s.ok()) {
+        return s;
+      }
+    }
+    auto statement = c.Prepare(sql);
+    if (!statement.ok()) return statement.status();
+    statement->Bind(1, query.after_id).Bind(7, static_cast<std::int64_t>(query.limit));
+    if (query.subject_id) statement->Bind(2, *query.subject_id);
+    if (query.subject_id && query.leg_id) statement->Bind(3, *query.leg_id);
+    if (query.method) statement->Bind(4, *query.method);
+    if (query.from) statement->Bind(5, FormatUtc(*query.from));
+    if (query.to) statement->Bind(6, FormatUtc(*query.to));
+    return internal::ReadAll(*statement, ReadSummary);
+  });
+}
+
 api::Result<StoredParameterSet> ParameterSetRepository::Latest(std::int64_t subject_id,
                                                                std::int64_t leg_id) {
   return db_.Read([&](Connection& c) -> api::Result<StoredParameterSet> {

@@ -60,6 +60,20 @@ struct HistoryQuery {
   std::size_t limit = 1000;  ///< oldest first, at most this many.
 };
 
+/// One page of the parameter-set list (GET /parameter-sets): every filter
+/// in the query, ascending by id from `after_id` (keyset paging on the
+/// primary key, or on (subject_id, id) / (subject_id, leg_id, id) when
+/// filtered: O(log n + limit) however deep the page).
+struct ParameterSetListQuery {
+  std::optional<std::int64_t> subject_id;
+  std::optional<std::int64_t> leg_id;  ///< with subject_id.
+  std::optional<std::string> method;   ///< IRC, passive or active method name.
+  std::optional<UtcTime> from;         ///< created at or after.
+  std::optional<UtcTime> to;           ///< created before.
+  std::int64_t after_id = 0;
+  std::size_t limit = 50;
+};
+
 /// The software version recorded when a set's provenance names none.
 std::string_view StorageSoftwareVersion();
 
@@ -78,6 +92,8 @@ class ParameterSetRepository {
   api::Result<StoredParameterSet> Get(std::int64_t id);
   /// Summaries matching `query`, oldest first (kNotFound for an unknown subject).
   api::Result<std::vector<ParameterSetSummary>> History(const HistoryQuery& query);
+  /// A page of summaries matching `query` (kNotFound for an unknown subject).
+  api::Result<std::vector<ParameterSetSummary>> List(const ParameterSetListQuery& query);
   /// The latest version for a subject and leg (kNotFound if there is none).
   api::Result<StoredParameterSet> Latest(std::int64_t subject_id, std::int64_t leg_id);
   /// The stored JSON text, pretty-printed (2-space indent).

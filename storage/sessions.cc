@@ -93,7 +93,7 @@ template <typename... Values>
 api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where,
                                         const Values&... values) {
   return internal::QueryRows(
-      c, std::string(kRunSql) + std::string(where) + " ORDER BY r.id",
+      c, std::string(kRunSql) + std::string(where),
       [](const Statement& s) -> api::Result<Run> {
         Run run;
         run.id = s.Int64(0);
@@ -245,7 +245,21 @@ api::Result<std::vector<Run>> SessionRepository::ListRuns(std::int64_t session_i
         !s.ok()) {
       return s;
     }
-    return QueryRuns(c, "WHERE r.session_id = ?1", session_id);
+    return QueryRuns(c, "WHERE r.session_id = ?1 ORDER BY r.id", session_id);
+  });
+}
+
+api::Result<std::vector<Run>> SessionRepository::ListRunsPage(std::int64_t session_id,
+                                                              std::int64_t after_id,
+                                                              std::size_t limit) {
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<Run>> {
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id, "session");
+        !s.ok()) {
+      return s;
+    }
+    return QueryRuns(c, "WHERE r.session_id = ?1 AND r.id > ?2 ORDER BY r.id LIMIT ?3", session_id,
+                     after_id, static_cast<std::int64_t>(limit));
   });
 }
 
@@ -253,7 +267,7 @@ api::Result<std::vector<Run>> SessionRepository::ListUnfinishedRuns() {
   return db_.Read([&](Connection& c) {
     return QueryRuns(c,
                      "WHERE (SELECT state FROM run_events WHERE run_id = r.id"
-                     " ORDER BY id DESC LIMIT 1) IN ('queued', 'running')");
+                     " ORDER BY id DESC LIMIT 1) IN ('queued', 'running') ORDER BY r.id");
   });
 }
 

@@ -93,6 +93,10 @@ class SessionRepository {
   api::Result<Run> CreateRun(std::int64_t session_id, const NewRun& run);
   api::Result<Run> GetRun(std::int64_t run_id);
   api::Result<std::vector<Run>> ListRuns(std::int64_t session_id);
+  /// At most `limit` of the session's runs with id > `after_id`, ascending
+  /// (keyset paging on index runs_session).
+  api::Result<std::vector<Run>> ListRunsPage(std::int64_t session_id, std::int64_t after_id,
+                                             std::size_t limit);
   /// Every run whose last state is queued or running, oldest first (at a
   /// start: the runs a stopped process left unfinished).
   api::Result<std::vector<Run>> ListUnfinishedRuns();

@@ -36,12 +36,12 @@ api::Result<SubjectRevision> ReadRevision(const Statement& s, int first) {
 // `key` values bound to ?1, ...
 template <typename... Key>
 api::Result<std::vector<Subject>> QuerySubjects(Connection& c, std::string_view where,
-                                                const Key&... key) {
+                                                std::string_view limit, const Key&... key) {
   const std::string sql =
       "SELECT s.id, s.code, s.created_at_utc, " + std::string(kRevisionColumns) +
       " FROM subjects s JOIN subject_revisions r ON r.subject_id = s.id"
       " AND r.revision = (SELECT MAX(revision) FROM subject_revisions WHERE subject_id = s.id) " +
-      std::string(where) + " ORDER BY s.id";
+      std::string(where) + " ORDER BY s.id " + std::string(limit);
   return internal::QueryRows(
       c, sql,
       [](const Statement& s) -> api::Result<Subject> {
@@ -60,7 +60,7 @@ api::Result<std::vector<Subject>> QuerySubjects(Connection& c, std::string_view 
 }
 
 api::Result<Subject> GetById(Connection& c, std::int64_t id) {
-  return internal::One(QuerySubjects(c, "WHERE s.id = ?1", id), "subject", id);
+  return internal::One(QuerySubjects(c, "WHERE s.id = ?1", "", id), "subject", id);
 }
 
 api::Status InsertRevision(Connection& c, std::int64_t subject_id, int revision,
@@ -182,7 +182,7 @@ api::Result<Subject> SubjectRepository::Get(std::int64_t subject_id) {
 
 api::Result<Subject> SubjectRepository::GetByCode(std::string_view code) {
   return db_.Read([&](Connection& c) -> api::Result<Subject> {
-    auto subjects = QuerySubjects(c, "WHERE s.code = ?1", code);
+    auto subjects = QuerySubjects(c, "WHERE s.code = ?1", "", code);
     if (!subjects.ok()) return subjects.status();
     if (subjects->empty()) {
       return api::Status::NotFound("subject code '" + std::string(code) + "' not found");
@@ -192,7 +192,15 @@ api::Result<Subject> SubjectRepository::GetByCode(std::string_view code) {
 }
 
 api::Result<std::vector<Subject>> SubjectRepository::List() {
-  return db_.Read([&](Connection& c) { return QuerySubjects(c, ""); });
+  return db_.Read([&](Connection& c) { return QuerySubjects(c, "", ""); });
+}
+
+api::Result<std::vector<Subject>> SubjectRepository::ListPage(std::int64_t after_id,
+                                                              std::size_t limit) {
+  return db_.Read([&](Connection& c) {
+    return QuerySubjects(c, "WHERE s.id > ?1", "LIMIT ?2", after_id,
+                         static_cast<std::int64_t>(limit));
+  });
 }
 
 api::Result<Subject> SubjectRepository::Correct(std::int64_t subject_id,

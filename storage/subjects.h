@@ -81,6 +81,9 @@ class SubjectRepository {
   api::Result<Subject> GetByCode(std::string_view code);
   /// Every subject, by id.
   api::Result<std::vector<Subject>> List();
+  /// At most `limit` subjects with id > `after_id`, ascending (keyset paging
+  /// on the primary key: O(log n + limit) however deep the page).
+  api::Result<std::vector<Subject>> ListPage(std::int64_t after_id, std::size_t limit);
   /// Records corrected details as a new revision pointing at the current one.
   /// `reason` must not be empty (field "reason").
   api::Result<Subject> Correct(std::int64_t subject_id, const SubjectDetails& details,

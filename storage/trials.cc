@@ -1,5 +1,8 @@
 #include "storage/trials.h"
 
+#include <algorithm>
+#include <cstdint>
+
 #include "storage/row_helpers.h"
 
 namespace fesbench::storage {
@@ -162,6 +165,12 @@ api::Result<std::vector<std::int64_t>> TrialRepository::IdsOfRun(std::int64_t ru
 }
 
 api::Result<std::vector<TrialSummary>> TrialRepository::ListForSession(std::int64_t session_id) {
+  return ListForSessionPage(session_id, 0, static_cast<std::size_t>(INT64_MAX));
+}
+
+api::Result<std::vector<TrialSummary>> TrialRepository::ListForSessionPage(std::int64_t session_id,
+                                                                           std::int64_t after_id,
+                                                                           std::size_t limit) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<TrialSummary>> {
     if (auto s =
             internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id, "session");
@@ -175,7 +184,7 @@ api::Result<std::vector<TrialSummary>> TrialRepository::ListForSession(std::int6
         "  AND ordinal = 0),"
         " (SELECT sample_rate_hz FROM trial_channels WHERE trial_id = t.id AND grp = 'main'"
         "  AND ordinal = 0)"
-        " FROM trials t WHERE t.session_id = ?1 ORDER BY t.id",
+        " FROM trials t WHERE t.session_id = ?1 AND t.id > ?2 ORDER BY t.id LIMIT ?3",
         [](const Statement& s) -> api::Result<TrialSummary> {
           TrialSummary t;
           t.id = s.Int64(0);
@@ -189,7 +198,7 @@ api::Result<std::vector<TrialSummary>> TrialRepository::ListForSession(std::int6
           t.sample_rate_hz = s.Double(6);
           return t;
         },
-        session_id);
+        session_id, after_id, static_cast<std::int64_t>(std::min<std::size_t>(limit, INT64_MAX)));
   });
 }
 

@@ -50,6 +50,11 @@ class TrialRepository {
   api::Result<TrialOwner> Owner(std::int64_t trial_id);
   /// Summaries of a session's trials, oldest first.
   api::Result<std::vector<TrialSummary>> ListForSession(std::int64_t session_id);
+  /// At most `limit` of them with id > `after_id` (keyset paging on index
+  /// trials_session: O(log n + limit) however deep the page).
+  api::Result<std::vector<TrialSummary>> ListForSessionPage(std::int64_t session_id,
+                                                            std::int64_t after_id,
+                                                            std::size_t limit);
   /// Ids of the trials a run recorded, oldest first (index trials_run:
   /// O(log n), whatever the session's size).
   api::Result<std::vector<std::int64_t>> IdsOfRun(std::int64_t run_id);

@@ -163,9 +163,10 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                      return one.status();
                    }
                  } else {
-                   auto all = subjects.List();
-                   if (!all.ok()) return all.status();
-                   list = std::move(*all);
+                   // One row beyond the page says whether a next page exists.
+                   auto rows = subjects.ListPage(page->after_id, page->limit + 1);
+                   if (!rows.ok()) return rows.status();
+                   list = std::move(*rows);
                  }
                  api::Status failure;
                  json body = MakePage(
@@ -453,7 +454,8 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!page.ok()) return page.status();
                storage::SessionRepository sessions(db);
                if (auto s = sessions.Get(ctx.Id("session_id")); !s.ok()) return s.status();
-               auto runs = sessions.ListRuns(ctx.Id("session_id"));
+               auto runs =
+                   sessions.ListRunsPage(ctx.Id("session_id"), page->after_id, page->limit + 1);
                if (!runs.ok()) return runs.status();
                api::Status failure;
                json body = MakePage(
@@ -478,7 +480,8 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (auto s = storage::SessionRepository(db).Get(ctx.Id("session_id")); !s.ok()) {
                  return s.status();
                }
-               auto trials = storage::TrialRepository(db).ListForSession(ctx.Id("session_id"));
+               auto trials = storage::TrialRepository(db).ListForSessionPage(
+                   ctx.Id("session_id"), page->after_id, page->limit + 1);
                if (!trials.ok()) return trials.status();
                return JsonReply(MakePage(
                    *trials, *page, [](const storage::TrialSummary& t) { return t.id; },
@@ -567,39 +570,25 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                  if (method && (method->empty() || method->size() > 64)) {
                    return api::Status::InvalidArgument("must be 1–64 characters", "method");
                  }
-                 storage::SubjectRepository subjects(db);
-                 std::vector<std::int64_t> subject_ids;
-                 if (*subject_id) {
-                   subject_ids.push_back(**subject_id);
-                 } else {
-                   auto all = subjects.List();
-                   if (!all.ok()) return all.status();
-                   for (const auto& s : *all) subject_ids.push_back(s.id);
-                 }
-                 std::vector<storage::ParameterSetSummary> found;
-                 for (std::int64_t id : subject_ids) {
-                   storage::HistoryQuery query;
-                   query.subject_id = id;
-                   query.method = method;
-                   query.from = *from;
-                   query.to = *to;
-                   query.limit = 1000000;
-                   if (side) {
-                     auto legs = subjects.Legs(id);
-                     if (!legs.ok()) return legs.status();
-                     query.leg_id = -1;  // a leg the subject lacks matches nothing
-                     for (const auto& leg : *legs) {
-                       if (leg.side == *side) query.leg_id = leg.id;
-                     }
+                 storage::ParameterSetListQuery query;
+                 query.subject_id = *subject_id;
+                 query.method = method;
+                 query.from = *from;
+                 query.to = *to;
+                 query.after_id = page->after_id;
+                 query.limit = page->limit + 1;  // the extra row: a next page exists
+                 if (side) {
+                   auto legs = storage::SubjectRepository(db).Legs(**subject_id);
+                   if (!legs.ok()) return legs.status();
+                   query.leg_id = -1;  // a leg the subject lacks matches nothing
+                   for (const auto& leg : *legs) {
+                     if (leg.side == *side) query.leg_id = leg.id;
                    }
-                   auto history = storage::ParameterSetRepository(db).History(query);
-                   if (!history.ok()) return history.status();
-                   found.insert(found.end(), history->begin(), history->end());
                  }
-                 std::sort(found.begin(), found.end(),
-                           [](const auto& a, const auto& b) { return a.id < b.id; });
+                 auto found = storage::ParameterSetRepository(db).List(query);
+                 if (!found.ok()) return found.status();
                  return JsonReply(MakePage(
-                     found, *page, [](const storage::ParameterSetSummary& s) { return s.id; },
+                     *found, *page, [](const storage::ParameterSetSummary& s) { return s.id; },
                      ParameterSetSummaryToJson));
                }});
   }

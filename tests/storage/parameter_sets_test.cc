@@ -145,6 +145,97 @@ TEST_F(StorageTest, HistoryFiltersBySubjectLegMethodAndDate) {
   EXPECT_NE(plan->find("INDEX parameter_sets_subject_time"), std::string::npos) << *plan;
 }
 
+// The list's keyset pages: every filter in the query, pages in id order
+// that join up without gaps or repeats, and each page shape a seek on an
+// index (never a scan of the table or a sort).
+TEST_F(StorageTest, ParameterSetListPagesByKeyWithEveryFilter) {
+  const Session a = MakeSession("K1");
+  const Session b = MakeSession("K2");
+  auto left = SubjectRepository(*db_).AddLeg(a.subject_id, Side::kLeft);
+  ASSERT_TRUE(left.ok());
+  ParameterSetRepository sets(*db_);
+  std::vector<std::int64_t> of_a;
+  for (int day = 0; day < 12; ++day) {
+    auto params = Params(day % 2 == 0 ? "ramp_correlation" : "twitch_deconvolution", "free_swing");
+    auto in_a = sets.Insert({a.subject_id, day < 10 ? a.leg_id : left->id, params, std::nullopt,
+                             Epoch2026() + std::chrono::days(day)});
+    auto in_b = sets.Insert(
+        {b.subject_id, b.leg_id, params, std::nullopt, Epoch2026() + std::chrono::days(day)});
+    ASSERT_TRUE(in_a.ok() && in_b.ok());
+    of_a.push_back(in_a->id);
+  }
+  // Pages of 5 over subject a: 5 + 5 + 2, in id order, nothing twice.
+  std::vector<std::int64_t> paged;
+  ParameterSetListQuery q;
+  q.subject_id = a.subject_id;
+  q.limit = 5;
+  for (int page = 0; page < 4; ++page) {
+    auto rows = sets.List(q);
+    ASSERT_TRUE(rows.ok()) << rows.status().ToString();
+    for (const auto& s : *rows) paged.push_back(s.id);
+    if (rows->size() < q.limit) break;
+    q.after_id = rows->back().id;
+  }
+  EXPECT_EQ(paged, of_a);
+
+  ParameterSetListQuery filtered;
+  filtered.subject_id = a.subject_id;
+  filtered.leg_id = a.leg_id;
+  filtered.method = "twitch_deconvolution";
+  filtered.from = Epoch2026() + std::chrono::days(3);
+  filtered.to = Epoch2026() + std::chrono::days(8);
+  auto rows = sets.List(filtered);
+  ASSERT_TRUE(rows.ok());
+  std::vector<int> versions;
+  for (const auto& s : *rows) versions.push_back(s.version);
+  EXPECT_EQ(versions, (std::vector<int>{4, 6, 8}));  // days 3, 5, 7
+
+  ParameterSetListQuery everyone;
+  everyone.after_id = of_a[5];
+  everyone.limit = 3;
+  rows = sets.List(everyone);
+  ASSERT_TRUE(rows.ok());
+  ASSERT_EQ(rows->size(), 3u);
+  EXPECT_GT(rows->front().id, of_a[5]);
+  ParameterSetListQuery unknown;
+  unknown.subject_id = 999;
+  EXPECT_EQ(sets.List(unknown).status().code(), api::ErrorCode::kNotFound);
+
+  const auto plan_of = [this](const std::string& sql) {
+    return db_->Read([&](Connection& c) -> api::Result<std::string> {
+      auto s = c.Prepare("EXPLAIN QUERY PLAN " + sql);
+      if (!s.ok()) return s.status();
+      std::string all_rows;
+      while (true) {
+        auto row = s->Step();
+        if (!row.ok()) return row.status();
+        if (!*row) break;
+        all_rows += s->Text(3) + "\n";
+      }
+      return all_rows;
+    });
+  };
+  const std::pair<const char*, const char*> shapes[] = {
+      {"SELECT id FROM parameter_sets WHERE id > ?1 ORDER BY id LIMIT ?7", "INTEGER PRIMARY KEY"},
+      {"SELECT id FROM parameter_sets WHERE id > ?1 AND subject_id = ?2 ORDER BY id LIMIT ?7",
+       "INDEX parameter_sets_subject_id"},
+      {"SELECT id FROM parameter_sets WHERE id > ?1 AND subject_id = ?2 AND leg_id = ?3"
+       " ORDER BY id LIMIT ?7",
+       "INDEX parameter_sets_leg_id"},
+      {"SELECT id FROM trials WHERE session_id = ?1 AND id > ?2 ORDER BY id LIMIT ?3",
+       "INDEX trials_session"},
+      {"SELECT id FROM runs WHERE session_id = ?1 AND id > ?2 ORDER BY id LIMIT ?3",
+       "INDEX runs_session"},
+  };
+  for (const auto& [sql, index] : shapes) {
+    auto plan = plan_of(sql);
+    ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+    EXPECT_NE(plan->find("SEARCH"), std::string::npos) << sql << "\n" << *plan;
+    EXPECT_NE(plan->find(index), std::string::npos) << sql << "\n" << *plan;
+    EXPECT_EQ(plan->find("TEMP B-TREE"), std::string::npos) << "a sort: " << sql << "\n" << *plan;
+  }
+}
+
 TEST_F(StorageTest, ParameterSetBadInputNamesTheProblem) {
   const Session a = MakeSession("Q1");
   const Session b = MakeSession("Q2");
