@@ -478,9 +478,12 @@ void WalkANewLeg(const std::string& max_stop_impact_deg_s, bool expect_gate_refu
           R"(end done threshold_ma ([0-9.]+) max_tolerated_ma ([0-9.]+) session_revision 2)")))
       << tolerance.out;
   const double max_tolerated = std::stod(recorded[2]);
-  // Starting `run stop` takes tens of ms of wall time: at time scale 10 and
-  // 2 mA/s that is up to about 1 mA more of the ramp.
-  EXPECT_NEAR(max_tolerated, chosen_ma + 0.5, 1.5) << "stopped at the chosen amplitude";
+  // Starting `run stop` takes tens of ms of wall time, more on a loaded
+  // machine: at time scale 10 and 2 mA/s each 50 ms is 1 mA more of the
+  // ramp. Not below the chosen amplitude; a few mA above at most.
+  EXPECT_GE(max_tolerated, chosen_ma - 1.0) << "stopped before the chosen amplitude";
+  EXPECT_LE(max_tolerated, chosen_ma + 4.0) << "the stop came too late";
+  std::cout << "[ stop     ] chosen " << chosen_ma << " mA, recorded " << max_tolerated << " mA\n";
 
   // 4. The session shows the recorded values at once.
   auto shown = cli.Run({"sessions", "show", sid});
