@@ -148,6 +148,13 @@ DecodeResult DecodePacket(std::span<const std::uint8_t> frame) {
 std::vector<std::vector<std::uint8_t>> FrameSplitter::Feed(std::span<const std::uint8_t> bytes) {
   std::vector<std::vector<std::uint8_t>> frames;
   for (std::uint8_t b : bytes) {
+    if (in_frame_ && after_stuffing_) {
+      // The byte after a stuffing byte is data even when it equals a
+      // constant: the stuffed checksum or length (§2.2) can be 0x0F or 0xF0.
+      pending_.push_back(b);
+      after_stuffing_ = false;
+      continue;
+    }
     if (b == kStartByte) {
       // §5.2 Packet frame error: a second start byte drops what came before.
       pending_.assign(1, b);
@@ -156,7 +163,9 @@ std::vector<std::vector<std::uint8_t>> FrameSplitter::Feed(std::span<const std::
     }
     if (!in_frame_) continue;
     pending_.push_back(b);
-    if (b == kStopByte) {
+    if (b == kStuffingByte) {
+      after_stuffing_ = true;
+    } else if (b == kStopByte) {
       frames.push_back(std::move(pending_));
       pending_.clear();
       in_frame_ = false;

@@ -105,7 +105,8 @@ struct DecodeResult {
 DecodeResult DecodePacket(std::span<const std::uint8_t> frame);
 
 /// Splits a byte stream into frames start…stop. A second start byte before a
-/// stop byte discards the bytes before it (§5.2 Packet frame error). Bytes
+/// stop byte discards the bytes before it (§5.2 Packet frame error); a byte
+/// after a stuffing byte is never a delimiter. Bytes
 /// of an unfinished frame stay buffered for the next Feed.
 class FrameSplitter {
  public:
@@ -115,6 +116,7 @@ class FrameSplitter {
  private:
   std::vector<std::uint8_t> pending_;
   bool in_frame_ = false;
+  bool after_stuffing_ = false;  ///< the last byte was a stuffing byte.
 };
 
 // ---- Command builders (§4.1, §4.3); each returns the wire bytes. ----

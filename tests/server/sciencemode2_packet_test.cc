@@ -162,6 +162,24 @@ TEST(ScienceMode2Splitter, SplitsStreamAndDropsBytesBeforeASecondStart) {
   EXPECT_EQ(frames[0], b);
 }
 
+TEST(ScienceMode2Splitter, AStuffedChecksumEqualToADelimiterDoesNotSplitTheFrame) {
+  // §2.2: the checksum is always stuffed, so its wire byte is CRC ^ 0x55,
+  // which is 0xF0 for Watchdog #196 (CRC 0xA5) and 0x0F for #220 (CRC 0x5A).
+  const Bytes a = BuildWatchdog(196);
+  const Bytes b = BuildWatchdog(220);
+  EXPECT_EQ(a[2], 0xF0);
+  EXPECT_EQ(b[2], 0x0F);
+  Bytes stream = a;
+  stream.insert(stream.end(), b.begin(), b.end());
+  FrameSplitter splitter;
+  const auto frames = splitter.Feed(stream);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0], a);
+  EXPECT_EQ(frames[1], b);
+  EXPECT_TRUE(DecodePacket(frames[0]).packet);
+  EXPECT_TRUE(DecodePacket(frames[1]).packet);
+}
+
 TEST(ScienceMode2Reply, ParsesAcksErrorsAndInit) {
   auto parse = [](Command c, Bytes data) {
     const Bytes wire = EncodePacket(9, c, data);
