@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   using fesbench::server::sciencemode2::Emulator;
   using fesbench::server::sciencemode2::EmulatorFault;
   CLI::App app{"RehaStim2 (ScienceMode2) emulator on a pseudo-terminal"};
+  app.set_version_flag("--version", std::string("fesbench-sm2-emulator ") + FESBENCH_VERSION);
   std::string log_path;
   std::string fault = "none";
   app.add_option("--log", log_path, "write deliveries as JSON lines to this file at exit");
