@@ -301,6 +301,7 @@ const std::map<std::string, std::string>& Executables() {
       {"fesbench", FESBENCH_CLI_EXE},
       {"fesbench-server", FESBENCH_SERVER_EXE},
       {"fesbench-model", FESBENCH_MODEL_EXE},
+      {"fesbench-sm2-emulator", FESBENCH_SM2_EMULATOR_EXE},
 #ifdef FESBENCH_DDS_MONITOR_EXE
       {"fesbench-dds-monitor", FESBENCH_DDS_MONITOR_EXE},
 #endif

@@ -1,0 +1,124 @@
+// The ScienceMode2 stimulator driver against the RehaStim2 emulator over a
+// real pseudo-terminal ("ScienceMode2 – Description and Protocol" v1.24:
+// §3.5 connect, §4.3 channel list mode, §2.3 timeouts, §5.2 errors).
+
+#include "server/bench/sciencemode2_stimulator.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <thread>
+
+#include "server/bench/emulator/sciencemode2_emulator.h"
+
+namespace fesbench::server::sciencemode2 {
+namespace {
+
+using namespace std::chrono_literals;
+
+StimulatorConfig ConfigFor(const Emulator& emulator) {
+  StimulatorConfig c;
+  c.port_path = emulator.port_path();
+  c.channel = 2;
+  c.session_max_ma = 60.0;
+  c.reply_timeout = 150ms;
+  return c;
+}
+
+TEST(ScienceMode2Stimulator, RampIsDeliveredWithinTheDeviceResolution) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  // A 0 → 50 mA ramp in 0.7 mA steps; the device's step is 1 mA (§4.3).
+  std::vector<double> commanded;
+  for (double ma = 0.0; ma <= 50.0; ma += 0.7) {
+    ASSERT_TRUE(stim.SetAmplitude(ma)) << stim.fault();
+    EXPECT_EQ(stim.acknowledged_ma(), std::lround(ma));
+    commanded.push_back(ma);
+    ASSERT_TRUE(stim.KeepAlive()) << stim.fault();
+  }
+  ASSERT_TRUE(stim.Stop()) << stim.fault();
+  const auto d = emulator.deliveries();
+  ASSERT_EQ(d.size(), commanded.size() + 1);
+  for (std::size_t i = 0; i < commanded.size(); ++i) {
+    EXPECT_EQ(d[i].channel, 2);
+    EXPECT_EQ(d[i].pulse_width_us, 300);
+    EXPECT_LE(std::abs(d[i].current_ma - commanded[i]), 0.5) << i;
+  }
+  EXPECT_TRUE(d.back().stop);
+  EXPECT_EQ(stim.acknowledged_ma(), 0.0);
+}
+
+TEST(ScienceMode2Stimulator, RefusesAboveTheSessionMaximumAndStops) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.SetAmplitude(30.0));
+  EXPECT_FALSE(stim.SetAmplitude(61.0));
+  EXPECT_NE(stim.fault().find("outside 0–60"), std::string::npos) << stim.fault();
+  std::this_thread::sleep_for(50ms);
+  EXPECT_FALSE(emulator.stimulating());
+  for (const auto& d : emulator.deliveries()) EXPECT_LE(d.current_ma, 60);
+}
+
+TEST(ScienceMode2Stimulator, FaultStopsTheDevice) {
+  // The bench e-stop path: Fault() sends StopChannelListMode at once.
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.SetAmplitude(20.0));
+  stim.Fault("bench e-stop");
+  std::this_thread::sleep_for(50ms);
+  EXPECT_FALSE(emulator.stimulating());
+  EXPECT_EQ(emulator.deliveries().back().reason, "command");
+  EXPECT_EQ(stim.fault(), "bench e-stop");
+  EXPECT_FALSE(stim.SetAmplitude(5.0));  // latched
+}
+
+TEST(ScienceMode2Stimulator, LostDeviceIsAFaultNamingTheCable) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.SetAmplitude(20.0));
+  emulator.Unplug();
+  EXPECT_FALSE(stim.SetAmplitude(21.0) && stim.KeepAlive());
+  EXPECT_NE(stim.fault().find("stimulator lost"), std::string::npos) << stim.fault();
+  EXPECT_EQ(stim.acknowledged_ma(), 0.0);
+}
+
+TEST(ScienceMode2Stimulator, GarbledReplyIsAFaultNamingTheChecksum) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  emulator.set_fault(EmulatorFault::kCorruptReplies);
+  EXPECT_FALSE(stim.SetAmplitude(20.0));
+  EXPECT_EQ(stim.fault(), "stimulator reply garbled: checksum error");
+}
+
+TEST(ScienceMode2Stimulator, SilenceIsATimeout) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  emulator.set_fault(EmulatorFault::kSilent);
+  EXPECT_FALSE(stim.SetAmplitude(20.0));
+  EXPECT_EQ(stim.fault(), "stimulator timeout: no reply within 150 ms");
+}
+
+TEST(ScienceMode2Stimulator, WatchdogKeepsTheDeviceStimulating) {
+  // §2.3: without traffic the device stops after 1200 ms; KeepAlive every
+  // control period sends Watchdog every 500 ms.
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.SetAmplitude(10.0));
+  const auto end = std::chrono::steady_clock::now() + 1600ms;
+  while (std::chrono::steady_clock::now() < end) {
+    ASSERT_TRUE(stim.KeepAlive()) << stim.fault();
+    std::this_thread::sleep_for(30ms);
+  }
+  EXPECT_TRUE(emulator.stimulating());
+  EXPECT_TRUE(stim.Stop());
+}
+
+}  // namespace
+}  // namespace fesbench::server::sciencemode2
