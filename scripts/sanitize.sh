@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# The sanitizer step of CI: builds the test suites with AddressSanitizer +
+# UndefinedBehaviorSanitizer (build-asan/) and the concurrency tests with
+# ThreadSanitizer (build-tsan/), then runs them. Any sanitizer report, from a
+# test executable or from a fesbench-server a test started, fails the step
+# (reports are written to DIR/sanitizer-reports/ and printed).
+#
+#   scripts/sanitize.sh [asan|tsan|all]      default: all
+#
+# Environment: FESBENCH_JOBS (parallel jobs, default nproc), FESBENCH_ASAN_DIR,
+# FESBENCH_TSAN_DIR (build directories). Run scripts/setup.sh first on a fresh
+# machine (scripts/test.sh does). Fast DDS and the system libraries are not
+# instrumented: the DDS suites run under ASan only, never under TSan.
+set -euo pipefail
+
+if [[ ${1:-} == --help || ${1:-} == -h ]]; then
+  sed -n '2,/^set -euo/{/^set -euo/d;s/^# \{0,1\}//;p}' "${BASH_SOURCE[0]}"
+  exit 0
+fi
+
+mode=${1:-all}
+case $mode in asan|tsan|all) ;; *) echo "sanitize.sh: unknown mode '$mode' (asan, tsan or all)" >&2; exit 2;; esac
+
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+jobs=${FESBENCH_JOBS:-$(nproc)}
+
+# Suites under ASan+UBSan: everything but the browser suite (chromium is not
+# instrumented, and the server it drives is covered by the HTTP suites).
+asan_targets=(model_tests model_sim_tests api_tests storage_tests storage_crash_tests
+  server_tests protocol_tests job_pool_tests run_service_tests analysis_services_tests
+  http_unit_tests http_integration_tests http_front_end_tests
+  cli_integration_tests fesbench-server fesbench)
+# Only the suites built here run (ctest lists the others as *_NOT_BUILT).
+# Suites under TSan: the ones whose threads are the project's own (no DDS).
+tsan_targets=(job_pool_tests run_service_tests protocol_tests server_tests
+  http_front_end_tests fesbench-server)
+
+launcher=()
+if command -v ccache >/dev/null; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+fi
+
+# run NAME DIR SANITIZERS ENV_VAR ENV_VALUE TARGETS...
+run() {
+  local name=$1 dir=$2 sanitizers=$3; shift 3
+  local targets=("$@")
+  echo "== $name: configure $dir"
+  cmake -S "$root" -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DFESBENCH_SANITIZE="$sanitizers" \
+    -DFESBENCH_BUILD_BENCHMARKS=OFF "${launcher[@]}" >/dev/null
+  echo "== $name: build ${targets[*]}"
+  local t0=$SECONDS
+  cmake --build "$dir" -j "$jobs" --target "${targets[@]}"
+  echo "== $name: built in $((SECONDS - t0)) s"
+  local reports=$dir/sanitizer-reports
+  rm -rf "$reports"; mkdir -p "$reports"
+  t0=$SECONDS
+  local status=0
+  (cd "$dir" && ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:log_path=$reports/asan" \
+      UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1:log_path=$reports/ubsan" \
+      TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:log_path=$reports/tsan" \
+      ctest --output-on-failure -j "$jobs" -E '_NOT_BUILT$' -LE browser) || status=$?
+  echo "== $name: tests ran in $((SECONDS - t0)) s"
+  if compgen -G "$reports/*" >/dev/null; then
+    echo "== $name: sanitizer reports:" >&2
+    for f in "$reports"/*; do echo "--- $f" >&2; cat "$f" >&2; done
+    status=1
+  fi
+  return $status
+}
+
+status=0
+if [[ $mode == asan || $mode == all ]]; then
+  run asan "${FESBENCH_ASAN_DIR:-$root/build-asan}" address,undefined "${asan_targets[@]}" || status=1
+fi
+if [[ $mode == tsan || $mode == all ]]; then
+  run tsan "${FESBENCH_TSAN_DIR:-$root/build-tsan}" thread "${tsan_targets[@]}" || status=1
+fi
+exit $status
