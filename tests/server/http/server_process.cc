@@ -9,8 +9,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <regex>
 #include <stdexcept>
@@ -105,8 +108,15 @@ ServerProcess::ServerProcess(std::filesystem::path dir, std::vector<std::string>
 
 ServerProcess::~ServerProcess() {
   if (pid_ > 0) {
-    ::kill(pid_, SIGKILL);
-    ::waitpid(pid_, nullptr, 0);
+    // A server the test left running stops as in production (SIGTERM), so
+    // what happens at shutdown is checked too: a crash, a non-zero exit or a
+    // sanitizer report at exit (ASan/LSan exit non-zero, UBSan aborts) fails
+    // the test.
+    const std::string how = Stop(std::chrono::seconds(20));
+    if (!how.empty()) {
+      ADD_FAILURE() << "fesbench-server " << how << " at shutdown (SIGTERM); stderr:\n"
+                    << Stderr();
+    }
   }
   if (stdout_fd_ >= 0) ::close(stdout_fd_);
   std::error_code ec;
@@ -116,6 +126,12 @@ ServerProcess::~ServerProcess() {
 int ServerProcess::Terminate(std::chrono::seconds timeout) {
   if (pid_ <= 0) return -1;
   ::kill(pid_, SIGTERM);
+  const std::optional<int> status = WaitExit(timeout);
+  if (!status) return -1;
+  return WIFEXITED(*status) ? WEXITSTATUS(*status) : -1;
+}
+
+std::optional<int> ServerProcess::WaitExit(std::chrono::seconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   int status = 0;
   while (std::chrono::steady_clock::now() < deadline) {
@@ -126,13 +142,24 @@ int ServerProcess::Terminate(std::chrono::seconds timeout) {
       const ssize_t n = ::read(stdout_fd_, buffer, sizeof buffer);
       if (n > 0) output_.append(buffer, static_cast<std::size_t>(n));
     }
-    const int done = ::waitpid(pid_, &status, WNOHANG);
-    if (done == pid_) {
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
       pid_ = -1;
-      return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+      return status;
     }
   }
-  return -1;
+  return std::nullopt;
+}
+
+std::string ServerProcess::Stop(std::chrono::seconds timeout) {
+  ::kill(pid_, SIGTERM);
+  const std::optional<int> status = WaitExit(timeout);
+  if (!status) {
+    Kill();
+    return "did not exit within " + std::to_string(timeout.count()) + " s";
+  }
+  if (WIFSIGNALED(*status)) return "was killed by signal " + std::to_string(WTERMSIG(*status));
+  if (WEXITSTATUS(*status) != 0) return "exited with code " + std::to_string(WEXITSTATUS(*status));
+  return {};
 }
 
 void ServerProcess::Kill() {

@@ -3,7 +3,8 @@
 // Runs the real fesbench-server binary for integration tests: a temporary
 // database, --port 0 (the port is read from the "listening on" line),
 // --time-scale 0; stopped by pid with SIGTERM, exit status checked by the
-// caller. Also a raw-socket helper for requests httplib::Client cannot make
+// caller, or by the destructor (a server still running there gets SIGTERM and
+// must exit 0, else the test fails). Also a raw-socket helper for requests httplib::Client cannot make
 // (chunked bodies, thousands of headers, unknown methods).
 
 #include <httplib.h>
@@ -28,12 +29,15 @@ class ServerProcess {
   /// Starts a server on the data folder of `previous` (which must be
   /// stopped); the folder stays owned by `previous`.
   static std::unique_ptr<ServerProcess> Restart(const ServerProcess& previous);
-  /// SIGKILL if still running; removes the temporary folder.
+  /// If still running: SIGTERM, and a test failure unless the server exits
+  /// with 0 within 20 s (SIGKILL then). Removes the temporary folder.
   ~ServerProcess();
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
 
   int port() const { return port_; }
+  /// The server's process id while it runs (−1 once stopped).
+  int pid() const { return pid_; }
   const std::string& admin_token() const { return admin_token_; }
   const std::filesystem::path& dir() const { return dir_; }
   std::filesystem::path db_path() const { return dir_ / "data" / "fesbench.db"; }
@@ -54,6 +58,12 @@ class ServerProcess {
  private:
   ServerProcess(std::filesystem::path dir, std::vector<std::string> extra_args, bool owns_dir,
                 std::chrono::seconds timeout);
+
+  /// Waits up to `timeout` for the process (draining stdout); its wait
+  /// status, or nullopt if it is still running.
+  std::optional<int> WaitExit(std::chrono::seconds timeout);
+  /// SIGTERM and wait; empty if it exited with 0, else how it ended.
+  std::string Stop(std::chrono::seconds timeout);
 
   std::filesystem::path dir_;
   bool owns_dir_ = true;
