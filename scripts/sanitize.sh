@@ -32,11 +32,13 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 jobs=${FESBENCH_JOBS:-$(nproc)}
 
 # Suites under ASan+UBSan: the ones that take hostile input or hold the
-# server's state (HTTP front end, fuzz and edge tests, storage, run service,
-# protocol runner, safety). Not the model/identification or CLI suites: their
-# Eigen-heavy code costs most of a cold build and takes no outside bytes.
-asan_targets=(storage_tests storage_crash_tests server_tests protocol_tests
-  job_pool_tests run_service_tests http_unit_tests http_integration_tests
+# server's state (HTTP front end with the fuzz, edge, slow-client, admission
+# and restart tests against an instrumented fesbench-server; SSE and
+# authentication; storage; the run service with its recorder thread; the job
+# pool). Not the model/identification, protocol-unit or CLI suites: their
+# Eigen-heavy code costs most of a cold build and takes no outside bytes (the
+# model library itself is built with ASan only, see model/CMakeLists.txt).
+asan_targets=(storage_tests job_pool_tests run_service_tests http_integration_tests
   http_front_end_tests fesbench-server)
 # Only the suites built here run (ctest lists the others as *_NOT_BUILT).
 # TSan: the tests whose threads are the project's own (no DDS: Fast DDS is not
@@ -70,11 +72,15 @@ run() {
   echo "== $name: configure $dir"
   cmake -S "$root" -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DFESBENCH_SANITIZE="$sanitizers" \
-    -DFESBENCH_BUILD_BENCHMARKS=OFF "${launcher[@]}" >/dev/null
+    -DFESBENCH_BUILD_BENCHMARKS=OFF -DFESBENCH_WERROR=OFF "${launcher[@]}" >/dev/null
   echo "== $name: build ${targets[*]}"
   local t0=$SECONDS c0
   c0=$(cpu_seconds)
-  cmake --build "$dir" -j "$jobs" --target "${targets[@]}"
+  # Warnings do not stop this build (GCC 12's -Wmaybe-uninitialized is wrong
+  # about std::regex under the sanitizers; the normal build keeps -Werror).
+  # `|| return 1`: set -e does not act inside a function called from `||`,
+  # and a failed build must not pass as "no reports".
+  cmake --build "$dir" -j "$jobs" --target "${targets[@]}" || return 1
   echo "== $name: built in $((SECONDS - t0)) s ($(($(cpu_seconds) - c0)) s CPU)"
   local reports=$dir/sanitizer-reports
   rm -rf "$reports"; mkdir -p "$reports"
@@ -84,7 +90,7 @@ run() {
   (cd "$dir" && ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:log_path=$reports/asan" \
       UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1" \
       TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:log_path=$reports/tsan" \
-      ctest --output-on-failure -j "$jobs" -E "$exclude" -LE browser) || status=$?
+      ctest --output-on-failure --no-tests=error -j "$jobs" -E "$exclude" -LE browser) || status=$?
   echo "== $name: tests ran in $((SECONDS - t0)) s ($(($(cpu_seconds) - c0)) s CPU)"
   if compgen -G "$reports/*" >/dev/null; then
     echo "== $name: sanitizer reports:" >&2
