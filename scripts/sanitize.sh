@@ -72,7 +72,8 @@ run() {
   echo "== $name: configure $dir"
   cmake -S "$root" -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DFESBENCH_SANITIZE="$sanitizers" \
-    -DFESBENCH_BUILD_BENCHMARKS=OFF -DFESBENCH_WERROR=OFF "${launcher[@]}" >/dev/null
+    -DFESBENCH_BUILD_BENCHMARKS=OFF -DFESBENCH_WERROR=OFF -DCMAKE_UNITY_BUILD=ON \
+    "${launcher[@]}" >/dev/null
   echo "== $name: build ${targets[*]}"
   local t0=$SECONDS c0
   c0=$(cpu_seconds)
