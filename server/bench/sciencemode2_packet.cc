@@ -236,6 +236,21 @@ std::vector<std::uint8_t> BuildStartChannelListMode(std::uint8_t packet_number,
   return EncodePacket(packet_number, Command::kStartChannelListMode, data);
 }
 
+std::vector<std::uint8_t> BuildSinglePulse(std::uint8_t packet_number, int channel,
+                                           int pulse_width_us, int current_ma) {
+  if (channel < 1 || channel > kChannelCount) OutOfRange("channel", "1–8", channel);
+  if (pulse_width_us < 0 || pulse_width_us > kMaxPulseWidthUs) {
+    OutOfRange("pulse_width_us", "0–500 µs", pulse_width_us);
+  }
+  if (current_ma < 0 || current_ma > kMaxCurrentMa) OutOfRange("current_ma", "0–130 mA", current_ma);
+  const std::vector<std::uint8_t> data{
+      static_cast<std::uint8_t>(channel - 1),           // byte 7: channel number
+      static_cast<std::uint8_t>(pulse_width_us >> 8),    // byte 8: MSB
+      static_cast<std::uint8_t>(pulse_width_us & 0xFF),  // byte 9: LSB
+      static_cast<std::uint8_t>(current_ma)};            // byte 10
+  return EncodePacket(packet_number, Command::kSinglePulse, data);
+}
+
 std::optional<Reply> ParseReply(const Packet& packet) {
   Reply reply;
   reply.packet_number = packet.packet_number;

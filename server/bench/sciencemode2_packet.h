@@ -155,6 +155,14 @@ struct ChannelPulse {
 std::vector<std::uint8_t> BuildStartChannelListMode(std::uint8_t packet_number,
                                                     std::span<const ChannelPulse> pulses);
 
+/// SinglePulse (§4.4): one pulse on one channel now, outside channel-list
+/// mode. Data: channel number (0–7, i.e. channel − 1), pulse width MSB and
+/// LSB (µs), current (mA) — the field list of §4.4, with the byte order of
+/// the other 16-bit fields (not checked against a device).
+/// @throws std::invalid_argument naming the field if a value is out of range.
+std::vector<std::uint8_t> BuildSinglePulse(std::uint8_t packet_number, int channel,
+                                           int pulse_width_us, int current_ma);
+
 /// A reply from the device, classified.
 struct Reply {
   Command command{};  ///< the §3 number (ack, Init, StimulationError…).

@@ -1,29 +1,72 @@
 #include "server/bench/sciencemode2_stimulator.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace fesbench::server::sciencemode2 {
 
-Stimulator::Stimulator(StimulatorConfig config) : config_(std::move(config)) {}
+Stimulator::Stimulator(StimulatorConfig config)
+    : config_(std::move(config)), session_max_ma_(config_.session_max_ma) {}
 
 Stimulator::~Stimulator() {
-  if (stimulating_ && port_.is_open()) {
-    (void)port_.Write(BuildStopChannelListMode(NextPacketNumber()));
+  if (keeper_.joinable()) {
+    {
+      std::lock_guard lock(keeper_mu_);
+      keeper_stop_ = true;
+    }
+    keeper_cv_.notify_all();
+    keeper_.join();
   }
+  std::lock_guard lock(write_mu_);
+  if (stimulating_.load()) WriteStopLocked();
+}
+
+void Stimulator::KeeperLoop() {
+  std::unique_lock lock(keeper_mu_);
+  while (!keeper_cv_.wait_for(lock, std::chrono::milliseconds(100), [&] { return keeper_stop_; })) {
+    lock.unlock();
+    const bool alive = KeepAlive();
+    lock.lock();
+    if (!alive) return;  // faulted: nothing more to keep
+  }
+}
+
+void Stimulator::WriteStopLocked() {
+  if (port_.is_open()) (void)port_.Write(BuildStopChannelListMode(NextPacketNumber()));
+  stimulating_.store(false);
+  mode_ready_.store(false);
+  acknowledged_ma_.store(0.0);
+}
+
+void Stimulator::EmergencyStop() {
+  std::lock_guard lock(write_mu_);
+  estop_.store(true);
+  if (!faulted()) WriteStopLocked();
 }
 
 void Stimulator::Fault(const std::string& reason) {
-  if (stimulating_ && port_.is_open()) {
-    (void)port_.Write(BuildStopChannelListMode(NextPacketNumber()));
+  {
+    std::lock_guard lock(write_mu_);
+    if (!faulted()) WriteStopLocked();
   }
-  stimulating_ = false;
-  acknowledged_ma_ = 0.0;
+  std::lock_guard lock(fault_mu_);
   if (fault_.empty()) fault_ = reason;
+  faulted_.store(true);
 }
 
-bool Stimulator::Send(const std::vector<std::uint8_t>& wire) {
+std::string Stimulator::fault() const {
+  std::lock_guard lock(fault_mu_);
+  return fault_;
+}
+
+bool Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
   if (faulted()) return false;
-  const std::string why = port_.Write(wire);
+  std::string why;
+  {
+    std::lock_guard lock(write_mu_);
+    if (stimulating && estop_.load()) return false;
+    why = port_.Write(wire);
+  }
   if (!why.empty()) {
     Fault("stimulator lost: " + why);
     return false;
@@ -60,6 +103,11 @@ bool Stimulator::AwaitAck(Command command) {
         return false;
       }
       if (reply->command != command) continue;
+      // The ack of an e-stop's StopChannelListMode, sent from another thread.
+      if (command == Command::kStopChannelListModeAck &&
+          reply->packet_number != last_sent_number_) {
+        continue;
+      }
       if (reply->packet_number != last_sent_number_) {
         Fault("stimulator acknowledged packet " + std::to_string(reply->packet_number) +
               ", expected " + std::to_string(last_sent_number_));
@@ -90,6 +138,7 @@ bool Stimulator::AwaitAck(Command command) {
 }
 
 bool Stimulator::Connect() {
+  std::lock_guard io(io_mu_);
   if (config_.channel < 1 || config_.channel > kChannelCount) {
     Fault("channel must be 1–8, got " + std::to_string(config_.channel));
     return false;
@@ -122,52 +171,108 @@ bool Stimulator::Connect() {
       const auto reply = ParseReply(*r.packet);
       if (reply && reply->command == Command::kInit) {
         got_init = true;
-        if (!Send(BuildInitAck(reply->packet_number, 0))) return false;
+        if (!Send(BuildInitAck(reply->packet_number, 0), /*stimulating=*/false)) return false;
       }
     }
   }
+  if (!InitChannelList()) return false;
+  if (!keeper_.joinable()) keeper_ = std::thread([this] { KeeperLoop(); });
+  return true;
+}
+
+bool Stimulator::InitChannelList() {
   ChannelListInit init;
   init.active_channels = static_cast<std::uint8_t>(1u << (config_.channel - 1));
   init.main_interval_ms = 1000.0 / config_.pulse_rate_hz;
-  last_sent_number_ = NextPacketNumber();
   try {
-    if (!Send(BuildInitChannelListMode(last_sent_number_, init))) return false;
+    const std::uint8_t number = NextPacketNumber();
+    const auto wire = BuildInitChannelListMode(number, init);
+    last_sent_number_ = number;
+    if (!Send(wire, /*stimulating=*/true)) return false;
   } catch (const std::invalid_argument& e) {
     Fault(std::string("stimulator configuration: ") + e.what());
     return false;
   }
-  return AwaitAck(Command::kInitChannelListModeAck);
+  if (!AwaitAck(Command::kInitChannelListModeAck)) return false;
+  mode_ready_.store(!estop_.load());
+  return true;
 }
 
 bool Stimulator::SetAmplitude(double stim_ma) {
+  std::lock_guard io(io_mu_);
   if (faulted()) return false;
-  const double limit = std::min<double>(kMaxCurrentMa, config_.session_max_ma);
+  if (estopped()) return stim_ma == 0.0;
+  if (!CheckLimit(stim_ma)) return false;
+  if (!mode_ready_.load() && !InitChannelList()) return false;
+  // Down to the 1 mA step (§4.3): never more than commanded.
+  const int current = static_cast<int>(std::floor(stim_ma + 1e-9));
+  const ChannelPulse pulse{0, config_.pulse_width_us, current};
+  last_sent_number_ = NextPacketNumber();
+  if (!Send(BuildStartChannelListMode(last_sent_number_, std::span(&pulse, 1)),
+            /*stimulating=*/true)) {
+    return false;
+  }
+  if (!AwaitAck(Command::kStartChannelListModeAck)) return false;
+  std::lock_guard lock(write_mu_);
+  if (estop_.load()) return false;  // an e-stop's StopChannelListMode followed this start
+  stimulating_.store(true);
+  acknowledged_ma_.store(pulse.current_ma);
+  return true;
+}
+
+bool Stimulator::CheckLimit(double stim_ma) {
+  const double limit = std::min<double>(kMaxCurrentMa, session_max_ma_.load());
   if (!(stim_ma >= 0.0) || stim_ma > limit) {
     // Second line: the safety layer should have clamped; refuse and stop.
     Fault("stimulator refused " + std::to_string(stim_ma) + " mA: outside 0–" +
           std::to_string(limit) + " mA");
     return false;
   }
-  const ChannelPulse pulse{0, config_.pulse_width_us, static_cast<int>(std::lround(stim_ma))};
-  last_sent_number_ = NextPacketNumber();
-  if (!Send(BuildStartChannelListMode(last_sent_number_, std::span(&pulse, 1)))) return false;
-  if (!AwaitAck(Command::kStartChannelListModeAck)) return false;
-  stimulating_ = true;
-  acknowledged_ma_ = pulse.current_ma;
   return true;
 }
 
+std::optional<double> Stimulator::SinglePulse(double stim_ma) {
+  std::lock_guard io(io_mu_);
+  if (faulted() || estopped()) return std::nullopt;
+  if (!CheckLimit(stim_ma)) return std::nullopt;
+  if (stimulating_.load() || mode_ready_.load()) {
+    last_sent_number_ = NextPacketNumber();
+    if (!Send(BuildStopChannelListMode(last_sent_number_), /*stimulating=*/false) ||
+        !AwaitAck(Command::kStopChannelListModeAck)) {
+      return std::nullopt;
+    }
+    stimulating_.store(false);
+    mode_ready_.store(false);
+    acknowledged_ma_.store(0.0);
+  }
+  const int current = static_cast<int>(std::floor(stim_ma + 1e-9));
+  last_sent_number_ = NextPacketNumber();
+  if (!Send(BuildSinglePulse(last_sent_number_, config_.channel, config_.pulse_width_us, current),
+            /*stimulating=*/true)) {
+    return std::nullopt;
+  }
+  if (!AwaitAck(Command::kSinglePulseAck)) return std::nullopt;
+  return current;
+}
+
 bool Stimulator::Stop() {
+  std::lock_guard io(io_mu_);
   if (faulted()) return false;
   last_sent_number_ = NextPacketNumber();
-  if (!Send(BuildStopChannelListMode(last_sent_number_))) return false;
+  if (!Send(BuildStopChannelListMode(last_sent_number_), /*stimulating=*/false)) return false;
   if (!AwaitAck(Command::kStopChannelListModeAck)) return false;
-  stimulating_ = false;
-  acknowledged_ma_ = 0.0;
+  stimulating_.store(false);
+  mode_ready_.store(false);
+  acknowledged_ma_.store(0.0);
   return true;
 }
 
 bool Stimulator::KeepAlive() {
+  std::lock_guard io(io_mu_);
+  return KeepAliveLocked();
+}
+
+bool Stimulator::KeepAliveLocked() {
   if (faulted()) return false;
   std::uint8_t buffer[256];
   const int n = port_.Read(buffer, std::chrono::milliseconds(0));
@@ -185,7 +290,7 @@ bool Stimulator::KeepAlive() {
     if (reply && !HandleSpontaneous(*reply)) return false;
   }
   if (std::chrono::steady_clock::now() - last_send_ >= config_.watchdog_interval) {
-    return Send(BuildWatchdog(NextPacketNumber()));
+    return Send(BuildWatchdog(NextPacketNumber()), /*stimulating=*/false);
   }
   return true;
 }

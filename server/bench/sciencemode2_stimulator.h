@@ -9,14 +9,25 @@
 /// an error result, a StimulationError from the device — stops stimulation
 /// (best effort), latches, and names the reason. Second line of defence: it
 /// refuses any amplitude above the device range or the session maximum.
-/// Not thread-safe: one control thread calls it.
+/// Threading as StimulatorDevice: EmergencyStop, Fault, estopped and fault
+/// from any thread (writes to the port are serialised, and no stimulating
+/// packet leaves after an e-stop's StopChannelListMode); the rest from one
+/// control thread. After Connect a keeper thread calls KeepAlive every
+/// 100 ms, so the device's watchdog is fed while no run is going on (else
+/// the device drops the connection after 1.2 s, §2.3, §5.2); exchanges with
+/// the device (command and ack, keep-alive) take turns under one lock.
 
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
+#include <mutex>
 #include <string>
+#include <thread>
 
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/serial_port.h"
+#include "server/bench/stimulator_device.h"
 
 namespace fesbench::server::sciencemode2 {
 
@@ -31,49 +42,89 @@ struct StimulatorConfig {
   std::chrono::milliseconds watchdog_interval{500};  ///< < WatchdogTimeout 1200 ms.
 };
 
-class Stimulator {
+class Stimulator final : public StimulatorDevice {
  public:
   explicit Stimulator(StimulatorConfig config);
-  ~Stimulator();  ///< stops stimulation if running.
+  ~Stimulator() override;  ///< stops stimulation if running.
 
-  /// Opens the port, waits for the device's Init, answers InitAck, and sets
-  /// channel-list mode. Returns false (and fault() says why) on failure.
+  /// Opens the port, waits for the device's Init, answers InitAck, sets
+  /// channel-list mode, and starts the keeper thread. Returns false (and
+  /// fault() says why) on failure.
   bool Connect();
 
-  /// Sets the channel's current (mA, rounded to the device's 1 mA step) and
-  /// waits for the ack. 0 mA keeps channel-list mode with zero current.
-  /// Refused without sending if above the device or session limit.
-  bool SetAmplitude(double stim_ma);
+  std::string_view name() const override { return "sciencemode2"; }
+  double max_current_ma() const override { return kMaxCurrentMa; }
+  double current_step_ma() const override { return 1.0; }
+  void SetSessionLimit(double max_ma) override { session_max_ma_.store(max_ma); }
+
+  /// Sets the channel's current (mA, rounded down to the device's 1 mA
+  /// step, so never above the command) and waits for the ack; initialises
+  /// channel-list mode again first after a stop. 0 mA keeps channel-list
+  /// mode with zero current. Refused, as a fault, if above the device or
+  /// session limit; while e-stopped only 0 mA is accepted (nothing sent).
+  bool SetAmplitude(double stim_ma) override;
+  /// Stops channel-list mode if it is running (and waits for the ack), then
+  /// SinglePulse (§4.4) and waits for its ack. Limits as SetAmplitude.
+  std::optional<double> SinglePulse(double stim_ma) override;
+  double delivered_ma() const override { return acknowledged_ma_.load(); }
   /// StopChannelListMode and wait for its ack.
   bool Stop();
   /// Sends a Watchdog if nothing was sent for watchdog_interval; also reads
   /// any spontaneous packet (StimulationError). Call every control period.
   bool KeepAlive();
-  /// Stops the device best-effort and latches `reason` (e.g. a bench e-stop).
+  bool Service() override { return KeepAlive(); }
+  /// Sends StopChannelListMode at once (no wait for its ack) and latches.
+  void EmergencyStop() override;
+  void ClearEStop() override { estop_.store(false); }
+  bool estopped() const override { return estop_.load(); }
+  /// Stops the device best-effort and latches `reason`. Thread-safe.
   void Fault(const std::string& reason);
 
-  bool faulted() const { return !fault_.empty(); }
-  const std::string& fault() const { return fault_; }
+  bool faulted() const { return faulted_.load(); }
+  std::string fault() const override;
   /// The amplitude the device last acknowledged, mA (0 after a stop).
-  double acknowledged_ma() const { return acknowledged_ma_; }
+  double acknowledged_ma() const { return acknowledged_ma_.load(); }
 
  private:
-  bool Send(const std::vector<std::uint8_t>& wire);
+  /// Writes one packet. A stimulating packet (channel-list init or start)
+  /// is not written once an e-stop has latched: the check and the write
+  /// hold the same lock as EmergencyStop's StopChannelListMode.
+  bool Send(const std::vector<std::uint8_t>& wire, bool stimulating);
+  /// Writes StopChannelListMode without waiting; the caller holds write_mu_.
+  void WriteStopLocked();
+  /// InitChannelListMode (§4.3) and wait for its ack.
+  bool InitChannelList();
   /// Waits for `command`'s ack with the packet number just sent.
   bool AwaitAck(Command command);
   bool HandleSpontaneous(const Reply& reply);
-  std::uint8_t NextPacketNumber() { return packet_number_++; }
+  bool KeepAliveLocked();
+  /// The limit check of SetAmplitude and SinglePulse: false (a fault) if
+  /// stim_ma is outside 0 – min(device, session maximum).
+  bool CheckLimit(double stim_ma);
+  void KeeperLoop();
+  std::uint8_t NextPacketNumber() { return packet_number_.fetch_add(1); }
 
   StimulatorConfig config_;
   SerialPort port_;
   FrameSplitter splitter_;
   std::vector<std::vector<std::uint8_t>> frames_;
-  std::uint8_t packet_number_ = 0;
+  std::atomic<std::uint8_t> packet_number_{0};
   std::uint8_t last_sent_number_ = 0;
   std::chrono::steady_clock::time_point last_send_{};
-  bool stimulating_ = false;
-  double acknowledged_ma_ = 0.0;
+  std::mutex io_mu_;     // one exchange with the device at a time (reads of port_)
+  std::mutex write_mu_;  // serialises writes to port_; orders them after an e-stop
+  std::atomic<bool> estop_{false};
+  std::atomic<bool> stimulating_{false};
+  std::atomic<bool> mode_ready_{false};  // channel-list mode initialised
+  std::atomic<double> acknowledged_ma_{0.0};
+  std::atomic<double> session_max_ma_;  // from config, then SetSessionLimit
+  std::atomic<bool> faulted_{false};
+  mutable std::mutex fault_mu_;  // guards fault_
   std::string fault_;
+  std::mutex keeper_mu_;  // guards keeper_stop_
+  std::condition_variable keeper_cv_;
+  bool keeper_stop_ = false;
+  std::thread keeper_;
 };
 
 }  // namespace fesbench::server::sciencemode2

@@ -80,6 +80,19 @@ TEST(ScienceMode2Encode, StopAndInitAck) {
   EXPECT_EQ(ack[7], 0);
 }
 
+TEST(ScienceMode2Encode, SinglePulse) {
+  // §4.4 SinglePulse (36): channel number (channel − 1), pulse width MSB,
+  // LSB, current. 300 µs = 0x012C.
+  const DecodeResult r = DecodePacket(BuildSinglePulse(3, 2, 300, 25));
+  ASSERT_TRUE(r.packet);
+  EXPECT_EQ(r.packet->packet_number, 3);
+  EXPECT_EQ(r.packet->command, 36);
+  EXPECT_EQ(r.packet->data, (Bytes{0x01, 0x01, 0x2C, 25}));
+  EXPECT_THROW(BuildSinglePulse(0, 9, 300, 10), std::invalid_argument);
+  EXPECT_THROW(BuildSinglePulse(0, 1, 501, 10), std::invalid_argument);
+  EXPECT_THROW(BuildSinglePulse(0, 1, 300, 131), std::invalid_argument);
+}
+
 TEST(ScienceMode2Encode, OutOfRangeFieldsAreRefusedNamingTheField) {
   const ChannelPulse too_much{0, 300, 131};
   try {

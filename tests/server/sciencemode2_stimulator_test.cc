@@ -29,11 +29,12 @@ TEST(ScienceMode2Stimulator, RampIsDeliveredWithinTheDeviceResolution) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect()) << stim.fault();
-  // A 0 → 50 mA ramp in 0.7 mA steps; the device's step is 1 mA (§4.3).
+  // A 0 → 50 mA ramp in 0.7 mA steps; the device's step is 1 mA (§4.3),
+  // and the driver rounds down: never more than commanded.
   std::vector<double> commanded;
   for (double ma = 0.0; ma <= 50.0; ma += 0.7) {
     ASSERT_TRUE(stim.SetAmplitude(ma)) << stim.fault();
-    EXPECT_EQ(stim.acknowledged_ma(), std::lround(ma));
+    EXPECT_EQ(stim.acknowledged_ma(), std::floor(ma + 1e-9));
     commanded.push_back(ma);
     ASSERT_TRUE(stim.KeepAlive()) << stim.fault();
   }
@@ -43,7 +44,8 @@ TEST(ScienceMode2Stimulator, RampIsDeliveredWithinTheDeviceResolution) {
   for (std::size_t i = 0; i < commanded.size(); ++i) {
     EXPECT_EQ(d[i].channel, 2);
     EXPECT_EQ(d[i].pulse_width_us, 300);
-    EXPECT_LE(std::abs(d[i].current_ma - commanded[i]), 0.5) << i;
+    EXPECT_LE(d[i].current_ma, commanded[i] + 1e-9) << i;
+    EXPECT_GT(d[i].current_ma, commanded[i] - 1.0) << i;
   }
   EXPECT_TRUE(d.back().stop);
   EXPECT_EQ(stim.acknowledged_ma(), 0.0);
@@ -59,6 +61,54 @@ TEST(ScienceMode2Stimulator, RefusesAboveTheSessionMaximumAndStops) {
   std::this_thread::sleep_for(50ms);
   EXPECT_FALSE(emulator.stimulating());
   for (const auto& d : emulator.deliveries()) EXPECT_LE(d.current_ma, 60);
+}
+
+TEST(ScienceMode2Stimulator, EmergencyStopFromAnotherThreadStopsTheDeviceAndLatches) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.SetAmplitude(20.0));
+  std::thread([&] { stim.EmergencyStop(); }).join();
+  std::this_thread::sleep_for(50ms);
+  EXPECT_FALSE(emulator.stimulating());
+  EXPECT_TRUE(emulator.deliveries().back().stop);
+  EXPECT_TRUE(stim.estopped());
+  EXPECT_FALSE(stim.faulted());
+  EXPECT_EQ(stim.acknowledged_ma(), 0.0);
+  // Latched: nothing stimulating is sent; zero is accepted.
+  const std::size_t sent = emulator.deliveries().size();
+  EXPECT_FALSE(stim.SetAmplitude(5.0));
+  EXPECT_TRUE(stim.SetAmplitude(0.0));
+  EXPECT_TRUE(stim.KeepAlive());  // the stop's ack is read and ignored
+  EXPECT_EQ(emulator.deliveries().size(), sent);
+  // Cleared: channel-list mode is initialised again, then started.
+  stim.ClearEStop();
+  ASSERT_TRUE(stim.SetAmplitude(7.0)) << stim.fault();
+  std::this_thread::sleep_for(20ms);
+  EXPECT_TRUE(emulator.stimulating());
+  EXPECT_EQ(emulator.deliveries().back().current_ma, 7);
+  EXPECT_TRUE(stim.Stop()) << stim.fault();
+}
+
+TEST(ScienceMode2Stimulator, SinglePulseStopsTheTrainFirstAndIsRoundedDown) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.SetAmplitude(20.0));
+  EXPECT_EQ(stim.SinglePulse(33.7), std::optional<double>(33.0)) << stim.fault();
+  const auto d = emulator.deliveries();
+  ASSERT_EQ(d.size(), 3u);
+  EXPECT_TRUE(d[1].stop);  // the train stopped, then the pulse
+  EXPECT_EQ(d[2].reason, "single");
+  EXPECT_EQ(d[2].channel, 2);
+  EXPECT_EQ(d[2].current_ma, 33);
+  EXPECT_EQ(d[2].pulse_width_us, 300);
+  // The train starts again (channel-list mode initialised again).
+  ASSERT_TRUE(stim.SetAmplitude(10.0)) << stim.fault();
+  EXPECT_EQ(emulator.deliveries().back().current_ma, 10);
+  // Above the session maximum: refused without sending, a fault.
+  EXPECT_FALSE(stim.SinglePulse(61.0));
+  EXPECT_NE(stim.fault().find("outside 0–60"), std::string::npos) << stim.fault();
 }
 
 TEST(ScienceMode2Stimulator, FaultStopsTheDevice) {

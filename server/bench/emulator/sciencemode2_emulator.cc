@@ -174,6 +174,18 @@ void Emulator::HandleFrame(const std::vector<std::uint8_t>& frame) {
       stimulating_ = true;
       return ack(Command::kStartChannelListModeAck, Result::kOk);
     }
+    case Command::kSinglePulse: {
+      // §4.4, outside channel-list mode (modes are exclusive here: a single
+      // pulse while channel-list mode runs is a wrong-mode error).
+      if (p.data.size() != 4) return ack(Command::kSinglePulseAck, Result::kParameterError);
+      if (stimulating_) return ack(Command::kSinglePulseAck, Result::kWrongModeError);
+      const int width = (p.data[1] << 8) | p.data[2];
+      if (p.data[0] >= kChannelCount || width > kMaxPulseWidthUs || p.data[3] > kMaxCurrentMa) {
+        return ack(Command::kSinglePulseAck, Result::kParameterError);
+      }
+      Record({0, p.data[0] + 1, p.data[3], width, false, "single"});
+      return ack(Command::kSinglePulseAck, Result::kOk);
+    }
     case Command::kStopChannelListMode:
       if (stimulating_) Record({0, 0, 0, 0, true, "command"});
       stimulating_ = false;

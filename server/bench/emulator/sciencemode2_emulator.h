@@ -4,7 +4,8 @@
 /// A RehaStim2 emulator behind a pseudo-terminal, answering per
 /// "ScienceMode2 – Description and Protocol" v1.24: it sends Init every
 /// InitRepetitionTime (§2.3, §3.5) until InitAck, acknowledges
-/// InitChannelListMode / StartChannelListMode / StopChannelListMode (§4.3),
+/// InitChannelListMode / StartChannelListMode / StopChannelListMode (§4.3)
+/// and SinglePulse outside channel-list mode (§4.4),
 /// answers a bad checksum or length with the command's ack carrying the
 /// transfer error (§5.2), sends UnknownCommand for unknown numbers (§4.1),
 /// and stops stimulation when no valid packet arrives within
@@ -28,7 +29,7 @@ struct Delivery {
   int current_ma = 0;
   int pulse_width_us = 0;
   bool stop = false;   ///< StopChannelListMode, or the watchdog stopping.
-  std::string reason;  ///< for stops: "command" or "watchdog".
+  std::string reason;  ///< for stops: "command" or "watchdog"; "single" for a SinglePulse.
 };
 
 enum class EmulatorFault {

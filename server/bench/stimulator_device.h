@@ -1,0 +1,58 @@
+#pragma once
+
+/// @file
+/// The stimulator half of a bench made of parts (ComposedBench): a real
+/// stimulator behind a driver. The simulated stimulator is part of the
+/// simulated leg (SimulatedBench) and needs no device.
+///
+/// Threading: one control thread calls SetAmplitude, Service and ClearEStop;
+/// EmergencyStop, estopped and fault may be called from any thread, and
+/// EmergencyStop acts at once without waiting for the device's reply.
+
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace fesbench::server {
+
+class StimulatorDevice {
+ public:
+  virtual ~StimulatorDevice() = default;
+
+  /// The driver's name, e.g. "sciencemode2".
+  virtual std::string_view name() const = 0;
+  /// The device's own current limit, mA.
+  virtual double max_current_ma() const = 0;
+  /// The device's current step, mA: a command is delivered rounded down to
+  /// it (never above what was commanded).
+  virtual double current_step_ma() const = 0;
+
+  /// The session's maximum, mA: SetAmplitude refuses (as a fault) anything
+  /// above it. Thread-safe.
+  virtual void SetSessionLimit(double max_ma) = 0;
+  /// Sets the current of every pulse from the device's next pulse on and
+  /// waits for the device to accept it. false on a fault (fault() says why;
+  /// the device has been told to stop) or while e-stopped (nothing is sent).
+  virtual bool SetAmplitude(double stim_ma) = 0;
+  /// One pulse now, off the pulse grid (DESIGN.md §3's single pulse), at
+  /// stim_ma rounded down to the step; leaves any running pulse train
+  /// stopped (the next SetAmplitude starts it again). Returns the amplitude
+  /// delivered, or nullopt on a fault or while e-stopped.
+  virtual std::optional<double> SinglePulse(double stim_ma) = 0;
+  /// The amplitude the device last accepted, mA (0 after a stop).
+  virtual double delivered_ma() const = 0;
+  /// The device's periodic duties (its watchdog, messages it sends on its
+  /// own); call every control period. false on a fault.
+  virtual bool Service() = 0;
+
+  /// Stops stimulation now and latches until ClearEStop.
+  virtual void EmergencyStop() = 0;
+  /// Ends an EmergencyStop latch (not a fault).
+  virtual void ClearEStop() = 0;
+  virtual bool estopped() const = 0;
+  /// Why the device failed (lost, garbled, timed out, refused); empty if it
+  /// has not. A fault stays latched until the device is reconnected.
+  virtual std::string fault() const = 0;
+};
+
+}  // namespace fesbench::server
