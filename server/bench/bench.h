@@ -12,6 +12,7 @@
 /// that cuts stimulator and motor power, §5.1).
 
 #include <cstdint>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -112,6 +113,15 @@ class Bench {
   virtual void HardwareEStop() = 0;
   virtual void ClearHardwareEStop() = 0;
   virtual bool HardwareEStopped() const = 0;
+  /// Why the bench latched its e-stop on its own (a stimulator driver that
+  /// lost its device, a garbled reply, a timeout), empty if it did not.
+  /// Thread-safe. SafeBench adopts such a latch as an e-stop with this
+  /// reason, and the run ends with it.
+  virtual std::string HardwareFault() const { return {}; }
+  /// The session's stimulation ceiling, mA (SafeBench sets it with the
+  /// session's limits): a real driver refuses anything above it on its own,
+  /// a second line below SafeBench's clamp. Thread-safe.
+  virtual void SetStimulationCeiling(double /*max_ma*/) {}
 };
 
 }  // namespace fesbench::server

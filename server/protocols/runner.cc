@@ -279,7 +279,11 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   };
 
   const auto abort_reason = [&]() -> std::optional<std::pair<RunTransition, std::string>> {
-    if (bench_.estopped()) return std::pair{RunTransition::kEStop, std::string("e-stop")};
+    if (bench_.estopped()) {
+      const std::string fault = bench_.bench().HardwareFault();
+      return std::pair{RunTransition::kEStop, fault.empty() ? std::string("e-stop")
+                                                            : "e-stop: " + fault};
+    }
     if (bench_.watchdog_fired()) {
       return std::pair{RunTransition::kWatchdog,
                        std::string("watchdog: controlling client stopped heart-beating")};

@@ -27,9 +27,12 @@ SafeBench::SafeBench(Bench& bench, EventSink sink, WallClock wall_clock)
 }
 
 void SafeBench::Configure(const SafetyLimits& limits) {
-  std::lock_guard lock(mu_);
-  limits_ = limits;
-  configured_ = true;
+  {
+    std::lock_guard lock(mu_);
+    limits_ = limits;
+    configured_ = true;
+  }
+  bench_.SetStimulationCeiling(StimCeiling());  // the driver's own second check
 }
 
 SafetyLimits SafeBench::limits() const {
@@ -117,6 +120,10 @@ void SafeBench::MakeSafe() {
 void SafeBench::AdvanceTo(double t_s) {
   CheckWatchdog();
   bench_.AdvanceTo(t_s);
+  if (!estop_.load()) {
+    // A latch the bench set on its own (its device failed): an e-stop.
+    if (std::string fault = bench_.HardwareFault(); !fault.empty()) EStop(fault);
+  }
   CheckReadBack();
 }
 

@@ -1,0 +1,85 @@
+#include "server/bench/composed_bench.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fesbench::server {
+
+ComposedBench::ComposedBench(std::unique_ptr<Bench> body,
+                             std::unique_ptr<StimulatorDevice> stimulator)
+    : body_(std::move(body)), stimulator_(std::move(stimulator)) {
+  kind_ = std::string(stimulator_->name()) + "+" + std::string(body_->kind());
+  limits_ = body_->limits();
+  limits_.max_stim_ma = std::min(limits_.max_stim_ma, stimulator_->max_current_ma());
+}
+
+ComposedBench::~ComposedBench() { stimulator_->EmergencyStop(); }
+
+void ComposedBench::SetStimAmplitude(double stim_ma) {
+  if (HardwareEStopped()) {
+    body_->SetStimAmplitude(0.0);
+    sent_ma_.store(0.0);  // the device stopped: the next start is sent
+    return;
+  }
+  // Only a change of at least one device step is sent (the device keeps
+  // delivering the last accepted amplitude at its pulse rate).
+  const double step = stimulator_->current_step_ma();
+  const double wanted = std::floor(stim_ma / step + 1e-9) * step;
+  if (wanted != sent_ma_.load()) {
+    if (!stimulator_->SetAmplitude(stim_ma)) {
+      if (!stimulator_->estopped()) HardwareEStop();  // a fault: latch with its reason
+      body_->SetStimAmplitude(0.0);
+      sent_ma_.store(0.0);
+      return;
+    }
+    sent_ma_.store(stimulator_->delivered_ma());
+  }
+  body_->SetStimAmplitude(sent_ma_.load());
+}
+
+void ComposedBench::TriggerPulse(double stim_ma) {
+  if (stim_ma <= 0.0 || HardwareEStopped()) return;
+  const std::optional<double> delivered = stimulator_->SinglePulse(stim_ma);
+  sent_ma_.store(0.0);  // the device's pulse train is stopped either way
+  if (!delivered) {
+    if (!stimulator_->estopped()) HardwareEStop();  // a fault: latch with its reason
+    return;
+  }
+  if (*delivered > 0.0) body_->TriggerPulse(*delivered);
+}
+
+void ComposedBench::AdvanceTo(double t_s) {
+  body_->AdvanceTo(t_s);
+  if (!stimulator_->Service() && !estop_.load()) HardwareEStop();
+}
+
+SensorFrame ComposedBench::ReadSensors() {
+  SensorFrame frame = body_->ReadSensors();
+  frame.estop = frame.estop || HardwareEStopped();
+  return frame;
+}
+
+void ComposedBench::HardwareEStop() {
+  stimulator_->EmergencyStop();
+  body_->HardwareEStop();
+  estop_.store(true);
+}
+
+void ComposedBench::ClearHardwareEStop() {
+  // A device fault stays latched: the device must be reconnected (a new
+  // server).
+  if (!stimulator_->fault().empty()) return;
+  sent_ma_.store(0.0);
+  stimulator_->ClearEStop();
+  body_->ClearHardwareEStop();
+  estop_.store(false);
+}
+
+bool ComposedBench::HardwareEStopped() const {
+  return estop_.load() || stimulator_->estopped() || !stimulator_->fault().empty();
+}
+
+
+std::string ComposedBench::HardwareFault() const { return stimulator_->fault(); }
+
+}  // namespace fesbench::server
