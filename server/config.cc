@@ -41,6 +41,16 @@ api::Status ValidateServerConfig(const ServerConfig& c) {
     return api::Status::InvalidArgument("--bench replay needs at least one --replay CSV file",
                                         "replay");
   }
+  if (c.stimulator != "sim" && c.stimulator != "sciencemode2") {
+    return api::Status::InvalidArgument("must be sim or sciencemode2", "stimulator");
+  }
+  if (c.stimulator == "sciencemode2" && c.stimulator_port.empty()) {
+    return api::Status::InvalidArgument(
+        "--stimulator sciencemode2 needs --stimulator-port (e.g. /dev/ttyUSB0)", "stimulator-port");
+  }
+  if (c.stimulator_channel < 1 || c.stimulator_channel > 8) {
+    return api::Status::InvalidArgument("must be in [1, 8]", "stimulator-channel");
+  }
   if (c.job_workers < 1 || c.job_workers > 64) {
     return api::Status::InvalidArgument("must be in [1, 64]", "job-workers");
   }
@@ -106,6 +116,10 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
       c.replay.push_back(file.get<std::string>());
     }
   }
+  if (auto v = f.String("stimulator", false, 32)) c.stimulator = *v;
+  if (auto v = f.String("stimulator-port", false, 4096)) c.stimulator_port = *v;
+  if (auto v = f.Integer("stimulator-channel", false, 1, 8))
+    c.stimulator_channel = static_cast<int>(*v);
   if (auto v = f.Integer("job-workers", false, 1, 64)) c.job_workers = static_cast<int>(*v);
   if (auto v = f.Integer("max-connections", false, 1, 1024))
     c.max_connections = static_cast<int>(*v);
@@ -155,6 +169,13 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   app.add_option("--tls-key", flags.tls_key, "PEM private key for HTTPS");
   app.add_option("--seed", flags.seed, "seed of the simulated virtual subject (default 1)");
   app.add_option("--replay", flags.replay, "CSV trial files for --bench replay");
+  app.add_option("--stimulator", flags.stimulator,
+                 "sim (the bench's own) or sciencemode2 (a RehaStim2 on --stimulator-port)")
+      ->check(CLI::IsMember({"sim", "sciencemode2"}));
+  app.add_option("--stimulator-port", flags.stimulator_port,
+                 "serial device of the stimulator, e.g. /dev/ttyUSB0");
+  app.add_option("--stimulator-channel", flags.stimulator_channel,
+                 "stimulator channel 1-8 (default 1)");
   app.add_option("--job-workers", flags.job_workers, "identification/prediction worker threads");
   app.add_option("--max-connections", flags.max_connections,
                  "keep-alive connections served at once (default 48)");
@@ -211,6 +232,9 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--tls-key")) config.tls_key = flags.tls_key;
   if (given("--seed")) config.seed = flags.seed;
   if (given("--replay")) config.replay = flags.replay;
+  if (given("--stimulator")) config.stimulator = flags.stimulator;
+  if (given("--stimulator-port")) config.stimulator_port = flags.stimulator_port;
+  if (given("--stimulator-channel")) config.stimulator_channel = flags.stimulator_channel;
   if (given("--job-workers")) config.job_workers = flags.job_workers;
   if (given("--max-connections")) config.max_connections = flags.max_connections;
   if (given("--max-streams")) config.max_streams = flags.max_streams;

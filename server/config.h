@@ -46,6 +46,11 @@ struct ServerConfig {
   std::string tls_key;                  ///< --tls-key: PEM private key.
   std::uint64_t seed = 1;               ///< --seed: virtual subject of the simulated bench.
   std::vector<std::string> replay;      ///< --replay: CSV trials for --bench replay.
+  /// --stimulator: "sim" (the bench's own) or "sciencemode2" (a RehaStim2
+  /// on --stimulator-port, composed with the bench's sensors and motor).
+  std::string stimulator = "sim";
+  std::string stimulator_port;  ///< --stimulator-port: serial device, e.g. /dev/ttyUSB0.
+  int stimulator_channel = 1;   ///< --stimulator-channel: 1–8.
   int job_workers = 2;                  ///< --job-workers: identification/prediction threads.
   int max_connections = 48;             ///< --max-connections: connections served at once.
   int max_streams = 16;                 ///< --max-streams: open event streams.
@@ -76,7 +81,7 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
 /// Applies a JSON config object's keys ("bind", "port", "db", "bench",
 /// "time-scale", "max-stop-impact-deg-s", "dds-domain", "dds-transport", "dds-profile",
 /// "dds-profile-name", "dds-bench-id", "dds-security", "dds-identity", "tls-cert", "tls-key",
-/// "seed", "replay", "job-workers", "max-connections", "max-streams", "auth-failure-burst",
+/// "seed", "replay", "stimulator", "stimulator-port", "stimulator-channel", "job-workers", "max-connections", "max-streams", "auth-failure-burst",
 /// "auth-failure-refill-per-s") to `config`. kInvalidArgument naming the key for unknown keys,
 /// wrong types and out-of-range values.
 api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& config);

@@ -17,7 +17,9 @@
 #include <string_view>
 #include <thread>
 
+#include "server/bench/composed_bench.h"
 #include "server/bench/replay_bench.h"
+#include "server/bench/sciencemode2_stimulator.h"
 #include "server/bench/virtual_subject.h"
 #include "server/config.h"
 #include "server/dds/dds_server.h"
@@ -129,6 +131,22 @@ int main(int argc, char** argv) {
     auto replay = server::ReplayBench::FromCsvFiles(files, options);
     if (!replay.ok()) return Fail("replay bench", replay.status());
     bench = std::move(*replay);
+  }
+  // A real stimulator in place of the bench's own (issue 21): the device
+  // delivers; the sensors and the motor stay the bench's above.
+  if (config.stimulator == "sciencemode2") {
+    server::sciencemode2::StimulatorConfig sm2;
+    sm2.port_path = config.stimulator_port;
+    sm2.channel = config.stimulator_channel;
+    sm2.pulse_rate_hz = bench->limits().pulse_rate_hz;
+    sm2.pulse_width_us = static_cast<int>(bench->limits().pulse_width_us);
+    sm2.session_max_ma = bench->limits().max_stim_ma;
+    auto device = std::make_unique<server::sciencemode2::Stimulator>(sm2);
+    if (!device->Connect()) {
+      return Fail("stimulator on " + config.stimulator_port,
+                  api::Status::Unavailable(device->fault()));
+    }
+    bench = std::make_unique<server::ComposedBench>(std::move(bench), std::move(device));
   }
 
   server::services::SampleHub hub;

@@ -206,6 +206,17 @@ TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
   EXPECT_TRUE(ValidateServerConfig(c).ok());
   c.dds_transport = "off";
   EXPECT_EQ(ValidateServerConfig(c).field(), "dds-security");
+  // A ScienceMode2 stimulator needs its port; channels 1–8.
+  c = ServerConfig{};
+  EXPECT_EQ(c.stimulator, "sim");
+  ASSERT_TRUE(ApplyConfigJson(R"({"stimulator": "sciencemode2", "stimulator-channel": 2})", c).ok());
+  EXPECT_EQ(ValidateServerConfig(c).field(), "stimulator-port");
+  ASSERT_TRUE(ApplyConfigJson(R"({"stimulator-port": "/dev/ttyUSB0"})", c).ok());
+  EXPECT_TRUE(ValidateServerConfig(c).ok());
+  EXPECT_EQ(c.stimulator_channel, 2);
+  EXPECT_EQ(ApplyConfigJson(R"({"stimulator-channel": 9})", c).field(), "stimulator-channel");
+  c.stimulator = "sciencemode4";
+  EXPECT_EQ(ValidateServerConfig(c).field(), "stimulator");
 
   std::ostringstream out, err;
   const char* argv[] = {"fesbench-server", "--port", "0", "--time-scale", "0.5", "--bench", "sim"};
