@@ -6,6 +6,10 @@
 // at 1 ms, which adds up to 1 ms on real hardware).
 // BM_AcknowledgedUpdate: Stimulator::SetAmplitude against the emulator, the
 // update plus its StartChannelListModeAck round trip.
+// BM_EStopToDevice: the bench e-stop (ComposedBench::HardwareEStop, called
+// on another thread than the control loop) until the emulator has stopped
+// stimulating (it polls its pty every ≤ 5 ms while idle, so this is an upper
+// bound of the driver's share).
 
 #include <benchmark/benchmark.h>
 #include <fcntl.h>
@@ -14,7 +18,13 @@
 #include <termios.h>
 #include <unistd.h>
 
+#include <chrono>
+#include <thread>
+
+#include "server/bench/composed_bench.h"
 #include "server/bench/emulator/sciencemode2_emulator.h"
+#include "server/bench/simulated_bench.h"
+#include "server/bench/virtual_subject.h"
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/sciencemode2_stimulator.h"
 #include "server/bench/serial_port.h"
@@ -82,5 +92,28 @@ void BM_AcknowledgedUpdate(benchmark::State& state) {
   stim.Stop();
 }
 BENCHMARK(BM_AcknowledgedUpdate)->UseRealTime()->Unit(benchmark::kMicrosecond);
+
+void BM_EStopToDevice(benchmark::State& state) {
+  Emulator emulator;
+  StimulatorConfig config;
+  config.port_path = emulator.port_path();
+  auto stim = std::make_unique<Stimulator>(config);
+  if (!stim->Connect()) {
+    state.SkipWithError(stim->fault().c_str());
+    return;
+  }
+  ComposedBench bench(std::make_unique<SimulatedBench>(DrawVirtualSubject(1)), std::move(stim));
+  bench.SetStimulationCeiling(30.0);
+  for (auto _ : state) {
+    state.PauseTiming();
+    bench.ClearHardwareEStop();
+    bench.SetStimAmplitude(20.0);
+    while (!emulator.stimulating()) std::this_thread::yield();
+    state.ResumeTiming();
+    std::thread([&] { bench.HardwareEStop(); }).join();
+    while (emulator.stimulating()) std::this_thread::yield();
+  }
+}
+BENCHMARK(BM_EStopToDevice)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 }  // namespace

@@ -45,7 +45,7 @@ asan_targets=(storage_tests job_pool_tests run_service_tests http_integration_te
 # instrumented) — job pool, sample hub and SSE viewers, run/bench services,
 # the runner's recorder and watchdog, safe bench e-stop from another thread,
 # slow clients against the connection threads.
-tsan_targets=(job_pool_tests run_service_tests protocol_tests server_tests
+tsan_targets=(job_pool_tests run_service_tests protocol_tests server_tests sciencemode2_pty_tests
   http_front_end_tests http_integration_tests fesbench-server)
 # Left out under TSan: single-threaded identification runs and the random
 # plan fuzz (≈ 150 s CPU, no threads to check), and the hostile-input HTTP
