@@ -208,11 +208,22 @@ api::Status Database::RunTransaction(bool write,
 }
 
 api::Status Database::RunOnWriter(const std::function<api::Status(Connection&)>& fn) {
-  std::lock_guard lock(writer_mutex_);
+  std::vector<std::function<void()>> committed;
+  api::Status result = [&] {
+    std::lock_guard lock(writer_mutex_);
+    return RunOnWriterLocked(fn, committed);
+  }();
+  for (auto& callback : committed) callback();
+  return result;
+}
+
+api::Status Database::RunOnWriterLocked(const std::function<api::Status(Connection&)>& fn,
+                                        std::vector<std::function<void()>>& committed) {
   const auto deadline = Clock::now() + options_.retry_budget;
   auto delay = std::chrono::milliseconds(1);
   while (true) {
     writer_->ClearBusy();
+    after_commit_.clear();
     api::Status status = writer_->ExecScript("BEGIN IMMEDIATE");
     if (status.ok()) {
       writer_owner_.store(std::this_thread::get_id());
@@ -226,7 +237,11 @@ api::Status Database::RunOnWriter(const std::function<api::Status(Connection&)>&
       if (status.ok()) status = writer_->ExecScript("COMMIT");
       if (!writer_->autocommit()) (void)writer_->ExecScript("ROLLBACK");
     }
-    if (status.ok()) return status;
+    if (status.ok()) {
+      committed.swap(after_commit_);
+      return status;
+    }
+    after_commit_.clear();
     if (!writer_->busy_seen()) return status;
     if (Clock::now() >= deadline) {
       return api::Status::Unavailable("database stayed busy for " +
@@ -236,6 +251,30 @@ api::Status Database::RunOnWriter(const std::function<api::Status(Connection&)>&
     std::this_thread::sleep_for(delay);
     delay = std::min(delay * 2, std::chrono::milliseconds(50));
   }
+}
+
+void Database::AfterCommit(std::function<void()> fn) {
+  if (writer_owner_.load() == std::this_thread::get_id()) {
+    after_commit_.push_back(std::move(fn));
+  } else {
+    fn();
+  }
+}
+
+void Database::SetParameterSetListener(ParameterSetListener listener) {
+  std::lock_guard lock(listener_mutex_);
+  parameter_set_listener_ = std::move(listener);
+}
+
+void Database::NotifyParameterSetStored(const ParameterSetStored& event) {
+  AfterCommit([this, event] {
+    ParameterSetListener listener;
+    {
+      std::lock_guard lock(listener_mutex_);
+      listener = parameter_set_listener_;
+    }
+    if (listener) listener(event);
+  });
 }
 
 api::Status Database::RunOnReader(const std::function<api::Status(Connection&)>& fn) {

@@ -94,6 +94,25 @@ class Database {
 
   /// The time stamp for new rows, from options.clock.
   UtcTime Now() const;
+
+  /// Runs `fn` once the current write transaction (the outermost one, on
+  /// this thread) has committed; dropped if it rolls back. Outside a write
+  /// transaction, runs it at once. The callbacks run on the writing thread
+  /// after the writer is released, so they may read or write themselves.
+  void AfterCommit(std::function<void()> fn);
+
+  /// A stored parameter set (issue 18: new sets as events, no polling).
+  struct ParameterSetStored {
+    std::int64_t id = 0;
+    std::int64_t subject_id = 0;
+    std::int64_t leg_id = 0;
+  };
+  using ParameterSetListener = std::function<void(const ParameterSetStored&)>;
+  /// Called after the commit of every stored parameter set, on the writing
+  /// thread (ParameterSetRepository::Insert). Empty = none. Thread-safe.
+  void SetParameterSetListener(ParameterSetListener listener);
+  /// Notifies the listener (after the current transaction commits).
+  void NotifyParameterSetStored(const ParameterSetStored& event);
   const DatabaseOptions& options() const { return options_; }
 
  private:
@@ -102,6 +121,10 @@ class Database {
   api::Status Migrate(std::optional<int> target);
   api::Status RunTransaction(bool write, const std::function<api::Status(Connection&)>& fn);
   api::Status RunOnWriter(const std::function<api::Status(Connection&)>& fn);
+  /// RunOnWriter with writer_mutex_ held; `committed` receives the
+  /// AfterCommit callbacks of a committed transaction.
+  api::Status RunOnWriterLocked(const std::function<api::Status(Connection&)>& fn,
+                                std::vector<std::function<void()>>& committed);
   api::Status RunOnReader(const std::function<api::Status(Connection&)>& fn);
 
   template <typename F>
@@ -124,6 +147,9 @@ class Database {
   std::unique_ptr<Connection> writer_;
   std::mutex writer_mutex_;
   std::atomic<std::thread::id> writer_owner_{};  // the thread inside a write transaction
+  std::vector<std::function<void()>> after_commit_;  // owned by the writer_owner_ thread
+  std::mutex listener_mutex_;                         // guards parameter_set_listener_
+  ParameterSetListener parameter_set_listener_;
 
   std::vector<std::unique_ptr<Connection>> readers_;
   std::vector<Connection*> free_readers_;

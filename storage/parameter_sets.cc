@@ -165,6 +165,7 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
         return s;
       }
     }
+    db_.NotifyParameterSetStored({id, set.subject_id, set.leg_id});
     ParameterSetSummary summary;
     summary.id = id;
     summary.subject_id = set.subject_id;

@@ -70,6 +70,49 @@ TEST_F(StorageTest, ParameterSetRoundTripWithProvenance) {
   EXPECT_EQ(*parsed, expected);
 }
 
+// Issue 18: a stored set is an event, raised after its transaction commits
+// (also when the insert is nested in a caller's transaction), never for a
+// transaction that rolls back.
+TEST_F(StorageTest, StoredSetsNotifyTheListenerAfterCommitOnly) {
+  const Session session = MakeSession("EV1");
+  std::vector<Database::ParameterSetStored> seen;
+  db_->SetParameterSetListener([&](const Database::ParameterSetStored& e) { seen.push_back(e); });
+  ParameterSetRepository sets(*db_);
+  const NewParameterSet set{session.subject_id, session.leg_id, Params("ramp_correlation", "free_swing"),
+                            std::nullopt, std::nullopt};
+
+  auto alone = sets.Insert(set);
+  ASSERT_TRUE(alone.ok()) << alone.status().ToString();
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].id, alone->id);
+  EXPECT_EQ(seen[0].subject_id, session.subject_id);
+  EXPECT_EQ(seen[0].leg_id, session.leg_id);
+
+  std::int64_t nested_id = 0;
+  api::Status committed = db_->Write([&](Connection&) -> api::Status {
+    auto inner = sets.Insert(set);
+    if (!inner.ok()) return inner.status();
+    nested_id = inner->id;
+    EXPECT_EQ(seen.size(), 1u) << "notified before the commit";
+    return api::Status::Ok();
+  });
+  ASSERT_TRUE(committed.ok()) << committed.ToString();
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(seen[1].id, nested_id);
+
+  api::Status rolled_back = db_->Write([&](Connection&) -> api::Status {
+    auto inner = sets.Insert(set);
+    if (!inner.ok()) return inner.status();
+    return api::Status::InvalidArgument("a later step failed", "x");
+  });
+  EXPECT_FALSE(rolled_back.ok());
+  EXPECT_EQ(seen.size(), 2u) << "notified for a rolled-back set";
+
+  db_->SetParameterSetListener({});
+  ASSERT_TRUE(sets.Insert(set).ok());
+  EXPECT_EQ(seen.size(), 2u);
+}
+
 TEST_F(StorageTest, HistoryFiltersBySubjectLegMethodAndDate) {
   const Session a = MakeSession("H1");
   const Session b = MakeSession("H2");
