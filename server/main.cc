@@ -150,6 +150,9 @@ int main(int argc, char** argv) {
   }
 
   server::services::SampleHub hub;
+  // Every stored parameter set, whoever stored it, is an event for the SSE
+  // and DDS subscribers (after its commit; no polling over the legs).
+  server::services::ParameterSetEvents set_events(**db, hub);
   server::services::RunServiceConfig run_config;
   run_config.time_scale = config.time_scale;
   server::services::RunService runs(**db, *bench, hub, run_config);

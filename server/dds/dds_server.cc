@@ -95,7 +95,7 @@ api::Status DdsServer::Init() {
   subscription_ = hub_.Subscribe(sub);
   // The first items: the latest set of every leg and the bench state, before
   // any client can ask (transient local keeps them for late joiners).
-  PublishNewParameterSets();
+  PublishLatestParameterSets();
   PublishStateIfChanged(true);
   forward_thread_ = std::thread([this] { ForwardLoop(); });
   housekeeping_thread_ = std::thread([this] { HousekeepingLoop(); });
@@ -122,11 +122,10 @@ DdsServerStats DdsServer::stats() const {
   return s;
 }
 
-void DdsServer::Wake(bool poll_sets) {
+void DdsServer::Wake() {
   {
     std::lock_guard lock(wake_mu_);
     wake_ = true;
-    poll_sets_ = poll_sets_ || poll_sets;
   }
   wake_cv_.notify_all();
 }
@@ -181,6 +180,15 @@ void DdsServer::PublishItem(const services::HubItem& item) {
     Wake();  // the bench state carries the progress
     return;
   }
+  if (item.kind == Kind::kParameterSet) {
+    auto set = storage::ParameterSetRepository(db_).Get(item.parameter_set_id.value_or(0));
+    if (set.ok()) {
+      PublishParameterSet(*set);
+    } else {
+      std::cerr << "fesbench-server: DDS parameter set: " << set.status().ToString() << std::endl;
+    }
+    return;
+  }
   if (item.run_id == 0) return;  // the initial state before any run
   wire::RunEvent event;
   event.bench_id(options_.bench_id);
@@ -200,35 +208,23 @@ void DdsServer::PublishItem(const services::HubItem& item) {
     std::lock_guard lock(stats_mu_);
     ++stats_.run_events;
   }
-  Wake(item.kind == Kind::kEnd);
+  Wake();
 }
 
 // --- bench state and parameter sets ----------------------------------------------------------
 
 void DdsServer::HousekeepingLoop() {
-  using clock = std::chrono::steady_clock;
-  const auto poll = std::chrono::duration_cast<clock::duration>(
-      std::chrono::duration<double>(options_.parameter_poll_s));
-  const auto check = std::chrono::duration_cast<clock::duration>(
+  const auto check = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(options_.state_check_s));
-  auto next_poll = clock::now() + poll;
   while (!stop_.load()) {
-    bool poll_now = false;
     {
       std::unique_lock lock(wake_mu_);
       wake_cv_.wait_for(lock, check, [this] { return wake_ || stop_.load(); });
       wake_ = false;
-      poll_now = poll_sets_;
-      poll_sets_ = false;
     }
     if (stop_.load()) return;
     try {
       PublishStateIfChanged(false);
-      // A run's end may have stored a set: look at once rather than at the next poll.
-      if (poll_now || clock::now() >= next_poll) {
-        next_poll = clock::now() + poll;
-        PublishNewParameterSets();
-      }
     } catch (const std::exception& e) {
       std::cerr << "fesbench-server: DDS housekeeping: " << e.what() << std::endl;
     }
@@ -262,7 +258,7 @@ void DdsServer::PublishStateIfChanged(bool force) {
   ++stats_.bench_states;
 }
 
-void DdsServer::PublishNewParameterSets() {
+void DdsServer::PublishLatestParameterSets() {
   storage::SubjectRepository subjects(db_);
   storage::ParameterSetRepository sets(db_);
   auto all = subjects.List();
@@ -275,28 +271,32 @@ void DdsServer::PublishNewParameterSets() {
     if (!legs.ok()) continue;
     for (const storage::Leg& leg : *legs) {
       auto latest = sets.Latest(subject.id, leg.id);
-      if (!latest.ok()) continue;  // kNotFound: no set for this leg yet
-      const auto key = std::make_pair(subject.id, leg.id);
-      auto it = published_sets_.find(key);
-      if (it != published_sets_.end() && it->second == latest->summary.id) continue;
-      const storage::ParameterSetSummary& sum = latest->summary;
-      wire::ParameterSet msg;
-      msg.subject_id(subject.id);
-      msg.leg_id(leg.id);
-      msg.parameter_set_id(sum.id);
-      msg.version(sum.version);
-      msg.model(sum.model);
-      msg.irc_method(sum.irc_method);
-      msg.passive_method(sum.passive_method);
-      msg.active_method(sum.active_method);
-      msg.created_at(storage::FormatUtc(sum.created_at));
-      msg.parameters_json(api::ParameterSetToJson(latest->params).dump());
-      if (parameter_sets_->write(&msg)) {
-        published_sets_[key] = sum.id;
-        std::lock_guard lock(stats_mu_);
-        ++stats_.parameter_sets;
-      }
+      if (latest.ok()) PublishParameterSet(*latest);  // else kNotFound: no set yet
     }
+  }
+}
+
+void DdsServer::PublishParameterSet(const storage::StoredParameterSet& set) {
+  const storage::ParameterSetSummary& sum = set.summary;
+  const auto key = std::make_pair(sum.subject_id, sum.leg_id);
+  auto it = published_sets_.find(key);
+  // Newest per leg only (the topic is keyed by subject and leg).
+  if (it != published_sets_.end() && it->second >= sum.id) return;
+  wire::ParameterSet msg;
+  msg.subject_id(sum.subject_id);
+  msg.leg_id(sum.leg_id);
+  msg.parameter_set_id(sum.id);
+  msg.version(sum.version);
+  msg.model(sum.model);
+  msg.irc_method(sum.irc_method);
+  msg.passive_method(sum.passive_method);
+  msg.active_method(sum.active_method);
+  msg.created_at(storage::FormatUtc(sum.created_at));
+  msg.parameters_json(api::ParameterSetToJson(set.params).dump());
+  if (parameter_sets_->write(&msg)) {
+    published_sets_[key] = sum.id;
+    std::lock_guard lock(stats_mu_);
+    ++stats_.parameter_sets;
   }
 }
 

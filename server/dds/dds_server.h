@@ -32,13 +32,13 @@
 #include "server/services/run_service.h"
 #include "server/services/sample_hub.h"
 #include "storage/database.h"
+#include "storage/parameter_sets.h"
 
 namespace fesbench::server::dds {
 
 struct DdsServerOptions {
   fesbench::dds::ParticipantOptions participant;
   std::string bench_id;             ///< key of this bench's state; default: host name.
-  double parameter_poll_s = 1.0;    ///< how often storage is checked for new sets.
   double state_check_s = 0.05;      ///< how often the bench state is compared and republished.
   std::size_t hub_capacity = 8192;  ///< items queued for the forwarding thread.
 };
@@ -82,8 +82,11 @@ class DdsServer {
   void CommandLoop();
   void PublishItem(const services::HubItem& item);
   void PublishStateIfChanged(bool force);
-  void PublishNewParameterSets();
-  void Wake(bool poll_sets = false);
+  /// The latest set of every leg (at start, for late joiners).
+  void PublishLatestParameterSets();
+  /// One stored set (a kParameterSet hub item), unless already published.
+  void PublishParameterSet(const storage::StoredParameterSet& set);
+  void Wake();
 
   DdsServerOptions options_;
   storage::Database& db_;
@@ -103,15 +106,16 @@ class DdsServer {
   // Forwarding thread only.
   std::int64_t block_run_id_ = 0;
   std::uint64_t block_seq_ = 0;
+  // Start, then the forwarding thread only: the id of the newest set
+  // published per (subject, leg).
+  std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t> published_sets_;
   // Housekeeping thread only.
   std::string last_state_;
-  std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t> published_sets_;
 
   std::atomic<bool> stop_{false};
   std::mutex wake_mu_;
   std::condition_variable wake_cv_;
   bool wake_ = false;
-  bool poll_sets_ = false;
   mutable std::mutex stats_mu_;
   DdsServerStats stats_;
   std::thread forward_thread_, housekeeping_thread_, command_thread_;

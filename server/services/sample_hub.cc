@@ -41,7 +41,8 @@ struct Subscription::Queue {
     cv.notify_all();
   }
   bool Accepts(const HubItem& item) const {
-    return !options.run_id || item.run_id == *options.run_id;
+    return (!options.run_id || item.run_id == *options.run_id) &&
+           (!options.kind || item.kind == *options.kind);
   }
 };
 
@@ -57,6 +58,8 @@ std::string_view HubItemKindName(HubItem::Kind kind) {
       return "trial";
     case HubItem::Kind::kEnd:
       return "end";
+    case HubItem::Kind::kParameterSet:
+      return "parameter_set";
   }
   return "state";
 }
@@ -89,6 +92,12 @@ nlohmann::json HubItemToJson(const HubItem& item) {
       j["parameter_set_id"] =
           item.parameter_set_id ? nlohmann::json(*item.parameter_set_id) : nlohmann::json(nullptr);
       j["result"] = item.result;
+      break;
+    case HubItem::Kind::kParameterSet:
+      j["parameter_set_id"] =
+          item.parameter_set_id ? nlohmann::json(*item.parameter_set_id) : nlohmann::json(nullptr);
+      j["subject_id"] = item.subject_id;
+      j["leg_id"] = item.leg_id;
       break;
   }
   return j;
@@ -191,6 +200,7 @@ std::uint64_t SampleHub::Publish(HubItem item) {
       break;
     case HubItem::Kind::kSamples:
     case HubItem::Kind::kTrial:
+    case HubItem::Kind::kParameterSet:
       break;
   }
   const auto shared = std::make_shared<const HubItem>(std::move(item));
@@ -220,5 +230,18 @@ std::uint64_t SampleHub::total_dropped() const {
   }
   return n;
 }
+
+ParameterSetEvents::ParameterSetEvents(storage::Database& db, SampleHub& hub) : db_(db) {
+  db_.SetParameterSetListener([&hub](const storage::Database::ParameterSetStored& stored) {
+    HubItem item;
+    item.kind = HubItem::Kind::kParameterSet;
+    item.parameter_set_id = stored.id;
+    item.subject_id = stored.subject_id;
+    item.leg_id = stored.leg_id;
+    hub.Publish(std::move(item));
+  });
+}
+
+ParameterSetEvents::~ParameterSetEvents() { db_.SetParameterSetListener({}); }
 
 }  // namespace fesbench::server::services

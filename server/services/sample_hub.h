@@ -1,10 +1,10 @@
 #pragma once
 
 /// @file
-/// Fan-out of a run's live events (DESIGN.md §8 runs/{id}/stream, §9
+/// Fan-out of the server's live events (DESIGN.md §8 runs/{id}/stream, §9
 /// fesbench/bench/samples): state changes, progress, sample batches, stored
-/// trials and the end of each run go to any number of subscribers (SSE
-/// viewers now, DDS later).
+/// trials and the end of each run, and every stored parameter set, go to any
+/// number of subscribers (SSE viewers, the DDS front end).
 ///
 /// Publishing never blocks on a subscriber: each subscriber has a bounded
 /// queue; when it is full the oldest item is dropped and counted, so a slow
@@ -22,6 +22,7 @@
 #include <string>
 
 #include "server/protocols/runner.h"
+#include "storage/database.h"
 
 namespace fesbench::server::services {
 
@@ -33,6 +34,10 @@ struct HubItem {
     kSamples,   ///< a batch of samples.
     kTrial,     ///< a trial was stored (trial index, name, stored id).
     kEnd,       ///< the run ended and everything it produced is stored.
+    /// A parameter set was stored (by a run, an identification job or an
+    /// import; run_id 0): parameter_set_id, subject_id, leg_id. Published
+    /// after its transaction committed (storage::Database's listener).
+    kParameterSet,
   };
   Kind kind = Kind::kState;
   std::uint64_t seq = 0;    ///< hub-wide, strictly increasing in publish order (from 1).
@@ -46,13 +51,16 @@ struct HubItem {
   /// gaps, so a subscriber can check it received every sample in order.
   std::uint64_t first_sample = 0;
   std::optional<std::int64_t> trial_id;          ///< kTrial: the stored trial.
-  std::optional<std::int64_t> parameter_set_id;  ///< kEnd: a stored parameter set.
+  std::optional<std::int64_t> parameter_set_id;  ///< kEnd, kParameterSet: a stored set.
+  std::int64_t subject_id = 0;                   ///< kParameterSet.
+  std::int64_t leg_id = 0;                       ///< kParameterSet.
   nlohmann::json result;  ///< kEnd: what the run produced (RunView::result), or null.
 };
 
 using HubItemPtr = std::shared_ptr<const HubItem>;
 
-/// "state", "progress", "samples", "trial", "end" (the SSE event name).
+/// "state", "progress", "samples", "trial", "end", "parameter_set" (the SSE
+/// event name).
 std::string_view HubItemKindName(HubItem::Kind kind);
 
 /// The JSON data of an item: {"seq", "run_id", "kind", …} plus, by kind,
@@ -68,6 +76,9 @@ struct SubscribeOptions {
   std::size_t capacity = 1024;
   /// Only items of this run (plus the initial state item); nullopt = all.
   std::optional<std::int64_t> run_id;
+  /// Only items of this kind (the initial state item too only if kState);
+  /// nullopt = all.
+  std::optional<HubItem::Kind> kind;
 };
 
 class SampleHub;
@@ -134,6 +145,21 @@ class SampleHub {
 
  private:
   std::shared_ptr<detail::HubCore> core_;
+};
+
+/// While it lives, every parameter set `db` stores (by a run, a job or an
+/// import) is published on `hub` as a kParameterSet item once its
+/// transaction has committed: the SSE and DDS subscribers learn of new sets
+/// without polling storage. One per database (it is the database's listener).
+class ParameterSetEvents {
+ public:
+  ParameterSetEvents(storage::Database& db, SampleHub& hub);
+  ~ParameterSetEvents();  ///< removes the listener.
+  ParameterSetEvents(const ParameterSetEvents&) = delete;
+  ParameterSetEvents& operator=(const ParameterSetEvents&) = delete;
+
+ private:
+  storage::Database& db_;
 };
 
 }  // namespace fesbench::server::services

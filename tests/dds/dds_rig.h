@@ -95,10 +95,12 @@ struct Rig {
     config.arm_watchdog = false;
     runs = std::make_unique<services::RunService>(*db, *bench, hub, config);
     commands = std::make_unique<services::CommandService>(*db, *runs, "dds");
+    set_events = std::make_unique<services::ParameterSetEvents>(*db, hub);
   }
   ~Rig() {
     if (server) server->Stop();
     runs.reset();
+    set_events.reset();
     db.reset();
     std::filesystem::remove_all(dir);
   }
@@ -131,7 +133,6 @@ struct Rig {
     options.participant.transport = wire::Transport::kUdpLoopback;
     options.participant.name = "fesbench-test-server";
     options.bench_id = "bench-under-test";
-    options.parameter_poll_s = 0.1;
     auto started = DdsServer::Start(options, *db, *runs, hub, *commands);
     ASSERT_TRUE(started.ok()) << started.status().ToString();
     server = std::move(*started);
@@ -158,6 +159,7 @@ struct Rig {
   std::int64_t subject_id = 0, left_leg = 0, right_leg = 0, session_id = 0;
   std::unique_ptr<services::SwappableSimulatedBench> bench;
   services::SampleHub hub;
+  std::unique_ptr<services::ParameterSetEvents> set_events;
   std::unique_ptr<services::RunService> runs;
   std::unique_ptr<services::CommandService> commands;
   std::unique_ptr<DdsServer> server;

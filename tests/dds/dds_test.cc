@@ -40,7 +40,8 @@ TEST(DdsServer, LateJoinerGetsTheLatestParameterSetOfEveryLegAndTheBenchState) {
   rig.StoreSet(rig.left_leg, 20.0);
   rig.StoreSet(rig.right_leg, 21.0);
   rig.StartServer();
-  // A new version of the right leg's set while the server runs: published by the poll.
+  // A new version of the right leg's set while the server runs: published as
+  // the event its storing raises (no polling of storage).
   const std::int64_t newest_right = rig.StoreSet(rig.right_leg, 27.5);
   const auto until = std::chrono::steady_clock::now() + kWait;
   while (rig.server->stats().parameter_sets < 3 && std::chrono::steady_clock::now() < until) {
