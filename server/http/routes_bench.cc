@@ -37,8 +37,65 @@ struct EventStream {
   std::unique_ptr<services::Subscription> subscription;
   std::string pending;  // frames to send before reading the hub
   bool finished = false;
+  /// An endless stream ends here (the client reconnects); unset: at its end item.
+  std::optional<std::chrono::steady_clock::time_point> deadline;
   std::chrono::steady_clock::time_point last_write = std::chrono::steady_clock::now();
 };
+
+// Sends `stream`'s pending frames, then its subscription's items as SSE,
+// until an end item, the subscription closing, the server shutting down or
+// the viewer leaving (a failed write frees the worker at once). A comment
+// line every 2 s of silence keeps proxies open and detects a departed viewer.
+api::Result<Reply> ServeEventStream(RequestContext& ctx, std::shared_ptr<EventStream> stream,
+                                    StreamSlots* slots) {
+  ctx.res.status = 200;
+  ctx.res.set_header("X-Accel-Buffering", "no");
+  ctx.res.set_chunked_content_provider(
+      "text/event-stream",
+      [stream, slots](std::size_t, httplib::DataSink& sink) {
+        using namespace std::chrono;
+        auto write = [&](const std::string& text) {
+          stream->last_write = steady_clock::now();
+          return sink.write(text.data(), text.size());
+        };
+        if (!stream->pending.empty()) {
+          std::string pending = std::move(stream->pending);
+          stream->pending.clear();
+          if (!write(pending)) return false;
+        }
+        if (stream->finished || slots->shutting_down() || !stream->subscription ||
+            (stream->deadline && steady_clock::now() >= *stream->deadline)) {
+          sink.done();
+          return true;
+        }
+        // Wait briefly for the next item, then send what has queued up.
+        std::string frames;
+        bool end = false;
+        auto item = stream->subscription->Next(milliseconds(250));
+        for (int n = 0; item && n < 256; ++n) {
+          json data = services::HubItemToJson(*item);
+          if (item->kind == services::HubItem::Kind::kEnd) {
+            data["dropped"] = stream->subscription->dropped();
+            end = true;
+          }
+          frames += SseFrame(item->seq, services::HubItemKindName(item->kind), data);
+          if (end) break;
+          item = stream->subscription->Next(milliseconds(0));
+        }
+        if (!frames.empty()) {
+          if (!write(frames)) return false;  // the viewer left: free the worker
+        } else if (steady_clock::now() - stream->last_write > seconds(2)) {
+          if (!write(": keep-alive\n\n")) return false;
+        }
+        if (end || stream->subscription->closed()) {
+          stream->finished = true;
+          sink.done();
+        }
+        return true;
+      },
+      [stream](bool) { stream->subscription.reset(); });
+  return Reply{200, nullptr, true};
+}
 
 json RunViewJson(const services::RunView& view) { return services::RunViewToJson(view); }
 
@@ -168,53 +225,32 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                  stream->finished = true;
                  stream->subscription.reset();
                }
-               ctx.res.status = 200;
-               ctx.res.set_header("X-Accel-Buffering", "no");
-               ctx.res.set_chunked_content_provider(
-                   "text/event-stream",
-                   [stream, slots](std::size_t, httplib::DataSink& sink) {
-                     using namespace std::chrono;
-                     auto write = [&](const std::string& text) {
-                       stream->last_write = steady_clock::now();
-                       return sink.write(text.data(), text.size());
-                     };
-                     if (!stream->pending.empty()) {
-                       std::string pending = std::move(stream->pending);
-                       stream->pending.clear();
-                       if (!write(pending)) return false;
-                     }
-                     if (stream->finished || slots->shutting_down() || !stream->subscription) {
-                       sink.done();
-                       return true;
-                     }
-                     // Wait briefly for the next item, then send what has queued up.
-                     std::string frames;
-                     bool end = false;
-                     auto item = stream->subscription->Next(milliseconds(250));
-                     for (int n = 0; item && n < 256; ++n) {
-                       json data = services::HubItemToJson(*item);
-                       if (item->kind == services::HubItem::Kind::kEnd) {
-                         data["dropped"] = stream->subscription->dropped();
-                         end = true;
-                       }
-                       frames += SseFrame(item->seq, services::HubItemKindName(item->kind), data);
-                       if (end) break;
-                       item = stream->subscription->Next(milliseconds(0));
-                     }
-                     if (!frames.empty()) {
-                       if (!write(frames)) return false;  // the viewer left: free the worker
-                     } else if (steady_clock::now() - stream->last_write > seconds(2)) {
-                       // A comment line: keeps proxies open and detects a departed viewer.
-                       if (!write(": keep-alive\n\n")) return false;
-                     }
-                     if (end || stream->subscription->closed()) {
-                       stream->finished = true;
-                       sink.done();
-                     }
-                     return true;
-                   },
-                   [stream](bool) { stream->subscription.reset(); });
-               return Reply{200, nullptr, true};
+               return ServeEventStream(ctx, std::move(stream), slots);
+             }});
+  table.Add({"GET", "/api/v1/events/parameter-sets", kAnyRole, false, "parameter-sets",
+             "Server-Sent Events: one parameter_set event (parameter_set_id, subject_id, "
+             "leg_id) for every parameter set stored from now on, by a run, an "
+             "identification job or an import; the stream ends after timeout_s",
+             {{"timeout_s", "integer",
+               "seconds until the stream ends and the client reconnects, 1–3600 (default 300)"}},
+             200, "text/event-stream", nullptr, nullptr,
+             [hub, slots](RequestContext& ctx) -> api::Result<Reply> {
+               if (!hub) return NotAvailable("the event hub");
+               auto timeout = QueryId(ctx, "timeout_s");
+               if (!timeout.ok() || (*timeout && **timeout > 3600)) {
+                 return api::Status::InvalidArgument(
+                     "must be 1–3600 s, got " + ctx.Query("timeout_s").value_or(""), "timeout_s");
+               }
+               auto slot = slots->TryAcquire();
+               if (!slot) return api::Status::Unavailable("too many open event streams; retry later");
+               auto stream = std::make_shared<EventStream>();
+               stream->slot = std::move(slot);
+               services::SubscribeOptions options;
+               options.kind = services::HubItem::Kind::kParameterSet;
+               stream->subscription = hub->Subscribe(options);
+               stream->deadline = std::chrono::steady_clock::now() +
+                                  std::chrono::seconds(timeout->value_or(300));
+               return ServeEventStream(ctx, std::move(stream), slots);
              }});
 
   table.Add({"GET", "/api/v1/bench", kAnyRole, false, "bench",

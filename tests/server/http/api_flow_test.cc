@@ -112,6 +112,33 @@ TEST(ApiFlowTest, RapidParameterisationEndToEnd) {
   ASSERT_EQ(session.status, 201) << session.text;
   const std::int64_t session_id = session.body["id"];
 
+  // An analyst waits for new parameter sets (issue 18: sets as events). The
+  // stream's one parameter is checked first.
+  for (const char* bad : {"0", "3601", "abc"}) {
+    auto refused = Call(client, "GET", std::string("/api/v1/events/parameter-sets?timeout_s=") + bad,
+                        analyst);
+    EXPECT_EQ(refused.status, 400) << bad;
+    EXPECT_EQ(refused.body["error"]["field"], "timeout_s") << refused.text;
+  }
+  json set_event;
+  std::thread set_watcher([&] {
+    httplib::Client c("127.0.0.1", server.port());
+    c.set_read_timeout(60);
+    std::string buffer;
+    c.Get("/api/v1/events/parameter-sets?timeout_s=60", {{"Authorization", "Bearer " + analyst}},
+          [&](const char* data, std::size_t n) {
+            buffer.append(data, n);
+            const std::size_t at = buffer.find("event: parameter_set\ndata: ");
+            if (at == std::string::npos) return true;
+            const std::size_t from = at + std::string("event: parameter_set\ndata: ").size();
+            const std::size_t eol = buffer.find('\n', from);
+            if (eol == std::string::npos) return true;
+            set_event = json::parse(buffer.substr(from, eol - from));
+            return false;  // the first set is enough: leave
+          });
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // subscribed
+
   // Start the run and follow its stream to the end, heart-beating meanwhile.
   auto run = Call(client, "POST", "/api/v1/sessions/" + std::to_string(session_id) + "/runs",
                   clinician, {{"protocol", "rapid_parameterisation"}});
@@ -136,6 +163,11 @@ TEST(ApiFlowTest, RapidParameterisationEndToEnd) {
   EXPECT_EQ(events.back().second["dropped"], 0);
   ASSERT_TRUE(events.back().second["parameter_set_id"].is_number_integer());
   const std::int64_t set_id = events.back().second["parameter_set_id"];
+  set_watcher.join();
+  ASSERT_TRUE(set_event.is_object()) << "no parameter_set event";
+  EXPECT_EQ(set_event["kind"], "parameter_set");
+  EXPECT_EQ(set_event["parameter_set_id"], set_id);
+  EXPECT_EQ(set_event["subject_id"], subject_id);
   // Sample batches, if any arrived, continue each other without gaps.
   std::uint64_t next_sample = 0;
   bool first_batch = true;

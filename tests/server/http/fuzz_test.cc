@@ -142,6 +142,9 @@ TEST(FuzzTest, EveryRouteAnswersHostileInputWithoutA5xx) {
   };
   std::vector<Op> ops;
   for (const auto& [path, methods] : doc.body["paths"].items()) {
+    // An endless event stream (it ends after timeout_s, up to an hour): its
+    // input is the one query parameter, checked in api_flow_test.
+    if (path.starts_with("/api/v1/events/")) continue;
     for (const auto& [method, op] : methods.items()) {
       Op o{method, path, nullptr, {}};
       for (auto& c : o.method) c = static_cast<char>(std::toupper(c));

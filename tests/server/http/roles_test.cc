@@ -46,6 +46,7 @@ const Expectation kRoutes[] = {
     {"POST", "/api/v1/runs/{run_id}/stop", "cd"},
     {"POST", "/api/v1/runs/{run_id}/heartbeat", "cd"},
     {"GET", "/api/v1/runs/{run_id}/stream", "cad"},
+    {"GET", "/api/v1/events/parameter-sets", "cad"},
     {"GET", "/api/v1/trials/{trial_id}", "cad"},
     {"GET", "/api/v1/parameter-sets", "cad"},
     {"GET", "/api/v1/parameter-sets/{parameter_set_id}", "cad"},
@@ -81,6 +82,8 @@ std::string Concrete(std::string path) {
     const std::string name = path.substr(open + 1, close - open - 1);
     path.replace(open, close - open + 1, name.ends_with("id") ? "987654" : "no_such_name");
   }
+  // The endless event stream: end it after a second.
+  if (path.starts_with("/api/v1/events/")) path += "?timeout_s=1";
   return path;
 }
 
