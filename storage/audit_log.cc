@@ -35,7 +35,8 @@ api::Result<std::vector<AuditEntry>> AuditLog::List(const AuditQuery& query) {
         c,
         "SELECT id, at_utc, user_id, actor, action, target, request_summary, outcome"
         " FROM audit_log WHERE (?1 IS NULL OR at_utc >= ?1) AND (?2 IS NULL OR at_utc < ?2)"
-        " AND (?3 IS NULL OR user_id = ?3) ORDER BY id DESC LIMIT ?4",
+        " AND (?3 IS NULL OR user_id = ?3) AND (?5 IS NULL OR id < ?5)"
+        " ORDER BY id DESC LIMIT ?4",
         [](const Statement& s) -> api::Result<AuditEntry> {
           AuditEntry e;
           e.id = s.Int64(0);
@@ -50,7 +51,7 @@ api::Result<std::vector<AuditEntry>> AuditLog::List(const AuditQuery& query) {
           e.entry.outcome = s.Text(7);
           return e;
         },
-        from, to, query.user_id, static_cast<std::int64_t>(query.limit));
+        from, to, query.user_id, static_cast<std::int64_t>(query.limit), query.before_id);
   });
 }
 

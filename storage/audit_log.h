@@ -36,6 +36,9 @@ struct AuditQuery {
   std::optional<UtcTime> to;    ///< exclusive.
   std::optional<std::int64_t> user_id;
   std::size_t limit = 1000;  ///< at most this many, newest first.
+  /// Keyset paging: only entries older than this id (the last one of the
+  /// previous page). A page is an index range, however deep.
+  std::optional<std::int64_t> before_id;
 };
 
 class AuditLog {

@@ -306,6 +306,12 @@ CREATE INDEX parameter_sets_subject_id ON parameter_sets(subject_id, id);
 CREATE INDEX parameter_sets_leg_id ON parameter_sets(subject_id, leg_id, id);
 )sql";
 
+// Keyset paging of the audit log filtered by user, newest first: one
+// user's rows in id order, so a deep page is a range seek.
+const char* const kMigration10 = R"sql(
+CREATE INDEX audit_log_user_id ON audit_log(user_id, id);
+)sql";
+
 }  // namespace
 
 const std::vector<Migration>& AllMigrations() {
@@ -329,6 +335,7 @@ const std::vector<Migration>& AllMigrations() {
       {8, "the pulses delivered in each trial",
        std::string(kMigration8) + AppendOnly({"trial_pulses"})},
       {9, "indexes for keyset paging of parameter sets", kMigration9},
+      {10, "index for keyset paging of the audit log by user", kMigration10},
   };
   return kMigrations;
 }

@@ -208,21 +208,20 @@ void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps) {
                  if (!to.ok()) return to.status();
                  query.from = *from;
                  query.to = *to;
-                 query.limit = 100000;
+                 // Newest first, paged in SQL: the cursor is the last id
+                 // shown; the next page holds older (smaller) ids. One row
+                 // more than the page says whether there is a next one.
+                 if (page->after_id != 0) query.before_id = page->after_id;
+                 query.limit = page->limit + 1;
                  auto entries = storage::AuditLog(db).List(query);
                  if (!entries.ok()) return entries.status();
-                 // Newest first: the cursor is the last id shown; the next
-                 // page holds older (smaller) ids.
                  json items = json::array();
                  std::int64_t last = 0;
-                 std::size_t i = 0;
-                 for (; i < entries->size() && items.size() < page->limit; ++i) {
-                   const auto& e = (*entries)[i];
-                   if (page->after_id != 0 && e.id >= page->after_id) continue;
-                   items.push_back(AuditEntryToJson(e));
-                   last = e.id;
+                 for (std::size_t i = 0; i < entries->size() && i < page->limit; ++i) {
+                   items.push_back(AuditEntryToJson((*entries)[i]));
+                   last = (*entries)[i].id;
                  }
-                 const bool more = i < entries->size();
+                 const bool more = entries->size() > page->limit;
                  return JsonReply({{"items", std::move(items)},
                                    {"next_cursor", more ? json(EncodeCursor(last)) : json(nullptr)}});
                }});

@@ -35,7 +35,7 @@ TEST_F(StorageTest, OpensInWalWithForeignKeysAndFullSync) {
   auto version = db_->SchemaVersion();
   ASSERT_TRUE(version.ok());
   EXPECT_EQ(*version, LatestSchemaVersion());
-  EXPECT_EQ(LatestSchemaVersion(), 9);
+  EXPECT_EQ(LatestSchemaVersion(), 10);
   auto recorded = db_->Read([](Connection& c) {
     return c.QueryText("SELECT group_concat(version) FROM schema_migrations");
   });
