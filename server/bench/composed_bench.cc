@@ -21,6 +21,16 @@ void ComposedBench::SetStimAmplitude(double stim_ma) {
     sent_ma_.store(0.0);  // the device stopped: the next start is sent
     return;
   }
+  if (stimulator_->host_paced()) {
+    // Nothing to send: the leg's pulse clock paces the device (AdvanceTo).
+    if (!stimulator_->SetAmplitude(stim_ma)) {
+      if (!stimulator_->estopped()) HardwareEStop();
+      body_->SetStimAmplitude(0.0);
+      return;
+    }
+    body_->SetStimAmplitude(stimulator_->delivered_ma());
+    return;
+  }
   // Only a change of at least one device step is sent (the device keeps
   // delivering the last accepted amplitude at its pulse rate).
   const double step = stimulator_->current_step_ma();
@@ -39,6 +49,12 @@ void ComposedBench::SetStimAmplitude(double stim_ma) {
 
 void ComposedBench::TriggerPulse(double stim_ma) {
   if (stim_ma <= 0.0 || HardwareEStopped()) return;
+  if (stimulator_->host_paced()) {
+    // The leg fires it now; AdvanceTo sends it to the device.
+    const double step = stimulator_->current_step_ma();
+    body_->TriggerPulse(std::floor(stim_ma / step + 1e-9) * step);
+    return;
+  }
   const std::optional<double> delivered = stimulator_->SinglePulse(stim_ma);
   sent_ma_.store(0.0);  // the device's pulse train is stopped either way
   if (!delivered) {
@@ -50,7 +66,27 @@ void ComposedBench::TriggerPulse(double stim_ma) {
 
 void ComposedBench::AdvanceTo(double t_s) {
   body_->AdvanceTo(t_s);
+  if (stimulator_->host_paced()) {
+    std::vector<model::Pulse> pulses = body_->DrainDeliveredPulses();
+    for (const model::Pulse& p : pulses) {
+      if (HardwareEStopped()) break;
+      if (!stimulator_->SinglePulse(p.stim_ma)) {
+        if (!stimulator_->estopped()) HardwareEStop();  // a fault: latch with its reason
+        break;
+      }
+    }
+    std::lock_guard lock(paced_mu_);
+    paced_.insert(paced_.end(), pulses.begin(), pulses.end());
+  }
   if (!stimulator_->Service() && !estop_.load()) HardwareEStop();
+}
+
+std::vector<model::Pulse> ComposedBench::DrainDeliveredPulses() {
+  if (!stimulator_->host_paced()) return body_->DrainDeliveredPulses();
+  std::vector<model::Pulse> out;
+  std::lock_guard lock(paced_mu_);
+  out.swap(paced_);
+  return out;
 }
 
 SensorFrame ComposedBench::ReadSensors() {

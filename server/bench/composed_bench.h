@@ -17,14 +17,18 @@
 /// (HardwareFault), which SafeBench adopts and the runner reports.
 /// HardwareEStop sends the device's stop at once from the calling thread.
 ///
-/// Device updates: the stimulator is told only when the commanded amplitude
-/// crosses a step of its resolution, and waits for each acknowledgement on
-/// the control thread; a single off-grid pulse (TriggerPulse: the impulse
-/// protocols, the impulses of the ramp protocols) is the device's single
-/// pulse, which stops its pulse train first.
+/// Device updates: a device that runs its own pulse train (ScienceMode2) is
+/// told only when the commanded amplitude crosses a step of its resolution,
+/// and a single off-grid pulse (TriggerPulse: the impulse protocols, the
+/// impulses of the ramp protocols) is its single pulse, which stops the
+/// train first. A host-paced device (ScienceMode4 low level) is sent every
+/// pulse of the leg's pulse clock, grid or single, as the leg receives it
+/// (AdvanceTo). Each command waits for its acknowledgement on the control
+/// thread.
 
 #include <atomic>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "server/bench/bench.h"
@@ -44,7 +48,7 @@ class ComposedBench final : public Bench {
   void SetStimAmplitude(double stim_ma) override;
   void TriggerPulse(double stim_ma) override;
   void RestartPulseClock() override { body_->RestartPulseClock(); }
-  std::vector<model::Pulse> DrainDeliveredPulses() override { return body_->DrainDeliveredPulses(); }
+  std::vector<model::Pulse> DrainDeliveredPulses() override;
   void SetMotorMode(MotorMode mode) override { body_->SetMotorMode(mode); }
   void SetMotorSetpoint(double angle_deg) override { body_->SetMotorSetpoint(angle_deg); }
   double Now_s() const override { return body_->Now_s(); }
@@ -66,6 +70,8 @@ class ComposedBench final : public Bench {
   std::string kind_;
   BenchLimits limits_;
   std::atomic<double> sent_ma_{0.0};  ///< the last amplitude the device accepted.
+  std::mutex paced_mu_;               // guards paced_
+  std::vector<model::Pulse> paced_;   ///< host-paced: pulses sent, not yet drained.
   std::atomic<bool> estop_{false};
 };
 

@@ -26,6 +26,12 @@ class StimulatorDevice {
   /// The device's current step, mA: a command is delivered rounded down to
   /// it (never above what was commanded).
   virtual double current_step_ma() const = 0;
+  /// True if the device fires only the pulses the host sends one by one
+  /// (ScienceMode4 low level): the bench then sends every pulse of its own
+  /// pulse clock through SinglePulse. False if the device runs the pulse
+  /// train itself at its own rate (ScienceMode2 channel-list mode) and
+  /// SetAmplitude changes it.
+  virtual bool host_paced() const { return false; }
 
   /// The session's maximum, mA: SetAmplitude refuses (as a fault) anything
   /// above it. Thread-safe.

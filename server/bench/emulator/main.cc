@@ -1,6 +1,7 @@
-// fesbench-sm2-emulator: a RehaStim2 (ScienceMode2) emulator on a
-// pseudo-terminal, for dry runs and tests without hardware. Prints the port
-// path on stdout, then records every delivery as JSON lines.
+// fesbench-sm2-emulator: a RehaStim2 (ScienceMode2) or, with --device sm4, a
+// P24 (ScienceMode4 low level) emulator on a pseudo-terminal, for dry runs
+// and tests without hardware. Prints the port path on stdout, then records
+// every delivery as JSON lines.
 
 #include <CLI/CLI.hpp>
 #include <atomic>
@@ -12,19 +13,59 @@
 #include <thread>
 
 #include "server/bench/emulator/sciencemode2_emulator.h"
+#include "server/bench/emulator/sciencemode4_emulator.h"
 
 namespace {
 std::atomic<bool> g_stop{false};
 void OnSignal(int) { g_stop = true; }
+
+void Wait(const std::string& port_path) {
+  std::cout << port_path << std::endl;
+  while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+}
+
+void RunSm2(const std::string& fault, const std::string& log_path) {
+  using fesbench::server::sciencemode2::Emulator;
+  using fesbench::server::sciencemode2::EmulatorFault;
+  Emulator emulator;
+  if (fault == "corrupt-replies") emulator.set_fault(EmulatorFault::kCorruptReplies);
+  if (fault == "silent") emulator.set_fault(EmulatorFault::kSilent);
+  Wait(emulator.port_path());
+  if (log_path.empty()) return;
+  std::ofstream out(log_path);
+  for (const auto& d : emulator.deliveries()) {
+    out << "{\"t_s\":" << d.t_s << ",\"channel\":" << d.channel << ",\"current_ma\":" << d.current_ma
+        << ",\"pulse_width_us\":" << d.pulse_width_us << ",\"stop\":" << (d.stop ? "true" : "false")
+        << ",\"reason\":\"" << d.reason << "\"}\n";
+  }
+}
+
+void RunSm4(const std::string& fault, const std::string& log_path) {
+  using fesbench::server::sciencemode4::Emulator;
+  using fesbench::server::sciencemode4::EmulatorFault;
+  Emulator emulator;
+  if (fault == "corrupt-replies") emulator.set_fault(EmulatorFault::kCorruptReplies);
+  if (fault == "silent") emulator.set_fault(EmulatorFault::kSilent);
+  Wait(emulator.port_path());
+  if (log_path.empty()) return;
+  std::ofstream out(log_path);
+  for (const auto& d : emulator.deliveries()) {
+    const int width = d.points.empty() ? 0 : d.points.front().time_us;
+    out << "{\"t_s\":" << d.t_s << ",\"channel\":" << d.channel
+        << ",\"current_ma\":" << d.current_ma() << ",\"pulse_width_us\":" << width
+        << ",\"stop\":" << (d.stop ? "true" : "false") << "}\n";
+  }
+}
 }  // namespace
 
 int main(int argc, char** argv) {
-  using fesbench::server::sciencemode2::Emulator;
-  using fesbench::server::sciencemode2::EmulatorFault;
-  CLI::App app{"RehaStim2 (ScienceMode2) emulator on a pseudo-terminal"};
+  CLI::App app{"RehaStim2 (ScienceMode2) or P24 (ScienceMode4) emulator on a pseudo-terminal"};
   app.set_version_flag("--version", std::string("fesbench-sm2-emulator ") + FESBENCH_VERSION);
   std::string log_path;
   std::string fault = "none";
+  std::string device = "sm2";
+  app.add_option("--device", device, "sm2 (RehaStim2, ScienceMode2) or sm4 (P24, low level)")
+      ->check(CLI::IsMember({"sm2", "sm4"}));
   app.add_option("--log", log_path, "write deliveries as JSON lines to this file at exit");
   app.add_option("--fault", fault, "none, corrupt-replies or silent")
       ->check(CLI::IsMember({"none", "corrupt-replies", "silent"}));
@@ -32,19 +73,10 @@ int main(int argc, char** argv) {
 
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
-  Emulator emulator;
-  if (fault == "corrupt-replies") emulator.set_fault(EmulatorFault::kCorruptReplies);
-  if (fault == "silent") emulator.set_fault(EmulatorFault::kSilent);
-  std::cout << emulator.port_path() << std::endl;
-  while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-
-  if (!log_path.empty()) {
-    std::ofstream out(log_path);
-    for (const auto& d : emulator.deliveries()) {
-      out << "{\"t_s\":" << d.t_s << ",\"channel\":" << d.channel
-          << ",\"current_ma\":" << d.current_ma << ",\"pulse_width_us\":" << d.pulse_width_us
-          << ",\"stop\":" << (d.stop ? "true" : "false") << ",\"reason\":\"" << d.reason << "\"}\n";
-    }
+  if (device == "sm4") {
+    RunSm4(fault, log_path);
+  } else {
+    RunSm2(fault, log_path);
   }
   return 0;
 }
