@@ -10,6 +10,9 @@
 // on another thread than the control loop) until the emulator has stopped
 // stimulating (it polls its pty every ≤ 5 ms while idle, so this is an upper
 // bound of the driver's share).
+// BM_Sm4PulseAcknowledged: one ScienceMode4 low-level pulse
+// (Ll_Channel_Config, biphasic) against the P24 emulator, with its ack: the
+// host-paced device's cost per pulse.
 
 #include <benchmark/benchmark.h>
 #include <fcntl.h>
@@ -23,6 +26,8 @@
 
 #include "server/bench/composed_bench.h"
 #include "server/bench/emulator/sciencemode2_emulator.h"
+#include "server/bench/emulator/sciencemode4_emulator.h"
+#include "server/bench/sciencemode4_stimulator.h"
 #include "server/bench/simulated_bench.h"
 #include "server/bench/virtual_subject.h"
 #include "server/bench/sciencemode2_packet.h"
@@ -115,5 +120,25 @@ void BM_EStopToDevice(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_EStopToDevice)->UseRealTime()->Unit(benchmark::kMicrosecond);
+
+void BM_Sm4PulseAcknowledged(benchmark::State& state) {
+  sciencemode4::Emulator emulator;
+  sciencemode4::StimulatorConfig config;
+  config.port_path = emulator.port_path();
+  sciencemode4::Stimulator stim(config);
+  if (!stim.Connect()) {
+    state.SkipWithError(stim.fault().c_str());
+    return;
+  }
+  double ma = 1.0;
+  for (auto _ : state) {
+    if (!stim.SinglePulse(ma)) {
+      state.SkipWithError(stim.fault().c_str());
+      break;
+    }
+    ma = ma >= 60.0 ? 1.0 : ma + 0.5;
+  }
+}
+BENCHMARK(BM_Sm4PulseAcknowledged)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 }  // namespace

@@ -41,15 +41,18 @@ api::Status ValidateServerConfig(const ServerConfig& c) {
     return api::Status::InvalidArgument("--bench replay needs at least one --replay CSV file",
                                         "replay");
   }
-  if (c.stimulator != "sim" && c.stimulator != "sciencemode2") {
-    return api::Status::InvalidArgument("must be sim or sciencemode2", "stimulator");
+  if (c.stimulator != "sim" && c.stimulator != "sciencemode2" && c.stimulator != "sciencemode4") {
+    return api::Status::InvalidArgument("must be sim, sciencemode2 or sciencemode4", "stimulator");
   }
-  if (c.stimulator == "sciencemode2" && c.stimulator_port.empty()) {
+  if (c.stimulator != "sim" && c.stimulator_port.empty()) {
     return api::Status::InvalidArgument(
-        "--stimulator sciencemode2 needs --stimulator-port (e.g. /dev/ttyUSB0)", "stimulator-port");
+        "--stimulator " + c.stimulator + " needs --stimulator-port (e.g. /dev/ttyUSB0)",
+        "stimulator-port");
   }
-  if (c.stimulator_channel < 1 || c.stimulator_channel > 8) {
-    return api::Status::InvalidArgument("must be in [1, 8]", "stimulator-channel");
+  const int channels = c.stimulator == "sciencemode4" ? 4 : 8;
+  if (c.stimulator_channel < 1 || c.stimulator_channel > channels) {
+    return api::Status::InvalidArgument("must be in [1, " + std::to_string(channels) + "]",
+                                        "stimulator-channel");
   }
   if (c.job_workers < 1 || c.job_workers > 64) {
     return api::Status::InvalidArgument("must be in [1, 64]", "job-workers");
@@ -170,12 +173,13 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   app.add_option("--seed", flags.seed, "seed of the simulated virtual subject (default 1)");
   app.add_option("--replay", flags.replay, "CSV trial files for --bench replay");
   app.add_option("--stimulator", flags.stimulator,
-                 "sim (the bench's own) or sciencemode2 (a RehaStim2 on --stimulator-port)")
-      ->check(CLI::IsMember({"sim", "sciencemode2"}));
+                 "sim (the bench's own), sciencemode2 (a RehaStim2) or sciencemode4 (a P24, "
+                 "low level) on --stimulator-port")
+      ->check(CLI::IsMember({"sim", "sciencemode2", "sciencemode4"}));
   app.add_option("--stimulator-port", flags.stimulator_port,
                  "serial device of the stimulator, e.g. /dev/ttyUSB0");
   app.add_option("--stimulator-channel", flags.stimulator_channel,
-                 "stimulator channel 1-8 (default 1)");
+                 "stimulator channel: 1-8 on a RehaStim2, 1-4 on a P24 (default 1)");
   app.add_option("--job-workers", flags.job_workers, "identification/prediction worker threads");
   app.add_option("--max-connections", flags.max_connections,
                  "keep-alive connections served at once (default 48)");

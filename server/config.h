@@ -46,11 +46,12 @@ struct ServerConfig {
   std::string tls_key;                  ///< --tls-key: PEM private key.
   std::uint64_t seed = 1;               ///< --seed: virtual subject of the simulated bench.
   std::vector<std::string> replay;      ///< --replay: CSV trials for --bench replay.
-  /// --stimulator: "sim" (the bench's own) or "sciencemode2" (a RehaStim2
-  /// on --stimulator-port, composed with the bench's sensors and motor).
+  /// --stimulator: "sim" (the bench's own), "sciencemode2" (a RehaStim2) or
+  /// "sciencemode4" (a P24, low level) on --stimulator-port, composed with
+  /// the bench's sensors and motor.
   std::string stimulator = "sim";
   std::string stimulator_port;  ///< --stimulator-port: serial device, e.g. /dev/ttyUSB0.
-  int stimulator_channel = 1;   ///< --stimulator-channel: 1–8.
+  int stimulator_channel = 1;   ///< --stimulator-channel: 1–8 (RehaStim2), 1–4 (P24).
   int job_workers = 2;                  ///< --job-workers: identification/prediction threads.
   int max_connections = 48;             ///< --max-connections: connections served at once.
   int max_streams = 16;                 ///< --max-streams: open event streams.

@@ -20,6 +20,7 @@
 #include "server/bench/composed_bench.h"
 #include "server/bench/replay_bench.h"
 #include "server/bench/sciencemode2_stimulator.h"
+#include "server/bench/sciencemode4_stimulator.h"
 #include "server/bench/virtual_subject.h"
 #include "server/config.h"
 #include "server/dds/dds_server.h"
@@ -142,6 +143,18 @@ int main(int argc, char** argv) {
     sm2.pulse_width_us = static_cast<int>(bench->limits().pulse_width_us);
     sm2.session_max_ma = bench->limits().max_stim_ma;
     auto device = std::make_unique<server::sciencemode2::Stimulator>(sm2);
+    if (!device->Connect()) {
+      return Fail("stimulator on " + config.stimulator_port,
+                  api::Status::Unavailable(device->fault()));
+    }
+    bench = std::make_unique<server::ComposedBench>(std::move(bench), std::move(device));
+  } else if (config.stimulator == "sciencemode4") {
+    server::sciencemode4::StimulatorConfig sm4;
+    sm4.port_path = config.stimulator_port;
+    sm4.channel = config.stimulator_channel;
+    sm4.pulse_width_us = static_cast<int>(bench->limits().pulse_width_us);
+    sm4.session_max_ma = bench->limits().max_stim_ma;
+    auto device = std::make_unique<server::sciencemode4::Stimulator>(sm4);
     if (!device->Connect()) {
       return Fail("stimulator on " + config.stimulator_port,
                   api::Status::Unavailable(device->fault()));

@@ -215,7 +215,11 @@ TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
   EXPECT_TRUE(ValidateServerConfig(c).ok());
   EXPECT_EQ(c.stimulator_channel, 2);
   EXPECT_EQ(ApplyConfigJson(R"({"stimulator-channel": 9})", c).field(), "stimulator-channel");
-  c.stimulator = "sciencemode4";
+  c.stimulator = "sciencemode4";  // a P24: channels 1–4
+  EXPECT_TRUE(ValidateServerConfig(c).ok());
+  c.stimulator_channel = 5;
+  EXPECT_EQ(ValidateServerConfig(c).field(), "stimulator-channel");
+  c.stimulator = "sciencemode5";
   EXPECT_EQ(ValidateServerConfig(c).field(), "stimulator");
 
   std::ostringstream out, err;
