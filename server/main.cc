@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string_view>
 #include <thread>
 
@@ -165,7 +166,9 @@ int main(int argc, char** argv) {
   server::services::SampleHub hub;
   // Every stored parameter set, whoever stored it, is an event for the SSE
   // and DDS subscribers (after its commit; no polling over the legs).
-  server::services::ParameterSetEvents set_events(**db, hub);
+  // (Ended before the database closes, below.)
+  std::optional<server::services::ParameterSetEvents> set_events;
+  set_events.emplace(**db, hub);
   server::services::RunServiceConfig run_config;
   run_config.time_scale = config.time_scale;
   server::services::RunService runs(**db, *bench, hub, run_config);
@@ -286,6 +289,7 @@ int main(int argc, char** argv) {
   if (dds) dds->Stop();  // after the run's final state went out
   hub.Close();
   jobs.Shutdown();
+  set_events.reset();
   db->reset();
   std::cout << "fesbench-server: stopped" << std::endl;
   return served ? 0 : 1;
