@@ -117,8 +117,9 @@ std::size_t Trial::num_samples() const { return NumSamples(channels); }
 std::string ChannelUnit(std::string_view name) {
   // Longest suffixes first: "_deg_s2" before "_deg_s" before "_s".
   static constexpr std::pair<std::string_view, std::string_view> kSuffixes[] = {
-      {"_deg_s2", "deg/s^2"}, {"_deg_s", "deg/s"}, {"_deg", "deg"}, {"_ms", "ms"},  {"_ma", "mA"},
-      {"_nm", "N.m"},         {"_mv", "mV"},       {"_hz", "Hz"},   {"_gain", "1"}, {"_s", "s"},
+      {"_deg_s2", "deg/s^2"}, {"_deg_s", "deg/s"}, {"_m_s2", "m/s^2"}, {"_deg", "deg"},
+      {"_ms", "ms"},          {"_ma", "mA"},       {"_nm", "N.m"},     {"_mv", "mV"},
+      {"_hz", "Hz"},          {"_gain", "1"},      {"_s", "s"},        {"_m", "m"},
   };
   if (name == "activation") return "1";
   for (const auto& [suffix, unit] : kSuffixes) {

@@ -113,7 +113,8 @@ struct Trial {
 
 /// The unit a channel name's suffix denotes: "_s" → "s", "_ms" → "ms",
 /// "_ma" → "mA", "_deg" → "deg", "_deg_s" → "deg/s", "_deg_s2" → "deg/s^2",
-/// "_nm" → "N.m", "_mv" → "mV", "_hz" → "Hz"; "activation" and names ending
+/// "_nm" → "N.m", "_mv" → "mV", "_hz" → "Hz", "_m_s2" → "m/s^2", "_m" → "m";
+/// "activation" and names ending
 /// in "_gain" → "1" (dimensionless); otherwise "" (unknown).
 std::string ChannelUnit(std::string_view name);
 

@@ -23,6 +23,7 @@ packages=(
   libcli11-dev openssl
   nodejs chromium
   gnuplot-nox
+  libarchive-dev python3-pandas
 )
 # The web client's build and browser tests (clients/web, tests/browser): Node
 # and npm (npm packages come from the npm registry via package-lock.json),

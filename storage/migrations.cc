@@ -312,6 +312,18 @@ const char* const kMigration10 = R"sql(
 CREATE INDEX audit_log_user_id ON audit_log(user_id, id);
 )sql";
 
+// Where an imported trial came from (storage/trials.h TrialImport).
+const char* const kMigration11 = R"sql(
+CREATE TABLE trial_imports (
+  trial_id          INTEGER PRIMARY KEY REFERENCES trials(id),
+  format            TEXT NOT NULL,
+  source            TEXT NOT NULL DEFAULT '',
+  spec_json         TEXT NOT NULL DEFAULT '{}',
+  imported_by       TEXT NOT NULL DEFAULT '',
+  original_trial_id INTEGER
+);
+)sql";
+
 }  // namespace
 
 const std::vector<Migration>& AllMigrations() {
@@ -336,6 +348,8 @@ const std::vector<Migration>& AllMigrations() {
        std::string(kMigration8) + AppendOnly({"trial_pulses"})},
       {9, "indexes for keyset paging of parameter sets", kMigration9},
       {10, "index for keyset paging of the audit log by user", kMigration10},
+      {11, "where imported trials came from",
+       std::string(kMigration11) + AppendOnly({"trial_imports"})},
   };
   return kMigrations;
 }

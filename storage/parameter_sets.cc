@@ -182,6 +182,22 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
   });
 }
 
+api::Result<std::vector<std::int64_t>> ParameterSetRepository::IdsForSession(
+    std::int64_t session_id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<std::int64_t>> {
+    if (auto s =
+            internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", session_id, "session");
+        !s.ok()) {
+      return s;
+    }
+    return internal::QueryRows(
+        c,
+        "SELECT DISTINCT p.parameter_set_id FROM parameter_set_trials p"
+        " JOIN trials t ON t.id = p.trial_id WHERE t.session_id = ?1 ORDER BY 1",
+        [](const Statement& s) -> api::Result<std::int64_t> { return s.Int64(0); }, session_id);
+  });
+}
+
 api::Result<StoredParameterSet> ParameterSetRepository::Get(std::int64_t id) {
   return db_.Read([&](Connection& c) { return GetIn(c, id); });
 }

@@ -96,6 +96,9 @@ class ParameterSetRepository {
   api::Result<std::vector<ParameterSetSummary>> List(const ParameterSetListQuery& query);
   /// The latest version for a subject and leg (kNotFound if there is none).
   api::Result<StoredParameterSet> Latest(std::int64_t subject_id, std::int64_t leg_id);
+  /// Ids of the sets identified from at least one trial of the session,
+  /// ascending (kNotFound for an unknown session).
+  api::Result<std::vector<std::int64_t>> IdsForSession(std::int64_t session_id);
   /// The stored JSON text, pretty-printed (2-space indent).
   api::Result<std::string> ExportJson(std::int64_t id);
 

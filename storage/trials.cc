@@ -56,7 +56,12 @@ api::Result<api::Trial> GetTrialIn(Connection& c, std::int64_t id) {
         if (!values || values->size() != static_cast<std::size_t>(s.Int64(4))) {
           return internal::BadStoredValue("samples of trial " + std::to_string(id));
         }
-        return StoredChannel{s.Text(0), s.Double(3), {s.Text(1), s.Text(2), std::move(*values)}};
+        // Channels stored before ChannelUnit knew their suffix (accel_m_s2)
+        // have an empty unit: read them with the unit their name gives.
+        std::string unit = s.Text(2);
+        if (unit.empty()) unit = api::ChannelUnit(s.Text(1));
+        return StoredChannel{
+            s.Text(0), s.Double(3), {s.Text(1), std::move(unit), std::move(*values)}};
       },
       id);
   if (!channels.ok()) return channels.status();
@@ -90,8 +95,8 @@ api::Result<api::Trial> GetTrialIn(Connection& c, std::int64_t id) {
 
 }  // namespace
 
-api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner,
-                                                  const api::Trial& trial) {
+api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner, const api::Trial& trial,
+                                                  const std::optional<TrialImport>& import) {
   if (auto s = api::ValidateTrial(trial); !s.ok()) return s;
   return db_.Write([&](Connection& c) -> api::Result<std::int64_t> {
     if (auto s = internal::RequireRow(c, "SELECT 1 FROM sessions WHERE id = ?1", owner.session_id,
@@ -136,7 +141,38 @@ api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner,
         return s;
       }
     }
+    if (import) {
+      if (auto s = internal::Execute(
+              c,
+              "INSERT INTO trial_imports (trial_id, format, source, spec_json, imported_by,"
+              " original_trial_id) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+              id, import->format, import->source, import->spec_json, import->imported_by,
+              import->original_trial_id);
+          !s.ok()) {
+        return s;
+      }
+    }
     return id;
+  });
+}
+
+api::Result<std::optional<TrialImport>> TrialRepository::ImportOf(std::int64_t trial_id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::optional<TrialImport>> {
+    if (auto s = internal::RequireRow(c, "SELECT 1 FROM trials WHERE id = ?1", trial_id, "trial");
+        !s.ok()) {
+      return s;
+    }
+    auto rows = internal::QueryRows(
+        c,
+        "SELECT format, source, spec_json, imported_by, original_trial_id FROM trial_imports"
+        " WHERE trial_id = ?1",
+        [](const Statement& s) {
+          return TrialImport{s.Text(0), s.Text(1), s.Text(2), s.Text(3), s.OptionalInt64(4)};
+        },
+        trial_id);
+    if (!rows.ok()) return rows.status();
+    if (rows->empty()) return std::optional<TrialImport>();
+    return std::optional<TrialImport>(std::move(rows->front()));
   });
 }
 

@@ -34,6 +34,17 @@ struct TrialSummary {
   UtcTime created_at;
 };
 
+/// Where an imported trial came from (POST /sessions/{id}/trials): kept
+/// beside the trial, which is otherwise an ordinary trial.
+struct TrialImport {
+  std::string format;       ///< "csv", "tsv", "sto" or "archive".
+  std::string source;       ///< what the importer said it is (file, rig, lab).
+  std::string spec_json;    ///< the import spec (column mapping and units), JSON.
+  std::string imported_by;  ///< the user who imported it.
+  std::optional<std::int64_t> original_trial_id;  ///< its id where it was exported from.
+  friend bool operator==(const TrialImport&, const TrialImport&) = default;
+};
+
 class TrialRepository {
  public:
   explicit TrialRepository(Database& db) : db_(db) {}
@@ -43,7 +54,13 @@ class TrialRepository {
   /// the field path). kNotFound for an unknown session or run;
   /// kInvalidArgument (field "run_id") for a run of another session.
   /// `trial.id` is ignored.
-  api::Result<std::int64_t> Insert(const TrialOwner& owner, const api::Trial& trial);
+  /// `import`, if given, is stored as the trial's provenance. Inside a
+  /// caller's Database::Write it joins that transaction.
+  api::Result<std::int64_t> Insert(const TrialOwner& owner, const api::Trial& trial,
+                                   const std::optional<TrialImport>& import = std::nullopt);
+  /// The import provenance of a trial (nullopt for a bench trial);
+  /// kNotFound for an unknown trial.
+  api::Result<std::optional<TrialImport>> ImportOf(std::int64_t trial_id);
   /// The whole trial with `id` set. kNotFound for an unknown id.
   api::Result<api::Trial> Get(std::int64_t trial_id);
   /// The owner of a stored trial.

@@ -99,6 +99,21 @@ json ApiClient::Post(const std::string& path, const json& body) {
   return Handle("POST", path, result->status, result->body);
 }
 
+std::string ApiClient::GetBytes(const std::string& path) {
+  auto result = client_->Get(kApiPrefix + path);
+  if (!result) Unreachable(httplib::to_string(result.error()));
+  if (result->status >= 400)
+    throw CliError::Server(ServerErrorMessage(result->status, result->body));
+  return result->body;
+}
+
+json ApiClient::PostBytes(const std::string& path, const std::string& body,
+                          const std::string& content_type) {
+  auto result = client_->Post(kApiPrefix + path, body, content_type);
+  if (!result) Unreachable(httplib::to_string(result.error()));
+  return Handle("POST", path, result->status, result->body);
+}
+
 json ApiClient::Put(const std::string& path, const json& body) {
   const std::string text = body.dump();
   auto result = client_->Put(kApiPrefix + path, text, "application/json");

@@ -34,6 +34,11 @@ class ApiClient {
   nlohmann::json Get(const std::string& path);
   nlohmann::json Post(const std::string& path, const nlohmann::json& body = nullptr);
   nlohmann::json Put(const std::string& path, const nlohmann::json& body);
+  /// The body of a non-JSON answer (an archive, a CSV file), as bytes.
+  std::string GetBytes(const std::string& path);
+  /// POSTs `body` with `content_type` (an upload); returns the JSON answer.
+  nlohmann::json PostBytes(const std::string& path, const std::string& body,
+                           const std::string& content_type);
   nlohmann::json Patch(const std::string& path, const nlohmann::json& body);
   nlohmann::json Delete(const std::string& path);
 

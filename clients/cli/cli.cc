@@ -16,7 +16,8 @@ namespace {
 // Every command, in the order `--help` lists them.
 constexpr CommandRegistrar kCommands[] = {
     RegisterLoginCommand, RegisterRecordCommands,   RegisterProtocolCommands, RegisterRunCommands,
-    RegisterDataCommands, RegisterAnalysisCommands, RegisterStudyCommand,
+    RegisterDataCommands, RegisterExchangeCommands, RegisterAnalysisCommands,
+    RegisterStudyCommand,
 };
 
 int Fail(std::ostream& err, int code, const std::string& message) {

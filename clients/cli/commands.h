@@ -6,6 +6,7 @@
 /// order listed in kCommands (cli.cc).
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -24,6 +25,15 @@ void RegisterProtocolCommands(CLI::App& app, CliContext& context);
 void RegisterRunCommands(CLI::App& app, CliContext& context);
 /// `params list|get`, `trials list|get` (data_commands.cc).
 void RegisterDataCommands(CLI::App& app, CliContext& context);
+/// `trials import`, `sessions export`, `params curves` (exchange_commands.cc;
+/// registered after the groups they join).
+void RegisterExchangeCommands(CLI::App& app, CliContext& context);
+/// A subject's parameter history as wide CSV: one row per set (`items`, the
+/// GET /parameter-sets summaries), one column per scalar parameter or
+/// provenance field; numbers in their shortest exact form.
+std::string ParameterHistoryCsv(ApiClient& client, std::int64_t subject_id,
+                                const nlohmann::json& items,
+                                const std::map<std::int64_t, std::string>& sides);
 /// `identify`, `predict`, `compare` (analysis_commands.cc).
 void RegisterAnalysisCommands(CLI::App& app, CliContext& context);
 /// `study` (study_command.cc, clients/cli/study/).

@@ -44,6 +44,7 @@ void Flatten(const json& value, const std::string& path, std::string& csv) {
 }
 
 struct ListForm {
+  std::string format = "table";
   std::string subject;
   std::string leg;
   std::string method;
@@ -80,6 +81,10 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
     list->add_option("--since", form->from, "old spelling of --from")->check(CheckDate)->group("");
     list->add_option("--to", form->to, "created on or before this date (YYYY-MM-DD)")
         ->check(CheckDate);
+    list->add_option("--format", form->format,
+                     "table (default) or csv: one row per set, one column per scalar "
+                     "parameter (curves: params curves ID)")
+        ->check(CLI::IsMember({"table", "csv"}));
     list->callback([form, &context] {
       context.action = [form, &context] {
         auto client = Connect(context);
@@ -99,6 +104,10 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
         const json subject = client->Get("/subjects/" + std::to_string(subject_id));
         for (const auto& leg : subject["legs"]) {
           sides[leg.value("id", std::int64_t{0})] = leg.value("side", "");
+        }
+        if (form->format == "csv") {
+          context.out << ParameterHistoryCsv(*client, subject_id, items, sides);
+          return;
         }
         std::vector<std::vector<std::string>> rows;
         for (const auto& s : items) {

@@ -22,6 +22,7 @@ RouteTable BuildApiRoutes(const ApiDependencies& deps) {
   AddAdminRoutes(table, deps);
   AddBenchRoutes(table, deps);
   AddJobRoutes(table, deps);
+  AddDataRoutes(table, deps);
   AddWebRoutes(table, deps);
   *document = BuildOpenApi(table, deps.server_version).dump();
   return table;

@@ -345,7 +345,7 @@ api::Result<int> HttpServer::Bind() {
 
   engine_ = std::make_unique<Engine>();
   Engine& svr = *engine_;
-  svr.set_payload_max_length(options_.max_body_bytes);
+  svr.set_payload_max_length(std::max(options_.max_body_bytes, options_.max_upload_bytes));
   svr.set_keep_alive_timeout(
       std::chrono::duration_cast<std::chrono::seconds>(options_.keep_alive_timeout).count());
   svr.set_keep_alive_max_count(options_.keep_alive_max_count);
@@ -644,9 +644,17 @@ void HttpServer::HandleBytes(Connection& c) {
   limits.max_head_bytes = options_.max_head_bytes;
   limits.max_headers = options_.max_headers;
   limits.max_body_bytes = options_.max_body_bytes;
+  limits.max_upload_bytes = options_.max_upload_bytes;
   // Read no further than one whole request beyond a full one: pipelined
-  // requests wait in the kernel until their turn.
-  const std::size_t read_limit = options_.max_head_bytes + options_.max_body_bytes + kReadChunk;
+  // requests wait in the kernel until their turn. An upload's head raises
+  // the limit to its own length.
+  std::size_t read_limit = options_.max_head_bytes + options_.max_body_bytes + kReadChunk;
+  if (!c.in.empty()) {
+    const Framing pending = FrameRequest(c.in, limits);
+    if (pending.head_complete && IsUpload(pending.method, pending.path)) {
+      read_limit = std::max(read_limit, pending.total() + kReadChunk);
+    }
+  }
   for (;;) {
     if (!c.ReadAvailable(read_limit)) {
       Close(c, false);
@@ -665,10 +673,15 @@ void HttpServer::HandleBytes(Connection& c) {
           c.request_started = true;
           c.deadline = now + options_.request_timeout;
         }
+        const bool upload = f.head_complete && IsUpload(f.method, f.path);
+        if (upload) read_limit = std::max(read_limit, f.total() + kReadChunk);
         if (f.head_complete && !c.head_seen) {
           c.head_seen = true;
-          // A body gets as long again as the head had.
-          c.deadline = std::max(c.deadline, now + options_.request_timeout);
+          // A body gets as long again as the head had; an upload one more
+          // second per MiB.
+          auto allowance = options_.request_timeout;
+          if (upload) allowance += std::chrono::seconds(f.body_bytes >> 20);
+          c.deadline = std::max(c.deadline, now + allowance);
         }
         if (f.head_complete && f.expect_continue && !c.continue_sent) {
           c.continue_sent = true;
@@ -869,7 +882,7 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
         return;
       }
       ctx.body = std::move(*body);
-    } else if (!req.body.empty()) {
+    } else if (!req.body.empty() && !route.raw_body) {
       refuse(ToHttpError(api::Status::InvalidArgument("this request takes no body")));
       return;
     }

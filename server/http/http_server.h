@@ -61,6 +61,9 @@ struct HttpServerOptions {
   std::string tls_cert_path;  ///< both set: HTTPS.
   std::string tls_key_path;
   std::size_t max_body_bytes = 1 << 20;  ///< larger bodies: 413.
+  /// Upload bodies (request_framing.h IsUpload: trial imports) may be this
+  /// large, and get one more second to arrive per MiB.
+  std::size_t max_upload_bytes = std::size_t{256} << 20;
   std::size_t max_headers = 64;          ///< more header lines: 431.
   std::size_t max_head_bytes = 16 * 1024;  ///< request line and headers; beyond: 431.
   /// A whole request (head and body) must arrive within this of its first

@@ -9,8 +9,9 @@ namespace {
 using nlohmann::json;
 
 json ErrorRef(const std::string& description) {
-  return {{"description", description},
-          {"content", {{"application/json", {{"schema", {{"$ref", "#/components/schemas/Error"}}}}}}}};
+  return {
+      {"description", description},
+      {"content", {{"application/json", {{"schema", {{"$ref", "#/components/schemas/Error"}}}}}}}};
 }
 
 std::string OperationId(const Route& route) {
@@ -33,12 +34,12 @@ std::string OperationId(const Route& route) {
 json BuildOpenApi(const RouteTable& routes, const std::string& version) {
   json paths = json::object();
   for (const Route& route : routes.routes()) {
-    json op = {{"summary", route.summary},
-               {"operationId", OperationId(route)},
-               {"tags", {route.tag}}};
+    json op = {
+        {"summary", route.summary}, {"operationId", OperationId(route)}, {"tags", {route.tag}}};
     json parameters = json::array();
     std::string rest = route.path;
-    for (std::size_t open = rest.find('{'); open != std::string::npos; open = rest.find('{', open + 1)) {
+    for (std::size_t open = rest.find('{'); open != std::string::npos;
+         open = rest.find('{', open + 1)) {
       const std::size_t close = rest.find('}', open);
       const std::string name = rest.substr(open + 1, close - open - 1);
       const bool is_id = name.size() >= 2 && name.substr(name.size() - 2) == "id";
@@ -58,9 +59,19 @@ json BuildOpenApi(const RouteTable& routes, const std::string& version) {
     }
     if (!parameters.empty()) op["parameters"] = std::move(parameters);
     if (route.json_body) {
-      json schema = route.request_schema.is_null() ? json{{"type", "object"}} : route.request_schema;
+      json schema =
+          route.request_schema.is_null() ? json{{"type", "object"}} : route.request_schema;
       op["requestBody"] = {{"required", true},
                            {"content", {{"application/json", {{"schema", std::move(schema)}}}}}};
+    } else if (route.raw_body) {
+      // An upload: JSON (request_schema) or an archive.
+      json content = {
+          {"application/zip", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+          {"application/gzip", {{"schema", {{"type", "string"}, {"format", "binary"}}}}}};
+      if (!route.request_schema.is_null()) {
+        content["application/json"] = {{"schema", route.request_schema}};
+      }
+      op["requestBody"] = {{"required", true}, {"content", std::move(content)}};
     }
     json success = {{"description", "success"}};
     json success_schema =
@@ -77,7 +88,8 @@ json BuildOpenApi(const RouteTable& routes, const std::string& version) {
       responses["403"] = ErrorRef("role not allowed (x-roles)");
       op["security"] = json::array({{{"bearer", json::array()}}});
       json roles = json::array();
-      for (auto role : {storage::Role::kClinician, storage::Role::kAnalyst, storage::Role::kAdmin}) {
+      for (auto role :
+           {storage::Role::kClinician, storage::Role::kAnalyst, storage::Role::kAdmin}) {
         if (route.roles & RoleBit(role)) roles.push_back(storage::RoleName(role));
       }
       op["x-roles"] = std::move(roles);
@@ -87,7 +99,7 @@ json BuildOpenApi(const RouteTable& routes, const std::string& version) {
     if (route.path.find('{') != std::string::npos) responses["404"] = ErrorRef("unknown id");
     responses["405"] = ErrorRef("method not allowed on this path");
     if (route.method != "GET") responses["409"] = ErrorRef("conflict with the current state");
-    if (route.json_body) {
+    if (route.json_body || route.raw_body) {
       responses["413"] = ErrorRef("request body too large");
       responses["415"] = ErrorRef("Content-Type is not application/json");
     }

@@ -14,8 +14,21 @@ bool IsTokenChar(char c) {
   const auto u = static_cast<unsigned char>(c);
   if (std::isalnum(u)) return true;
   switch (c) {
-    case '!': case '#': case '$': case '%': case '&': case '\'': case '*': case '+':
-    case '-': case '.': case '^': case '_': case '`': case '|': case '~':
+    case '!':
+    case '#':
+    case '$':
+    case '%':
+    case '&':
+    case '\'':
+    case '*':
+    case '+':
+    case '-':
+    case '.':
+    case '^':
+    case '_':
+    case '`':
+    case '|':
+    case '~':
       return true;
     default:
       return false;
@@ -72,7 +85,8 @@ Framing Fail(Framing f, int status, const char* code, std::string message) {
 // The path of an origin-form or absolute-form target, before '?'.
 std::string_view TargetPath(std::string_view target) {
   for (std::string_view scheme : {"http://", "https://"}) {
-    if (target.size() >= scheme.size() && EqualsIgnoreCase(target.substr(0, scheme.size()), scheme)) {
+    if (target.size() >= scheme.size() &&
+        EqualsIgnoreCase(target.substr(0, scheme.size()), scheme)) {
       const std::size_t slash = target.find('/', scheme.size());
       target = slash == std::string_view::npos ? std::string_view("/") : target.substr(slash);
       break;
@@ -204,14 +218,28 @@ Framing FrameRequest(std::string_view buffer, const FramingLimits& limits) {
   }
   f.keep_alive = !close_token && (!http10 || keep_alive_token);
   f.body_bytes = length.value_or(0);
-  if (f.body_bytes > limits.max_body_bytes) {
-    return Fail(f, 413, "payload_too_large", "request body exceeds the server's limit");
+  const bool upload = IsUpload(f.method, f.path);
+  const std::size_t max_body = upload ? limits.max_upload_bytes : limits.max_body_bytes;
+  if (f.body_bytes > max_body) {
+    return Fail(f, 413, "payload_too_large",
+                "request body exceeds the server's limit of " + std::to_string(max_body >> 20) +
+                    " MiB" + (upload ? " for uploads" : ""));
   }
   if ((f.method == "GET" || f.method == "HEAD") && f.body_bytes > 0) {
     return Fail(f, 400, "bad_request", "GET requests take no body");
   }
   if (rest.size() >= f.head_bytes + f.body_bytes) f.state = Framing::State::kComplete;
   return f;
+}
+
+bool IsUpload(std::string_view method, std::string_view path) {
+  constexpr std::string_view kPrefix = "/api/v1/sessions/";
+  constexpr std::string_view kSuffix = "/trials";
+  if (method != "POST" || !path.starts_with(kPrefix) || !path.ends_with(kSuffix)) return false;
+  const std::string_view id =
+      path.substr(kPrefix.size(), path.size() - kPrefix.size() - kSuffix.size());
+  return !id.empty() &&
+         std::all_of(id.begin(), id.end(), [](char c) { return c >= '0' && c <= '9'; });
 }
 
 }  // namespace fesbench::server::http

@@ -26,7 +26,13 @@ struct FramingLimits {
   std::size_t max_target_bytes = 8 * 1024;  ///< request target; beyond: 414.
   std::size_t max_headers = 64;             ///< header lines; beyond: 431.
   std::size_t max_body_bytes = 1 << 20;     ///< Content-Length beyond: 413.
+  /// Uploads (POST /api/v1/sessions/{id}/trials: recordings and session
+  /// archives) may be larger, up to this.
+  std::size_t max_upload_bytes = std::size_t{256} << 20;
 };
+
+/// True for the requests whose body is an upload (FramingLimits::max_upload_bytes).
+bool IsUpload(std::string_view method, std::string_view path);
 
 struct Framing {
   enum class State { kIncomplete, kComplete, kError };

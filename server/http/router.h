@@ -76,6 +76,9 @@ struct Route {
   nlohmann::json request_schema;   ///< JSON Schema of the body (null: generic object).
   nlohmann::json response_schema;  ///< JSON Schema of the success body (null: object).
   Handler handler;
+  /// The handler reads the request body itself (uploads of any media type);
+  /// otherwise a body on a route without json_body is refused.
+  bool raw_body = false;
 };
 
 /// The result of matching a method and path.

@@ -2,6 +2,8 @@
 
 #include <charconv>
 
+#include "server/http/resources_json.h"
+
 namespace fesbench::server::http {
 
 namespace {
@@ -56,7 +58,9 @@ std::vector<QueryParam> PageParams() {
           {"cursor", "string", "opaque cursor from a previous page's next_cursor"}};
 }
 
-std::string EncodeCursor(std::int64_t after_id) { return Base64Url("after:" + std::to_string(after_id)); }
+std::string EncodeCursor(std::int64_t after_id) {
+  return Base64Url("after:" + std::to_string(after_id));
+}
 
 std::optional<std::int64_t> DecodeCursor(std::string_view cursor) {
   if (cursor.size() > 64) return std::nullopt;
@@ -82,11 +86,13 @@ api::Result<PageRequest> ParsePage(const RequestContext& ctx) {
   return page;
 }
 
-api::Result<std::optional<std::int64_t>> QueryId(const RequestContext& ctx, const std::string& name) {
+api::Result<std::optional<std::int64_t>> QueryId(const RequestContext& ctx,
+                                                 const std::string& name) {
   auto text = ctx.Query(name);
   if (!text) return std::optional<std::int64_t>();
   auto value = ParseId(*text);
-  if (!value || *value < 1) return api::Status::InvalidArgument("must be a positive integer id", name);
+  if (!value || *value < 1)
+    return api::Status::InvalidArgument("must be a positive integer id", name);
   return std::optional<std::int64_t>(*value);
 }
 
@@ -104,11 +110,22 @@ api::Result<std::optional<storage::UtcTime>> QueryTime(const RequestContext& ctx
 }
 
 nlohmann::json ObjectSchema(nlohmann::json properties, std::vector<std::string> required) {
-  nlohmann::json schema = {{"type", "object"},
-                           {"additionalProperties", false},
-                           {"properties", std::move(properties)}};
+  nlohmann::json schema = {
+      {"type", "object"}, {"additionalProperties", false}, {"properties", std::move(properties)}};
   if (!required.empty()) schema["required"] = std::move(required);
   return schema;
+}
+
+api::Result<nlohmann::json> SubjectJson(storage::Database& db, const storage::Subject& subject) {
+  auto legs = storage::SubjectRepository(db).Legs(subject.id);
+  if (!legs.ok()) return legs.status();
+  return SubjectToJson(subject, *legs);
+}
+
+api::Result<nlohmann::json> SessionJson(storage::Database& db, const storage::Session& session) {
+  auto leg = storage::SubjectRepository(db).GetLeg(session.leg_id);
+  if (!leg.ok()) return leg.status();
+  return SessionToJson(session, storage::SideName(leg->side));
 }
 
 }  // namespace fesbench::server::http

@@ -18,6 +18,8 @@
 #include "server/http/router.h"
 #include "storage/audit_log.h"
 #include "storage/database.h"
+#include "storage/sessions.h"
+#include "storage/subjects.h"
 #include "storage/time_utc.h"
 
 namespace fesbench::server::http {
@@ -92,6 +94,11 @@ inline Reply JsonReply(nlohmann::json body, int status = 200) {
 inline api::Status NotAvailable(std::string_view what) {
   return api::Status::Unavailable(std::string(what) + " is not available on this server");
 }
+
+/// A stored subject with its legs, and a session with its leg's side, in
+/// their resource shapes (resources_json.h).
+api::Result<nlohmann::json> SubjectJson(storage::Database& db, const storage::Subject& subject);
+api::Result<nlohmann::json> SessionJson(storage::Database& db, const storage::Session& session);
 
 /// JSON Schema helpers for Route::request_schema.
 nlohmann::json ObjectSchema(nlohmann::json properties, std::vector<std::string> required);

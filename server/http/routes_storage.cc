@@ -47,18 +47,6 @@ class ParameterSetCache {
   std::unordered_map<std::int64_t, std::string> bodies_;
 };
 
-api::Result<json> SubjectJson(storage::Database& db, const storage::Subject& subject) {
-  auto legs = storage::SubjectRepository(db).Legs(subject.id);
-  if (!legs.ok()) return legs.status();
-  return SubjectToJson(subject, *legs);
-}
-
-api::Result<json> SessionJson(storage::Database& db, const storage::Session& session) {
-  auto leg = storage::SubjectRepository(db).GetLeg(session.leg_id);
-  if (!leg.ok()) return leg.status();
-  return SessionToJson(session, storage::SideName(leg->side));
-}
-
 json DetailsSchema() {
   return ObjectSchema(
       {{"age_years", {{"type", "integer"}, {"minimum", 0}, {"maximum", 130}}},
@@ -489,54 +477,67 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
 
   // --- trials -------------------------------------------------------------------
-  table.Add({"GET",
-             "/api/v1/trials/{trial_id}",
-             kAnyRole,
-             false,
-             "trials",
-             "A recorded trial: JSON, CSV or OpenSim .sto (?format=json|csv|sto, or Accept: "
-             "text/csv); a download with a Content-Disposition file name when ?format is given",
-             {{"format", "string", "json (default), csv or sto"}},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
-               const std::optional<std::string> format = ctx.Query("format");
-               if (format && *format != "json" && *format != "csv" && *format != "sto") {
-                 return api::Status::InvalidArgument("must be json, csv or sto", "format");
-               }
-               auto trial = storage::TrialRepository(db).Get(ctx.Id("trial_id"));
-               if (!trial.ok()) return trial.status();
-               const std::string accept = ctx.req.get_header_value("Accept");
-               const std::string kind =
-                   format ? *format
-                          : (accept.find("text/csv") != std::string::npos ? "csv" : "json");
-               if (format) {
-                 // trial-12-rapid_free_swing_passive.csv: safe characters only.
-                 std::string name = trial->name.value_or("trial");
-                 for (char& c : name) {
-                   if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-')
-                     c = '_';
-                 }
-                 ctx.res.set_header("Content-Disposition", "attachment; filename=\"trial-" +
-                                                               std::to_string(ctx.Id("trial_id")) +
-                                                               "-" + name + "." + kind + "\"");
-               }
-               if (kind == "json") {
-                 if (!format) return JsonReply(api::TrialToJson(*trial));
-                 ctx.res.status = 200;
-                 ctx.res.set_content(api::TrialToJson(*trial).dump(), "application/json");
-                 return Reply{200, nullptr, true};
-               }
-               ctx.res.status = 200;
-               if (kind == "csv") {
-                 ctx.res.set_content(api::TrialToCsv(*trial), "text/csv");
-               } else {
-                 ctx.res.set_content(api::TrialToSto(*trial), "text/plain");
-               }
-               return Reply{200, nullptr, true};
-             }});
+  table.Add(
+      {"GET",
+       "/api/v1/trials/{trial_id}",
+       kAnyRole,
+       false,
+       "trials",
+       "A recorded trial: JSON, CSV or OpenSim .sto (?format=json|csv|sto, or Accept: "
+       "text/csv); a download with a Content-Disposition file name when ?format is given",
+       {{"format", "string", "json (default), csv or sto"}},
+       200,
+       "application/json",
+       nullptr,
+       nullptr,
+       [&db](RequestContext& ctx) -> api::Result<Reply> {
+         const std::optional<std::string> format = ctx.Query("format");
+         if (format && *format != "json" && *format != "csv" && *format != "sto") {
+           return api::Status::InvalidArgument("must be json, csv or sto", "format");
+         }
+         auto trial = storage::TrialRepository(db).Get(ctx.Id("trial_id"));
+         if (!trial.ok()) return trial.status();
+         const std::string accept = ctx.req.get_header_value("Accept");
+         const std::string kind =
+             format ? *format : (accept.find("text/csv") != std::string::npos ? "csv" : "json");
+         if (format) {
+           // trial-12-rapid_free_swing_passive.csv: safe characters only.
+           std::string name = trial->name.value_or("trial");
+           for (char& c : name) {
+             if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-') c = '_';
+           }
+           ctx.res.set_header("Content-Disposition", "attachment; filename=\"trial-" +
+                                                         std::to_string(ctx.Id("trial_id")) + "-" +
+                                                         name + "." + kind + "\"");
+         }
+         if (kind == "json") {
+           json body = api::TrialToJson(*trial);
+           // An imported trial says where it came from.
+           auto import = storage::TrialRepository(db).ImportOf(*trial->id);
+           if (!import.ok()) return import.status();
+           if (*import) {
+             const storage::TrialImport& i = **import;
+             json spec = json::parse(i.spec_json, nullptr, false);
+             body["import"] = {{"format", i.format},
+                               {"source", i.source},
+                               {"spec", spec.is_discarded() ? json(nullptr) : spec},
+                               {"imported_by", i.imported_by},
+                               {"original_trial_id",
+                                i.original_trial_id ? json(*i.original_trial_id) : json(nullptr)}};
+           }
+           if (!format) return JsonReply(std::move(body));
+           ctx.res.status = 200;
+           ctx.res.set_content(body.dump(), "application/json");
+           return Reply{200, nullptr, true};
+         }
+         ctx.res.status = 200;
+         if (kind == "csv") {
+           ctx.res.set_content(api::TrialToCsv(*trial), "text/csv");
+         } else {
+           ctx.res.set_content(api::TrialToSto(*trial), "text/plain");
+         }
+         return Reply{200, nullptr, true};
+       }});
 
   // --- parameter sets -------------------------------------------------------------
   {

@@ -35,12 +35,12 @@ TEST_F(StorageTest, OpensInWalWithForeignKeysAndFullSync) {
   auto version = db_->SchemaVersion();
   ASSERT_TRUE(version.ok());
   EXPECT_EQ(*version, LatestSchemaVersion());
-  EXPECT_EQ(LatestSchemaVersion(), 10);
+  EXPECT_EQ(LatestSchemaVersion(), 11);
   auto recorded = db_->Read([](Connection& c) {
     return c.QueryText("SELECT group_concat(version) FROM schema_migrations");
   });
   ASSERT_TRUE(recorded.ok());
-  EXPECT_EQ(*recorded, "1,2,3,4,5,6,7,8,9,10");
+  EXPECT_EQ(*recorded, "1,2,3,4,5,6,7,8,9,10,11");
 }
 
 TEST_F(StorageTest, ReopeningAppliesNothingTwice) {

@@ -106,6 +106,24 @@ export async function waitForJob(job, { intervalMs = 150, signal } = {}) {
   return current.result;
 }
 
+/// POSTs a file's bytes (an upload) with `contentType`; the JSON answer.
+export async function upload(path, file, contentType) {
+  let res;
+  try {
+    res = await fetch(`/api/v1${path}`, {
+      method: 'POST', headers: authHeaders({ 'Content-Type': contentType }), body: file, cache: 'no-store',
+    });
+  } catch {
+    throw new ApiError(0, 'unreachable', UNREACHABLE_MESSAGE);
+  }
+  const data = await res.json().catch(() => null);
+  if (!res.ok) {
+    const e = (data && data.error) || {};
+    throw new ApiError(res.status, e.code || `http_${res.status}`, e.message || `The upload failed (${res.status}).`, e.field || '');
+  }
+  return data;
+}
+
 /// Downloads a file from the API with the bearer token (a link cannot send
 /// it): fetch, then save the Blob under the server's file name.
 export async function download(path, fallbackName) {

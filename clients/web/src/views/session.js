@@ -11,6 +11,7 @@ import { isFinal, progressOf } from '../runs.js';
 import { streamEvents } from '../sse.js';
 import { numberProblem, SESSION_LIMITS } from '../checks.js';
 import { correctionForm, revisionHistory } from './corrections.js';
+import { exchangeSection } from './exchange.js';
 
 const WINDOW_S = 30; // bench seconds shown in the live plots
 
@@ -388,7 +389,8 @@ export async function sessionView(ctx, sessionId) {
     live,
     h('section', { 'aria-labelledby': 'runs-h' }, h('h2', { id: 'runs-h' }, 'Runs of this session'), runsSlot),
     h('section', { 'aria-labelledby': 'trials-h' }, h('h2', { id: 'trials-h' }, 'Trials of this session'), trialsSlot,
-      trialStatus, trialPlot));
+      trialStatus, trialPlot),
+    await exchangeSection(sessionId, loadTrials));
   // Without recorded limits only the tolerance test can run: offer it first.
   const d = session.details;
   const first = Number.isFinite(d.threshold_ma) && Number.isFinite(d.max_tolerated_ma) ? 'rapid_parameterisation' : 'tolerance_test';

@@ -1,0 +1,541 @@
+#include "api/bids.h"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "api/trial_import.h"
+
+namespace fesbench::api {
+namespace {
+
+using nlohmann::json;
+
+constexpr std::string_view kTrackingSystem = "kneebench";
+
+void AppendNumber(std::string& out, double value) {
+  char buffer[32];
+  const auto [ptr, ec] = std::to_chars(buffer, buffer + sizeof buffer, value);
+  out.append(buffer, ec == std::errc() ? ptr : buffer);
+}
+
+// Columns of `channels`, tab-separated, one row per sample, no header.
+std::string ValuesTsv(const std::vector<Channel>& channels) {
+  std::string out;
+  const std::size_t n = channels.empty() ? 0 : channels.front().values.size();
+  out.reserve(n * channels.size() * 12);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < channels.size(); ++j) {
+      if (j) out += '\t';
+      AppendNumber(out, channels[j].values[i]);
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+// A tab-separated table of strings with a header row.
+struct StringTable {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  std::optional<std::size_t> Column(std::string_view name) const {
+    const auto it = std::find(header.begin(), header.end(), name);
+    if (it == header.end()) return std::nullopt;
+    return static_cast<std::size_t>(it - header.begin());
+  }
+};
+
+std::vector<std::string> SplitTabs(std::string_view line) {
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t end = line.find('\t', start);
+    out.emplace_back(line.substr(start, end == std::string_view::npos ? end : end - start));
+    if (end == std::string_view::npos) return out;
+    start = end + 1;
+  }
+}
+
+Result<StringTable> ReadStringTable(const std::string& text, const std::string& path) {
+  StringTable table;
+  std::size_t start = 0;
+  std::size_t line_no = 0;
+  while (start < text.size()) {
+    std::size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    const std::string_view line(text.data() + start, end - start);
+    start = end + 1;
+    ++line_no;
+    if (line.empty() || line == "\r") continue;
+    std::vector<std::string> fields = SplitTabs(line);
+    if (table.header.empty()) {
+      table.header = std::move(fields);
+    } else if (fields.size() != table.header.size()) {
+      return Status::InvalidArgument(path + ": line " + std::to_string(line_no) + ": expected " +
+                                     std::to_string(table.header.size()) + " columns, found " +
+                                     std::to_string(fields.size()));
+    } else {
+      table.rows.push_back(std::move(fields));
+    }
+  }
+  if (table.header.empty()) return Status::InvalidArgument(path + ": empty file");
+  return table;
+}
+
+Result<json> ReadJson(const FileMap& files, const std::string& path) {
+  const auto it = files.find(path);
+  if (it == files.end()) return Status::InvalidArgument("missing file " + path);
+  json j = json::parse(it->second, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) {
+    return Status::InvalidArgument(path + ": not a JSON object");
+  }
+  return j;
+}
+
+bool EndsWith(std::string_view s, std::string_view suffix) {
+  return s.size() >= suffix.size() && s.substr(s.size() - suffix.size()) == suffix;
+}
+
+// BIDS motion channel type, component and description of a channel.
+struct MotionChannelInfo {
+  std::string_view type;
+  std::string_view component;
+  std::string_view description;
+};
+
+MotionChannelInfo MotionInfo(std::string_view name) {
+  if (name == kTimeChannel) return {"LATENCY", "n/a", "time from the trial's start"};
+  if (name == "angle_deg") return {"JNTANG", "n/a", "knee angle, 0 = full extension"};
+  if (name == "setpoint_deg") return {"JNTANG", "n/a", "the motor's commanded knee angle"};
+  if (name == "accel_m_s2") {
+    return {"ACCEL", "x", "shank accelerometer, tangential axis (DESIGN.md §2)"};
+  }
+  if (name == "velocity_deg_s") return {"MISC", "n/a", "knee angular velocity"};
+  if (name == "accel_deg_s2") return {"MISC", "n/a", "knee angular acceleration"};
+  if (name == "torque_nm") return {"MISC", "n/a", "knee torque, extension positive"};
+  if (name == "stim_ma") return {"MISC", "n/a", "commanded stimulation amplitude"};
+  if (name == "stim_delivered_ma") return {"MISC", "n/a", "stimulation amplitude delivered"};
+  if (name == "activation") return {"MISC", "n/a", "model activation"};
+  if (name == "emg_mv") return {"MISC", "n/a", "EMG envelope"};
+  return {"MISC", "n/a", "n/a"};
+}
+
+std::string TrackedPoint(std::string_view leg) {
+  return leg == "left" ? "LeftKnee" : leg == "right" ? "RightKnee" : "Knee";
+}
+
+std::string Units(const Channel& c) { return c.unit.empty() ? "n/a" : c.unit; }
+std::string UnitsBack(const std::string& u) { return u == "n/a" ? std::string() : u; }
+
+// The entities of a BIDS file name ("sub-01_ses-3_task-x_run-4_motion.tsv"):
+// key → label, and the suffix.
+std::map<std::string, std::string> Entities(std::string_view file_name, std::string* suffix) {
+  std::map<std::string, std::string> out;
+  const std::size_t dot = file_name.find('.');
+  std::string_view stem = file_name.substr(0, dot);
+  while (!stem.empty()) {
+    const std::size_t us = stem.find('_');
+    const std::string_view part = stem.substr(0, us);
+    const std::size_t dash = part.find('-');
+    if (dash == std::string_view::npos) {
+      if (suffix) *suffix = std::string(part);
+    } else {
+      out[std::string(part.substr(0, dash))] = std::string(part.substr(dash + 1));
+    }
+    if (us == std::string_view::npos) break;
+    stem.remove_prefix(us + 1);
+  }
+  return out;
+}
+
+std::string BaseName(std::string_view path) {
+  const std::size_t slash = path.rfind('/');
+  return std::string(slash == std::string_view::npos ? path : path.substr(slash + 1));
+}
+
+}  // namespace
+
+std::string BidsLabel(std::string_view text) {
+  std::string out;
+  for (char c : text) {
+    if (std::isalnum(static_cast<unsigned char>(c))) out += c;
+  }
+  return out.empty() ? "x" : out;
+}
+
+std::string BidsTaskLabel(std::string_view trial_name) {
+  std::string out;
+  bool upper = false;
+  for (char c : trial_name) {
+    if (!std::isalnum(static_cast<unsigned char>(c))) {
+      upper = !out.empty();
+      continue;
+    }
+    out += upper ? static_cast<char>(std::toupper(static_cast<unsigned char>(c))) : c;
+    upper = false;
+  }
+  return out.empty() ? "x" : out;
+}
+
+void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& files) {
+  const std::string name = trial.name.value_or("trial");
+  const std::string dir = "sub-" + place.subject_label + "/ses-" + place.session_label + "/";
+  const std::string entities =
+      "sub-" + place.subject_label + "_ses-" + place.session_label + "_task-" + BidsTaskLabel(name);
+  const std::string run = "_run-" + std::to_string(place.run);
+  const std::string motion =
+      dir + "motion/" + entities + "_tracksys-" + std::string(kTrackingSystem) + run;
+
+  // Channels: t_s first (the LATENCY channel), then the rest in stored order.
+  std::vector<Channel> ordered;
+  if (const Channel* t = trial.FindChannel(kTimeChannel)) ordered.push_back(*t);
+  for (const Channel& c : trial.channels) {
+    if (c.name != kTimeChannel) ordered.push_back(c);
+  }
+  files[motion + "_motion.tsv"] = ValuesTsv(ordered);
+  std::string channels = "name\tcomponent\ttype\ttracked_point\tunits\tdescription\n";
+  std::map<std::string, int> counts;
+  for (const Channel& c : ordered) {
+    const MotionChannelInfo info = MotionInfo(c.name);
+    ++counts[std::string(info.type)];
+    const bool on_knee = info.type != "MISC" || c.name == "velocity_deg_s" ||
+                         c.name == "accel_deg_s2" || c.name == "torque_nm";
+    channels += c.name + "\t" + std::string(info.component) + "\t" + std::string(info.type) + "\t" +
+                (on_knee ? TrackedPoint(place.leg) : "n/a") + "\t" + Units(c) + "\t" +
+                std::string(info.description) + "\n";
+  }
+  files[motion + "_channels.tsv"] = std::move(channels);
+  const double duration = trial.num_samples() > 1 ? trial.Values(kTimeChannel)->back() -
+                                                        trial.Values(kTimeChannel)->front()
+                                                  : 0.0;
+  json sidecar = {
+      {"TaskName", name},
+      {"TaskDescription", "fesbench trial '" + name + "' on the knee bench"},
+      {"SamplingFrequency", trial.sample_rate_hz},
+      {"TrackingSystemName", "fesbench knee bench"},
+      {"MotionChannelCount", ordered.size()},
+      {"TrackedPointsCount", 1},
+      {"RecordingDuration", duration},
+      {"MissingValues", "n/a"},
+  };
+  for (const auto& [type, count] : counts) sidecar[type + "ChannelCount"] = count;
+  json fesbench = {{"name", name}};
+  if (trial.id) fesbench["id"] = *trial.id;
+  if (trial.start_time_unix_ms) fesbench["start_time_unix_ms"] = *trial.start_time_unix_ms;
+  sidecar["FesbenchTrial"] = std::move(fesbench);
+  files[motion + "_motion.json"] = sidecar.dump(2) + "\n";
+
+  if (trial.pulses) {
+    const PulseRecord& p = *trial.pulses;
+    std::string events = "onset\tduration\ttrial_type\tamplitude_ma\twidth_us\n";
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      AppendNumber(events, p.t_s[i]);
+      events += '\t';
+      AppendNumber(events, p.pulse_width_us * 1e-6);
+      events += "\tstimulation_pulse\t";
+      AppendNumber(events, p.stim_ma[i]);
+      events += '\t';
+      AppendNumber(events, p.pulse_width_us);
+      events += '\n';
+    }
+    files[motion + "_events.tsv"] = std::move(events);
+    const json events_json = {
+        {"onset", {{"Description", "time of the pulse from the trial's start"}, {"Units", "s"}}},
+        {"duration", {{"Description", "pulse width"}, {"Units", "s"}}},
+        {"trial_type",
+         {{"Description", "kind of event"},
+          {"Levels", {{"stimulation_pulse", "one biphasic stimulation pulse as delivered"}}}}},
+        {"amplitude_ma", {{"Description", "delivered pulse amplitude"}, {"Units", "mA"}}},
+        {"width_us", {{"Description", "pulse width"}, {"Units", "us"}}},
+        {"PulseRateHz", p.pulse_rate_hz},
+        {"PulseWidthUs", p.pulse_width_us},
+    };
+    files[motion + "_events.json"] = events_json.dump(2) + "\n";
+  }
+
+  if (trial.emg) {
+    const std::string emg = dir + "emg/" + entities + run;
+    std::vector<Channel> emg_ordered;
+    if (const Channel* t = trial.emg->Find(kTimeChannel)) emg_ordered.push_back(*t);
+    for (const Channel& c : trial.emg->channels) {
+      if (c.name != kTimeChannel) emg_ordered.push_back(c);
+    }
+    files[emg + "_emg.tsv"] = ValuesTsv(emg_ordered);
+    std::string channels_tsv = "name\ttype\tunits\tsampling_frequency\tdescription\n";
+    std::string rate;
+    AppendNumber(rate, trial.emg->sample_rate_hz);
+    int emg_count = 0;
+    for (const Channel& c : emg_ordered) {
+      const bool time = c.name == kTimeChannel;
+      emg_count += time ? 0 : 1;
+      channels_tsv += c.name + "\t" + (time ? "SYSCLOCK" : "EMG") + "\t" + Units(c) + "\t" + rate +
+                      "\t" + (time ? "time from the trial's start" : "surface EMG, quadriceps") +
+                      "\n";
+    }
+    files[emg + "_channels.tsv"] = std::move(channels_tsv);
+    const json emg_json = {
+        {"TaskName", name},
+        {"SamplingFrequency", trial.emg->sample_rate_hz},
+        {"EMGChannelCount", emg_count},
+        {"EMGPlacementScheme", "other"},
+        {"EMGPlacementSchemeDescription", "surface electrodes over the stimulated quadriceps"},
+        {"EMGReference", "bipolar"},
+        {"PowerLineFrequency", "n/a"},
+        {"SoftwareFilters", "n/a"},
+        {"RecordingType", "continuous"},
+        {"RecordingDuration", duration},
+    };
+    files[emg + "_emg.json"] = emg_json.dump(2) + "\n";
+  }
+}
+
+Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
+  std::vector<BidsTrial> out;
+  for (const auto& [path, text] : files) {
+    if (!EndsWith(path, "_motion.tsv")) continue;
+    const std::string prefix = path.substr(0, path.size() - std::string("_motion.tsv").size());
+    const auto channels_it = files.find(prefix + "_channels.tsv");
+    if (channels_it == files.end()) {
+      return Status::InvalidArgument("missing file " + prefix + "_channels.tsv (for " + path + ")");
+    }
+    Result<StringTable> channels = ReadStringTable(channels_it->second, channels_it->first);
+    if (!channels.ok()) return channels.status();
+    const auto name_col = channels->Column("name");
+    const auto units_col = channels->Column("units");
+    if (!name_col || !units_col) {
+      return Status::InvalidArgument(channels_it->first + ": needs the columns name and units");
+    }
+    std::vector<std::string> labels;
+    std::vector<std::string> units;
+    for (const auto& row : channels->rows) {
+      labels.push_back(row[*name_col]);
+      units.push_back(UnitsBack(row[*units_col]));
+    }
+    Result<json> sidecar = ReadJson(files, prefix + "_motion.json");
+    if (!sidecar.ok()) return sidecar.status();
+    const json& fes = sidecar->value("FesbenchTrial", json::object());
+    std::string name = fes.value("name", sidecar->value("TaskName", std::string()));
+    if (!sidecar->contains("SamplingFrequency") || !(*sidecar)["SamplingFrequency"].is_number()) {
+      return Status::InvalidArgument(prefix + "_motion.json: SamplingFrequency is required");
+    }
+    // The motion table read exactly as written: identity mapping, the
+    // channels' own units, the declared rate.
+    Result<TextTable> table = ReadTextTable(text, "tsv", &labels);
+    if (!table.ok()) return Status::InvalidArgument(path + ": " + table.status().message());
+    if (labels.empty() || labels.front() != kTimeChannel) {
+      return Status::InvalidArgument(channels_it->first + ": the first channel must be t_s");
+    }
+    Trial trial;
+    trial.name = name;
+    if (fes.contains("start_time_unix_ms") && fes["start_time_unix_ms"].is_number_integer()) {
+      trial.start_time_unix_ms = fes["start_time_unix_ms"].get<std::int64_t>();
+    }
+    trial.sample_rate_hz = (*sidecar)["SamplingFrequency"].get<double>();
+    for (std::size_t j = 0; j < labels.size(); ++j) {
+      if (!IsValidChannelName(labels[j])) {
+        return Status::InvalidArgument(channels_it->first + ": row " + std::to_string(j + 2) +
+                                       ": '" + labels[j] + "' is not a channel name");
+      }
+      trial.channels.push_back({labels[j], units[j], std::move(table->columns[j])});
+    }
+
+    // Pulses.
+    const auto events_it = files.find(prefix + "_events.tsv");
+    if (events_it != files.end()) {
+      Result<StringTable> events = ReadStringTable(events_it->second, events_it->first);
+      if (!events.ok()) return events.status();
+      Result<json> events_json = ReadJson(files, prefix + "_events.json");
+      if (!events_json.ok()) return events_json.status();
+      const auto onset = events->Column("onset");
+      const auto amplitude = events->Column("amplitude_ma");
+      if (!onset || !amplitude) {
+        return Status::InvalidArgument(events_it->first + ": needs onset and amplitude_ma");
+      }
+      PulseRecord pulses;
+      pulses.pulse_rate_hz = events_json->value("PulseRateHz", 0.0);
+      pulses.pulse_width_us = events_json->value("PulseWidthUs", 0.0);
+      for (std::size_t i = 0; i < events->rows.size(); ++i) {
+        double t = 0.0;
+        double u = 0.0;
+        const std::string& ts = events->rows[i][*onset];
+        const std::string& us = events->rows[i][*amplitude];
+        const auto r1 = std::from_chars(ts.data(), ts.data() + ts.size(), t);
+        const auto r2 = std::from_chars(us.data(), us.data() + us.size(), u);
+        if (r1.ec != std::errc() || r1.ptr != ts.data() + ts.size() || r2.ec != std::errc() ||
+            r2.ptr != us.data() + us.size()) {
+          return Status::InvalidArgument(events_it->first + ": line " + std::to_string(i + 2) +
+                                         ": onset and amplitude_ma must be numbers");
+        }
+        pulses.Append(t, u);
+      }
+      trial.pulses = std::move(pulses);
+    }
+
+    // EMG: the same entities without tracksys, under emg/.
+    std::string emg_prefix = prefix;
+    const std::string motion_dir = "/motion/";
+    if (const std::size_t at = emg_prefix.rfind(motion_dir); at != std::string::npos) {
+      emg_prefix.replace(at, motion_dir.size(), "/emg/");
+    }
+    const std::string tracksys = "_tracksys-" + std::string(kTrackingSystem);
+    if (const std::size_t at = emg_prefix.find(tracksys); at != std::string::npos) {
+      emg_prefix.erase(at, tracksys.size());
+    }
+    const auto emg_it = files.find(emg_prefix + "_emg.tsv");
+    if (emg_it != files.end()) {
+      const auto emg_channels_it = files.find(emg_prefix + "_channels.tsv");
+      if (emg_channels_it == files.end()) {
+        return Status::InvalidArgument("missing file " + emg_prefix + "_channels.tsv");
+      }
+      Result<StringTable> ec = ReadStringTable(emg_channels_it->second, emg_channels_it->first);
+      if (!ec.ok()) return ec.status();
+      const auto en = ec->Column("name");
+      const auto eu = ec->Column("units");
+      if (!en || !eu) {
+        return Status::InvalidArgument(emg_channels_it->first + ": needs name and units");
+      }
+      std::vector<std::string> emg_labels;
+      for (const auto& row : ec->rows) emg_labels.push_back(row[*en]);
+      Result<json> emg_json = ReadJson(files, emg_prefix + "_emg.json");
+      if (!emg_json.ok()) return emg_json.status();
+      Result<TextTable> emg_table = ReadTextTable(emg_it->second, "tsv", &emg_labels);
+      if (!emg_table.ok()) {
+        return Status::InvalidArgument(emg_it->first + ": " + emg_table.status().message());
+      }
+      ChannelGroup group;
+      group.sample_rate_hz = emg_json->value("SamplingFrequency", 0.0);
+      for (std::size_t j = 0; j < emg_labels.size(); ++j) {
+        group.channels.push_back(
+            {emg_labels[j], UnitsBack(ec->rows[j][*eu]), std::move(emg_table->columns[j])});
+      }
+      trial.emg = std::move(group);
+    }
+
+    if (Status s = ValidateTrial(trial); !s.ok()) {
+      return Status::InvalidArgument(path + ": " + s.message(), s.field());
+    }
+    BidsTrial bt;
+    bt.trial = std::move(trial);
+    if (fes.contains("id") && fes["id"].is_number_integer()) {
+      bt.original_id = fes["id"].get<std::int64_t>();
+    }
+    bt.motion_path = path;
+    out.push_back(std::move(bt));
+  }
+  std::stable_sort(out.begin(), out.end(), [](const BidsTrial& a, const BidsTrial& b) {
+    return a.original_id.value_or(0) < b.original_id.value_or(0);
+  });
+  return out;
+}
+
+Status ValidateBidsLayout(const FileMap& files) {
+  auto missing = [](const std::string& path, const std::string& what) {
+    return Status::InvalidArgument(path + ": " + what);
+  };
+  Result<json> description = ReadJson(files, "dataset_description.json");
+  if (!description.ok()) return description.status();
+  for (const char* key : {"Name", "BIDSVersion"}) {
+    if (!description->contains(key))
+      return missing("dataset_description.json", key + std::string(" is required"));
+  }
+  if (!files.contains("README") && !files.contains("README.md") && !files.contains("README.txt")) {
+    return Status::InvalidArgument("README: the dataset's README is required");
+  }
+  static const std::set<std::string> kMotionTypes = {
+      "ACCEL", "ANGACCEL", "GYRO", "JNTANG", "LATENCY", "MAGN", "MISC", "ORNT", "POS", "VEL"};
+  int motion_files = 0;
+  for (const auto& [path, text] : files) {
+    const std::string file = BaseName(path);
+    std::string suffix;
+    const auto entities = Entities(file, &suffix);
+    if (file.starts_with("sub-")) {
+      for (const auto& [key, label] : entities) {
+        if (label.empty() || !std::all_of(label.begin(), label.end(), [](char c) {
+              return std::isalnum(static_cast<unsigned char>(c));
+            })) {
+          return missing(path, "entity " + key + " has label '" + label +
+                                   "': labels are letters and digits only");
+        }
+      }
+      if ((suffix == "motion" || suffix == "emg") && !entities.contains("task")) {
+        return missing(path, "the task entity is required");
+      }
+    }
+    const bool is_motion = EndsWith(path, "_motion.tsv");
+    const bool is_emg =
+        EndsWith(path, "_emg.tsv") || EndsWith(path, "_emg.edf") || EndsWith(path, "_emg.bdf");
+    if (is_motion || is_emg) {
+      const std::string data_suffix = is_motion ? "_motion.tsv" : path.substr(path.rfind("_emg"));
+      const std::string prefix = path.substr(0, path.size() - data_suffix.size());
+      const std::string channels_path = prefix + "_channels.tsv";
+      const auto ch = files.find(channels_path);
+      if (ch == files.end()) return missing(channels_path, "required beside " + path);
+      Result<StringTable> table = ReadStringTable(ch->second, channels_path);
+      if (!table.ok()) return table.status();
+      const std::vector<std::string> required =
+          is_motion
+              ? std::vector<std::string>{"name", "component", "type", "tracked_point", "units"}
+              : std::vector<std::string>{"name", "type", "units"};
+      for (std::size_t k = 0; k < required.size(); ++k) {
+        if (table->header.size() <= k || table->header[k] != required[k]) {
+          return missing(channels_path,
+                         "column " + std::to_string(k + 1) + " must be '" + required[k] + "'");
+        }
+      }
+      const std::size_t type_col = *table->Column("type");
+      for (std::size_t r = 0; r < table->rows.size(); ++r) {
+        if (is_motion && !kMotionTypes.contains(table->rows[r][type_col])) {
+          return missing(channels_path, "line " + std::to_string(r + 2) + ": type '" +
+                                            table->rows[r][type_col] +
+                                            "' is not a motion channel type");
+        }
+      }
+      if (EndsWith(path, ".tsv")) {
+        // No header row; every row has one value per channel.
+        const std::size_t first_newline = text.find('\n');
+        const std::string_view first(
+            text.data(), first_newline == std::string::npos ? text.size() : first_newline);
+        const std::size_t columns =
+            static_cast<std::size_t>(std::count(first.begin(), first.end(), '\t')) + 1;
+        if (!text.empty() && columns != table->rows.size()) {
+          return missing(path, std::to_string(columns) + " columns but " + channels_path +
+                                   " lists " + std::to_string(table->rows.size()) + " channels");
+        }
+        double first_value = 0.0;
+        const std::string_view head = first.substr(0, first.find('\t'));
+        const auto r = std::from_chars(head.data(), head.data() + head.size(), first_value);
+        if (!text.empty() && (r.ec != std::errc() || r.ptr != head.data() + head.size())) {
+          return missing(path, "the first row is not numbers (data files have no header row)");
+        }
+      }
+      const std::string sidecar_path = prefix + (is_motion ? "_motion.json" : "_emg.json");
+      Result<json> sidecar = ReadJson(files, sidecar_path);
+      if (!sidecar.ok()) return sidecar.status();
+      const std::vector<std::string> keys =
+          is_motion
+              ? std::vector<std::string>{"SamplingFrequency", "TrackingSystemName", "TaskName"}
+              : std::vector<std::string>{"EMGPlacementScheme", "EMGReference",
+                                         "SamplingFrequency",  "PowerLineFrequency",
+                                         "SoftwareFilters",    "TaskName"};
+      for (const std::string& key : keys) {
+        if (!sidecar->contains(key)) return missing(sidecar_path, key + " is required");
+      }
+      motion_files += is_motion ? 1 : 0;
+    }
+    if (EndsWith(path, "_events.tsv")) {
+      Result<StringTable> table = ReadStringTable(text, path);
+      if (!table.ok()) return table.status();
+      if (table->header.size() < 2 || table->header[0] != "onset" ||
+          table->header[1] != "duration") {
+        return missing(path, "the first columns must be onset and duration");
+      }
+    }
+  }
+  if (motion_files == 0) return Status::InvalidArgument("no *_motion.tsv file in the dataset");
+  return Status::Ok();
+}
+
+}  // namespace fesbench::api

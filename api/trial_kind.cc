@@ -1,0 +1,147 @@
+#include "api/trial_kind.h"
+
+#include <algorithm>
+
+namespace fesbench::api {
+
+const std::vector<TrialKindInfo>& TrialKinds() {
+  // Channels as identification reads them (services/identification_service.cc,
+  // model/identify_*.h) and prediction (a stimulation input and the measured
+  // angle it is compared with).
+  static const std::vector<TrialKindInfo> kKinds = {
+      {"tolerance_test",
+       false,
+       "tolerance_test",
+       "ascending stimulation until the subject's maximum tolerated amplitude (§5.4.3)",
+       {"stim_ma"}},
+      {"isometric_ramp_irc",
+       false,
+       "isometric_ramp_irc",
+       "locked knee, slow stimulation ramp: recruitment curve by ramp correlation (§4.1.2)",
+       {"stim_ma", "torque_nm"}},
+      {"isometric_step_irc",
+       false,
+       "isometric_step_irc",
+       "locked knee, stimulation steps: recruitment curve from step plateaus (§4.1.1)",
+       {"stim_ma", "torque_nm"}},
+      {"isometric_impulse_irc",
+       false,
+       "isometric_impulse_irc",
+       "locked knee, single pulses: twitch and recruitment from impulse responses (§4.1.3)",
+       {"stim_ma", "torque_nm"}},
+      {"passive_positions",
+       false,
+       "passive_sequential",
+       "motor holds the relaxed knee at angles: passive torque-angle (§4.2.1)",
+       {"angle_deg", "torque_nm"}},
+      {"passive_velocities",
+       false,
+       "passive_sequential",
+       "motor moves the relaxed knee at constant speeds: passive torque-velocity (§4.2.1)",
+       {"angle_deg", "torque_nm"}},
+      {"passive_simultaneous",
+       true,
+       "passive_simultaneous",
+       "motor moves the relaxed knee along a trajectory: both passive curves at once (§4.2.2)",
+       {"angle_deg", "torque_nm"}},
+      {"free_swing_passive",
+       false,
+       "free_swing_passive",
+       "decoupled relaxed knee released from flexion: passive curves and inertia (§4.2.3)",
+       {"angle_deg"}},
+      {"active_random_binary",
+       true,
+       "active_random_binary",
+       "decoupled knee under random binary stimulation: active curves (§4.3)",
+       {"stim_ma", "angle_deg"}},
+      {"prediction_random_binary",
+       true,
+       "prediction_random_binary",
+       "decoupled knee under random binary stimulation, for validation (§6.9)",
+       {"stim_ma", "angle_deg"}},
+      {"prediction_step",
+       false,
+       "prediction_step",
+       "decoupled knee under a stimulation step, for validation",
+       {"stim_ma", "angle_deg"}},
+      {"prediction_ramp",
+       false,
+       "prediction_ramp",
+       "decoupled knee under a stimulation ramp, for validation",
+       {"stim_ma", "angle_deg"}},
+      {"prediction_sine",
+       false,
+       "prediction_sine",
+       "decoupled knee under sinusoidal stimulation, for validation",
+       {"stim_ma", "angle_deg"}},
+      {"rapid_isometric_ramp_irc",
+       false,
+       "rapid_parameterisation",
+       "rapid routine: locked-knee ramp for the recruitment curve (§7.4.1)",
+       {"stim_ma", "torque_nm"}},
+      {"rapid_release_hold",
+       true,
+       "rapid_parameterisation",
+       "rapid routine: the motor's hold before a release (inertia from the release)",
+       {"angle_deg", "torque_nm"}},
+      {"rapid_free_swing_passive",
+       false,
+       "rapid_parameterisation",
+       "rapid routine: release from flexion (passive curves)",
+       {"angle_deg"}},
+      {"rapid_release_extension",
+       false,
+       "rapid_parameterisation",
+       "rapid routine: release from extension (passive curves)",
+       {"angle_deg"}},
+      {"rapid_extension_search",
+       false,
+       "rapid_parameterisation",
+       "rapid routine: ascending search for the amplitude of full extension (§5.4.3)",
+       {"stim_ma", "angle_deg"}},
+      {"rapid_active_random_binary",
+       false,
+       "rapid_parameterisation",
+       "rapid routine: random binary stimulation (active curves)",
+       {"stim_ma", "angle_deg"}},
+  };
+  return kKinds;
+}
+
+namespace {
+
+bool IsSuffix(std::string_view s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+  });
+}
+
+}  // namespace
+
+const TrialKindInfo* FindTrialKind(std::string_view trial_name) {
+  const TrialKindInfo* best = nullptr;
+  for (const TrialKindInfo& k : TrialKinds()) {
+    if (trial_name == k.name) return &k;
+    if (k.family && trial_name.size() > k.name.size() + 1 && trial_name.starts_with(k.name) &&
+        trial_name[k.name.size()] == '_' && IsSuffix(trial_name.substr(k.name.size() + 1)) &&
+        (best == nullptr || k.name.size() > best->name.size())) {
+      best = &k;
+    }
+  }
+  return best;
+}
+
+Status ValidateTrialKindName(std::string_view trial_name, std::string_view field) {
+  if (FindTrialKind(trial_name) != nullptr) return Status::Ok();
+  std::string known;
+  for (const TrialKindInfo& k : TrialKinds()) {
+    if (!known.empty()) known += ", ";
+    known += k.name;
+    if (k.family) known += "[_suffix]";
+  }
+  return Status::InvalidArgument(
+      "unknown trial kind '" + std::string(trial_name) + "'; known kinds: " + known,
+      std::string(field));
+}
+
+}  // namespace fesbench::api

@@ -1,0 +1,40 @@
+#pragma once
+
+/// @file
+/// The kinds of trial the server knows (DESIGN.md §4, §7): each protocol
+/// names the trials it records, identification and prediction select trials
+/// by these names, and an imported recording declares one. A kind is either
+/// an exact name ("free_swing_passive") or a family whose members carry a
+/// suffix ("passive_simultaneous_3", "active_random_binary_rb1",
+/// "prediction_random_binary_s4").
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "api/status.h"
+
+namespace fesbench::api {
+
+struct TrialKindInfo {
+  std::string_view name;         ///< the exact name, or the family's stem.
+  bool family = false;           ///< members are "<name>_<suffix>" (and "<name>" itself).
+  std::string_view protocol;     ///< the protocol that records it.
+  std::string_view description;  ///< what the trial holds, for people.
+  /// Main-group channels a trial of this kind must have for identification
+  /// or prediction to use it (t_s is always required).
+  std::vector<std::string_view> required_channels;
+};
+
+/// Every known kind, in protocol order.
+const std::vector<TrialKindInfo>& TrialKinds();
+
+/// The kind a trial name belongs to (exact match first, then the longest
+/// family stem followed by "_" and a suffix of [a-z0-9_]), or nullptr.
+const TrialKindInfo* FindTrialKind(std::string_view trial_name);
+
+/// Checks that a trial name is a known kind (kInvalidArgument naming
+/// `field` and listing the kinds otherwise).
+Status ValidateTrialKindName(std::string_view trial_name, std::string_view field);
+
+}  // namespace fesbench::api

@@ -1,0 +1,226 @@
+// Data in and out of a session (services/session_archive.h): POST
+// /sessions/{id}/trials imports a recording or a session archive, GET
+// /sessions/{id}/export writes one.
+
+#include <algorithm>
+#include <cctype>
+
+#include "api/trial_kind.h"
+#include "server/http/api_routes.h"
+#include "server/http/resources_json.h"
+#include "server/http/routes_common.h"
+#include "server/services/run_service.h"
+#include "server/services/session_archive.h"
+#include "storage/sessions.h"
+#include "storage/subjects.h"
+
+namespace fesbench::server::http {
+namespace {
+
+using nlohmann::json;
+
+std::string MediaType(const httplib::Request& req) {
+  std::string type = req.get_header_value("Content-Type");
+  type = type.substr(0, type.find(';'));
+  while (!type.empty() && type.back() == ' ') type.pop_back();
+  std::transform(type.begin(), type.end(), type.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return type;
+}
+
+bool IsArchiveType(std::string_view type) {
+  return type == "application/zip" || type == "application/gzip" || type == "application/x-gzip" ||
+         type == "application/x-tar" || type == "application/octet-stream";
+}
+
+json ImportSchema() {
+  json column = ObjectSchema({{"column", {{"type", "string"}}},
+                              {"channel", {{"type", "string"}}},
+                              {"unit", {{"type", "string"}}}},
+                             {"column", "channel"});
+  json spec = ObjectSchema(
+      {{"kind", {{"type", "string"}, {"description", "trial kind (GET /trial-kinds)"}}},
+       {"format", {{"enum", {"csv", "tsv", "sto"}}}},
+       {"time_column", {{"type", "string"}}},
+       {"time_unit", {{"enum", {"s", "ms", "us"}}}},
+       {"sample_rate_hz", {{"type", "number"}, {"exclusiveMinimum", 0}}},
+       {"columns", {{"type", "array"}, {"items", column}}},
+       {"ignore", {{"type", "array"}, {"items", {{"type", "string"}}}}},
+       {"start_time_unix_ms", {{"type", "integer"}}},
+       {"source", {{"type", "string"}, {"maxLength", 500}}}},
+      {"kind"});
+  json schema = ObjectSchema({{"spec", spec}, {"data", {{"type", "string"}}}}, {"spec", "data"});
+  schema["description"] =
+      "A recording as JSON {spec, data: the file's text}; or a session archive (GET "
+      "/sessions/{id}/export) sent as the body with Content-Type application/zip or "
+      "application/gzip";
+  return schema;
+}
+
+api::Result<json> RunsJson(storage::Database& db, services::RunService* runs_service,
+                           std::int64_t session_id) {
+  auto runs = storage::SessionRepository(db).ListRuns(session_id);
+  if (!runs.ok()) return runs.status();
+  json out = json::array();
+  for (const storage::Run& r : *runs) {
+    if (!runs_service) {
+      out.push_back(RunToJson(r));
+      continue;
+    }
+    auto view = runs_service->Get(r.id);
+    if (!view.ok()) return view.status();
+    out.push_back(services::RunViewToJson(*view));
+  }
+  return out;
+}
+
+}  // namespace
+
+void AddDataRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
+  table.Add(
+      {"GET",
+       "/api/v1/trial-kinds",
+       kAnyRole,
+       false,
+       "trials",
+       "The trial kinds the server knows (an import declares one), with the channels each needs",
+       {},
+       200,
+       "application/json",
+       nullptr,
+       nullptr,
+       [](RequestContext&) -> api::Result<Reply> {
+         json items = json::array();
+         for (const api::TrialKindInfo& k : api::TrialKinds()) {
+           json channels = json::array({std::string(api::kTimeChannel)});
+           for (std::string_view c : k.required_channels) channels.push_back(std::string(c));
+           items.push_back({{"name", k.name},
+                            {"family", k.family},
+                            {"protocol", k.protocol},
+                            {"description", k.description},
+                            {"required_channels", std::move(channels)}});
+         }
+         return JsonReply({{"items", std::move(items)}});
+       }});
+
+  table.Add(
+      {"POST",
+       "/api/v1/sessions/{session_id}/trials",
+       kAnyRole,
+       false,
+       "trials",
+       "Import trials into a session: one recording (CSV, TSV or OpenSim .sto, with its trial "
+       "kind and column mapping) as JSON, or a whole session archive (zip or tar.gz); checked "
+       "first, stored all or nothing, each trial with its import provenance",
+       {{"name", "string", "archive uploads: the file name, kept as provenance"}},
+       201,
+       "application/json",
+       ImportSchema(),
+       nullptr,
+       [&db](RequestContext& ctx) -> api::Result<Reply> {
+         const std::int64_t session_id = ctx.Id("session_id");
+         if (auto s = storage::SessionRepository(db).Get(session_id); !s.ok()) return s.status();
+         const std::string type = MediaType(ctx.req);
+         const std::string user = ctx.user ? ctx.user->name : std::string("anonymous");
+         api::Result<services::ImportResult> imported = api::Status::Ok();
+         if (type == "application/json") {
+           json body = json::parse(ctx.req.body, nullptr, false);
+           if (body.is_discarded() || !body.is_object()) {
+             return api::Status::InvalidArgument("the body must be a JSON object {spec, data}");
+           }
+           if (!body.contains("spec")) {
+             return api::Status::InvalidArgument("required (kind, format, columns, ...)", "spec");
+           }
+           if (!body.contains("data") || !body["data"].is_string()) {
+             return api::Status::InvalidArgument("required: the recording's text", "data");
+           }
+           auto spec = api::ImportSpecFromJson(body["spec"]);
+           if (!spec.ok()) {
+             return api::Status::InvalidArgument(spec.status().message(),
+                                                 "spec." + spec.status().field());
+           }
+           ctx.body = {{"spec", body["spec"]}};
+           const std::string data = body["data"].get<std::string>();
+           imported = AuditedWrite<services::ImportResult>(
+               db, ctx, 201,
+               [&] { return services::ImportRecording(db, session_id, data, *spec, user); },
+               [](const services::ImportResult& r) {
+                 return "trial " + std::to_string(r.trials.front().id);
+               });
+         } else if (IsArchiveType(type)) {
+           auto files = services::UnpackArchive(ctx.req.body);
+           if (!files.ok()) return files.status();
+           const std::string name = ctx.Query("name").value_or("upload");
+           ctx.body = {{"archive", name}, {"bytes", ctx.req.body.size()}};
+           imported = AuditedWrite<services::ImportResult>(
+               db, ctx, 201,
+               [&] { return services::ImportArchive(db, session_id, *files, name, user); },
+               [session_id](const services::ImportResult& r) {
+                 return "session " + std::to_string(session_id) + ": " +
+                        std::to_string(r.trials.size()) + " trials";
+               });
+         } else {
+           return api::Status::InvalidArgument(
+               "send a recording as application/json {spec, data} or a session archive as "
+               "application/zip or application/gzip, not '" +
+                   type + "'",
+               "Content-Type");
+         }
+         if (!imported.ok()) return imported.status();
+         return JsonReply(services::ImportResultToJson(*imported), 201);
+       },
+       true});
+
+  table.Add(
+      {"GET",
+       "/api/v1/sessions/{session_id}/export",
+       kAnyRole,
+       false,
+       "sessions",
+       "The whole session as one archive laid out after BIDS (motion/EMG TSV with channels and "
+       "JSON sidecars, stimulation pulses as events), with its parameter sets, run log and a "
+       "README of the layout; zip (default) or tar.gz by ?format or Accept",
+       {{"format", "string", "zip (default) or tar.gz"}},
+       200,
+       "application/zip",
+       nullptr,
+       nullptr,
+       [&db, runs_service = deps.runs,
+        version = deps.server_version](RequestContext& ctx) -> api::Result<Reply> {
+         services::ArchiveFormat format = services::ArchiveFormat::kZip;
+         if (const auto f = ctx.Query("format")) {
+           const auto parsed = services::ParseArchiveFormat(*f);
+           if (!parsed) return api::Status::InvalidArgument("must be zip or tar.gz", "format");
+           format = *parsed;
+         } else if (ctx.req.get_header_value("Accept").find("application/gzip") !=
+                    std::string::npos) {
+           format = services::ArchiveFormat::kTarGz;
+         }
+         const std::int64_t session_id = ctx.Id("session_id");
+         auto session = storage::SessionRepository(db).Get(session_id);
+         if (!session.ok()) return session.status();
+         auto session_json = SessionJson(db, *session);
+         if (!session_json.ok()) return session_json.status();
+         auto subject = storage::SubjectRepository(db).Get(session->subject_id);
+         if (!subject.ok()) return subject.status();
+         auto subject_json = SubjectJson(db, *subject);
+         if (!subject_json.ok()) return subject_json.status();
+         auto runs = RunsJson(db, runs_service, session_id);
+         if (!runs.ok()) return runs.status();
+         auto files = services::SessionExportFiles(
+             db, {session_id, *session_json, *subject_json, *runs, version});
+         if (!files.ok()) return files.status();
+         const std::string root = "fesbench-session-" + std::to_string(session_id);
+         auto packed = services::PackArchive(*files, format, root);
+         if (!packed.ok()) return packed.status();
+         ctx.res.status = 200;
+         ctx.res.set_header("Content-Disposition",
+                            "attachment; filename=\"" + root + "." +
+                                std::string(services::ArchiveFormatName(format)) + "\"");
+         ctx.res.set_content(std::move(*packed), std::string(services::ArchiveMediaType(format)));
+         return Reply{200, nullptr, true};
+       }});
+}
+
+}  // namespace fesbench::server::http

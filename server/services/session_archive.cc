@@ -1,0 +1,454 @@
+#include "server/services/session_archive.h"
+
+#include <archive.h>
+#include <archive_entry.h>
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <memory>
+
+#include "api/parameter_set_json.h"
+#include "api/trial_kind.h"
+#include "storage/parameter_sets.h"
+#include "storage/sessions.h"
+#include "storage/subjects.h"
+#include "storage/time_utc.h"
+#include "storage/trials.h"
+
+namespace fesbench::server::services {
+namespace {
+
+using nlohmann::json;
+
+struct ArchiveDeleter {
+  void operator()(archive* a) const {
+    if (a != nullptr) archive_write_free(a);
+  }
+};
+struct ReadArchiveDeleter {
+  void operator()(archive* a) const {
+    if (a != nullptr) archive_read_free(a);
+  }
+};
+struct EntryDeleter {
+  void operator()(archive_entry* e) const { archive_entry_free(e); }
+};
+
+la_ssize_t AppendToString(archive*, void* client, const void* buffer, size_t length) {
+  static_cast<std::string*>(client)->append(static_cast<const char*>(buffer), length);
+  return static_cast<la_ssize_t>(length);
+}
+
+std::string ArchiveError(archive* a) {
+  const char* message = archive_error_string(a);
+  return message != nullptr ? message : "unknown archive error";
+}
+
+std::string ReadmeText(std::int64_t session_id, const std::string& subject_label) {
+  const std::string id = std::to_string(session_id);
+  return "# fesbench session " + id +
+         "\n\n"
+         "Exported by fesbench: the trials of one session laid out after BIDS v" +
+         std::string(api::kBidsVersion) +
+         " (motion datatype; EMG after BEP042),\nwith the session's parameter sets and run "
+         "log as a fesbench derivative.\n\n"
+         "## Layout\n\n"
+         "- `dataset_description.json`, `participants.tsv`: the dataset and its one "
+         "participant,\n  `sub-" +
+         subject_label +
+         "` (the subject's pseudonymous code; no other identifying data).\n"
+         "- `sub-" +
+         subject_label + "/ses-" + id + "/sub-" + subject_label + "_ses-" + id +
+         "_scans.tsv`: every data file and the UTC time its trial started.\n"
+         "- `.../motion/*_tracksys-kneebench_run-R_motion.tsv`: one trial (R is its fesbench "
+         "id),\n  one column per channel and no header row; `*_channels.tsv` names the "
+         "columns in order\n  with their units; `*_motion.json` gives the sampling frequency "
+         "and the trial's name.\n"
+         "- `.../motion/*_events.tsv`: the stimulation pulses as delivered (onset s, "
+         "amplitude_ma,\n  width_us); `*_events.json` gives the pulse rate.\n"
+         "- `.../emg/*_emg.tsv`: EMG at its own rate, same layout (BIDS stores EMG as "
+         "EDF/BDF;\n  fesbench writes TSV so that nothing is lost).\n"
+         "- `derivatives/fesbench/session.json`: subject, leg and session values "
+         "(max tolerated amplitude, ...).\n"
+         "- `derivatives/fesbench/runs.json`: every run, its protocol, parameters, states "
+         "and reason.\n"
+         "- `derivatives/fesbench/parameter_sets/paramset-<id>.json`: each parameter set "
+         "identified\n  from these trials (DESIGN.md section 3 JSON under `parameter_set`).\n\n"
+         "Numbers are written in the shortest form that reads back exactly. Importing this "
+         "archive\ninto a session (`fesbench trials import --session ID FILE`) reproduces "
+         "the trials bit for bit.\n\n"
+         "## Loading it (Python, pandas)\n\n"
+         "    import pandas as pd\n"
+         "    ch = pd.read_csv(prefix + '_channels.tsv', sep='\\t')\n"
+         "    data = pd.read_csv(prefix + '_motion.tsv', sep='\\t', header=None, "
+         "names=ch['name'])\n";
+}
+
+std::string AcqTime(std::optional<std::int64_t> start_ms) {
+  if (!start_ms) return "n/a";
+  std::string t =
+      storage::FormatUtc(storage::UtcTime(std::chrono::milliseconds(*start_ms)));  // ...ffffffZ
+  if (!t.empty() && t.back() == 'Z') t.pop_back();
+  return t;
+}
+
+}  // namespace
+
+std::optional<ArchiveFormat> ParseArchiveFormat(std::string_view name) {
+  if (name == "zip") return ArchiveFormat::kZip;
+  if (name == "tar.gz" || name == "tgz") return ArchiveFormat::kTarGz;
+  return std::nullopt;
+}
+
+std::string_view ArchiveFormatName(ArchiveFormat format) {
+  return format == ArchiveFormat::kZip ? "zip" : "tar.gz";
+}
+
+std::string_view ArchiveMediaType(ArchiveFormat format) {
+  return format == ArchiveFormat::kZip ? "application/zip" : "application/gzip";
+}
+
+api::Result<std::string> PackArchive(const api::FileMap& files, ArchiveFormat format,
+                                     std::string_view root) {
+  std::unique_ptr<archive, ArchiveDeleter> a(archive_write_new());
+  if (!a) return api::Status::Internal("libarchive: out of memory");
+  if (format == ArchiveFormat::kZip) {
+    archive_write_set_format_zip(a.get());
+  } else {
+    archive_write_set_format_pax_restricted(a.get());
+    archive_write_add_filter_gzip(a.get());
+  }
+  std::string out;
+  if (archive_write_open(a.get(), &out, nullptr, AppendToString, nullptr) != ARCHIVE_OK) {
+    return api::Status::Internal("archive: " + ArchiveError(a.get()));
+  }
+  const auto now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  for (const auto& [path, content] : files) {
+    std::unique_ptr<archive_entry, EntryDeleter> entry(archive_entry_new());
+    const std::string full = std::string(root) + "/" + path;
+    archive_entry_set_pathname(entry.get(), full.c_str());
+    archive_entry_set_size(entry.get(), static_cast<la_int64_t>(content.size()));
+    archive_entry_set_filetype(entry.get(), AE_IFREG);
+    archive_entry_set_perm(entry.get(), 0644);
+    archive_entry_set_mtime(entry.get(), now, 0);
+    if (archive_write_header(a.get(), entry.get()) != ARCHIVE_OK ||
+        archive_write_data(a.get(), content.data(), content.size()) !=
+            static_cast<la_ssize_t>(content.size())) {
+      return api::Status::Internal("archive: " + ArchiveError(a.get()));
+    }
+  }
+  if (archive_write_close(a.get()) != ARCHIVE_OK) {
+    return api::Status::Internal("archive: " + ArchiveError(a.get()));
+  }
+  return out;
+}
+
+api::Result<api::FileMap> UnpackArchive(std::string_view bytes, const UnpackLimits& limits) {
+  if (bytes.empty()) return api::Status::InvalidArgument("empty archive");
+  std::unique_ptr<archive, ReadArchiveDeleter> a(archive_read_new());
+  if (!a) return api::Status::Internal("libarchive: out of memory");
+  archive_read_support_filter_gzip(a.get());
+  archive_read_support_format_zip(a.get());
+  archive_read_support_format_tar(a.get());
+  if (archive_read_open_memory(a.get(), bytes.data(), bytes.size()) != ARCHIVE_OK) {
+    return api::Status::InvalidArgument("not a zip or tar.gz archive: " + ArchiveError(a.get()));
+  }
+  api::FileMap files;
+  std::size_t total = 0;
+  std::size_t entries = 0;
+  archive_entry* entry = nullptr;
+  while (true) {
+    const int r = archive_read_next_header(a.get(), &entry);
+    if (r == ARCHIVE_EOF) break;
+    if (r != ARCHIVE_OK) {
+      return api::Status::InvalidArgument("corrupt archive after " + std::to_string(entries) +
+                                          " entries: " + ArchiveError(a.get()));
+    }
+    if (++entries > limits.max_entries) {
+      return api::Status::InvalidArgument("the archive has more than " +
+                                          std::to_string(limits.max_entries) + " entries");
+    }
+    const char* raw_path = archive_entry_pathname(entry);
+    const std::string path = raw_path != nullptr ? raw_path : "";
+    const auto type = archive_entry_filetype(entry);
+    if (type == AE_IFDIR) continue;
+    if (type != AE_IFREG) {
+      return api::Status::InvalidArgument("archive entry '" + path +
+                                          "' is not a regular file (links and devices are "
+                                          "refused)");
+    }
+    if (path.empty() || path.front() == '/' || path.find("..") != std::string::npos ||
+        path.find('\\') != std::string::npos) {
+      return api::Status::InvalidArgument("archive entry '" + path +
+                                          "': absolute paths and '..' are refused");
+    }
+    std::string content;
+    const la_int64_t declared = archive_entry_size(entry);
+    if (declared > 0) {
+      if (total + static_cast<std::size_t>(declared) > limits.max_total_bytes) {
+        return api::Status::InvalidArgument("the archive unpacks to more than " +
+                                            std::to_string(limits.max_total_bytes >> 20) + " MiB");
+      }
+      content.reserve(static_cast<std::size_t>(declared));
+    }
+    char buffer[65536];
+    while (true) {
+      const la_ssize_t n = archive_read_data(a.get(), buffer, sizeof buffer);
+      if (n == 0) break;
+      if (n < 0) {
+        return api::Status::InvalidArgument("archive entry '" + path +
+                                            "' is corrupt: " + ArchiveError(a.get()));
+      }
+      total += static_cast<std::size_t>(n);
+      if (total > limits.max_total_bytes) {
+        return api::Status::InvalidArgument("the archive unpacks to more than " +
+                                            std::to_string(limits.max_total_bytes >> 20) + " MiB");
+      }
+      content.append(buffer, static_cast<std::size_t>(n));
+    }
+    files[path] = std::move(content);
+  }
+  if (files.empty()) return api::Status::InvalidArgument("the archive holds no files");
+  // Drop one top-level directory shared by every entry.
+  const std::string& first = files.begin()->first;
+  const std::size_t slash = first.find('/');
+  if (slash != std::string::npos) {
+    const std::string top = first.substr(0, slash + 1);
+    if (std::all_of(files.begin(), files.end(),
+                    [&](const auto& f) { return f.first.starts_with(top); })) {
+      api::FileMap stripped;
+      for (auto& [path, content] : files) stripped[path.substr(top.size())] = std::move(content);
+      files = std::move(stripped);
+    }
+  }
+  return files;
+}
+
+api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const SessionExportInfo& info) {
+  auto session = storage::SessionRepository(db).Get(info.session_id);
+  if (!session.ok()) return session.status();
+  storage::SubjectRepository subjects(db);
+  auto subject = subjects.Get(session->subject_id);
+  if (!subject.ok()) return subject.status();
+  auto leg = subjects.GetLeg(session->leg_id);
+  if (!leg.ok()) return leg.status();
+  const std::string subject_label = api::BidsLabel(subject->code);
+  const std::string session_label = std::to_string(info.session_id);
+  const std::string leg_side(storage::SideName(leg->side));
+
+  api::FileMap files;
+  files["README.md"] = ReadmeText(info.session_id, subject_label);
+  const json generated_by = json::array(
+      {{{"Name", "fesbench"},
+        {"Version", info.software_version},
+        {"Description", "FES knee bench: trials, muscle-model identification, prediction"}}});
+  files["dataset_description.json"] = json{{"Name", "fesbench session " + session_label},
+                                           {"BIDSVersion", api::kBidsVersion},
+                                           {"DatasetType", "raw"},
+                                           {"GeneratedBy", generated_by}}
+                                          .dump(2) +
+                                      "\n";
+  const json details = info.subject.value("details", json::object());
+  auto field = [&](const char* key) {
+    return details.contains(key) && !details[key].is_null()
+               ? (details[key].is_string() ? details[key].get<std::string>() : details[key].dump())
+               : std::string("n/a");
+  };
+  files["participants.tsv"] = "participant_id\tage\tsex\theight\tweight\nsub-" + subject_label +
+                              "\t" + field("age_years") + "\t" + field("sex") + "\t" +
+                              field("height_cm") + "\t" + field("weight_kg") + "\n";
+  files["participants.json"] =
+      json{{"age", {{"Description", "age at the session"}, {"Units", "year"}}},
+           {"sex", {{"Description", "female, male, other or undisclosed"}}},
+           {"height", {{"Description", "body height"}, {"Units", "cm"}}},
+           {"weight", {{"Description", "body mass"}, {"Units", "kg"}}}}
+          .dump(2) +
+      "\n";
+
+  storage::TrialRepository trials(db);
+  auto summaries = trials.ListForSession(info.session_id);
+  if (!summaries.ok()) return summaries.status();
+  const std::string session_dir = "sub-" + subject_label + "/ses-" + session_label + "/";
+  std::string scans = "filename\tacq_time\n";
+  for (const storage::TrialSummary& summary : *summaries) {
+    auto trial = trials.Get(summary.id);
+    if (!trial.ok()) return trial.status();
+    if (!trial->name) trial->name = "trial";
+    api::FileMap trial_files;
+    api::AddBidsTrial(*trial, {subject_label, session_label, leg_side, summary.id}, trial_files);
+    for (auto& [path, content] : trial_files) {
+      if (path.ends_with("_motion.tsv") || path.ends_with("_emg.tsv")) {
+        scans += path.substr(session_dir.size()) + "\t" + AcqTime(trial->start_time_unix_ms) + "\n";
+      }
+      files[path] = std::move(content);
+    }
+  }
+  files[session_dir + "sub-" + subject_label + "_ses-" + session_label + "_scans.tsv"] = scans;
+
+  const std::string derivatives = "derivatives/fesbench/";
+  files[derivatives + "dataset_description.json"] =
+      json{{"Name", "fesbench session " + session_label + ": parameter sets and run log"},
+           {"BIDSVersion", api::kBidsVersion},
+           {"DatasetType", "derivative"},
+           {"GeneratedBy", generated_by}}
+          .dump(2) +
+      "\n";
+  files[derivatives + "session.json"] =
+      json{{"subject", info.subject}, {"leg", leg_side}, {"session", info.session}}.dump(2) + "\n";
+  files[derivatives + "runs.json"] = info.runs.dump(2) + "\n";
+  storage::ParameterSetRepository sets(db);
+  auto set_ids = sets.IdsForSession(info.session_id);
+  if (!set_ids.ok()) return set_ids.status();
+  for (std::int64_t id : *set_ids) {
+    auto set = sets.Get(id);
+    if (!set.ok()) return set.status();
+    json j = {{"id", id},
+              {"version", set->summary.version},
+              {"created_at", storage::FormatUtc(set->summary.created_at)},
+              {"supersedes_id",
+               set->summary.supersedes_id ? json(*set->summary.supersedes_id) : json(nullptr)},
+              {"parameter_set", api::ParameterSetToJson(set->params)}};
+    files[derivatives + "parameter_sets/paramset-" + std::to_string(id) + ".json"] =
+        j.dump(2) + "\n";
+  }
+  return files;
+}
+
+json ImportResultToJson(const ImportResult& result) {
+  auto items = [](const std::vector<ImportedItem>& v) {
+    json out = json::array();
+    for (const ImportedItem& item : v) {
+      json j = {{"id", item.id}, {"name", item.name}};
+      j["original_id"] = item.original_id ? json(*item.original_id) : json(nullptr);
+      out.push_back(std::move(j));
+    }
+    return out;
+  };
+  return {{"trials", items(result.trials)},
+          {"parameter_sets", items(result.parameter_sets)},
+          {"notes", result.notes}};
+}
+
+api::Result<ImportResult> ImportRecording(storage::Database& db, std::int64_t session_id,
+                                          std::string_view text, const api::ImportSpec& spec,
+                                          std::string_view imported_by) {
+  api::Result<api::Trial> trial = api::ImportTrialText(text, spec);
+  if (!trial.ok()) return trial.status();
+  storage::TrialImport provenance{spec.format, spec.source, api::ImportSpecToJson(spec).dump(),
+                                  std::string(imported_by), std::nullopt};
+  auto id = storage::TrialRepository(db).Insert({session_id, std::nullopt}, *trial, provenance);
+  if (!id.ok()) return id.status();
+  ImportResult result;
+  result.trials.push_back({*id, std::nullopt, spec.kind});
+  return result;
+}
+
+api::Result<ImportResult> ImportArchive(storage::Database& db, std::int64_t session_id,
+                                        const api::FileMap& files, std::string_view archive_name,
+                                        std::string_view imported_by) {
+  api::Result<std::vector<api::BidsTrial>> read = api::ReadBidsTrials(files);
+  if (!read.ok()) return read.status();
+  if (read->empty()) {
+    return api::Status::InvalidArgument(
+        "the archive holds no trial (no sub-*/ses-*/motion/*_motion.tsv file)");
+  }
+  for (const api::BidsTrial& t : *read) {
+    if (api::Status s = api::ValidateTrialKindName(t.trial.name.value_or(""), "name"); !s.ok()) {
+      return api::Status::InvalidArgument(t.motion_path + ": " + s.message());
+    }
+  }
+  // Parameter sets, parsed before anything is written.
+  struct ArchivedSet {
+    std::int64_t original_id = 0;
+    std::optional<std::int64_t> supersedes_id;
+    std::optional<storage::UtcTime> created_at;
+    model::ParameterSet params;
+  };
+  std::vector<ArchivedSet> archived_sets;
+  const std::string prefix = "derivatives/fesbench/parameter_sets/";
+  for (const auto& [path, text] : files) {
+    if (!path.starts_with(prefix) || !path.ends_with(".json")) continue;
+    const json j = json::parse(text, nullptr, false);
+    if (j.is_discarded() || !j.is_object() || !j.contains("parameter_set") || !j.contains("id") ||
+        !j["id"].is_number_integer()) {
+      return api::Status::InvalidArgument(path + ": not a fesbench parameter-set file");
+    }
+    auto params = api::ParameterSetFromJson(j["parameter_set"]);
+    if (!params.ok()) {
+      return api::Status::InvalidArgument(path + ": " + params.status().message(),
+                                          params.status().field());
+    }
+    ArchivedSet set{j["id"].get<std::int64_t>(), std::nullopt, std::nullopt, *params};
+    if (j.contains("supersedes_id") && j["supersedes_id"].is_number_integer()) {
+      set.supersedes_id = j["supersedes_id"].get<std::int64_t>();
+    }
+    if (j.contains("created_at") && j["created_at"].is_string()) {
+      set.created_at = storage::ParseUtc(j["created_at"].get<std::string>());
+    }
+    archived_sets.push_back(std::move(set));
+  }
+  std::sort(
+      archived_sets.begin(), archived_sets.end(),
+      [](const ArchivedSet& a, const ArchivedSet& b) { return a.original_id < b.original_id; });
+
+  auto session = storage::SessionRepository(db).Get(session_id);
+  if (!session.ok()) return session.status();
+  ImportResult result;
+  api::Status status = db.Write([&](storage::Connection&) -> api::Status {
+    storage::TrialRepository trials(db);
+    std::map<std::int64_t, std::int64_t> trial_ids;  // original → new
+    for (const api::BidsTrial& t : *read) {
+      storage::TrialImport provenance{"archive", std::string(archive_name), "{}",
+                                      std::string(imported_by), t.original_id};
+      auto id = trials.Insert({session_id, std::nullopt}, t.trial, provenance);
+      if (!id.ok())
+        return api::Status::InvalidArgument(t.motion_path + ": " + id.status().message());
+      if (t.original_id) trial_ids[*t.original_id] = *id;
+      result.trials.push_back({*id, t.original_id, t.trial.name.value_or("")});
+    }
+    storage::ParameterSetRepository sets(db);
+    std::map<std::int64_t, std::int64_t> set_ids;
+    for (ArchivedSet& set : archived_sets) {
+      model::Provenance& p = set.params.provenance;
+      std::string missing;
+      for (std::int64_t& id : p.trial_ids) {
+        const auto it = trial_ids.find(id);
+        if (it == trial_ids.end()) {
+          missing = std::to_string(id);
+          break;
+        }
+        id = it->second;
+      }
+      if (missing.empty() && p.active_trial_id) {
+        const auto it = trial_ids.find(*p.active_trial_id);
+        if (it == trial_ids.end()) {
+          missing = std::to_string(*p.active_trial_id);
+        } else {
+          p.active_trial_id = it->second;
+        }
+      }
+      if (!missing.empty()) {
+        result.notes.push_back("parameter set " + std::to_string(set.original_id) +
+                               " left out: its trial " + missing + " is not in the archive");
+        continue;
+      }
+      storage::NewParameterSet fresh{session->subject_id, session->leg_id, set.params, std::nullopt,
+                                     set.created_at};
+      if (set.supersedes_id) {
+        const auto it = set_ids.find(*set.supersedes_id);
+        if (it != set_ids.end()) fresh.supersedes_id = it->second;
+      }
+      auto stored = sets.Insert(fresh);
+      if (!stored.ok()) return stored.status();
+      set_ids[set.original_id] = stored->id;
+      result.parameter_sets.push_back(
+          {stored->id, set.original_id, std::string(model::ModelKindName(set.params.model))});
+    }
+    return api::Status::Ok();
+  });
+  if (!status.ok()) return status;
+  return result;
+}
+
+}  // namespace fesbench::server::services

@@ -1,0 +1,105 @@
+#pragma once
+
+/// @file
+/// Data in and out of a session (DESIGN.md §7, §8): one archive per session,
+/// laid out after BIDS (api/bids.h) with the session's parameter sets, run
+/// log and a README of the layout; and imports — such an archive, or one
+/// recording made elsewhere (api/trial_import.h) — stored as trials of a
+/// session with their provenance, all or nothing.
+///
+/// Archive layout (root directory fesbench-session-<id>/):
+///
+///     README.md                      this layout, for people
+///     dataset_description.json       BIDS: Name, BIDSVersion, GeneratedBy
+///     participants.tsv, .json        the subject by pseudonymous code only
+///     sub-S/ses-N/sub-S_ses-N_scans.tsv   each data file and its acq_time
+///     sub-S/ses-N/motion/…, emg/…    the trials (api/bids.h)
+///     derivatives/fesbench/dataset_description.json
+///     derivatives/fesbench/session.json   subject, leg and session values
+///     derivatives/fesbench/runs.json      every run with its states and reason
+///     derivatives/fesbench/parameter_sets/paramset-<id>.json
+///                                    {id, version, created_at, supersedes_id,
+///                                     parameter_set (DESIGN.md §3)}
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "api/bids.h"
+#include "api/status.h"
+#include "api/trial_import.h"
+#include "storage/database.h"
+
+namespace fesbench::server::services {
+
+enum class ArchiveFormat { kZip, kTarGz };
+
+/// "zip" or "tar.gz" (also "tgz"); nullopt otherwise.
+std::optional<ArchiveFormat> ParseArchiveFormat(std::string_view name);
+std::string_view ArchiveFormatName(ArchiveFormat format);
+/// "application/zip" or "application/gzip".
+std::string_view ArchiveMediaType(ArchiveFormat format);
+
+/// Packs `files` under the directory `root` (libarchive). Entries are
+/// regular files, mode 0644, sorted by path.
+api::Result<std::string> PackArchive(const api::FileMap& files, ArchiveFormat format,
+                                     std::string_view root);
+
+/// Limits on what UnpackArchive accepts (an archive is client input).
+struct UnpackLimits {
+  std::size_t max_entries = 20000;
+  std::size_t max_total_bytes = std::size_t{1} << 30;  ///< unpacked.
+};
+
+/// Unpacks a zip or tar.gz (detected from its bytes). A single top-level
+/// directory shared by every entry is removed from the paths. Refused with
+/// kInvalidArgument naming the entry: not an archive, a corrupt or
+/// truncated one, absolute paths or "..", links and devices, more entries
+/// or more unpacked bytes than `limits`.
+api::Result<api::FileMap> UnpackArchive(std::string_view bytes, const UnpackLimits& limits = {});
+
+/// What a session export holds besides the trials, in resource shapes the
+/// HTTP layer renders (so the archive's JSON matches the API's).
+struct SessionExportInfo {
+  std::int64_t session_id = 0;
+  nlohmann::json session;  ///< GET /sessions/{id}
+  nlohmann::json subject;  ///< GET /subjects/{id}
+  nlohmann::json runs;     ///< array of GET /runs/{id}
+  std::string software_version;
+};
+
+/// The files of a session's archive (layout above): its trials and the
+/// parameter sets identified from them, read from `db`.
+api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const SessionExportInfo& info);
+
+/// What an import stored.
+struct ImportedItem {
+  std::int64_t id = 0;
+  std::optional<std::int64_t> original_id;  ///< its id in the exporting server.
+  std::string name;
+};
+struct ImportResult {
+  std::vector<ImportedItem> trials;
+  std::vector<ImportedItem> parameter_sets;
+  std::vector<std::string> notes;  ///< what was left out and why.
+};
+nlohmann::json ImportResultToJson(const ImportResult& result);
+
+/// Stores one recording (ImportTrialText) as a trial of the session.
+/// `text` is the file's content. Joins a caller's write transaction.
+api::Result<ImportResult> ImportRecording(storage::Database& db, std::int64_t session_id,
+                                          std::string_view text, const api::ImportSpec& spec,
+                                          std::string_view imported_by);
+
+/// Stores every trial of an unpacked session archive (ReadBidsTrials) in
+/// the session, and the archive's parameter sets whose provenance trials
+/// all came with it (trial ids mapped to the new ones, stored for the
+/// session's subject and leg). All or nothing: one write transaction.
+api::Result<ImportResult> ImportArchive(storage::Database& db, std::int64_t session_id,
+                                        const api::FileMap& files, std::string_view archive_name,
+                                        std::string_view imported_by);
+
+}  // namespace fesbench::server::services

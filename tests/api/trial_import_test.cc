@@ -1,0 +1,306 @@
+#include "api/trial_import.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "api/bids.h"
+#include "api/trial_kind.h"
+
+namespace fesbench::api {
+namespace {
+
+// A 200 Hz free swing in the file's own words: time in ms, angle in rad.
+std::string SwingCsv(int rows = 5) {
+  std::string csv = "time_ms,knee (rad),stim\n";
+  for (int i = 0; i < rows; ++i) {
+    csv += std::to_string(i * 5) + "," + std::to_string(1.0 + 0.01 * i) + ",0\n";
+  }
+  return csv;
+}
+
+ImportSpec SwingSpec() {
+  ImportSpec spec;
+  spec.kind = "free_swing_passive";
+  spec.time_column = "time_ms";
+  spec.time_unit = "ms";
+  spec.columns = {{"knee (rad)", "angle_deg", "rad"}, {"stim", "stim_ma", ""}};
+  return spec;
+}
+
+Status ImportError(std::string_view text, const ImportSpec& spec) {
+  auto trial = ImportTrialText(text, spec);
+  EXPECT_FALSE(trial.ok());
+  return trial.ok() ? Status::Ok() : trial.status();
+}
+
+TEST(TrialKindTest, ExactAndFamilyNames) {
+  EXPECT_EQ(FindTrialKind("free_swing_passive")->name, "free_swing_passive");
+  EXPECT_EQ(FindTrialKind("passive_simultaneous_3")->name, "passive_simultaneous");
+  EXPECT_EQ(FindTrialKind("active_random_binary_rb1")->name, "active_random_binary");
+  EXPECT_EQ(FindTrialKind("rapid_release_hold_flexion")->name, "rapid_release_hold");
+  EXPECT_EQ(FindTrialKind("prediction_random_binary")->name, "prediction_random_binary");
+  EXPECT_EQ(FindTrialKind("free_swing"), nullptr);
+  EXPECT_EQ(FindTrialKind("passive_simultaneous_"), nullptr);
+  EXPECT_EQ(FindTrialKind("passive_simultaneous_X"), nullptr);
+  const Status s = ValidateTrialKindName("walking", "kind");
+  EXPECT_EQ(s.field(), "kind");
+  EXPECT_NE(s.message().find("free_swing_passive"), std::string::npos);
+}
+
+TEST(UnitFactorTest, EveryDeclaredConversion) {
+  const double deg = 180.0 / std::numbers::pi;
+  EXPECT_DOUBLE_EQ(*UnitFactor("rad", "deg"), deg);
+  EXPECT_DOUBLE_EQ(*UnitFactor("rad/s", "deg/s"), deg);
+  EXPECT_DOUBLE_EQ(*UnitFactor("rad/s^2", "deg/s^2"), deg);
+  EXPECT_DOUBLE_EQ(*UnitFactor("ms", "s"), 1e-3);
+  EXPECT_DOUBLE_EQ(*UnitFactor("us", "s"), 1e-6);
+  EXPECT_DOUBLE_EQ(*UnitFactor("µs", "s"), 1e-6);
+  EXPECT_DOUBLE_EQ(*UnitFactor("N.mm", "N.m"), 1e-3);
+  EXPECT_DOUBLE_EQ(*UnitFactor("N.cm", "N.m"), 1e-2);
+  EXPECT_DOUBLE_EQ(*UnitFactor("Nm", "N.m"), 1.0);
+  EXPECT_DOUBLE_EQ(*UnitFactor("A", "mA"), 1e3);
+  EXPECT_DOUBLE_EQ(*UnitFactor("uA", "mA"), 1e-3);
+  EXPECT_DOUBLE_EQ(*UnitFactor("V", "mV"), 1e3);
+  EXPECT_DOUBLE_EQ(*UnitFactor("uV", "mV"), 1e-3);
+  EXPECT_DOUBLE_EQ(*UnitFactor("g", "m/s^2"), 9.80665);
+  EXPECT_DOUBLE_EQ(*UnitFactor("mm", "m"), 1e-3);
+  EXPECT_DOUBLE_EQ(*UnitFactor("%", "1"), 1e-2);
+  EXPECT_FALSE(UnitFactor("rad", "N.m"));
+  EXPECT_FALSE(UnitFactor("furlong", "m"));
+}
+
+TEST(TrialImportTest, ConvertsTimeAndAngleUnits) {
+  auto trial = ImportTrialText(SwingCsv(), SwingSpec());
+  ASSERT_TRUE(trial.ok()) << trial.status().ToString();
+  EXPECT_EQ(trial->name, "free_swing_passive");
+  EXPECT_DOUBLE_EQ(trial->sample_rate_hz, 200.0);
+  EXPECT_DOUBLE_EQ((*trial->Values("t_s"))[4], 0.020);
+  EXPECT_NEAR((*trial->Values("angle_deg"))[1], 1.01 * 180.0 / std::numbers::pi, 1e-12);
+  EXPECT_EQ(trial->FindChannel("angle_deg")->unit, "deg");
+  EXPECT_EQ(trial->FindChannel("stim_ma")->unit, "mA");
+}
+
+TEST(TrialImportTest, TorqueInNewtonMillimetresAndMicrosecondTime) {
+  ImportSpec spec;
+  spec.kind = "isometric_ramp_irc";
+  spec.time_column = "t";
+  spec.time_unit = "us";
+  spec.format = "tsv";
+  spec.columns = {{"tau", "torque_nm", "N.mm"}, {"I", "stim_ma", "A"}};
+  const std::string tsv = "t\ttau\tI\n0\t1500\t0.010\n10000\t2500\t0.020\n20000\t3500\t0.030\n";
+  auto trial = ImportTrialText(tsv, spec);
+  ASSERT_TRUE(trial.ok()) << trial.status().ToString();
+  EXPECT_DOUBLE_EQ(trial->sample_rate_hz, 100.0);
+  EXPECT_DOUBLE_EQ((*trial->Values("torque_nm"))[2], 3.5);
+  EXPECT_DOUBLE_EQ((*trial->Values("stim_ma"))[1], 20.0);
+}
+
+TEST(TrialImportTest, OpenSimStorageInRadians) {
+  ImportSpec spec;
+  spec.kind = "free_swing_passive";
+  spec.format = "sto";
+  spec.columns = {{"knee_angle_r", "angle_deg", ""}};
+  spec.ignore = {"pelvis_tx"};
+  const std::string sto =
+      "swing\nversion=1\nnRows=3\nnColumns=3\ninDegrees=no\nendheader\n"
+      "time\tknee_angle_r\tpelvis_tx\n0\t1\t0\n0.01\t1.1\t0\n0.02\t1.2\t0\n";
+  auto trial = ImportTrialText(sto, spec);
+  ASSERT_TRUE(trial.ok()) << trial.status().ToString();
+  EXPECT_NEAR((*trial->Values("angle_deg"))[0], 180.0 / std::numbers::pi, 1e-12);
+  EXPECT_EQ(trial->FindChannel("pelvis_tx"), nullptr);
+}
+
+TEST(TrialImportTest, MalformedFilesNameThePlace) {
+  const ImportSpec spec = SwingSpec();
+  // Wrong header: the time column is missing.
+  Status s = ImportError("t,knee (rad),stim\n0,1,0\n5,1,0\n", spec);
+  EXPECT_EQ(s.field(), "time_column");
+  EXPECT_NE(s.message().find("'time_ms'"), std::string::npos) << s.message();
+  // No header at all.
+  s = ImportError("0,1,0\n5,1,0\n", spec);
+  EXPECT_NE(s.message().find("line 1"), std::string::npos) << s.message();
+  // Non-monotonic time, on line 4.
+  s = ImportError("time_ms,knee (rad),stim\n0,1,0\n5,1,0\n5,1,0\n", spec);
+  EXPECT_NE(s.message().find("line 4, column 1 (time_ms)"), std::string::npos) << s.message();
+  // NaN on line 3, column 2.
+  s = ImportError("time_ms,knee (rad),stim\n0,1,0\n5,nan,0\n10,1,0\n", spec);
+  EXPECT_NE(s.message().find("line 3, column 2 (knee (rad))"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("not a finite number"), std::string::npos);
+  // Not a number.
+  s = ImportError("time_ms,knee (rad),stim\n0,1,0\n5,abc,0\n", spec);
+  EXPECT_NE(s.message().find("line 3, column 2"), std::string::npos) << s.message();
+  // A short row.
+  s = ImportError("time_ms,knee (rad),stim\n0,1,0\n5,1\n", spec);
+  EXPECT_NE(s.message().find("line 3: expected 3 columns, found 2"), std::string::npos);
+  // Uneven sampling: a gap on line 5.
+  s = ImportError("time_ms,knee (rad),stim\n0,1,0\n5,1,0\n10,1,0\n30,1,0\n35,1,0\n", spec);
+  EXPECT_NE(s.message().find("line 5, column 1 (time_ms)"), std::string::npos) << s.message();
+  // A declared rate the time column contradicts (seconds declared as ms).
+  ImportSpec wrong_rate = spec;
+  wrong_rate.sample_rate_hz = 1000.0;
+  s = ImportError(SwingCsv(), wrong_rate);
+  EXPECT_EQ(s.field(), "sample_rate_hz");
+  EXPECT_NE(s.message().find("200 Hz"), std::string::npos) << s.message();
+  // A missing channel the kind needs.
+  ImportSpec irc = spec;
+  irc.kind = "isometric_ramp_irc";
+  irc.columns = {{"stim", "stim_ma", ""}};
+  irc.ignore = {"knee (rad)"};
+  s = ImportError(SwingCsv(), irc);
+  EXPECT_EQ(s.field(), "columns");
+  EXPECT_NE(s.message().find("missing channel torque_nm"), std::string::npos) << s.message();
+  // A mapped column the file lacks.
+  ImportSpec absent = spec;
+  absent.columns.push_back({"torque", "torque_nm", ""});
+  s = ImportError(SwingCsv(), absent);
+  EXPECT_EQ(s.field(), "columns[2].column");
+  // An unmapped column that is no channel name.
+  ImportSpec unmapped = spec;
+  unmapped.columns.erase(unmapped.columns.begin());
+  s = ImportError(SwingCsv(), unmapped);
+  EXPECT_NE(s.message().find("column 2 'knee (rad)'"), std::string::npos) << s.message();
+  // A unit that cannot be converted.
+  ImportSpec bad_unit = spec;
+  bad_unit.columns[0].unit = "kg";
+  s = ImportError(SwingCsv(), bad_unit);
+  EXPECT_EQ(s.field(), "columns[0].unit");
+  // Degrees declared where radians were recorded: out of range, named.
+  ImportSpec as_degrees = spec;
+  as_degrees.columns[0].unit = "";
+  s = ImportError("time_ms,knee (rad),stim\n0,1,0\n5,400,0\n", as_degrees);
+  EXPECT_NE(s.message().find("line 3, column 2 (knee (rad))"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("outside the range of angle_deg"), std::string::npos);
+  // An empty file, and a .sto without its header end.
+  EXPECT_NE(ImportError("", spec).message().find("empty"), std::string::npos);
+  ImportSpec sto = spec;
+  sto.format = "sto";
+  EXPECT_NE(ImportError("name\nversion=1\n", sto).message().find("endheader"), std::string::npos);
+}
+
+TEST(TrialImportTest, SpecFromJsonNamesFields) {
+  auto spec = ImportSpecFromJson(nlohmann::json::parse(
+      R"({"kind": "free_swing_passive", "format": "sto", "time_unit": "ms",
+          "columns": [{"column": "knee", "channel": "angle_deg", "unit": "rad"}],
+          "ignore": ["x"], "sample_rate_hz": 100, "source": "gait lab"})"));
+  ASSERT_TRUE(spec.ok()) << spec.status().ToString();
+  EXPECT_EQ(spec->columns.front().unit, "rad");
+  auto back = ImportSpecFromJson(ImportSpecToJson(*spec));
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(*back, *spec);
+  EXPECT_EQ(ImportSpecFromJson(nlohmann::json::parse(R"({"format": "csv"})")).status().field(),
+            "kind");
+  EXPECT_EQ(ImportSpecFromJson(nlohmann::json::parse(R"({"kind": "walk"})")).status().field(),
+            "kind");
+  EXPECT_EQ(
+      ImportSpecFromJson(
+          nlohmann::json::parse(
+              R"({"kind": "free_swing_passive", "columns": [{"column": "a", "channel": "A b"}]})"))
+          .status()
+          .field(),
+      "columns[0].channel");
+  EXPECT_EQ(ImportSpecFromJson(
+                nlohmann::json::parse(R"({"kind": "free_swing_passive", "sample_rate_hz": -3})"))
+                .status()
+                .field(),
+            "sample_rate_hz");
+  EXPECT_EQ(ImportSpecFromJson(nlohmann::json::parse(R"({"kind": "free_swing_passive", "x": 1})"))
+                .status()
+                .field(),
+            "x");
+}
+
+// A trial as the bench stores it: every channel kind, EMG, pulses.
+Trial BenchLikeTrial() {
+  Trial t;
+  t.id = 41;
+  t.name = "active_random_binary_rb1";
+  t.start_time_unix_ms = 1732400000123;
+  t.sample_rate_hz = 200.0;
+  std::vector<double> time, angle, torque, stim, accel;
+  for (int i = 0; i < 400; ++i) {
+    time.push_back(i / 200.0);
+    angle.push_back(90.0 + 20.0 * std::sin(0.1 * i) + 1e-9 / 3.0);
+    torque.push_back(0.1 * std::cos(0.37 * i));
+    stim.push_back(i % 50 < 25 ? 30.25 : 0.0);
+    accel.push_back(0.07239000000000001 * i);
+  }
+  t.SetChannel("t_s", time);
+  t.SetChannel("angle_deg", angle);
+  t.SetChannel("torque_nm", torque);
+  t.SetChannel("stim_ma", stim);
+  t.SetChannel("accel_m_s2", accel);
+  ChannelGroup emg;
+  emg.sample_rate_hz = 1000.0;
+  std::vector<double> et, ev;
+  for (int i = 0; i < 2000; ++i) {
+    et.push_back(i / 1000.0);
+    ev.push_back(0.01 * std::sin(1.3 * i));
+  }
+  emg.Set("t_s", et);
+  emg.Set("emg_mv", ev);
+  t.emg = emg;
+  PulseRecord pulses;
+  for (int k = 0; k < 60; ++k) pulses.Append(k / 33.0, k % 3 ? 30.25 : 0.0);
+  t.pulses = pulses;
+  return t;
+}
+
+TEST(BidsTest, TrialReadsBackBitForBit) {
+  const Trial trial = BenchLikeTrial();
+  FileMap files;
+  AddBidsTrial(trial, {"S01", "3", "right", 41}, files);
+  const std::string motion =
+      "sub-S01/ses-3/motion/sub-S01_ses-3_task-activeRandomBinaryRb1_tracksys-kneebench_run-41";
+  ASSERT_TRUE(files.contains(motion + "_motion.tsv"));
+  ASSERT_TRUE(files.contains(motion + "_channels.tsv"));
+  ASSERT_TRUE(files.contains(motion + "_events.tsv"));
+  ASSERT_TRUE(
+      files.contains("sub-S01/ses-3/emg/sub-S01_ses-3_task-activeRandomBinaryRb1_run-41_emg.tsv"));
+  auto read = ReadBidsTrials(files);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  ASSERT_EQ(read->size(), 1u);
+  Trial expected = trial;
+  expected.id.reset();
+  EXPECT_EQ(read->front().trial, expected);
+  EXPECT_EQ(read->front().original_id, 41);
+}
+
+TEST(BidsTest, LayoutHasTheRequiredFilesAndColumns) {
+  FileMap files;
+  AddBidsTrial(BenchLikeTrial(), {"S01", "3", "right", 41}, files);
+  // Without the dataset files the check names what is missing.
+  EXPECT_NE(ValidateBidsLayout(files).message().find("dataset_description.json"),
+            std::string::npos);
+  files["dataset_description.json"] = R"({"Name": "x", "BIDSVersion": "1.11.0"})";
+  files["README.md"] = "x";
+  const Status ok = ValidateBidsLayout(files);
+  EXPECT_TRUE(ok.ok()) << ok.ToString();
+  // A channels file whose columns are out of order, a sidecar without its
+  // sampling frequency, a data file with a header row: each named.
+  for (const auto& [suffix, bad] : std::vector<std::pair<std::string, std::string>>{
+           {"_channels.tsv",
+            "name\ttype\tcomponent\ttracked_point\tunits\nt_s\tLATENCY\tn/a\tn/a\ts\n"},
+           {"_motion.json", R"({"TaskName": "x", "TrackingSystemName": "y"})"},
+           {"_motion.tsv", "t_s\tangle_deg\n0\t1\n"}}) {
+    FileMap broken = files;
+    const std::string path =
+        "sub-S01/ses-3/motion/sub-S01_ses-3_task-activeRandomBinaryRb1_tracksys-kneebench_run-41" +
+        suffix;
+    broken[path] = bad;
+    const Status s = ValidateBidsLayout(broken);
+    EXPECT_FALSE(s.ok()) << suffix;
+    EXPECT_NE(s.message().find(path), std::string::npos) << s.message();
+  }
+}
+
+TEST(BidsTest, LabelsAreAlphanumeric) {
+  EXPECT_EQ(BidsLabel("FES-01_a"), "FES01a");
+  EXPECT_EQ(BidsLabel("__"), "x");
+  EXPECT_EQ(BidsTaskLabel("free_swing_passive"), "freeSwingPassive");
+}
+
+}  // namespace
+}  // namespace fesbench::api
