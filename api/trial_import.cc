@@ -383,6 +383,15 @@ Result<Trial> TrialFromTable(const TextTable& table, const ImportSpec& spec) {
   }
   const double mean_dt = (t.back() - t.front()) / static_cast<double>(n - 1);
   double rate = 1.0 / mean_dt;
+  // Identification needs the bench's kind of rate (200 Hz); far outside it
+  // the time unit is usually wrong (ms read as s).
+  constexpr double kMinRateHz = 20.0;
+  constexpr double kMaxRateHz = 20000.0;
+  if (rate < kMinRateHz || rate > kMaxRateHz) {
+    return Fail("time_unit", "the time column " + Quoted(time_label) + " read in " +
+                                 spec.time_unit + " gives " + Num(rate) +
+                                 " Hz, outside 20–20000 Hz: is the time unit right (s, ms, us)?");
+  }
   if (spec.sample_rate_hz) {
     if (std::abs(rate - *spec.sample_rate_hz) > 0.01 * *spec.sample_rate_hz) {
       return Fail("sample_rate_hz",

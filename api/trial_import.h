@@ -11,8 +11,8 @@
 /// the file (1-based, counting header lines) or the spec field: a malformed
 /// header or row, a value that is not a finite number, a time column that is
 /// not strictly increasing, sampling that is not uniform (an interval more
-/// than 10 % off the mean) or disagrees with the declared rate by more than
-/// 1 %, a value outside its channel's physical range, a mapped column the
+/// than 10 % off the median one), a rate outside 20–20000 Hz (a wrong time
+/// unit) or one that disagrees with the declared rate by more than 1 %, a value outside its channel's physical range, a mapped column the
 /// file lacks, a column neither mapped nor a channel name, and a channel the
 /// declared kind needs but the file lacks.
 

@@ -156,6 +156,22 @@ api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner, const
   });
 }
 
+api::Result<std::map<std::int64_t, std::int64_t>> TrialRepository::ImportedOriginals(
+    std::int64_t session_id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::map<std::int64_t, std::int64_t>> {
+    auto rows = internal::QueryRows(
+        c,
+        "SELECT i.original_trial_id, t.id FROM trial_imports i JOIN trials t ON t.id = i.trial_id"
+        " WHERE t.session_id = ?1 AND i.original_trial_id IS NOT NULL",
+        [](const Statement& s) {
+          return std::pair{s.Int64(0), s.Int64(1)};
+        },
+        session_id);
+    if (!rows.ok()) return rows.status();
+    return std::map<std::int64_t, std::int64_t>(rows->begin(), rows->end());
+  });
+}
+
 api::Result<std::optional<TrialImport>> TrialRepository::ImportOf(std::int64_t trial_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::optional<TrialImport>> {
     if (auto s = internal::RequireRow(c, "SELECT 1 FROM trials WHERE id = ?1", trial_id, "trial");

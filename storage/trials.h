@@ -7,6 +7,7 @@
 /// such BLOBs in trial_pulses. Trials are immutable once stored.
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -58,6 +59,8 @@ class TrialRepository {
   /// caller's Database::Write it joins that transaction.
   api::Result<std::int64_t> Insert(const TrialOwner& owner, const api::Trial& trial,
                                    const std::optional<TrialImport>& import = std::nullopt);
+  /// The session's trials imported from archives: original id → id.
+  api::Result<std::map<std::int64_t, std::int64_t>> ImportedOriginals(std::int64_t session_id);
   /// The import provenance of a trial (nullopt for a bench trial);
   /// kNotFound for an unknown trial.
   api::Result<std::optional<TrialImport>> ImportOf(std::int64_t trial_id);

@@ -227,7 +227,8 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
           *format = "json";
         }
         auto client = Connect(context);
-        auto trial = api::TrialFromJson(client->Get("/trials/" + std::to_string(trial_id)));
+        const json raw = client->Get("/trials/" + std::to_string(trial_id));
+        auto trial = api::TrialFromJson(raw);
         if (!trial.ok()) {
           throw CliError::Server("server sent an invalid trial: " + trial.status().ToString());
         }
@@ -237,7 +238,10 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
         } else if (*format == "sto") {
           text = api::TrialToSto(*trial);
         } else {
-          text = api::TrialToJson(*trial).dump() + "\n";
+          // The server's form: the trial and, if imported, where it came from.
+          json out = api::TrialToJson(*trial);
+          if (raw.contains("import")) out["import"] = raw["import"];
+          text = out.dump() + "\n";
         }
         WriteOutput(context, *out_path, text);
         if (context.options.json && *out_path != "-") {

@@ -119,6 +119,7 @@ api::Result<std::string> PackArchive(const api::FileMap& files, ArchiveFormat fo
     archive_write_set_format_pax_restricted(a.get());
     archive_write_add_filter_gzip(a.get());
   }
+  archive_write_set_bytes_in_last_block(a.get(), 1);  // no padding after the data
   std::string out;
   if (archive_write_open(a.get(), &out, nullptr, AppendToString, nullptr) != ARCHIVE_OK) {
     return api::Status::Internal("archive: " + ArchiveError(a.get()));
@@ -395,6 +396,18 @@ api::Result<ImportResult> ImportArchive(storage::Database& db, std::int64_t sess
   auto session = storage::SessionRepository(db).Get(session_id);
   if (!session.ok()) return session.status();
   ImportResult result;
+  // An archive imported twice into one session would double its trials.
+  auto already = storage::TrialRepository(db).ImportedOriginals(session_id);
+  if (!already.ok()) return already.status();
+  for (const api::BidsTrial& t : *read) {
+    if (!t.original_id) continue;
+    if (const auto it = already->find(*t.original_id); it != already->end()) {
+      return api::Status::Conflict(
+          "trial " + std::to_string(*t.original_id) + " of this archive is already in session " +
+          std::to_string(session_id) + " as trial " + std::to_string(it->second) +
+          " (imported before); import it into another session");
+    }
+  }
   api::Status status = db.Write([&](storage::Connection&) -> api::Status {
     storage::TrialRepository trials(db);
     std::map<std::int64_t, std::int64_t> trial_ids;  // original → new

@@ -144,6 +144,12 @@ TEST(TrialImportTest, MalformedFilesNameThePlace) {
   s = ImportError(SwingCsv(), wrong_rate);
   EXPECT_EQ(s.field(), "sample_rate_hz");
   EXPECT_NE(s.message().find("200 Hz"), std::string::npos) << s.message();
+  // Milliseconds read as seconds: 0.2 Hz is no rate a bench records at.
+  ImportSpec seconds = spec;
+  seconds.time_unit = "s";
+  s = ImportError(SwingCsv(), seconds);
+  EXPECT_EQ(s.field(), "time_unit");
+  EXPECT_NE(s.message().find("0.2 Hz"), std::string::npos) << s.message();
   // A missing channel the kind needs.
   ImportSpec irc = spec;
   irc.kind = "isometric_ramp_irc";

@@ -225,6 +225,66 @@ TEST(CliJsonTest, EveryCommandAnswersJson) {
                                    "identify");
   EXPECT_FALSE(identified["parameter_sets"].empty());
 
+  // Data in and out (issue 20): the wide history, the tidy curves, the
+  // session archive and its import into another session, a recording.
+  auto wide = cli.Run({"params", "list", "--subject", "JS01", "--format", "csv"});
+  ASSERT_EQ(wide.exit_code, 0) << wide.err;
+  std::istringstream wide_lines(wide.out);
+  std::string header, row;
+  std::getline(wide_lines, header);
+  EXPECT_THAT(header, ::testing::StartsWith("parameter_set_id,subject_id,leg,version,"));
+  EXPECT_THAT(header, HasSubstr("contraction.pole_per_s"));
+  EXPECT_THAT(header, Not(HasSubstr("[")));  // no indexed curve points: they are in `curves`
+  int set_rows = 0;
+  while (std::getline(wide_lines, row)) ++set_rows;
+  EXPECT_EQ(set_rows, 2);  // the run's set and the identification's
+  auto curves = cli.Run({"params", "curves", set_id});
+  ASSERT_EQ(curves.exit_code, 0) << curves.err;
+  EXPECT_THAT(curves.out, ::testing::StartsWith("curve,x,x_unit,y,y_unit\n"));
+  EXPECT_THAT(curves.out, HasSubstr("\ntau_pta,90,deg,"));
+  EXPECT_THAT(curves.out, HasSubstr("\nf_atv,-400,deg/s,"));
+  const json curve_points = ParseOut(cli.Run({"params", "curves", set_id, "--json"}), "curves");
+  ASSERT_GT(curve_points.size(), 500u);
+  EXPECT_EQ(curve_points[0]["curve"], "irc");
+
+  const fs::path archive = cli.dir() / "s.tar.gz";
+  const json exported = ParseOut(cli.Run({"sessions", "export", session_id, "--format", "tar.gz",
+                                          "--out", archive.string(), "--json"}),
+                                 "sessions export");
+  EXPECT_EQ(exported["bytes"], fs::file_size(archive));
+  const json other = ParseOut(cli.Run({"sessions", "create", "--subject", "JS02", "--leg", "right",
+                                       "--date", "2026-11-22", "--json"}),
+                              "sessions create");
+  const std::string other_id = std::to_string(other["id"].get<std::int64_t>());
+  const json imported =
+      ParseOut(cli.Run({"trials", "import", "--session", other_id, archive.string(), "--json"}),
+               "trials import archive");
+  EXPECT_EQ(imported["trials"].size(), trials.size());
+  EXPECT_EQ(imported["parameter_sets"].size(), 2u);
+  auto twice = cli.Run({"trials", "import", "--session", other_id, archive.string()});
+  EXPECT_EQ(twice.exit_code, 1);
+  ExpectOneErrorLine(twice);
+  EXPECT_THAT(twice.err, HasSubstr("HTTP 409"));
+  const fs::path recording = cli.dir() / "rig.csv";
+  std::ofstream(recording) << "Time (ms),Knee (rad),I (A)\n0,1.5,0\n5,1.51,0.02\n10,1.52,0.02\n";
+  const json one =
+      ParseOut(cli.Run({"trials", "import", "--session", other_id, recording.string(), "--kind",
+                        "prediction_step", "--time-column", "Time (ms)", "--time-unit", "ms",
+                        "--map", "Knee (rad)=angle_deg:rad", "--map", "I (A)=stim_ma:A", "--json"}),
+               "trials import csv");
+  ASSERT_EQ(one["trials"].size(), 1u);
+  const json back =
+      ParseOut(cli.Run({"trials", "get", std::to_string(one["trials"][0]["id"].get<std::int64_t>()),
+                        "--json"}),
+               "trials get imported");
+  EXPECT_EQ(back["import"]["source"], "rig.csv");
+  auto refused = cli.Run({"trials", "import", "--session", other_id, recording.string(), "--kind",
+                          "prediction_step", "--time-column", "Time (ms)", "--map",
+                          "Knee (rad)=angle_deg:rad", "--map", "I (A)=stim_ma:A"});
+  EXPECT_EQ(refused.exit_code, 1);
+  ExpectOneErrorLine(refused);
+  EXPECT_THAT(refused.err, HasSubstr("is the time unit right"));
+
   // e-stop and its clear.
   EXPECT_EQ(ParseOut(cli.Run({"estop", "--json"}), "estop")["estopped"], true);
   EXPECT_EQ(ParseOut(cli.Run({"estop", "--clear", "--json"}), "estop --clear")["estopped"], false);

@@ -207,6 +207,11 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
   ASSERT_TRUE(imported);
   ASSERT_EQ(imported->status, 201) << imported->body.substr(0, 2000);
   const json result = json::parse(imported->body);
+  // The same archive again: refused, nothing doubled.
+  auto again = PostBytes(cb, import_path, admin_b, tgz->body, "application/gzip");
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->status, 409) << again->body;
+  EXPECT_NE(again->body.find("already in session"), std::string::npos) << again->body;
   const json original_trials = run["trial_ids"];
   ASSERT_EQ(result["trials"].size(), original_trials.size() + rb["trial_ids"].size());
   std::map<std::int64_t, std::int64_t> ids;
