@@ -1,0 +1,115 @@
+// Browser test of issue 20 on the session page: a recording made on another
+// rig (ms, radians, amperes) uploaded with its kind and column mapping; a
+// bad file refused with the line and column named and nothing stored; the
+// session exported as a zip and that zip imported into another session.
+//
+//   node data_exchange_test.mjs --server BIN --web-root DIR --node-modules DIR
+//                               --chromium BIN --artefacts DIR
+import assert from 'node:assert/strict';
+import { statSync } from 'node:fs';
+import { arg, call, finish, launch, shooter, startServer, step } from './harness.mjs';
+
+const artefacts = arg('--artefacts');
+const shots = shooter(artefacts);
+const started = Date.now();
+const server = await startServer({ timeScale: 0 });
+let context;
+let page;
+let error;
+
+// 2 s of a knee swinging under a stimulation step, as another rig writes it.
+function rigCsv() {
+  let csv = 'Time (ms),Knee angle (rad),Stim (A)\n';
+  for (let i = 0; i < 400; i += 1) {
+    const t = i * 5;
+    const angle = (70 + 10 * Math.sin(i / 40)) * Math.PI / 180;
+    csv += `${t},${angle},${i >= 100 && i < 300 ? 0.03 : 0}\n`;
+  }
+  return csv;
+}
+
+async function newSession(code) {
+  const subject = await call(server, 'POST', '/subjects', { code, legs: ['right'] });
+  const session = await call(server, 'POST', `/subjects/${subject.body.id}/sessions`,
+    { leg: 'right', date: '2026-11-25', threshold_ma: 15, max_tolerated_ma: 40 });
+  assert.equal(session.status, 201);
+  return session.body.id;
+}
+
+try {
+  const launched = await launch(server);
+  context = launched.context;
+  page = launched.page;
+  const first = await newSession('RIG01');
+  const second = await newSession('RIG02');
+
+  await step('sign in and open the session', async () => {
+    await page.goto(`${server.url}/`);
+    await page.waitForURL(/#\/signin$/);
+    await page.getByLabel('Access token').fill(server.token);
+    await page.keyboard.press('Enter');
+    await page.waitForURL(/#\/subjects$/);
+    await page.goto(`${server.url}/#/sessions/${first}`);
+    await page.locator('#exchange').waitFor();
+  });
+
+  await step('a bad recording: the line and column named, nothing stored', async () => {
+    await page.locator('#exchange summary').click();
+    await page.locator('#f-import_file').setInputFiles({ name: 'bad.csv', mimeType: 'text/csv',
+      buffer: Buffer.from('Time (ms),Knee angle (rad),Stim (A)\n0,1.2,0\n5,1.2,0\n5,1.3,0\n') });
+    await page.locator('#f-import_kind').selectOption('prediction_step');
+    await page.locator('#f-import_time_column').fill('Time (ms)');
+    await page.locator('#f-import_time_unit').selectOption('ms');
+    await page.locator('#f-import_columns').fill('Knee angle (rad)=angle_deg:rad\nStim (A)=stim_ma:A');
+    await page.locator('#import-submit').click();
+    await page.locator('#exchange-status').filter({ hasText: 'line 4, column 1 (Time (ms))' }).waitFor();
+    await shots.view(page, 'import-refused');
+    assert.equal((await call(server, 'GET', `/sessions/${first}/trials`)).body.items.length, 0);
+  });
+
+  await step('a recording from another rig: imported, listed, plotted', async () => {
+    await page.locator('#f-import_file').setInputFiles({ name: 'rig-b.csv', mimeType: 'text/csv',
+      buffer: Buffer.from(rigCsv()) });
+    await page.locator('#f-import_source').fill('rig B');
+    await page.locator('#import-submit').click();
+    await page.locator('#exchange-status').filter({ hasText: 'Imported 1 trial(s) from rig-b.csv.' }).waitFor();
+    await page.locator('#import-table').waitFor();
+    await page.locator('#trials-table').filter({ hasText: 'prediction_step' }).waitFor();
+    const trials = (await call(server, 'GET', `/sessions/${first}/trials`)).body.items;
+    assert.equal(trials.length, 1);
+    const trial = (await call(server, 'GET', `/trials/${trials[0].id}`)).body;
+    assert.equal(trial.import.source, 'rig B');
+    const angle = trial.channels.find((c) => c.name === 'angle_deg').values;
+    assert.ok(Math.abs(angle[0] - 70) < 1e-9, `angle converted from rad: ${angle[0]}`);
+    const stim = trial.channels.find((c) => c.name === 'stim_ma').values;
+    assert.ok(Math.abs(stim[150] - 30) < 1e-9, `stimulation converted from A: ${stim[150]}`);
+    await page.locator(`[data-trial="${trials[0].id}"]`).click();
+    await page.locator('[data-plot="trial-angle"]').waitFor();
+    await shots.view(page, 'imported');
+  });
+
+  let zipPath;
+  await step('export the session as a zip', async () => {
+    const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#export-zip').click()]);
+    assert.equal(download.suggestedFilename(), `fesbench-session-${first}.zip`);
+    zipPath = `${artefacts}/fesbench-session-${first}.zip`;
+    await download.saveAs(zipPath);
+    assert.ok(statSync(zipPath).size > 1000);
+    await page.locator('#exchange-status').filter({ hasText: 'Downloaded' }).waitFor();
+  });
+
+  await step('the zip imported into another session', async () => {
+    await page.goto(`${server.url}/#/sessions/${second}`);
+    await page.locator('#exchange').waitFor();
+    await page.locator('#exchange summary').click();
+    await page.locator('#f-import_file').setInputFiles(zipPath);
+    await page.locator('#import-submit').click();
+    await page.locator('#exchange-status').filter({ hasText: 'Imported 1 trial(s)' }).waitFor();
+    const trials = (await call(server, 'GET', `/sessions/${second}/trials`)).body.items;
+    assert.equal(trials.length, 1);
+    await shots.view(page, 'archive-imported');
+  });
+} catch (e) {
+  error = e;
+}
+await finish({ error, page, context, server, artefacts, started });
