@@ -184,7 +184,8 @@ Status ValidateChannelGroup(const ChannelGroup& group, std::string_view field_pr
 model::PulseTrain PulseRecord::Train() const {
   model::PulseTrain out;
   out.reserve(t_s.size());
-  for (std::size_t i = 0; i < t_s.size() && i < stim_ma.size(); ++i) out.push_back({t_s[i], stim_ma[i]});
+  for (std::size_t i = 0; i < t_s.size() && i < stim_ma.size(); ++i)
+    out.push_back({t_s[i], stim_ma[i]});
   return out;
 }
 
@@ -355,7 +356,8 @@ Result<Trial> TrialFromCsv(std::string_view text, double default_rate_hz) {
 
 // --- OpenSim Storage ------------------------------------------------------------
 
-std::string GroupToSto(const ChannelGroup& group, std::string_view name) {
+std::string GroupToSto(const ChannelGroup& group, std::string_view name,
+                       const std::vector<std::pair<std::string, std::string>>& metadata) {
   const Channel* time_channel = group.Find(kTimeChannel);
   std::vector<const Channel*> columns;
   if (time_channel) columns.push_back(time_channel);
@@ -366,7 +368,9 @@ std::string GroupToSto(const ChannelGroup& group, std::string_view name) {
   std::string out;
   out += name.empty() ? std::string_view("fesbench_trial") : name;
   out += "\nversion=1\nnRows=" + std::to_string(n) +
-         "\nnColumns=" + std::to_string(columns.size()) + "\ninDegrees=yes\nendheader\n";
+         "\nnColumns=" + std::to_string(columns.size()) + "\ninDegrees=yes\n";
+  for (const auto& [key, value] : metadata) out += key + "=" + value + "\n";
+  out += "endheader\n";
   for (std::size_t j = 0; j < columns.size(); ++j) {
     if (j) out += '\t';
     out += columns[j] == time_channel ? std::string("time") : columns[j]->name;
@@ -503,7 +507,8 @@ Result<Trial> TrialFromJson(const nlohmann::json& json) {
     for (const auto& [key, target] : {std::pair{"pulse_rate_hz", &record.pulse_rate_hz},
                                       std::pair{"pulse_width_us", &record.pulse_width_us}}) {
       const auto v = pulses->find(key);
-      if (v == pulses->end()) return Status::InvalidArgument("missing", std::string("pulses.") + key);
+      if (v == pulses->end())
+        return Status::InvalidArgument("missing", std::string("pulses.") + key);
       if (!v->is_number()) {
         return Status::InvalidArgument("must be a number", std::string("pulses.") + key);
       }

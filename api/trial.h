@@ -162,7 +162,10 @@ Result<Trial> TrialFromCsv(std::string_view text, double default_rate_hz = 200.0
 /// `<name>`, `version=1`, `nRows=N`, `nColumns=M` (time included),
 /// `inDegrees=yes`, `endheader`, then tab-separated rows with the time
 /// channel labelled `time` first, then the other channels by name.
-std::string GroupToSto(const ChannelGroup& group, std::string_view name);
+/// `metadata` adds `key=value` header lines before `endheader` (keys and
+/// values must not contain line breaks).
+std::string GroupToSto(const ChannelGroup& group, std::string_view name,
+                       const std::vector<std::pair<std::string, std::string>>& metadata = {});
 /// The trial's main group as .sto, named trial.name or "fesbench_trial".
 std::string TrialToSto(const Trial& trial);
 

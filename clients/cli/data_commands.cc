@@ -2,6 +2,7 @@
 // history and export of parameter sets and recorded trials (DESIGN.md §3,
 // §7, §8) with the api/ wire types.
 
+#include <charconv>
 #include <map>
 #include <memory>
 #include <ostream>
@@ -31,7 +32,10 @@ void Flatten(const json& value, const std::string& path, std::string& csv) {
       Flatten(value[i], path + "[" + std::to_string(i) + "]", csv);
     }
   } else if (value.is_number_float()) {
-    csv += path + "," + value.dump() + "\n";
+    // The shortest text that reads back to the same double.
+    char buffer[32];
+    const auto [end, ec] = std::to_chars(buffer, buffer + sizeof buffer, value.get<double>());
+    csv += path + "," + std::string(buffer, ec == std::errc() ? end : buffer) + "\n";
   } else {
     std::string cell = Cell(value);
     if (cell.find_first_of(",\"") != std::string::npos) {

@@ -5,6 +5,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <sstream>
 #include <unordered_map>
 
 #include "api/trial.h"
@@ -484,8 +485,11 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
        false,
        "trials",
        "A recorded trial: JSON, CSV or OpenSim .sto (?format=json|csv|sto, or Accept: "
-       "text/csv); a download with a Content-Disposition file name when ?format is given",
-       {{"format", "string", "json (default), csv or sto"}},
+       "text/csv); a download with a Content-Disposition file name when ?format is given. CSV "
+       "and .sto hold one channel group (?group=main, the default, or emg); the .sto header "
+       "names the trial, session, subject (pseudonymous code), leg and start time",
+       {{"format", "string", "json (default), csv or sto"},
+        {"group", "string", "csv and sto: main (default) or emg"}},
        200,
        "application/json",
        nullptr,
@@ -495,8 +499,16 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (format && *format != "json" && *format != "csv" && *format != "sto") {
            return api::Status::InvalidArgument("must be json, csv or sto", "format");
          }
+         const std::string group = ctx.Query("group").value_or("main");
+         if (group != "main" && group != "emg") {
+           return api::Status::InvalidArgument("must be main or emg", "group");
+         }
          auto trial = storage::TrialRepository(db).Get(ctx.Id("trial_id"));
          if (!trial.ok()) return trial.status();
+         if (group == "emg" && !trial->emg) {
+           return api::Status::InvalidArgument(
+               "trial " + std::to_string(*trial->id) + " has no EMG group", "group");
+         }
          const std::string accept = ctx.req.get_header_value("Accept");
          const std::string kind =
              format ? *format : (accept.find("text/csv") != std::string::npos ? "csv" : "json");
@@ -506,6 +518,7 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
            for (char& c : name) {
              if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-') c = '_';
            }
+           if (group == "emg") name += "-emg";
            ctx.res.set_header("Content-Disposition", "attachment; filename=\"trial-" +
                                                          std::to_string(ctx.Id("trial_id")) + "-" +
                                                          name + "." + kind + "\"");
@@ -530,12 +543,38 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
            ctx.res.set_content(body.dump(), "application/json");
            return Reply{200, nullptr, true};
          }
+         const api::ChannelGroup channels = group == "emg" ? *trial->emg : trial->MainGroup();
          ctx.res.status = 200;
          if (kind == "csv") {
-           ctx.res.set_content(api::TrialToCsv(*trial), "text/csv");
-         } else {
-           ctx.res.set_content(api::TrialToSto(*trial), "text/plain");
+           ctx.res.set_content(api::GroupToCsv(channels), "text/csv");
+           return Reply{200, nullptr, true};
          }
+         // .sto: where the trial comes from, as header lines.
+         std::vector<std::pair<std::string, std::string>> metadata = {
+             {"fesbench_trial_id", std::to_string(*trial->id)}};
+         auto owner = storage::TrialRepository(db).Owner(*trial->id);
+         if (!owner.ok()) return owner.status();
+         auto session = storage::SessionRepository(db).Get(owner->session_id);
+         if (!session.ok()) return session.status();
+         storage::SubjectRepository subjects(db);
+         auto subject = subjects.Get(session->subject_id);
+         if (!subject.ok()) return subject.status();
+         auto leg = subjects.GetLeg(session->leg_id);
+         if (!leg.ok()) return leg.status();
+         metadata.push_back({"fesbench_session_id", std::to_string(owner->session_id)});
+         metadata.push_back({"fesbench_subject", subject->code});
+         metadata.push_back({"fesbench_leg", std::string(storage::SideName(leg->side))});
+         if (trial->start_time_unix_ms) {
+           metadata.push_back({"fesbench_start_time_utc",
+                               storage::FormatUtc(storage::UtcTime(
+                                   std::chrono::milliseconds(*trial->start_time_unix_ms)))});
+         }
+         std::ostringstream rate;
+         rate << channels.sample_rate_hz;
+         metadata.push_back({"fesbench_sample_rate_hz", rate.str()});
+         ctx.res.set_content(
+             api::GroupToSto(channels, trial->name.value_or("fesbench_trial"), metadata),
+             "text/plain");
          return Reply{200, nullptr, true};
        }});
 

@@ -302,6 +302,27 @@ TEST(BidsTest, LayoutHasTheRequiredFilesAndColumns) {
   }
 }
 
+TEST(TrialUnitsTest, AccelerometerAndDistanceChannelsHaveUnits) {
+  EXPECT_EQ(ChannelUnit("accel_m_s2"), "m/s^2");
+  EXPECT_EQ(ChannelUnit("accel_distance_m"), "m");
+  EXPECT_EQ(ChannelUnit("accel_deg_s2"), "deg/s^2");
+  EXPECT_EQ(ChannelUnit("t_ms"), "ms");
+}
+
+TEST(TrialUnitsTest, StorageHeaderCarriesMetadata) {
+  ChannelGroup group;
+  group.Set("t_s", {0.0, 0.005});
+  group.Set("angle_deg", {90.0, 91.0});
+  const std::string sto = GroupToSto(group, "swing", {{"fesbench_subject", "S01"}});
+  EXPECT_NE(sto.find("inDegrees=yes\nfesbench_subject=S01\nendheader\n"), std::string::npos) << sto;
+  ImportSpec spec;
+  spec.kind = "free_swing_passive";
+  spec.format = "sto";
+  auto back = ImportTrialText(sto, spec);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(*back->Values("angle_deg"), (std::vector<double>{90.0, 91.0}));
+}
+
 TEST(BidsTest, LabelsAreAlphanumeric) {
   EXPECT_EQ(BidsLabel("FES-01_a"), "FES01a");
   EXPECT_EQ(BidsLabel("__"), "x");

@@ -167,6 +167,22 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
     std::cout << "[ note ] python3-pandas not installed: the pandas load was not run\n";
   }
 
+  // One trial's .sto says where it comes from; its EMG as its own CSV.
+  const std::int64_t first_trial = run["trial_ids"][0];
+  auto sto = ca.Get("/api/v1/trials/" + std::to_string(first_trial) + "?format=sto",
+                    {{"Authorization", "Bearer " + admin_a}});
+  ASSERT_TRUE(sto);
+  EXPECT_NE(sto->body.find("\nfesbench_subject=EXP-01\n"), std::string::npos)
+      << sto->body.substr(0, 300);
+  EXPECT_NE(sto->body.find("\nfesbench_session_id=" + std::to_string(session_a) + "\n"),
+            std::string::npos);
+  auto emg = ca.Get("/api/v1/trials/" + std::to_string(first_trial) + "?format=csv&group=emg",
+                    {{"Authorization", "Bearer " + admin_a}});
+  ASSERT_TRUE(emg);
+  ASSERT_EQ(emg->status, 200) << emg->body;
+  EXPECT_EQ(emg->body.rfind("t_s,emg_mv\n", 0), 0u) << emg->body.substr(0, 100);
+  EXPECT_NE(emg->get_header_value("Content-Disposition").find("-emg.csv"), std::string::npos);
+
   // A fresh server: the archive into a new session.
   ServerProcess b;
   auto cb = b.Client();
