@@ -8,6 +8,7 @@
 /// suffix ("passive_simultaneous_3", "active_random_binary_rb1",
 /// "prediction_random_binary_s4").
 
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -16,7 +17,32 @@
 
 namespace fesbench::api {
 
+/// Every kind of trial, one per row of TrialKinds().
+enum class TrialKind {
+  kToleranceTest,
+  kRampIrc,
+  kStepIrc,
+  kImpulseIrc,
+  kPassivePositions,
+  kPassiveVelocities,
+  kPassiveSimultaneous,
+  kFreeSwingPassive,
+  kActive,
+  kPredictionRandomBinary,
+  kPredictionStep,
+  kPredictionRamp,
+  kPredictionSine,
+  kRapidRamp,
+  kRapidHoldFlexion,
+  kRapidPassive,
+  kRapidHoldExtension,
+  kRapidRelease,
+  kRapidSearch,
+  kRapidActive,
+};
+
 struct TrialKindInfo {
+  TrialKind kind;
   std::string_view name;         ///< the exact name, or the family's stem.
   bool family = false;           ///< members are "<name>_<suffix>" (and "<name>" itself).
   std::string_view protocol;     ///< the protocol that records it.
@@ -24,6 +50,9 @@ struct TrialKindInfo {
   /// Main-group channels a trial of this kind must have for identification
   /// or prediction to use it (t_s is always required).
   std::vector<std::string_view> required_channels;
+  /// The motor moves or holds the knee: the angle is not a response to the
+  /// stimulation, so such a trial is not predicted.
+  bool motor = false;
 };
 
 /// Every known kind, in protocol order.
@@ -32,6 +61,9 @@ const std::vector<TrialKindInfo>& TrialKinds();
 /// The kind a trial name belongs to (exact match first, then the longest
 /// family stem followed by "_" and a suffix of [a-z0-9_]), or nullptr.
 const TrialKindInfo* FindTrialKind(std::string_view trial_name);
+
+/// The kind of a trial name (FindTrialKind), or nullopt.
+std::optional<TrialKind> TrialKindOf(std::string_view trial_name);
 
 /// Checks that a trial name is a known kind (kInvalidArgument naming
 /// `field` and listing the kinds otherwise).

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "api/trial_kind.h"
 #include "model/conditioning.h"
 #include "model/contraction.h"
 #include "model/identify_active.h"
@@ -29,42 +30,23 @@ namespace {
 
 using model::TrialColumns;
 
-// What a stored trial is, by the name the protocol runner gives it.
-enum class TrialKind {
-  kRampIrc,
-  kStepIrc,
-  kImpulseIrc,
-  kPassivePositions,
-  kPassiveVelocities,
-  kPassiveSimultaneous,
-  kFreeSwingPassive,
-  kActive,
-  kRapidRamp,
-  kRapidPassive,
-  kRapidRelease,
-  kRapidSearch,
-  kRapidHoldFlexion,
-  kRapidHoldExtension,
-  kRapidActive,
-};
+// What a stored trial is, by its name (api/trial_kind.h); identification
+// reads every kind but the tolerance test and the validation trials.
+using api::TrialKind;
 
 std::optional<TrialKind> KindOfName(std::string_view name) {
-  if (name == "isometric_ramp_irc") return TrialKind::kRampIrc;
-  if (name == "isometric_step_irc") return TrialKind::kStepIrc;
-  if (name == "isometric_impulse_irc") return TrialKind::kImpulseIrc;
-  if (name == "passive_positions") return TrialKind::kPassivePositions;
-  if (name == "passive_velocities") return TrialKind::kPassiveVelocities;
-  if (name.starts_with("passive_simultaneous")) return TrialKind::kPassiveSimultaneous;
-  if (name == "free_swing_passive") return TrialKind::kFreeSwingPassive;
-  if (name.starts_with("active_random_binary")) return TrialKind::kActive;
-  if (name == "rapid_isometric_ramp_irc") return TrialKind::kRapidRamp;
-  if (name == "rapid_free_swing_passive") return TrialKind::kRapidPassive;
-  if (name == "rapid_release_extension") return TrialKind::kRapidRelease;
-  if (name == "rapid_extension_search") return TrialKind::kRapidSearch;
-  if (name == "rapid_release_hold_flexion") return TrialKind::kRapidHoldFlexion;
-  if (name == "rapid_release_hold_extension") return TrialKind::kRapidHoldExtension;
-  if (name == "rapid_active_random_binary") return TrialKind::kRapidActive;
-  return std::nullopt;
+  const std::optional<TrialKind> kind = api::TrialKindOf(name);
+  if (!kind) return std::nullopt;
+  switch (*kind) {
+    case TrialKind::kToleranceTest:
+    case TrialKind::kPredictionRandomBinary:
+    case TrialKind::kPredictionStep:
+    case TrialKind::kPredictionRamp:
+    case TrialKind::kPredictionSine:
+      return std::nullopt;
+    default:
+      return kind;
+  }
 }
 
 const std::map<std::string, model::IrcMethod>& IrcMethods() {
@@ -432,7 +414,7 @@ class Fitter {
     common_.values["inertia_kgm2"] = *inertia;
     model::ParameterSet base = r.parameters;
     if (base.provenance.inertia_method.empty()) {
-      base.provenance.inertia_method = req_.inertia_kgm2                       ? "given"
+      base.provenance.inertia_method = req_.inertia_kgm2                          ? "given"
                                        : (ctx_.body_mass_kg && ctx_.leg_length_m) ? "anthropometric"
                                                                                   : "prior_set";
     }

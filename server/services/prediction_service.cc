@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "api/trial_kind.h"
 #include "model/conditioning.h"
 #include "model/evaluation.h"
 #include "model/extrapolate.h"
@@ -178,7 +179,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
       api::Result<LoadedTrial> trial = LoadTrial(db_, *request.trial_id);
       if (!trial.ok()) return trial.status();
       const std::string name = trial->trial.name.value_or("");
-      if (name.starts_with("passive_")) {
+      if (const api::TrialKindInfo* kind = api::FindTrialKind(name); kind && kind->motor) {
         return api::Status::FailedPrecondition(
             "trial " + std::to_string(trial->id) + " (\"" + name +
             "\") is a motor trial; predictions replay free-swing or isometric trials");

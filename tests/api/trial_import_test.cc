@@ -40,7 +40,10 @@ TEST(TrialKindTest, ExactAndFamilyNames) {
   EXPECT_EQ(FindTrialKind("free_swing_passive")->name, "free_swing_passive");
   EXPECT_EQ(FindTrialKind("passive_simultaneous_3")->name, "passive_simultaneous");
   EXPECT_EQ(FindTrialKind("active_random_binary_rb1")->name, "active_random_binary");
-  EXPECT_EQ(FindTrialKind("rapid_release_hold_flexion")->name, "rapid_release_hold");
+  EXPECT_EQ(FindTrialKind("rapid_release_hold_flexion")->name, "rapid_release_hold_flexion");
+  EXPECT_EQ(TrialKindOf("passive_simultaneous_2"), TrialKind::kPassiveSimultaneous);
+  EXPECT_TRUE(FindTrialKind("passive_positions")->motor);
+  EXPECT_FALSE(FindTrialKind("free_swing_passive")->motor);
   EXPECT_EQ(FindTrialKind("prediction_random_binary")->name, "prediction_random_binary");
   EXPECT_EQ(FindTrialKind("free_swing"), nullptr);
   EXPECT_EQ(FindTrialKind("passive_simultaneous_"), nullptr);
