@@ -280,6 +280,41 @@ void RegisterParamsCurves(CLI::App& params, CliContext& context) {
   });
 }
 
+void RegisterReport(CLI::App& app, CliContext& context) {
+  auto id = std::make_shared<std::string>();
+  auto out_path = std::make_shared<std::string>();
+  CLI::App* report = app.add_subcommand(
+      "report",
+      "A session's report: one self-contained HTML page to file or print to PDF (subject code, "
+      "session values, runs, e-stops and clamps, trials, parameter sets with their curves, "
+      "predictions on fresh trials, warnings).");
+  report->add_option("session", *id, "session id")->required();
+  report->add_option("--out", *out_path,
+                     "output file (default fesbench-session-ID-report.html; '-' for standard "
+                     "output)");
+  report->callback([id, out_path, &context] {
+    context.action = [id, out_path, &context] {
+      const std::int64_t session_id = ParseId(*id, "session");
+      auto client = Connect(context);
+      const std::string html =
+          client->GetBytes("/sessions/" + std::to_string(session_id) + "/report");
+      const std::string path =
+          out_path->empty() ? "fesbench-session-" + std::to_string(session_id) + "-report.html"
+                            : *out_path;
+      WriteOutput(context, path, html);
+      if (path == "-") return;
+      if (context.options.json) {
+        context.out << json{{"session_id", session_id}, {"out", path}, {"bytes", html.size()}}.dump(
+                           2)
+                    << "\n";
+      } else {
+        context.out << "wrote " << path << " (" << html.size()
+                    << " bytes; open it in a browser, print to PDF to file it)\n";
+      }
+    };
+  });
+}
+
 }  // namespace
 
 std::string ParameterHistoryCsv(ApiClient& client, std::int64_t subject_id, const json& items,
@@ -324,6 +359,7 @@ void RegisterExchangeCommands(CLI::App& app, CliContext& context) {
   RegisterTrialsImport(*app.get_subcommand("trials"), context);
   RegisterSessionsExport(*app.get_subcommand("sessions"), context);
   RegisterParamsCurves(*app.get_subcommand("params"), context);
+  RegisterReport(app, context);
 }
 
 }  // namespace fesbench::cli

@@ -11,8 +11,11 @@
 #include "server/http/routes_common.h"
 #include "server/services/run_service.h"
 #include "server/services/session_archive.h"
+#include "server/services/session_report.h"
 #include "storage/sessions.h"
 #include "storage/subjects.h"
+#include "storage/time_utc.h"
+#include "storage/trials.h"
 
 namespace fesbench::server::http {
 namespace {
@@ -171,6 +174,51 @@ void AddDataRoutes(RouteTable& table, const ApiDependencies& deps) {
          return JsonReply(services::ImportResultToJson(*imported), 201);
        },
        true});
+
+  table.Add(
+      {"GET",
+       "/api/v1/sessions/{session_id}/report",
+       kAnyRole,
+       false,
+       "sessions",
+       "The session report: one self-contained, printable HTML page (subject by pseudonymous "
+       "code, session values, runs and outcomes, e-stops and clamps, trials, parameter sets with "
+       "their curves, predictions on fresh trials, warnings); print it to PDF from the browser",
+       {},
+       200,
+       "text/html",
+       nullptr,
+       nullptr,
+       [&db, runs_service = deps.runs,
+        version = deps.server_version](RequestContext& ctx) -> api::Result<Reply> {
+         const std::int64_t session_id = ctx.Id("session_id");
+         auto session = storage::SessionRepository(db).Get(session_id);
+         if (!session.ok()) return session.status();
+         services::SessionReport base;
+         base.software_version = version;
+         base.generated_at_utc = storage::FormatUtc(db.Now());
+         auto session_json = SessionJson(db, *session);
+         if (!session_json.ok()) return session_json.status();
+         base.session = std::move(*session_json);
+         auto subject = storage::SubjectRepository(db).Get(session->subject_id);
+         if (!subject.ok()) return subject.status();
+         auto subject_json = SubjectJson(db, *subject);
+         if (!subject_json.ok()) return subject_json.status();
+         base.subject = std::move(*subject_json);
+         auto runs = RunsJson(db, runs_service, session_id);
+         if (!runs.ok()) return runs.status();
+         base.runs = std::move(*runs);
+         auto trials = storage::TrialRepository(db).ListForSession(session_id);
+         if (!trials.ok()) return trials.status();
+         base.trials = json::array();
+         for (const storage::TrialSummary& t : *trials)
+           base.trials.push_back(TrialSummaryToJson(t));
+         auto report = services::GatherSessionReport(db, session_id, std::move(base));
+         if (!report.ok()) return report.status();
+         ctx.res.status = 200;
+         ctx.res.set_content(services::RenderSessionReport(*report), "text/html; charset=utf-8");
+         return Reply{200, nullptr, true};
+       }});
 
   table.Add(
       {"GET",

@@ -121,7 +121,7 @@ class Fitter {
     used_.insert(t.id);
     TrialColumns c = api::ToTrialColumns(t.trial);
     if (const api::ChannelGroup* emg = t.trial.emg ? &*t.trial.emg : nullptr) {
-      if (const std::vector<double>* v = emg->Values("emg"); v != nullptr) {
+      if (const std::vector<double>* v = emg->Values("emg_mv"); v != nullptr) {
         try {
           const model::EmgComparison cmp = model::CompareEmgPrePost(*v, emg->sample_rate_hz);
           if (cmp.voluntary_contraction) {

@@ -1,7 +1,9 @@
 // Browser test of issue 20 on the session page: a recording made on another
 // rig (ms, radians, amperes) uploaded with its kind and column mapping; a
 // bad file refused with the line and column named and nothing stored; the
-// session exported as a zip and that zip imported into another session.
+// session report opened in a new tab and captured (screenshot and, where
+// the browser can, an A4 PDF); the session exported as a zip and that zip
+// imported into another session.
 //
 //   node data_exchange_test.mjs --server BIN --web-root DIR --node-modules DIR
 //                               --chromium BIN --artefacts DIR
@@ -29,7 +31,8 @@ function rigCsv() {
 }
 
 async function newSession(code) {
-  const subject = await call(server, 'POST', '/subjects', { code, legs: ['right'] });
+  const subject = await call(server, 'POST', '/subjects',
+    { code, legs: ['right'], details: { weight_kg: 72, shank_length_cm: 43 } });
   const session = await call(server, 'POST', `/subjects/${subject.body.id}/sessions`,
     { leg: 'right', date: '2026-11-25', threshold_ma: 15, max_tolerated_ma: 40 });
   assert.equal(session.status, 201);
@@ -88,6 +91,49 @@ try {
     await shots.view(page, 'imported');
   });
 
+  await step('a rapid run and a prediction of the imported recording (for the report)', async () => {
+    const run = await call(server, 'POST', `/sessions/${first}/runs`, { protocol: 'rapid_parameterisation' });
+    assert.equal(run.status, 201, JSON.stringify(run.body));
+    let view;
+    for (let i = 0; i < 600; i += 1) {
+      await call(server, 'POST', `/runs/${run.body.run_id}/heartbeat`);
+      view = (await call(server, 'GET', `/runs/${run.body.run_id}`)).body;
+      if (['done', 'aborted', 'failed'].includes(view.state)) break;
+      await new Promise((r) => setTimeout(r, 100));
+    }
+    assert.equal(view.state, 'done', JSON.stringify(view));
+    const trial = (await call(server, 'GET', `/sessions/${first}/trials`)).body.items.find((t) => t.name === 'prediction_step');
+    const job = await call(server, 'POST', '/predictions', { parameter_set_id: view.parameter_set_id, trial_id: trial.id });
+    assert.equal(job.status, 202, JSON.stringify(job.body));
+    let state = job.body;
+    while (state.state !== 'done' && state.state !== 'failed') {
+      await new Promise((r) => setTimeout(r, 100));
+      state = (await call(server, 'GET', `/jobs/${job.body.id}`)).body;
+    }
+    assert.equal(state.state, 'done', JSON.stringify(state));
+  });
+
+  await step('the session report in a new tab, printable', async () => {
+    await page.reload();
+    await page.locator('#open-report').waitFor();
+    const [report] = await Promise.all([context.waitForEvent('page'), page.locator('#open-report').click()]);
+    await report.waitForLoadState();
+    await report.locator('#runs-section').waitFor();
+    for (const id of ['#session', '#trials-section', '#warnings']) {
+      assert.ok(await report.locator(id).isVisible(), `${id} is not visible`);
+    }
+    assert.match(await report.locator('h1').textContent(), /RIG01, right leg/);
+    assert.match(await report.locator('#trials').textContent(), /prediction_step/);
+    assert.ok(await report.locator('figure.plot svg').count() >= 7, 'curves and a prediction figure');
+    assert.match(await report.locator('table.predictions').textContent(), /prediction_step/);
+    await report.setViewportSize({ width: 1000, height: 1400 });
+    await report.screenshot({ path: `${artefacts}/session-report.png`, fullPage: true });
+    await report.emulateMedia({ media: 'print' });
+    await report.pdf?.({ path: `${artefacts}/session-report.pdf`, format: 'A4' }).catch(() => {});
+    console.log(`    report screenshot: ${artefacts}/session-report.png`);
+    await report.close();
+  });
+
   let zipPath;
   await step('export the session as a zip', async () => {
     const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#export-zip').click()]);
@@ -104,9 +150,11 @@ try {
     await page.locator('#exchange summary').click();
     await page.locator('#f-import_file').setInputFiles(zipPath);
     await page.locator('#import-submit').click();
-    await page.locator('#exchange-status').filter({ hasText: 'Imported 1 trial(s)' }).waitFor();
+    await page.locator('#exchange-status').filter({ hasText: /Imported \d+ trial/ }).waitFor();
     const trials = (await call(server, 'GET', `/sessions/${second}/trials`)).body.items;
-    assert.equal(trials.length, 1);
+    const original = (await call(server, 'GET', `/sessions/${first}/trials`)).body.items;
+    assert.equal(trials.length, original.length);
+    assert.match(await page.locator('#import-table').textContent(), /parameter set/);
     await shots.view(page, 'archive-imported');
   });
 } catch (e) {

@@ -285,6 +285,12 @@ TEST(CliJsonTest, EveryCommandAnswersJson) {
   ExpectOneErrorLine(refused);
   EXPECT_THAT(refused.err, HasSubstr("is the time unit right"));
 
+  const fs::path report_path = cli.dir() / "r.html";
+  const json report =
+      ParseOut(cli.Run({"report", session_id, "--out", report_path.string(), "--json"}), "report");
+  EXPECT_EQ(report["bytes"], fs::file_size(report_path));
+  EXPECT_THAT(ReadAll(report_path), HasSubstr("Runs and their outcomes"));
+
   // e-stop and its clear.
   EXPECT_EQ(ParseOut(cli.Run({"estop", "--json"}), "estop")["estopped"], true);
   EXPECT_EQ(ParseOut(cli.Run({"estop", "--clear", "--json"}), "estop --clear")["estopped"], false);

@@ -167,6 +167,21 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
     std::cout << "[ note ] python3-pandas not installed: the pandas load was not run\n";
   }
 
+  // The session report: one HTML page with every section; 404 for no session.
+  auto report = ca.Get("/api/v1/sessions/" + std::to_string(session_a) + "/report",
+                       {{"Authorization", "Bearer " + admin_a}});
+  ASSERT_TRUE(report);
+  ASSERT_EQ(report->status, 200) << report->body.substr(0, 300);
+  EXPECT_EQ(report->get_header_value("Content-Type").rfind("text/html", 0), 0u);
+  for (const char* part :
+       {"id=\"session\"", "id=\"runs-section\"", "id=\"trials-section\"", "id=\"warnings\"",
+        "Parameter set", "rapid_parameterisation", "Predictions on fresh trials", "EXP-01"}) {
+    EXPECT_NE(report->body.find(part), std::string::npos) << part;
+  }
+  EXPECT_EQ(report->body.find("<script"), std::string::npos);
+  auto no_report = Call(ca, "GET", "/api/v1/sessions/999/report", admin_a);
+  EXPECT_EQ(no_report.status, 404);
+
   // One trial's .sto says where it comes from; its EMG as its own CSV.
   const std::int64_t first_trial = run["trial_ids"][0];
   auto sto = ca.Get("/api/v1/trials/" + std::to_string(first_trial) + "?format=sto",

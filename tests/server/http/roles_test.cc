@@ -43,6 +43,7 @@ const Expectation kRoutes[] = {
     {"GET", "/api/v1/sessions/{session_id}/trials", "cad"},
     {"POST", "/api/v1/sessions/{session_id}/trials", "cad"},
     {"GET", "/api/v1/sessions/{session_id}/export", "cad"},
+    {"GET", "/api/v1/sessions/{session_id}/report", "cad"},
     {"GET", "/api/v1/trial-kinds", "cad"},
     {"GET", "/api/v1/runs/{run_id}", "cad"},
     {"POST", "/api/v1/runs/{run_id}/cancel", "cd"},

@@ -2,7 +2,7 @@
 // out after BIDS), import a recording made elsewhere (CSV, TSV, OpenSim
 // .sto with its trial kind and column mapping) or a session archive.
 
-import { api, download, upload } from '../api.js';
+import { api, authHeaders, download, upload } from '../api.js';
 import { field, h, say, table } from '../dom.js';
 
 const ARCHIVE = /\.(zip|tar\.gz|tgz)$/i;
@@ -38,6 +38,27 @@ export async function exchangeSection(sessionId, onImported) {
       }
     },
   }, `Export session (.${format})`);
+
+  // The report opens in a new tab (a link cannot carry the token: fetched,
+  // then shown from a blob); print it to PDF from there.
+  const reportButton = h('button', {
+    type: 'button', class: 'small', id: 'open-report',
+    onclick: async () => {
+      const tab = window.open('', '_blank');
+      say(status, 'info', 'Preparing the report…');
+      try {
+        const res = await fetch(`/api/v1/sessions/${sessionId}/report`, { headers: authHeaders(), cache: 'no-store' });
+        if (!res.ok) throw new Error(`the server answered ${res.status}`);
+        const url = URL.createObjectURL(await res.blob());
+        if (tab) tab.location = url;
+        else window.location = url;
+        say(status, 'ok', 'The report opened in a new tab; print it to PDF to file it.');
+      } catch (e) {
+        if (tab) tab.close();
+        say(status, 'error', `No report: ${e.message}`);
+      }
+    },
+  }, 'Session report');
 
   let kinds = [];
   try {
@@ -99,7 +120,7 @@ export async function exchangeSection(sessionId, onImported) {
 
   return h('section', { 'aria-labelledby': 'exchange-h', id: 'exchange' },
     h('h2', { id: 'exchange-h' }, 'Data in and out'),
-    h('p', {}, exportButton('zip'), ' ', exportButton('tar.gz')),
+    h('p', {}, reportButton, ' ', exportButton('zip'), ' ', exportButton('tar.gz')),
     h('details', {}, h('summary', {}, 'Import a recording or a session archive'), form),
     status, result);
 }
