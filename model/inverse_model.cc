@@ -7,11 +7,10 @@
 #include <string>
 
 #include "model/joint_model.h"
+#include "model/units.h"
 
 namespace fesbench::model {
 namespace {
-
-constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 
 void Require(bool ok, const std::string& message) {
   if (!ok) throw std::invalid_argument(message);
