@@ -77,6 +77,47 @@ api::Result<json> RunsJson(storage::Database& db, services::RunService* runs_ser
   return out;
 }
 
+/// POST /sessions/{id}/trials with a JSON {spec, data} body: one recording.
+api::Result<services::ImportResult> ImportRecordingBody(storage::Database& db, RequestContext& ctx,
+                                                        std::int64_t session_id,
+                                                        const std::string& user) {
+  json body = json::parse(ctx.req.body, nullptr, false);
+  if (body.is_discarded() || !body.is_object()) {
+    return api::Status::InvalidArgument("the body must be a JSON object {spec, data}");
+  }
+  if (!body.contains("spec")) {
+    return api::Status::InvalidArgument("required (kind, format, columns, ...)", "spec");
+  }
+  if (!body.contains("data") || !body["data"].is_string()) {
+    return api::Status::InvalidArgument("required: the recording's text", "data");
+  }
+  auto spec = api::ImportSpecFromJson(body["spec"]);
+  if (!spec.ok()) {
+    return api::Status::InvalidArgument(spec.status().message(), "spec." + spec.status().field());
+  }
+  ctx.body = {{"spec", body["spec"]}};
+  const std::string data = body["data"].get<std::string>();
+  return AuditedWrite<services::ImportResult>(
+      db, ctx, 201, [&] { return services::ImportRecording(db, session_id, data, *spec, user); },
+      [](const services::ImportResult& r) { return "trial " + std::to_string(r.trials.front().id); });
+}
+
+/// POST /sessions/{id}/trials with a zip or tar.gz body: a session archive.
+api::Result<services::ImportResult> ImportArchiveBody(storage::Database& db, RequestContext& ctx,
+                                                      std::int64_t session_id,
+                                                      const std::string& user) {
+  auto files = services::UnpackArchive(ctx.req.body);
+  if (!files.ok()) return files.status();
+  const std::string name = ctx.Query("name").value_or("upload");
+  ctx.body = {{"archive", name}, {"bytes", ctx.req.body.size()}};
+  return AuditedWrite<services::ImportResult>(
+      db, ctx, 201, [&] { return services::ImportArchive(db, session_id, *files, name, user); },
+      [session_id](const services::ImportResult& r) {
+        return "session " + std::to_string(session_id) + ": " + std::to_string(r.trials.size()) +
+               " trials";
+      });
+}
+
 }  // namespace
 
 void AddDataRoutes(RouteTable& table, const ApiDependencies& deps) {
@@ -126,50 +167,16 @@ void AddDataRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (auto s = storage::SessionRepository(db).Get(session_id); !s.ok()) return s.status();
          const std::string type = MediaType(ctx.req);
          const std::string user = ctx.user ? ctx.user->name : std::string("anonymous");
-         api::Result<services::ImportResult> imported = api::Status::Ok();
-         if (type == "application/json") {
-           json body = json::parse(ctx.req.body, nullptr, false);
-           if (body.is_discarded() || !body.is_object()) {
-             return api::Status::InvalidArgument("the body must be a JSON object {spec, data}");
-           }
-           if (!body.contains("spec")) {
-             return api::Status::InvalidArgument("required (kind, format, columns, ...)", "spec");
-           }
-           if (!body.contains("data") || !body["data"].is_string()) {
-             return api::Status::InvalidArgument("required: the recording's text", "data");
-           }
-           auto spec = api::ImportSpecFromJson(body["spec"]);
-           if (!spec.ok()) {
-             return api::Status::InvalidArgument(spec.status().message(),
-                                                 "spec." + spec.status().field());
-           }
-           ctx.body = {{"spec", body["spec"]}};
-           const std::string data = body["data"].get<std::string>();
-           imported = AuditedWrite<services::ImportResult>(
-               db, ctx, 201,
-               [&] { return services::ImportRecording(db, session_id, data, *spec, user); },
-               [](const services::ImportResult& r) {
-                 return "trial " + std::to_string(r.trials.front().id);
-               });
-         } else if (IsArchiveType(type)) {
-           auto files = services::UnpackArchive(ctx.req.body);
-           if (!files.ok()) return files.status();
-           const std::string name = ctx.Query("name").value_or("upload");
-           ctx.body = {{"archive", name}, {"bytes", ctx.req.body.size()}};
-           imported = AuditedWrite<services::ImportResult>(
-               db, ctx, 201,
-               [&] { return services::ImportArchive(db, session_id, *files, name, user); },
-               [session_id](const services::ImportResult& r) {
-                 return "session " + std::to_string(session_id) + ": " +
-                        std::to_string(r.trials.size()) + " trials";
-               });
-         } else {
+         if (type != "application/json" && !IsArchiveType(type)) {
            return api::Status::InvalidArgument(
                "send a recording as application/json {spec, data} or a session archive as "
                "application/zip or application/gzip, not '" +
                    type + "'",
                "Content-Type");
          }
+         api::Result<services::ImportResult> imported =
+             type == "application/json" ? ImportRecordingBody(db, ctx, session_id, user)
+                                        : ImportArchiveBody(db, ctx, session_id, user);
          if (!imported.ok()) return imported.status();
          return JsonReply(services::ImportResultToJson(*imported), 201);
        },
