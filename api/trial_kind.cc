@@ -134,6 +134,14 @@ const std::vector<TrialKindInfo>& TrialKinds() {
        "rapid_parameterisation",
        "rapid routine: random binary stimulation (active curves)",
        {"stim_ma", "angle_deg"}},
+      {TrialKind::kTracking,
+       "tracking",
+       true,
+       "tracking",
+       "closed-loop tracking of a target knee angle (tracking_sine, tracking_holds, "
+       "tracking_ramp): target_deg and the controller's feedforward_ma, correction_ma, "
+       "tau_scale_nm beside the usual channels (§7.6.3)",
+       {"stim_ma", "angle_deg", "target_deg"}},
   };
   return kKinds;
 }

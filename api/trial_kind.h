@@ -39,6 +39,7 @@ enum class TrialKind {
   kRapidRelease,
   kRapidSearch,
   kRapidActive,
+  kTracking,
 };
 
 struct TrialKindInfo {

@@ -177,10 +177,10 @@ Feedforward InvertModel(const ParameterSet& params, const KneeTarget& target,
 
 Pid::Pid(Gains gains, double dt_s, double min_out, double max_out)
     : gains_(gains), dt_s_(dt_s), min_out_(min_out), max_out_(max_out) {
-  Require(Finite({gains.kp_ma_per_deg, gains.ki_ma_per_deg_s, gains.kd_ma_s_per_deg,
+  Require(Finite({gains.kp, gains.ki, gains.kd,
                   gains.derivative_filter_s}) &&
-              gains.kp_ma_per_deg >= 0.0 && gains.ki_ma_per_deg_s >= 0.0 &&
-              gains.kd_ma_s_per_deg >= 0.0 && gains.derivative_filter_s >= 0.0,
+              gains.kp >= 0.0 && gains.ki >= 0.0 &&
+              gains.kd >= 0.0 && gains.derivative_filter_s >= 0.0,
           "pid: gains and filter time must be finite and ≥ 0");
   Require(std::isfinite(dt_s) && dt_s > 0.0, "pid: dt must be > 0");
   Require(Finite({min_out, max_out}) && min_out <= max_out, "pid: need min_out ≤ max_out");
@@ -192,7 +192,13 @@ void Pid::Reset() {
   saturated_ = false;
 }
 
-double Pid::Update(double target_deg, double measured_deg, double feedforward_ma) {
+void Pid::SetLimits(double min_out, double max_out) {
+  Require(Finite({min_out, max_out}) && min_out <= max_out, "pid: need min_out ≤ max_out");
+  min_out_ = min_out;
+  max_out_ = max_out;
+}
+
+double Pid::Update(double target_deg, double measured_deg, double feedforward) {
   // Flexion error: positive when the knee is more flexed than asked, which
   // more (extensor) stimulation corrects.
   const double error = measured_deg - target_deg;
@@ -205,8 +211,8 @@ double Pid::Update(double target_deg, double measured_deg, double feedforward_ma
   last_measured_ = measured_deg;
   const double candidate_integral = integral_ + error * dt_s_;
   auto output = [&](double integral) {
-    return feedforward_ma + gains_.kp_ma_per_deg * error + gains_.ki_ma_per_deg_s * integral +
-           gains_.kd_ma_s_per_deg * derivative_;
+    return feedforward + gains_.kp * error + gains_.ki * integral +
+           gains_.kd * derivative_;
   };
   const double unclamped = output(candidate_integral);
   saturated_ = unclamped > max_out_ || unclamped < min_out_;

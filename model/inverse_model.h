@@ -96,25 +96,31 @@ struct Feedforward {
 Feedforward InvertModel(const ParameterSet& params, const KneeTarget& target,
                         const InverseOptions& options);
 
-/// A discrete PID on the angle error e = θ* − θ (deg) whose output is a
-/// correction of the amplitude (mA) — positive when the knee is too flexed
-/// (θ > θ*: more extension needed), hence the sign below. Derivative on
-/// the measurement (no kick when the target jumps), first-order filtered;
-/// the integral is frozen while the output is saturated (anti-windup).
+/// A discrete PID on the flexion error e = θ − θ* (deg) whose output, in
+/// the unit of its gains' numerator, is a correction — of the amplitude (mA)
+/// for the clinic's PID, of the extensor torque (N·m) around the inverted
+/// model (model/tracking.h) — positive when the knee is too flexed (more
+/// extension needed). Derivative on the measurement (no kick when the
+/// target jumps), first-order filtered; the integral is frozen while the
+/// output is saturated (anti-windup).
 class Pid {
  public:
   struct Gains {
-    double kp_ma_per_deg = 0.0;
-    double ki_ma_per_deg_s = 0.0;
-    double kd_ma_s_per_deg = 0.0;
+    double kp = 0.0;  ///< output per deg.
+    double ki = 0.0;  ///< output per deg·s.
+    double kd = 0.0;  ///< output·s per deg.
     double derivative_filter_s = 0.02;  ///< time constant, s, ≥ 0.
   };
   /// @throws std::invalid_argument for a non-finite or negative gain, a
   ///   negative filter time, dt ≤ 0 or min > max.
   Pid(Gains gains, double dt_s, double min_out, double max_out);
 
-  /// One control period: the correction for target and measured angle.
-  double Update(double target_deg, double measured_deg, double feedforward_ma = 0.0);
+  /// One control period: feedforward + the correction for target and
+  /// measured angle, held to [min_out, max_out].
+  double Update(double target_deg, double measured_deg, double feedforward = 0.0);
+  /// New output bounds (e.g. what the actuator can give at this sample).
+  /// @throws std::invalid_argument unless finite and min ≤ max.
+  void SetLimits(double min_out, double max_out);
   void Reset();
   double integral() const { return integral_; }
   bool saturated() const { return saturated_; }

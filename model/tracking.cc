@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -50,9 +51,9 @@ std::optional<ControllerKind> ControllerKindOf(std::string_view name) {
   return std::nullopt;
 }
 
-Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
-                     const TrackingOptions& options) {
-  Require(!target.angle_deg.empty(), "tracking: the target is empty");
+LoopShape LoopShapeOf(const ParameterSet& params, const KneeTarget& target,
+                      const TrackingOptions& options) {
+  Require(!target.angle_deg.empty() && target.rate_hz > 0.0, "tracking: the target is empty");
   const JointModel joint = JointModel::FromParameters(params);
   double mid = 0.0;
   for (double a : target.angle_deg) mid += a;
@@ -60,22 +61,160 @@ Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
   const double gain = joint.ActiveGain(mid, 0.0);
   const double hold = gain > 1e-9 ? std::clamp(-joint.PassiveAngleTorque(mid) / gain, 0.0, 1.0)
                                   : 0.0;
-  const auto total = [&](double th) {
+  // Linearised about the hold at θ_m: stiffness and damping of the leg
+  // with the holding activation, both per degree.
+  const auto angle_torque = [&](double th) {
     return joint.PassiveAngleTorque(th) + hold * joint.ActiveGain(th, 0.0);
   };
-  const double k_theta = std::max(std::abs(total(mid + 1.0) - total(mid - 1.0)) / 2.0, 0.05);
-  const double lo = std::max(options.threshold_ma, 0.0);
-  const double hi = std::max(options.max_amplitude_ma, lo + 1.0);
-  const double slope = std::max((params.irc(hi) - params.irc(lo)) / (hi - lo), 1e-4);
-  const double k_u = std::max(gain * slope, 1e-6);
-  const double g_deg_per_ma = k_u / k_theta;
-  const double loop = options.kind == ControllerKind::kPid ? 0.5 : 0.25;
+  const auto velocity_torque = [&](double w) {
+    return joint.PassiveVelocityTorque(w) + hold * joint.ActiveGain(mid, w);
+  };
+  LoopShape l;
+  l.inertia = joint.inertia_kgm2() * kRadPerDeg;
+  l.damping = std::max((velocity_torque(1.0) - velocity_torque(-1.0)) / 2.0, 0.0);
+  l.stiffness = std::max(std::abs(angle_torque(mid + 1.0) - angle_torque(mid - 1.0)) / 2.0, 0.05);
+  l.pole_per_s = params.contraction.pole_per_s;
+  l.order = params.contraction.order;
+  // A sample of computation, half a sample of hold, half a pulse period.
+  l.delay_s = 1.5 / target.rate_hz + 0.5 / options.pulse_rate_hz;
+  if (options.kind == ControllerKind::kPid) {
+    const double lo = std::max(options.threshold_ma, 0.0);
+    const double hi = std::max(options.max_amplitude_ma, lo + 1.0);
+    const double slope = std::max((params.irc(hi) - params.irc(lo)) / (hi - lo), 1e-4);
+    l.plant_gain = std::max(gain * slope, 1e-6);
+    l.integral_s = 1.0;
+    l.derivative_s = 0.1;
+  } else {
+    l.plant_gain = 1.0;
+    l.integral_s = 0.5;
+    l.derivative_s = 0.03;
+  }
+  return l;
+}
+
+std::complex<double> UnitLoop(const LoopShape& l, double omega) {
+  const std::complex<double> s(0.0, omega);
+  const std::complex<double> contraction = std::pow(l.pole_per_s / (s + l.pole_per_s), l.order);
+  const std::complex<double> leg = 1.0 / (l.inertia * s * s + l.damping * s + l.stiffness);
+  const std::complex<double> pid =
+      1.0 + 1.0 / (l.integral_s * s) + l.derivative_s * s / (1.0 + l.derivative_filter_s * s);
+  return l.plant_gain * contraction * leg * pid * std::exp(-s * l.delay_s);
+}
+
+std::optional<double> PhaseCrossover(const LoopShape& l) {
+  // Log-spaced sweep 0.05–500 rad/s, the phase unwrapped from the lowest
+  // frequency (where the integral holds it near −90°).
+  constexpr int kPoints = 4000;
+  const double lo = std::log(0.05), hi = std::log(500.0);
+  double previous_omega = std::exp(lo);
+  std::complex<double> previous = UnitLoop(l, previous_omega);
+  double phase = std::arg(previous);
+  for (int k = 1; k <= kPoints; ++k) {
+    const double omega = std::exp(lo + (hi - lo) * k / kPoints);
+    const std::complex<double> value = UnitLoop(l, omega);
+    const double next = phase + std::arg(value / previous);
+    if (next <= -std::numbers::pi) {
+      const double x = (phase + std::numbers::pi) / (phase - next);  // in (0, 1]
+      return std::exp(std::log(previous_omega) + x * (std::log(omega) - std::log(previous_omega)));
+    }
+    phase = next;
+    previous = value;
+    previous_omega = omega;
+  }
+  return std::nullopt;
+}
+
+Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
+                     const TrackingOptions& options) {
+  const LoopShape l = LoopShapeOf(params, target, options);
+  // The cap: a static loop gain kp·plant_gain/K_θ of 1 (amplitude) or 2
+  // (torque: the loop at most triples the leg's stiffness).
+  const double cap = (options.kind == ControllerKind::kPid ? 1.0 : 2.0) * l.stiffness /
+                     l.plant_gain;
+  double kp = cap;
+  if (const std::optional<double> w = PhaseCrossover(l)) {
+    kp = std::min(cap, 1.0 / (kGainMargin * std::abs(UnitLoop(l, *w))));
+  }
   Pid::Gains g;
-  g.kp_ma_per_deg = loop / g_deg_per_ma;
-  g.ki_ma_per_deg_s = g.kp_ma_per_deg / 1.0;
-  g.kd_ma_s_per_deg = g.kp_ma_per_deg * 0.1;
-  g.derivative_filter_s = 0.02;
+  g.kp = kp;
+  g.ki = kp / l.integral_s;
+  g.kd = kp * l.derivative_s;
+  g.derivative_filter_s = l.derivative_filter_s;
   return g;
+}
+
+KneeTarget WithLeadIn(const KneeTarget& target, double from_deg, double lead_in_s) {
+  Require(!target.angle_deg.empty() && target.rate_hz > 0.0, "lead-in: the target is empty");
+  Require(std::isfinite(from_deg) && std::isfinite(lead_in_s) && lead_in_s >= 0.0,
+          "lead-in: need a finite start angle and a lead-in ≥ 0 s");
+  KneeTarget out;
+  out.rate_hz = target.rate_hz;
+  const auto n = static_cast<std::size_t>(std::llround(lead_in_s * target.rate_hz));
+  const double d = target.angle_deg.front() - from_deg;
+  const double p = n > 0 ? std::numbers::pi / lead_in_s : 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) / target.rate_hz;
+    out.angle_deg.push_back(from_deg + 0.5 * d * (1.0 - std::cos(p * t)));
+    out.velocity_deg_s.push_back(0.5 * d * p * std::sin(p * t));
+    out.accel_deg_s2.push_back(0.5 * d * p * p * std::cos(p * t));
+  }
+  out.angle_deg.insert(out.angle_deg.end(), target.angle_deg.begin(), target.angle_deg.end());
+  out.velocity_deg_s.insert(out.velocity_deg_s.end(), target.velocity_deg_s.begin(),
+                            target.velocity_deg_s.end());
+  out.accel_deg_s2.insert(out.accel_deg_s2.end(), target.accel_deg_s2.begin(),
+                          target.accel_deg_s2.end());
+  return out;
+}
+
+TrackingMetrics MeasureTracking(const KneeTarget& target, const std::vector<double>& angle_deg,
+                                double settle_band_deg) {
+  const std::size_t n = std::min(target.size(), angle_deg.size());
+  Require(n > 0, "tracking metrics: no samples");
+  Require(std::isfinite(settle_band_deg) && settle_band_deg > 0.0,
+          "tracking metrics: the settle band must be > 0");
+  TrackingMetrics m;
+  double sum = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double e = angle_deg[i] - target.angle_deg[i];
+    sum += e * e;
+    m.max_error_deg = std::max(m.max_error_deg, std::abs(e));
+  }
+  m.rms_deg = std::sqrt(sum / static_cast<double>(n));
+  // Holds: a plateau (zero target velocity) that follows a move.
+  std::vector<double> overshoots, settlings;
+  for (std::size_t i = 1; i < n; ++i) {
+    if (!(target.velocity_deg_s[i] == 0.0 && target.velocity_deg_s[i - 1] != 0.0)) continue;
+    std::size_t j = i;
+    while (j < n && target.velocity_deg_s[j] == 0.0) ++j;
+    // The move's direction: + toward flexion.
+    std::size_t k = i;
+    while (k > 0 && target.velocity_deg_s[k - 1] != 0.0) --k;
+    const double direction = target.angle_deg[i] > target.angle_deg[k] ? 1.0 : -1.0;
+    double overshoot = 0.0;
+    std::size_t last_out = i;  // last sample outside the band
+    bool any_out = false;
+    for (std::size_t q = i; q < j; ++q) {
+      const double e = angle_deg[q] - target.angle_deg[q];
+      overshoot = std::max(overshoot, direction * e);
+      if (std::abs(e) > settle_band_deg) {
+        last_out = q;
+        any_out = true;
+      }
+    }
+    overshoots.push_back(overshoot);
+    settlings.push_back(any_out ? static_cast<double>(last_out + 1 - i) / target.rate_hz : 0.0);
+    i = j;
+  }
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const std::size_t h = v.size() / 2;
+    return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
+  };
+  if (!overshoots.empty()) {
+    m.overshoot_deg = median(overshoots);
+    m.settling_s = median(settlings);
+  }
+  return m;
 }
 
 TrackingController::TrackingController(const ParameterSet& params, KneeTarget target,
@@ -120,15 +259,16 @@ TrackingController::TrackingController(const ParameterSet& params, KneeTarget ta
       std::lround(params.contraction.order / params.contraction.pole_per_s * target_.rate_hz));
 }
 
-double TrackingController::FeedforwardAt(std::size_t i) const {
-  if (options_.kind == ControllerKind::kPid) return options_.threshold_ma;
-  const std::size_t n = target_.size();
-  const std::size_t j = std::min(n - 1, i + lead_);
+double TrackingController::FeedforwardActivation(std::size_t i) const {
+  const std::size_t j = std::min(target_.size() - 1, i + lead_);
   const double gain = tau_scale_ * curve_gain_[j];
   const double torque = needed_torque_nm_[j];
   const double f = gain > 1e-9 ? torque / gain : (torque > 0.0 ? 1.0 : 0.0);
-  const double u = InverseRecruitment(params_.irc, std::clamp(f, 0.0, 1.0));
-  return std::min(u, options_.max_amplitude_ma);
+  return std::clamp(f, 0.0, 1.0);
+}
+
+double TrackingController::AmplitudeFor(double activation) const {
+  return std::min(InverseRecruitment(params_.irc, activation), options_.max_amplitude_ma);
 }
 
 void TrackingController::Observe(double measured_deg) {
@@ -167,8 +307,28 @@ TrackingSample TrackingController::Update(double measured_deg) {
   TrackingSample s;
   s.target_deg = target_.angle_deg[i];
   s.error_deg = measured_deg - s.target_deg;
-  s.feedforward_ma = FeedforwardAt(i);
-  s.amplitude_ma = pid_.Update(s.target_deg, measured_deg, s.feedforward_ma);
+  if (options_.kind == ControllerKind::kPid) {
+    // The clinic's PID: the threshold plus a correction in mA.
+    s.feedforward_ma = options_.threshold_ma;
+    s.amplitude_ma = pid_.Update(s.target_deg, measured_deg, s.feedforward_ma);
+  } else {
+    // The PID around the compensator (§7.6.3) corrects the torque; the
+    // inverse turns the corrected torque into activation and amplitude, so
+    // the loop sees a linear plant whatever the recruitment's shape. Its
+    // output is held to what the muscle can add or remove now.
+    const double f_ff = FeedforwardActivation(i);
+    const double gain = tau_scale_ * curve_gain_[i];
+    const double f_max = std::clamp(params_.irc(options_.max_amplitude_ma), 0.0, 1.0);
+    if (gain > 1e-9) {
+      pid_.SetLimits(-f_ff * gain, std::max(0.0, f_max - f_ff) * gain);
+    } else {
+      pid_.SetLimits(0.0, 0.0);
+    }
+    const double correction_nm = pid_.Update(s.target_deg, measured_deg);
+    const double f = gain > 1e-9 ? f_ff + correction_nm / gain : f_ff;
+    s.feedforward_ma = AmplitudeFor(f_ff);
+    s.amplitude_ma = AmplitudeFor(std::clamp(f, 0.0, 1.0));
+  }
   s.correction_ma = s.amplitude_ma - s.feedforward_ma;
   s.tau_scale_nm = tau_scale_;
   s.saturated = s.amplitude_ma >= options_.max_amplitude_ma - 1e-9 && s.error_deg > 0.0;

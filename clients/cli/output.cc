@@ -1,6 +1,7 @@
 #include "clients/cli/output.h"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -123,6 +124,17 @@ std::pair<std::string, double> ParseKeyValue(const std::string& text) {
     throw CliError::Usage("--param " + key + " must be a number, got '" + number + "'");
   }
   return {key, value};
+}
+
+std::pair<std::string, nlohmann::json> ParseRunParameter(const std::string& text) {
+  const std::size_t eq = text.find('=');
+  const std::string value = eq == std::string::npos ? std::string() : text.substr(eq + 1);
+  const bool name = !value.empty() && std::all_of(value.begin(), value.end(), [](char c) {
+    return std::islower(static_cast<unsigned char>(c)) || c == '_';
+  });
+  if (eq != std::string::npos && eq > 0 && name) return {text.substr(0, eq), value};
+  const auto [key, number] = ParseKeyValue(text);
+  return {key, number};
 }
 
 }  // namespace fesbench::cli

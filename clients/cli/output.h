@@ -36,4 +36,9 @@ void WriteOutput(CliContext& context, const std::string& path, const std::string
 /// `key=value` with a finite number value; throws CliError (usage).
 std::pair<std::string, double> ParseKeyValue(const std::string& text);
 
+/// A protocol parameter: `key=value` with a number, or with a choice's name
+/// (lower-case letters and `_`, e.g. `controller=adaptive`; the server
+/// checks it against the protocol's choices); throws CliError (usage).
+std::pair<std::string, nlohmann::json> ParseRunParameter(const std::string& text);
+
 }  // namespace fesbench::cli

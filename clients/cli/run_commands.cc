@@ -381,7 +381,7 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         const std::int64_t session = ParseId(form->session, "session");
         json parameters = json::object();
         for (const auto& text : form->params) {
-          const auto [key, value] = ParseKeyValue(text);
+          const auto [key, value] = ParseRunParameter(text);
           parameters[key] = value;
         }
         const CliConfig connection = ResolveConnection(context.options);

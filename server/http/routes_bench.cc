@@ -134,7 +134,10 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
              {}, 201, "application/json",
              ObjectSchema({{"protocol", {{"type", "string"}}},
                            {"parameters",
-                            {{"type", "object"}, {"additionalProperties", {{"type", "number"}}}}},
+                            {{"type", "object"},
+                             {"additionalProperties",
+                              {{"type", {"number", "string"}},
+                               {"description", "a number; a choice parameter also its name"}}}}},
                            {"ceiling_reason", {{"type", "string"}, {"maxLength", 500}}}},
                           {"protocol"}),
              nullptr, [runs](RequestContext& ctx) -> api::Result<Reply> {

@@ -1,5 +1,7 @@
 #include "server/http/services_json.h"
 
+#include <algorithm>
+
 #include "server/http/json_fields.h"
 
 namespace fesbench::server::http {
@@ -12,19 +14,40 @@ api::Result<StartRunRequest> StartRunFromJson(const json& body) {
   JsonFields f(body);
   StartRunRequest out;
   if (auto protocol = f.String("protocol", true, 64)) out.protocol = *protocol;
+  const protocols::ProtocolDescription* description = protocols::FindProtocol(out.protocol);
   if (const auto* parameters = f.Object("parameters", false)) {
     if (parameters->size() > 64) {
       return api::Status::InvalidArgument("too many parameters", "parameters");
     }
     JsonFields p(*parameters, "parameters");
     for (const auto& [name, value] : parameters->items()) {
+      // A choice parameter takes its name as well as its index.
+      if (value.is_string() && description != nullptr) {
+        const auto spec =
+            std::find_if(description->parameters.begin(), description->parameters.end(),
+                         [&](const protocols::ParameterSpec& s) { return s.name == name; });
+        if (spec != description->parameters.end() && !spec->choices.empty()) {
+          const std::string chosen = value.get<std::string>();
+          const auto it = std::find(spec->choices.begin(), spec->choices.end(), chosen);
+          if (it == spec->choices.end()) {
+            std::string names;
+            for (const std::string& c : spec->choices) names += (names.empty() ? "" : ", ") + c;
+            return api::Status::InvalidArgument("'" + chosen.substr(0, 40) + "' is not one of " +
+                                                    names,
+                                                "parameters." + name);
+          }
+          out.parameters[name] = static_cast<double>(it - spec->choices.begin());
+          p.Any(name, true);  // seen
+          continue;
+        }
+      }
       if (auto number = p.Number(name, true)) out.parameters[name] = *number;
     }
     if (auto st = p.Finish(); !st.ok()) return st;
   }
   if (auto reason = f.String("ceiling_reason", false, 500)) out.ceiling_reason = *reason;
   if (auto st = f.Finish(); !st.ok()) return st;
-  if (!protocols::FindProtocol(out.protocol)) {
+  if (description == nullptr) {
     return api::Status(api::ErrorCode::kNotFound, "protocol " + out.protocol + " not found",
                        "protocol");
   }

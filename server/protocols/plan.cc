@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <sstream>
 #include <stdexcept>
 #include <tuple>
 
 #include "model/stimulus_generators.h"
 #include "model/trajectory.h"
+#include "server/protocols/model_gate.h"
+#include "server/protocols/tracking_plan.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -419,6 +422,131 @@ std::int64_t Plan::total_ticks() const {
   return n;
 }
 
+// The tracking target of the resolved values (issue 19): a sine starting at
+// its middle, holds cycling through lo + (½, 0, ¾, ¼)·(hi − lo), or a ramp
+// lo → hi → lo.
+model::KneeTarget TrackingTarget(const ParameterValues& v, std::string& name) {
+  const double lo = v.at("lo_deg"), hi = v.at("hi_deg"), duration = v.at("duration_s");
+  switch (static_cast<int>(v.at("target"))) {
+    case 1: {
+      name = "holds";
+      const double hold = v.at("hold_s"), move = v.at("move_s");
+      const auto count = static_cast<std::size_t>(
+          std::max(2.0, std::floor((duration + move) / (hold + move))));
+      // Steps of different sizes and both directions inside [lo, hi].
+      const double cycle[] = {0.5, 0.0, 0.75, 0.25};
+      std::vector<double> angles;
+      for (std::size_t i = 0; i < count; ++i) angles.push_back(lo + cycle[i % 4] * (hi - lo));
+      return model::HoldsTarget(angles, hold, move);
+    }
+    case 2: {
+      name = "ramp";
+      const auto n = static_cast<std::size_t>(std::llround(duration * 200.0)) + 1;
+      std::vector<double> angle(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double x = static_cast<double>(i) / static_cast<double>(n - 1);  // 0..1
+        angle[i] = lo + (hi - lo) * (1.0 - std::abs(2.0 * x - 1.0));
+      }
+      return model::SampledTarget(std::move(angle), 200.0);
+    }
+    default:
+      name = "sine";
+      return model::SineTarget(lo, hi, v.at("frequency_hz"), duration);
+  }
+}
+
+// The longest run of samples in which the set says the target cannot be
+// followed: [begin, end). Samples whose activation or amplitude the inverse
+// held at its top count; so do those held at zero (the target asks for
+// flexion, which the quadriceps cannot give) where the target lies beyond
+// the knee's rest angle — there the knee cannot be held at all, while
+// elsewhere it only falls behind for a moment.
+std::pair<std::size_t, std::size_t> LongestUnreachable(const model::Feedforward& ff,
+                                                       const model::KneeTarget& target,
+                                                       double max_ma, double rest_deg) {
+  const auto out = [&](std::size_t i) {
+    if (!ff.saturated[i]) return false;
+    if (ff.activation[i] >= 1.0 || ff.amplitude_ma[i] >= max_ma) return true;
+    return target.angle_deg[i] > rest_deg;
+  };
+  std::pair<std::size_t, std::size_t> best{0, 0};
+  for (std::size_t i = 0; i < ff.saturated.size();) {
+    if (!out(i)) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    while (j < ff.saturated.size() && out(j)) ++j;
+    if (j - i > best.second - best.first) best = {i, j};
+    i = j;
+  }
+  return best;
+}
+
+api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subject, Plan& plan,
+                          Builder& b) {
+  if (!subject.parameter_set) {
+    return api::Status::FailedPrecondition(
+        "tracking needs the leg's parameter set: run rapid_parameterisation first");
+  }
+  if (!(v.at("lo_deg") < v.at("hi_deg"))) {
+    return api::Status::InvalidArgument("must be above lo_deg", "parameters.hi_deg");
+  }
+  TrackingSettings t;
+  t.params = *subject.parameter_set;
+  t.target = TrackingTarget(v, t.target_name);
+  t.lead_in_s = v.at("lead_in_s");
+  t.max_rate_ma_per_s = v.at("max_rate_ma_per_s");
+  t.max_saturation_s = v.at("max_saturation_s");
+  t.options.kind = static_cast<model::ControllerKind>(static_cast<int>(v.at("controller")));
+  t.options.threshold_ma = std::min(v.at("threshold_ma"), v.at("max_ma"));
+  t.options.max_amplitude_ma = v.at("max_ma");
+  t.options.forgetting = v.at("forgetting");
+  // The amplitude PID's gains (pid) or the torque PID's (around the model).
+  const bool amplitude = t.options.kind == model::ControllerKind::kPid;
+  const double kp = v.at(amplitude ? "kp_ma_per_deg" : "kp_nm_per_deg");
+  const double ki = v.at(amplitude ? "ki_ma_per_deg_s" : "ki_nm_per_deg_s");
+  const double kd = v.at(amplitude ? "kd_ma_s_per_deg" : "kd_nm_s_per_deg");
+  if (kp > 0.0 || ki > 0.0 || kd > 0.0) t.options.gains = model::Pid::Gains{kp, ki, kd, 0.02};
+  // The model gate of tracking: the set's inverse along the target must not
+  // stay saturated longer than the controller would be allowed to.
+  model::InverseOptions inverse;
+  inverse.max_amplitude_ma = t.options.max_amplitude_ma;
+  const model::Feedforward ff = model::InvertModel(t.params, t.target, inverse);
+  const double rest_deg = FreeSwingStartAngleDeg(t.params);
+  const auto [from, to] = LongestUnreachable(ff, t.target, inverse.max_amplitude_ma, rest_deg);
+  const double span_s = static_cast<double>(to - from) / t.target.rate_hz;
+  if (span_s > t.max_saturation_s) {
+    const bool too_much =
+        ff.activation[from] >= 1.0 || ff.amplitude_ma[from] >= inverse.max_amplitude_ma;
+    std::ostringstream why;
+    why << "the parameter set";
+    if (subject.parameter_set_id) why << " #" << *subject.parameter_set_id;
+    why << " predicts the target cannot be followed: from t = " << ff.t_s[from] << " s (target "
+        << t.target.angle_deg[from] << "°) for " << span_s << " s it needs ";
+    if (too_much) {
+      why << "more than the maximum " << inverse.max_amplitude_ma << " mA gives";
+    } else {
+      why << "the knee held beyond its rest angle " << rest_deg
+          << "° (flexion, which the quadriceps cannot give)";
+    }
+    why << " (longer than max_saturation_s = " << t.max_saturation_s << " s)";
+    return api::Status::FailedPrecondition(why.str());
+  }
+  b.Prepare("decouple", MotorMode::kDecoupled, 90.0, v.at("settle_s"));
+  const int trial = b.AddTrial("tracking_" + t.target_name, MotorMode::kDecoupled);
+  Step s;
+  s.phase = StepPhase::kStimulate;
+  s.label = "track";
+  s.ticks = Ticks(t.lead_in_s + t.target.duration_s());
+  s.motor_mode = MotorMode::kDecoupled;
+  s.trial = trial;
+  s.closed_loop = true;
+  b.Push(std::move(s));
+  plan.tracking = std::make_shared<const TrackingSettings>(std::move(t));
+  return api::Status::Ok();
+}
+
 api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const ParameterValues& values,
                             const SubjectContext& subject) {
   Plan plan;
@@ -444,6 +572,8 @@ api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const Parameter
       BuildPrediction(name, values, b);
     } else if (name == "rapid_parameterisation") {
       BuildRapid(values, protocol.min_rest_s, subject, plan, b);
+    } else if (name == "tracking") {
+      if (api::Status st = BuildTracking(values, subject, plan, b); !st.ok()) return st;
     } else {
       return api::Status::NotFound("no plan for protocol " + name);
     }

@@ -67,6 +67,9 @@ struct Step {
   /// The step is a rest period with this protocol minimum (s); the engine
   /// never runs it shorter.
   double min_rest_s = 0.0;
+  /// Tracking (Plan::tracking): the amplitude comes from the controller,
+  /// which reads the knee angle at every 200 Hz sample.
+  bool closed_loop = false;
 };
 
 /// A trial the plan records.
@@ -117,6 +120,10 @@ struct AdaptiveAmplitude {
   double min_top_fraction = 0.0;
 };
 
+/// A tracking run's target, controller and limits (tracking_plan.h; kept
+/// out of this header, which must not pull in Eigen: see routes_bench.cc).
+struct TrackingSettings;
+
 /// Steps, trials and what follows them.
 struct Plan {
   std::string protocol;
@@ -131,6 +138,7 @@ struct Plan {
   std::optional<ToleranceSettings> tolerance;
   std::optional<RapidSettings> rapid;
   std::optional<AdaptiveAmplitude> adaptive_amplitude;
+  std::shared_ptr<const TrackingSettings> tracking;
 
   std::int64_t total_ticks() const;
   double duration_s() const { return static_cast<double>(total_ticks()) / kTicksPerSecond; }

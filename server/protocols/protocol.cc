@@ -285,6 +285,55 @@ std::vector<ProtocolDescription> MakeCatalog() {
         SettleS(2.0, "swing after decoupling before recording, s")}});
 
   c.push_back(
+      {"tracking",
+       1,
+       "Knee-angle tracking",
+       "Decoupled: the stimulation follows a target knee angle (a 0.2 Hz sine between two "
+       "angles, holds at angles, or a ramp up and down) with the leg's parameter set, after a "
+       "lead-in from where the knee hangs to the target's start. Controllers: pid (a PID on "
+       "the angle error above the threshold), inverse_model (the inverted model as "
+       "feedforward with a PID around it) and adaptive (the same with τ_scale followed "
+       "online). Amplitude within the max tolerated and slew-limited; a controller saturated "
+       "at the maximum longer than max_saturation_s ends the run (§7.6.3).",
+       BenchMode::kDecoupled,
+       ProtocolKind::kTracking,
+       0.0,
+       {ThresholdMa(),
+        MaxMa(),
+        {"controller", "0 = pid, 1 = inverse_model, 2 = adaptive", 1.0, 0.0, 2.0, true,
+         Scaling::kNone, false, {"pid", "inverse_model", "adaptive"}},
+        {"target", "0 = sine, 1 = holds, 2 = ramp", 0.0, 0.0, 2.0, true, Scaling::kNone, false,
+         {"sine", "holds", "ramp"}},
+        {"lo_deg", "lower target angle (extension side), deg", 30.0, 0.0, 180.0, false},
+        {"hi_deg", "upper target angle (flexion side), deg", 80.0, 0.0, 180.0, false},
+        {"frequency_hz", "sine frequency, Hz", 0.2, 0.01, 1.0, false},
+        {"duration_s", "length of the target after the lead-in, s", 30.0, 2.0, 600.0, false},
+        {"hold_s", "holds: time at each angle, s", 4.0, 0.5, 60.0, false},
+        {"move_s", "holds: time to move between angles, s", 1.0, 0.2, 10.0, false},
+        {"lead_in_s", "move from the hanging knee to the target's start, s", 3.0, 1.0, 10.0,
+         false},
+        {"kp_ma_per_deg",
+         "pid: proportional gain on the amplitude, mA/deg (pid's three gains 0: tuned from the "
+         "set)",
+         0.0, 0.0, 20.0, false},
+        {"ki_ma_per_deg_s", "pid: integral gain, mA/(deg·s)", 0.0, 0.0, 50.0, false},
+        {"kd_ma_s_per_deg", "pid: derivative gain, mA·s/deg", 0.0, 0.0, 5.0, false},
+        {"kp_nm_per_deg",
+         "inverse_model, adaptive: proportional gain of the PID on the torque around the "
+         "inverted model, N·m/deg (the three gains 0: tuned from the set)",
+         0.0, 0.0, 20.0, false},
+        {"ki_nm_per_deg_s", "inverse_model, adaptive: integral gain, N·m/(deg·s)", 0.0, 0.0, 50.0,
+         false},
+        {"kd_nm_s_per_deg", "inverse_model, adaptive: derivative gain, N·m·s/deg", 0.0, 0.0, 5.0,
+         false},
+        {"max_rate_ma_per_s", "fastest amplitude change, mA/s", 1000.0, 5.0, 5000.0, false},
+        {"max_saturation_s", "the run ends if the controller asks for more than the maximum "
+         "this long, s", 3.0, 0.2, 60.0, false},
+        {"forgetting", "adaptive: forgetting factor of the τ_scale estimate (per 5 ms sample)",
+         0.999, 0.9, 1.0, false},
+        SettleS(2.0, "swing after decoupling before the lead-in, s")}});
+
+  c.push_back(
       {"rapid_parameterisation",
        2,
        "Rapid parameterisation",
@@ -544,7 +593,7 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
           field);
     }
     // Every angle (lock, reference, trajectory limits) inside the range of motion.
-    const bool angle = p.name.ends_with("_deg");
+    const bool angle = p.name.ends_with("_deg") && !p.name.ends_with("_per_deg");
     if (angle && (v < subject.min_angle_deg || v > subject.max_angle_deg)) {
       return api::Status::InvalidArgument("outside the subject's range of motion [" +
                                               Format(subject.min_angle_deg) + ", " +
@@ -637,6 +686,24 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"rb1_seed", {"First pattern number", "1", true}},
       {"rb2_seed", {"Second pattern number", "1", true}},
       {"active_seed", {"Active-swing pattern number", "1", true}},
+      // Tracking.
+      {"controller", {"Controller", "1", false}},
+      {"target", {"Target", "1", false}},
+      {"lo_deg", {"Lower target angle (extension side)", "deg", false}},
+      {"hi_deg", {"Upper target angle (flexion side)", "deg", false}},
+      {"frequency_hz", {"Sine frequency", "Hz", false}},
+      {"hold_s", {"Time at each hold", "s", false}},
+      {"move_s", {"Time between holds", "s", true}},
+      {"lead_in_s", {"Lead-in to the target's start", "s", true}},
+      {"kp_ma_per_deg", {"PID proportional gain (0 = tuned from the set)", "mA/deg", true}},
+      {"ki_ma_per_deg_s", {"PID integral gain", "mA/(deg·s)", true}},
+      {"kd_ma_s_per_deg", {"PID derivative gain", "mA·s/deg", true}},
+      {"kp_nm_per_deg", {"Torque PID proportional gain (0 = tuned from the set)", "N·m/deg", true}},
+      {"ki_nm_per_deg_s", {"Torque PID integral gain", "N·m/(deg·s)", true}},
+      {"kd_nm_s_per_deg", {"Torque PID derivative gain", "N·m·s/deg", true}},
+      {"max_rate_ma_per_s", {"Fastest amplitude change", "mA/s", true}},
+      {"max_saturation_s", {"Longest saturation before the run stops", "s", true}},
+      {"forgetting", {"Adaptive forgetting factor", "1", true}},
       // Anthropometrics.
       {"inertia_kgm2",
        {"Leg inertia (0 = the last parameter set's, else from weight and shank length)", "kg·m²",
@@ -718,7 +785,8 @@ nlohmann::json ProtocolToJson(const ProtocolDescription& protocol, const Subject
                       {"integer", p.integer},
                       {"advanced", look.advanced},
                       {"scales_to", std::string(ScalingName(p.scaling))},
-                      {"rest", p.is_rest}});
+                      {"rest", p.is_rest},
+                      {"choices", p.choices}});
   }
   return {{"name", protocol.name},
           {"version", protocol.version},

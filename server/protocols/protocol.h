@@ -59,6 +59,9 @@ struct ParameterSpec {
   /// A rest period: values below the protocol's min_rest_s are refused
   /// (DESIGN.md §6: rest periods cannot be shortened below the minimum).
   bool is_rest = false;
+  /// A choice among names: the value is the index of the chosen name
+  /// (clients may send the name; GET /protocols lists them).
+  std::vector<std::string> choices = {};
 };
 
 /// What the runner does with the bench during a protocol.
@@ -71,7 +74,15 @@ enum class BenchMode {
 std::string_view BenchModeName(BenchMode mode);
 
 /// Protocol families (model-gated stimulation applies to kPrediction).
-enum class ProtocolKind { kTolerance, kIsometric, kPassive, kFreeSwing, kPrediction, kRapid };
+enum class ProtocolKind {
+  kTolerance,
+  kIsometric,
+  kPassive,
+  kFreeSwing,
+  kPrediction,
+  kRapid,
+  kTracking,  ///< closed-loop stimulation to follow a target angle (issue 19).
+};
 
 /// A protocol description: pure data.
 struct ProtocolDescription {

@@ -98,6 +98,8 @@ struct SampleBatch {
   int trial = -1;
   std::string trial_name;
   std::vector<double> t_s, stim_ma, angle_deg, torque_nm, accel_m_s2;
+  /// Tracking runs only (empty otherwise): the target and τ̂_scale.
+  std::vector<double> target_deg, tau_scale_nm;
 };
 
 /// Progress of a run: bench-time fraction and an ETA in wall seconds.

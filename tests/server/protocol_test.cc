@@ -45,7 +45,7 @@ TEST(ProtocolCatalog, HoldsEveryProtocolOfDesignTable) {
       "isometric_impulse_irc",    "isometric_prediction",  "passive_sequential",
       "passive_simultaneous",     "free_swing_passive",    "active_random_binary",
       "prediction_step",          "prediction_ramp",       "prediction_sine",
-      "prediction_random_binary", "rapid_parameterisation"};
+      "prediction_random_binary", "rapid_parameterisation", "tracking"};
   std::set<std::string> have;
   for (const ProtocolDescription& p : ProtocolCatalog()) have.insert(p.name);
   EXPECT_EQ(have, want);
@@ -72,7 +72,10 @@ TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
                                           "extension_target_fraction",
                                           "rb_level_min_fraction",
                                           "rb_min_top_fraction",
-                                          "dense"};
+                                          "dense",
+                                          "controller",
+                                          "target",
+                                          "forgetting"};
   for (const ProtocolDescription& p : ProtocolCatalog()) {
     std::set<std::string> names;
     for (const ParameterSpec& s : p.parameters) {
@@ -81,7 +84,7 @@ TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
       const bool has_unit = s.name.ends_with("_ma") || s.name.ends_with("_s") ||
                             s.name.ends_with("_deg") || s.name.ends_with("_deg_s") ||
                             s.name.ends_with("_nm") || s.name.ends_with("_ma_per_s") ||
-                            s.name.ends_with("_kgm2");
+                            s.name.ends_with("_kgm2") || s.name.ends_with("_hz");
       EXPECT_TRUE(has_unit || unitless.count(s.name)) << "name without unit suffix";
       EXPECT_LE(s.min_value, s.max_value);
       if (s.scaling == Scaling::kNone) {
