@@ -27,7 +27,12 @@ double FilterStep(std::array<double, 2>& state, double input, double omega, doub
 }
 
 // Seconds of samples the estimator waits for its filters to settle.
-constexpr double kEstimatorWarmupS = 0.5;
+constexpr double kEstimatorWarmupS = 1.0;
+// Initial variance of τ̂ per unit regressor²: with λ = 0.999 and φ ≈ 0.3 the
+// steady variance is (1 − λ)/φ² ≈ 0.01; starting there, not at a large
+// value, keeps the first noisy samples from throwing τ̂ about (a weak
+// simulated leg's τ̂ fell to 40 % within 0.1 s and its loop oscillated).
+constexpr double kEstimatorVariance = 0.02;
 
 }  // namespace
 
@@ -228,10 +233,10 @@ TrackingController::TrackingController(const ParameterSet& params, KneeTarget ta
            std::max(options_.max_amplitude_ma, 0.0)),
       dt_s_(1.0 / target_.rate_hz),
       tau_scale_(params.active.torque_scale_nm),
-      estimator_(std::max(params.active.torque_scale_nm, 1e-6), options_.forgetting > 0.0 &&
-                                                                         options_.forgetting <= 1.0
-                                                                     ? options_.forgetting
-                                                                     : 1.0),
+      estimator_(std::max(params.active.torque_scale_nm, 1e-6),
+                 options_.forgetting > 0.0 && options_.forgetting <= 1.0 ? options_.forgetting
+                                                                         : 1.0,
+                 kEstimatorVariance),
       chain_(params.contraction) {
   Require(std::isfinite(options_.threshold_ma) && options_.threshold_ma >= 0.0,
           "tracking: threshold_ma must be ≥ 0");
@@ -307,6 +312,7 @@ TrackingSample TrackingController::Update(double measured_deg) {
   TrackingSample s;
   s.target_deg = target_.angle_deg[i];
   s.error_deg = measured_deg - s.target_deg;
+  bool top_activation = false;
   if (options_.kind == ControllerKind::kPid) {
     // The clinic's PID: the threshold plus a correction in mA.
     s.feedforward_ma = options_.threshold_ma;
@@ -317,7 +323,10 @@ TrackingSample TrackingController::Update(double measured_deg) {
     // the loop sees a linear plant whatever the recruitment's shape. Its
     // output is held to what the muscle can add or remove now.
     const double f_ff = FeedforwardActivation(i);
-    const double gain = tau_scale_ * curve_gain_[i];
+    // The correction goes through the set's τ_scale, not τ̂: a leg found
+    // weaker than its set then sees a smaller loop gain (the safe side of
+    // the margin), while the feedforward follows τ̂.
+    const double gain = params_.active.torque_scale_nm * curve_gain_[i];
     const double f_max = std::clamp(params_.irc(options_.max_amplitude_ma), 0.0, 1.0);
     if (gain > 1e-9) {
       pid_.SetLimits(-f_ff * gain, std::max(0.0, f_max - f_ff) * gain);
@@ -328,10 +337,13 @@ TrackingSample TrackingController::Update(double measured_deg) {
     const double f = gain > 1e-9 ? f_ff + correction_nm / gain : f_ff;
     s.feedforward_ma = AmplitudeFor(f_ff);
     s.amplitude_ma = AmplitudeFor(std::clamp(f, 0.0, 1.0));
+    // Asking for the whole muscle is saturation too, below the maximum.
+    top_activation = f >= f_max - 1e-9;
   }
   s.correction_ma = s.amplitude_ma - s.feedforward_ma;
   s.tau_scale_nm = tau_scale_;
-  s.saturated = s.amplitude_ma >= options_.max_amplitude_ma - 1e-9 && s.error_deg > 0.0;
+  s.saturated = (s.amplitude_ma >= options_.max_amplitude_ma - 1e-9 || top_activation) &&
+                s.error_deg > 0.0;
   // The chain of the model, driven by the pulses this amplitude gives until
   // the next sample (the pulse clock runs from the first sample, t = 0).
   const double t = static_cast<double>(index_) * dt_s_;

@@ -150,7 +150,8 @@ struct TrackingSample {
   double feedforward_ma = 0.0;  ///< the model's amplitude (pid: the threshold bias).
   double correction_ma = 0.0;   ///< amplitude − feedforward.
   double tau_scale_nm = 0.0;    ///< τ̂_scale (the set's value unless adaptive).
-  /// The output is held at the maximum while the knee is too flexed: the
+  /// The output is held at the maximum amplitude (or, around the model, at
+  /// the set's full recruitment) while the knee is too flexed: the
   /// controller asks for more than it may give.
   bool saturated = false;
 };

@@ -168,6 +168,11 @@ void DdsServer::PublishItem(const services::HubItem& item) {
     block.channels().push_back(MakeChannel("angle", "deg", b.angle_deg));
     block.channels().push_back(MakeChannel("torque", "N.m", b.torque_nm));
     block.channels().push_back(MakeChannel("accel", "m/s2", b.accel_m_s2));
+    // Tracking runs: the target and the adaptive controller's τ̂_scale.
+    if (!b.target_deg.empty()) block.channels().push_back(MakeChannel("target", "deg", b.target_deg));
+    if (!b.tau_scale_nm.empty()) {
+      block.channels().push_back(MakeChannel("tau_scale", "N.m", b.tau_scale_nm));
+    }
     block.published_ns(wire::NowNs());
     block.published_mono_ns(wire::MonotonicNs());
     samples_->write(&block);

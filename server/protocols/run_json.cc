@@ -45,9 +45,13 @@ nlohmann::json ProgressToJson(const Progress& p) {
 }
 
 nlohmann::json SampleBatchToJson(const SampleBatch& b) {
-  return {{"trial", b.trial},          {"trial_name", b.trial_name}, {"t_s", b.t_s},
-          {"stim_ma", b.stim_ma},      {"angle_deg", b.angle_deg},   {"torque_nm", b.torque_nm},
-          {"accel_m_s2", b.accel_m_s2}};
+  nlohmann::json j = {{"trial", b.trial},          {"trial_name", b.trial_name}, {"t_s", b.t_s},
+                      {"stim_ma", b.stim_ma},      {"angle_deg", b.angle_deg},
+                      {"torque_nm", b.torque_nm},  {"accel_m_s2", b.accel_m_s2}};
+  // Tracking runs (issue 19): the target and the controller's τ̂_scale.
+  if (!b.target_deg.empty()) j["target_deg"] = b.target_deg;
+  if (!b.tau_scale_nm.empty()) j["tau_scale_nm"] = b.tau_scale_nm;
+  return j;
 }
 
 nlohmann::json RunResultToJson(const RunResult& r) {

@@ -211,6 +211,29 @@ try {
     await shots.both(page, 'session-trials');
   });
 
+  await step('tracking (adaptive): target and knee angle live, the error and τ_scale drawn, the figures at the end', async () => {
+    await page.locator('#protocol').selectOption('tracking');
+    await page.locator('#f-controller').selectOption({ label: 'adaptive' });
+    await page.locator('#f-duration_s').fill('10');
+    // This leg is weak (full recruitment holds it near 60°): a band it reaches.
+    await page.locator('#f-lo_deg').fill('62');
+    const { runId, refusal } = await startProtocol('tracking');
+    assert.ok(runId, `tracking refused: ${refusal}`);
+    await page.locator(`#live[data-run-id="${runId}"]`).waitFor();
+    await page.locator('figure[data-plot="tau_scale"] canvas').waitFor();
+    await page.locator('figure[data-plot="error"] canvas').waitFor();
+    await page.locator(`#live[data-run-id="${runId}"][data-state="done"]`).waitFor({ timeout: 60000 });
+    const text = await page.locator('#run-tracking').textContent();
+    const rms = Number(text.match(/Tracking RMS ([0-9.]+)°/)[1]);
+    assert.ok(rms > 0 && rms < 10, text);
+    assert.ok(Number.isFinite(Number(await page.locator('#live').getAttribute('data-last-error'))));
+    const run = (await call(server, 'GET', `/runs/${runId}`)).body;
+    assert.equal(run.parameters.controller, 2);
+    notes.push(`tracking (adaptive, 10 s sine 30–80°): ${text}`);
+    await page.locator('#live').scrollIntoViewIfNeeded();
+    await shots.both(page, 'tracking-done');
+  });
+
   await step('prediction page (analyst): the new set on trials it was not fitted on, with error figures', async () => {
     await signIn(analyst.token);
     await page.goto(`${server.url}/#/predict/${setId}`);

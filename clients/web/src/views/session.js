@@ -141,6 +141,14 @@ export async function sessionView(ctx, sessionId) {
   const current = () => protocols.find((x) => x.name === select.value);
   function parameterField(param) {
     const value = param.default === null || param.default === undefined ? '' : param.default;
+    if (param.choices && param.choices.length) {
+      // A choice (e.g. tracking's controller): the value sent is its index.
+      const el = field(param.name, param.label || param.name, {
+        options: param.choices.map((c, i) => ({ value: String(i), label: c.replace(/_/g, ' ') })),
+        value: String(value), help: param.description });
+      el.querySelector('select').dataset.prefilled = String(value);
+      return el;
+    }
     const range = `${param.min}–${param.max}${param.unit === '1' ? '' : ` ${param.unit}`}`;
     const help = [param.description, value === '' && param.default_rule ? `default: ${param.default_rule}` : '', range]
       .filter(Boolean).join('; ');
@@ -267,19 +275,30 @@ export async function sessionView(ctx, sessionId) {
       h('p', {}, 'State: ', stateText, ' ', phase, ' ', trialsText),
       h('div', { class: 'actions' }, cancel, stop), endSlot, plotsBox);
 
-    const data = { t: [], angle: [], torque: [], stim: [] };
+    // A tracking run (issue 19) draws the target with the knee angle, the
+    // tracking error and, for the adaptive controller, its τ_scale estimate.
+    const tracking = run.protocol === 'tracking';
+    const adaptive = tracking && run.parameters && run.parameters.controller === 2;
+    const data = { t: [], angle: [], torque: [], stim: [], target: [], error: [], tau: [] };
     const mk = (title, label, unit, color) => makePlot(plotsBox, [{ label, color }], [[], []],
       { title, xLabel: 'bench time (s)', yLabel: unit, height: 180, id: label });
     const plots = {
-      angle: mk('Knee angle', 'angle', 'deg', '#1f5fbf'),
+      angle: tracking
+        ? makePlot(plotsBox, [{ label: 'target', color: '#7f8c8d', dash: [6, 4] }, { label: 'angle', color: '#1f5fbf' }],
+          [[], [], []], { title: 'Knee angle and target', xLabel: 'bench time (s)', yLabel: 'deg', height: 200, id: 'angle' })
+        : mk('Knee angle', 'angle', 'deg', '#1f5fbf'),
+      ...(tracking ? { error: mk('Tracking error (knee − target)', 'error', 'deg', '#8e44ad') } : {}),
       torque: mk('Torque', 'torque', 'N·m', '#c0392b'),
       stim: mk('Stimulation', 'stimulation', 'mA', '#1e8449'),
+      ...(adaptive ? { tau: mk('τ_scale estimate (adaptive)', 'tau_scale', 'N·m', '#d35400') } : {}),
     };
     let drawPending = false;
     let samplesSeen = 0;
     const redraw = () => {
       drawPending = false;
-      for (const key of ['angle', 'torque', 'stim']) plots[key].setData([data.t, data[key]]);
+      for (const key of ['torque', 'stim', 'error', 'tau']) if (plots[key]) plots[key].setData([data.t, data[key]]);
+      plots.angle.setData(tracking ? [data.t, data.target, data.angle] : [data.t, data.angle]);
+      if (tracking && data.error.length) live.dataset.lastError = String(data.error[data.error.length - 1]);
       live.dataset.samples = String(samplesSeen);
       if (data.stim.length) live.dataset.lastStim = String(data.stim[data.stim.length - 1]);
       let lo = Infinity;
@@ -331,8 +350,16 @@ export async function sessionView(ctx, sessionId) {
           : 'No threshold was detected (no torque response before the stop): the session\'s values are unchanged. ' +
             'Repeat the test and stop only after a clear response.');
       }
+      // The end event carries the state; the run's figures are in its view.
+      const v = end.values || (tracking ? ((await api('GET', `/runs/${runId}`).catch(() => null)) || {}).values || {} : {});
+      const figures = Number.isFinite(v.tracking_rms_deg)
+        ? h('p', { id: 'run-tracking' }, `Tracking RMS ${fmt(v.tracking_rms_deg, 3)}°, largest error ${fmt(v.tracking_max_error_deg, 3)}°` +
+          (Number.isFinite(v.overshoot_deg) ? `, overshoot ${fmt(v.overshoot_deg, 2)}°, settling ${fmt(v.settling_s, 2)} s` : '') +
+          `, charge ${fmt(v.charge_uc / 1000, 3)} mC, saturated ${fmt(v.saturated_s, 2)} s` +
+          (adaptive ? `, final τ_scale estimate ${fmt(v.tau_scale_nm, 3)} N·m` : '') + '.')
+        : '';
       endSlot.replaceChildren(h('p', { class: `msg ${end.state === 'done' ? 'msg-ok' : 'msg-error'}`, role: 'status' }, parts.join(' ')),
-        recorded,
+        recorded, figures,
         end.parameter_set_id ? h('p', {}, h('a', { href: `#/parameter-sets/${end.parameter_set_id}`, id: 'run-parameter-set' },
           `Open parameter set ${end.parameter_set_id}`)) : '');
       // A tolerance test writes threshold / max tolerated into the session:
@@ -358,6 +385,10 @@ export async function sessionView(ctx, sessionId) {
           data.angle.push(s.angle_deg[i]);
           data.torque.push(s.torque_nm[i]);
           data.stim.push(s.stim_ma[i]);
+          const target = s.target_deg ? s.target_deg[i] : null;
+          data.target.push(target);
+          data.error.push(target === null ? null : s.angle_deg[i] - target);
+          data.tau.push(s.tau_scale_nm ? s.tau_scale_nm[i] : null);
         }
         samplesSeen += n;
         const cut = data.t.length - Math.round(WINDOW_S * rate_hz);
