@@ -331,6 +331,8 @@ std::vector<ProtocolDescription> MakeCatalog() {
          "this long, s", 3.0, 0.2, 60.0, false},
         {"forgetting", "adaptive: forgetting factor of the τ_scale estimate (per 5 ms sample)",
          0.999, 0.9, 1.0, false},
+        {"parameter_set_id", "the leg's parameter set to invert (0: its newest)", 0.0, 0.0,
+         9007199254740992.0, true},
         SettleS(2.0, "swing after decoupling before the lead-in, s")}});
 
   c.push_back(
@@ -704,6 +706,7 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"max_rate_ma_per_s", {"Fastest amplitude change", "mA/s", true}},
       {"max_saturation_s", {"Longest saturation before the run stops", "s", true}},
       {"forgetting", {"Adaptive forgetting factor", "1", true}},
+      {"parameter_set_id", {"Parameter set (0 = the leg's newest)", "1", true}},
       // Anthropometrics.
       {"inertia_kgm2",
        {"Leg inertia (0 = the last parameter set's, else from weight and shank length)", "kg·m²",

@@ -799,6 +799,25 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
         "above the stimulator's limit " + FormatNumber(bench_.limits().max_stim_ma) + " mA",
         "parameters.ceiling_ma");
   }
+  // A tracking run may name the leg's set to invert (0: its newest).
+  if (const auto it = parameters.find("parameter_set_id");
+      it != parameters.end() && it->second >= 1.0 && std::isfinite(it->second)) {
+    const auto id = static_cast<std::int64_t>(it->second);
+    api::Result<storage::StoredParameterSet> chosen = storage::ParameterSetRepository(db_).Get(id);
+    if (!chosen.ok()) {
+      if (chosen.status().code() != api::ErrorCode::kNotFound) return chosen.status();
+      return api::Status::InvalidArgument("no parameter set " + std::to_string(id),
+                                          "parameters.parameter_set_id");
+    }
+    if (chosen->summary.subject_id != context->session.subject_id ||
+        chosen->summary.leg_id != context->session.leg_id) {
+      return api::Status::InvalidArgument(
+          "parameter set " + std::to_string(id) + " belongs to another subject or leg",
+          "parameters.parameter_set_id");
+    }
+    request.subject.parameter_set = chosen->params;
+    request.subject.parameter_set_id = id;
+  }
   api::Result<protocols::Plan> plan = owner_.Prepare(request);
   if (!plan.ok()) return plan.status();
   if (plan->rapid) {

@@ -68,7 +68,10 @@ const std::vector<std::string> kCsvs = {"clinician_chain",
                                         "appendix_jk_per_leg_errors",
                                         "mean_errors",
                                         "median_errors",
-                                        "bench_time"};
+                                        "bench_time",
+                                        "control_summary",
+                                        "control_ttests",
+                                        "control_per_leg"};
 
 fs::path RunTwoLegStudy(const std::string& name, bool plots) {
   ServerProcess server({"--seed", "5"});
@@ -203,6 +206,28 @@ TEST(StudyTest, TwoLegStudyWritesTablesAndIsDeterministic) {
     EXPECT_EQ(chain[static_cast<std::size_t>(leg)][chain[0].size() - 2],
               bench[static_cast<std::size_t>(leg)][1]);
   }
+
+  // Control chapter: three conditions × three controllers, the figures
+  // of every leg that ran, paired t-tests with df = n − 1.
+  EXPECT_NE(ReadAll(a / "study.md").find("# Control"), std::string::npos);
+  const auto control = ReadCsv(a / "control_summary.csv");
+  ASSERT_EQ(control.size(), 1u + 9u);
+  ASSERT_EQ(control[0][3], "median RMS");
+  for (std::size_t r = 1; r < control.size(); ++r) {
+    EXPECT_EQ(std::stoi(control[r][2]) + std::stoi(control[r][11]), 2) << control[r][0];
+    if (control[r][2] != "0") {
+      EXPECT_GT(std::stod(control[r][3]), 0.0);
+    }
+  }
+  EXPECT_EQ(control[1][1], "pid");
+  EXPECT_EQ(control[2][1], "inverse_model");
+  const auto control_tests = ReadCsv(a / "control_ttests.csv");
+  ASSERT_EQ(control_tests.size(), 1u + 8u);
+  for (std::size_t r = 1; r < control_tests.size(); ++r) {
+    if (control_tests[r][9] == "n/a") continue;
+    EXPECT_DOUBLE_EQ(std::stod(control_tests[r][9]), std::stod(control_tests[r][3]) - 1.0);
+  }
+  ASSERT_EQ(ReadCsv(a / "control_per_leg.csv").size(), 3u);
 
   // Determinism: a second fresh server with the same seeds.
   const fs::path b = RunTwoLegStudy("b", false);

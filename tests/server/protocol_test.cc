@@ -75,7 +75,8 @@ TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
                                           "dense",
                                           "controller",
                                           "target",
-                                          "forgetting"};
+                                          "forgetting",
+                                          "parameter_set_id"};
   for (const ProtocolDescription& p : ProtocolCatalog()) {
     std::set<std::string> names;
     for (const ParameterSpec& s : p.parameters) {

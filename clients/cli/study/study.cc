@@ -24,6 +24,8 @@
 #include "api/trial.h"
 #include "clients/cli/cli.h"
 #include "clients/cli/commands.h"
+#include "clients/cli/study/control.h"
+#include "clients/cli/study/tables.h"
 #include "model/evaluation.h"
 #include "model/parameter_set.h"
 
@@ -34,7 +36,6 @@ namespace {
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The runs per leg, in order (§5.2–5.4, Appendix F), every parameter at its
 // default but the second prediction train's seed. Every prediction protocol
@@ -104,13 +105,6 @@ std::string SetKey(const std::string& passive, const std::string& train) {
   return passive + "_" + train;
 }
 
-std::string Num(double value, int digits = 4) {
-  if (!std::isfinite(value)) return "n/a";
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, "%.*f", digits, value);
-  return buffer;
-}
-
 void Pause(std::chrono::milliseconds d) { std::this_thread::sleep_for(d); }
 
 // A leg's virtual subject as the server drew it (PUT /bench/virtual-subject
@@ -124,6 +118,7 @@ struct DrawnSubject {
   double body_mass_kg = 0.0;
   double height_m = 0.0;
   double shank_length_m = 0.0;
+  json as_put;  // the server's full JSON of the subject (put again to reset the bench)
 };
 
 DrawnSubject DrawSubject(ApiClient& client, std::uint64_t draw_seed, const std::string& family) {
@@ -138,6 +133,7 @@ DrawnSubject DrawSubject(ApiClient& client, std::uint64_t draw_seed, const std::
       throw CliError::Server("study: the drawn subject's truth: " + truth.status().ToString());
     }
     subject.truth = std::move(truth).value();
+    subject.as_put = drawn;
     subject.threshold_ma = drawn.at("threshold_ma").get<double>();
     subject.max_tolerated_ma = drawn.at("max_tolerated_ma").get<double>();
     const json& a = drawn.at("anthropometrics");
@@ -165,31 +161,8 @@ struct LegData {
   // set key → input label → {e_rms, e_abs} (deg; isometric: N·m)
   std::map<std::string, std::map<std::string, std::pair<double, double>>> errors;
   std::map<std::string, json> plot_columns;  // "set|input" → predicted columns
+  std::optional<LegControl> control;         // the tracking runs with the rapid set
 };
-
-// Starts a protocol and heart-beats it to its end; the run's final JSON.
-json RunProtocol(ApiClient& client, std::int64_t session_id, const std::string& protocol,
-                 const json& parameters) {
-  const json started = client.Post("/sessions/" + std::to_string(session_id) + "/runs",
-                                   {{"protocol", protocol}, {"parameters", parameters}});
-  const std::int64_t run_id = started.at("run_id").get<std::int64_t>();
-  const std::string path = "/runs/" + std::to_string(run_id);
-  for (;;) {
-    try {
-      client.Post(path + "/heartbeat");
-    } catch (const CliError&) {
-      // The run may have just ended; its state below says so.
-    }
-    const json run = client.Get(path);
-    const std::string state = run.value("state", "");
-    if (state == "done") return run;
-    if (state == "failed" || state == "aborted") {
-      throw CliError::Server("study: run " + std::to_string(run_id) + " (" + protocol + ") " +
-                             state + ": " + run.value("reason", ""));
-    }
-    Pause(std::chrono::milliseconds(30));
-  }
-}
 
 // Polls a job to its end: the result, or the error message.
 struct JobOutcome {
@@ -456,82 +429,16 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
       Predict(client, leg, "irc_" + variant.key, "isometric", iso->second, false);
     }
   }
+  // Control with the rapid set (issue 19).
+  if (const auto rapid = leg.sets.find("rapid"); rapid != leg.sets.end()) {
+    leg.control = RunLegControl(client, index, family, leg.session_id, rapid->second,
+                                vs.as_put, log);
+  }
   log << "leg " << index << " done (" << leg.sets.size() << " parameter sets)\n" << std::flush;
   return leg;
 }
 
 // ---- tables -----------------------------------------------------------
-
-struct Table {
-  std::string name, title;
-  std::vector<std::string> header;
-  std::vector<std::vector<std::string>> rows;
-  std::string note;
-};
-
-std::string CsvCell(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string out = "\"";
-  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return out + "\"";
-}
-
-void WriteTable(const fs::path& dir, const Table& table, std::ostream& markdown) {
-  std::ofstream csv(dir / (table.name + ".csv"));
-  for (std::size_t i = 0; i < table.header.size(); ++i)
-    csv << (i ? "," : "") << CsvCell(table.header[i]);
-  csv << "\n";
-  for (const auto& row : table.rows) {
-    for (std::size_t i = 0; i < row.size(); ++i) csv << (i ? "," : "") << CsvCell(row[i]);
-    csv << "\n";
-  }
-  markdown << "## " << table.title << "\n\n";
-  if (!table.note.empty()) markdown << table.note << "\n\n";
-  markdown << "|";
-  for (const auto& h : table.header) markdown << " " << h << " |";
-  markdown << "\n|";
-  for (std::size_t i = 0; i < table.header.size(); ++i) markdown << "---|";
-  markdown << "\n";
-  for (const auto& row : table.rows) {
-    markdown << "|";
-    for (const auto& c : row) markdown << " " << c << " |";
-    markdown << "\n";
-  }
-  markdown << "\n";
-}
-
-double Mean(const std::vector<double>& v) {
-  double sum = 0.0;
-  std::size_t n = 0;
-  for (double x : v)
-    if (std::isfinite(x)) sum += x, ++n;
-  return n ? sum / static_cast<double>(n) : kNaN;
-}
-double Sd(const std::vector<double>& v) {
-  const double m = Mean(v);
-  double ss = 0.0;
-  std::size_t n = 0;
-  for (double x : v)
-    if (std::isfinite(x)) ss += (x - m) * (x - m), ++n;
-  return n > 1 ? std::sqrt(ss / static_cast<double>(n - 1)) : kNaN;
-}
-
-// Median of the finite values; NaN if none.
-double Median(std::vector<double> v) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return kNaN;
-  std::sort(v.begin(), v.end());
-  const std::size_t h = v.size() / 2;
-  return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
-}
-
-// The finite value of largest magnitude (sign kept); NaN if none.
-double Worst(const std::vector<double>& v) {
-  double worst = kNaN;
-  for (double x : v)
-    if (std::isfinite(x) && !(std::abs(x) <= std::abs(worst))) worst = x;
-  return worst;
-}
 
 double ErrorOf(const LegData& leg, const std::string& key, const std::string& input) {
   auto s = leg.errors.find(key);
@@ -548,16 +455,8 @@ std::vector<std::string> TTestRow(const std::vector<LegData>& legs, const std::s
     const double ea = ErrorOf(leg, a, input), eb = ErrorOf(leg, b, input);
     if (std::isfinite(ea) && std::isfinite(eb)) xa.push_back(ea), xb.push_back(eb);
   }
-  std::vector<std::string> row = {input,        a, b, std::to_string(xa.size()), Num(Mean(xa)),
-                                  Num(Mean(xb))};
-  if (xa.size() < 2) {
-    for (int i = 0; i < 7; ++i) row.push_back("n/a");
-    return row;
-  }
-  const model::PairedTTestResult t = model::PairedTTest(xa, xb, 0.95);
-  for (double v : {t.mean_difference, t.sd_difference, t.t, t.df, t.p_value, t.t_critical})
-    row.push_back(Num(v));
-  row.push_back(!std::isfinite(t.t) ? "n/a" : (t.significant ? "yes" : "no"));
+  std::vector<std::string> row = {input, a, b};
+  for (std::string& cell : TTestCells(xa, xb)) row.push_back(std::move(cell));
   return row;
 }
 
@@ -997,6 +896,10 @@ StudySummary RunStudy(ApiClient& client, const StudyOptions& options, std::ostre
     for (const auto& [key, message] : failures) markdown << "- " << key << ": " << message << "\n";
     markdown << "\n";
   }
+  std::vector<LegControl> control;
+  for (const auto& leg : legs)
+    if (leg.control) control.push_back(*leg.control);
+  WriteControlChapter(control, options.output_dir, markdown);
   summary.plots_drawn =
       WritePlots(client, legs.front(), options.output_dir, options.plots, summary.plot_note);
   if (!summary.plot_note.empty()) markdown << "Plots: " << summary.plot_note << "\n";
