@@ -39,6 +39,8 @@ enum class TrialKind {
   kRapidRelease,
   kRapidSearch,
   kRapidActive,
+  kDailyCheckRamp,
+  kDailyCheckSwing,
   kTracking,
 };
 

@@ -126,7 +126,8 @@ api::Result<GatePrediction> PredictPlanSwing(const Plan& plan, const model::Para
 
 api::Status CheckModelGate(const Plan& plan, const SubjectContext& subject, double pulse_rate_hz,
                            double max_impact_speed_deg_s) {
-  if (plan.kind != ProtocolKind::kPrediction || !subject.parameter_set) return api::Status::Ok();
+  const bool gated = plan.kind == ProtocolKind::kPrediction || plan.kind == ProtocolKind::kDailyCheck;
+  if (!gated || !subject.parameter_set) return api::Status::Ok();
   const std::string set = subject.parameter_set_id
                               ? "parameter set " + std::to_string(*subject.parameter_set_id)
                               : std::string("the leg's parameter set");

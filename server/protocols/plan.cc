@@ -547,6 +547,29 @@ api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subjec
   return api::Status::Ok();
 }
 
+api::Status BuildDailyCheck(const ParameterValues& v, double min_rest_s,
+                            const SubjectContext& subject, Plan& plan, Builder& b) {
+  if (!subject.parameter_set) {
+    return api::Status::FailedPrecondition(
+        "daily_check compares today's leg with its stored parameter set: run "
+        "rapid_parameterisation first");
+  }
+  const double lock = v.at("lock_angle_deg");
+  b.Prepare("lock", MotorMode::kLocked, lock, v.at("settle_s"));
+  const int ramp = b.AddTrial("daily_check_ramp_irc", MotorMode::kLocked);
+  model::GeneratorParams g = Pick(v, {"threshold_ma", "max_ma", "impulses", "below_threshold_ma",
+                                      "ramp_duration_s", "rest_s"});
+  g["conditioning_s"] = 0.0;
+  g["ramps"] = 1.0;
+  b.EnvelopeTrial(ramp, Stimulus("isometric_ramp_irc", g), MotorMode::kLocked, lock, min_rest_s);
+  b.Prepare("decouple", MotorMode::kDecoupled, lock, v.at("swing_settle_s"));
+  const int swing = b.AddTrial("daily_check_swing", MotorMode::kDecoupled);
+  b.EnvelopeTrial(swing, RandomBinary(true, v.at("amplitude_ma"), v.at("swing_s"), v.at("seed")),
+                  MotorMode::kDecoupled, lock, 0.0);
+  plan.daily_check = DailyCheckSettings{ramp, swing, lock};
+  return api::Status::Ok();
+}
+
 api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const ParameterValues& values,
                             const SubjectContext& subject) {
   Plan plan;
@@ -572,6 +595,9 @@ api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const Parameter
       BuildPrediction(name, values, b);
     } else if (name == "rapid_parameterisation") {
       BuildRapid(values, protocol.min_rest_s, subject, plan, b);
+    } else if (name == "daily_check") {
+      if (api::Status st = BuildDailyCheck(values, protocol.min_rest_s, subject, plan, b); !st.ok())
+        return st;
     } else if (name == "tracking") {
       if (api::Status st = BuildTracking(values, subject, plan, b); !st.ok()) return st;
     } else {

@@ -120,6 +120,14 @@ struct AdaptiveAmplitude {
   double min_top_fraction = 0.0;
 };
 
+/// The daily check's trials (ProtocolKind::kDailyCheck): the isometric
+/// ramp it compares and the free swing it validates with.
+struct DailyCheckSettings {
+  int ramp_trial = 0;
+  int swing_trial = 1;
+  double lock_angle_deg = 90.0;
+};
+
 /// A tracking run's target, controller and limits (tracking_plan.h; kept
 /// out of this header, which must not pull in Eigen: see routes_bench.cc).
 struct TrackingSettings;
@@ -139,6 +147,7 @@ struct Plan {
   std::optional<RapidSettings> rapid;
   std::optional<AdaptiveAmplitude> adaptive_amplitude;
   std::shared_ptr<const TrackingSettings> tracking;
+  std::optional<DailyCheckSettings> daily_check;
 
   std::int64_t total_ticks() const;
   double duration_s() const { return static_cast<double>(total_ticks()) / kTicksPerSecond; }

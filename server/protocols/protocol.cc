@@ -285,6 +285,34 @@ std::vector<ProtocolDescription> MakeCatalog() {
         SettleS(2.0, "swing after decoupling before recording, s")}});
 
   c.push_back(
+      {"daily_check",
+       1,
+       "Daily check of the model",
+       "A short check of today's leg against its stored parameter set: knee locked, 2 "
+       "impulses and one 4 s cosine ramp (pole, IRC by ramp correlation, full-scale torque), "
+       "then a 4 s random-binary free swing that validates the outcome. Threshold, slope, "
+       "full-scale torque and pole are compared with bounds learned from the leg's own "
+       "history of sets; only what moved is re-fitted (a new version of the set), a moved "
+       "pole calls for a full rapid run (§7.4.3).",
+       BenchMode::kMixed,
+       ProtocolKind::kDailyCheck,
+       1.0,
+       {LockAngleDeg(),
+        SettleS(0.8, "time to move to and lock the angle, s"),
+        ThresholdMa(),
+        MaxMa(),
+        {"impulses", "number of impulses at max", 2.0, 1.0, 20.0, true},
+        {"below_threshold_ma", "ramp start below threshold, mA", 5.0, 0.0, 50.0, false},
+        {"ramp_duration_s", "whole ramp (half up, half down), s", 4.0, 0.5, 30.0, false},
+        Rest("rest_s", "zero stimulation after each isometric element, s", 1.0, 1.0, 60.0),
+        AmplitudeMa(0.6),
+        {"swing_s", "random-binary free swing that validates the outcome, s", 4.0, 2.0, 30.0,
+         false},
+        {"seed", "random seed of the swing's train", 5.0, 0.0, 4294967295.0, true},
+        {"swing_settle_s", "swing after decoupling before the train, s", 1.0, 0.2, 30.0,
+         false}}});
+
+  c.push_back(
       {"tracking",
        1,
        "Knee-angle tracking",
@@ -707,6 +735,7 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"max_saturation_s", {"Longest saturation before the run stops", "s", true}},
       {"forgetting", {"Adaptive forgetting factor", "1", true}},
       {"parameter_set_id", {"Parameter set (0 = the leg's newest)", "1", true}},
+      {"swing_s", {"Validation free swing", "s", true}},
       // Anthropometrics.
       {"inertia_kgm2",
        {"Leg inertia (0 = the last parameter set's, else from weight and shank length)", "kg·m²",

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "api/status.h"
+#include "model/identify_common.h"
 #include "model/parameter_set.h"
 #include "server/bench/bench.h"
 
@@ -82,6 +83,7 @@ enum class ProtocolKind {
   kPrediction,
   kRapid,
   kTracking,  ///< closed-loop stimulation to follow a target angle (issue 19).
+  kDailyCheck,  ///< today's leg against its stored set (issue 19).
 };
 
 /// A protocol description: pure data.
@@ -129,6 +131,13 @@ struct SubjectContext {
   std::optional<model::ParameterSet> parameter_set;
   /// Its stored id, when it has one (named in the model gate's messages).
   std::optional<std::int64_t> parameter_set_id;
+  /// The leg's stored sets, newest first (at most 20): daily_check learns
+  /// its drift bounds from their spread (§7.6.4).
+  std::vector<model::ParameterSet> history;
+  /// The isometric ramp trial the current set's IRC came from (its rapid
+  /// or daily-check ramp), when stored: daily_check compares today's ramp
+  /// with it, measurement with measurement.
+  std::optional<model::TrialColumns> base_ramp_trial;
 };
 
 /// Checks a context: finite values, 0 ≤ threshold < max tolerated ≤ 100 mA,

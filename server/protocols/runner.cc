@@ -10,6 +10,7 @@
 
 #include "model/identify_isometric.h"
 #include "model/simulate.h"
+#include "server/protocols/daily_check.h"
 #include "server/protocols/rapid_identification.h"
 #include "server/protocols/tracking_plan.h"
 
@@ -589,6 +590,17 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       return finish();
     }
     result.parameter_set = std::move(params).value();
+  }
+  if (plan.daily_check) {
+    api::Result<DailyCheckOutcome> check =
+        EvaluateDailyCheck(*plan.daily_check, result.trials, subject,
+                           model::JointLimits{hw.min_angle_deg, hw.max_angle_deg});
+    if (!check.ok()) {
+      Transition(RunTransition::kError, check.status().message());
+      return finish();
+    }
+    result.daily_check = std::move(check->report);
+    if (check->updated) result.parameter_set = std::move(check->updated);
   }
   if (observer_ != nullptr) {
     Progress p;

@@ -86,6 +86,8 @@ struct RunResult {
   std::vector<RecordedTrial> trials;
   std::optional<model::ParameterSet> parameter_set;  ///< rapid_parameterisation.
   std::optional<ToleranceResult> tolerance;          ///< tolerance_test.
+  /// daily_check: its report (daily_check.h); parameter_set holds a re-fit.
+  std::optional<nlohmann::json> daily_check;
   std::vector<SafetyEvent> safety_events;
   /// Figures decided during the run, e.g. "rb_amplitude_ma".
   std::map<std::string, double> values;

@@ -146,6 +146,27 @@ api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64
     c.parameter_set = latest->params;
     c.parameter_set_id = latest->summary.id;
     out.parameter_set_id = latest->summary.id;
+    // The leg's history, newest first (daily_check's drift bounds).
+    storage::ParameterSetRepository sets(db);
+    storage::HistoryQuery q;
+    q.subject_id = session->subject_id;
+    q.leg_id = session->leg_id;
+    api::Result<std::vector<storage::ParameterSetSummary>> history = sets.History(q);
+    if (!history.ok()) return history.status();
+    for (auto it = history->rbegin(); it != history->rend() && c.history.size() < 20; ++it) {
+      api::Result<storage::StoredParameterSet> s = sets.Get(it->id);
+      if (s.ok()) c.history.push_back(s->params);
+    }
+    storage::TrialRepository trials(db);
+    for (std::int64_t id : latest->trial_ids) {
+      api::Result<api::Trial> t = trials.Get(id);
+      if (!t.ok()) continue;
+      const std::string name = t->name.value_or("");
+      if (name == "rapid_isometric_ramp_irc" || name == "daily_check_ramp_irc") {
+        c.base_ramp_trial = api::ToTrialColumns(*t);
+        break;
+      }
+    }
   } else if (latest.status().code() != api::ErrorCode::kNotFound) {
     return latest.status();
   }
@@ -241,6 +262,7 @@ class RunService::Observer final : public protocols::RunObserver {
       copy.parameters = result.parameters;
       copy.parameter_set = result.parameter_set;
       copy.tolerance = result.tolerance;
+      copy.daily_check = result.daily_check;
       copy.safety_events = result.safety_events;
       copy.values = result.values;
       copy.bench_duration_s = result.bench_duration_s;
@@ -563,6 +585,9 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
       d.max_tolerated_ma = result.tolerance->max_tolerated_ma;
       v.result = ToleranceResultJson(d, 0);
       v.result["session_revision"] = nullptr;
+    } else if (state == RunState::kDone && result.daily_check) {
+      v.result = *result.daily_check;
+      v.result["parameter_set_id"] = set_id ? nlohmann::json(*set_id) : nlohmann::json(nullptr);
     } else if (set_id) {
       v.result = {{"parameter_set_id", *set_id}};
     }

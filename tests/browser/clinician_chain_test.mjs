@@ -234,6 +234,19 @@ try {
     await shots.both(page, 'tracking-done');
   });
 
+  await step('daily check: today\'s leg against its set, what moved shown', async () => {
+    const { runId, refusal } = await startProtocol('daily_check');
+    assert.ok(runId, `daily check refused: ${refusal}`);
+    await page.locator(`#live[data-run-id="${runId}"][data-state="done"]`).waitFor({ timeout: 60000 });
+    const text = await page.locator('#run-daily-check').textContent();
+    assert.match(text, /Daily check: (no change|refit|rapid due)/);
+    const run = (await call(server, 'GET', `/runs/${runId}`)).body;
+    assert.equal(run.result.drifts.length, 4);
+    notes.push(`daily check on the same leg: ${run.result.verdict} (${run.result.summary})`);
+    await page.locator('#run-daily-check').scrollIntoViewIfNeeded();
+    await shots.both(page, 'daily-check-done');
+  });
+
   await step('prediction page (analyst): the new set on trials it was not fitted on, with error figures', async () => {
     await signIn(analyst.token);
     await page.goto(`${server.url}/#/predict/${setId}`);

@@ -45,7 +45,7 @@ TEST(ProtocolCatalog, HoldsEveryProtocolOfDesignTable) {
       "isometric_impulse_irc",    "isometric_prediction",  "passive_sequential",
       "passive_simultaneous",     "free_swing_passive",    "active_random_binary",
       "prediction_step",          "prediction_ramp",       "prediction_sine",
-      "prediction_random_binary", "rapid_parameterisation", "tracking"};
+      "prediction_random_binary", "rapid_parameterisation", "tracking", "daily_check"};
   std::set<std::string> have;
   for (const ProtocolDescription& p : ProtocolCatalog()) have.insert(p.name);
   EXPECT_EQ(have, want);

@@ -195,9 +195,9 @@ TEST(SafetyFuzz, TenThousandRandomPlansAndCommandSequences) {
       auto plan = BuildPlan(d, *resolved, s);
       if (!plan.ok()) {
         ++catalog_refused;
-        // tracking needs the leg's parameter set, which these sessions lack
+        // tracking and daily_check need the leg's parameter set, which these sessions lack
         // (tracking_run_test fuzzes its targets and gains on a leg).
-        if (d.kind == ProtocolKind::kTracking) {
+        if (d.kind == ProtocolKind::kTracking || d.kind == ProtocolKind::kDailyCheck) {
           ASSERT_EQ(plan.status().code(), api::ErrorCode::kFailedPrecondition);
         } else {
           ASSERT_EQ(plan.status().code(), api::ErrorCode::kInvalidArgument);

@@ -358,8 +358,17 @@ export async function sessionView(ctx, sessionId) {
           `, charge ${fmt(v.charge_uc / 1000, 3)} mC, saturated ${fmt(v.saturated_s, 2)} s` +
           (adaptive ? `, final τ_scale estimate ${fmt(v.tau_scale_nm, 3)} N·m` : '') + '.')
         : '';
+      // A daily check says what moved and what it did about it.
+      const daily = r && r.verdict
+        ? h('div', { id: 'run-daily-check' },
+          h('p', { class: `msg ${r.verdict === 'rapid_due' ? 'msg-error' : 'msg-info'}` },
+            `Daily check: ${r.verdict.replace('_', ' ')}. ${r.summary}.`),
+          table(['Parameter', 'Stored', 'Today', 'Change', 'Bound', 'Moved'], (r.drifts || []).map((d) => [
+            d.name, fmt(d.stored, 4), fmt(d.today, 4), d.name === 'irc_threshold_ma' ? `${fmt(d.change, 3)} mA` : `${fmt(100 * d.change, 3)} %`,
+            d.name === 'irc_threshold_ma' ? `${fmt(d.bound, 3)} mA` : `${fmt(100 * d.bound, 3)} %`, d.moved ? 'yes' : 'no'])))
+        : '';
       endSlot.replaceChildren(h('p', { class: `msg ${end.state === 'done' ? 'msg-ok' : 'msg-error'}`, role: 'status' }, parts.join(' ')),
-        recorded, figures,
+        recorded, figures, daily,
         end.parameter_set_id ? h('p', {}, h('a', { href: `#/parameter-sets/${end.parameter_set_id}`, id: 'run-parameter-set' },
           `Open parameter set ${end.parameter_set_id}`)) : '');
       // A tolerance test writes threshold / max tolerated into the session:
