@@ -168,7 +168,7 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
     const std::size_t n = CheckColumns(what, trials[k], true, false);
     const bool act = trials[k].activation.size() == n;
     for (std::size_t i = 0; i < n; ++i) {
-      if (!act || trials[k].activation[i] <= 0.01) rows[k].push_back(i);
+      if (!act || trials[k].activation[i] <= options.max_activation) rows[k].push_back(i);
     }
     total += rows[k].size();
   }

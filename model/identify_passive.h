@@ -71,12 +71,15 @@ struct SimultaneousPassiveOptions {
   double relative_tolerance = 1e-10;  ///< SVD truncation (Eq. 4.26).
   double min_support = 1.0;           ///< breakpoint support warning, samples.
   double coverage_warn_below = 0.25;
+  /// Samples with activation above this are not passive (as in the
+  /// free-swing fit's options).
+  double max_activation = 0.01;
 };
 
 /// Simultaneous linear estimation (§4.2.2, Eq. 4.31): τ_motor = Σ c_j·X_j(θ)
 /// + Σ c_k·X_k(θ̇) + J·θ̈, solved by truncated SVD (Eqs. 4.19–4.26) over all
-/// samples of all trials (samples with activation > 0.01 are skipped when
-/// an activation column is present).
+/// samples of all trials (samples with activation > max_activation are
+/// skipped when an activation column is present).
 /// @throws std::invalid_argument on missing columns or too few samples.
 PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
                                           const SimultaneousPassiveOptions& options = {});

@@ -79,6 +79,26 @@ TEST(IdentifyPassiveSimultaneous, RecoversNoiseFreeCurvesAndInertia) {
   EXPECT_GT(r.report.values.at("coverage"), 0.3);
 }
 
+TEST(IdentifyPassiveSimultaneous, SkipsSamplesAboveMaxActivation) {
+  // Every fifth sample carries activation 0.3 and a torque 5 N·m off: left
+  // out by default (0.01), they leave the fit exact; let in, they spoil it.
+  const ParameterSet p = Truth();
+  auto trials = SumOfSinesTrials(p);
+  for (TrialColumns& t : trials) {
+    t.activation.assign(t.torque_nm.size(), 0.0);
+    for (std::size_t i = 0; i < t.torque_nm.size(); i += 5) {
+      t.activation[i] = 0.3;
+      t.torque_nm[i] += 5.0;
+    }
+  }
+  SimultaneousPassiveOptions o = TruthBreakpoints(p);
+  const PassiveResult clean = IdentifyPassiveSimultaneous(trials, o);
+  EXPECT_LT(MaxDiff(clean.passive.torque_angle, p.passive.torque_angle, 15, 105, 0.5), 0.05);
+  o.max_activation = 0.5;
+  const PassiveResult spoiled = IdentifyPassiveSimultaneous(trials, o);
+  EXPECT_GT(spoiled.report.fit_rms.at("passive_nm"), 1.0);
+}
+
 TEST(IdentifyPassiveSimultaneous, WhiteTorqueNoiseKeepsTorqueAngleWithin03Nm) {
   const ParameterSet p = Truth();
   auto trials = SumOfSinesTrials(p);
