@@ -304,6 +304,14 @@ std::string_view IrcMethodName(IrcMethod method) {
   return "unknown";
 }
 
+std::optional<IrcMethod> IrcMethodFromName(std::string_view name) {
+  for (IrcMethod m : {IrcMethod::kStep, IrcMethod::kImpulse, IrcMethod::kRampCorrelation,
+                      IrcMethod::kRampDeconvolutionIdeal, IrcMethod::kRampDeconvolutionMeasured}) {
+    if (IrcMethodName(m) == name) return m;
+  }
+  return std::nullopt;
+}
+
 double CorrelationDelay(std::span<const double> u, std::span<const double> r, double rate_hz,
                         double max_lag_s) {
   if (u.empty() || u.size() != r.size() || !(rate_hz > 0.0) || !(max_lag_s >= 0.0)) {

@@ -10,6 +10,7 @@
 /// per event from the samples just before it).
 
 #include <cstddef>
+#include <optional>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -123,6 +124,8 @@ enum class IrcMethod {
 /// "step", "impulse", "ramp_correlation", "ramp_deconvolution_ideal",
 /// "ramp_deconvolution_measured".
 std::string_view IrcMethodName(IrcMethod method);
+/// The method called `name` (IrcMethodName's words), or nullopt.
+std::optional<IrcMethod> IrcMethodFromName(std::string_view name);
 
 /// Options of IdentifyIrc.
 struct IrcOptions {

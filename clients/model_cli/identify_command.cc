@@ -171,12 +171,6 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
   }
   if (method.starts_with("irc_")) {
     RequireTrials(method, trials, 1);
-    static const std::map<std::string_view, IrcMethod> kIrc = {
-        {"irc_step", IrcMethod::kStep},
-        {"irc_impulse", IrcMethod::kImpulse},
-        {"irc_ramp_correlation", IrcMethod::kRampCorrelation},
-        {"irc_ramp_deconvolution_ideal", IrcMethod::kRampDeconvolutionIdeal},
-        {"irc_ramp_deconvolution_measured", IrcMethod::kRampDeconvolutionMeasured}};
     IrcOptions o;
     o.twitch = twitch;
     o.step_average_s = opt.Number("step_average_s", o.step_average_s);
@@ -186,11 +180,12 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
     o.guard = opt.Number("guard", o.guard);
     o.ideal.order = static_cast<int>(opt.Number("ideal_order", o.ideal.order));
     o.ideal.pole_per_s = opt.Number("ideal_pole_per_s", 0.0);
-    const IrcMethod m = kIrc.at(method);
-    const IrcResult r = IdentifyIrc(m, trials.front(), o);
+    const std::optional<IrcMethod> m = IrcMethodFromName(std::string_view(method).substr(4));
+    if (!m) throw std::invalid_argument("unknown IRC method '" + std::string(method) + "'");
+    const IrcResult r = IdentifyIrc(*m, trials.front(), o);
     out.irc = r.irc;
     out.active.torque_scale_nm = r.torque_scale_nm;  // isometric full scale at 90°
-    out.provenance.irc_method = std::string(IrcMethodName(m));
+    out.provenance.irc_method = std::string(IrcMethodName(*m));
     report.Merge(r.report);
     return out;
   }

@@ -49,16 +49,6 @@ std::optional<TrialKind> KindOfName(std::string_view name) {
   }
 }
 
-const std::map<std::string, model::IrcMethod>& IrcMethods() {
-  static const std::map<std::string, model::IrcMethod> kMethods = {
-      {"step", model::IrcMethod::kStep},
-      {"impulse", model::IrcMethod::kImpulse},
-      {"ramp_correlation", model::IrcMethod::kRampCorrelation},
-      {"ramp_deconvolution_ideal", model::IrcMethod::kRampDeconvolutionIdeal},
-      {"ramp_deconvolution_measured", model::IrcMethod::kRampDeconvolutionMeasured}};
-  return kMethods;
-}
-
 // The trials of one leg, sorted by kind (ids ascending within a kind).
 struct Selection {
   std::int64_t subject_id = 0;
@@ -160,7 +150,7 @@ class Fitter {
 
   api::Status CheckPresent() const {
     const auto has = [&](TrialKind k) { return !sel_.Of(k).empty(); };
-    const model::IrcMethod irc = IrcMethods().at(req_.irc_method);
+    const model::IrcMethod irc = *model::IrcMethodFromName(req_.irc_method);
     std::vector<std::string> missing;
     if (irc == model::IrcMethod::kStep && !has(TrialKind::kStepIrc)) {
       missing.push_back(Missing("irc_method step", "an isometric_step_irc trial"));
@@ -213,7 +203,7 @@ class Fitter {
     if (api::Status s = CheckPresent(); !s.ok()) return s;
     model::ParameterSet est;
     est.provenance = {};
-    const model::IrcMethod irc_method = IrcMethods().at(req_.irc_method);
+    const model::IrcMethod irc_method = *model::IrcMethodFromName(req_.irc_method);
 
     // Contraction dynamics from the averaged impulse responses (§4.1, Eqs. 4.2, 4.4).
     stage_ = "contraction dynamics";
@@ -563,7 +553,7 @@ api::Status ValidateIdentificationRequest(const IdentificationRequest& req) {
   if (req.method != "thesis" && req.method != "rapid") {
     return api::Status::InvalidArgument("must be \"thesis\" or \"rapid\"", "method");
   }
-  if (!IrcMethods().count(req.irc_method)) {
+  if (!model::IrcMethodFromName(req.irc_method)) {
     return api::Status::InvalidArgument(
         "must be step, impulse, ramp_correlation, ramp_deconvolution_ideal or "
         "ramp_deconvolution_measured",

@@ -247,3 +247,18 @@ TEST(IdentifyIrc, RejectsTrialsWithoutTheNeededEvents) {
 
 }  // namespace
 }  // namespace fesbench::model
+
+namespace fesbench::model {
+namespace {
+
+TEST(IrcMethodNames, ParseWhatTheyName) {
+  for (IrcMethod m : {IrcMethod::kStep, IrcMethod::kImpulse, IrcMethod::kRampCorrelation,
+                      IrcMethod::kRampDeconvolutionIdeal, IrcMethod::kRampDeconvolutionMeasured}) {
+    EXPECT_EQ(IrcMethodFromName(IrcMethodName(m)), m);
+  }
+  EXPECT_FALSE(IrcMethodFromName("ramp"));
+  EXPECT_FALSE(IrcMethodFromName(""));
+}
+
+}  // namespace
+}  // namespace fesbench::model
