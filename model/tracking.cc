@@ -148,6 +148,30 @@ Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
   return g;
 }
 
+std::vector<double> ResampleTarget(const std::vector<double>& t_s,
+                                   const std::vector<double>& angle_deg, double rate_hz) {
+  Require(std::isfinite(rate_hz) && rate_hz > 0.0, "target: the rate must be > 0");
+  Require(t_s.size() == angle_deg.size(), "target: t_s and angle_deg differ in length");
+  Require(t_s.size() >= 3, "target: at least 3 samples");
+  for (std::size_t i = 0; i < t_s.size(); ++i) {
+    Require(std::isfinite(t_s[i]) && std::isfinite(angle_deg[i]),
+            "target: sample " + std::to_string(i) + " is not finite");
+    Require(i == 0 || t_s[i] > t_s[i - 1],
+            "target: t_s must increase strictly (sample " + std::to_string(i) + ")");
+  }
+  const double duration = t_s.back() - t_s.front();
+  const auto n = static_cast<std::size_t>(std::floor(duration * rate_hz + 1e-9)) + 1;
+  std::vector<double> out(n);
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = t_s.front() + static_cast<double>(i) / rate_hz;
+    while (j + 2 < t_s.size() && t_s[j + 1] < t) ++j;
+    const double x = std::clamp((t - t_s[j]) / (t_s[j + 1] - t_s[j]), 0.0, 1.0);
+    out[i] = angle_deg[j] + x * (angle_deg[j + 1] - angle_deg[j]);
+  }
+  return out;
+}
+
 KneeTarget WithLeadIn(const KneeTarget& target, double from_deg, double lead_in_s) {
   Require(!target.angle_deg.empty() && target.rate_hz > 0.0, "lead-in: the target is empty");
   Require(std::isfinite(from_deg) && std::isfinite(lead_in_s) && lead_in_s >= 0.0,

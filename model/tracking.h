@@ -117,6 +117,14 @@ std::optional<double> PhaseCrossover(const LoopShape& loop);
 Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
                      const TrackingOptions& options);
 
+/// An uploaded trajectory (t_s, angle_deg) resampled at rate_hz by linear
+/// interpolation from its t = 0 (its first time) to its last.
+/// @throws std::invalid_argument (the message names the sample) for fewer
+///   than 3 samples, lengths that differ, a non-finite value, times not
+///   strictly increasing, or rate_hz ≤ 0.
+std::vector<double> ResampleTarget(const std::vector<double>& t_s,
+                                   const std::vector<double>& angle_deg, double rate_hz);
+
 /// `target` preceded by a lead-in: a raised-cosine move from from_deg to the
 /// target's first angle lasting lead_in_s (zero velocity at both ends),
 /// derivatives exact, at the target's rate.

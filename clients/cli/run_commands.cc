@@ -10,6 +10,7 @@
 #include <poll.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -25,6 +26,8 @@
 #include <thread>
 #include <vector>
 
+#include "api/trial.h"
+#include "api/trial_import.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
 #include "clients/cli/output.h"
@@ -299,11 +302,31 @@ void PrintRun(CliContext& context, const json& run) {
   PrintObject(context.out, brief);
 }
 
+// A target trajectory file: CSV with the columns t_s and angle_deg (any
+// order, others ignored), as {"t_s": [...], "angle_deg": [...]}.
+json TargetSamplesFromCsv(const std::string& path) {
+  const api::Result<std::string> text = api::ReadTextFile(path);
+  if (!text.ok()) throw CliError::Usage("--target-csv: " + text.status().ToString());
+  const api::Result<api::TextTable> table = api::ReadTextTable(*text, "csv");
+  if (!table.ok()) throw CliError::Usage("--target-csv " + path + ": " + table.status().message());
+  json out = json::object();
+  for (const char* name : {"t_s", "angle_deg"}) {
+    const auto it = std::find(table->labels.begin(), table->labels.end(), name);
+    if (it == table->labels.end()) {
+      throw CliError::Usage("--target-csv " + path + ": no column " + name +
+                            " (the file needs t_s and angle_deg)");
+    }
+    out[name] = table->columns[static_cast<std::size_t>(it - table->labels.begin())];
+  }
+  return out;
+}
+
 struct StartForm {
   std::string session;
   std::string protocol;
   std::vector<std::string> params;
   std::string ceiling_reason;  // a tolerance test above the recorded max: why
+  std::string target_csv;      // tracking: an uploaded target trajectory
   bool follow = false;         // the default; kept so that older scripts still work
   bool detach = false;
 };
@@ -367,6 +390,9 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
     start->add_option("--ceiling-reason", form->ceiling_reason,
                       "tolerance_test only: why its ceiling_ma goes above the session's recorded "
                       "max tolerated amplitude (required then; audited)");
+    start->add_option("--target-csv", form->target_csv,
+                      "tracking: a target trajectory to follow, a CSV with the columns t_s "
+                      "(seconds) and angle_deg (degrees); sets --param target=uploaded");
     start->add_flag("--follow", form->follow,
                     "follow the run to its end (the default; progress bar on a terminal, lines "
                     "when piped)");
@@ -392,6 +418,10 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         }
         json body = {{"protocol", form->protocol}, {"parameters", parameters}};
         if (!form->ceiling_reason.empty()) body["ceiling_reason"] = form->ceiling_reason;
+        if (!form->target_csv.empty()) {
+          body["target_samples"] = TargetSamplesFromCsv(form->target_csv);
+          if (!body["parameters"].contains("target")) body["parameters"]["target"] = "uploaded";
+        }
         const json started = client.Post("/sessions/" + std::to_string(session) + "/runs", body);
         const std::int64_t run_id = started["run_id"].get<std::int64_t>();
         if (form->detach) {

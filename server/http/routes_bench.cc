@@ -138,7 +138,15 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                              {"additionalProperties",
                               {{"type", {"number", "string"}},
                                {"description", "a number; a choice parameter also its name"}}}}},
-                           {"ceiling_reason", {{"type", "string"}, {"maxLength", 500}}}},
+                           {"ceiling_reason", {{"type", "string"}, {"maxLength", 500}}},
+                           {"target_samples",
+                            {{"type", "object"},
+                             {"description",
+                              "tracking with parameters.target = uploaded: the trajectory, "
+                              "t_s (strictly increasing) and angle_deg, ≤ 40000 samples each"},
+                             {"properties",
+                              {{"t_s", {{"type", "array"}, {"items", {{"type", "number"}}}}},
+                               {"angle_deg", {{"type", "array"}, {"items", {{"type", "number"}}}}}}}}}},
                           {"protocol"}),
              nullptr, [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
@@ -146,7 +154,8 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!request.ok()) return request.status();
                auto view = runs->Start(ActorOf(*ctx.user), ctx.Id("session_id"),
                                        request->protocol, request->parameters,
-                                       request->ceiling_reason);
+                                       request->ceiling_reason,
+                                       request->target ? &*request->target : nullptr);
                if (!view.ok()) return view.status();
                ctx.audited = true;  // RunService audits the start with the stored run
                ctx.res.set_header("Location", "/api/v1/runs/" + std::to_string(view->run_id));

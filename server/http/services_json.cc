@@ -46,6 +46,32 @@ api::Result<StartRunRequest> StartRunFromJson(const json& body) {
     if (auto st = p.Finish(); !st.ok()) return st;
   }
   if (auto reason = f.String("ceiling_reason", false, 500)) out.ceiling_reason = *reason;
+  if (const auto* target = f.Object("target_samples", false)) {
+    protocols::TargetSamples samples;
+    for (const char* key : {"t_s", "angle_deg"}) {
+      const std::string field = std::string("target_samples.") + key;
+      const auto it = target->find(key);
+      if (it == target->end() || !it->is_array()) {
+        return api::Status::InvalidArgument("required: an array of numbers", field);
+      }
+      if (it->size() > kMaxTargetSamples) {
+        return api::Status::InvalidArgument(
+            "at most " + std::to_string(kMaxTargetSamples) + " samples", field);
+      }
+      std::vector<double>& values = std::string(key) == "t_s" ? samples.t_s : samples.angle_deg;
+      for (std::size_t i = 0; i < it->size(); ++i) {
+        if (!(*it)[i].is_number()) {
+          return api::Status::InvalidArgument("must be a number", field + "[" +
+                                                                      std::to_string(i) + "]");
+        }
+        values.push_back((*it)[i].get<double>());
+      }
+    }
+    if (target->size() != 2) {
+      return api::Status::InvalidArgument("only t_s and angle_deg", "target_samples");
+    }
+    out.target = std::move(samples);
+  }
   if (auto st = f.Finish(); !st.ok()) return st;
   if (description == nullptr) {
     return api::Status(api::ErrorCode::kNotFound, "protocol " + out.protocol + " not found",

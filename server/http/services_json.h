@@ -22,11 +22,15 @@ services::Actor ActorOf(const storage::User& user);
 
 /// POST /sessions/{id}/runs: {"protocol": "<name>", "parameters"?: {"<name>": number},
 /// "ceiling_reason"?: "<why a tolerance test goes above the recorded max>"}.
+/// "target_samples"?: {"t_s": [...], "angle_deg": [...]} (tracking's uploaded
+/// target, at most kMaxTargetSamples samples).
 struct StartRunRequest {
   std::string protocol;
   protocols::ParameterValues parameters;
   std::optional<std::string> ceiling_reason;
+  std::optional<protocols::TargetSamples> target;
 };
+inline constexpr std::size_t kMaxTargetSamples = 40000;
 api::Result<StartRunRequest> StartRunFromJson(const nlohmann::json& body);
 
 }  // namespace fesbench::server::http

@@ -16,7 +16,8 @@ BenchOwner::~BenchOwner() {
 }
 
 api::Result<Plan> BenchOwner::Prepare(const StartRequest& request) const {
-  api::Result<Plan> plan = MakePlan(request.protocol, request.parameters, request.subject);
+  api::Result<Plan> plan = MakePlan(request.protocol, request.parameters, request.subject,
+                                     request.target_angle_deg);
   if (!plan.ok()) return plan;
   if (api::Status gate = CheckModelGate(*plan, request.subject, safe_.bench_limits().pulse_rate_hz,
                                           safe_.bench_limits().max_stop_impact_deg_s);

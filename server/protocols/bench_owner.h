@@ -12,6 +12,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <vector>
 #include <thread>
 
 #include "api/status.h"
@@ -27,6 +28,8 @@ struct StartRequest {
   ParameterValues parameters;  ///< client values; the rest take defaults.
   SubjectContext subject;
   std::string client = "client";  ///< the controlling client (heart-beats).
+  /// tracking with target = uploaded: the trajectory at 200 Hz, deg.
+  std::vector<double> target_angle_deg = {};
 };
 
 struct BenchOwnerOptions {

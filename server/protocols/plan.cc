@@ -425,9 +425,13 @@ std::int64_t Plan::total_ticks() const {
 // The tracking target of the resolved values (issue 19): a sine starting at
 // its middle, holds cycling through lo + (½, 0, ¾, ¼)·(hi − lo), or a ramp
 // lo → hi → lo.
-model::KneeTarget TrackingTarget(const ParameterValues& v, std::string& name) {
+model::KneeTarget TrackingTarget(const ParameterValues& v, const std::vector<double>& uploaded,
+                                 std::string& name) {
   const double lo = v.at("lo_deg"), hi = v.at("hi_deg"), duration = v.at("duration_s");
   switch (static_cast<int>(v.at("target"))) {
+    case 3:
+      name = "uploaded";
+      return model::SampledTarget(uploaded, 200.0);
     case 1: {
       name = "holds";
       const double hold = v.at("hold_s"), move = v.at("move_s");
@@ -483,18 +487,36 @@ std::pair<std::size_t, std::size_t> LongestUnreachable(const model::Feedforward&
   return best;
 }
 
-api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subject, Plan& plan,
-                          Builder& b) {
+api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subject,
+                          const std::vector<double>& uploaded, Plan& plan, Builder& b) {
   if (!subject.parameter_set) {
     return api::Status::FailedPrecondition(
         "tracking needs the leg's parameter set: run rapid_parameterisation first");
   }
-  if (!(v.at("lo_deg") < v.at("hi_deg"))) {
+  const bool upload = static_cast<int>(v.at("target")) == 3;
+  if (!upload && !(v.at("lo_deg") < v.at("hi_deg"))) {
     return api::Status::InvalidArgument("must be above lo_deg", "parameters.hi_deg");
+  }
+  if (upload != !uploaded.empty()) {
+    return upload ? api::Status::InvalidArgument(
+                        "an uploaded target needs the request's target_samples (t_s, angle_deg)",
+                        "target_samples")
+                  : api::Status::InvalidArgument(
+                        "target_samples is only read with parameters.target = uploaded",
+                        "target_samples");
+  }
+  for (std::size_t i = 0; i < uploaded.size(); ++i) {
+    if (!(uploaded[i] >= subject.min_angle_deg && uploaded[i] <= subject.max_angle_deg)) {
+      std::ostringstream why;
+      why << "the target leaves the range of motion [" << subject.min_angle_deg << ", "
+          << subject.max_angle_deg << "] deg at t = " << static_cast<double>(i) / 200.0 << " s ("
+          << uploaded[i] << "°)";
+      return api::Status::InvalidArgument(why.str(), "target_samples.angle_deg");
+    }
   }
   TrackingSettings t;
   t.params = *subject.parameter_set;
-  t.target = TrackingTarget(v, t.target_name);
+  t.target = TrackingTarget(v, uploaded, t.target_name);
   t.lead_in_s = v.at("lead_in_s");
   t.max_rate_ma_per_s = v.at("max_rate_ma_per_s");
   t.max_saturation_s = v.at("max_saturation_s");
@@ -571,7 +593,8 @@ api::Status BuildDailyCheck(const ParameterValues& v, double min_rest_s,
 }
 
 api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const ParameterValues& values,
-                            const SubjectContext& subject) {
+                            const SubjectContext& subject,
+                            const std::vector<double>& uploaded_target) {
   Plan plan;
   plan.protocol = protocol.name;
   plan.protocol_version = protocol.version;
@@ -599,7 +622,8 @@ api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const Parameter
       if (api::Status st = BuildDailyCheck(values, protocol.min_rest_s, subject, plan, b); !st.ok())
         return st;
     } else if (name == "tracking") {
-      if (api::Status st = BuildTracking(values, subject, plan, b); !st.ok()) return st;
+      if (api::Status st = BuildTracking(values, subject, uploaded_target, plan, b); !st.ok())
+        return st;
     } else {
       return api::Status::NotFound("no plan for protocol " + name);
     }
@@ -613,12 +637,13 @@ api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const Parameter
 }
 
 api::Result<Plan> MakePlan(std::string_view protocol, const ParameterValues& values,
-                           const SubjectContext& subject) {
+                           const SubjectContext& subject,
+                           const std::vector<double>& uploaded_target) {
   const ProtocolDescription* p = FindProtocol(protocol);
   if (p == nullptr) return api::Status::NotFound("unknown protocol " + std::string(protocol));
   api::Result<ParameterValues> resolved = ResolveParameters(*p, values, subject);
   if (!resolved.ok()) return resolved.status();
-  return BuildPlan(*p, *resolved, subject);
+  return BuildPlan(*p, *resolved, subject, uploaded_target);
 }
 
 model::SampledSignal TrialEnvelope(const Plan& plan, int trial) {

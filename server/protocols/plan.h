@@ -156,12 +156,15 @@ struct Plan {
 /// Builds the plan of protocol with resolved values (ResolveParameters) for
 /// subject. kInvalidArgument if a generator refuses the values (the message
 /// names the parameter), kNotFound for an unknown protocol.
+/// `uploaded_target`: tracking's uploaded trajectory at 200 Hz (target 3).
 api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const ParameterValues& values,
-                            const SubjectContext& subject);
+                            const SubjectContext& subject,
+                            const std::vector<double>& uploaded_target = {});
 
 /// ResolveParameters then BuildPlan.
 api::Result<Plan> MakePlan(std::string_view protocol, const ParameterValues& values,
-                           const SubjectContext& subject);
+                           const SubjectContext& subject,
+                           const std::vector<double>& uploaded_target = {});
 
 /// The stimulation envelope (stim_ma at 200 Hz, t = 0 at the trial's first
 /// sample) a plan's trial commands, concatenated over its steps. Empty

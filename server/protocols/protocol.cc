@@ -317,7 +317,8 @@ std::vector<ProtocolDescription> MakeCatalog() {
        1,
        "Knee-angle tracking",
        "Decoupled: the stimulation follows a target knee angle (a 0.2 Hz sine between two "
-       "angles, holds at angles, or a ramp up and down) with the leg's parameter set, after a "
+       "angles, holds at angles, a ramp up and down, or an uploaded trajectory) with the leg's "
+       "parameter set, after a "
        "lead-in from where the knee hangs to the target's start. Controllers: pid (a PID on "
        "the angle error above the threshold), inverse_model (the inverted model as "
        "feedforward with a PID around it) and adaptive (the same with τ_scale followed "
@@ -330,8 +331,10 @@ std::vector<ProtocolDescription> MakeCatalog() {
         MaxMa(),
         {"controller", "0 = pid, 1 = inverse_model, 2 = adaptive", 1.0, 0.0, 2.0, true,
          Scaling::kNone, false, {"pid", "inverse_model", "adaptive"}},
-        {"target", "0 = sine, 1 = holds, 2 = ramp", 0.0, 0.0, 2.0, true, Scaling::kNone, false,
-         {"sine", "holds", "ramp"}},
+        {"target",
+         "0 = sine, 1 = holds, 2 = ramp, 3 = uploaded (the request's target_samples: t_s, "
+         "angle_deg)",
+         0.0, 0.0, 3.0, true, Scaling::kNone, false, {"sine", "holds", "ramp", "uploaded"}},
         {"lo_deg", "lower target angle (extension side), deg", 30.0, 0.0, 180.0, false},
         {"hi_deg", "upper target angle (flexion side), deg", 80.0, 0.0, 180.0, false},
         {"frequency_hz", "sine frequency, Hz", 0.2, 0.01, 1.0, false},

@@ -140,6 +140,13 @@ struct SubjectContext {
   std::optional<model::TrialColumns> base_ramp_trial;
 };
 
+/// A tracking run's uploaded target trajectory, as sent (POST
+/// /sessions/{id}/runs "target_samples"): strictly increasing t_s, deg.
+struct TargetSamples {
+  std::vector<double> t_s;
+  std::vector<double> angle_deg;
+};
+
 /// Checks a context: finite values, 0 ≤ threshold < max tolerated ≤ 100 mA,
 /// 0 ≤ min angle < max angle ≤ 180°; kInvalidArgument naming the field.
 api::Status ValidateSubject(const SubjectContext& subject);

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <utility>
 
+#include "model/tracking.h"
 #include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_json.h"
 #include "storage/audit_log.h"
@@ -762,9 +763,10 @@ BenchState RunService::State() const {
 api::Result<RunView> RunService::Start(const Actor& actor, std::int64_t session_id,
                                        const std::string& protocol,
                                        const protocols::ParameterValues& parameters,
-                                       const std::optional<std::string>& ceiling_reason) {
+                                       const std::optional<std::string>& ceiling_reason,
+                                       const TargetSamples* target) {
   try {
-    return StartImpl(actor, session_id, protocol, parameters, ceiling_reason);
+    return StartImpl(actor, session_id, protocol, parameters, ceiling_reason, target);
   } catch (const std::exception& e) {
     Log(std::string("Start: ") + e.what());
     return api::Status::Internal("starting the run failed");
@@ -774,7 +776,8 @@ api::Result<RunView> RunService::Start(const Actor& actor, std::int64_t session_
 api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t session_id,
                                            const std::string& protocol,
                                            const protocols::ParameterValues& parameters,
-                                           const std::optional<std::string>& ceiling_reason) {
+                                           const std::optional<std::string>& ceiling_reason,
+                                           const TargetSamples* target) {
   if (!MayOperateBench(actor)) {
     return api::Status(api::ErrorCode::kPermissionDenied,
                        "starting a run needs the clinician or admin role");
@@ -823,6 +826,17 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
     return api::Status::InvalidArgument(
         "above the stimulator's limit " + FormatNumber(bench_.limits().max_stim_ma) + " mA",
         "parameters.ceiling_ma");
+  }
+  // tracking's uploaded target, at the control's 200 Hz.
+  if (target != nullptr) {
+    try {
+      request.target_angle_deg = model::ResampleTarget(target->t_s, target->angle_deg, 200.0);
+    } catch (const std::invalid_argument& e) {
+      return api::Status::InvalidArgument(e.what(), "target_samples");
+    }
+    if (request.target_angle_deg.size() > 600 * 200 + 1) {
+      return api::Status::InvalidArgument("longer than 600 s", "target_samples");
+    }
   }
   // A tracking run may name the leg's set to invert (0: its newest).
   if (const auto it = parameters.find("parameter_set_id");

@@ -152,6 +152,8 @@ struct Recovery {
   std::optional<std::string> estop_source;   ///< source of the re-latched e-stop, if any.
 };
 
+using protocols::TargetSamples;
+
 class RunService {
  public:
   /// @param db, bench and hub must outlive the service.
@@ -171,10 +173,15 @@ class RunService {
   /// `ceiling_reason`: a clinician's reason for a tolerance test whose
   /// ceiling_ma goes above the session's recorded max tolerated amplitude
   /// (up to the stimulator's limit); audited as "run.ceiling_above_max".
+  /// `target`: tracking's uploaded trajectory (parameters.target =
+  /// uploaded): resampled at 200 Hz; kInvalidArgument "target_samples" when
+  /// it is malformed (model::ResampleTarget's words), longer than 600 s,
+  /// leaves the range of motion, or comes without an uploaded target.
   api::Result<RunView> Start(const Actor& actor, std::int64_t session_id,
                              const std::string& protocol,
                              const protocols::ParameterValues& parameters,
-                             const std::optional<std::string>& ceiling_reason = std::nullopt);
+                             const std::optional<std::string>& ceiling_reason = std::nullopt,
+                             const TargetSamples* target = nullptr);
 
   /// The run's view: live (this process) or from storage. kNotFound.
   api::Result<RunView> Get(std::int64_t run_id);
@@ -245,7 +252,8 @@ class RunService {
   api::Result<RunView> StartImpl(const Actor& actor, std::int64_t session_id,
                                  const std::string& protocol,
                                  const protocols::ParameterValues& parameters,
-                                 const std::optional<std::string>& ceiling_reason);
+                                 const std::optional<std::string>& ceiling_reason,
+                                 const TargetSamples* target);
   void Log(std::string_view message) const;
   void Forget();
 

@@ -234,6 +234,21 @@ try {
     await shots.both(page, 'tracking-done');
   });
 
+  await step('tracking an uploaded trajectory (CSV t_s, angle_deg)', async () => {
+    await page.locator('#protocol').selectOption('tracking');
+    await page.locator('#f-target').selectOption({ label: 'uploaded' });
+    const rows = ['t_s,angle_deg'];
+    for (let i = 0; i <= 60; i++) rows.push(`${(i * 0.1).toFixed(1)},${(72 + 6 * Math.sin(2 * Math.PI * 0.2 * i * 0.1)).toFixed(2)}`);
+    await page.locator('#f-target_file').setInputFiles({ name: 'target.csv', mimeType: 'text/csv', buffer: Buffer.from(rows.join('\n')) });
+    const { runId, refusal } = await startProtocol('tracking');
+    assert.ok(runId, `uploaded tracking refused: ${refusal}`);
+    await page.locator(`#live[data-run-id="${runId}"][data-state="done"]`).waitFor({ timeout: 60000 });
+    const run = (await call(server, 'GET', `/runs/${runId}`)).body;
+    assert.equal(run.parameters.target, 3);
+    assert.ok(run.values.tracking_rms_deg < 10, JSON.stringify(run.values));
+    notes.push(`tracking an uploaded 6 s trajectory: RMS ${run.values.tracking_rms_deg.toFixed(2)}°`);
+  });
+
   await step('daily check: today\'s leg against its set, what moved shown', async () => {
     const { runId, refusal } = await startProtocol('daily_check');
     assert.ok(runId, `daily check refused: ${refusal}`);

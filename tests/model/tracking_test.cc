@@ -201,6 +201,23 @@ TEST(TrackingTargetTest, LeadInAndMetrics) {
   EXPECT_THROW(MeasureTracking(holds, {}), std::invalid_argument);
 }
 
+TEST(TrackingTargetTest, ResampleTargetInterpolatesLinearly) {
+  // A line sampled irregularly comes back exactly at 200 Hz.
+  const std::vector<double> t = {2.0, 2.13, 2.5, 3.0, 4.0};
+  std::vector<double> a;
+  for (double x : t) a.push_back(40.0 + 10.0 * (x - 2.0));
+  const std::vector<double> r = ResampleTarget(t, a, 200.0);
+  ASSERT_EQ(r.size(), 401u);  // 2 s at 200 Hz, both ends
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    EXPECT_NEAR(r[i], 40.0 + 10.0 * static_cast<double>(i) / 200.0, 1e-9) << i;
+  }
+  EXPECT_THROW(ResampleTarget({0.0, 1.0}, {1.0, 2.0}, 200.0), std::invalid_argument);
+  EXPECT_THROW(ResampleTarget({0.0, 1.0, 1.0}, {1.0, 2.0, 3.0}, 200.0), std::invalid_argument);
+  EXPECT_THROW(ResampleTarget({0.0, 1.0, 2.0}, {1.0, std::nan(""), 3.0}, 200.0),
+               std::invalid_argument);
+  EXPECT_THROW(ResampleTarget({0.0, 1.0, 2.0}, {1.0, 2.0}, 200.0), std::invalid_argument);
+}
+
 TEST(TrackingControllerTest, TheInverseModelTracksItsOwnLegAndBeatsPid) {
   const ParameterSet params = ExampleParameterSet();
   const KneeTarget sine = SineTarget(30.0, 80.0, 0.2, 30.0);

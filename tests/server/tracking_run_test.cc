@@ -99,6 +99,30 @@ TEST(Tracking, HoldsReportOvershootAndSettling) {
   EXPECT_LE(r.values.at("settling_s"), 4.0 + 1e-9);  // at most the hold
 }
 
+TEST(Tracking, AnUploadedTrajectoryIsFollowed) {
+  Rig rig(11);
+  const SubjectContext ctx = Context(rig.subject);
+  std::vector<double> angles;
+  for (int i = 0; i <= 2000; ++i) {  // 10 s at 200 Hz
+    const double t = i / 200.0;
+    angles.push_back(50.0 + 12.0 * std::sin(2.0 * M_PI * 0.15 * t) + 4.0 * std::sin(2.0 * M_PI * 0.4 * t));
+  }
+  auto plan = MakePlan("tracking", {{"target", 3}}, ctx, angles);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+  const RunResult r = runner.Run(*plan, ctx);
+  ASSERT_EQ(r.state, RunState::kDone) << r.reason;
+  EXPECT_EQ(r.trials.front().trial.name, "tracking_uploaded");
+  EXPECT_NEAR((*r.trials.front().trial.Values("target_deg"))[600 + 1000], angles[1000], 1e-9);
+  EXPECT_LT(r.values.at("tracking_rms_deg"), 4.0);
+  // Refusals: no samples, samples without the uploaded target, outside the range.
+  EXPECT_EQ(MakePlan("tracking", {{"target", 3}}, ctx).status().field(), "target_samples");
+  EXPECT_EQ(MakePlan("tracking", {}, ctx, angles).status().field(), "target_samples");
+  angles[1500] = 130.0;
+  EXPECT_EQ(MakePlan("tracking", {{"target", 3}}, ctx, angles).status().field(),
+            "target_samples.angle_deg");
+}
+
 TEST(Tracking, RefusesWithoutASetAndTargetsTheSetCannotReach) {
   Rig rig(11);
   SubjectContext ctx = Context(rig.subject);

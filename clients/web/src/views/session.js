@@ -139,6 +139,25 @@ export async function sessionView(ctx, sessionId) {
   const paramSlot = h('div', { id: 'protocol-parameters' });
   const formStatus = h('div', { id: 'run-form-status' });
   const current = () => protocols.find((x) => x.name === select.value);
+  // A target trajectory CSV: a header naming t_s and angle_deg, then numbers.
+  function parseTargetCsv(text) {
+    const lines = text.split(/\r?\n/).filter((l) => l.trim() !== '');
+    if (lines.length < 4) throw new Error('the target file needs a header and at least 3 rows');
+    const header = lines[0].split(',').map((x) => x.trim());
+    const ti = header.indexOf('t_s');
+    const ai = header.indexOf('angle_deg');
+    if (ti < 0 || ai < 0) throw new Error('the target file\'s header must name t_s and angle_deg');
+    const out = { t_s: [], angle_deg: [] };
+    lines.slice(1).forEach((line, i) => {
+      const cells = line.split(',');
+      const t = Number(cells[ti]);
+      const a = Number(cells[ai]);
+      if (!Number.isFinite(t) || !Number.isFinite(a)) throw new Error(`target file line ${i + 2}: not two numbers`);
+      out.t_s.push(t);
+      out.angle_deg.push(a);
+    });
+    return out;
+  }
   function parameterField(param) {
     const value = param.default === null || param.default === undefined ? '' : param.default;
     if (param.choices && param.choices.length) {
@@ -178,8 +197,13 @@ export async function sessionView(ctx, sessionId) {
         help: 'Only when the ceiling goes above the session\'s max tolerated amplitude (e.g. a re-test after training); audited.',
       })
       : '';
+    // tracking's uploaded target: a CSV file with the columns t_s and angle_deg.
+    const targetFile = p.name === 'tracking'
+      ? field('target_file', 'Target trajectory file (CSV: t_s, angle_deg)', {
+        type: 'file', help: 'For the target "uploaded": seconds and degrees, time strictly increasing.' })
+      : '';
     paramSlot.replaceChildren(
-      h('div', { class: 'grid-form', id: 'basic-parameters' }, basic.map(parameterField)),
+      h('div', { class: 'grid-form', id: 'basic-parameters' }, basic.map(parameterField)), targetFile,
       advanced.length ? h('details', { id: 'advanced-parameters' }, h('summary', {}, `Advanced parameters (${advanced.length})`),
         h('div', { class: 'grid-form' }, advanced.map(parameterField))) : '',
       reason);
@@ -215,6 +239,11 @@ export async function sessionView(ctx, sessionId) {
     say(formStatus, 'info', 'Starting…');
     try {
       const body = { protocol: p.name, parameters };
+      const file = form.elements.target_file && form.elements.target_file.files[0];
+      if (p.name === 'tracking' && form.elements.target && form.elements.target.value === '3') {
+        if (!file) throw new Error('choose the target trajectory file (CSV with t_s and angle_deg)');
+        body.target_samples = parseTargetCsv(await file.text());
+      }
       const reason = form.elements.ceiling_reason ? form.elements.ceiling_reason.value.trim() : '';
       if (reason) body.ceiling_reason = reason;
       const run = await api('POST', `/sessions/${sessionId}/runs`, body);
