@@ -79,6 +79,13 @@ TEST(AdmissionTest, AConnectionBeyondTheOpenLimitIs503AndTheServerRecovers) {
   for (int i = 0; i < kOpenLimit; ++i) {
     held.push_back(std::make_unique<RawConnection>(server.port()));
     ASSERT_TRUE(held.back()->ok()) << i;
+    // One answered request each: then the server has surely accepted the
+    // connection (a merely connected socket may still wait in its accept
+    // queue), and keeps it open for its keep-alive time.
+    ASSERT_TRUE(held.back()->Send("GET /api/v1/health HTTP/1.1\r\nHost: localhost\r\n\r\n"));
+    const std::string answer = held.back()->ReadUntil(
+        [](const std::string& r) { return CountResponses(r) >= 1; }, milliseconds(5000));
+    ASSERT_EQ(RawStatus(answer), 200) << i << ": " << answer;
   }
   // The server accepts in its own time: wait until one more is refused.
   std::string refused;
