@@ -189,7 +189,7 @@ Pid::Pid(Gains gains, double dt_s, double min_out, double max_out)
 void Pid::Reset() {
   integral_ = derivative_ = 0.0;
   first_ = true;
-  saturated_ = false;
+  saturated_ = saturated_high_ = false;
 }
 
 void Pid::SetLimits(double min_out, double max_out) {
@@ -216,6 +216,7 @@ double Pid::Update(double target_deg, double measured_deg, double feedforward) {
   };
   const double unclamped = output(candidate_integral);
   saturated_ = unclamped > max_out_ || unclamped < min_out_;
+  saturated_high_ = unclamped > max_out_;
   // Anti-windup: the integral only moves while the output is free, or when
   // it moves the output back inside.
   if (!saturated_ || (unclamped > max_out_ && error < 0.0) ||

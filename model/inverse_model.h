@@ -124,6 +124,9 @@ class Pid {
   void Reset();
   double integral() const { return integral_; }
   bool saturated() const { return saturated_; }
+  /// The last output wanted more than max_out (its integral held just
+  /// below, the output may sit a hair under the limit).
+  bool saturated_high() const { return saturated_high_; }
 
  private:
   Gains gains_;
@@ -135,6 +138,7 @@ class Pid {
   double last_measured_ = 0.0;
   bool first_ = true;
   bool saturated_ = false;
+  bool saturated_high_ = false;
 };
 
 /// The active gain τ_scale followed online (§7.6.3: "a simple adaptive

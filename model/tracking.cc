@@ -366,7 +366,10 @@ TrackingSample TrackingController::Update(double measured_deg) {
   }
   s.correction_ma = s.amplitude_ma - s.feedforward_ma;
   s.tau_scale_nm = tau_scale_;
-  s.saturated = (s.amplitude_ma >= options_.max_amplitude_ma - 1e-9 || top_activation) &&
+  // The PID wanting more than its limit counts too: its integral is held
+  // just below the limit, so the output may sit a hair under it.
+  s.saturated = (s.amplitude_ma >= options_.max_amplitude_ma - 1e-9 || top_activation ||
+                 pid_.saturated_high()) &&
                 s.error_deg > 0.0;
   // The chain of the model, driven by the pulses this amplitude gives until
   // the next sample (the pulse clock runs from the first sample, t = 0).

@@ -6,13 +6,12 @@
 #include <deque>
 #include <limits>
 #include <numeric>
-#include <sstream>
 
 #include "model/identify_isometric.h"
 #include "model/simulate.h"
 #include "server/protocols/daily_check.h"
 #include "server/protocols/rapid_identification.h"
-#include "server/protocols/tracking_plan.h"
+#include "server/protocols/tracking_loop.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -202,13 +201,9 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
   std::vector<double> stim_scale(plan.trials.size(), 1.0);
   std::vector<double> stim_floor(plan.trials.size(), 0.0);  // ApplySearchedAmplitude
 
-  // Tracking: the controller of the closed-loop step and the limits the
-  // engine holds it to (slew rate, saturation time), below it.
-  std::optional<model::TrackingController> controller;
-  model::TrackingSample control;  // the last sample's decision
-  double control_ma = 0.0;        // after the slew limit
-  std::int64_t saturated_ticks = 0;
-  double saturated_total_s = 0.0;
+  // Tracking: the closed-loop step's controller with the limits the engine
+  // holds it to, below it (tracking_loop.h).
+  std::optional<TrackingLoop> tracking;
 
   // Tolerance test state.
   ToleranceResult tol;
@@ -349,12 +344,9 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
       move_from = std::isfinite(last_setpoint) ? last_setpoint : bench_.ReadSensors().angle_deg;
       move_from = std::clamp(move_from, subject.min_angle_deg, subject.max_angle_deg);
     }
-    if (step.closed_loop && plan.tracking && !controller) {
-      const TrackingSettings& ts = *plan.tracking;
+    if (step.closed_loop && plan.tracking && !tracking) {
       try {
-        controller.emplace(ts.params,
-                           model::WithLeadIn(ts.target, bench_.ReadSensors().angle_deg, ts.lead_in_s),
-                           ts.options);
+        tracking.emplace(*plan.tracking, bench_.ReadSensors().angle_deg);
       } catch (const std::invalid_argument& e) {
         aborted = std::pair{RunTransition::kError, std::string("tracking: ") + e.what()};
         break;
@@ -393,27 +385,14 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         // Held per 200 Hz sample like every envelope.
         const std::int64_t ks = (k / kTicksPerSample) * kTicksPerSample;
         u = step.ramp_start_ma + step.ramp_ma_per_s * static_cast<double>(ks) / kTicksPerSecond;
-      } else if (step.closed_loop && controller) {
+      } else if (step.closed_loop && tracking) {
         if (k % kTicksPerSample == 0) {
-          control = controller->Update(bench_.ReadSensors().angle_deg);
-          // Below the controller: the slew limit, then (SafeBench) the max.
-          const double step_ma = plan.tracking->max_rate_ma_per_s / 200.0;
-          control_ma = std::clamp(control.amplitude_ma, control_ma - step_ma, control_ma + step_ma);
-          saturated_ticks = control.saturated ? saturated_ticks + kTicksPerSample : 0;
-          if (control.saturated) saturated_total_s += 1.0 / 200.0;
-          if (static_cast<double>(saturated_ticks) / kTicksPerSecond >
-              plan.tracking->max_saturation_s) {
-            std::ostringstream why;
-            why << "tracking: the controller asked for more than the maximum "
-                << plan.tracking->options.max_amplitude_ma << " mA for "
-                << plan.tracking->max_saturation_s << " s (target " << control.target_deg
-                << "°, knee at " << control.target_deg + control.error_deg
-                << "°): the leg cannot follow this target";
-            aborted = std::pair{RunTransition::kError, why.str()};
+          if (std::optional<std::string> stop = tracking->Sample(bench_.ReadSensors().angle_deg)) {
+            aborted = std::pair{RunTransition::kError, std::move(*stop)};
             break;
           }
         }
-        u = control_ma;
+        u = tracking->amplitude_ma();
       } else if (step.envelope) {
         const std::int64_t idx = (step.stim_offset_ticks + k) / kTicksPerSample;
         if (idx >= 0 && idx < static_cast<std::int64_t>(step.envelope->values.size())) {
@@ -468,11 +447,12 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
         rec->torque_nm.push_back(torque);
         rec->accel_m_s2.push_back(f.accel_m_s2);
         if (rec->record_setpoint) rec->setpoint_deg.push_back(last_setpoint);
-        if (rec->closed_loop) {
-          rec->target_deg.push_back(control.target_deg);
-          rec->feedforward_ma.push_back(control.feedforward_ma);
-          rec->correction_ma.push_back(control.correction_ma);
-          rec->tau_scale_nm.push_back(control.tau_scale_nm);
+        if (rec->closed_loop && tracking) {
+          const model::TrackingSample& c = tracking->last();
+          rec->target_deg.push_back(c.target_deg);
+          rec->feedforward_ma.push_back(c.feedforward_ma);
+          rec->correction_ma.push_back(c.correction_ma);
+          rec->tau_scale_nm.push_back(c.tau_scale_nm);
         }
         for (double v : bench_.bench().DrainEmg_mv()) rec->emg_mv.push_back(v);
         collect_pulses();
@@ -540,33 +520,7 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
     if (!tol.threshold_ma) tol.warnings.push_back("no torque response above the noise band");
     result.tolerance = tol;
   }
-  if (plan.tracking && controller && !result.trials.empty()) {
-    // How well the knee followed the target after the lead-in, and the
-    // charge delivered (Σ amplitude × pulse width of the read-back pulses).
-    const api::Trial& trial = result.trials.back().trial;
-    const auto lead = static_cast<std::size_t>(std::llround(plan.tracking->lead_in_s * 200.0));
-    if (const std::vector<double>* angle = trial.Values("angle_deg"); angle && angle->size() > lead) {
-      const model::TrackingMetrics m = model::MeasureTracking(
-          plan.tracking->target,
-          std::vector<double>(angle->begin() + static_cast<std::ptrdiff_t>(lead), angle->end()));
-      result.values["tracking_rms_deg"] = m.rms_deg;
-      result.values["tracking_max_error_deg"] = m.max_error_deg;
-      if (m.overshoot_deg) result.values["overshoot_deg"] = *m.overshoot_deg;
-      if (m.settling_s) result.values["settling_s"] = *m.settling_s;
-    }
-    double charge_nc = 0.0;
-    if (trial.pulses) {
-      for (double ma : trial.pulses->stim_ma) charge_nc += ma * trial.pulses->pulse_width_us;
-    }
-    result.values["charge_uc"] = charge_nc / 1000.0;
-    result.values["saturated_s"] = saturated_total_s;
-    result.values["tau_scale_nm"] = controller->tau_scale_nm();
-    const model::Pid::Gains& g = controller->gains();
-    const bool amplitude = plan.tracking->options.kind == model::ControllerKind::kPid;
-    result.values[amplitude ? "kp_ma_per_deg" : "kp_nm_per_deg"] = g.kp;
-    result.values[amplitude ? "ki_ma_per_deg_s" : "ki_nm_per_deg_s"] = g.ki;
-    result.values[amplitude ? "kd_ma_s_per_deg" : "kd_nm_s_per_deg"] = g.kd;
-  }
+  if (tracking && !result.trials.empty()) tracking->Summarise(result.trials.back().trial, result.values);
   if (aborted) {
     if (aborted->first == RunTransition::kCancel && mode == MotorMode::kPosition &&
         std::isfinite(last_setpoint)) {

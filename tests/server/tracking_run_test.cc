@@ -14,6 +14,7 @@
 #include "server/protocols/plan.h"
 #include "server/protocols/protocol.h"
 #include "server/protocols/runner.h"
+#include "server/protocols/tracking_loop.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -272,6 +273,77 @@ TEST(Tracking, SeededRandomTargetsAndGainsStayWithinTheMaximumTheSlewLimitAndThe
   std::cout << "[ figure ] tracking fuzz: " << ran << " runs, " << refused
             << " refused by the gate\n";
   EXPECT_GT(ran, 12);
+}
+
+}  // namespace
+}  // namespace fesbench::server::protocols
+
+namespace fesbench::server::protocols {
+namespace {
+
+TrackingSettings LoopSettings() {
+  TrackingSettings s;
+  s.params = model::ExampleParameterSet();
+  s.target_name = "holds";
+  s.target = model::HoldsTarget({40.0}, 10.0, 1.0);
+  s.lead_in_s = 1.0;
+  s.options.kind = model::ControllerKind::kInverseModel;
+  s.options.threshold_ma = 20.0;
+  s.options.max_amplitude_ma = 50.0;
+  s.max_rate_ma_per_s = 100.0;  // 0.5 mA per 5 ms sample
+  s.max_saturation_s = 0.5;
+  return s;
+}
+
+TEST(TrackingLoop, SlewLimitsTheControllerAndStopsItWhenSaturated) {
+  const TrackingSettings s = LoopSettings();
+  TrackingLoop loop(s, 40.0);
+  // The knee stays at 100° while the target asks for 40°: the controller
+  // wants the maximum at once; the engine lets the amplitude rise 0.5 mA per
+  // sample and, once saturated for 0.5 s (100 samples), ends the run.
+  double previous = 0.0;
+  int samples = 0;
+  std::optional<std::string> stop;
+  while (!stop && samples < 2000) {
+    stop = loop.Sample(100.0);
+    ++samples;
+    EXPECT_LE(loop.amplitude_ma() - previous, 0.5 + 1e-12) << samples;
+    EXPECT_LE(loop.amplitude_ma(), 50.0 + 1e-12);
+    previous = loop.amplitude_ma();
+  }
+  ASSERT_TRUE(stop.has_value());
+  EXPECT_NE(stop->find("more than the maximum 50 mA for 0.5 s"), std::string::npos) << *stop;
+  EXPECT_NEAR(loop.saturated_s(), 0.505, 1e-9);  // 101 saturated samples
+  EXPECT_TRUE(loop.last().saturated);
+  // The knee where it should be: no saturation, no stop.
+  TrackingLoop calm(s, 40.0);
+  for (int i = 0; i < 400; ++i) ASSERT_FALSE(calm.Sample(40.0).has_value());
+  EXPECT_EQ(calm.saturated_s(), 0.0);
+}
+
+TEST(TrackingLoop, SummarisesTheTrialAfterTheLeadIn) {
+  const TrackingSettings s = LoopSettings();
+  TrackingLoop loop(s, 40.0);
+  api::Trial trial;
+  std::vector<double> t, angle;
+  for (std::size_t i = 0; i < 200 + s.target.size(); ++i) {
+    t.push_back(static_cast<double>(i) / 200.0);
+    angle.push_back(i < 200 ? 70.0 : 41.0);  // lead-in ignored; then 1° off
+  }
+  trial.SetChannel("t_s", t);
+  trial.SetChannel("angle_deg", angle);
+  api::PulseRecord pulses;
+  pulses.pulse_width_us = 300.0;
+  pulses.Append(0.0, 20.0);
+  pulses.Append(0.03, 30.0);
+  trial.pulses = pulses;
+  std::map<std::string, double> values;
+  loop.Summarise(trial, values);
+  EXPECT_NEAR(values.at("tracking_rms_deg"), 1.0, 1e-9);
+  EXPECT_NEAR(values.at("tracking_max_error_deg"), 1.0, 1e-9);
+  EXPECT_NEAR(values.at("charge_uc"), (20.0 + 30.0) * 300.0 / 1000.0, 1e-9);
+  EXPECT_TRUE(values.contains("kp_nm_per_deg"));
+  EXPECT_FALSE(values.contains("overshoot_deg"));  // one hold, no move into it
 }
 
 }  // namespace

@@ -1,0 +1,67 @@
+#include "server/protocols/tracking_loop.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <vector>
+
+namespace fesbench::server::protocols {
+namespace {
+
+constexpr double kSampleRateHz = 200.0;  // the controller's rate (the trials')
+
+}  // namespace
+
+TrackingLoop::TrackingLoop(const TrackingSettings& settings, double start_angle_deg)
+    : settings_(settings),
+      controller_(settings.params,
+                  model::WithLeadIn(settings.target, start_angle_deg, settings.lead_in_s),
+                  settings.options) {}
+
+std::optional<std::string> TrackingLoop::Sample(double measured_deg) {
+  last_ = controller_.Update(measured_deg);
+  // Below the controller: the slew limit (SafeBench then clamps the maximum).
+  const double step_ma = settings_.max_rate_ma_per_s / kSampleRateHz;
+  amplitude_ma_ =
+      std::clamp(last_.amplitude_ma, amplitude_ma_ - step_ma, amplitude_ma_ + step_ma);
+  saturated_samples_ = last_.saturated ? saturated_samples_ + 1 : 0;
+  if (last_.saturated) saturated_total_s_ += 1.0 / kSampleRateHz;
+  if (static_cast<double>(saturated_samples_) / kSampleRateHz <= settings_.max_saturation_s) {
+    return std::nullopt;
+  }
+  std::ostringstream why;
+  why << "tracking: the controller asked for more than the maximum "
+      << settings_.options.max_amplitude_ma << " mA for " << settings_.max_saturation_s
+      << " s (target " << last_.target_deg << "°, knee at " << last_.target_deg + last_.error_deg
+      << "°): the leg cannot follow this target";
+  return why.str();
+}
+
+void TrackingLoop::Summarise(const api::Trial& trial, std::map<std::string, double>& values) const {
+  const auto lead = static_cast<std::size_t>(std::llround(settings_.lead_in_s * kSampleRateHz));
+  if (const std::vector<double>* angle = trial.Values("angle_deg");
+      angle != nullptr && angle->size() > lead) {
+    const model::TrackingMetrics m = model::MeasureTracking(
+        settings_.target,
+        std::vector<double>(angle->begin() + static_cast<std::ptrdiff_t>(lead), angle->end()));
+    values["tracking_rms_deg"] = m.rms_deg;
+    values["tracking_max_error_deg"] = m.max_error_deg;
+    if (m.overshoot_deg) values["overshoot_deg"] = *m.overshoot_deg;
+    if (m.settling_s) values["settling_s"] = *m.settling_s;
+  }
+  // Charge: Σ amplitude × pulse width of what the stimulator delivered.
+  double charge_nc = 0.0;
+  if (trial.pulses) {
+    for (double ma : trial.pulses->stim_ma) charge_nc += ma * trial.pulses->pulse_width_us;
+  }
+  values["charge_uc"] = charge_nc / 1000.0;
+  values["saturated_s"] = saturated_total_s_;
+  values["tau_scale_nm"] = controller_.tau_scale_nm();
+  const model::Pid::Gains& g = controller_.gains();
+  const bool amplitude = settings_.options.kind == model::ControllerKind::kPid;
+  values[amplitude ? "kp_ma_per_deg" : "kp_nm_per_deg"] = g.kp;
+  values[amplitude ? "ki_ma_per_deg_s" : "ki_nm_per_deg_s"] = g.ki;
+  values[amplitude ? "kd_ma_s_per_deg" : "kd_nm_s_per_deg"] = g.kd;
+}
+
+}  // namespace fesbench::server::protocols

@@ -1,0 +1,53 @@
+#pragma once
+
+/// @file
+/// The engine's side of a tracking run (issue 19): the controller of
+/// model/tracking.h held to the limits the engine keeps below it — the slew
+/// limit and the saturation stop (SafeBench clamps the maximum) — and the
+/// run's figures afterwards. Used by the runner at every 200 Hz sample of
+/// the closed-loop step.
+
+#include <map>
+#include <optional>
+#include <string>
+
+#include "api/trial.h"
+#include "model/tracking.h"
+#include "server/protocols/tracking_plan.h"
+
+namespace fesbench::server::protocols {
+
+class TrackingLoop {
+ public:
+  /// Builds the controller for `settings`' target after a lead-in from
+  /// `start_angle_deg`, the knee's angle when the step starts.
+  /// @throws std::invalid_argument as model::TrackingController.
+  TrackingLoop(const TrackingSettings& settings, double start_angle_deg);
+
+  /// One 200 Hz sample: the controller's decision for the knee angle
+  /// measured now, slew-limited. Returns the reason the run must end when
+  /// the controller has stayed saturated longer than max_saturation_s.
+  std::optional<std::string> Sample(double measured_deg);
+
+  /// The amplitude to apply until the next sample, mA.
+  double amplitude_ma() const { return amplitude_ma_; }
+  /// The controller's last decision (target, feedforward, correction, τ̂).
+  const model::TrackingSample& last() const { return last_; }
+  double saturated_s() const { return saturated_total_s_; }
+
+  /// The run's figures (PROTOCOLS.md, tracking): tracking_rms_deg,
+  /// tracking_max_error_deg, overshoot_deg and settling_s (holds) over the
+  /// target after the lead-in, charge_uc from the delivered pulses,
+  /// saturated_s, the final tau_scale_nm and the gains used.
+  void Summarise(const api::Trial& trial, std::map<std::string, double>& values) const;
+
+ private:
+  const TrackingSettings& settings_;
+  model::TrackingController controller_;
+  model::TrackingSample last_;
+  double amplitude_ma_ = 0.0;
+  int saturated_samples_ = 0;
+  double saturated_total_s_ = 0.0;
+};
+
+}  // namespace fesbench::server::protocols
