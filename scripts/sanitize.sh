@@ -38,14 +38,14 @@ jobs=${FESBENCH_JOBS:-$(nproc)}
 # pool). Not the model/identification, protocol-unit or CLI suites: their
 # Eigen-heavy code costs most of a cold build and takes no outside bytes (the
 # model library itself is built with ASan only, see model/CMakeLists.txt).
-asan_targets=(storage_tests job_pool_tests run_service_tests http_integration_tests
+asan_targets=(fesbench_test_postgres_fixture storage_tests job_pool_tests run_service_tests http_integration_tests
   http_front_end_tests fesbench-server)
 # Only the suites built here run (ctest lists the others as *_NOT_BUILT).
 # TSan: the tests whose threads are the project's own (no DDS: Fast DDS is not
 # instrumented) — job pool, sample hub and SSE viewers, run/bench services,
 # the runner's recorder and watchdog, safe bench e-stop from another thread,
 # slow clients against the connection threads.
-tsan_targets=(job_pool_tests run_service_tests protocol_tests server_tests sciencemode2_pty_tests
+tsan_targets=(fesbench_test_postgres_fixture job_pool_tests run_service_tests protocol_tests server_tests sciencemode2_pty_tests
   http_front_end_tests http_integration_tests fesbench-server)
 # Left out under TSan: single-threaded identification runs and the random
 # plan fuzz (≈ 150 s CPU, no threads to check), and the hostile-input HTTP

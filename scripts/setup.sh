@@ -24,7 +24,11 @@ packages=(
   nodejs chromium
   gnuplot-nox
   libarchive-dev python3-pandas
+  libpq-dev postgresql
 )
+# libpq-dev: the PostgreSQL engine's client library (--db postgresql://…);
+# postgresql: the server the tests start themselves (initdb in a temporary
+# folder, as the postgres user when run as root).
 # The web client's build and browser tests (clients/web, tests/browser): Node
 # and npm (npm packages come from the npm registry via package-lock.json),
 # Debian's chromium for Playwright. A Node that already brings its own npm
