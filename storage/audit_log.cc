@@ -34,8 +34,10 @@ api::Result<std::vector<AuditEntry>> AuditLog::List(const AuditQuery& query) {
     return internal::QueryRows(
         c,
         "SELECT id, at_utc, user_id, actor, action, target, request_summary, outcome"
-        " FROM audit_log WHERE (?1 IS NULL OR at_utc >= ?1) AND (?2 IS NULL OR at_utc < ?2)"
-        " AND (?3 IS NULL OR user_id = ?3) AND (?5 IS NULL OR id < ?5)"
+        " FROM audit_log WHERE (CAST(?1 AS TEXT) IS NULL OR at_utc >= ?1)"
+        " AND (CAST(?2 AS TEXT) IS NULL OR at_utc < ?2)"
+        " AND (CAST(?3 AS BIGINT) IS NULL OR user_id = ?3)"
+        " AND (CAST(?5 AS BIGINT) IS NULL OR id < ?5)"
         " ORDER BY id DESC LIMIT ?4",
         [](const Statement& s) -> api::Result<AuditEntry> {
           AuditEntry e;

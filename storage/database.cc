@@ -4,11 +4,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <random>
 #include <exception>
 #include <filesystem>
 #include <system_error>
 
 #include "storage/migrations.h"
+#include "storage/postgres_connection.h"
+#include "storage/sqlite_connection.h"
 
 namespace fesbench::storage {
 namespace {
@@ -49,15 +52,42 @@ api::Status CheckedOpenStep(api::Status status, const std::string& path) {
   return CorruptStatus(path, status.message());
 }
 
+// The schema version: SQLite's user_version, or on PostgreSQL the newest
+// row of schema_migrations (0 before the first migration).
 api::Result<int> UserVersion(Connection& connection) {
+  if (connection.engine() == Engine::kPostgres) {
+    auto exists = connection.QueryText("SELECT to_regclass('schema_migrations') IS NOT NULL");
+    if (!exists.ok()) return exists.status();
+    if (*exists != "t") return 0;
+    auto text = connection.QueryText("SELECT COALESCE(MAX(version), 0) FROM schema_migrations");
+    if (!text.ok()) return text.status();
+    return std::stoi(text->empty() ? std::string("0") : *text);
+  }
   auto text = connection.QueryText("PRAGMA user_version");
   if (!text.ok()) return text.status();
   return std::stoi(text->empty() ? std::string("0") : *text);
 }
 
+const std::vector<Migration>& MigrationsOf(Engine engine) {
+  return engine == Engine::kPostgres ? PostgresMigrations() : AllMigrations();
+}
+
+// The key of the session lock that lets one server at a time migrate a
+// PostgreSQL database (several servers may start together).
+constexpr const char* kMigrationLock = "SELECT pg_advisory_lock(7262011809)";
+constexpr const char* kMigrationUnlock = "SELECT pg_advisory_unlock(7262011809)";
+
+api::Status PostgresOnly(const char* what) {
+  return api::Status::FailedPrecondition(
+      std::string(what) +
+      " is for the embedded SQLite file; back up and restore a PostgreSQL database with "
+      "pg_dump and pg_restore (README, \"Backups\")");
+}
+
 // Copies the whole database behind `source` into `destination` with the
 // backup API, retrying while either side is busy.
-api::Status CopyDatabase(Connection& source, Connection& destination, Clock::time_point deadline) {
+api::Status CopyDatabase(SqliteConnection& source, SqliteConnection& destination,
+                         Clock::time_point deadline) {
   auto delay = std::chrono::milliseconds(1);
   while (true) {
     sqlite3_backup* backup =
@@ -90,11 +120,19 @@ api::Status CopyDatabase(Connection& source, Connection& destination, Clock::tim
 Database::Database(DatabaseOptions options) : options_(std::move(options)) {}
 
 Database::~Database() {
+  // Free the bench at once (closing the connection frees it only once the
+  // server has noticed), so a restarted server can take it straight away.
+  if (bench_lock_ != nullptr) (void)bench_lock_->ExecScript("SELECT pg_advisory_unlock_all()");
+  bench_lock_.reset();
   readers_.clear();
   writer_.reset();
 }
 
 UtcTime Database::Now() const { return options_.clock ? options_.clock() : NowUtc(); }
+
+bool IsPostgresUrl(std::string_view location) {
+  return location.starts_with("postgresql://") || location.starts_with("postgres://");
+}
 
 api::Result<std::unique_ptr<Database>> Database::Open(DatabaseOptions options) {
   if (options.path.empty()) return api::Status::InvalidArgument("empty database path", "path");
@@ -113,9 +151,10 @@ api::Result<std::unique_ptr<Database>> Database::Open(DatabaseOptions options) {
 }
 
 api::Status Database::Initialise() {
+  if (engine() == Engine::kPostgres) return InitialisePostgres();
   const std::string& path = options_.path;
   const int timeout_ms = static_cast<int>(options_.busy_timeout.count());
-  auto writer = Connection::Open(
+  auto writer = SqliteConnection::Open(
       path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, timeout_ms);
   if (!writer.ok()) return CheckedOpenStep(writer.status(), path);
   writer_ = std::move(*writer);
@@ -150,7 +189,7 @@ api::Status Database::Initialise() {
   }
 
   for (int i = 0; i < options_.reader_count; ++i) {
-    auto reader = Connection::Open(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, timeout_ms);
+    auto reader = SqliteConnection::Open(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, timeout_ms);
     if (!reader.ok()) return reader.status();
     if (auto status = (*reader)->ExecScript("PRAGMA query_only = ON"); !status.ok()) {
       return status;
@@ -159,6 +198,50 @@ api::Status Database::Initialise() {
     readers_.push_back(std::move(*reader));
   }
   return api::Status::Ok();
+}
+
+api::Status Database::InitialisePostgres() {
+  auto writer = PostgresConnection::Open(options_.path);
+  if (!writer.ok()) return writer.status();
+  writer_ = std::move(*writer);
+  // Several servers may start at once: one migrates, the others wait for it.
+  if (auto status = writer_->ExecScript(kMigrationLock); !status.ok()) return status;
+  api::Status migrated = Migrate(options_.target_schema_version);
+  api::Status unlocked = writer_->ExecScript(kMigrationUnlock);
+  if (!migrated.ok()) return migrated;
+  if (!unlocked.ok()) return unlocked;
+  // One server per bench: a session lock on the bench id, held by a
+  // connection of its own for as long as this process has the database.
+  auto lock = PostgresConnection::Open(options_.path);
+  if (!lock.ok()) return lock.status();
+  auto held = [&]() -> api::Result<bool> {
+    auto statement =
+        (*lock)->Prepare("SELECT pg_try_advisory_lock(hashtext('fesbench bench ' || ?1))");
+    if (!statement.ok()) return statement.status();
+    statement->Bind(1, options_.bench_id);
+    auto row = statement->Step();
+    if (!row.ok()) return row.status();
+    return *row && statement->Int64(0) == 1;
+  }();
+  if (!held.ok()) return held.status();
+  if (!*held) {
+    return api::Status::FailedPrecondition(
+        "bench '" + options_.bench_id +
+        "' is already served by another fesbench-server on this database; give each server its "
+        "own --bench-id");
+  }
+  bench_lock_ = std::move(*lock);
+  for (int i = 0; i < options_.reader_count; ++i) {
+    auto reader = PostgresConnection::Open(options_.path);
+    if (!reader.ok()) return reader.status();
+    free_readers_.push_back(reader->get());
+    readers_.push_back(std::move(*reader));
+  }
+  return api::Status::Ok();
+}
+
+Engine Database::engine() const {
+  return IsPostgresUrl(options_.path) ? Engine::kPostgres : Engine::kSqlite;
 }
 
 api::Status Database::Migrate(std::optional<int> target) {
@@ -177,7 +260,7 @@ api::Status Database::Migrate(std::optional<int> target) {
                                            " is newer than this software's (" +
                                            std::to_string(latest) + ")");
   }
-  for (const Migration& migration : AllMigrations()) {
+  for (const Migration& migration : MigrationsOf(engine())) {
     if (migration.version <= version || migration.version > goal) continue;
     auto status = RunOnWriter([&](Connection& c) -> api::Status {
       // Re-read inside the write lock: another process may have migrated.
@@ -190,6 +273,7 @@ api::Status Database::Migrate(std::optional<int> target) {
       if (!insert.ok()) return insert.status();
       insert->Bind(1, migration.version).Bind(2, migration.name).Bind(3, FormatUtc(Now()));
       if (auto s = insert->Run(); !s.ok()) return s;
+      if (c.engine() == Engine::kPostgres) return api::Status::Ok();  // the row is the version
       return c.ExecScript("PRAGMA user_version = " + std::to_string(migration.version));
     });
     if (!status.ok()) {
@@ -221,10 +305,19 @@ api::Status Database::RunOnWriterLocked(const std::function<api::Status(Connecti
                                         std::vector<std::function<void()>>& committed) {
   const auto deadline = Clock::now() + options_.retry_budget;
   auto delay = std::chrono::milliseconds(1);
+  int unique_retries = 0;
   while (true) {
     writer_->ClearBusy();
     after_commit_.clear();
-    api::Status status = writer_->ExecScript("BEGIN IMMEDIATE");
+    api::Status status = writer_->EnsureOpen();
+    // PostgreSQL: SERIALIZABLE, so two servers writing at once cannot both
+    // read the same "next version" (one is refused with a serialization
+    // failure and retried here, like SQLite's busy).
+    if (status.ok()) {
+      status = writer_->ExecScript(engine() == Engine::kPostgres
+                                       ? "BEGIN ISOLATION LEVEL SERIALIZABLE"
+                                       : "BEGIN IMMEDIATE");
+    }
     if (status.ok()) {
       writer_owner_.store(std::this_thread::get_id());
       try {
@@ -242,13 +335,23 @@ api::Status Database::RunOnWriterLocked(const std::function<api::Status(Connecti
       return status;
     }
     after_commit_.clear();
-    if (!writer_->busy_seen()) return status;
+    // Two servers that both read "next version is 7" and both insert it:
+    // PostgreSQL may refuse the second with a unique violation rather than
+    // a serialization failure. Run it again on a fresh snapshot; a real
+    // duplicate repeats every time and is returned after a few tries.
+    const bool raced_on_a_key = status.code() == api::ErrorCode::kAlreadyExists &&
+                                writer_->unique_conflict_seen() && ++unique_retries <= 10;
+    if (!writer_->busy_seen() && !raced_on_a_key) return status;
     if (Clock::now() >= deadline) {
       return api::Status::Unavailable("database stayed busy for " +
                                       std::to_string(options_.retry_budget.count()) +
                                       " ms; retry later");
     }
-    std::this_thread::sleep_for(delay);
+    // A random part of the back-off, so that writers which collided do not
+    // collide again in step (servers on one PostgreSQL database).
+    const std::int64_t delay_us = std::chrono::microseconds(delay).count();
+    std::this_thread::sleep_for(std::chrono::microseconds(
+        std::uniform_int_distribution<std::int64_t>(delay_us / 2, delay_us)(jitter_)));
     delay = std::min(delay * 2, std::chrono::milliseconds(50));
   }
 }
@@ -290,7 +393,12 @@ api::Status Database::RunOnReader(const std::function<api::Status(Connection&)>&
   api::Status status;
   while (true) {
     reader->ClearBusy();
-    status = reader->ExecScript("BEGIN");
+    status = reader->EnsureOpen();
+    if (status.ok()) {
+      status = reader->ExecScript(engine() == Engine::kPostgres
+                                      ? "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"
+                                      : "BEGIN");
+    }
     if (status.ok()) {
       tls_reader_owner = this;
       tls_reader = reader;
@@ -326,6 +434,9 @@ api::Status Database::RunOnReader(const std::function<api::Status(Connection&)>&
 }
 
 api::Status Database::CheckIntegrity() {
+  if (engine() == Engine::kPostgres) {  // the server checks its own pages
+    return RunOnReader([](Connection& c) { return c.QueryText("SELECT 1").status(); });
+  }
   return RunOnReader([&](Connection& c) -> api::Status {
     auto problems = IntegrityProblems(c, 20);
     if (!problems.ok()) return CheckedOpenStep(problems.status(), options_.path);
@@ -343,13 +454,14 @@ api::Result<int> Database::SchemaVersion() {
 }
 
 api::Status Database::Backup(const std::string& destination_path) {
+  if (engine() == Engine::kPostgres) return PostgresOnly("the online backup");
   namespace fs = std::filesystem;
   const std::string temporary = destination_path + ".partial-" + std::to_string(::getpid());
   std::error_code ignored;
   fs::remove(temporary, ignored);
   api::Status status;
   {
-    auto destination = Connection::Open(
+    auto destination = SqliteConnection::Open(
         temporary, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
         static_cast<int>(options_.busy_timeout.count()));
     if (!destination.ok()) return destination.status();
@@ -362,7 +474,7 @@ api::Status Database::Backup(const std::string& destination_path) {
       reader = free_readers_.back();
       free_readers_.pop_back();
     }
-    status = CopyDatabase(*reader, **destination, Clock::now() + options_.retry_budget);
+    status = CopyDatabase(static_cast<SqliteConnection&>(*reader), **destination, Clock::now() + options_.retry_budget);
     {
       std::lock_guard lock(readers_mutex_);
       free_readers_.push_back(reader);
@@ -384,10 +496,11 @@ api::Status Database::Backup(const std::string& destination_path) {
 }
 
 api::Status Database::RestoreFrom(const std::string& backup_path) {
+  if (engine() == Engine::kPostgres) return PostgresOnly("restoring from a backup file");
   if (!std::filesystem::exists(backup_path)) {
     return api::Status::NotFound("backup file '" + backup_path + "' does not exist");
   }
-  auto source = Connection::Open(backup_path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX,
+  auto source = SqliteConnection::Open(backup_path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX,
                                  static_cast<int>(options_.busy_timeout.count()));
   if (!source.ok()) return CheckedOpenStep(source.status(), backup_path);
   auto problems = IntegrityProblems(**source, 5);
@@ -402,7 +515,7 @@ api::Status Database::RestoreFrom(const std::string& backup_path) {
   }
   {
     std::lock_guard lock(writer_mutex_);
-    auto status = CopyDatabase(**source, *writer_, Clock::now() + options_.retry_budget);
+    auto status = CopyDatabase(**source, static_cast<SqliteConnection&>(*writer_), Clock::now() + options_.retry_budget);
     if (!status.ok()) return status;
     auto mode = writer_->QueryText("PRAGMA journal_mode = WAL");
     if (!mode.ok()) return mode.status();

@@ -1,16 +1,24 @@
 #pragma once
 
 /// @file
-/// The SQLite database (DESIGN.md §7): one writer connection serialised by a
-/// mutex and a small pool of reader connections. WAL lets readers proceed
+/// The database (DESIGN.md §7), on either engine: an SQLite file (the
+/// default) or a PostgreSQL server, chosen by DatabaseOptions::path. One
+/// writer connection serialised by a mutex and a small pool of reader
+/// connections. WAL lets readers proceed
 /// while one transaction writes; a busy timeout plus a retry of the whole
 /// transaction keep "database is locked" from ever reaching a caller (after
 /// `retry_budget` of contention it becomes kUnavailable, retry may succeed).
 ///
-/// Opening applies, in order: WAL journal, foreign keys, the synchronous
+/// Opening an SQLite file applies, in order: WAL journal, foreign keys, the synchronous
 /// level, PRAGMA integrity_check (kDataLoss naming the file on any problem:
 /// the database refuses to run on a corrupt file), then the pending numbered
-/// migrations (storage/migrations.h), each in its own transaction.
+/// migrations (storage/migrations.h), each in its own transaction. Opening
+/// PostgreSQL connects the writer and readers and applies the pending
+/// migrations under an advisory lock (one server migrates, the others wait).
+/// Write transactions are SERIALIZABLE there and reads REPEATABLE READ (one
+/// snapshot), and a serialization failure is retried like SQLite's busy.
+///
+/// IsPostgresUrl tells the two apart: postgresql:// or postgres://.
 
 #include <atomic>
 #include <chrono>
@@ -19,7 +27,9 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <random>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <type_traits>
 #include <utility>
@@ -36,8 +46,14 @@ namespace fesbench::storage {
 /// a process crash; kNormal survives process crashes only (see README).
 enum class Synchronous { kNormal, kFull };
 
+bool IsPostgresUrl(std::string_view location);
+
 struct DatabaseOptions {
-  std::string path;  ///< database file; created if missing.
+  /// The database file (created if missing), or a PostgreSQL URL
+  /// (postgresql://user@host:port/database, libpq's URI form; the database
+  /// must exist, its schema is migrated at open). Several servers may share
+  /// one PostgreSQL database; an SQLite file belongs to one server.
+  std::string path;
   Synchronous synchronous = Synchronous::kFull;
   int reader_count = 4;                           ///< reader connections, ≥ 1.
   std::chrono::milliseconds busy_timeout{2000};   ///< SQLite's own wait per attempt.
@@ -46,6 +62,12 @@ struct DatabaseOptions {
   /// Apply migrations up to this version only (tests of upgrades); nullopt
   /// applies all of them.
   std::optional<int> target_schema_version;
+  /// The bench this process owns (issue 18): the runs and e-stop presses it
+  /// records carry it, and it sees only its own when it looks for runs left
+  /// unfinished or for a set latch. Rows from before benches had ids (the
+  /// bench '') belong to every bench. On PostgreSQL a second process that
+  /// opens the database for the same bench is refused.
+  std::string bench_id;
   /// The clock for every *_utc column; NowUtc when empty.
   std::function<UtcTime()> clock;
 };
@@ -114,10 +136,13 @@ class Database {
   /// Notifies the listener (after the current transaction commits).
   void NotifyParameterSetStored(const ParameterSetStored& event);
   const DatabaseOptions& options() const { return options_; }
+  /// The engine behind options().path.
+  Engine engine() const;
 
  private:
   explicit Database(DatabaseOptions options);
   api::Status Initialise();
+  api::Status InitialisePostgres();
   api::Status Migrate(std::optional<int> target);
   api::Status RunTransaction(bool write, const std::function<api::Status(Connection&)>& fn);
   api::Status RunOnWriter(const std::function<api::Status(Connection&)>& fn);
@@ -146,11 +171,13 @@ class Database {
   DatabaseOptions options_;
   std::unique_ptr<Connection> writer_;
   std::mutex writer_mutex_;
+  std::minstd_rand jitter_{std::random_device{}()};  // back-off jitter, under writer_mutex_
   std::atomic<std::thread::id> writer_owner_{};  // the thread inside a write transaction
   std::vector<std::function<void()>> after_commit_;  // owned by the writer_owner_ thread
   std::mutex listener_mutex_;                         // guards parameter_set_listener_
   ParameterSetListener parameter_set_listener_;
 
+  std::unique_ptr<Connection> bench_lock_;  // PostgreSQL: holds the bench's advisory lock
   std::vector<std::unique_ptr<Connection>> readers_;
   std::vector<Connection*> free_readers_;
   std::mutex readers_mutex_;

@@ -11,8 +11,10 @@ api::Status Append(Database& db, bool latched, std::string_view source,
   return db.Write([&](Connection& c) {
     return internal::Execute(
         c,
-        "INSERT INTO estop_events (latched, source, recorded_by, at_utc) VALUES (?1, ?2, ?3, ?4)",
-        static_cast<std::int64_t>(latched ? 1 : 0), source, recorded_by, FormatUtc(db.Now()));
+        "INSERT INTO estop_events (latched, source, recorded_by, at_utc, bench_id)"
+        " VALUES (?1, ?2, ?3, ?4, ?5)",
+        static_cast<std::int64_t>(latched ? 1 : 0), source, recorded_by, FormatUtc(db.Now()),
+        db.options().bench_id);
   });
 }
 
@@ -32,7 +34,7 @@ api::Result<std::optional<LatchedEStop>> EStopLatchRepository::Current() {
     auto rows = internal::QueryRows(
         c,
         "SELECT id, latched, source, recorded_by, at_utc FROM estop_events"
-        " ORDER BY id DESC LIMIT 1",
+        " WHERE bench_id IN (?1, '') ORDER BY id DESC LIMIT 1",
         [](const Statement& s) -> api::Result<std::optional<LatchedEStop>> {
           if (s.Int64(1) == 0) return std::optional<LatchedEStop>();
           LatchedEStop e;
@@ -43,7 +45,8 @@ api::Result<std::optional<LatchedEStop>> EStopLatchRepository::Current() {
           if (!at) return internal::BadStoredValue("e-stop event");
           e.at = *at;
           return std::optional<LatchedEStop>(std::move(e));
-        });
+        },
+        db_.options().bench_id);
     if (!rows.ok()) return rows.status();
     if (rows->empty()) return std::optional<LatchedEStop>();
     return std::move(rows->front());

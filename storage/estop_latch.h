@@ -4,7 +4,8 @@
 /// The e-stop latch as stored state (DESIGN.md §6, issue 16 §2): every
 /// press and every clearing is an append-only row of `estop_events`, so a
 /// latch set before a crash or a stop is set again when the server starts,
-/// until a person clears it.
+/// until a person clears it. Each bench has its own latch
+/// (DatabaseOptions::bench_id).
 
 #include <optional>
 #include <string>

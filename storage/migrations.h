@@ -21,6 +21,11 @@ struct Migration {
 /// installs triggers that refuse UPDATE and DELETE on the tables it creates.
 const std::vector<Migration>& AllMigrations();
 
+/// The same schema for PostgreSQL: one migration numbered 11 (the schema of
+/// SQLite migrations 1–11 in PostgreSQL's dialect), then the later ones with
+/// the same numbers as in SQLite, so a schema version means the same in both.
+const std::vector<Migration>& PostgresMigrations();
+
 /// The schema version this software writes (the last migration's number).
 int LatestSchemaVersion();
 

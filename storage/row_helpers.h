@@ -128,11 +128,19 @@ api::Status Execute(Connection& c, std::string_view sql, const Values&... values
   return statement->Run();
 }
 
-/// Execute for an INSERT: the rowid of the new row.
+/// Execute for an INSERT into a table with an `id` column: the id of the
+/// new row (RETURNING, which both engines understand).
 template <typename... Values>
 api::Result<std::int64_t> InsertRow(Connection& c, std::string_view sql, const Values&... values) {
-  if (auto s = Execute(c, sql, values...); !s.ok()) return s;
-  return c.LastInsertRowId();
+  auto statement = c.Prepare(std::string(sql) + " RETURNING id");
+  if (!statement.ok()) return statement.status();
+  BindAll(*statement, values...);
+  auto row = statement->Step();
+  if (!row.ok()) return row.status();
+  if (!*row) return api::Status::Internal("an INSERT returned no id");
+  const std::int64_t id = statement->Int64(0);
+  if (auto s = statement->Run(); !s.ok()) return s;
+  return id;
 }
 
 /// The integer in the first column of the row `sql` returns with ?1 = `id`

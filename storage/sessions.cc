@@ -81,7 +81,7 @@ api::Status CheckCurrent(const std::optional<double>& value, const char* field) 
 
 constexpr std::string_view kRunSql =
     "SELECT r.id, r.session_id, r.protocol_name, r.protocol_version, r.parameters_json,"
-    " r.created_at_utc,"
+    " r.created_at_utc, r.bench_id,"
     " (SELECT state FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1),"
     " (SELECT message FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1),"
     " (SELECT MIN(at_utc) FROM run_events WHERE run_id = r.id AND state = 'running'),"
@@ -102,13 +102,14 @@ api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where,
         run.protocol_version = s.Text(3);
         run.parameters_json = s.Text(4);
         const auto created = ParseUtc(s.Text(5));
-        const auto state = api::ParseRunState(s.Text(6));
+        run.bench_id = s.Text(6);
+        const auto state = api::ParseRunState(s.Text(7));
         if (!created || !state) return internal::BadStoredValue("run");
         run.created_at = *created;
         run.state = *state;
-        run.message = s.Text(7);
-        if (!s.IsNull(8)) run.started_at = ParseUtc(s.Text(8));
-        if (!s.IsNull(9)) run.finished_at = ParseUtc(s.Text(9));
+        run.message = s.Text(8);
+        if (!s.IsNull(9)) run.started_at = ParseUtc(s.Text(9));
+        if (!s.IsNull(10)) run.finished_at = ParseUtc(s.Text(10));
         return run;
       },
       values...);
@@ -226,8 +227,9 @@ api::Result<Run> SessionRepository::CreateRun(std::int64_t session_id, const New
     auto id = internal::InsertRow(
         c,
         "INSERT INTO runs (session_id, protocol_name, protocol_version, parameters_json,"
-        " created_at_utc) VALUES (?1, ?2, ?3, ?4, ?5)",
-        session_id, run.protocol_name, run.protocol_version, run.parameters_json, FormatUtc(now));
+        " created_at_utc, bench_id) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+        session_id, run.protocol_name, run.protocol_version, run.parameters_json, FormatUtc(now),
+        db_.options().bench_id);
     if (!id.ok()) return id.status();
     if (auto s = AppendRunEvent(c, *id, RunState::kQueued, "", now); !s.ok()) return s;
     return GetRunIn(c, *id);
@@ -266,8 +268,10 @@ api::Result<std::vector<Run>> SessionRepository::ListRunsPage(std::int64_t sessi
 api::Result<std::vector<Run>> SessionRepository::ListUnfinishedRuns() {
   return db_.Read([&](Connection& c) {
     return QueryRuns(c,
-                     "WHERE (SELECT state FROM run_events WHERE run_id = r.id"
-                     " ORDER BY id DESC LIMIT 1) IN ('queued', 'running') ORDER BY r.id");
+                     "WHERE r.bench_id IN (?1, '') AND (SELECT state FROM run_events"
+                     " WHERE run_id = r.id ORDER BY id DESC LIMIT 1) IN ('queued', 'running')"
+                     " ORDER BY r.id",
+                     db_.options().bench_id);
   });
 }
 
@@ -276,6 +280,11 @@ api::Result<Run> SessionRepository::RecordRunState(std::int64_t run_id, RunState
   return db_.Write([&](Connection& c) -> api::Result<Run> {
     auto run = GetRunIn(c, run_id);
     if (!run.ok()) return run.status();
+    if (!run->bench_id.empty() && run->bench_id != db_.options().bench_id) {
+      return api::Status::FailedPrecondition("run " + std::to_string(run_id) +
+                                             " belongs to bench '" + run->bench_id +
+                                             "': only its own server moves it");
+    }
     const RunState from = run->state;
     const bool allowed =
         (from == RunState::kQueued && (state == RunState::kRunning || state == RunState::kFailed ||

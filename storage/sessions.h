@@ -61,6 +61,7 @@ struct Run {
   std::string protocol_name;
   std::string protocol_version;
   std::string parameters_json;
+  std::string bench_id;  ///< the bench that ran it ('' before benches had ids).
   RunState state = RunState::kQueued;
   std::string message;  ///< of the last state event.
   UtcTime created_at;
@@ -88,7 +89,7 @@ class SessionRepository {
                                std::string_view reason, std::string_view recorded_by = {});
   api::Result<std::vector<SessionRevision>> Revisions(std::int64_t session_id);
 
-  /// A new run in state queued. kNotFound for an unknown session;
+  /// A new run in state queued, on this database's bench. kNotFound for an unknown session;
   /// kInvalidArgument for empty names or invalid parameters JSON.
   api::Result<Run> CreateRun(std::int64_t session_id, const NewRun& run);
   api::Result<Run> GetRun(std::int64_t run_id);
@@ -97,12 +98,14 @@ class SessionRepository {
   /// (keyset paging on index runs_session).
   api::Result<std::vector<Run>> ListRunsPage(std::int64_t session_id, std::int64_t after_id,
                                              std::size_t limit);
-  /// Every run whose last state is queued or running, oldest first (at a
-  /// start: the runs a stopped process left unfinished).
+  /// Every run of this bench (DatabaseOptions::bench_id, or '') whose last
+  /// state is queued or running, oldest first (at a start: the runs a
+  /// stopped process left unfinished; another bench's are its own).
   api::Result<std::vector<Run>> ListUnfinishedRuns();
   /// Appends a state event. Allowed: queued → running | failed | aborted;
   /// running → done | failed | aborted. Anything else (including from
-  /// a terminal state) is kFailedPrecondition naming both states.
+  /// a terminal state) is kFailedPrecondition naming both states, and so is
+  /// a run of another bench (only its own server moves it).
   api::Result<Run> RecordRunState(std::int64_t run_id, RunState state,
                                   std::string_view message = {});
 

@@ -2,12 +2,16 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <fstream>
+#include <mutex>
 #include <random>
 #include <thread>
 #include <vector>
 
+#include "model/parameter_set.h"
 #include "storage/audit_log.h"
+#include "storage/estop_latch.h"
 #include "storage/migrations.h"
 #include "storage/parameter_sets.h"
 #include "storage/sessions.h"
@@ -18,9 +22,11 @@
 namespace fesbench::storage {
 namespace {
 
+using testing::PostgresStorageTest;
+using testing::SqliteStorageTest;
 using testing::StorageTest;
 
-TEST_F(StorageTest, OpensInWalWithForeignKeysAndFullSync) {
+TEST_F(SqliteStorageTest, OpensInWalWithForeignKeysAndFullSync) {
   auto pragmas = db_->Read([](Connection& c) -> api::Result<std::string> {
     auto mode = c.QueryText("PRAGMA journal_mode");
     auto fk = c.QueryText("PRAGMA foreign_keys");
@@ -35,25 +41,29 @@ TEST_F(StorageTest, OpensInWalWithForeignKeysAndFullSync) {
   auto version = db_->SchemaVersion();
   ASSERT_TRUE(version.ok());
   EXPECT_EQ(*version, LatestSchemaVersion());
-  EXPECT_EQ(LatestSchemaVersion(), 11);
+  EXPECT_EQ(LatestSchemaVersion(), 12);
   auto recorded = db_->Read([](Connection& c) {
     return c.QueryText("SELECT group_concat(version) FROM schema_migrations");
   });
   ASSERT_TRUE(recorded.ok());
-  EXPECT_EQ(*recorded, "1,2,3,4,5,6,7,8,9,10,11");
+  EXPECT_EQ(*recorded, "1,2,3,4,5,6,7,8,9,10,11,12");
 }
 
-TEST_F(StorageTest, ReopeningAppliesNothingTwice) {
+TEST_P(StorageTest, ReopeningAppliesNothingTwice) {
   db_.reset();
   auto db = Database::Open(Options());
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   auto count = (*db)->Read(
       [](Connection& c) { return c.QueryText("SELECT count(*) FROM schema_migrations"); });
   ASSERT_TRUE(count.ok());
-  EXPECT_EQ(*count, std::to_string(LatestSchemaVersion()));
+  const auto& applied = GetParam() == Engine::kPostgres ? PostgresMigrations() : AllMigrations();
+  EXPECT_EQ(*count, std::to_string(applied.size()));
+  auto version = (*db)->SchemaVersion();
+  ASSERT_TRUE(version.ok());
+  EXPECT_EQ(*version, LatestSchemaVersion());
 }
 
-TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
+TEST_F(SqliteStorageTest, MigrationFromVersionOneKeepsEveryRow) {
   db_.reset();
   std::filesystem::remove(path_);
   DatabaseOptions v1 = Options();
@@ -153,7 +163,7 @@ TEST_F(StorageTest, MigrationFromVersionOneKeepsEveryRow) {
   EXPECT_EQ(*count, "0");
 }
 
-TEST_F(StorageTest, RefusesSchemaNewerThanSoftware) {
+TEST_F(SqliteStorageTest, RefusesSchemaNewerThanSoftware) {
   ASSERT_TRUE(
       db_->Write([](Connection& c) { return c.ExecScript("PRAGMA user_version = 99"); }).ok());
   db_.reset();
@@ -235,7 +245,7 @@ TEST(DatabaseOpen, DamagedPageIsDataLoss) {
   std::filesystem::remove_all(dir);
 }
 
-TEST_F(StorageTest, AppendOnlyTablesRefuseUpdateAndDelete) {
+TEST_P(StorageTest, AppendOnlyTablesRefuseUpdateAndDelete) {
   auto subject = SubjectRepository(*db_).Create("A1", SubjectDetails{});
   ASSERT_TRUE(subject.ok());
   auto update = db_->Write([](Connection& c) -> api::Status {
@@ -260,7 +270,7 @@ TEST_F(StorageTest, AppendOnlyTablesRefuseUpdateAndDelete) {
   EXPECT_EQ(still->code, "A1");
 }
 
-TEST_F(StorageTest, FailedTransactionRollsBackEveryRow) {
+TEST_P(StorageTest, FailedTransactionRollsBackEveryRow) {
   SubjectRepository subjects(*db_);
   auto status = db_->Write([&](Connection&) -> api::Status {
     auto a = subjects.Create("R1", SubjectDetails{});  // joins this transaction
@@ -273,7 +283,7 @@ TEST_F(StorageTest, FailedTransactionRollsBackEveryRow) {
   EXPECT_EQ(missing.status().code(), api::ErrorCode::kNotFound);
 }
 
-TEST_F(StorageTest, NestedReadsShareOneReaderConnection) {
+TEST_P(StorageTest, NestedReadsShareOneReaderConnection) {
   db_.reset();
   DatabaseOptions options = Options();
   options.reader_count = 1;  // a second reader would deadlock
@@ -291,7 +301,7 @@ TEST_F(StorageTest, NestedReadsShareOneReaderConnection) {
   EXPECT_EQ(*code, "N1");
 }
 
-TEST_F(StorageTest, BackupAndRestoreRoundTrip) {
+TEST_F(SqliteStorageTest, BackupAndRestoreRoundTrip) {
   SubjectRepository subjects(*db_);
   for (int i = 0; i < 20; ++i) {
     ASSERT_TRUE(subjects.Create("B" + std::to_string(i), SubjectDetails{}).ok());
@@ -321,7 +331,7 @@ TEST_F(StorageTest, BackupAndRestoreRoundTrip) {
   EXPECT_TRUE(subjects.Create("AFTER", SubjectDetails{}).ok());
 }
 
-TEST_F(StorageTest, RestoreRefusesCorruptOrMissingBackup) {
+TEST_F(SqliteStorageTest, RestoreRefusesCorruptOrMissingBackup) {
   EXPECT_EQ(db_->RestoreFrom((dir_ / "none.db").string()).code(), api::ErrorCode::kNotFound);
   const std::string junk = (dir_ / "junk.db").string();
   {
@@ -335,12 +345,13 @@ TEST_F(StorageTest, RestoreRefusesCorruptOrMissingBackup) {
 // Several reader threads and writer threads on one Database, plus a second
 // Database on the same file (as another process would be): no caller ever
 // sees an error, in particular not "database is locked".
-TEST_F(StorageTest, ConcurrentReadersAndWritersNeverSeeLocked) {
+TEST_P(StorageTest, ConcurrentReadersAndWritersNeverSeeLocked) {
   SubjectRepository subjects(*db_);
   auto seed_subject = subjects.Create("C0", SubjectDetails{});
   ASSERT_TRUE(seed_subject.ok());
   DatabaseOptions second_options = Options();
   second_options.busy_timeout = std::chrono::milliseconds(5);  // force retries
+  second_options.bench_id = "bench-b";  // another server (PostgreSQL refuses two on one bench)
   auto second = Database::Open(second_options);
   ASSERT_TRUE(second.ok());
 
@@ -393,6 +404,152 @@ TEST_F(StorageTest, ConcurrentReadersAndWritersNeverSeeLocked) {
   ASSERT_TRUE(list.ok());
   EXPECT_EQ(list->size(), 1u + kWriters * kWritesPerWriter + kWritesPerWriter);
 }
+
+// Two servers on one database (issue 18): each sees only its own bench's
+// unfinished runs and e-stop latch, moves only its own runs, and reads the
+// other's like any analyst.
+TEST_P(StorageTest, RunsAndLatchesBelongToTheirBench) {
+  const Session session = MakeSession("K1");
+  DatabaseOptions other = Options();
+  other.bench_id = "bench-b";
+  auto b = Database::Open(other);
+  ASSERT_TRUE(b.ok()) << b.status().ToString();
+  SessionRepository on_a(*db_);
+  SessionRepository on_b(**b);
+  auto run_a = on_a.CreateRun(session.id, {"irc_ramp", "1", "{}"});
+  auto run_b = on_b.CreateRun(session.id, {"free_swing", "1", "{}"});
+  ASSERT_TRUE(run_a.ok() && run_b.ok());
+  EXPECT_EQ(run_a->bench_id, "bench-a");
+  EXPECT_EQ(run_b->bench_id, "bench-b");
+
+  auto open_a = on_a.ListUnfinishedRuns();
+  ASSERT_TRUE(open_a.ok());
+  ASSERT_EQ(open_a->size(), 1u);
+  EXPECT_EQ(open_a->front().id, run_a->id);
+  auto seen_by_b = on_b.GetRun(run_a->id);
+  ASSERT_TRUE(seen_by_b.ok());
+  EXPECT_EQ(seen_by_b->bench_id, "bench-a");
+  auto moved = on_b.RecordRunState(run_a->id, RunState::kAborted, "not mine");
+  EXPECT_EQ(moved.status().code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(moved.status().message().find("bench-a"), std::string::npos);
+  EXPECT_TRUE(on_b.RecordRunState(run_b->id, RunState::kRunning).ok());
+  auto listed = on_a.ListRuns(session.id);
+  ASSERT_TRUE(listed.ok());
+  EXPECT_EQ(listed->size(), 2u);
+
+  ASSERT_TRUE(EStopLatchRepository(*db_).RecordLatched("http (cora)", "cora").ok());
+  auto latched_a = EStopLatchRepository(*db_).Current();
+  auto latched_b = EStopLatchRepository(**b).Current();
+  ASSERT_TRUE(latched_a.ok() && latched_b.ok());
+  EXPECT_TRUE(latched_a->has_value());
+  EXPECT_FALSE(latched_b->has_value());
+}
+
+TEST_F(PostgresStorageTest, RecordsItsMigrationsAndRefusesANewerSchema) {
+  auto recorded = db_->Read([](Connection& c) {
+    return c.QueryText("SELECT string_agg(version::text, ',' ORDER BY version) FROM schema_migrations");
+  });
+  ASSERT_TRUE(recorded.ok()) << recorded.status().ToString();
+  EXPECT_EQ(*recorded, "11,12");
+  ASSERT_TRUE(db_->Write([](Connection& c) {
+                   return c.ExecScript(
+                       "INSERT INTO schema_migrations VALUES (99, 'from the future', 'x')");
+                 }).ok());
+  db_.reset();
+  auto db = Database::Open(Options());
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(db.status().message().find("99"), std::string::npos);
+}
+
+TEST_F(PostgresStorageTest, FileBackupsAreRefusedNamingPgDump) {
+  const api::Status backup = db_->Backup((dir_ / "x.db").string());
+  EXPECT_EQ(backup.code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(backup.message().find("pg_dump"), std::string::npos);
+  EXPECT_EQ(db_->RestoreFrom((dir_ / "x.db").string()).code(),
+            api::ErrorCode::kFailedPrecondition);
+  EXPECT_TRUE(db_->CheckIntegrity().ok());
+}
+
+TEST_F(PostgresStorageTest, ASecondServerForTheSameBenchIsRefused) {
+  auto same = Database::Open(Options());
+  ASSERT_FALSE(same.ok());
+  EXPECT_EQ(same.status().code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(same.status().message().find("bench-a"), std::string::npos);
+  DatabaseOptions other = Options();
+  other.bench_id = "bench-b";
+  EXPECT_TRUE(Database::Open(other).ok());
+  db_.reset();  // the bench is free again once its server has gone
+  EXPECT_TRUE(Database::Open(Options()).ok());
+}
+
+TEST_F(PostgresStorageTest, UnreachableServerIsUnavailableWithoutThePassword) {
+  DatabaseOptions options;
+  options.path = "postgresql://fesbench:s3cret@127.0.0.1:1/none?connect_timeout=2";
+  auto db = Database::Open(options);
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), api::ErrorCode::kUnavailable);
+  EXPECT_EQ(db.status().message().find("s3cret"), std::string::npos) << db.status().message();
+  EXPECT_NE(db.status().message().find("127.0.0.1"), std::string::npos);
+}
+
+// Two servers writing at once (issue 18): both append versions of the same
+// leg's parameter set and audit rows from two threads each. Serializable
+// transactions refuse the loser of each race, which is retried: no version
+// is lost or given twice, every id is unique, and each server reads all.
+TEST_F(PostgresStorageTest, TwoServersWritingAtOnceLoseAndRepeatNothing) {
+  const Session session = MakeSession("M1");
+  DatabaseOptions other = Options();
+  other.bench_id = "bench-b";
+  auto b = Database::Open(other);
+  ASSERT_TRUE(b.ok()) << b.status().ToString();
+  constexpr int kThreadsPerServer = 2;
+  constexpr int kSetsPerThread = 15;
+  std::atomic<int> errors{0};
+  std::string first_error;
+  std::mutex first_error_mutex;
+  std::vector<std::thread> threads;
+  for (Database* server : {db_.get(), b->get()}) {
+    for (int t = 0; t < kThreadsPerServer; ++t) {
+      threads.emplace_back([&, server, t] {
+        ParameterSetRepository sets(*server);
+        AuditLog log(*server);
+        for (int i = 0; i < kSetsPerThread; ++i) {
+          auto stored = sets.Insert({session.subject_id, session.leg_id,
+                                     model::ExampleParameterSet(), std::nullopt, std::nullopt});
+          auto audited = log.Append({std::nullopt, "t" + std::to_string(t), "store", "", "", "ok"});
+          if ((!stored.ok() || !audited.ok()) && errors.fetch_add(1) == 0) {
+            std::lock_guard lock(first_error_mutex);
+            first_error = !stored.ok() ? stored.status().ToString() : audited.status().ToString();
+          }
+        }
+      });
+    }
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(errors.load(), 0) << first_error;
+
+  constexpr int kTotal = 2 * kThreadsPerServer * kSetsPerThread;
+  for (Database* server : {db_.get(), b->get()}) {
+    auto versions = server->Read([&](Connection& c) -> api::Result<std::string> {
+      return c.QueryText(
+          "SELECT count(*) || ',' || count(DISTINCT id) || ',' || count(DISTINCT version) || ','"
+          " || min(version) || ',' || max(version) FROM parameter_sets");
+    });
+    ASSERT_TRUE(versions.ok()) << versions.status().ToString();
+    EXPECT_EQ(*versions, std::to_string(kTotal) + "," + std::to_string(kTotal) + "," +
+                             std::to_string(kTotal) + ",1," + std::to_string(kTotal));
+    auto audit = AuditLog(*server).List({});
+    ASSERT_TRUE(audit.ok());
+    EXPECT_EQ(audit->size(), static_cast<std::size_t>(kTotal));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Engines, StorageTest,
+                         ::testing::Values(Engine::kSqlite, Engine::kPostgres),
+                         [](const ::testing::TestParamInfo<Engine>& info) {
+                           return info.param == Engine::kSqlite ? "sqlite" : "postgres";
+                         });
 
 }  // namespace
 }  // namespace fesbench::storage

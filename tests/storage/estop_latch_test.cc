@@ -9,7 +9,7 @@
 namespace fesbench::storage::testing {
 namespace {
 
-TEST_F(StorageTest, TheEStopLatchIsTheLastRowAndSurvivesReopening) {
+TEST_P(StorageTest, TheEStopLatchIsTheLastRowAndSurvivesReopening) {
   EStopLatchRepository latch(*db_);
   auto none = latch.Current();
   ASSERT_TRUE(none.ok()) << none.status().ToString();
@@ -41,7 +41,7 @@ TEST_F(StorageTest, TheEStopLatchIsTheLastRowAndSurvivesReopening) {
   EXPECT_FALSE(update.ok());
 }
 
-TEST_F(StorageTest, UnfinishedRunsAreThoseLastQueuedOrRunning) {
+TEST_P(StorageTest, UnfinishedRunsAreThoseLastQueuedOrRunning) {
   const Session session = MakeSession("U1");
   SessionRepository sessions(*db_);
   auto queued = sessions.CreateRun(session.id, {"a", "1", "{}"});

@@ -15,7 +15,7 @@ namespace {
 using testing::MakeTrial;
 using testing::StorageTest;
 
-TEST_F(StorageTest, ExportsTrialAsCsvAndStoAndParameterSetAsJson) {
+TEST_P(StorageTest, ExportsTrialAsCsvAndStoAndParameterSetAsJson) {
   const Session session = MakeSession("X1");
   const api::Trial trial = MakeTrial(3);
   auto id = TrialRepository(*db_).Insert({session.id, std::nullopt}, trial);

@@ -14,7 +14,7 @@ namespace {
 using testing::MakeTrial;
 using testing::StorageTest;
 
-TEST_F(StorageTest, PredictionsAndEvaluations) {
+TEST_P(StorageTest, PredictionsAndEvaluations) {
   const Session session = MakeSession("E1");
   auto trial = TrialRepository(*db_).Insert({session.id, std::nullopt}, MakeTrial(10));
   ASSERT_TRUE(trial.ok());

@@ -9,7 +9,7 @@ namespace {
 
 using testing::StorageTest;
 
-TEST_F(StorageTest, SessionCreateCorrectAndList) {
+TEST_P(StorageTest, SessionCreateCorrectAndList) {
   SubjectRepository subjects(*db_);
   auto subject = subjects.Create("S1", SubjectDetails{});
   ASSERT_TRUE(subject.ok());
@@ -40,7 +40,7 @@ TEST_F(StorageTest, SessionCreateCorrectAndList) {
   EXPECT_EQ(list->front().current.details.max_tolerated_ma, 58.0);
 }
 
-TEST_F(StorageTest, SessionBadInputNamesTheProblem) {
+TEST_P(StorageTest, SessionBadInputNamesTheProblem) {
   SubjectRepository subjects(*db_);
   auto a = subjects.Create("A", SubjectDetails{});
   auto b = subjects.Create("B", SubjectDetails{});
@@ -67,7 +67,7 @@ TEST_F(StorageTest, SessionBadInputNamesTheProblem) {
   EXPECT_EQ(sessions.Get(5).status().code(), api::ErrorCode::kNotFound);
 }
 
-TEST_F(StorageTest, RunStateIsTheLastEvent) {
+TEST_P(StorageTest, RunStateIsTheLastEvent) {
   const Session session = MakeSession("R1");
   SessionRepository sessions(*db_);
   auto run = sessions.CreateRun(session.id, {"irc_ramp", "1.0", R"({"ramp_ma_per_s": 2})"});

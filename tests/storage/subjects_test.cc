@@ -20,7 +20,7 @@ SubjectDetails Details() {
   return d;
 }
 
-TEST_F(StorageTest, SubjectCreateGetAndList) {
+TEST_P(StorageTest, SubjectCreateGetAndList) {
   SubjectRepository subjects(*db_);
   auto created = subjects.Create("K-001", Details());
   ASSERT_TRUE(created.ok()) << created.status().ToString();
@@ -44,7 +44,7 @@ TEST_F(StorageTest, SubjectCreateGetAndList) {
   EXPECT_FALSE((*list)[1].current.details.height_cm.has_value());
 }
 
-TEST_F(StorageTest, SubjectCorrectionIsANewRevision) {
+TEST_P(StorageTest, SubjectCorrectionIsANewRevision) {
   SubjectRepository subjects(*db_);
   auto created = subjects.Create("K-003", Details());
   ASSERT_TRUE(created.ok());
@@ -63,7 +63,7 @@ TEST_F(StorageTest, SubjectCorrectionIsANewRevision) {
   EXPECT_EQ(subjects.Correct(created->id, fixed, "").status().field(), "reason");
 }
 
-TEST_F(StorageTest, SubjectBadInputNamesTheProblem) {
+TEST_P(StorageTest, SubjectBadInputNamesTheProblem) {
   SubjectRepository subjects(*db_);
   ASSERT_TRUE(subjects.Create("DUP", SubjectDetails{}).ok());
   auto duplicate = subjects.Create("DUP", SubjectDetails{});
@@ -91,7 +91,7 @@ TEST_F(StorageTest, SubjectBadInputNamesTheProblem) {
   EXPECT_EQ(subjects.Revisions(999).status().code(), api::ErrorCode::kNotFound);
 }
 
-TEST_F(StorageTest, LegsPerSubject) {
+TEST_P(StorageTest, LegsPerSubject) {
   SubjectRepository subjects(*db_);
   auto subject = subjects.Create("L1", SubjectDetails{});
   ASSERT_TRUE(subject.ok());

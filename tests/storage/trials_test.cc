@@ -10,7 +10,7 @@ namespace {
 using testing::MakeTrial;
 using testing::StorageTest;
 
-TEST_F(StorageTest, TrialRoundTripKeepsItsDeliveredPulsesExactly) {
+TEST_P(StorageTest, TrialRoundTripKeepsItsDeliveredPulsesExactly) {
   const Session session = MakeSession("T1");
   api::Trial trial = MakeTrial(400);
   api::PulseRecord pulses;
@@ -41,7 +41,7 @@ TEST_F(StorageTest, TrialRoundTripKeepsItsDeliveredPulsesExactly) {
   EXPECT_FALSE(update.ok());
 }
 
-TEST_F(StorageTest, TrialRoundTripKeepsEveryChannelExactly) {
+TEST_P(StorageTest, TrialRoundTripKeepsEveryChannelExactly) {
   const Session session = MakeSession("T1");
   auto run = SessionRepository(*db_).CreateRun(session.id, {"free_swing", "1.0", "{}"});
   ASSERT_TRUE(run.ok());
@@ -101,7 +101,7 @@ TEST_F(StorageTest, TrialRoundTripKeepsEveryChannelExactly) {
   EXPECT_EQ(*bytes, std::to_string(4 * 2000 * 8 + 2 * 4 * 5 * 8));
 }
 
-TEST_F(StorageTest, TrialBadInputNamesTheProblem) {
+TEST_P(StorageTest, TrialBadInputNamesTheProblem) {
   const Session session = MakeSession("T2");
   TrialRepository trials(*db_);
   EXPECT_EQ(trials.Insert({999, std::nullopt}, MakeTrial(5)).status().message(),

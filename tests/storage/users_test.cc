@@ -21,7 +21,7 @@ TEST(Sha256, KnownDigest) {
   EXPECT_EQ(digest[31], std::byte{0xad});
 }
 
-TEST_F(StorageTest, TokensAreStoredHashedAndAuthenticate) {
+TEST_P(StorageTest, TokensAreStoredHashedAndAuthenticate) {
   UserRepository users(*db_);
   auto alice = users.CreateUser("alice", Role::kClinician);
   ASSERT_TRUE(alice.ok());
@@ -63,7 +63,7 @@ TEST_F(StorageTest, TokensAreStoredHashedAndAuthenticate) {
   EXPECT_EQ(users.RevokeToken(999).code(), api::ErrorCode::kNotFound);
 }
 
-TEST_F(StorageTest, ExpiredTokensAndDeactivatedUsersAreRefused) {
+TEST_P(StorageTest, ExpiredTokensAndDeactivatedUsersAreRefused) {
   UserRepository users(*db_);
   auto bob = users.CreateUser("bob", Role::kAnalyst);
   ASSERT_TRUE(bob.ok());
@@ -82,7 +82,7 @@ TEST_F(StorageTest, ExpiredTokensAndDeactivatedUsersAreRefused) {
   EXPECT_FALSE(got->active);
 }
 
-TEST_F(StorageTest, UserBadInputNamesTheProblem) {
+TEST_P(StorageTest, UserBadInputNamesTheProblem) {
   UserRepository users(*db_);
   ASSERT_TRUE(users.CreateUser("carol", Role::kAdmin).ok());
   auto duplicate = users.CreateUser("carol", Role::kAnalyst);

@@ -1,0 +1,63 @@
+#pragma once
+
+/// @file
+/// The server engine: one connection to PostgreSQL through libpq
+/// (storage/connection.h). The repositories' `?N` parameters become `$N`;
+/// statements are prepared on the server once per connection and run with
+/// their values sent as text (BLOBs as binary bytea); rows come back as text
+/// (integers and doubles parsed exactly: PostgreSQL 12+ prints the shortest
+/// text that reads back to the same double).
+
+#include <memory>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <vector>
+
+#include "storage/connection.h"
+
+struct pg_conn;
+struct pg_result;
+
+namespace fesbench::storage {
+
+class PostgresConnection final : public Connection {
+ public:
+  /// Connects to `url` (postgresql://user[:password]@host[:port]/database[?…],
+  /// libpq's URI form). kUnavailable naming the server when it cannot.
+  static api::Result<std::unique_ptr<PostgresConnection>> Open(const std::string& url);
+  ~PostgresConnection() override;
+
+  Engine engine() const override { return Engine::kPostgres; }
+  api::Result<Statement> Prepare(std::string_view sql) override;
+  api::Status ExecScript(const std::string& sql) override;
+  bool autocommit() const override;
+  /// Reconnects when the server dropped the connection (a restart, a
+  /// failover); the prepared statements are prepared again as needed.
+  api::Status EnsureOpen() override;
+
+  /// The status for a failed result (SQLSTATE mapped as in connection.h),
+  /// with `context` prefixed; `result` may be null (connection lost).
+  api::Status StatusFromResult(const pg_result* result, std::string_view context);
+
+  pg_conn* handle() const { return conn_; }
+
+ private:
+  PostgresConnection(pg_conn* conn, std::string url) : conn_(conn), url_(std::move(url)) {}
+  pg_conn* conn_;
+  std::string url_;
+  std::unordered_map<std::string, std::unique_ptr<StatementImpl>> cache_;
+  int next_statement_ = 0;  // names the server-side prepared statements s0, s1, …
+};
+
+/// `sql` with SQLite-style parameters (`?N`, or `?` numbered in order) as
+/// PostgreSQL's `$N`, leaving quoted text and comments alone; `used[i]`
+/// tells whether parameter i + 1 occurs (its size is the highest number).
+/// A parameter whose type the server cannot infer (one only tested with IS
+/// NULL) needs a CAST in the SQL, which SQLite reads the same way.
+std::string PostgresParameters(std::string_view sql, std::vector<bool>& used);
+
+/// A URL with its password hidden, for logs and messages.
+std::string RedactedUrl(std::string_view url);
+
+}  // namespace fesbench::storage
