@@ -96,6 +96,8 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.String("bind", false, 255)) c.bind = *v;
   if (auto v = f.Integer("port", false, 0, 65535)) c.port = static_cast<int>(*v);
   if (auto v = f.String("db", false, 4096)) c.db = *v;
+  if (auto v = f.String("bench-id", false, 255)) c.bench_id = *v;
+  if (auto v = f.String("data-dir", false, 4096)) c.data_dir = *v;
   if (auto v = f.String("bench", false, 16)) c.bench = *v;
   if (auto v = f.Number("time-scale", false, 0.0, 1000.0)) c.time_scale = *v;
   if (auto v = f.Number("max-stop-impact-deg-s", false, 0.0, 2000.0)) c.max_stop_impact_deg_s = *v;
@@ -145,7 +147,14 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
       ->check(CLI::ExistingFile);
   app.add_option("--bind", flags.bind, "listen address (default 127.0.0.1)");
   app.add_option("--port", flags.port, "TCP port; 0 picks a free one (default 8080)");
-  app.add_option("--db", flags.db, "SQLite database file (default ./data/fesbench.db)");
+  app.add_option("--db", flags.db,
+                 "SQLite database file (default ./data/fesbench.db), or a PostgreSQL URL "
+                 "postgresql://user@host:port/database shared by several servers");
+  app.add_option("--bench-id", flags.bench_id,
+                 "this server's bench on a shared database (default: the host name)");
+  app.add_option("--data-dir", flags.data_dir,
+                 "folder of admin.token and backups (default: the SQLite file's folder, or "
+                 "./data with PostgreSQL)");
   app.add_option("--bench", flags.bench, "sim (simulated leg) or replay (CSV trials)")
       ->check(CLI::IsMember({"sim", "replay"}));
   app.add_option("--time-scale", flags.time_scale,
@@ -162,7 +171,7 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   app.add_option("--dds-profile-name", flags.dds_profile_name,
                  "participant profile of --dds-profile to use (default: its default profile)");
   app.add_option("--dds-bench-id", flags.dds_bench_id,
-                 "DDS key of this bench's state (default: the host name)");
+                 "DDS key of this bench's state (default: --bench-id)");
   app.add_option("--dds-security", flags.dds_security,
                  "secured DDS: a lab PKI directory made by scripts/make-dds-pki.sh")
       ->check(CLI::ExistingDirectory);
@@ -222,6 +231,8 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--bind")) config.bind = flags.bind;
   if (given("--port")) config.port = flags.port;
   if (given("--db")) config.db = flags.db;
+  if (given("--bench-id")) config.bench_id = flags.bench_id;
+  if (given("--data-dir")) config.data_dir = flags.data_dir;
   if (given("--bench")) config.bench = flags.bench;
   if (given("--time-scale")) config.time_scale = flags.time_scale;
   if (given("--max-stop-impact-deg-s")) config.max_stop_impact_deg_s = flags.max_stop_impact_deg_s;

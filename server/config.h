@@ -23,7 +23,15 @@ std::string DefaultWebRoot();
 struct ServerConfig {
   std::string bind = "127.0.0.1";         ///< --bind: listen address.
   int port = 8080;                        ///< --port: 0 picks a free port (printed).
-  std::string db = "./data/fesbench.db";  ///< --db: SQLite file (folder created).
+  /// --db: an SQLite file (folder created), or a PostgreSQL URL
+  /// (postgresql://user@host:port/database) that several servers may share.
+  std::string db = "./data/fesbench.db";
+  /// --bench-id: this server's bench on a shared database (its runs and
+  /// e-stop latch); default: the host name. Also the DDS bench key.
+  std::string bench_id;
+  /// --data-dir: the folder of admin.token and backups/ (default: the SQLite
+  /// file's folder, or ./data with PostgreSQL).
+  std::string data_dir;
   std::string bench = "sim";              ///< --bench: "sim" or "replay".
   double time_scale = 1.0;                ///< --time-scale: 1 real time, 0 as fast as possible.
   /// --max-stop-impact-deg-s: the model gate's limit on the predicted speed
@@ -37,7 +45,7 @@ struct ServerConfig {
   /// --dds-profile-name: the participant profile of that file to create the
   /// participant from ("" = the file's default participant profile).
   std::string dds_profile_name;
-  std::string dds_bench_id;  ///< --dds-bench-id: key of the bench state (default: host name).
+  std::string dds_bench_id;  ///< --dds-bench-id: key of the bench state (default: --bench-id).
   /// --dds-security: a lab PKI directory (scripts/make-dds-pki.sh); secured
   /// DDS (authentication, encryption, access control) when set.
   std::string dds_security;

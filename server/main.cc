@@ -34,12 +34,19 @@
 #include "server/services/run_service.h"
 #include "server/services/sample_hub.h"
 #include "storage/database.h"
+#include "storage/postgres_connection.h"
 #include "storage/users.h"
 // (separate block: Eigen, above, before httplib.h, see routes_bench.cc)
 #include "server/http/api_routes.h"
 #include "server/http/http_server.h"
 
 namespace {
+
+std::string HostName() {
+  char name[256] = {};
+  if (::gethostname(name, sizeof(name) - 1) != 0 || name[0] == '\0') return "fesbench";
+  return name;
+}
 
 using namespace fesbench;
 
@@ -97,19 +104,27 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   std::signal(SIGPIPE, SIG_IGN);
 
-  const std::filesystem::path db_path = std::filesystem::absolute(config.db);
+  // The database: an SQLite file beside this server, or a PostgreSQL
+  // database that several servers (one per bench) share.
+  const bool postgres = storage::IsPostgresUrl(config.db);
+  const std::string db_name =
+      postgres ? storage::RedactedUrl(config.db) : std::filesystem::absolute(config.db).string();
+  const std::filesystem::path data_dir = std::filesystem::absolute(
+      !config.data_dir.empty() ? std::filesystem::path(config.data_dir)
+      : postgres               ? std::filesystem::path("data")
+                               : std::filesystem::absolute(config.db).parent_path());
   std::error_code ec;
-  std::filesystem::create_directories(db_path.parent_path(), ec);
-  if (ec)
-    return Fail("cannot create " + db_path.parent_path().string(),
-                api::Status::Unavailable(ec.message()));
+  std::filesystem::create_directories(data_dir, ec);
+  if (ec) return Fail("cannot create " + data_dir.string(), api::Status::Unavailable(ec.message()));
+  const std::string bench_id = config.bench_id.empty() ? HostName() : config.bench_id;
 
   storage::DatabaseOptions db_options;
-  db_options.path = db_path.string();
+  db_options.path = postgres ? config.db : db_name;
+  db_options.bench_id = bench_id;
   auto db = storage::Database::Open(db_options);
-  if (!db.ok()) return Fail("cannot open " + db_path.string(), db.status());
+  if (!db.ok()) return Fail("cannot open " + db_name, db.status());
 
-  const std::filesystem::path token_path = db_path.parent_path() / "admin.token";
+  const std::filesystem::path token_path = data_dir / "admin.token";
   if (auto st = BootstrapAdmin(**db, token_path); !st.ok()) return Fail("admin bootstrap", st);
 
   // The bench: a simulated leg (seeded virtual subject) or a replay of CSV trials.
@@ -215,7 +230,7 @@ int main(int argc, char** argv) {
       if (!files.ok()) return Fail("DDS", files.status());
       dds_options.participant.security = *files;
     }
-    dds_options.bench_id = config.dds_bench_id;
+    dds_options.bench_id = config.dds_bench_id.empty() ? bench_id : config.dds_bench_id;
     auto started = server::dds::DdsServer::Start(dds_options, **db, runs, hub, dds_commands);
     if (!started.ok()) return Fail("DDS", started.status());
     dds = std::move(*started);
@@ -230,7 +245,7 @@ int main(int argc, char** argv) {
   deps.db = db->get();
   deps.auth = &auth;
   deps.streams = &slots;
-  deps.backup_dir = (db_path.parent_path() / "backups").string();
+  deps.backup_dir = (data_dir / "backups").string();
   deps.bench = &bench_service;
   deps.runs = &runs;
   deps.samples = &hub;
@@ -256,7 +271,7 @@ int main(int argc, char** argv) {
   const std::string host = config.bind == "0.0.0.0" ? "127.0.0.1" : config.bind;
   std::cout
       << "fesbench-server: bench " << bench->kind() << ", time scale " << config.time_scale
-      << ", database " << db_path.string() << "\n"
+      << ", database " << db_name << ", bench id " << bench_id << "\n"
       << "fesbench-server: admin token file " << token_path.string() << "\n"
       << "fesbench-server: DDS "
       << (dds ? "domain " + std::to_string(config.dds_domain) + ", transport " +

@@ -955,6 +955,12 @@ api::Status RunService::CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRu
   if (!run) {
     api::Result<storage::Run> stored = storage::SessionRepository(db_).GetRun(run_id);
     if (!stored.ok()) return stored.status();
+    const std::string& bench = db_.options().bench_id;
+    if (!stored->bench_id.empty() && stored->bench_id != bench && !api::IsFinal(stored->state)) {
+      return api::Status::Conflict("run " + std::to_string(run_id) + " runs on bench '" +
+                                   stored->bench_id + "', not on this server's bench '" + bench +
+                                   "': send this to that bench's server");
+    }
     return api::Status::Conflict("run " + std::to_string(run_id) + " is not in progress (" +
                                  std::string(api::RunStateName(stored->state)) + ")");
   }

@@ -51,6 +51,7 @@ ServerProcess::ServerProcess(std::filesystem::path dir, std::vector<std::string>
   const std::pair<std::string, std::string> defaults[] = {
       {"--port", "0"},
       {"--db", db_path().string()},
+      {"--data-dir", (dir_ / "data").string()},
       {"--time-scale", "0"},
       // HTTP tests need no DDS participant: keep parallel test servers off
       // domain 0 and out of /dev/shm (the DDS tests use their own domains).
