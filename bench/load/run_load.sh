@@ -7,6 +7,9 @@
 # database.
 #
 #   bench/load/run_load.sh [SECONDS] [CONNECTIONS]     defaults 30 32
+#
+# FESBENCH_LOAD_DB=postgresql://user@host:port/db runs it on that (empty)
+# PostgreSQL database instead of a temporary SQLite file.
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -29,7 +32,8 @@ trap cleanup EXIT
 
 # start_server TIME_SCALE: starts the server on a free port; sets pid and url.
 start_server() {
-  "$server" --bind 127.0.0.1 --port 0 --db "$work/data/fesbench.db" --time-scale "$1" \
+  "$server" --bind 127.0.0.1 --port 0 --db "${FESBENCH_LOAD_DB:-$work/data/fesbench.db}" \
+    --data-dir "$work/data" --time-scale "$1" \
     --max-connections $((connections + 16)) >"$work/server.out" 2>"$work/server.err" &
   pid=$!
   for _ in $(seq 1 100); do
