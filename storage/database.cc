@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <random>
+#include <sstream>
 #include <exception>
 #include <filesystem>
 #include <system_error>
@@ -122,6 +123,7 @@ Database::Database(DatabaseOptions options) : options_(std::move(options)) {}
 Database::~Database() {
   // Free the bench at once (closing the connection frees it only once the
   // server has noticed), so a restarted server can take it straight away.
+  notifications_.reset();
   if (bench_lock_ != nullptr) (void)bench_lock_->ExecScript("SELECT pg_advisory_unlock_all()");
   bench_lock_.reset();
   readers_.clear();
@@ -231,6 +233,19 @@ api::Status Database::InitialisePostgres() {
         "own --bench-id");
   }
   bench_lock_ = std::move(*lock);
+  // Sets stored by the other servers, as events (issue 18).
+  instance_id_ = options_.bench_id + "/" + std::to_string(::getpid()) + "/" +
+                 std::to_string(std::random_device{}());
+  auto listener = PostgresListener::Start(
+      options_.path, "fesbench_parameter_sets", [this](std::string_view payload) {
+        std::istringstream in{std::string(payload)};
+        std::string origin;
+        ParameterSetStored event;
+        if (!(in >> origin >> event.id >> event.subject_id >> event.leg_id)) return;
+        if (origin != instance_id_) CallParameterSetListener(event);
+      });
+  if (!listener.ok()) return listener.status();
+  notifications_ = std::move(*listener);
   for (int i = 0; i < options_.reader_count; ++i) {
     auto reader = PostgresConnection::Open(options_.path);
     if (!reader.ok()) return reader.status();
@@ -369,15 +384,25 @@ void Database::SetParameterSetListener(ParameterSetListener listener) {
   parameter_set_listener_ = std::move(listener);
 }
 
-void Database::NotifyParameterSetStored(const ParameterSetStored& event) {
-  AfterCommit([this, event] {
-    ParameterSetListener listener;
-    {
-      std::lock_guard lock(listener_mutex_);
-      listener = parameter_set_listener_;
-    }
-    if (listener) listener(event);
-  });
+void Database::CallParameterSetListener(const ParameterSetStored& event) {
+  ParameterSetListener listener;
+  {
+    std::lock_guard lock(listener_mutex_);
+    listener = parameter_set_listener_;
+  }
+  if (listener) listener(event);
+}
+
+api::Status Database::NotifyParameterSetStored(const ParameterSetStored& event) {
+  if (engine() == Engine::kPostgres && writer_owner_.load() == std::this_thread::get_id()) {
+    auto notify = writer_->Prepare("SELECT pg_notify('fesbench_parameter_sets', ?1)");
+    if (!notify.ok()) return notify.status();
+    notify->Bind(1, instance_id_ + " " + std::to_string(event.id) + " " +
+                        std::to_string(event.subject_id) + " " + std::to_string(event.leg_id));
+    if (auto s = notify->Run(); !s.ok()) return s;
+  }
+  AfterCommit([this, event] { CallParameterSetListener(event); });
+  return api::Status::Ok();
 }
 
 api::Status Database::RunOnReader(const std::function<api::Status(Connection&)>& fn) {

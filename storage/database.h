@@ -72,6 +72,8 @@ struct DatabaseOptions {
   std::function<UtcTime()> clock;
 };
 
+class PostgresListener;
+
 class Database {
  public:
   /// Opens (or creates) the database. Errors: kDataLoss for a file that is
@@ -131,10 +133,13 @@ class Database {
   };
   using ParameterSetListener = std::function<void(const ParameterSetStored&)>;
   /// Called after the commit of every stored parameter set, on the writing
-  /// thread (ParameterSetRepository::Insert). Empty = none. Thread-safe.
+  /// thread (ParameterSetRepository::Insert); on PostgreSQL also for the
+  /// sets other servers store, on this database's notification thread
+  /// (NOTIFY, delivered at their commit). Empty = none. Thread-safe.
   void SetParameterSetListener(ParameterSetListener listener);
-  /// Notifies the listener (after the current transaction commits).
-  void NotifyParameterSetStored(const ParameterSetStored& event);
+  /// Notifies the listener after the current transaction commits, and on
+  /// PostgreSQL every other server's (a NOTIFY in the same transaction).
+  api::Status NotifyParameterSetStored(const ParameterSetStored& event);
   const DatabaseOptions& options() const { return options_; }
   /// The engine behind options().path.
   Engine engine() const;
@@ -178,6 +183,11 @@ class Database {
   ParameterSetListener parameter_set_listener_;
 
   std::unique_ptr<Connection> bench_lock_;  // PostgreSQL: holds the bench's advisory lock
+  // PostgreSQL: the sets other servers store (their NOTIFY payloads carry
+  // the storing Database's instance id, so this one skips its own).
+  std::string instance_id_;
+  std::unique_ptr<PostgresListener> notifications_;
+  void CallParameterSetListener(const ParameterSetStored& event);
   std::vector<std::unique_ptr<Connection>> readers_;
   std::vector<Connection*> free_readers_;
   std::mutex readers_mutex_;

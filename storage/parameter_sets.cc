@@ -165,7 +165,9 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
         return s;
       }
     }
-    db_.NotifyParameterSetStored({id, set.subject_id, set.leg_id});
+    if (auto s = db_.NotifyParameterSetStored({id, set.subject_id, set.leg_id}); !s.ok()) {
+      return s;
+    }
     ParameterSetSummary summary;
     summary.id = id;
     summary.subject_id = set.subject_id;

@@ -1,6 +1,7 @@
 #include "storage/postgres_connection.h"
 
 #include <libpq-fe.h>
+#include <poll.h>
 
 #include <cctype>
 #include <charconv>
@@ -177,6 +178,64 @@ class PostgresStatement final : public StatementImpl {
   mutable std::vector<std::vector<std::byte>> blobs_;
 };
 
+api::Result<std::unique_ptr<PostgresListener>> PostgresListener::Start(
+    const std::string& url, const std::string& channel,
+    std::function<void(std::string_view payload)> on_payload) {
+  std::unique_ptr<PostgresListener> listener(
+      new PostgresListener(url, channel, std::move(on_payload)));
+  pg_conn* conn = listener->Connect();
+  if (conn == nullptr) {
+    return api::Status::Unavailable("cannot listen for notifications at " + RedactedUrl(url));
+  }
+  PostgresListener* self = listener.get();
+  listener->thread_ = std::thread([self, conn] { self->Loop(conn); });
+  return listener;
+}
+
+PostgresListener::~PostgresListener() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+pg_conn* PostgresListener::Connect() const {
+  PGconn* conn = PQconnectdb(url_.c_str());
+  if (PQstatus(conn) != CONNECTION_OK) {
+    PQfinish(conn);
+    return nullptr;
+  }
+  PQsetNoticeProcessor(conn, IgnoreNotice, nullptr);
+  PGresult* result = PQexec(conn, ("LISTEN " + channel_).c_str());
+  const bool ok = PQresultStatus(result) == PGRES_COMMAND_OK;
+  PQclear(result);
+  if (!ok) {
+    PQfinish(conn);
+    return nullptr;
+  }
+  return conn;
+}
+
+void PostgresListener::Loop(pg_conn* conn) {
+  while (!stop_) {
+    if (conn == nullptr) {  // the server went: try again twice a second
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+      conn = Connect();
+      continue;
+    }
+    pollfd waiting{PQsocket(conn), POLLIN, 0};
+    if (::poll(&waiting, 1, 200) < 0 || PQconsumeInput(conn) == 0 ||
+        PQstatus(conn) != CONNECTION_OK) {
+      PQfinish(conn);
+      conn = nullptr;
+      continue;
+    }
+    while (PGnotify* notification = PQnotifies(conn)) {
+      on_payload_(notification->extra != nullptr ? notification->extra : "");
+      PQfreemem(notification);
+    }
+  }
+  if (conn != nullptr) PQfinish(conn);
+}
+
 std::string PostgresParameters(std::string_view sql, std::vector<bool>& used) {
   std::string out;
   out.reserve(sql.size() + 8);
@@ -241,7 +300,12 @@ api::Result<std::unique_ptr<PostgresConnection>> PostgresConnection::Open(const 
   PQsetNoticeProcessor(conn, IgnoreNotice, nullptr);
   // Text is compared byte by byte as in SQLite (the *_utc columns are
   // COLLATE "C" in the schema too); times are text, so the zone is moot.
-  if (auto status = connection->ExecScript("SET client_encoding = 'UTF8'"); !status.ok()) {
+  // random_page_cost 1.1, PostgreSQL's advice for SSD storage: with the
+  // default 4 the planner scans a small table (10,000 subject revisions)
+  // rather than seek 51 rows by index, and a 0.2 ms page took 2.6 ms.
+  if (auto status = connection->ExecScript("SET client_encoding = 'UTF8';"
+                                            " SET random_page_cost = 1.1");
+      !status.ok()) {
     return status;
   }
   return connection;

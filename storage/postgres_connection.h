@@ -8,9 +8,12 @@
 /// (integers and doubles parsed exactly: PostgreSQL 12+ prints the shortest
 /// text that reads back to the same double).
 
+#include <atomic>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <unordered_map>
 #include <vector>
 
@@ -48,6 +51,33 @@ class PostgresConnection final : public Connection {
   std::string url_;
   std::unordered_map<std::string, std::unique_ptr<StatementImpl>> cache_;
   int next_statement_ = 0;  // names the server-side prepared statements s0, s1, …
+};
+
+/// Receives the NOTIFY payloads of one channel on a connection and a thread
+/// of its own until destroyed (reconnecting when the server drops it).
+/// `on_payload` runs on that thread.
+class PostgresListener {
+ public:
+  static api::Result<std::unique_ptr<PostgresListener>> Start(
+      const std::string& url, const std::string& channel,
+      std::function<void(std::string_view payload)> on_payload);
+  ~PostgresListener();
+  PostgresListener(const PostgresListener&) = delete;
+  PostgresListener& operator=(const PostgresListener&) = delete;
+
+ private:
+  PostgresListener(std::string url, std::string channel,
+                   std::function<void(std::string_view)> on_payload)
+      : url_(std::move(url)), channel_(std::move(channel)), on_payload_(std::move(on_payload)) {}
+  // Connects and LISTENs; null when the server cannot be reached.
+  pg_conn* Connect() const;
+  void Loop(pg_conn* conn);
+
+  std::string url_;
+  std::string channel_;
+  std::function<void(std::string_view)> on_payload_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
 };
 
 /// `sql` with SQLite-style parameters (`?N`, or `?` numbered in order) as

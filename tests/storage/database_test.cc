@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <condition_variable>
 #include <fstream>
 #include <mutex>
 #include <random>
@@ -543,6 +544,55 @@ TEST_F(PostgresStorageTest, TwoServersWritingAtOnceLoseAndRepeatNothing) {
     ASSERT_TRUE(audit.ok());
     EXPECT_EQ(audit->size(), static_cast<std::size_t>(kTotal));
   }
+}
+
+// New sets as events across servers (issue 18): a set stored through one
+// Database reaches the other's listener once it commits (NOTIFY), and a
+// server's own sets reach its listener once, from its own commit.
+TEST_F(PostgresStorageTest, SetsStoredByAnotherServerArriveAsEvents) {
+  const Session session = MakeSession("E1");
+  DatabaseOptions other = Options();
+  other.bench_id = "bench-b";
+  auto b = Database::Open(other);
+  ASSERT_TRUE(b.ok()) << b.status().ToString();
+  std::mutex mutex;
+  std::condition_variable arrived;
+  std::vector<std::int64_t> seen_by_a, seen_by_b;
+  db_->SetParameterSetListener([&](const Database::ParameterSetStored& e) {
+    std::lock_guard lock(mutex);
+    seen_by_a.push_back(e.id);
+    arrived.notify_all();
+  });
+  (*b)->SetParameterSetListener([&](const Database::ParameterSetStored& e) {
+    std::lock_guard lock(mutex);
+    EXPECT_EQ(e.subject_id, session.subject_id);
+    EXPECT_EQ(e.leg_id, session.leg_id);
+    seen_by_b.push_back(e.id);
+    arrived.notify_all();
+  });
+  auto stored = ParameterSetRepository(*db_).Insert(
+      {session.subject_id, session.leg_id, model::ExampleParameterSet(), std::nullopt,
+       std::nullopt});
+  ASSERT_TRUE(stored.ok()) << stored.status().ToString();
+  // A transaction that rolls back notifies nobody.
+  const api::Status rolled_back = db_->Write([&](Connection&) -> api::Status {
+    auto set = ParameterSetRepository(*db_).Insert(
+        {session.subject_id, session.leg_id, model::ExampleParameterSet(), std::nullopt,
+         std::nullopt});
+    if (!set.ok()) return set.status();
+    return api::Status::Internal("changed my mind");
+  });
+  ASSERT_FALSE(rolled_back.ok());
+  {
+    std::unique_lock lock(mutex);
+    EXPECT_TRUE(arrived.wait_for(lock, std::chrono::seconds(10), [&] { return !seen_by_b.empty(); }));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // anything more would be wrong
+  std::lock_guard lock(mutex);
+  EXPECT_EQ(seen_by_a, std::vector<std::int64_t>{stored->id});
+  EXPECT_EQ(seen_by_b, std::vector<std::int64_t>{stored->id});
+  db_->SetParameterSetListener({});
+  (*b)->SetParameterSetListener({});
 }
 
 INSTANTIATE_TEST_SUITE_P(Engines, StorageTest,

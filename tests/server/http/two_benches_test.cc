@@ -1,6 +1,7 @@
 // Integration (issue 18): two fesbench-servers, each with its own simulated
 // bench, on one PostgreSQL database. Both run rapid_parameterisation at the
-// same time while analysts list and fetch through either server. Each run
+// same time while analysts list and fetch through either server, and an
+// analyst on one server receives both benches' new sets as events. Each run
 // is its own bench's: the other server sees it and its parameter set but
 // will not move it, and a second server for a bench already served is
 // refused at start.
@@ -11,6 +12,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -63,8 +65,11 @@ TEST(TwoBenchesTest, TwoServersOnOnePostgresRunAtOnceAndSeeEachOther) {
     if (database.skippable()) GTEST_SKIP() << database.skip_reason();
     FAIL() << database.skip_reason();
   }
-  ServerProcess a({"--db", database.url(), "--bench-id", "knee-a", "--seed", "3"});
-  ServerProcess b({"--db", database.url(), "--bench-id", "knee-b", "--seed", "8"});
+  // Time scale 20: the runs last seconds, so the analysts work beside them.
+  ServerProcess a(
+      {"--db", database.url(), "--bench-id", "knee-a", "--seed", "3", "--time-scale", "20"});
+  ServerProcess b(
+      {"--db", database.url(), "--bench-id", "knee-b", "--seed", "8", "--time-scale", "20"});
   EXPECT_NE(a.output().find("bench id knee-a"), std::string::npos) << a.output();
   // Only the first server to meet an empty database creates the admin.
   const std::string admin = !a.admin_token().empty() ? a.admin_token() : b.admin_token();
@@ -97,6 +102,12 @@ TEST(TwoBenchesTest, TwoServersOnOnePostgresRunAtOnceAndSeeEachOther) {
       auto subjects = Call(c, "GET", "/api/v1/subjects?limit=50", analyst);
       list_ms.push_back(Ms(Clock::now() - t0) / 2);
       if (sets.status != 200 || subjects.status != 200) ++analyst_errors;
+      for (const auto& item : subjects.body.value("items", json::array())) {
+        const auto t1 = Clock::now();
+        auto one = Call(c, "GET", "/api/v1/subjects/" + item["id"].dump(), analyst);
+        fetch_ms.push_back(Ms(Clock::now() - t1));
+        if (one.status != 200) ++analyst_errors;
+      }
       for (const auto& item : sets.body.value("items", json::array())) {
         const auto t1 = Clock::now();
         auto one = Call(c, "GET", "/api/v1/parameter-sets/" + item["id"].dump(), analyst);
@@ -106,6 +117,33 @@ TEST(TwoBenchesTest, TwoServersOnOnePostgresRunAtOnceAndSeeEachOther) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
   });
+
+  // An analyst on server B waits for new sets: both benches' arrive (A's
+  // through PostgreSQL's NOTIFY), each once.
+  std::vector<std::int64_t> events_on_b;
+  std::mutex events_mutex;
+  std::thread watcher([&] {
+    httplib::Client c("127.0.0.1", b.port());
+    c.set_read_timeout(120);
+    std::string buffer;
+    const std::string marker = "event: parameter_set\ndata: ";
+    c.Get("/api/v1/events/parameter-sets?timeout_s=120", {{"Authorization", "Bearer " + analyst}},
+          [&](const char* data, std::size_t n) {
+            buffer.append(data, n);
+            std::size_t at;
+            while ((at = buffer.find(marker)) != std::string::npos) {
+              const std::size_t eol = buffer.find('\n', at + marker.size());
+              if (eol == std::string::npos) return true;
+              const json event = json::parse(buffer.substr(at + marker.size(), eol - at - marker.size()));
+              buffer.erase(0, eol);
+              std::lock_guard lock(events_mutex);
+              events_on_b.push_back(event["parameter_set_id"]);
+              if (events_on_b.size() == 2) return false;
+            }
+            return true;
+          });
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // subscribed
 
   struct Bench {
     ServerProcess* server = nullptr;
@@ -158,6 +196,15 @@ TEST(TwoBenchesTest, TwoServersOnOnePostgresRunAtOnceAndSeeEachOther) {
     ASSERT_TRUE(bench.view["parameter_set_id"].is_number_integer());
   }
   EXPECT_EQ(analyst_errors.load(), 0);
+  watcher.join();
+  {
+    std::lock_guard lock(events_mutex);
+    std::vector<std::int64_t> expected = {benches[0].view["parameter_set_id"],
+                                          benches[1].view["parameter_set_id"]};
+    std::sort(expected.begin(), expected.end());
+    std::sort(events_on_b.begin(), events_on_b.end());
+    EXPECT_EQ(events_on_b, expected) << "server B's event stream";
+  }
 
   // Each server's analysts see both benches' runs and sets.
   for (httplib::Client* c : {&client_a, &client_b}) {
