@@ -385,12 +385,11 @@ void Database::SetParameterSetListener(ParameterSetListener listener) {
 }
 
 void Database::CallParameterSetListener(const ParameterSetStored& event) {
-  ParameterSetListener listener;
-  {
-    std::lock_guard lock(listener_mutex_);
-    listener = parameter_set_listener_;
-  }
-  if (listener) listener(event);
+  // Called under the lock, so that once SetParameterSetListener has replaced
+  // a listener no thread (the writer's, or the notification thread) is still
+  // inside the old one, whose owner may be going away.
+  std::lock_guard lock(listener_mutex_);
+  if (parameter_set_listener_) parameter_set_listener_(event);
 }
 
 api::Status Database::NotifyParameterSetStored(const ParameterSetStored& event) {

@@ -135,7 +135,8 @@ class Database {
   /// Called after the commit of every stored parameter set, on the writing
   /// thread (ParameterSetRepository::Insert); on PostgreSQL also for the
   /// sets other servers store, on this database's notification thread
-  /// (NOTIFY, delivered at their commit). Empty = none. Thread-safe.
+  /// (NOTIFY, delivered at their commit). Empty = none. Thread-safe: when it
+  /// returns, no thread is inside the listener it replaced.
   void SetParameterSetListener(ParameterSetListener listener);
   /// Notifies the listener after the current transaction commits, and on
   /// PostgreSQL every other server's (a NOTIFY in the same transaction).
