@@ -137,6 +137,8 @@ struct RunnerOptions {
   SafeBench::WallClock wall_clock;  ///< for wall durations; empty = steady clock.
 };
 
+class RunExecution;
+
 /// The engine. Each object runs one plan (a second Run returns failed
 /// without touching the bench; BenchOwner makes one per run and enforces one
 /// run per bench). Cancel and Stop may be called from any thread, also
@@ -162,6 +164,7 @@ class ProtocolRunner {
   RunState state() const { return state_.load(); }
 
  private:
+  friend class RunExecution;  // one Run's state and parts (run_execution.h)
   bool Transition(RunTransition transition, const std::string& reason);
 
   SafeBench& bench_;
