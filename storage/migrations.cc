@@ -334,6 +334,14 @@ ALTER TABLE estop_events ADD COLUMN bench_id TEXT NOT NULL DEFAULT '';
 CREATE INDEX estop_events_bench ON estop_events(bench_id, id);
 )sql";
 
+// A parameter set names the run that identified it (issue 17): a run's set
+// is an index lookup, not a search of the leg's history. Sets stored before
+// have none (append-only: they are not rewritten).
+const char* const kMigration13 = R"sql(
+ALTER TABLE parameter_sets ADD COLUMN run_id BIGINT REFERENCES runs(id);
+CREATE INDEX parameter_sets_run ON parameter_sets(run_id) WHERE run_id IS NOT NULL;
+)sql";
+
 // ---------------------------------------------------------------- PostgreSQL
 //
 // The same schema in PostgreSQL's dialect, as of SQLite migration 11 (one
@@ -624,6 +632,7 @@ const std::vector<Migration>& AllMigrations() {
       {11, "where imported trials came from",
        std::string(kMigration11) + AppendOnly({"trial_imports"})},
       {12, "runs and e-stop presses belong to a bench", kMigration12},
+      {13, "parameter sets name the run that identified them", kMigration13},
   };
   return kMigrations;
 }
@@ -639,6 +648,7 @@ const std::vector<Migration>& PostgresMigrations() {
                                "parameter_set_trials", "predictions", "evaluations",
                                "estop_events", "trial_pulses", "trial_imports"})},
       {12, "runs and e-stop presses belong to a bench", kMigration12},
+      {13, "parameter sets name the run that identified them", kMigration13},
   };
   return kMigrations;
 }

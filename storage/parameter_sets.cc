@@ -16,7 +16,7 @@ namespace {
 
 constexpr std::string_view kSummaryColumns =
     "id, subject_id, leg_id, version, model, irc_method, passive_method, active_method,"
-    " software_version, supersedes_id, created_at_utc";
+    " software_version, supersedes_id, created_at_utc, run_id";
 
 api::Result<ParameterSetSummary> ReadSummary(const Statement& s) {
   ParameterSetSummary summary;
@@ -33,6 +33,7 @@ api::Result<ParameterSetSummary> ReadSummary(const Statement& s) {
   const auto created = ParseUtc(s.Text(10));
   if (!created) return internal::BadStoredValue("parameter set");
   summary.created_at = *created;
+  summary.run_id = s.OptionalInt64(11);
   return summary;
 }
 
@@ -45,7 +46,7 @@ api::Result<StoredParameterSet> GetIn(Connection& c, std::int64_t id) {
           [](const Statement& s) -> api::Result<std::pair<ParameterSetSummary, std::string>> {
             auto summary = ReadSummary(s);
             if (!summary.ok()) return summary.status();
-            return std::pair{std::move(*summary), s.Text(11)};
+            return std::pair{std::move(*summary), s.Text(12)};
           },
           id),
       "parameter set", id);
@@ -150,11 +151,11 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
         c,
         "INSERT INTO parameter_sets (subject_id, leg_id, version, model, irc_method,"
         " passive_method, active_method, software_version, supersedes_id, created_at_utc,"
-        " params_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+        " params_json, run_id) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
         set.subject_id, set.leg_id, version, model::ModelKindName(params.model),
         params.provenance.irc_method, params.provenance.passive_method,
         params.provenance.active_method, params.provenance.software_version, set.supersedes_id,
-        FormatUtc(created_at), json_text);
+        FormatUtc(created_at), json_text, set.run_id);
     if (!inserted.ok()) return inserted.status();
     const std::int64_t id = *inserted;
     for (std::int64_t trial_id : trial_ids) {
@@ -180,6 +181,7 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
     summary.software_version = params.provenance.software_version;
     summary.supersedes_id = set.supersedes_id;
     summary.created_at = created_at;
+    summary.run_id = set.run_id;
     return summary;
   });
 }
@@ -278,6 +280,17 @@ api::Result<StoredParameterSet> ParameterSetRepository::Latest(std::int64_t subj
                                    ", leg " + std::to_string(leg_id));
     }
     return GetIn(c, latest->front());
+  });
+}
+
+api::Result<std::optional<std::int64_t>> ParameterSetRepository::IdForRun(std::int64_t run_id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::optional<std::int64_t>> {
+    auto ids = internal::QueryRows(
+        c, "SELECT id FROM parameter_sets WHERE run_id = ?1 ORDER BY id DESC LIMIT 1",
+        [](const Statement& s) { return s.Int64(0); }, run_id);
+    if (!ids.ok()) return ids.status();
+    if (ids->empty()) return std::optional<std::int64_t>();
+    return std::optional<std::int64_t>(ids->front());
   });
 }
 

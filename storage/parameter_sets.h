@@ -26,6 +26,7 @@ struct NewParameterSet {
   model::ParameterSet params;  ///< provenance.trial_ids / active_trial_id must be stored trials.
   std::optional<std::int64_t> supersedes_id;  ///< an earlier set of the same subject and leg.
   std::optional<UtcTime> created_at;          ///< default: the database clock.
+  std::optional<std::int64_t> run_id{};       ///< the run that identified it, if one did.
 };
 
 /// The indexed columns of a stored set.
@@ -41,6 +42,7 @@ struct ParameterSetSummary {
   std::string software_version;
   std::optional<std::int64_t> supersedes_id;
   UtcTime created_at;
+  std::optional<std::int64_t> run_id;  ///< the run that identified it (migration 13).
 };
 
 struct StoredParameterSet {
@@ -99,6 +101,8 @@ class ParameterSetRepository {
   /// Ids of the sets identified from at least one trial of the session,
   /// ascending (kNotFound for an unknown session).
   api::Result<std::vector<std::int64_t>> IdsForSession(std::int64_t session_id);
+  /// The set run `run_id` stored, if it stored one (the newest if several).
+  api::Result<std::optional<std::int64_t>> IdForRun(std::int64_t run_id);
   /// The stored JSON text, pretty-printed (2-space indent).
   api::Result<std::string> ExportJson(std::int64_t id);
 

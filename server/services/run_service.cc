@@ -451,6 +451,7 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
     ns.leg_id = run->leg_id;
     ns.params = *result.parameter_set;
     ns.supersedes_id = run->prior_parameter_set_id;
+    ns.run_id = run->run_id;
     std::vector<std::int64_t> ids;
     std::size_t expected = 0;  // trials the rapid set was fitted to
     if (run->rapid) {
@@ -679,8 +680,20 @@ api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
       if (r.reason == reason) v.result = ToleranceResultJson(r.details, r.revision);
     }
   }
-  // The set a completed run stored names the run's trials in its provenance.
-  if (v.state == RunState::kDone && !v.trial_ids.empty()) {
+  // The set a completed run stored names the run (migration 13); a set
+  // stored before that is found by its provenance naming the run's trials.
+  if (v.state == RunState::kDone) {
+    api::Result<std::optional<std::int64_t>> by_run =
+        storage::ParameterSetRepository(db_).IdForRun(run_id);
+    if (!by_run.ok()) return by_run.status();
+    if (*by_run) {
+      v.parameter_set_id = **by_run;
+      v.result = {{"parameter_set_id", **by_run}};
+      return v;
+    }
+  }
+  const bool may_have_set = v.protocol == "rapid_parameterisation" || v.protocol == "daily_check";
+  if (v.state == RunState::kDone && may_have_set && !v.trial_ids.empty()) {
     api::Result<storage::Session> session = storage::SessionRepository(db_).Get(run->session_id);
     if (!session.ok()) return session.status();
     storage::HistoryQuery q;

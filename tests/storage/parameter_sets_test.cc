@@ -72,6 +72,33 @@ TEST_P(StorageTest, ParameterSetRoundTripWithProvenance) {
   EXPECT_EQ(*parsed, expected);
 }
 
+// A set names the run that identified it (migration 13): found by run.
+TEST_P(StorageTest, ASetNamesItsRun) {
+  const Session session = MakeSession("R1");
+  SessionRepository sessions(*db_);
+  auto run = sessions.CreateRun(session.id, {"rapid_parameterisation", "1", "{}"});
+  auto other = sessions.CreateRun(session.id, {"free_swing", "1", "{}"});
+  ASSERT_TRUE(run.ok() && other.ok());
+  ParameterSetRepository sets(*db_);
+  NewParameterSet set{session.subject_id, session.leg_id, Params("ramp_correlation", "free_swing"),
+                      std::nullopt, std::nullopt};
+  set.run_id = run->id;
+  auto stored = sets.Insert(set);
+  ASSERT_TRUE(stored.ok()) << stored.status().ToString();
+  EXPECT_EQ(stored->run_id, run->id);
+  auto got = sets.Get(stored->id);
+  ASSERT_TRUE(got.ok());
+  EXPECT_EQ(got->summary.run_id, run->id);
+  auto by_run = sets.IdForRun(run->id);
+  ASSERT_TRUE(by_run.ok());
+  EXPECT_EQ(*by_run, stored->id);
+  auto none = sets.IdForRun(other->id);
+  ASSERT_TRUE(none.ok());
+  EXPECT_FALSE(none->has_value());
+  set.run_id = 999;  // no such run
+  EXPECT_EQ(sets.Insert(set).status().code(), api::ErrorCode::kInvalidArgument);
+}
+
 // Issue 18: a stored set is an event, raised after its transaction commits
 // (also when the insert is nested in a caller's transaction), never for a
 // transaction that rolls back.
