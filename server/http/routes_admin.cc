@@ -65,13 +65,10 @@ json TokenRowToJson(const TokenRow& t) {
           {"revoked_at_utc", t.revoked_at_utc ? json(*t.revoked_at_utc) : json(nullptr)}};
 }
 
-}  // namespace
-
-void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps) {
+// Users: list, create, deactivate.
+void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   Authenticator& auth = *deps.auth;
-  const std::string backup_dir = deps.backup_dir;
-
   table.Add({"GET", "/api/v1/users", kAdmin, false, "users", "List users", PageParams(), 200,
              "application/json", nullptr, nullptr,
              [&db](RequestContext& ctx) -> api::Result<Reply> {
@@ -122,7 +119,12 @@ void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps) {
                auth.Invalidate();
                return JsonReply(UserToJson(*user));
              }});
+}
 
+// Tokens: list, create (shown once), revoke.
+void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
+  Authenticator& auth = *deps.auth;
   table.Add({"GET", "/api/v1/tokens", kAdmin, false, "tokens",
              "List tokens (metadata; secrets are never shown again)", PageParams(), 200,
              "application/json", nullptr, nullptr,
@@ -185,7 +187,12 @@ void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps) {
                auth.Invalidate();
                return JsonReply(std::move(*revoked));
              }});
+}
 
+// The audit log, and the online backup.
+void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
+  const std::string backup_dir = deps.backup_dir;
   {
     std::vector<QueryParam> q = {{"limit", "integer", "page size, 1–500 (default 50)"},
                                  {"cursor", "string", "opaque cursor from next_cursor"},
@@ -251,6 +258,14 @@ void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!done.ok()) return done.status();
                return JsonReply(std::move(*done), 201);
              }});
+}
+
+}  // namespace
+
+void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps) {
+  AddUserRoutes(table, deps);
+  AddTokenRoutes(table, deps);
+  AddAuditAndBackupRoutes(table, deps);
 }
 
 }  // namespace fesbench::server::http

@@ -121,14 +121,9 @@ json VirtualSubjectPutSchema() {
   return {{"oneOf", {draw, full}}};
 }
 
-}  // namespace
-
-void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
+// Runs: start, get, cancel, stop, heartbeat.
+void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
   services::RunService* runs = deps.runs;
-  services::SampleHub* hub = deps.samples;
-  services::BenchService* bench = deps.bench;
-  StreamSlots* slots = deps.streams;
-
   table.Add({"POST", "/api/v1/sessions/{session_id}/runs", kClinician | kAdmin, true, "runs",
              "Start a protocol for a session (one run at a time; 409 while the bench is busy)",
              {}, 201, "application/json",
@@ -205,6 +200,13 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                }
                return JsonReply({{"run_id", ctx.Id("run_id")}, {"ok", true}});
              }});
+}
+
+// Event streams: a run's samples and states, new parameter sets.
+void AddStreamRoutes(RouteTable& table, const ApiDependencies& deps) {
+  services::RunService* runs = deps.runs;
+  services::SampleHub* hub = deps.samples;
+  StreamSlots* slots = deps.streams;
   table.Add({"GET", "/api/v1/runs/{run_id}/stream", kAnyRole, false, "runs",
              "Server-Sent Events of a run: state, progress, samples (batched, with "
              "first_sample), trial, end",
@@ -264,7 +266,12 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                                   std::chrono::seconds(timeout->value_or(300));
                return ServeEventStream(ctx, std::move(stream), slots);
              }});
+}
 
+// The bench: its state, e-stop and clearing it, the virtual subject.
+void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
+  services::RunService* runs = deps.runs;
+  services::BenchService* bench = deps.bench;
   table.Add({"GET", "/api/v1/bench", kAnyRole, false, "bench",
              "The bench: kind, limits, mode, e-stop, owner, current run and progress", {}, 200,
              "application/json", nullptr, nullptr,
@@ -313,6 +320,14 @@ void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
                ctx.audited = true;
                return JsonReply(std::move(*subject));
              }});
+}
+
+}  // namespace
+
+void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps) {
+  AddRunRoutes(table, deps);
+  AddStreamRoutes(table, deps);
+  AddBenchStateRoutes(table, deps);
 }
 
 }  // namespace fesbench::server::http

@@ -118,9 +118,8 @@ api::Result<services::ImportResult> ImportArchiveBody(storage::Database& db, Req
       });
 }
 
-}  // namespace
-
-void AddDataRoutes(RouteTable& table, const ApiDependencies& deps) {
+// The trial kinds, and importing a recording or a session archive.
+void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   table.Add(
       {"GET",
@@ -181,7 +180,11 @@ void AddDataRoutes(RouteTable& table, const ApiDependencies& deps) {
          return JsonReply(services::ImportResultToJson(*imported), 201);
        },
        true});
+}
 
+// A session's report and its export as an archive.
+void AddReportAndExportRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
   table.Add(
       {"GET",
        "/api/v1/sessions/{session_id}/report",
@@ -276,6 +279,13 @@ void AddDataRoutes(RouteTable& table, const ApiDependencies& deps) {
          ctx.res.set_content(std::move(*packed), std::string(services::ArchiveMediaType(format)));
          return Reply{200, nullptr, true};
        }});
+}
+
+}  // namespace
+
+void AddDataRoutes(RouteTable& table, const ApiDependencies& deps) {
+  AddImportRoutes(table, deps);
+  AddReportAndExportRoutes(table, deps);
 }
 
 }  // namespace fesbench::server::http

@@ -105,13 +105,10 @@ json CorrectionSchema(json details) {
                       {"reason", "details"});
 }
 
-}  // namespace
-
-void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
+// GET /health: liveness, version, schema version.
+void AddHealthRoute(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   const std::string version = deps.server_version;
-  auto cache = std::make_shared<ParameterSetCache>();
-
   table.Add({"GET",
              "/api/v1/health",
              0,
@@ -131,8 +128,11 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                                  {"schema_version", *schema},
                                  {"time_utc", storage::FormatUtc(storage::NowUtc())}});
              }});
+}
 
-  // --- subjects ---------------------------------------------------------------
+// Subjects: list, create, get, correct, revisions.
+void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
   {
     auto q = PageParams();
     q.push_back({"code", "string", "exact pseudonymous code"});
@@ -276,8 +276,11 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!revisions.ok()) return revisions.status();
                return JsonReply(RevisionsJson(*revisions, &SubjectRevisionToJson));
              }});
+}
 
-  // --- sessions ---------------------------------------------------------------
+// Sessions: a subject's list, create, get, correct, revisions.
+void AddSessionRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
   {
     auto q = PageParams();
     q.push_back({"from", "string", "sessions on or after this date (YYYY-MM-DD)"});
@@ -435,6 +438,11 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!revisions.ok()) return revisions.status();
                return JsonReply(RevisionsJson(*revisions, &SessionRevisionToJson));
              }});
+}
+
+// A session's runs and trials, paged.
+void AddSessionRunAndTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
   table.Add({"GET", "/api/v1/sessions/{session_id}/runs", kAnyRole, false, "runs",
              "The runs of a session (history; each item has the shape of GET /runs/{id})",
              PageParams(), 200, "application/json", nullptr, nullptr,
@@ -476,8 +484,11 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                    *trials, *page, [](const storage::TrialSummary& t) { return t.id; },
                    TrialSummaryToJson));
              }});
+}
 
-  // --- trials -------------------------------------------------------------------
+// Trials: get, and export as CSV or OpenSim .sto.
+void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
   table.Add(
       {"GET",
        "/api/v1/trials/{trial_id}",
@@ -577,8 +588,12 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
              "text/plain");
          return Reply{200, nullptr, true};
        }});
+}
 
-  // --- parameter sets -------------------------------------------------------------
+// Parameter sets: history, get (cached JSON), predictions, export.
+void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
+  auto cache = std::make_shared<ParameterSetCache>();
   {
     auto q = PageParams();
     q.push_back({"subject_id", "integer", "only this subject's sets"});
@@ -704,8 +719,11 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                                  {"output", parse(p->prediction.output_json)},
                                  {"created_at_utc", storage::FormatUtc(p->created_at)}});
              }});
+}
 
-  // --- protocols -------------------------------------------------------------------
+// Protocols: the catalog and one protocol, with defaults resolved from a session.
+void AddProtocolRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
   // ?session_id=N resolves the defaults derived from the session.
   const auto session_context =
       [&db, runs = deps.runs](
@@ -746,6 +764,18 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply(protocols::ProtocolToJson(*protocol, &(*context)->subject,
                                                           (*context)->has_stimulation_limits));
              }});
+}
+
+}  // namespace
+
+void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
+  AddHealthRoute(table, deps);
+  AddSubjectRoutes(table, deps);
+  AddSessionRoutes(table, deps);
+  AddSessionRunAndTrialRoutes(table, deps);
+  AddTrialRoutes(table, deps);
+  AddParameterSetRoutes(table, deps);
+  AddProtocolRoutes(table, deps);
 }
 
 }  // namespace fesbench::server::http
