@@ -243,6 +243,18 @@ class RunService {
                    const std::string& reason);
   void RecordTrial(const std::shared_ptr<LiveRun>& run, const protocols::RecordedTrial& trial);
   void RecordFinish(const std::shared_ptr<LiveRun>& run, const protocols::RunResult& result);
+  // RecordFinish's parts (run_recording.cc): the set and the session limits
+  // the run stores, the one write transaction (with fallbacks), the final
+  // view and its event.
+  struct FinishRecord;
+  void PrepareParameterSet(const LiveRun& run, const protocols::RunResult& result,
+                           FinishRecord& f) const;
+  void PrepareMeasuredLimits(const LiveRun& run, const protocols::RunResult& result,
+                             FinishRecord& f);
+  api::Status WriteFinish(const LiveRun& run, FinishRecord& f, bool with_results);
+  void StoreFinish(const LiveRun& run, FinishRecord& f);
+  void PublishFinish(const std::shared_ptr<LiveRun>& run, const protocols::RunResult& result,
+                     FinishRecord& f);
   api::Status Audit(const Actor& actor, const std::string& action, const std::string& target,
                     const std::string& summary, const std::string& outcome);
   std::shared_ptr<LiveRun> FindLive(std::int64_t run_id) const;

@@ -1,0 +1,70 @@
+#include "server/services/run_service.h"
+
+#include "storage/parameter_sets.h"
+#include "storage/sessions.h"
+#include "storage/subjects.h"
+#include "storage/trials.h"
+
+namespace fesbench::server::services {
+
+api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64_t session_id,
+                                               const BenchLimits& limits) {
+  api::Result<storage::Session> session = storage::SessionRepository(db).Get(session_id);
+  if (!session.ok()) return session.status();
+  api::Result<storage::Subject> subject = storage::SubjectRepository(db).Get(session->subject_id);
+  if (!subject.ok()) return subject.status();
+
+  SessionContext out;
+  out.session = *session;
+  protocols::SubjectContext& c = out.subject;
+  const storage::SessionDetails& d = session->current.details;
+  out.has_stimulation_limits = d.threshold_ma.has_value() && d.max_tolerated_ma.has_value();
+  // Without recorded limits only tolerance_test may run (it measures them):
+  // without a recorded max, the stimulator's range, which the test's
+  // ceiling_ma bounds; with one, the recorded max bounds the test too.
+  c.threshold_ma = d.threshold_ma.value_or(0.0);
+  c.max_tolerated_recorded = d.max_tolerated_ma.has_value();
+  c.max_tolerated_ma = c.max_tolerated_recorded ? *d.max_tolerated_ma : limits.max_stim_ma;
+  // Storage keeps no range of motion: the bench's mechanical range (DESIGN.md §2).
+  c.min_angle_deg = limits.min_angle_deg;
+  c.max_angle_deg = limits.max_angle_deg;
+  // Eq. 4.13, §4.2.1: body mass and the femoral condyle–medial malleolus
+  // length (the shank length) give the inertia when no prior set does.
+  const storage::SubjectDetails& a = subject->current.details;
+  if (a.weight_kg) c.body_mass_kg = *a.weight_kg;
+  if (a.shank_length_cm) c.leg_length_m = *a.shank_length_cm / 100.0;
+
+  api::Result<storage::StoredParameterSet> latest =
+      storage::ParameterSetRepository(db).Latest(session->subject_id, session->leg_id);
+  if (latest.ok()) {
+    c.parameter_set = latest->params;
+    c.parameter_set_id = latest->summary.id;
+    out.parameter_set_id = latest->summary.id;
+    // The leg's history, newest first (daily_check's drift bounds).
+    storage::ParameterSetRepository sets(db);
+    storage::HistoryQuery q;
+    q.subject_id = session->subject_id;
+    q.leg_id = session->leg_id;
+    api::Result<std::vector<storage::ParameterSetSummary>> history = sets.History(q);
+    if (!history.ok()) return history.status();
+    for (auto it = history->rbegin(); it != history->rend() && c.history.size() < 20; ++it) {
+      api::Result<storage::StoredParameterSet> s = sets.Get(it->id);
+      if (s.ok()) c.history.push_back(s->params);
+    }
+    storage::TrialRepository trials(db);
+    for (std::int64_t id : latest->trial_ids) {
+      api::Result<api::Trial> t = trials.Get(id);
+      if (!t.ok()) continue;
+      const std::string name = t->name.value_or("");
+      if (name == "rapid_isometric_ramp_irc" || name == "daily_check_ramp_irc") {
+        c.base_ramp_trial = api::ToTrialColumns(*t);
+        break;
+      }
+    }
+  } else if (latest.status().code() != api::ErrorCode::kNotFound) {
+    return latest.status();
+  }
+  return out;
+}
+
+}  // namespace fesbench::server::services
