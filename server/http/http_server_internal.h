@@ -1,0 +1,256 @@
+#pragma once
+
+/// @file
+/// HttpServer's internals, shared by http_server.cc (binding, workers, routing)
+/// and http_connection.cc (accepting, reading, framing, answering and closing
+/// connections). Not for other users.
+
+#include <arpa/inet.h>
+#include <httplib.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <openssl/err.h>
+#include <openssl/ssl.h>
+#include <poll.h>
+#include <sys/epoll.h>
+#include <sys/eventfd.h>
+#include <sys/socket.h>
+#include <unistd.h>
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <exception>
+#include <iostream>
+#include <thread>
+
+#include "server/http/errors.h"
+#include "server/http/json_fields.h"
+#include "server/http/request_framing.h"
+#include "server/http/http_server.h"
+#include "storage/audit_log.h"
+
+namespace fesbench::server::http {
+
+using Clock = std::chrono::steady_clock;
+
+// Two workers beyond max_connections + max_streams, for urgent routes.
+inline constexpr std::size_t kUrgentReserve = 2;
+// How long a closed connection keeps reading (and discarding) what the
+// client still sends, so that the client reads our last answer instead of
+// a reset.
+inline constexpr auto kLinger = std::chrono::milliseconds(2000);
+inline constexpr std::size_t kReadChunk = 16 * 1024;
+inline constexpr std::size_t kWriteBuffer = 64 * 1024;
+
+inline const char* ReasonPhrase(int status) {
+  switch (status) {
+    case 400: return "Bad Request";
+    case 408: return "Request Timeout";
+    case 411: return "Length Required";
+    case 413: return "Payload Too Large";
+    case 414: return "URI Too Long";
+    case 431: return "Request Header Fields Too Large";
+    case 503: return "Service Unavailable";
+    default: return "Error";
+  }
+}
+
+inline std::string AddressText(const sockaddr_storage& addr, int& port) {
+  char text[INET6_ADDRSTRLEN] = "";
+  if (addr.ss_family == AF_INET) {
+    const auto* in = reinterpret_cast<const sockaddr_in*>(&addr);
+    ::inet_ntop(AF_INET, &in->sin_addr, text, sizeof text);
+    port = ntohs(in->sin_port);
+  } else if (addr.ss_family == AF_INET6) {
+    const auto* in6 = reinterpret_cast<const sockaddr_in6*>(&addr);
+    ::inet_ntop(AF_INET6, &in6->sin6_addr, text, sizeof text);
+    port = ntohs(in6->sin6_port);
+  }
+  return text;
+}
+
+// httplib's request parser, routing and response writer, fed one buffered
+// request at a time (process_request is protected: reached by subclassing).
+class HttpServer::Engine : public httplib::Server {
+ public:
+  using httplib::Server::process_request;
+  // Content providers (event streams) run only while the library believes
+  // it is listening: it checks its own listening socket, which we hold.
+  void SetServing(socket_t listening) { svr_sock_ = listening; }
+};
+
+// One client connection. Owned by connections_; a worker holds `mutex`
+// while it reads, handles or closes it, so at most one thread touches it
+// (epoll's one-shot arming hands each readiness event to one worker).
+struct HttpServer::Connection {
+  std::mutex mutex;
+  std::uint64_t id = 0;
+  int fd = -1;
+  SSL* ssl = nullptr;
+  bool handshaken = false;
+  std::string in;   ///< received, not yet handled.
+  std::string out;  ///< response bytes not yet sent.
+  std::string remote_ip, local_ip;
+  int remote_port = 0, local_port = 0;
+  Clock::time_point deadline;
+  bool request_started = false;  ///< `in` holds part of a request.
+  bool head_seen = false;
+  bool continue_sent = false;
+  bool peer_closed = false;  ///< the client half-closed (FIN read).
+  bool lingering = false;    ///< answered and shut down; discarding input.
+  bool closed = false;
+  std::size_t served = 0;
+
+  // Reads what is available, up to `limit` bytes in `in`. False on a
+  // connection error.
+  bool ReadAvailable(std::size_t limit) {
+    char buffer[kReadChunk];
+    while (in.size() < limit) {
+      ssize_t n;
+      if (ssl) {
+        ERR_clear_error();
+        n = SSL_read(ssl, buffer, static_cast<int>(sizeof buffer));
+        if (n <= 0) {
+          const int error = SSL_get_error(ssl, static_cast<int>(n));
+          if (error == SSL_ERROR_WANT_READ || error == SSL_ERROR_WANT_WRITE) return true;
+          if (error == SSL_ERROR_ZERO_RETURN) {
+            peer_closed = true;
+            return true;
+          }
+          return false;
+        }
+      } else {
+        n = ::recv(fd, buffer, sizeof buffer, MSG_DONTWAIT);
+        if (n == 0) {
+          peer_closed = true;
+          return true;
+        }
+        if (n < 0) return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR;
+      }
+      in.append(buffer, static_cast<std::size_t>(n));
+      if (!ssl && static_cast<std::size_t>(n) < sizeof buffer) return true;  // drained
+    }
+    return true;
+  }
+
+  // Reads and drops what has arrived (bypassing TLS); false once the client
+  // closed or the connection failed.
+  bool Discard() {
+    char buffer[kReadChunk];
+    for (;;) {
+      const ssize_t n = ::recv(fd, buffer, sizeof buffer, MSG_DONTWAIT);
+      if (n == 0) return false;
+      if (n < 0) return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR;
+    }
+  }
+
+  // Waits until the socket is ready for `events` or the timeout passes.
+  bool WaitFor(short events, std::chrono::milliseconds timeout) const {
+    pollfd p{fd, events, 0};
+    int r;
+    do {
+      r = ::poll(&p, 1, static_cast<int>(timeout.count()));
+    } while (r < 0 && errno == EINTR);
+    return r > 0 && (p.revents & (POLLERR | POLLNVAL)) == 0;
+  }
+
+  // Sends all of `data`, waiting at most `timeout` each time the socket is full.
+  bool SendAll(std::string_view data, std::chrono::milliseconds timeout) {
+    while (!data.empty()) {
+      ssize_t n;
+      if (ssl) {
+        ERR_clear_error();
+        n = SSL_write(ssl, data.data(), static_cast<int>(std::min<std::size_t>(data.size(), 1 << 30)));
+        if (n <= 0) {
+          const int error = SSL_get_error(ssl, static_cast<int>(n));
+          if (error == SSL_ERROR_WANT_WRITE && WaitFor(POLLOUT, timeout)) continue;
+          if (error == SSL_ERROR_WANT_READ && WaitFor(POLLIN, timeout)) continue;
+          return false;
+        }
+      } else {
+        n = ::send(fd, data.data(), data.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+        if (n < 0) {
+          if (errno == EINTR) continue;
+          if ((errno == EAGAIN || errno == EWOULDBLOCK) && WaitFor(POLLOUT, timeout)) continue;
+          return false;
+        }
+      }
+      data.remove_prefix(static_cast<std::size_t>(n));
+    }
+    return true;
+  }
+
+  bool Flush(std::chrono::milliseconds timeout) {
+    const bool ok = SendAll(out, timeout);
+    out.clear();
+    return ok;
+  }
+
+  // The client has closed its side (a FIN is waiting to be read).
+  bool PeerGone() const {
+    char byte;
+    const ssize_t n = ::recv(fd, &byte, 1, MSG_PEEK | MSG_DONTWAIT);
+    return n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR);
+  }
+};
+
+// One buffered request as httplib's Stream: reads come from memory, writes
+// go to the connection (the head joined with what follows it).
+class RequestStream final : public httplib::Stream {
+ public:
+  RequestStream(HttpServer::Connection& c, std::string_view request,
+                std::chrono::milliseconds write_timeout)
+      : c_(c), request_(request), write_timeout_(write_timeout) {}
+
+  bool is_readable() const override { return pos_ < request_.size(); }
+  bool is_writable() const override {
+    // Asked by content providers (event streams): report a departed client
+    // so its worker is freed.
+    return !failed_ && c_.Flush(write_timeout_) && !c_.PeerGone() &&
+           c_.WaitFor(POLLOUT, write_timeout_);
+  }
+  ssize_t read(char* ptr, size_t size) override {
+    const std::size_t n = std::min(size, request_.size() - pos_);
+    std::memcpy(ptr, request_.data() + pos_, n);
+    pos_ += n;
+    return static_cast<ssize_t>(n);
+  }
+  ssize_t write(const char* ptr, size_t size) override {
+    if (failed_) return -1;
+    c_.out.append(ptr, size);
+    // The library writes the response head first: keep it until the body
+    // (or the end) so both leave in one segment; send every later write at
+    // once (event-stream chunks must not wait).
+    if ((writes_++ > 0 || c_.out.size() >= kWriteBuffer) && !c_.Flush(write_timeout_)) {
+      failed_ = true;
+      return -1;
+    }
+    return static_cast<ssize_t>(size);
+  }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override {
+    ip = c_.remote_ip;
+    port = c_.remote_port;
+  }
+  void get_local_ip_and_port(std::string& ip, int& port) const override {
+    ip = c_.local_ip;
+    port = c_.local_port;
+  }
+  // The library's only server-side use is an FD_SETSIZE guard for its own
+  // select()-based socket reads, which this stream does not do.
+  socket_t socket() const override { return -1; }
+
+  bool Finish() { return !failed_ && c_.Flush(write_timeout_); }
+
+ private:
+  HttpServer::Connection& c_;
+  std::string_view request_;
+  std::size_t pos_ = 0;
+  std::size_t writes_ = 0;
+  std::chrono::milliseconds write_timeout_;
+  mutable bool failed_ = false;
+};
+
+}  // namespace fesbench::server::http
