@@ -26,8 +26,7 @@ int main(int argc, char** argv) {
   }
   PostgresServer::StopIn(dir);  // a server a killed run left behind
   if (PostgresServer::BinDir().empty()) {
-    std::cout << "PostgreSQL server binaries not found: the PostgreSQL tests will skip "
-                 "(install postgresql-15: scripts/setup.sh does)\n";
+    std::cout << fesbench::testing::kBinariesMissing << ": the PostgreSQL tests will skip\n";
     return 0;
   }
   auto server = PostgresServer::Start(dir);

@@ -10,21 +10,30 @@
 // its base URL to $FESBENCH_TEST_PG_DIR/url; a test binary run on its own
 // starts one itself. Each test then takes a ScratchDatabase of its own.
 
+#include <sys/types.h>
+
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "api/status.h"
 
 namespace fesbench::testing {
 
+/// Why the PostgreSQL tests skip on a machine without the server.
+inline constexpr std::string_view kBinariesMissing =
+    "PostgreSQL server binaries not found (install postgresql-15: scripts/setup.sh does)";
+
 class PostgresServer {
  public:
-  /// initdb into `dir`/data and start the server; kUnavailable (with the log)
-  /// when the binaries are missing or the server does not come up.
+  /// initdb into `dir`/data (`dir` is emptied first) and start the server on
+  /// a free loopback port, waiting until it accepts connections; kUnavailable
+  /// (with initdb's output or the server log) when the binaries are missing
+  /// or the server does not come up.
   static api::Result<std::unique_ptr<PostgresServer>> Start(const std::filesystem::path& dir);
   /// Stops the server (pg_ctl stop -m fast) and removes its folder, unless
-  /// detached.
+  /// detached (or in a forked child of the process that started it).
   ~PostgresServer();
   PostgresServer(const PostgresServer&) = delete;
   PostgresServer& operator=(const PostgresServer&) = delete;
@@ -42,19 +51,25 @@ class PostgresServer {
   static void StopIn(const std::filesystem::path& dir);
 
  private:
-  PostgresServer(std::filesystem::path dir, int port) : dir_(std::move(dir)), port_(port) {}
+  PostgresServer(std::filesystem::path dir, int port);
   std::filesystem::path dir_;
   int port_;
+  pid_t owner_pid_;
   bool detached_ = false;
 };
 
-/// CREATE DATABASE / DROP DATABASE … WITH (FORCE) through the server's
-/// `postgres` database; `base_url` ends with '/'.
+/// CREATE DATABASE / DROP DATABASE IF EXISTS … WITH (FORCE) through the
+/// server's `postgres` database; `base_url` ends with '/'. kUnavailable when
+/// the server cannot be reached, kAlreadyExists for a taken name.
 api::Status CreateDatabase(const std::string& base_url, const std::string& name);
 api::Status DropDatabase(const std::string& base_url, const std::string& name);
 
 /// The server this process's tests use: its base URL
-/// ("postgresql://postgres@127.0.0.1:<port>/"), or why there is none.
+/// ("postgresql://postgres@127.0.0.1:<port>/"), or why there is none. The
+/// fixture's (the url file in $FESBENCH_TEST_PG_DIR) if there is one, else
+/// one started on first use in <temp>/fesbench_pg_<pid> and stopped at exit
+/// (then too any <temp>/fesbench_pg_<pid>[_…] of a process that died
+/// without stopping its own). Thread-safe.
 struct SharedPostgres {
   std::string base_url;
   std::string skip_reason;
@@ -77,7 +92,10 @@ class ScratchDatabase {
   /// True when the reason is only that PostgreSQL is not installed here:
   /// the test is skipped (visibly); any other failure fails it.
   bool skippable() const { return binaries_missing_; }
+  /// postgresql://postgres@127.0.0.1:<port>/<name>
   const std::string& url() const { return url_; }
+  /// fesbench_t_<pid>_<counter>_<random>
+  const std::string& name() const { return name_; }
 
  private:
   std::string base_url_;
