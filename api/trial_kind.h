@@ -23,6 +23,7 @@ enum class TrialKind {
   kRampIrc,
   kStepIrc,
   kImpulseIrc,
+  kIsometricPrediction,
   kPassivePositions,
   kPassiveVelocities,
   kPassiveSimultaneous,
@@ -56,6 +57,9 @@ struct TrialKindInfo {
   /// The motor moves or holds the knee: the angle is not a response to the
   /// stimulation, so such a trial is not predicted.
   bool motor = false;
+  /// The knee is locked throughout: the trial is predicted isometrically
+  /// (torque), not in free swing.
+  bool knee_locked = false;
 };
 
 /// Every known kind, in protocol order.

@@ -77,6 +77,135 @@ api::Status BootstrapAdmin(storage::Database& db, const std::filesystem::path& t
   return api::Status::Ok();
 }
 
+// The bench: a simulated leg (seeded virtual subject) or a replay of CSV
+// trials. `simulated` is the simulated one (its subject can be swapped), or null.
+struct OpenedBench {
+  std::unique_ptr<server::Bench> bench;
+  server::services::SwappableSimulatedBench* simulated = nullptr;
+};
+api::Result<OpenedBench> OpenBench(const server::ServerConfig& config) {
+  OpenedBench opened;
+  if (config.bench == "sim") {
+    server::SimulatedBenchOptions options;
+    options.time_scale = config.time_scale;
+    options.seed = config.seed;
+    options.limits.max_stop_impact_deg_s = config.max_stop_impact_deg_s;
+    auto sim = server::services::SwappableSimulatedBench::Create(
+        server::DrawVirtualSubject(config.seed), options);
+    if (!sim.ok()) return sim.status();
+    opened.simulated = sim->get();
+    opened.bench = std::move(*sim);
+    return opened;
+  }
+  server::ReplayBenchOptions options;
+  options.time_scale = config.time_scale;
+  options.limits.max_stop_impact_deg_s = config.max_stop_impact_deg_s;
+  std::vector<std::filesystem::path> files(config.replay.begin(), config.replay.end());
+  auto replay = server::ReplayBench::FromCsvFiles(files, options);
+  if (!replay.ok()) return replay.status();
+  opened.bench = std::move(*replay);
+  return opened;
+}
+
+// Connects a stimulator device and puts it in place of `bench`'s own (issue
+// 21), when one is configured.
+template <typename Device, typename Config>
+api::Status Compose(Config device_config, std::unique_ptr<server::Bench>& bench) {
+  auto device = std::make_unique<Device>(std::move(device_config));
+  if (!device->Connect()) return api::Status::Unavailable(device->fault());
+  bench = std::make_unique<server::ComposedBench>(std::move(bench), std::move(device));
+  return api::Status::Ok();
+}
+
+// A real stimulator in place of the bench's own (issue 21): the device
+// delivers; the sensors and the motor stay the bench's.
+api::Status AttachStimulator(const server::ServerConfig& config,
+                             std::unique_ptr<server::Bench>& bench) {
+  const server::BenchLimits& limits = bench->limits();
+  if (config.stimulator == "sciencemode2") {
+    server::sciencemode2::StimulatorConfig sm2;
+    sm2.port_path = config.stimulator_port;
+    sm2.channel = config.stimulator_channel;
+    sm2.pulse_rate_hz = limits.pulse_rate_hz;
+    sm2.pulse_width_us = static_cast<int>(limits.pulse_width_us);
+    sm2.session_max_ma = limits.max_stim_ma;
+    return Compose<server::sciencemode2::Stimulator>(sm2, bench);
+  }
+  if (config.stimulator == "sciencemode4") {
+    server::sciencemode4::StimulatorConfig sm4;
+    sm4.port_path = config.stimulator_port;
+    sm4.channel = config.stimulator_channel;
+    sm4.pulse_width_us = static_cast<int>(limits.pulse_width_us);
+    sm4.session_max_ma = limits.max_stim_ma;
+    return Compose<server::sciencemode4::Stimulator>(sm4, bench);
+  }
+  return api::Status::Ok();
+}
+
+// The DDS front end (DESIGN.md §9): the same services, commands through the
+// same RunService calls and audit log as HTTP.
+api::Result<std::unique_ptr<server::dds::DdsServer>> StartDds(
+    const server::ServerConfig& config, const std::string& bench_id, storage::Database& db,
+    server::services::RunService& runs, server::services::SampleHub& hub,
+    server::services::CommandService& commands) {
+  server::dds::DdsServerOptions options;
+  options.participant.domain_id = config.dds_domain;
+  options.participant.transport = *fesbench::dds::ParseTransport(config.dds_transport);
+  options.participant.profile_file = config.dds_profile;
+  options.participant.profile_name = config.dds_profile_name;
+  options.participant.name = "fesbench-server";
+  if (!config.dds_security.empty()) {
+    auto files = fesbench::dds::SecurityFilesIn(config.dds_security, config.dds_identity);
+    if (!files.ok()) return files.status();
+    options.participant.security = *files;
+  }
+  options.bench_id = config.dds_bench_id.empty() ? bench_id : config.dds_bench_id;
+  return server::dds::DdsServer::Start(options, db, runs, hub, commands);
+}
+
+// Runs a crash left open end failed, and an e-stop latched before the stop
+// is latched again; both said on the console.
+api::Status Recover(server::services::RunService& runs) {
+  auto recovered = runs.RecoverAfterRestart();
+  if (!recovered.ok()) return recovered.status();
+  for (const std::int64_t id : recovered->failed_run_ids) {
+    std::cout << "fesbench-server: run " << id << " was left unfinished: failed ("
+              << server::services::kStoppedDuringRunReason << ")\n";
+  }
+  if (recovered->estop_source) {
+    std::cout << "fesbench-server: e-stop still latched (" << *recovered->estop_source
+              << "): clear it with DELETE /api/v1/bench/estop\n";
+  }
+  return api::Status::Ok();
+}
+
+// What the server is and where it listens, once it is listening.
+void PrintBanner(const server::ServerConfig& config, std::string_view bench_kind,
+                 const std::string& db_name, const std::string& bench_id,
+                 const std::filesystem::path& token_path, const server::dds::DdsServer* dds,
+                 int port) {
+  const std::string scheme = config.tls_cert.empty() ? "http" : "https";
+  const std::string host = config.bind == "0.0.0.0" ? "127.0.0.1" : config.bind;
+  const std::string dds_text =
+      dds ? "domain " + std::to_string(config.dds_domain) + ", transport " +
+                config.dds_transport + ", bench id " + dds->bench_id() +
+                (config.dds_security.empty() ? std::string(", unsecured")
+                                             : ", secured as identity " + config.dds_identity)
+          : std::string("off");
+  const bool web_built =
+      std::filesystem::is_regular_file(std::filesystem::path(config.web_root) / "index.html");
+  std::cout << "fesbench-server: bench " << bench_kind << ", time scale " << config.time_scale
+            << ", database " << db_name << ", bench id " << bench_id << "\n"
+            << "fesbench-server: admin token file " << token_path.string() << "\n"
+            << "fesbench-server: DDS " << dds_text << "\n"
+            << "fesbench-server: web client "
+            << (web_built ? "from " + config.web_root
+                          : "not built (no index.html in --web-root \"" + config.web_root + "\")")
+            << "\n"
+            << "fesbench-server: listening on " << scheme << "://" << host << ":" << port << "/"
+            << std::endl;
+}
+
 int Fail(const std::string& what, const api::Status& status) {
   std::cerr << "fesbench-server: " << what << ": " << status.ToString() << std::endl;
   return 1;
@@ -127,55 +256,14 @@ int main(int argc, char** argv) {
   const std::filesystem::path token_path = data_dir / "admin.token";
   if (auto st = BootstrapAdmin(**db, token_path); !st.ok()) return Fail("admin bootstrap", st);
 
-  // The bench: a simulated leg (seeded virtual subject) or a replay of CSV trials.
-  std::unique_ptr<server::Bench> bench;
-  server::services::SwappableSimulatedBench* simulated = nullptr;
-  if (config.bench == "sim") {
-    server::SimulatedBenchOptions options;
-    options.time_scale = config.time_scale;
-    options.seed = config.seed;
-    options.limits.max_stop_impact_deg_s = config.max_stop_impact_deg_s;
-    auto sim = server::services::SwappableSimulatedBench::Create(
-        server::DrawVirtualSubject(config.seed), options);
-    if (!sim.ok()) return Fail("simulated bench", sim.status());
-    simulated = sim->get();
-    bench = std::move(*sim);
-  } else {
-    server::ReplayBenchOptions options;
-    options.time_scale = config.time_scale;
-    options.limits.max_stop_impact_deg_s = config.max_stop_impact_deg_s;
-    std::vector<std::filesystem::path> files(config.replay.begin(), config.replay.end());
-    auto replay = server::ReplayBench::FromCsvFiles(files, options);
-    if (!replay.ok()) return Fail("replay bench", replay.status());
-    bench = std::move(*replay);
+  auto opened = OpenBench(config);
+  if (!opened.ok()) {
+    return Fail(config.bench == "sim" ? "simulated bench" : "replay bench", opened.status());
   }
-  // A real stimulator in place of the bench's own (issue 21): the device
-  // delivers; the sensors and the motor stay the bench's above.
-  if (config.stimulator == "sciencemode2") {
-    server::sciencemode2::StimulatorConfig sm2;
-    sm2.port_path = config.stimulator_port;
-    sm2.channel = config.stimulator_channel;
-    sm2.pulse_rate_hz = bench->limits().pulse_rate_hz;
-    sm2.pulse_width_us = static_cast<int>(bench->limits().pulse_width_us);
-    sm2.session_max_ma = bench->limits().max_stim_ma;
-    auto device = std::make_unique<server::sciencemode2::Stimulator>(sm2);
-    if (!device->Connect()) {
-      return Fail("stimulator on " + config.stimulator_port,
-                  api::Status::Unavailable(device->fault()));
-    }
-    bench = std::make_unique<server::ComposedBench>(std::move(bench), std::move(device));
-  } else if (config.stimulator == "sciencemode4") {
-    server::sciencemode4::StimulatorConfig sm4;
-    sm4.port_path = config.stimulator_port;
-    sm4.channel = config.stimulator_channel;
-    sm4.pulse_width_us = static_cast<int>(bench->limits().pulse_width_us);
-    sm4.session_max_ma = bench->limits().max_stim_ma;
-    auto device = std::make_unique<server::sciencemode4::Stimulator>(sm4);
-    if (!device->Connect()) {
-      return Fail("stimulator on " + config.stimulator_port,
-                  api::Status::Unavailable(device->fault()));
-    }
-    bench = std::make_unique<server::ComposedBench>(std::move(bench), std::move(device));
+  std::unique_ptr<server::Bench> bench = std::move(opened->bench);
+  server::services::SwappableSimulatedBench* simulated = opened->simulated;
+  if (auto st = AttachStimulator(config, bench); !st.ok()) {
+    return Fail("stimulator on " + config.stimulator_port, st);
   }
 
   server::services::SampleHub hub;
@@ -189,16 +277,7 @@ int main(int argc, char** argv) {
   server::services::RunService runs(**db, *bench, hub, run_config);
   // Before anything can start a run: runs a crash left open end failed,
   // and an e-stop latched before the stop is latched again.
-  auto recovered = runs.RecoverAfterRestart();
-  if (!recovered.ok()) return Fail("recovery at start", recovered.status());
-  for (const std::int64_t id : recovered->failed_run_ids) {
-    std::cout << "fesbench-server: run " << id << " was left unfinished: failed ("
-              << server::services::kStoppedDuringRunReason << ")\n";
-  }
-  if (recovered->estop_source) {
-    std::cout << "fesbench-server: e-stop still latched (" << *recovered->estop_source
-              << "): clear it with DELETE /api/v1/bench/estop\n";
-  }
+  if (api::Status st = Recover(runs); !st.ok()) return Fail("recovery at start", st);
   server::services::BenchService bench_service(**db, runs, simulated);
   server::services::JobPoolConfig job_config;
   job_config.workers = config.job_workers;
@@ -219,19 +298,7 @@ int main(int argc, char** argv) {
   server::services::CommandService dds_commands(**db, runs, "dds");
   std::unique_ptr<server::dds::DdsServer> dds;
   if (config.dds_transport != "off") {
-    server::dds::DdsServerOptions dds_options;
-    dds_options.participant.domain_id = config.dds_domain;
-    dds_options.participant.transport = *fesbench::dds::ParseTransport(config.dds_transport);
-    dds_options.participant.profile_file = config.dds_profile;
-    dds_options.participant.profile_name = config.dds_profile_name;
-    dds_options.participant.name = "fesbench-server";
-    if (!config.dds_security.empty()) {
-      auto files = fesbench::dds::SecurityFilesIn(config.dds_security, config.dds_identity);
-      if (!files.ok()) return Fail("DDS", files.status());
-      dds_options.participant.security = *files;
-    }
-    dds_options.bench_id = config.dds_bench_id.empty() ? bench_id : config.dds_bench_id;
-    auto started = server::dds::DdsServer::Start(dds_options, **db, runs, hub, dds_commands);
+    auto started = StartDds(config, bench_id, **db, runs, hub, dds_commands);
     if (!started.ok()) return Fail("DDS", started.status());
     dds = std::move(*started);
   }
@@ -267,26 +334,7 @@ int main(int argc, char** argv) {
   auto port = http.Bind();
   if (!port.ok()) return Fail("cannot listen", port.status());
 
-  const std::string scheme = config.tls_cert.empty() ? "http" : "https";
-  const std::string host = config.bind == "0.0.0.0" ? "127.0.0.1" : config.bind;
-  std::cout
-      << "fesbench-server: bench " << bench->kind() << ", time scale " << config.time_scale
-      << ", database " << db_name << ", bench id " << bench_id << "\n"
-      << "fesbench-server: admin token file " << token_path.string() << "\n"
-      << "fesbench-server: DDS "
-      << (dds ? "domain " + std::to_string(config.dds_domain) + ", transport " +
-                    config.dds_transport + ", bench id " + dds->bench_id() +
-                    (config.dds_security.empty() ? std::string(", unsecured")
-                                                 : ", secured as identity " + config.dds_identity)
-              : std::string("off"))
-      << "\n"
-      << "fesbench-server: web client "
-      << (std::filesystem::is_regular_file(std::filesystem::path(config.web_root) / "index.html")
-              ? "from " + config.web_root
-              : "not built (no index.html in --web-root \"" + config.web_root + "\")")
-      << "\n"
-      << "fesbench-server: listening on " << scheme << "://" << host << ":" << *port << "/"
-      << std::endl;
+  PrintBanner(config, bench->kind(), db_name, bench_id, token_path, dds.get(), *port);
 
   std::thread waiter([&] {
     int signal = 0;

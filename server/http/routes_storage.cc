@@ -278,7 +278,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
 }
 
-// Sessions: a subject's list, create, get, correct, revisions.
+// Sessions: a subject's list, and a new one.
 void AddSessionRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   {
@@ -365,6 +365,11 @@ void AddSessionRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (!created.ok()) return created.status();
          return JsonReply(std::move(*created), 201);
        }});
+}
+
+// One session: get, correct, revisions.
+void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
+  storage::Database& db = *deps.db;
   table.Add({"GET",
              "/api/v1/sessions/{session_id}",
              kAnyRole,
@@ -772,6 +777,7 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps) {
   AddHealthRoute(table, deps);
   AddSubjectRoutes(table, deps);
   AddSessionRoutes(table, deps);
+  AddSessionRecordRoutes(table, deps);
   AddSessionRunAndTrialRoutes(table, deps);
   AddTrialRoutes(table, deps);
   AddParameterSetRoutes(table, deps);

@@ -39,6 +39,7 @@ std::optional<TrialKind> KindOfName(std::string_view name) {
   if (!kind) return std::nullopt;
   switch (*kind) {
     case TrialKind::kToleranceTest:
+    case TrialKind::kIsometricPrediction:
     case TrialKind::kPredictionRandomBinary:
     case TrialKind::kPredictionStep:
     case TrialKind::kPredictionRamp:

@@ -135,6 +135,174 @@ api::Status ValidatePredictionRequest(const PredictionRequest& r, const Predicti
 PredictionService::PredictionService(storage::Database& db, PredictionConfig config)
     : db_(db), config_(config) {}
 
+namespace {
+
+// A prediction's input, its mode and start, before the simulation. `stage`
+// names what is being done, for the error of an exception thrown by a model
+// function.
+struct PredictionInput {
+  model::SimulationOptions options;
+  model::PulseTrain pulses;
+  std::optional<model::TrialColumns> measured;  // with a trial: what it is compared with
+  std::string stage = "stimulus";
+};
+
+// A stimulus from a generator (no trial): its pulses, length and start.
+api::Status PrepareFromStimulus(const PredictionRequest& request, const PredictionConfig& config,
+                                const model::ParameterSet& params, PredictionInput& in,
+                                PredictionResult& out) {
+  const model::SampledSignal env =
+      model::MakeStimulus(request.stimulus->generator, request.stimulus->params);
+  const double duration = request.duration_s.value_or(env.EndTime());
+  if (duration > config.max_duration_s) {
+    return api::Status::InvalidArgument("the stimulus lasts " + std::to_string(duration) +
+                                            " s, over the " +
+                                            std::to_string(config.max_duration_s) + " s limit",
+                                        "stimulus");
+  }
+  in.pulses = protocols::EnvelopePulses(env, config.pulse_rate_hz);
+  in.options.duration_s = duration;
+  in.options.output_rate_hz = config.output_rate_hz;
+  out.mode = request.mode.value_or(PredictionMode::kFreeSwing);
+  if (out.mode == PredictionMode::kIsometric) {
+    out.initial_angle_deg = request.initial_angle_deg.value_or(model::kReferenceAngleDeg);
+  } else if (request.initial_angle_deg) {
+    out.initial_angle_deg = *request.initial_angle_deg;
+  } else {
+    out.initial_angle_deg = protocols::FreeSwingStartAngleDeg(params);
+  }
+  out.initial_velocity_deg_s = request.initial_velocity_deg_s;
+  return api::Status::Ok();
+}
+
+// A stored trial: its stored pulses replayed (DESIGN.md §3), its length, its
+// measured start, and the columns the prediction is judged against. A trial
+// whose knee is locked (by its kind, or an angle that does not move) is
+// predicted isometrically.
+api::Status PrepareFromTrial(storage::Database& db, const PredictionRequest& request,
+                             const PredictionConfig& config, PredictionInput& in,
+                             PredictionResult& out) {
+  api::Result<LoadedTrial> trial = LoadTrial(db, *request.trial_id);
+  if (!trial.ok()) return trial.status();
+  const std::string name = trial->trial.name.value_or("");
+  const api::TrialKindInfo* kind = api::FindTrialKind(name);
+  if (kind != nullptr && kind->motor) {
+    return api::Status::FailedPrecondition(
+        "trial " + std::to_string(trial->id) + " (\"" + name +
+        "\") is a motor trial; predictions replay free-swing or isometric trials");
+  }
+  model::TrialColumns c = api::ToTrialColumns(trial->trial);
+  if (c.size() < 2 || c.angle_deg.size() != c.size() || c.stim_ma.size() != c.size()) {
+    return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
+                                           " needs t_s, stim_ma and angle_deg channels");
+  }
+  const double rate = trial->trial.sample_rate_hz;
+  const double span = c.t_s.back() - c.t_s.front();
+  if (span > config.max_duration_s) {
+    return api::Status::InvalidArgument("trial lasts " + std::to_string(span) + " s, over the " +
+                                            std::to_string(config.max_duration_s) + " s limit",
+                                        "trial_id");
+  }
+  const auto [lo, hi] = std::minmax_element(c.angle_deg.begin(), c.angle_deg.end());
+  const bool locked = (kind != nullptr && kind->knee_locked) || (*hi - *lo) < 0.5;
+  out.mode = request.mode.value_or(locked ? PredictionMode::kIsometric : PredictionMode::kFreeSwing);
+  if (request.fit_scale && out.mode != PredictionMode::kIsometric) {
+    return api::Status::InvalidArgument("isometric predictions only (trial " +
+                                            std::to_string(trial->id) +
+                                            " is predicted in free swing)",
+                                        "fit_scale");
+  }
+  if (out.mode == PredictionMode::kIsometric && c.torque_nm.size() != c.size()) {
+    return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
+                                           " has no torque_nm channel to compare");
+  }
+  in.stage = "trial stimulation";
+  in.pulses = TrialStimulation(trial->trial, c, config.pulse_rate_hz, in.options.pulse_rate_hz);
+  const std::size_t n = c.size();
+  in.options.output_rate_hz = rate;
+  in.options.duration_s = std::max((static_cast<double>(n) + 0.5) / rate, span + 1.5 / rate);
+  if (out.mode == PredictionMode::kIsometric) {
+    double sum = 0.0;
+    for (double a : c.angle_deg) sum += a;
+    out.initial_angle_deg = sum / static_cast<double>(n);
+  } else {
+    out.initial_angle_deg = c.angle_deg.front();
+    if (c.velocity_deg_s.size() == n) {
+      out.initial_velocity_deg_s = c.velocity_deg_s.front();
+    } else {
+      in.stage = "initial velocity (GCV spline, §5.1)";
+      out.initial_velocity_deg_s = model::GcvSmoothingSpline(c.t_s, c.angle_deg).first.front();
+    }
+  }
+  in.measured = std::move(c);
+  return api::Status::Ok();
+}
+
+// The start inside 0–180°, and a free swing inside the bench's stops (a
+// measured start a sensor-noise step past a stop is at the stop; a requested
+// one outside is refused).
+api::Status ApplyStartAndStops(const PredictionRequest& request, const PredictionConfig& config,
+                               PredictionInput& in, PredictionResult& out) {
+  if (!InRange(out.initial_angle_deg, 0.0, 180.0)) {
+    return api::Status::InvalidArgument(
+        "initial angle " + std::to_string(out.initial_angle_deg) + " deg is outside 0–180",
+        request.trial_id ? "trial_id" : "initial_angle_deg");
+  }
+  if (out.mode == PredictionMode::kFreeSwing && config.joint_limits) {
+    const model::JointLimits& stops = *config.joint_limits;
+    if (request.trial_id) {
+      out.initial_angle_deg =
+          std::clamp(out.initial_angle_deg, stops.min_angle_deg, stops.max_angle_deg);
+    } else if (out.initial_angle_deg < stops.min_angle_deg ||
+               out.initial_angle_deg > stops.max_angle_deg) {
+      return api::Status::InvalidArgument(
+          "initial angle " + std::to_string(out.initial_angle_deg) +
+              " deg is outside the range of motion " + std::to_string(stops.min_angle_deg) + "-" +
+              std::to_string(stops.max_angle_deg) + " deg",
+          "initial_angle_deg");
+    }
+    in.options.joint_limits = stops;
+    out.joint_limits = stops;
+  }
+  in.options.initial_angle_deg = out.initial_angle_deg;
+  in.options.initial_velocity_deg_s = out.initial_velocity_deg_s;
+  return api::Status::Ok();
+}
+
+// The prediction against the measured trial (Eqs. 6.1, 6.2, 6.9, 6.10), with
+// the §6.1.2 scale fitted first when asked.
+api::Status CompareWithTrial(const PredictionRequest& request, const PredictionConfig& config,
+                             const PredictionInput& in, PredictionResult& out) {
+  const model::TrialColumns& c = *in.measured;
+  const bool iso = out.mode == PredictionMode::kIsometric;
+  model::SampledSignal sim;
+  sim.rate_hz = in.options.output_rate_hz;
+  sim.values = iso ? out.predicted.torque_nm : out.predicted.angle_deg;
+  std::vector<double> at(c.size()), data(c.size());
+  const double offset = iso ? MeasuredOffset(c) : 0.0;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    at[i] = sim.InterpolateAt(c.t_s[i] - c.t_s.front());
+    data[i] = iso ? c.torque_nm[i] - offset : c.angle_deg[i];
+  }
+  if (request.fit_scale) {
+    // §6.1.2: the constant k minimising Σ(k·prediction − data)².
+    double pd = 0.0, pp = 0.0;
+    for (std::size_t i = 0; i < at.size(); ++i) pd += at[i] * data[i], pp += at[i] * at[i];
+    if (!(pp > 0.0)) {
+      return api::Status::FailedPrecondition(
+          "fit_scale: the predicted torque is zero throughout, no scale fits");
+    }
+    const double k = pd / pp;
+    for (double& v : at) v *= k;
+    for (double& v : out.predicted.torque_nm) v *= k;
+    out.fitted_scale = k;
+  }
+  out.errors = Errors(at, data, iso, config.normalised_exclude_fraction);
+  return api::Status::Ok();
+}
+
+}  // namespace
+
 api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest& request) const {
   if (api::Status s = ValidatePredictionRequest(request, config_); !s.ok()) return s;
   api::Result<storage::StoredParameterSet> set =
@@ -147,119 +315,19 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
   out.trial_id = request.trial_id;
   out.model = std::string(model::ModelKindName(params.model));
 
-  model::SimulationOptions options;
-  options.pulse_rate_hz = config_.pulse_rate_hz;
-  model::PulseTrain pulses;
-  std::optional<model::TrialColumns> measured;
-  std::string stage = "stimulus";
+  PredictionInput in;
+  in.options.pulse_rate_hz = config_.pulse_rate_hz;
   try {
-    if (request.stimulus) {
-      const model::SampledSignal env =
-          model::MakeStimulus(request.stimulus->generator, request.stimulus->params);
-      const double duration = request.duration_s.value_or(env.EndTime());
-      if (duration > config_.max_duration_s) {
-        return api::Status::InvalidArgument("the stimulus lasts " + std::to_string(duration) +
-                                                " s, over the " +
-                                                std::to_string(config_.max_duration_s) + " s limit",
-                                            "stimulus");
-      }
-      pulses = protocols::EnvelopePulses(env, config_.pulse_rate_hz);
-      options.duration_s = duration;
-      options.output_rate_hz = config_.output_rate_hz;
-      out.mode = request.mode.value_or(PredictionMode::kFreeSwing);
-      if (out.mode == PredictionMode::kIsometric) {
-        out.initial_angle_deg = request.initial_angle_deg.value_or(model::kReferenceAngleDeg);
-      } else if (request.initial_angle_deg) {
-        out.initial_angle_deg = *request.initial_angle_deg;
-      } else {
-        out.initial_angle_deg = protocols::FreeSwingStartAngleDeg(params);
-      }
-      out.initial_velocity_deg_s = request.initial_velocity_deg_s;
-    } else {
-      api::Result<LoadedTrial> trial = LoadTrial(db_, *request.trial_id);
-      if (!trial.ok()) return trial.status();
-      const std::string name = trial->trial.name.value_or("");
-      if (const api::TrialKindInfo* kind = api::FindTrialKind(name); kind && kind->motor) {
-        return api::Status::FailedPrecondition(
-            "trial " + std::to_string(trial->id) + " (\"" + name +
-            "\") is a motor trial; predictions replay free-swing or isometric trials");
-      }
-      model::TrialColumns c = api::ToTrialColumns(trial->trial);
-      if (c.size() < 2 || c.angle_deg.size() != c.size() || c.stim_ma.size() != c.size()) {
-        return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
-                                               " needs t_s, stim_ma and angle_deg channels");
-      }
-      const double rate = trial->trial.sample_rate_hz;
-      const double span = c.t_s.back() - c.t_s.front();
-      if (span > config_.max_duration_s) {
-        return api::Status::InvalidArgument("trial lasts " + std::to_string(span) +
-                                                " s, over the " +
-                                                std::to_string(config_.max_duration_s) + " s limit",
-                                            "trial_id");
-      }
-      const auto [lo, hi] = std::minmax_element(c.angle_deg.begin(), c.angle_deg.end());
-      const bool locked = name.starts_with("isometric_") || name.starts_with("rapid_isometric") ||
-                          (*hi - *lo) < 0.5;
-      out.mode =
-          request.mode.value_or(locked ? PredictionMode::kIsometric : PredictionMode::kFreeSwing);
-      if (request.fit_scale && out.mode != PredictionMode::kIsometric) {
-        return api::Status::InvalidArgument("isometric predictions only (trial " +
-                                                std::to_string(trial->id) +
-                                                " is predicted in free swing)",
-                                            "fit_scale");
-      }
-      if (out.mode == PredictionMode::kIsometric && c.torque_nm.size() != c.size()) {
-        return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
-                                               " has no torque_nm channel to compare");
-      }
-      stage = "trial stimulation";
-      pulses = TrialStimulation(trial->trial, c, config_.pulse_rate_hz, options.pulse_rate_hz);
-      const std::size_t n = c.size();
-      options.output_rate_hz = rate;
-      options.duration_s = std::max((static_cast<double>(n) + 0.5) / rate, span + 1.5 / rate);
-      if (out.mode == PredictionMode::kIsometric) {
-        double sum = 0.0;
-        for (double a : c.angle_deg) sum += a;
-        out.initial_angle_deg = sum / static_cast<double>(n);
-      } else {
-        out.initial_angle_deg = c.angle_deg.front();
-        if (c.velocity_deg_s.size() == n) {
-          out.initial_velocity_deg_s = c.velocity_deg_s.front();
-        } else {
-          stage = "initial velocity (GCV spline, §5.1)";
-          out.initial_velocity_deg_s = model::GcvSmoothingSpline(c.t_s, c.angle_deg).first.front();
-        }
-      }
-      measured = std::move(c);
-    }
-    if (!InRange(out.initial_angle_deg, 0.0, 180.0)) {
-      return api::Status::InvalidArgument(
-          "initial angle " + std::to_string(out.initial_angle_deg) + " deg is outside 0–180",
-          request.trial_id ? "trial_id" : "initial_angle_deg");
-    }
-    if (out.mode == PredictionMode::kFreeSwing && config_.joint_limits) {
-      const model::JointLimits& stops = *config_.joint_limits;
-      if (request.trial_id) {
-        // A measured start a sensor-noise step past a stop is at the stop.
-        out.initial_angle_deg =
-            std::clamp(out.initial_angle_deg, stops.min_angle_deg, stops.max_angle_deg);
-      } else if (out.initial_angle_deg < stops.min_angle_deg ||
-                 out.initial_angle_deg > stops.max_angle_deg) {
-        return api::Status::InvalidArgument(
-            "initial angle " + std::to_string(out.initial_angle_deg) +
-                " deg is outside the range of motion " + std::to_string(stops.min_angle_deg) + "-" +
-                std::to_string(stops.max_angle_deg) + " deg",
-            "initial_angle_deg");
-      }
-      options.joint_limits = stops;
-      out.joint_limits = stops;
-    }
-    options.initial_angle_deg = out.initial_angle_deg;
-    options.initial_velocity_deg_s = out.initial_velocity_deg_s;
-    stage = "simulation";
-    out.predicted = out.mode == PredictionMode::kIsometric
-                        ? model::SimulateIsometric(params, pulses, out.initial_angle_deg, options)
-                        : protocols::SimulateStimulatedSwing(params, pulses, options);
+    api::Status prepared = request.stimulus
+                               ? PrepareFromStimulus(request, config_, params, in, out)
+                               : PrepareFromTrial(db_, request, config_, in, out);
+    if (!prepared.ok()) return prepared;
+    if (api::Status st = ApplyStartAndStops(request, config_, in, out); !st.ok()) return st;
+    in.stage = "simulation";
+    out.predicted =
+        out.mode == PredictionMode::kIsometric
+            ? model::SimulateIsometric(params, in.pulses, out.initial_angle_deg, in.options)
+            : protocols::SimulateStimulatedSwing(params, in.pulses, in.options);
     if (out.mode == PredictionMode::kFreeSwing) {
       // Where the prediction leans on extrapolated curves (issue 15).
       out.share_outside_identified_ranges = model::ShareOutsideIdentifiedRanges(
@@ -270,37 +338,13 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
       const double offset = out.predicted.torque_nm.front();
       for (double& v : out.predicted.torque_nm) v -= offset;
     }
-    if (measured) {
-      stage = "errors";
-      const model::TrialColumns& c = *measured;
-      const bool iso = out.mode == PredictionMode::kIsometric;
-      model::SampledSignal sim;
-      sim.rate_hz = options.output_rate_hz;
-      sim.values = iso ? out.predicted.torque_nm : out.predicted.angle_deg;
-      std::vector<double> at(c.size()), data(c.size());
-      const double offset = iso ? MeasuredOffset(c) : 0.0;
-      for (std::size_t i = 0; i < c.size(); ++i) {
-        at[i] = sim.InterpolateAt(c.t_s[i] - c.t_s.front());
-        data[i] = iso ? c.torque_nm[i] - offset : c.angle_deg[i];
-      }
-      if (request.fit_scale) {
-        // §6.1.2: the constant k minimising Σ(k·prediction − data)².
-        double pd = 0.0, pp = 0.0;
-        for (std::size_t i = 0; i < at.size(); ++i) pd += at[i] * data[i], pp += at[i] * at[i];
-        if (!(pp > 0.0)) {
-          return api::Status::FailedPrecondition(
-              "fit_scale: the predicted torque is zero throughout, no scale fits");
-        }
-        const double k = pd / pp;
-        for (double& v : at) v *= k;
-        for (double& v : out.predicted.torque_nm) v *= k;
-        out.fitted_scale = k;
-      }
-      out.errors = Errors(at, data, iso, config_.normalised_exclude_fraction);
+    if (in.measured) {
+      in.stage = "errors";
+      if (api::Status st = CompareWithTrial(request, config_, in, out); !st.ok()) return st;
     }
   } catch (const std::exception& e) {
-    return ModelFailure(stage, e,
-                        stage == "simulation" || stage == "errors"
+    return ModelFailure(in.stage, e,
+                        in.stage == "simulation" || in.stage == "errors"
                             ? api::ErrorCode::kFailedPrecondition
                             : api::ErrorCode::kInvalidArgument);
   }

@@ -251,11 +251,13 @@ api::Result<RunView> RunService::Start(const Actor& actor, std::int64_t session_
   }
 }
 
-api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t session_id,
-                                           const std::string& protocol,
-                                           const protocols::ParameterValues& parameters,
-                                           const std::optional<std::string>& ceiling_reason,
-                                           const TargetSamples* target) {
+namespace {
+
+// Who may start which protocol with which values: the checks that need no
+// session and no bench.
+api::Result<const protocols::ProtocolDescription*> CheckStartRequest(
+    const Actor& actor, const std::string& protocol,
+    const protocols::ParameterValues& parameters) {
   if (!MayOperateBench(actor)) {
     return api::Status(api::ErrorCode::kPermissionDenied,
                        "starting a run needs the clinician or admin role");
@@ -267,20 +269,52 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
       return api::Status::InvalidArgument("must be finite", "parameters." + name);
     }
   }
+  return description;
+}
 
-  std::lock_guard start_lock(start_mu_);
-  {
-    std::lock_guard lock(mu_);
-    if (shutting_down_) return api::Status::Unavailable("the server is shutting down");
+// tracking's uploaded target, at the control's 200 Hz.
+api::Status ResampleUploadedTarget(const TargetSamples& target, protocols::StartRequest& request) {
+  try {
+    request.target_angle_deg = model::ResampleTarget(target.t_s, target.angle_deg, 200.0);
+  } catch (const std::invalid_argument& e) {
+    return api::Status::InvalidArgument(e.what(), "target_samples");
   }
-  api::Result<SessionContext> context = LoadSessionContext(db_, session_id, bench_.limits());
-  if (!context.ok()) return context.status();
-  if (!context->has_stimulation_limits &&
-      description->kind != protocols::ProtocolKind::kTolerance) {
-    return api::Status::FailedPrecondition(
-        "session " + std::to_string(session_id) +
-        " has no threshold and max tolerated amplitude: record them (tolerance_test) first");
+  if (request.target_angle_deg.size() > 600 * 200 + 1) {
+    return api::Status::InvalidArgument("longer than 600 s", "target_samples");
   }
+  return api::Status::Ok();
+}
+
+// A tracking run may name the leg's set to invert (parameter_set_id; 0: its
+// newest): it must be one of this session's leg's sets.
+api::Status ChooseParameterSet(storage::Database& db, const SessionContext& context,
+                               const protocols::ParameterValues& parameters,
+                               protocols::StartRequest& request) {
+  const auto it = parameters.find("parameter_set_id");
+  if (it == parameters.end() || !(it->second >= 1.0) || !std::isfinite(it->second)) {
+    return api::Status::Ok();
+  }
+  const auto id = static_cast<std::int64_t>(it->second);
+  api::Result<storage::StoredParameterSet> chosen = storage::ParameterSetRepository(db).Get(id);
+  if (!chosen.ok()) {
+    if (chosen.status().code() != api::ErrorCode::kNotFound) return chosen.status();
+    return api::Status::InvalidArgument("no parameter set " + std::to_string(id),
+                                        "parameters.parameter_set_id");
+  }
+  if (chosen->summary.subject_id != context.session.subject_id ||
+      chosen->summary.leg_id != context.session.leg_id) {
+    return api::Status::InvalidArgument(
+        "parameter set " + std::to_string(id) + " belongs to another subject or leg",
+        "parameters.parameter_set_id");
+  }
+  request.subject.parameter_set = chosen->params;
+  request.subject.parameter_set_id = id;
+  return api::Status::Ok();
+}
+
+}  // namespace
+
+api::Status RunService::CheckBenchFree() {
   if (owner_.busy()) {
     return api::Status::Conflict("the bench is held by a run of " + owner_.owner());
   }
@@ -291,13 +325,18 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   if (owner_.safe_bench().estopped() || bench_.HardwareEStopped()) {
     return api::Status::Conflict("e-stop latched: clear it first");
   }
+  return api::Status::Ok();
+}
 
+api::Result<protocols::StartRequest> RunService::BuildStartRequest(
+    const SessionContext& context, const std::string& protocol,
+    const protocols::ParameterValues& parameters,
+    const std::optional<std::string>& ceiling_reason, const TargetSamples* target) {
   protocols::StartRequest request;
   request.protocol = protocol;
   request.parameters = parameters;
-  request.subject = context->subject;
+  request.subject = context.subject;
   request.subject.ceiling_above_max = ceiling_reason;
-  request.client = actor.user_name;
   // The stimulator's limit bounds every ceiling, explicit or not.
   if (const auto it = parameters.find("ceiling_ma");
       it != parameters.end() && it->second > bench_.limits().max_stim_ma) {
@@ -305,99 +344,70 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
         "above the stimulator's limit " + FormatNumber(bench_.limits().max_stim_ma) + " mA",
         "parameters.ceiling_ma");
   }
-  // tracking's uploaded target, at the control's 200 Hz.
   if (target != nullptr) {
-    try {
-      request.target_angle_deg = model::ResampleTarget(target->t_s, target->angle_deg, 200.0);
-    } catch (const std::invalid_argument& e) {
-      return api::Status::InvalidArgument(e.what(), "target_samples");
-    }
-    if (request.target_angle_deg.size() > 600 * 200 + 1) {
-      return api::Status::InvalidArgument("longer than 600 s", "target_samples");
-    }
+    if (api::Status st = ResampleUploadedTarget(*target, request); !st.ok()) return st;
   }
-  // A tracking run may name the leg's set to invert (0: its newest).
-  if (const auto it = parameters.find("parameter_set_id");
-      it != parameters.end() && it->second >= 1.0 && std::isfinite(it->second)) {
-    const auto id = static_cast<std::int64_t>(it->second);
-    api::Result<storage::StoredParameterSet> chosen = storage::ParameterSetRepository(db_).Get(id);
-    if (!chosen.ok()) {
-      if (chosen.status().code() != api::ErrorCode::kNotFound) return chosen.status();
-      return api::Status::InvalidArgument("no parameter set " + std::to_string(id),
-                                          "parameters.parameter_set_id");
-    }
-    if (chosen->summary.subject_id != context->session.subject_id ||
-        chosen->summary.leg_id != context->session.leg_id) {
-      return api::Status::InvalidArgument(
-          "parameter set " + std::to_string(id) + " belongs to another subject or leg",
-          "parameters.parameter_set_id");
-    }
-    request.subject.parameter_set = chosen->params;
-    request.subject.parameter_set_id = id;
-  }
-  api::Result<protocols::Plan> plan = owner_.Prepare(request);
-  if (!plan.ok()) return plan.status();
-  if (plan->rapid) {
-    // An explicit inertia (parameter inertia_kgm2 > 0) comes before any other source.
-    if (const auto it = plan->parameters.find("inertia_kgm2");
-        it != plan->parameters.end() && it->second > 0.0) {
-      request.subject.inertia_kgm2 = it->second;
-    }
-    api::Result<double> inertia = protocols::KnownInertia(request.subject);
-    if (!inertia.ok()) return inertia.status();
-  }
+  if (api::Status st = ChooseParameterSet(db_, context, parameters, request); !st.ok()) return st;
+  return request;
+}
 
+api::Result<storage::Run> RunService::CreateRunRecord(
+    const Actor& actor, std::int64_t session_id, const std::string& protocol,
+    const protocols::ParameterValues& parameters, const protocols::Plan& plan,
+    const SessionContext& context, const std::optional<std::string>& ceiling_reason) {
   nlohmann::json params_json = nlohmann::json::object();
-  for (const auto& [k, v] : plan->parameters) params_json[k] = v;
+  for (const auto& [k, v] : plan.parameters) params_json[k] = v;
   storage::NewRun new_run;
   new_run.protocol_name = protocol;
-  new_run.protocol_version = std::to_string(plan->protocol_version);
+  new_run.protocol_version = std::to_string(plan.protocol_version);
   new_run.parameters_json = params_json.dump();
-  api::Result<storage::Run> created =
-      db_.Write([&](storage::Connection&) -> api::Result<storage::Run> {
-        api::Result<storage::Run> r =
-            storage::SessionRepository(db_).CreateRun(session_id, new_run);
-        if (!r.ok()) return r;
-        std::string summary = "session " + std::to_string(session_id) + ", " + protocol + " v" +
-                              new_run.protocol_version;
-        for (const auto& [k, v] : parameters) summary += ", " + k + "=" + FormatNumber(v);
-        if (api::Status a = Audit(actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
-          return a;
-        }
-        if (ceiling_reason) {
-          const std::string why =
-              "tolerance test ceiling " + FormatNumber(plan->parameters.at("ceiling_ma")) +
-              " mA above the session's recorded max tolerated " +
-              FormatNumber(context->subject.max_tolerated_ma) + " mA; reason: " + *ceiling_reason;
-          if (api::Status a = Audit(actor, "run.ceiling_above_max", RunTarget(r->id), why, "ok");
-              !a.ok()) {
-            return a;
-          }
-        }
-        return r;
-      });
-  if (!created.ok()) return created.status();
+  return db_.Write([&](storage::Connection&) -> api::Result<storage::Run> {
+    api::Result<storage::Run> r = storage::SessionRepository(db_).CreateRun(session_id, new_run);
+    if (!r.ok()) return r;
+    std::string summary = "session " + std::to_string(session_id) + ", " + protocol + " v" +
+                          new_run.protocol_version;
+    for (const auto& [k, v] : parameters) summary += ", " + k + "=" + FormatNumber(v);
+    if (api::Status a = Audit(actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
+      return a;
+    }
+    if (ceiling_reason) {
+      const std::string why =
+          "tolerance test ceiling " + FormatNumber(plan.parameters.at("ceiling_ma")) +
+          " mA above the session's recorded max tolerated " +
+          FormatNumber(context.subject.max_tolerated_ma) + " mA; reason: " + *ceiling_reason;
+      if (api::Status a = Audit(actor, "run.ceiling_above_max", RunTarget(r->id), why, "ok");
+          !a.ok()) {
+        return a;
+      }
+    }
+    return r;
+  });
+}
 
+std::shared_ptr<RunService::LiveRun> RunService::RegisterLiveRun(
+    const Actor& actor, const storage::Run& created, const protocols::Plan& plan,
+    const protocols::ProtocolDescription& description, const SessionContext& context,
+    std::int64_t session_id, const std::string& protocol) {
   auto run = std::make_shared<LiveRun>();
-  run->run_id = created->id;
-  run->subject_id = context->session.subject_id;
-  run->leg_id = context->session.leg_id;
+  run->run_id = created.id;
+  run->subject_id = context.session.subject_id;
+  run->leg_id = context.session.leg_id;
   run->actor = actor;
-  run->mode = description->bench_mode;
-  run->rapid = plan->rapid;
-  run->prior_parameter_set_id = context->parameter_set_id;
+  run->mode = description.bench_mode;
+  run->rapid = plan.rapid;
+  run->prior_parameter_set_id = context.parameter_set_id;
   RunView& v = run->view;
-  v.run_id = created->id;
+  v.run_id = created.id;
   v.session_id = session_id;
   v.protocol = protocol;
-  v.protocol_version = plan->protocol_version;
-  v.parameters = plan->parameters;
+  v.protocol_version = plan.protocol_version;
+  v.parameters = plan.parameters;
   v.state = RunState::kQueued;
   v.owner = actor.user_name;
   v.owner_user_id = actor.user_id;
-  v.created_at = created->created_at;
-  v.progress.bench_total_s = plan->duration_s();
-  v.progress.eta_s = config_.time_scale > 0.0 ? plan->duration_s() / config_.time_scale : 0.0;
+  v.created_at = created.created_at;
+  v.progress.bench_total_s = plan.duration_s();
+  v.progress.eta_s = config_.time_scale > 0.0 ? plan.duration_s() / config_.time_scale : 0.0;
   v.live = true;
   {
     std::lock_guard lock(mu_);
@@ -410,9 +420,57 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   queued.state = RunState::kQueued;
   queued.progress = v.progress;
   hub_.Publish(std::move(queued));
+  return run;
+}
+
+api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t session_id,
+                                           const std::string& protocol,
+                                           const protocols::ParameterValues& parameters,
+                                           const std::optional<std::string>& ceiling_reason,
+                                           const TargetSamples* target) {
+  api::Result<const protocols::ProtocolDescription*> description =
+      CheckStartRequest(actor, protocol, parameters);
+  if (!description.ok()) return description.status();
+
+  std::lock_guard start_lock(start_mu_);
+  {
+    std::lock_guard lock(mu_);
+    if (shutting_down_) return api::Status::Unavailable("the server is shutting down");
+  }
+  api::Result<SessionContext> context = LoadSessionContext(db_, session_id, bench_.limits());
+  if (!context.ok()) return context.status();
+  if (!context->has_stimulation_limits &&
+      (*description)->kind != protocols::ProtocolKind::kTolerance) {
+    return api::Status::FailedPrecondition(
+        "session " + std::to_string(session_id) +
+        " has no threshold and max tolerated amplitude: record them (tolerance_test) first");
+  }
+  if (api::Status free = CheckBenchFree(); !free.ok()) return free;
+
+  api::Result<protocols::StartRequest> request =
+      BuildStartRequest(*context, protocol, parameters, ceiling_reason, target);
+  if (!request.ok()) return request.status();
+  request->client = actor.user_name;
+  api::Result<protocols::Plan> plan = owner_.Prepare(*request);
+  if (!plan.ok()) return plan.status();
+  if (plan->rapid) {
+    // An explicit inertia (parameter inertia_kgm2 > 0) comes before any other source.
+    if (const auto it = plan->parameters.find("inertia_kgm2");
+        it != plan->parameters.end() && it->second > 0.0) {
+      request->subject.inertia_kgm2 = it->second;
+    }
+    api::Result<double> inertia = protocols::KnownInertia(request->subject);
+    if (!inertia.ok()) return inertia.status();
+  }
+
+  api::Result<storage::Run> created = CreateRunRecord(actor, session_id, protocol, parameters,
+                                                      *plan, *context, ceiling_reason);
+  if (!created.ok()) return created.status();
+  std::shared_ptr<LiveRun> run =
+      RegisterLiveRun(actor, *created, *plan, **description, *context, session_id, protocol);
 
   run->on_bench = true;
-  api::Status started = owner_.Start(request, std::make_shared<Observer>(*this, run));
+  api::Status started = owner_.Start(*request, std::make_shared<Observer>(*this, run));
   if (!started.ok()) {
     run->on_bench = false;
     // Refused at the last moment (e.g. an e-stop in between): the run failed.

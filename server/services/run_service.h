@@ -261,6 +261,23 @@ class RunService {
   std::shared_ptr<LiveRun> Current() const;
   api::Result<RunView> StoredView(std::int64_t run_id);
   api::Status CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRun>* run);
+  // StartImpl's parts.
+  api::Status CheckBenchFree();
+  api::Result<protocols::StartRequest> BuildStartRequest(
+      const SessionContext& context, const std::string& protocol,
+      const protocols::ParameterValues& parameters,
+      const std::optional<std::string>& ceiling_reason, const TargetSamples* target);
+  api::Result<storage::Run> CreateRunRecord(const Actor& actor, std::int64_t session_id,
+                                            const std::string& protocol,
+                                            const protocols::ParameterValues& parameters,
+                                            const protocols::Plan& plan,
+                                            const SessionContext& context,
+                                            const std::optional<std::string>& ceiling_reason);
+  std::shared_ptr<LiveRun> RegisterLiveRun(const Actor& actor, const storage::Run& created,
+                                           const protocols::Plan& plan,
+                                           const protocols::ProtocolDescription& description,
+                                           const SessionContext& context,
+                                           std::int64_t session_id, const std::string& protocol);
   api::Result<RunView> StartImpl(const Actor& actor, std::int64_t session_id,
                                  const std::string& protocol,
                                  const protocols::ParameterValues& parameters,
