@@ -12,19 +12,12 @@
 #include "server/protocols/model_gate.h"
 #include "server/protocols/plan.h"
 #include "server/protocols/runner.h"
+#include "tests/server/runner_rig.h"
 
 namespace fesbench::server::protocols {
 namespace {
 
-SubjectContext Context(const VirtualSubject& vs) {
-  SubjectContext s;
-  s.threshold_ma = vs.threshold_ma;
-  s.max_tolerated_ma = vs.max_tolerated_ma;
-  s.min_angle_deg = 15.0;
-  s.max_angle_deg = 108.0;
-  s.inertia_kgm2 = vs.truth.passive.inertia_kgm2;
-  return s;
-}
+SubjectContext Context(const VirtualSubject& vs) { return test::WithKnownInertia(vs); }
 
 RunResult RunOn(const VirtualSubject& vs, const std::string& protocol, const SubjectContext& ctx,
               ParameterValues values = {}) {

@@ -15,36 +15,20 @@
 #include "server/protocols/protocol.h"
 #include "server/protocols/runner.h"
 #include "server/protocols/tracking_loop.h"
+#include "tests/server/runner_rig.h"
 
 namespace fesbench::server::protocols {
 namespace {
 
+using test::NoWatchdog;
+using test::Rig;
+
 SubjectContext Context(const VirtualSubject& vs) {
-  SubjectContext s;
-  s.threshold_ma = vs.threshold_ma;
-  s.max_tolerated_ma = vs.max_tolerated_ma;
-  s.min_angle_deg = 15.0;
-  s.max_angle_deg = 108.0;
+  SubjectContext s = test::SessionValues(vs);
   // The leg's set: its model part (the leg itself is richer: series
   // elasticity, hysteresis, friction, fatigue, potentiation, sensor errors).
   s.parameter_set = vs.truth;
   return s;
-}
-
-struct Rig {
-  explicit Rig(std::uint64_t seed, SimulatedBenchOptions options = {})
-      : subject(DrawVirtualSubject(seed)), bench(subject, std::move(options)),
-        safe(bench, log.sink()) {}
-  VirtualSubject subject;
-  SimulatedBench bench;
-  SafetyEventLog log;
-  SafeBench safe;
-};
-
-RunnerOptions NoWatchdog() {
-  RunnerOptions o;
-  o.arm_watchdog = false;
-  return o;
 }
 
 RunResult Track(Rig& rig, const SubjectContext& ctx, ParameterValues values) {
