@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "model/conditioning.h"
+
 namespace fesbench::model {
 
 double TrialColumns::SampleRateHz() const {
@@ -56,6 +58,26 @@ void IdentifyReport::Merge(const IdentifyReport& other) {
   for (const auto& [k, v] : other.fit_rms) fit_rms[k] = v;
   for (const auto& [k, v] : other.values) values[k] = v;
   warnings.insert(warnings.end(), other.warnings.begin(), other.warnings.end());
+}
+
+PulseTrain TrialPulses(const TrialColumns& trial, double pulse_rate_hz) {
+  const std::size_t n = trial.t_s.size();
+  if (n < 2) throw std::invalid_argument("TrialPulses: t_s needs at least 2 samples");
+  RequireColumn("TrialPulses", "stim_ma", trial.stim_ma, n);
+  if (!(pulse_rate_hz > 0.0)) throw std::invalid_argument("TrialPulses: pulse_rate_hz must be > 0");
+  SampledSignal env;
+  env.rate_hz = trial.SampleRateHz();
+  env.t0_s = 0.0;
+  env.values = trial.stim_ma;
+  return PulsesFromEnvelope(env, pulse_rate_hz);
+}
+
+void AddKinematics(TrialColumns& trial) {
+  std::vector<double> t(trial.t_s.size());
+  for (std::size_t i = 0; i < t.size(); ++i) t[i] = trial.t_s[i] - trial.t_s.front();
+  const SmoothingSplineFit fit = GcvSmoothingSpline(t, trial.angle_deg);
+  trial.velocity_deg_s = fit.first;
+  trial.accel_deg_s2 = fit.second;
 }
 
 }  // namespace fesbench::model

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "model/signal.h"
+
 namespace fesbench::model {
 
 /// The channels of one trial as plain columns, all sampled at the same
@@ -63,5 +65,16 @@ struct IdentifyReport {
   /// Appends the other report's entries (its keys win on collision).
   void Merge(const IdentifyReport& other);
 };
+
+/// The stimulator's pulses for a trial's stim_ma envelope (200 Hz samples
+/// held, PulsesFromEnvelope), times relative to t_s[0].
+/// @throws std::invalid_argument if t_s has fewer than 2 samples, the
+///   columns differ in length, or the pulse rate is not > 0.
+PulseTrain TrialPulses(const TrialColumns& trial, double pulse_rate_hz);
+
+/// Fills velocity_deg_s and accel_deg_s2 from angle_deg by a GCV cubic
+/// smoothing spline (GcvSmoothingSpline, §5.1).
+/// @throws std::invalid_argument as GcvSmoothingSpline.
+void AddKinematics(TrialColumns& trial);
 
 }  // namespace fesbench::model

@@ -395,4 +395,65 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
   return res;
 }
 
+PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, double inertia_kgm2,
+                                          const BreakpointSpec& angle,
+                                          const BreakpointSpec& velocity, double max_activation,
+                                          double relative_tolerance) {
+  const char* what = "IdentifyPassiveKnownInertia";
+  if (!(inertia_kgm2 > 0.0) || !std::isfinite(inertia_kgm2)) {
+    throw std::invalid_argument(std::string(what) + ": inertia_kgm2 must be finite and > 0");
+  }
+  std::vector<double> th, vel, acc;
+  for (const TrialColumns& tr : trials) {
+    const std::size_t n = tr.t_s.size();
+    RequireColumn(what, "angle_deg", tr.angle_deg, n);
+    RequireColumn(what, "velocity_deg_s", tr.velocity_deg_s, n);
+    RequireColumn(what, "accel_deg_s2", tr.accel_deg_s2, n);
+    RequireColumn(what, "activation", tr.activation, n);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (tr.activation[i] > max_activation) continue;  // §5.4.3: passive samples only
+      th.push_back(tr.angle_deg[i]);
+      vel.push_back(tr.velocity_deg_s[i]);
+      acc.push_back(tr.accel_deg_s2[i]);
+    }
+  }
+  const std::vector<double> bp_a = ResolveBreakpoints(angle, th);
+  const std::vector<double> bp_v = ResolveBreakpoints(velocity, vel);
+  const auto ma = static_cast<Eigen::Index>(bp_a.size());
+  const auto mv = static_cast<Eigen::Index>(bp_v.size());
+  if (th.size() < static_cast<std::size_t>(ma + mv)) {
+    throw std::invalid_argument(std::string(what) + ": fewer passive samples than parameters");
+  }
+  // §7.4.1 with Eq. 4.35: −J·θ̈ = τ_pta(θ) + τ_ptv(θ̇), θ̈ in rad/s².
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(th.size()), ma + mv);
+  Eigen::VectorXd b(static_cast<Eigen::Index>(th.size()));
+  for (std::size_t i = 0; i < th.size(); ++i) {
+    const auto r = static_cast<Eigen::Index>(i);
+    SetPwlBasisRow(a, r, 0, bp_a, th[i]);
+    SetPwlBasisRow(a, r, ma, bp_v, vel[i]);
+    b(r) = -inertia_kgm2 * DegToRad(acc[i]);
+  }
+  const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, relative_tolerance);
+  PassiveParams p;
+  p.inertia_kgm2 = inertia_kgm2;
+  p.torque_angle = PiecewiseLinear(bp_a, std::vector<double>(sol.c.data(), sol.c.data() + ma));
+  p.torque_velocity =
+      PiecewiseLinear(bp_v, std::vector<double>(sol.c.data() + ma, sol.c.data() + ma + mv));
+  PassiveResult res;
+  res.passive = ReferencePassive(p);
+  res.report.fit_rms["free_swing_known_inertia_nm"] = sol.rms;
+  res.report.values["free_swing_known_inertia_rank"] = sol.rank;
+  res.report.values["free_swing_known_inertia_samples"] = static_cast<double>(th.size());
+  // One constant is shared by τ_pta and τ_ptv (§6.5): rank ma + mv − 1 is full.
+  if (sol.rank < ma + mv - 1) {
+    res.report.warnings.push_back("free-swing passive (known J): rank " + std::to_string(sol.rank) +
+                                  " of " + std::to_string(ma + mv - 1) + " (under-determined)");
+  }
+  for (auto& w : SupportWarnings("tau_pta", "deg", bp_a, BreakpointSupport(bp_a, th), 1.0))
+    res.report.warnings.push_back(std::move(w));
+  for (auto& w : SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), 1.0))
+    res.report.warnings.push_back(std::move(w));
+  return res;
+}
+
 }  // namespace fesbench::model

@@ -130,4 +130,16 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
                                        const PiecewiseLinear& torque_angle,
                                        const FreeSwingPassiveOptions& options = {});
 
+/// τ_pta and τ_ptv from free-swing trials with known inertia (§7.4.1,
+/// Eq. 4.35 rearranged): uses the samples with activation ≤
+/// max_activation. Trials need t_s, angle_deg, velocity_deg_s,
+/// accel_deg_s2, activation. Result referenced (§6.5, ReferencePassive).
+/// @throws std::invalid_argument if inertia_kgm2 is not > 0, a column is
+///   missing, or there are fewer passive samples than parameters.
+PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, double inertia_kgm2,
+                                          const BreakpointSpec& angle = {9, {}},
+                                          const BreakpointSpec& velocity = {7, {}},
+                                          double max_activation = 0.01,
+                                          double relative_tolerance = 1e-8);
+
 }  // namespace fesbench::model

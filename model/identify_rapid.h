@@ -175,29 +175,6 @@ struct RapidResult {
   IdentifyReport report;
 };
 
-/// The stimulator's pulses for a trial's stim_ma envelope (200 Hz samples
-/// held, PulsesFromEnvelope), times relative to t_s[0].
-/// @throws std::invalid_argument if t_s has fewer than 2 samples, the
-///   columns differ in length, or the pulse rate is not > 0.
-PulseTrain TrialPulses(const TrialColumns& trial, double pulse_rate_hz);
-
-/// Fills velocity_deg_s and accel_deg_s2 from angle_deg by a GCV cubic
-/// smoothing spline (GcvSmoothingSpline, §5.1).
-/// @throws std::invalid_argument as GcvSmoothingSpline.
-void AddKinematics(TrialColumns& trial);
-
-/// τ_pta and τ_ptv from free-swing trials with known inertia (§7.4.1,
-/// Eq. 4.35 rearranged): uses the samples with activation ≤
-/// max_activation. Trials need t_s, angle_deg, velocity_deg_s,
-/// accel_deg_s2, activation. Result referenced (§6.5, ReferencePassive).
-/// @throws std::invalid_argument if inertia_kgm2 is not > 0, a column is
-///   missing, or there are fewer passive samples than parameters.
-PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, double inertia_kgm2,
-                                          const BreakpointSpec& angle = {9, {}},
-                                          const BreakpointSpec& velocity = {7, {}},
-                                          double max_activation = 0.01,
-                                          double relative_tolerance = 1e-8);
-
 /// The whole §7.4.1 identification. `isometric` needs t_s, stim_ma,
 /// torque_nm (offset-corrected or not); `passive` and `active` need t_s,
 /// stim_ma and angle_deg (velocity, acceleration and activation are

@@ -19,6 +19,7 @@
 #include "model/identify_simplified.h"
 #include "model/parameter_set.h"
 #include "model/quality.h"
+#include "server/services/model_failure.h"
 #include "server/services/stored_trials.h"
 #include "storage/audit_log.h"
 #include "storage/parameter_sets.h"

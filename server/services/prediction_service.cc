@@ -15,6 +15,7 @@
 #include "model/signal.h"
 #include "server/protocols/model_gate.h"
 #include "server/services/analysis_json.h"
+#include "server/services/model_failure.h"
 #include "server/services/stored_trials.h"
 #include "storage/audit_log.h"
 #include "storage/parameter_sets.h"

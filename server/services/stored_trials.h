@@ -42,11 +42,4 @@ api::Result<LoadedTrial> LoadTrial(storage::Database& db, std::int64_t trial_id)
 model::PulseTrain TrialStimulation(const api::Trial& trial, const model::TrialColumns& columns,
                                    double default_rate_hz, double& pulse_rate_hz);
 
-/// The Status for an exception thrown by model code during `what`:
-/// std::invalid_argument (broken precondition: bad data or options) →
-/// `invalid_code`, anything else (e.g. a diverging integration) →
-/// kFailedPrecondition. The message is "<what>: <e.what()>".
-api::Status ModelFailure(std::string_view what, const std::exception& e,
-                         api::ErrorCode invalid_code);
-
 }  // namespace fesbench::server::services
