@@ -37,6 +37,55 @@ std::vector<double> Gather(std::span<const TrialColumns> trials,
   return out;
 }
 
+// The linear system the passive fits share (Eq. 4.31, Eq. 4.35, §7.4.1):
+// [X(θ) | X(θ̇) | extra columns]·c = b over the passive samples, τ_pta and
+// τ_ptv piecewise linear (Eq. 4.30) on breakpoints resolved over the
+// samples. The caller fills the extra columns and b, then solves.
+struct PassiveSystem {
+  std::vector<double> bp_a, bp_v;
+  Eigen::Index ma = 0, mv = 0;
+  Eigen::MatrixXd a;
+  Eigen::VectorXd b;
+};
+
+PassiveSystem MakePassiveSystem(const char* what, std::span<const double> angle,
+                                std::span<const double> velocity, const BreakpointSpec& angle_spec,
+                                const BreakpointSpec& velocity_spec, Eigen::Index extra) {
+  PassiveSystem sys;
+  sys.bp_a = ResolveBreakpoints(angle_spec, angle);
+  sys.bp_v = ResolveBreakpoints(velocity_spec, velocity);
+  sys.ma = static_cast<Eigen::Index>(sys.bp_a.size());
+  sys.mv = static_cast<Eigen::Index>(sys.bp_v.size());
+  if (angle.size() < static_cast<std::size_t>(sys.ma + sys.mv + extra)) {
+    throw std::invalid_argument(std::string(what) + ": fewer passive samples than parameters");
+  }
+  sys.a = AngleVelocityDesign(sys.bp_a, angle, sys.bp_v, velocity, extra);
+  sys.b = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(angle.size()));
+  return sys;
+}
+
+// τ_pta and τ_ptv from a solution's first ma + mv coefficients (not yet
+// referenced, §6.5).
+PassiveParams PassiveCurves(const PassiveSystem& sys, const Eigen::VectorXd& c) {
+  PassiveParams p;
+  p.torque_angle = PiecewiseLinear(sys.bp_a, std::vector<double>(c.data(), c.data() + sys.ma));
+  p.torque_velocity =
+      PiecewiseLinear(sys.bp_v, std::vector<double>(c.data() + sys.ma, c.data() + sys.ma + sys.mv));
+  return p;
+}
+
+// Warnings for breakpoints the samples hardly reach (Eq. 4.30 support).
+void AddSupportWarnings(const PassiveSystem& sys, std::span<const double> angle,
+                        std::span<const double> velocity, double min_support,
+                        IdentifyReport& report) {
+  for (auto& w : SupportWarnings("tau_pta", "deg", sys.bp_a, BreakpointSupport(sys.bp_a, angle),
+                                 min_support))
+    report.warnings.push_back(std::move(w));
+  for (auto& w : SupportWarnings("tau_ptv", "deg/s", sys.bp_v,
+                                 BreakpointSupport(sys.bp_v, velocity), min_support))
+    report.warnings.push_back(std::move(w));
+}
+
 }  // namespace
 
 double AnthropometricInertia(double body_mass_kg, double leg_length_m) {
@@ -176,26 +225,16 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
   const auto vel = Gather(trials, rows, &TrialColumns::velocity_deg_s);
   const auto acc = Gather(trials, rows, &TrialColumns::accel_deg_s2);
   const auto tq = Gather(trials, rows, &TrialColumns::torque_nm);
-  const auto bp_a = ResolveBreakpoints(options.angle, angle);
-  const auto bp_v = ResolveBreakpoints(options.velocity, vel);
-  const Eigen::Index ma = static_cast<Eigen::Index>(bp_a.size());
-  const Eigen::Index mv = static_cast<Eigen::Index>(bp_v.size());
-  if (total < static_cast<std::size_t>(ma + mv + 1)) {
-    throw std::invalid_argument(std::string(what) + ": fewer samples than parameters");
-  }
   // Eq. 4.31: [X(θ) | X(θ̇) | θ̈] · c = τ.
-  Eigen::MatrixXd a = AngleVelocityDesign(bp_a, angle, bp_v, vel, 1);
-  Eigen::VectorXd b(static_cast<Eigen::Index>(total));
+  PassiveSystem sys = MakePassiveSystem(what, angle, vel, options.angle, options.velocity, 1);
+  const Eigen::Index ma = sys.ma, mv = sys.mv;
   for (std::size_t i = 0; i < total; ++i) {
     const auto r = static_cast<Eigen::Index>(i);
-    a(r, ma + mv) = DegToRad(acc[i]);
-    b(r) = tq[i];
+    sys.a(r, ma + mv) = DegToRad(acc[i]);
+    sys.b(r) = tq[i];
   }
-  const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, options.relative_tolerance);
-  PassiveParams p;
-  p.torque_angle = PiecewiseLinear(bp_a, std::vector<double>(sol.c.data(), sol.c.data() + ma));
-  p.torque_velocity =
-      PiecewiseLinear(bp_v, std::vector<double>(sol.c.data() + ma, sol.c.data() + ma + mv));
+  const LeastSquaresSolution sol = SolveTruncatedSvd(sys.a, sys.b, options.relative_tolerance);
+  PassiveParams p = PassiveCurves(sys, sol.c);
   p.inertia_kgm2 = sol.c(ma + mv);
   PassiveResult res;
   res.passive = ReferencePassive(p);  // §6.5
@@ -209,15 +248,10 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
                                   " of " + std::to_string(ma + mv + 1) +
                                   " parameters (under-determined; shortest solution used)");
   }
-  for (auto& w :
-       SupportWarnings("tau_pta", "deg", bp_a, BreakpointSupport(bp_a, angle), options.min_support))
-    res.report.warnings.push_back(std::move(w));
-  for (auto& w :
-       SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), options.min_support))
-    res.report.warnings.push_back(std::move(w));
+  AddSupportWarnings(sys, angle, vel, options.min_support, res.report);
   if (!(p.inertia_kgm2 > 0.0))
     res.report.warnings.push_back("simultaneous passive: inertia not positive");
-  const Coverage cov = PhasePlaneCoverage(angle, vel, bp_a, bp_v);
+  const Coverage cov = PhasePlaneCoverage(angle, vel, sys.bp_a, sys.bp_v);
   res.report.values["coverage"] = cov.share;
   if (auto w = CoverageWarning("simultaneous passive", cov, options.coverage_warn_below);
       !w.empty()) {
@@ -417,42 +451,26 @@ PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, 
       acc.push_back(tr.accel_deg_s2[i]);
     }
   }
-  const std::vector<double> bp_a = ResolveBreakpoints(angle, th);
-  const std::vector<double> bp_v = ResolveBreakpoints(velocity, vel);
-  const auto ma = static_cast<Eigen::Index>(bp_a.size());
-  const auto mv = static_cast<Eigen::Index>(bp_v.size());
-  if (th.size() < static_cast<std::size_t>(ma + mv)) {
-    throw std::invalid_argument(std::string(what) + ": fewer passive samples than parameters");
-  }
   // §7.4.1 with Eq. 4.35: −J·θ̈ = τ_pta(θ) + τ_ptv(θ̇), θ̈ in rad/s².
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(th.size()), ma + mv);
-  Eigen::VectorXd b(static_cast<Eigen::Index>(th.size()));
+  PassiveSystem sys = MakePassiveSystem(what, th, vel, angle, velocity, 0);
   for (std::size_t i = 0; i < th.size(); ++i) {
-    const auto r = static_cast<Eigen::Index>(i);
-    SetPwlBasisRow(a, r, 0, bp_a, th[i]);
-    SetPwlBasisRow(a, r, ma, bp_v, vel[i]);
-    b(r) = -inertia_kgm2 * DegToRad(acc[i]);
+    sys.b(static_cast<Eigen::Index>(i)) = -inertia_kgm2 * DegToRad(acc[i]);
   }
-  const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, relative_tolerance);
-  PassiveParams p;
+  const LeastSquaresSolution sol = SolveTruncatedSvd(sys.a, sys.b, relative_tolerance);
+  PassiveParams p = PassiveCurves(sys, sol.c);
   p.inertia_kgm2 = inertia_kgm2;
-  p.torque_angle = PiecewiseLinear(bp_a, std::vector<double>(sol.c.data(), sol.c.data() + ma));
-  p.torque_velocity =
-      PiecewiseLinear(bp_v, std::vector<double>(sol.c.data() + ma, sol.c.data() + ma + mv));
   PassiveResult res;
   res.passive = ReferencePassive(p);
   res.report.fit_rms["free_swing_known_inertia_nm"] = sol.rms;
   res.report.values["free_swing_known_inertia_rank"] = sol.rank;
   res.report.values["free_swing_known_inertia_samples"] = static_cast<double>(th.size());
   // One constant is shared by τ_pta and τ_ptv (§6.5): rank ma + mv − 1 is full.
-  if (sol.rank < ma + mv - 1) {
+  const Eigen::Index full = sys.ma + sys.mv - 1;
+  if (sol.rank < full) {
     res.report.warnings.push_back("free-swing passive (known J): rank " + std::to_string(sol.rank) +
-                                  " of " + std::to_string(ma + mv - 1) + " (under-determined)");
+                                  " of " + std::to_string(full) + " (under-determined)");
   }
-  for (auto& w : SupportWarnings("tau_pta", "deg", bp_a, BreakpointSupport(bp_a, th), 1.0))
-    res.report.warnings.push_back(std::move(w));
-  for (auto& w : SupportWarnings("tau_ptv", "deg/s", bp_v, BreakpointSupport(bp_v, vel), 1.0))
-    res.report.warnings.push_back(std::move(w));
+  AddSupportWarnings(sys, th, vel, 1.0, res.report);
   return res;
 }
 
