@@ -75,8 +75,9 @@ double AbsError(std::span<const double> prediction, std::span<const double> data
   return sum / static_cast<double>(data.size());
 }
 
-NormalisedRms NormalisedRmsError(std::span<const double> prediction, std::span<const double> data,
-                                 double exclude_below_fraction) {
+std::optional<NormalisedRms> NormalisedRmsError(std::span<const double> prediction,
+                                                std::span<const double> data,
+                                                double exclude_below_fraction) {
   CheckPair("NormalisedRmsError", prediction, data);
   if (!(exclude_below_fraction >= 0.0 && exclude_below_fraction < 1.0)) {
     throw std::invalid_argument("NormalisedRmsError: exclude_below_fraction must be in [0, 1)");
@@ -95,18 +96,17 @@ NormalisedRms NormalisedRmsError(std::span<const double> prediction, std::span<c
     sum += rel * rel;
     ++r.samples_used;
   }
-  if (r.samples_used == 0) {
-    throw std::invalid_argument("NormalisedRmsError: every sample excluded (data are all ~0)");
-  }
+  if (r.samples_used == 0) return std::nullopt;  // every sample excluded (data all ~0)
   r.value = std::sqrt(sum / static_cast<double>(r.samples_used));
   return r;
 }
 
-double AveragedRmsError(std::span<const double> prediction, std::span<const double> data) {
+std::optional<double> AveragedRmsError(std::span<const double> prediction,
+                                       std::span<const double> data) {
   CheckPair("AveragedRmsError", prediction, data);
   double total = 0.0;
   for (const double d : data) total += d;
-  if (total == 0.0) throw std::invalid_argument("AveragedRmsError: data sum to 0");
+  if (total == 0.0) return std::nullopt;
   return std::sqrt(SumSquaredError(prediction, data)) / total;  // Eq. 6.2
 }
 
@@ -187,7 +187,7 @@ PassiveLinearisation LinearisePassive(const PassiveParams& passive, double angle
   return r;
 }
 
-double PassiveRestAngle(const PassiveParams& passive, double hint_deg) {
+std::optional<double> FindPassiveRestAngle(const PassiveParams& passive, double hint_deg) {
   if (passive.torque_angle.empty() || passive.torque_velocity.empty()) {
     throw std::invalid_argument("PassiveRestAngle: passive curves must not be empty");
   }
@@ -208,11 +208,17 @@ double PassiveRestAngle(const PassiveParams& passive, double hint_deg) {
       consider(xs[i] + (xs[i + 1] - xs[i]) * (-f0) / (f1 - f0));
     }
   }
-  if (std::isnan(best)) {
+  if (std::isnan(best)) return std::nullopt;
+  return best;
+}
+
+double PassiveRestAngle(const PassiveParams& passive, double hint_deg) {
+  const std::optional<double> rest = FindPassiveRestAngle(passive, hint_deg);
+  if (!rest) {
     throw std::invalid_argument(
         "PassiveRestAngle: tau_pta + tau_ptv(0) has no stable zero inside its breakpoints");
   }
-  return best;
+  return *rest;
 }
 
 }  // namespace fesbench::model

@@ -38,17 +38,18 @@ struct NormalisedRms {
 /// with |data| ≤ exclude_below_fraction · max|data| are left out of both the
 /// sum and N; the count is reported. exclude_below_fraction = 0 excludes
 /// only exact zeros.
-/// @throws std::invalid_argument as stated in the file comment, if
-///   exclude_below_fraction is outside [0, 1), or if every sample is
-///   excluded (e.g. all data are 0).
-NormalisedRms NormalisedRmsError(std::span<const double> prediction, std::span<const double> data,
+/// nullopt where Eq. 6.1 is undefined: every sample excluded (e.g. all data
+/// are 0).
+/// @throws std::invalid_argument as stated in the file comment, or if
+///   exclude_below_fraction is outside [0, 1).
+std::optional<NormalisedRms> NormalisedRmsError(std::span<const double> prediction, std::span<const double> data,
                                  double exclude_below_fraction = 0.05);
 
 /// Averaged RMS error E_AVE = sqrt(Σ (prediction − data)²) / Σ data
 /// (Eq. 6.2, §6.1.2), dimensionless.
-/// @throws std::invalid_argument as stated in the file comment, or if
-///   Σ data = 0.
-double AveragedRmsError(std::span<const double> prediction, std::span<const double> data);
+/// nullopt where Eq. 6.2 is undefined (Σ data = 0).
+/// @throws std::invalid_argument as stated in the file comment.
+std::optional<double> AveragedRmsError(std::span<const double> prediction, std::span<const double> data);
 
 /// Result of a paired Student's t-test (Eq. 6.3).
 struct PairedTTestResult {
@@ -123,8 +124,15 @@ PassiveLinearisation LinearisePassive(const PassiveParams& passive, double angle
 /// (end values are held beyond them); of several stable roots the one
 /// nearest hint_deg is returned. Where τ_pta + τ_ptv(0) is 0 over a whole
 /// segment the segment's midpoint is taken.
-/// @throws std::invalid_argument if a curve is empty or no stable root
-///   exists inside the breakpoints.
+/// nullopt if no stable root exists inside the breakpoints (a leg that
+/// does not hang still).
+/// @throws std::invalid_argument if a curve is empty.
+std::optional<double> FindPassiveRestAngle(const PassiveParams& passive, double hint_deg = 90.0);
+
+/// FindPassiveRestAngle where a rest angle must exist (a leg's truth, a
+/// table of identified sets).
+/// @throws std::invalid_argument if a curve is empty or there is no stable
+///   root.
 double PassiveRestAngle(const PassiveParams& passive, double hint_deg = 90.0);
 
 }  // namespace fesbench::model

@@ -42,11 +42,11 @@ std::optional<double> BurstOnset(const model::SampledSignal& env, double t) {
 }  // namespace
 
 double FreeSwingStartAngleDeg(const model::ParameterSet& params) {
-  try {
-    return model::PassiveRestAngle(params.passive);
-  } catch (const std::invalid_argument&) {
-    return model::kReferenceAngleDeg;  // no stable rest angle
+  // No passive curves or no stable rest angle: the reference angle.
+  if (params.passive.torque_angle.empty() || params.passive.torque_velocity.empty()) {
+    return model::kReferenceAngleDeg;
   }
+  return model::FindPassiveRestAngle(params.passive).value_or(model::kReferenceAngleDeg);
 }
 
 model::SimulationResult SimulateStimulatedSwing(const model::ParameterSet& params,

@@ -45,18 +45,13 @@ PredictionErrors Errors(const std::vector<double>& predicted, const std::vector<
   for (std::size_t i = 0; i < data.size(); ++i) {
     e.max_abs = std::max(e.max_abs, std::abs(predicted[i] - data[i]));
   }
-  try {
-    const model::NormalisedRms n = model::NormalisedRmsError(predicted, data, exclude_fraction);
-    e.normalised_rms = n.value;  // Eq. 6.1
-    e.normalised_samples_used = n.samples_used;
-  } catch (const std::invalid_argument&) {
-    // Every sample excluded: Eq. 6.1 is undefined here.
+  // Eq. 6.1 and Eq. 6.2 are undefined on some data (every sample excluded,
+  // Σ data = 0): then null.
+  if (const auto n = model::NormalisedRmsError(predicted, data, exclude_fraction)) {
+    e.normalised_rms = n->value;
+    e.normalised_samples_used = n->samples_used;
   }
-  try {
-    e.e_ave = model::AveragedRmsError(predicted, data);  // Eq. 6.2
-  } catch (const std::invalid_argument&) {
-    // Σ data = 0: Eq. 6.2 is undefined here.
-  }
+  if (const auto e_ave = model::AveragedRmsError(predicted, data)) e.e_ave = *e_ave;
   return e;
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <cmath>
 #include <exception>
 #include <iostream>
@@ -115,9 +116,10 @@ api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
   v.run_id = run->id;
   v.session_id = run->session_id;
   v.protocol = run->protocol_name;
-  try {
-    v.protocol_version = std::stoi(run->protocol_version);
-  } catch (const std::exception&) {
+  // A stored version that is not a number reads as 0.
+  const std::string& version = run->protocol_version;
+  if (std::from_chars(version.data(), version.data() + version.size(), v.protocol_version).ec !=
+      std::errc()) {
     v.protocol_version = 0;
   }
   const nlohmann::json params = nlohmann::json::parse(run->parameters_json, nullptr, false);
