@@ -304,6 +304,17 @@ std::string_view IrcMethodName(IrcMethod method) {
   return "unknown";
 }
 
+std::string_view PoleMethodName(PoleMethod method) {
+  return method == PoleMethod::kLeastSquares ? "least_squares" : "peak";
+}
+
+std::optional<PoleMethod> PoleMethodFromName(std::string_view name) {
+  for (PoleMethod m : {PoleMethod::kPeak, PoleMethod::kLeastSquares}) {
+    if (PoleMethodName(m) == name) return m;
+  }
+  return std::nullopt;
+}
+
 std::optional<IrcMethod> IrcMethodFromName(std::string_view name) {
   for (IrcMethod m : {IrcMethod::kStep, IrcMethod::kImpulse, IrcMethod::kRampCorrelation,
                       IrcMethod::kRampDeconvolutionIdeal, IrcMethod::kRampDeconvolutionMeasured}) {

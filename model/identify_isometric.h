@@ -88,6 +88,11 @@ TwitchFit FitTwitchPole(std::span<const double> t_s, std::span<const double> tor
 /// Which pole estimate IdentifyContraction returns.
 enum class PoleMethod { kPeak, kLeastSquares };
 
+/// "peak" or "least_squares".
+std::string_view PoleMethodName(PoleMethod method);
+/// The method called `name` (PoleMethodName's words), or nullopt.
+std::optional<PoleMethod> PoleMethodFromName(std::string_view name);
+
 /// Options of IdentifyContraction.
 struct ContractionOptions {
   TwitchOptions twitch;

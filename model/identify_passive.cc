@@ -88,6 +88,26 @@ void AddSupportWarnings(const PassiveSystem& sys, std::span<const double> angle,
 
 }  // namespace
 
+std::string_view PassiveMethodName(PassiveMethod method) {
+  switch (method) {
+    case PassiveMethod::kSequential:
+      return "sequential";
+    case PassiveMethod::kSimultaneous:
+      return "simultaneous";
+    case PassiveMethod::kFreeSwing:
+      return "free_swing";
+  }
+  return "unknown";
+}
+
+std::optional<PassiveMethod> PassiveMethodFromName(std::string_view name) {
+  for (PassiveMethod m :
+       {PassiveMethod::kSequential, PassiveMethod::kSimultaneous, PassiveMethod::kFreeSwing}) {
+    if (PassiveMethodName(m) == name) return m;
+  }
+  return std::nullopt;
+}
+
 double AnthropometricInertia(double body_mass_kg, double leg_length_m) {
   if (!(body_mass_kg > 0.0) || !(leg_length_m > 0.0) || !std::isfinite(body_mass_kg) ||
       !std::isfinite(leg_length_m)) {

@@ -16,6 +16,7 @@
 
 #include <optional>
 #include <span>
+#include <string_view>
 
 #include "model/conditioning.h"
 #include "model/identify_common.h"
@@ -29,6 +30,15 @@ struct PassiveResult {
   PassiveParams passive;
   IdentifyReport report;
 };
+
+/// The three passive identifications of §4.2: sequential (§4.2.1),
+/// simultaneous (§4.2.2), free swing (§4.2.3).
+enum class PassiveMethod { kSequential, kSimultaneous, kFreeSwing };
+
+/// "sequential", "simultaneous", "free_swing".
+std::string_view PassiveMethodName(PassiveMethod method);
+/// The method called `name` (PassiveMethodName's words), or nullopt.
+std::optional<PassiveMethod> PassiveMethodFromName(std::string_view name);
 
 /// Eq. 4.13, §4.2.1: J = (0.061·w)·(0.735·l)², w body mass in kg, l the
 /// femoral condyle to medial malleolus length in m.

@@ -97,7 +97,14 @@ class Fitter {
  public:
   Fitter(const IdentificationRequest& request, const IdentificationConfig& config,
          const Selection& selection, const FitContext& context)
-      : req_(request), config_(config), sel_(selection), ctx_(context) {}
+      : req_(request),
+        config_(config),
+        sel_(selection),
+        ctx_(context),
+        // Both names were checked by ValidateIdentificationRequest.
+        passive_(model::PassiveMethodFromName(request.passive_method)
+                     .value_or(model::PassiveMethod::kSimultaneous)),
+        pole_(model::PoleMethodFromName(request.pole_method).value_or(model::PoleMethod::kPeak)) {}
 
   api::Result<FitOutcome> Run() {
     try {
@@ -166,15 +173,15 @@ class Fitter {
       missing.push_back(Missing("the contraction dynamics (single-pulse responses)",
                                 "an isometric_ramp_irc or isometric_impulse_irc trial"));
     }
-    if (req_.passive_method == "sequential" &&
+    if (passive_ == model::PassiveMethod::kSequential &&
         (!has(TrialKind::kPassivePositions) || !has(TrialKind::kPassiveVelocities))) {
       missing.push_back(Missing("passive_method sequential",
                                 "a passive_positions and a passive_velocities trial"));
     }
-    if (req_.passive_method == "simultaneous" && !has(TrialKind::kPassiveSimultaneous)) {
+    if (passive_ == model::PassiveMethod::kSimultaneous && !has(TrialKind::kPassiveSimultaneous)) {
       missing.push_back(Missing("passive_method simultaneous", "passive_simultaneous_* trials"));
     }
-    if (req_.passive_method == "free_swing") {
+    if (passive_ == model::PassiveMethod::kFreeSwing) {
       if (!has(TrialKind::kFreeSwingPassive)) {
         missing.push_back(Missing("passive_method free_swing", "a free_swing_passive trial"));
       }
@@ -214,8 +221,7 @@ class Fitter {
       twitch_trials.push_back(std::move(c));
     model::ContractionOptions co;
     co.order = req_.contraction_order;
-    co.method = req_.pole_method == "least_squares" ? model::PoleMethod::kLeastSquares
-                                                    : model::PoleMethod::kPeak;
+    co.method = pole_;
     const model::ContractionResult contraction = model::IdentifyContraction(twitch_trials, co);
     est.contraction = contraction.contraction;
     common_.Merge(contraction.report);
@@ -252,7 +258,7 @@ class Fitter {
 
   api::Status Passive(model::ParameterSet& est) {
     const auto& bp = req_.breakpoints;
-    if (req_.passive_method == "simultaneous") {
+    if (passive_ == model::PassiveMethod::kSimultaneous) {
       std::vector<TrialColumns> motor = ColumnsOfAll(TrialKind::kPassiveSimultaneous);
       for (TrialColumns& c : motor) EnsureKinematics(c);
       model::SimultaneousPassiveOptions o;
@@ -265,14 +271,14 @@ class Fitter {
     }
     std::optional<model::PassiveResult> sequential;
     if (sel_.Latest(TrialKind::kPassivePositions) && sel_.Latest(TrialKind::kPassiveVelocities) &&
-        (req_.passive_method == "sequential" || req_.passive_method == "free_swing")) {
+        (passive_ == model::PassiveMethod::kSequential || passive_ == model::PassiveMethod::kFreeSwing)) {
       TrialColumns pos = Columns(*sel_.Latest(TrialKind::kPassivePositions));
       TrialColumns vel = Columns(*sel_.Latest(TrialKind::kPassiveVelocities));
       EnsureKinematics(pos);
       EnsureKinematics(vel);
       model::SequentialPassiveOptions o;
       const std::optional<double> inertia = Inertia();
-      if (!inertia && req_.passive_method == "sequential") {
+      if (!inertia && passive_ == model::PassiveMethod::kSequential) {
         return api::Status::FailedPrecondition(
             "passive_method sequential needs the limb inertia: give inertia_kgm2 or record the "
             "subject's weight and shank length (Eq. 4.13)");
@@ -280,7 +286,7 @@ class Fitter {
       if (inertia) o.inertia_kgm2 = *inertia;
       sequential = model::IdentifyPassiveSequential(pos, vel, o);  // §4.2.1
     }
-    if (req_.passive_method == "sequential") {
+    if (passive_ == model::PassiveMethod::kSequential) {
       est.passive = sequential->passive;
       common_.Merge(sequential->report);
       return api::Status::Ok();
@@ -445,8 +451,11 @@ class Fitter {
 
   const IdentificationRequest& req_;
   const IdentificationConfig& config_;
+
   const Selection& sel_;
   const FitContext& ctx_;
+  const model::PassiveMethod passive_;
+  const model::PoleMethod pole_;
   model::IdentifyReport common_;
   std::set<std::int64_t> used_;
   std::string stage_ = "conditioning";
@@ -561,8 +570,7 @@ api::Status ValidateIdentificationRequest(const IdentificationRequest& req) {
         "ramp_deconvolution_measured",
         "irc_method");
   }
-  if (req.passive_method != "sequential" && req.passive_method != "simultaneous" &&
-      req.passive_method != "free_swing") {
+  if (!model::PassiveMethodFromName(req.passive_method)) {
     return api::Status::InvalidArgument("must be sequential, simultaneous or free_swing",
                                         "passive_method");
   }
@@ -570,7 +578,7 @@ api::Status ValidateIdentificationRequest(const IdentificationRequest& req) {
     return api::Status::InvalidArgument("must be 2, 3 or 0 (the better-fitting order)",
                                         "contraction_order");
   }
-  if (req.pole_method != "peak" && req.pole_method != "least_squares") {
+  if (!model::PoleMethodFromName(req.pole_method)) {
     return api::Status::InvalidArgument("must be peak or least_squares", "pole_method");
   }
   if (req.models.empty()) return api::Status::InvalidArgument("name at least one model", "models");

@@ -1,4 +1,5 @@
 #include "model/identify_isometric.h"
+#include "model/identify_passive.h"
 
 #include <gtest/gtest.h>
 
@@ -258,6 +259,20 @@ TEST(IrcMethodNames, ParseWhatTheyName) {
   }
   EXPECT_FALSE(IrcMethodFromName("ramp"));
   EXPECT_FALSE(IrcMethodFromName(""));
+}
+
+TEST(MethodNames, PassiveAndPoleMethodsParseWhatTheyName) {
+  for (PassiveMethod m :
+       {PassiveMethod::kSequential, PassiveMethod::kSimultaneous, PassiveMethod::kFreeSwing}) {
+    EXPECT_EQ(PassiveMethodFromName(PassiveMethodName(m)), m);
+  }
+  EXPECT_EQ(PassiveMethodName(PassiveMethod::kFreeSwing), "free_swing");
+  EXPECT_FALSE(PassiveMethodFromName("free swing"));
+  for (PoleMethod m : {PoleMethod::kPeak, PoleMethod::kLeastSquares}) {
+    EXPECT_EQ(PoleMethodFromName(PoleMethodName(m)), m);
+  }
+  EXPECT_EQ(PoleMethodName(PoleMethod::kLeastSquares), "least_squares");
+  EXPECT_FALSE(PoleMethodFromName("Peak"));
 }
 
 }  // namespace
