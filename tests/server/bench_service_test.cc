@@ -4,9 +4,7 @@
 #include "server/services/bench_service.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
-#include <atomic>
 #include <filesystem>
 
 #include "server/bench/replay_bench.h"
@@ -14,21 +12,14 @@
 #include "storage/audit_log.h"
 #include "storage/subjects.h"
 #include "storage/users.h"
+#include "tests/server/run_service_rig.h"
 
 namespace fesbench::server::services {
 namespace {
 
 using namespace std::chrono_literals;
 
-std::filesystem::path TempDir() {
-  static std::atomic<int> counter{0};
-  const auto dir =
-      std::filesystem::temp_directory_path() /
-      ("fesbench_benchsvc_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+using test::TempDir;  // run_service_rig.h
 
 struct Rig {
   explicit Rig(double time_scale = 0.0) : dir(TempDir()) {

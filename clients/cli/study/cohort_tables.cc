@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -249,17 +250,23 @@ void LinearisedTable(const std::vector<LegData>& legs, std::vector<Table>& out) 
     sets.emplace_back("truth", &leg.subject.truth);
     for (const auto& [key, p] : sets) {
       std::vector<std::string> row = {std::to_string(leg.index), key};
-      try {
-        if (p == nullptr) throw std::invalid_argument("no set");
-        // §6.9, Table 6.4: linearised about the free-hanging rest angle.
-        const double rest_deg = model::PassiveRestAngle(p->passive);
-        const model::PassiveLinearisation lin =
-            model::LinearisePassive(p->passive, rest_deg, 0.0);
-        row.insert(row.end(),
-                   {Num(rest_deg, 2), Num(lin.damping_ratio), Num(lin.natural_frequency_rad_s)});
-      } catch (const std::invalid_argument&) {
-        row.insert(row.end(), {"n/a", "n/a", "n/a"});
+      // §6.9, Table 6.4: linearised about the free-hanging rest angle; n/a
+      // without a set, a rest angle, or a restoring stiffness there.
+      std::vector<std::string> cells = {"n/a", "n/a", "n/a"};
+      const std::optional<double> rest_deg =
+          p != nullptr && !p->passive.torque_angle.empty() && !p->passive.torque_velocity.empty()
+              ? model::FindPassiveRestAngle(p->passive)
+              : std::nullopt;
+      if (rest_deg) {
+        try {
+          const model::PassiveLinearisation lin =
+              model::LinearisePassive(p->passive, *rest_deg, 0.0);
+          cells = {Num(*rest_deg, 2), Num(lin.damping_ratio), Num(lin.natural_frequency_rad_s)};
+        } catch (const std::invalid_argument&) {
+          // No restoring stiffness at the rest angle: not linearisable.
+        }
       }
+      row.insert(row.end(), cells.begin(), cells.end());
       t.rows.push_back(row);
     }
   }
