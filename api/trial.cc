@@ -221,13 +221,29 @@ Status ValidatePulseRecord(const PulseRecord& pulses) {
   return Status::Ok();
 }
 
+namespace {
+
+// A set kind must be the kind of a set name.
+Status ValidateKindOfName(const Trial& trial) {
+  if (trial.kind && trial.name && TrialKindOf(*trial.name) != trial.kind) {
+    return Status::InvalidArgument("a trial named '" + *trial.name + "' is not of kind '" +
+                                       std::string(TrialKindName(*trial.kind)) + "'",
+                                   "kind");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 Status ValidateTrial(const Trial& trial) {
   if (Status s = ValidateChannelGroup(trial.MainGroup()); !s.ok()) return s;
   if (trial.emg) {
     if (Status s = ValidateChannelGroup(*trial.emg, "emg."); !s.ok()) return s;
   }
-  if (trial.pulses) return ValidatePulseRecord(*trial.pulses);
-  return Status::Ok();
+  if (trial.pulses) {
+    if (Status s = ValidatePulseRecord(*trial.pulses); !s.ok()) return s;
+  }
+  return ValidateKindOfName(trial);
 }
 
 // --- CSV ----------------------------------------------------------------------
@@ -461,6 +477,7 @@ nlohmann::json TrialToJson(const Trial& trial) {
   nlohmann::json json = nlohmann::json::object();
   if (trial.id) json["id"] = *trial.id;
   if (trial.name) json["name"] = *trial.name;
+  if (trial.kind) json["kind"] = TrialKindName(*trial.kind);
   if (trial.start_time_unix_ms) json["start_time_unix_ms"] = *trial.start_time_unix_ms;
   json["sample_rate_hz"] = trial.sample_rate_hz;
   json["channels"] = ChannelsToJson(trial.channels);
@@ -484,6 +501,15 @@ Result<Trial> TrialFromJson(const nlohmann::json& json) {
   if (const auto name = json.find("name"); name != json.end() && !name->is_null()) {
     if (!name->is_string()) return Status::InvalidArgument("must be a string", "name");
     trial.name = name->get<std::string>();
+  }
+  if (const auto kind = json.find("kind"); kind != json.end() && !kind->is_null()) {
+    if (!kind->is_string()) return Status::InvalidArgument("must be a string", "kind");
+    trial.kind = ParseTrialKind(kind->get<std::string>());
+    if (!trial.kind) {
+      return Status::InvalidArgument(
+          "unknown trial kind '" + kind->get<std::string>() + "' (GET /api/v1/trial-kinds lists them)",
+          "kind");
+    }
   }
   if (const auto start = json.find("start_time_unix_ms");
       start != json.end() && !start->is_null()) {
@@ -531,6 +557,7 @@ Result<Trial> TrialFromJson(const nlohmann::json& json) {
     if (Status s = ValidatePulseRecord(record); !s.ok()) return s;
     trial.pulses = std::move(record);
   }
+  if (Status s = ValidateKindOfName(trial); !s.ok()) return s;
   return trial;
 }
 

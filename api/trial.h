@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "api/status.h"
+#include "api/trial_kind.h"
 #include "model/identify_common.h"
 #include "model/signal.h"
 
@@ -89,6 +90,10 @@ struct PulseRecord {
 struct Trial {
   std::optional<std::int64_t> id;                  ///< storage id, once stored.
   std::optional<std::string> name;                 ///< e.g. "free_swing_passive".
+  /// What the trial is (api/trial_kind.h): storage keeps it with the trial
+  /// and fills it from the name when a recorder leaves it unset; it must be
+  /// the kind the name belongs to.
+  std::optional<TrialKind> kind;
   std::optional<std::int64_t> start_time_unix_ms;  ///< wall-clock start, ms since 1970 UTC.
   double sample_rate_hz = 200.0;                   ///< > 0, rate of `channels`.
   std::vector<Channel> channels;                   ///< includes `t_s`.
@@ -130,7 +135,8 @@ Status ValidateChannelGroup(const ChannelGroup& group, std::string_view field_pr
 /// length, times finite and non-decreasing, amplitudes finite and ≥ 0.
 /// The reported field is "pulses.<name>" (e.g. "pulses.t_s[3]").
 Status ValidatePulseRecord(const PulseRecord& pulses);
-/// Checks the main group and, if present, the EMG group and the pulses.
+/// Checks the main group and, if present, the EMG group and the pulses, and
+/// that a set kind is the kind of a set name (field "kind").
 Status ValidateTrial(const Trial& trial);
 
 // --- CSV --------------------------------------------------------------------
@@ -172,7 +178,7 @@ std::string TrialToSto(const Trial& trial);
 // --- JSON -----------------------------------------------------------------------
 
 /// JSON form:
-/// `{"id": 3, "name": "...", "start_time_unix_ms": ..., "sample_rate_hz": 200,
+/// `{"id": 3, "name": "...", "kind": "...", "start_time_unix_ms": ..., "sample_rate_hz": 200,
 ///   "channels": [{"name": "t_s", "unit": "s", "values": [...]}, ...],
 ///   "emg": {"sample_rate_hz": 1000, "channels": [...]},
 ///   "pulses": {"pulse_rate_hz": 33, "pulse_width_us": 300,

@@ -1,6 +1,7 @@
 #include "api/trial_kind.h"
 
 #include <algorithm>
+#include <stdexcept>
 
 namespace fesbench::api {
 
@@ -203,6 +204,40 @@ std::optional<TrialKind> TrialKindOf(std::string_view trial_name) {
   const TrialKindInfo* info = FindTrialKind(trial_name);
   if (info == nullptr) return std::nullopt;
   return info->kind;
+}
+
+const TrialKindInfo& InfoOf(TrialKind kind) {
+  for (const TrialKindInfo& k : TrialKinds()) {
+    if (k.kind == kind) return k;
+  }
+  throw std::logic_error("TrialKind without a row in TrialKinds()");
+}
+
+std::string_view TrialKindName(TrialKind kind) { return InfoOf(kind).name; }
+
+std::optional<TrialKind> ParseTrialKind(std::string_view name) {
+  for (const TrialKindInfo& k : TrialKinds()) {
+    if (k.name == name) return k.kind;
+  }
+  return std::nullopt;
+}
+
+bool IsFreeSwing(TrialKind kind) {
+  const TrialKindInfo& info = InfoOf(kind);
+  return !info.motor && !info.knee_locked && kind != TrialKind::kToleranceTest;
+}
+
+bool IsValidation(TrialKind kind) {
+  switch (kind) {
+    case TrialKind::kIsometricPrediction:
+    case TrialKind::kPredictionRandomBinary:
+    case TrialKind::kPredictionStep:
+    case TrialKind::kPredictionRamp:
+    case TrialKind::kPredictionSine:
+      return true;
+    default:
+      return false;
+  }
 }
 
 Status ValidateTrialKindName(std::string_view trial_name, std::string_view field) {

@@ -72,6 +72,22 @@ const TrialKindInfo* FindTrialKind(std::string_view trial_name);
 /// The kind of a trial name (FindTrialKind), or nullopt.
 std::optional<TrialKind> TrialKindOf(std::string_view trial_name);
 
+/// The kind's name (its row's `name`: "free_swing_passive", "active", ...).
+std::string_view TrialKindName(TrialKind kind);
+/// The kind named `name` exactly (a kind's name, not a member's), or nullopt.
+std::optional<TrialKind> ParseTrialKind(std::string_view name);
+/// The row of `kind`.
+const TrialKindInfo& InfoOf(TrialKind kind);
+/// A trial of this kind swings freely under stimulation: its knee angle is
+/// the response a prediction is judged on (neither the motor nor a lock
+/// holds the knee, and it is not the tolerance test).
+bool IsFreeSwing(TrialKind kind);
+
+/// A trial of this kind is recorded to validate a model (the §5.4.5
+/// prediction protocols, isometric or free swing): identification never fits
+/// on it.
+bool IsValidation(TrialKind kind);
+
 /// Checks that a trial name is a known kind (kInvalidArgument naming
 /// `field` and listing the kinds otherwise).
 Status ValidateTrialKindName(std::string_view trial_name, std::string_view field);

@@ -1,19 +1,26 @@
 #include "storage/migrations.h"
 
+#include <algorithm>
 #include <initializer_list>
+
+#include "api/trial_kind.h"
 
 namespace fesbench::storage {
 namespace {
 
 // Triggers that make each table append-only: nothing is ever silently
 // overwritten; a correction is a new row that points at what it corrects.
+std::string AppendOnlyUpdate(const std::string& t) {
+  return "CREATE TRIGGER " + t + "_no_update BEFORE UPDATE ON " + t +
+         " BEGIN SELECT RAISE(ABORT, '" + t +
+         " is append-only: add a correcting row instead'); END;\n";
+}
+
 std::string AppendOnly(std::initializer_list<const char*> tables) {
   std::string sql;
   for (const char* table : tables) {
     const std::string t(table);
-    sql += "CREATE TRIGGER " + t + "_no_update BEFORE UPDATE ON " + t +
-           " BEGIN SELECT RAISE(ABORT, '" + t +
-           " is append-only: add a correcting row instead'); END;\n";
+    sql += AppendOnlyUpdate(t);
     sql += "CREATE TRIGGER " + t + "_no_delete BEFORE DELETE ON " + t +
            " BEGIN SELECT RAISE(ABORT, '" + t + " is append-only: rows are never deleted'); END;\n";
   }
@@ -342,6 +349,32 @@ ALTER TABLE parameter_sets ADD COLUMN run_id BIGINT REFERENCES runs(id);
 CREATE INDEX parameter_sets_run ON parameter_sets(run_id) WHERE run_id IS NOT NULL;
 )sql";
 
+// Every trial names its kind (issue 17, api/trial_kind.h): identification,
+// prediction and the clients read the column instead of decoding names.
+// Trials stored before get the kind their name belongs to (exact names
+// first, then the longest family stem followed by "_" and a suffix, as
+// api::FindTrialKind, without checking the suffix's characters); a name of
+// no kind stays NULL. trials is append-only, so this one back-fill lifts the
+// trigger for its UPDATE: `lift` and `restore` are each engine's DDL.
+std::string TrialKindMigration(const std::string& lift, const std::string& restore) {
+  std::string cases;
+  std::vector<const api::TrialKindInfo*> families;
+  for (const api::TrialKindInfo& k : api::TrialKinds()) {
+    cases += "  WHEN name = '" + std::string(k.name) + "' THEN '" + std::string(k.name) + "'\n";
+    if (k.family) families.push_back(&k);
+  }
+  std::stable_sort(families.begin(), families.end(),
+                   [](const auto* a, const auto* b) { return a->name.size() > b->name.size(); });
+  for (const api::TrialKindInfo* k : families) {
+    const std::string stem = std::string(k->name) + "_";
+    cases += "  WHEN substr(name, 1, " + std::to_string(stem.size()) + ") = '" + stem +
+             "' AND length(name) > " + std::to_string(stem.size()) + " THEN '" +
+             std::string(k->name) + "'\n";
+  }
+  return "ALTER TABLE trials ADD COLUMN kind TEXT;\n" + lift +
+         "UPDATE trials SET kind = CASE\n" + cases + "  END;\n" + restore;
+}
+
 // ---------------------------------------------------------------- PostgreSQL
 //
 // The same schema in PostgreSQL's dialect, as of SQLite migration 11 (one
@@ -633,6 +666,8 @@ const std::vector<Migration>& AllMigrations() {
        std::string(kMigration11) + AppendOnly({"trial_imports"})},
       {12, "runs and e-stop presses belong to a bench", kMigration12},
       {13, "parameter sets name the run that identified them", kMigration13},
+      {14, "every trial names its kind",
+       TrialKindMigration("DROP TRIGGER trials_no_update;\n", AppendOnlyUpdate("trials"))},
   };
   return kMigrations;
 }
@@ -649,6 +684,9 @@ const std::vector<Migration>& PostgresMigrations() {
                                "estop_events", "trial_pulses", "trial_imports"})},
       {12, "runs and e-stop presses belong to a bench", kMigration12},
       {13, "parameter sets name the run that identified them", kMigration13},
+      {14, "every trial names its kind",
+       TrialKindMigration("ALTER TABLE trials DISABLE TRIGGER trials_append_only;\n",
+                          "ALTER TABLE trials ENABLE TRIGGER trials_append_only;\n")},
   };
   return kMigrations;
 }

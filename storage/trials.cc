@@ -32,14 +32,30 @@ struct StoredChannel {
   api::Channel channel;
 };
 
+// The kind column (NULL for a name of no kind, or a kind this build does
+// not know).
+std::optional<api::TrialKind> KindColumn(const Statement& s, int column) {
+  if (s.IsNull(column)) return std::nullopt;
+  return api::ParseTrialKind(s.Text(column));
+}
+
+// The kind a trial is stored with: its own, else its name's.
+std::optional<std::string> StoredKind(const api::Trial& trial) {
+  std::optional<api::TrialKind> kind = trial.kind;
+  if (!kind && trial.name) kind = api::TrialKindOf(*trial.name);
+  if (!kind) return std::nullopt;
+  return std::string(api::TrialKindName(*kind));
+}
+
 api::Result<api::Trial> GetTrialIn(Connection& c, std::int64_t id) {
   auto head = internal::One(internal::QueryRows(
-                                c, "SELECT name, start_time_unix_ms FROM trials WHERE id = ?1",
+                                c, "SELECT name, start_time_unix_ms, kind FROM trials WHERE id = ?1",
                                 [&](const Statement& s) {
                                   api::Trial trial;
                                   trial.id = id;
                                   if (!s.IsNull(0)) trial.name = s.Text(0);
                                   trial.start_time_unix_ms = s.OptionalInt64(1);
+                                  trial.kind = KindColumn(s, 2);
                                   return trial;
                                 },
                                 id),
@@ -115,9 +131,10 @@ api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner, const
     }
     auto inserted = internal::InsertRow(
         c,
-        "INSERT INTO trials (session_id, run_id, name, start_time_unix_ms, created_at_utc)"
-        " VALUES (?1, ?2, ?3, ?4, ?5)",
-        owner.session_id, owner.run_id, trial.name, trial.start_time_unix_ms, FormatUtc(db_.Now()));
+        "INSERT INTO trials (session_id, run_id, name, start_time_unix_ms, created_at_utc, kind)"
+        " VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+        owner.session_id, owner.run_id, trial.name, trial.start_time_unix_ms, FormatUtc(db_.Now()),
+        StoredKind(trial));
     if (!inserted.ok()) return inserted.status();
     const std::int64_t id = *inserted;
     if (auto s = InsertChannels(c, id, "main", trial.sample_rate_hz, trial.channels); !s.ok()) {
@@ -235,7 +252,7 @@ api::Result<std::vector<TrialSummary>> TrialRepository::ListForSessionPage(std::
         " (SELECT sample_count FROM trial_channels WHERE trial_id = t.id AND grp = 'main'"
         "  AND ordinal = 0),"
         " (SELECT sample_rate_hz FROM trial_channels WHERE trial_id = t.id AND grp = 'main'"
-        "  AND ordinal = 0)"
+        "  AND ordinal = 0), t.kind"
         " FROM trials t WHERE t.session_id = ?1 AND t.id > ?2 ORDER BY t.id LIMIT ?3",
         [](const Statement& s) -> api::Result<TrialSummary> {
           TrialSummary t;
@@ -248,6 +265,7 @@ api::Result<std::vector<TrialSummary>> TrialRepository::ListForSessionPage(std::
           t.created_at = *created;
           t.num_samples = static_cast<std::size_t>(s.Int64(5));
           t.sample_rate_hz = s.Double(6);
+          t.kind = KindColumn(s, 7);
           return t;
         },
         session_id, after_id, static_cast<std::int64_t>(std::min<std::size_t>(limit, INT64_MAX)));

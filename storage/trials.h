@@ -30,6 +30,7 @@ struct TrialSummary {
   std::int64_t session_id = 0;
   std::optional<std::int64_t> run_id;
   std::optional<std::string> name;
+  std::optional<api::TrialKind> kind;  ///< none for a name of no kind.
   std::size_t num_samples = 0;  ///< per main channel.
   double sample_rate_hz = 0;
   UtcTime created_at;

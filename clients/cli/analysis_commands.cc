@@ -39,11 +39,13 @@ std::string Fixed(const json& value, int digits) {
   return buffer;
 }
 
-// A trial recorded in free swing (the knee angle is what is predicted):
-// passive free swing, active random binary, the §5.4.5 prediction trials.
-bool IsFreeSwingTrial(const std::string& name) {
-  return name.find("free_swing") != std::string::npos ||
-         name.find("random_binary") != std::string::npos || name.starts_with("prediction_");
+// A trial recorded in free swing (the knee angle is what is predicted), by
+// the kind the server stored with it (api::IsFreeSwing).
+bool IsFreeSwingTrial(const json& trial) {
+  const json kind = trial.value("kind", json(nullptr));
+  if (!kind.is_string()) return false;
+  const std::optional<api::TrialKind> parsed = api::ParseTrialKind(kind.get<std::string>());
+  return parsed && api::IsFreeSwing(*parsed);
 }
 
 // The trials a parameter set was fitted on (its provenance): training data.
@@ -73,7 +75,7 @@ json ValidationTrials(ApiClient& client, std::int64_t set_id) {
     for (const auto& trial :
          client.GetAllPages("/sessions/" + Cell(session["id"]) + "/trials", "")) {
       const std::int64_t id = trial.value("id", std::int64_t{0});
-      if (IsFreeSwingTrial(trial.value("name", "")) && !Contains(training, id)) {
+      if (IsFreeSwingTrial(trial) && !Contains(training, id)) {
         kept.push_back(id);
       }
     }

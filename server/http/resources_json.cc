@@ -95,7 +95,7 @@ nlohmann::json TrialSummaryToJson(const storage::TrialSummary& t) {
           {"session_id", t.session_id},
           {"run_id", OptionalId(t.run_id)},
           {"name", t.name ? nlohmann::json(*t.name) : nlohmann::json(nullptr)},
-          {"kind", t.name ? nlohmann::json(*t.name) : nlohmann::json(nullptr)},
+          {"kind", t.kind ? nlohmann::json(api::TrialKindName(*t.kind)) : nlohmann::json(nullptr)},
           {"num_samples", t.num_samples},
           {"sample_rate_hz", t.sample_rate_hz},
           {"duration_s", t.sample_rate_hz > 0.0

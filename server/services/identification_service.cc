@@ -31,24 +31,13 @@ namespace {
 
 using model::TrialColumns;
 
-// What a stored trial is, by its name (api/trial_kind.h); identification
-// reads every kind but the tolerance test and the validation trials.
+// The kind a stored trial is fitted as (api/trial_kind.h, stored with the
+// trial): every kind but the tolerance test and the validation trials.
 using api::TrialKind;
 
-std::optional<TrialKind> KindOfName(std::string_view name) {
-  const std::optional<TrialKind> kind = api::TrialKindOf(name);
-  if (!kind) return std::nullopt;
-  switch (*kind) {
-    case TrialKind::kToleranceTest:
-    case TrialKind::kIsometricPrediction:
-    case TrialKind::kPredictionRandomBinary:
-    case TrialKind::kPredictionStep:
-    case TrialKind::kPredictionRamp:
-    case TrialKind::kPredictionSine:
-      return std::nullopt;
-    default:
-      return kind;
-  }
+std::optional<TrialKind> FittedKind(std::optional<TrialKind> kind) {
+  if (!kind || *kind == TrialKind::kToleranceTest || api::IsValidation(*kind)) return std::nullopt;
+  return kind;
 }
 
 // The trials of one leg, sorted by kind (ids ascending within a kind).
@@ -492,7 +481,7 @@ api::Result<Selection> Select(storage::Database& db, const IdentificationRequest
         storage::TrialRepository(db).ListForSession(*req.session_id);
     if (!list.ok()) return list.status();
     for (const storage::TrialSummary& t : *list) {
-      if (t.name && KindOfName(*t.name)) ids.push_back(t.id);
+      if (FittedKind(t.kind)) ids.push_back(t.id);
     }
     if (ids.empty()) {
       // Still need the session's subject and leg for the message.
@@ -515,7 +504,7 @@ api::Result<Selection> Select(storage::Database& db, const IdentificationRequest
               std::to_string(ids.front()) + "; one fit uses one leg's trials",
           field);
     }
-    const std::optional<TrialKind> kind = KindOfName(t->trial.name.value_or(""));
+    const std::optional<TrialKind> kind = FittedKind(t->trial.kind);
     if (!kind) {
       if (explicit_ids) {
         return api::Status::InvalidArgument("trial " + std::to_string(t->id) + " (\"" +

@@ -181,8 +181,7 @@ api::Status PrepareFromTrial(storage::Database& db, const PredictionRequest& req
   api::Result<LoadedTrial> trial = LoadTrial(db, *request.trial_id);
   if (!trial.ok()) return trial.status();
   const std::string name = trial->trial.name.value_or("");
-  const api::TrialKindInfo* kind = api::FindTrialKind(name);
-  if (kind != nullptr && kind->motor) {
+  if (trial->trial.kind && api::InfoOf(*trial->trial.kind).motor) {
     return api::Status::FailedPrecondition(
         "trial " + std::to_string(trial->id) + " (\"" + name +
         "\") is a motor trial; predictions replay free-swing or isometric trials");
@@ -200,7 +199,7 @@ api::Status PrepareFromTrial(storage::Database& db, const PredictionRequest& req
                                         "trial_id");
   }
   const auto [lo, hi] = std::minmax_element(c.angle_deg.begin(), c.angle_deg.end());
-  const bool locked = (kind != nullptr && kind->knee_locked) || (*hi - *lo) < 0.5;
+  const bool locked = (trial->trial.kind && api::InfoOf(*trial->trial.kind).knee_locked) || (*hi - *lo) < 0.5;
   out.mode = request.mode.value_or(locked ? PredictionMode::kIsometric : PredictionMode::kFreeSwing);
   if (request.fit_scale && out.mode != PredictionMode::kIsometric) {
     return api::Status::InvalidArgument("isometric predictions only (trial " +

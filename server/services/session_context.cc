@@ -55,8 +55,7 @@ api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64
     for (std::int64_t id : latest->trial_ids) {
       api::Result<api::Trial> t = trials.Get(id);
       if (!t.ok()) continue;
-      const std::string name = t->name.value_or("");
-      if (name == "rapid_isometric_ramp_irc" || name == "daily_check_ramp_irc") {
+      if (t->kind == api::TrialKind::kRapidRamp || t->kind == api::TrialKind::kDailyCheckRamp) {
         c.base_ramp_trial = api::ToTrialColumns(*t);
         break;
       }

@@ -2,6 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
 #include "storage_test_util.h"
 
 namespace fesbench::storage {
@@ -99,6 +105,99 @@ TEST_P(StorageTest, TrialRoundTripKeepsEveryChannelExactly) {
   });
   ASSERT_TRUE(bytes.ok());
   EXPECT_EQ(*bytes, std::to_string(4 * 2000 * 8 + 2 * 4 * 5 * 8));
+}
+
+TEST_P(StorageTest, TrialsAreStoredWithTheKindOfTheirName) {
+  const Session session = MakeSession("K1");
+  TrialRepository trials(*db_);
+  api::Trial swing = MakeTrial(10);
+  swing.name = "active_random_binary_rb1";  // a member of the "active" family
+  auto swing_id = trials.Insert({session.id, std::nullopt}, swing);
+  ASSERT_TRUE(swing_id.ok()) << swing_id.status().ToString();
+  auto back = trials.Get(*swing_id);
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back->kind, api::TrialKind::kActive);
+
+  api::Trial nameless = MakeTrial(10);  // "free_swing" is no kind
+  auto nameless_id = trials.Insert({session.id, std::nullopt}, nameless);
+  ASSERT_TRUE(nameless_id.ok());
+  auto list = trials.ListForSession(session.id);
+  ASSERT_TRUE(list.ok());
+  ASSERT_EQ(list->size(), 2u);
+  EXPECT_EQ((*list)[0].kind, api::TrialKind::kActive);
+  EXPECT_EQ((*list)[1].kind, std::nullopt);
+
+  // A kind that is not the name's is refused, naming the field.
+  api::Trial wrong = MakeTrial(10);
+  wrong.name = "free_swing_passive";
+  wrong.kind = api::TrialKind::kActive;
+  auto refused = trials.Insert({session.id, std::nullopt}, wrong);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(refused.status().field(), "kind");
+}
+
+TEST_P(StorageTest, MigrationFourteenGivesTrialsStoredBeforeTheKindOfTheirName) {
+  // A database at schema 13 whose trials have names but no kind column yet.
+  std::unique_ptr<::fesbench::testing::ScratchDatabase> scratch;
+  DatabaseOptions v13 = Options();
+  if (GetParam() == Engine::kPostgres) {
+    scratch = std::make_unique<::fesbench::testing::ScratchDatabase>();
+    ASSERT_TRUE(scratch->ok()) << scratch->skip_reason();
+    v13.path = scratch->url();
+  } else {
+    v13.path = (dir_ / "v13.db").string();
+  }
+  v13.target_schema_version = 13;
+  const std::vector<std::pair<std::string, std::optional<std::string>>> names = {
+      {"free_swing_passive", "free_swing_passive"},
+      {"passive_simultaneous_3", "passive_simultaneous"},
+      {"active_random_binary_rb1", "active_random_binary"},
+      {"prediction_random_binary_s4", "prediction_random_binary"},
+      {"rapid_isometric_ramp_irc", "rapid_isometric_ramp_irc"},
+      {"active_", std::nullopt},  // a stem with no suffix
+      {"t1", std::nullopt},
+  };
+  {
+    auto db = Database::Open(v13);
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    ASSERT_TRUE((*db)
+                    ->Write([&](Connection& c) -> api::Status {
+                      std::string sql =
+                          "INSERT INTO subjects (id, code, created_at_utc) VALUES"
+                          " (1, 'K2', '2026-01-01T00:00:00.000000Z');"
+                          "INSERT INTO legs (id, subject_id, side, created_at_utc) VALUES"
+                          " (1, 1, 'left', '2026-01-01T00:00:00.000000Z');"
+                          "INSERT INTO sessions (id, subject_id, leg_id, created_at_utc) VALUES"
+                          " (1, 1, 1, '2026-01-01T00:00:00.000000Z');";
+                      for (std::size_t i = 0; i < names.size(); ++i) {
+                        sql += "INSERT INTO trials (id, session_id, name, created_at_utc) VALUES (" +
+                               std::to_string(i + 1) + ", 1, '" + names[i].first +
+                               "', '2026-01-01T00:00:00.000000Z');";
+                      }
+                      return c.ExecScript(sql);
+                    })
+                    .ok());
+  }
+  DatabaseOptions latest = v13;
+  latest.target_schema_version.reset();
+  auto db = Database::Open(latest);
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    auto kind = (*db)->Read([&](Connection& c) -> api::Result<std::string> {
+      return c.QueryText("SELECT coalesce(kind, '-') FROM trials WHERE id = " +
+                         std::to_string(i + 1));
+    });
+    ASSERT_TRUE(kind.ok()) << kind.status().ToString();
+    EXPECT_EQ(*kind, names[i].second.value_or("-")) << names[i].first;
+    // The back-fill agrees with the kind the name has today.
+    const std::optional<api::TrialKind> today = api::TrialKindOf(names[i].first);
+    EXPECT_EQ(today ? std::string(api::TrialKindName(*today)) : "-", *kind) << names[i].first;
+  }
+  // trials is append-only again after the back-fill.
+  auto update = (*db)->Write(
+      [](Connection& c) { return c.ExecScript("UPDATE trials SET kind = 'tracking' WHERE id = 7"); });
+  EXPECT_FALSE(update.ok());
 }
 
 TEST_P(StorageTest, TrialBadInputNamesTheProblem) {

@@ -38,14 +38,15 @@ export async function predictionView(ctx, presetId) {
     try {
       // Honest validation by default: the trials the set was NOT fitted on
       // come first; its training trials are marked as such.
-      const [set, sessions] = await Promise.all([api('GET', `/parameter-sets/${summary.id}`),
-        listAll(`/subjects/${summary.subject_id}/sessions`)]);
+      const [set, sessions, kinds] = await Promise.all([api('GET', `/parameter-sets/${summary.id}`),
+        listAll(`/subjects/${summary.subject_id}/sessions`), api('GET', '/trial-kinds')]);
       training = new Set(set.trial_ids || []);
       const legSessions = sessions.filter((s) => s.leg_id === undefined || s.leg_id === summary.leg_id);
       const trials = (await Promise.all(legSessions.map((s) => listAll(`/sessions/${s.id}/trials`)))).flat();
-      // Free-swing trials (the knee moves) are what a prediction of the angle is for.
-      const freeSwing = (t) => /random_binary|step|free/.test(t.name || t.kind || '');
-      trials.sort((a, b) => Number(freeSwing(b)) - Number(freeSwing(a)) || b.id - a.id);
+      // Trials recorded to validate a model come first, then the other free-swing trials.
+      const rank = new Map(kinds.items.map((k) => [k.name, 2 * Number(k.validation) + Number(k.free_swing)]));
+      const score = (t) => rank.get(t.kind) || 0;
+      trials.sort((a, b) => score(b) - score(a) || b.id - a.id);
       const option = (t) => h('option', { value: t.id, dataset: { training: training.has(t.id) ? '1' : '0' } },
         `Trial ${t.id}: ${t.name || t.kind || '—'} (session ${t.session_id})${training.has(t.id) ? ' (training)' : ''}`);
       const fresh = trials.filter((t) => !training.has(t.id));
