@@ -10,10 +10,12 @@ namespace fesbench::server::http {
 RouteTable BuildApiRoutes(const ApiDependencies& deps) {
   RouteTable table;
   auto document = std::make_shared<std::string>();
-  table.Add({"GET", "/api/v1/openapi.json", 0, false, "system",
-             "This OpenAPI 3 document (built from the server's route table)", {}, 200,
-             "application/json", nullptr, nullptr,
-             [document](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/openapi.json",
+             .roles = 0,
+             .tag = "system",
+             .summary = "This OpenAPI 3 document (built from the server's route table)",
+             .handler = [document](RequestContext& ctx) -> api::Result<Reply> {
                ctx.res.status = 200;
                ctx.res.set_content(*document, "application/json");
                return Reply{200, nullptr, true};

@@ -34,8 +34,8 @@ struct RequestContext {
   const httplib::Request& req;
   httplib::Response& res;
   std::map<std::string, std::string, std::less<>> path;  ///< template name → segment.
-  std::optional<storage::User> user;                      ///< set on authenticated routes.
-  nlohmann::json body;                                    ///< parsed JSON body (body routes).
+  std::optional<storage::User> user;                     ///< set on authenticated routes.
+  nlohmann::json body;                                   ///< parsed JSON body (body routes).
   /// Set by handlers that wrote their own audit entry (in the transaction of
   /// the change); otherwise the dispatcher audits state-changing requests.
   bool audited = false;
@@ -64,17 +64,17 @@ struct QueryParam {
 };
 
 struct Route {
-  std::string method;     ///< "GET", "POST", "PUT", "DELETE".
-  std::string path;       ///< "/api/v1/subjects/{subject_id}".
-  RoleMask roles = 0;     ///< 0: open (no token needed).
-  bool json_body = false; ///< requires an application/json object body.
-  std::string tag;        ///< OpenAPI tag.
-  std::string summary;
-  std::vector<QueryParam> query;
+  std::string method;      ///< "GET", "POST", "PUT", "DELETE".
+  std::string path;        ///< "/api/v1/subjects/{subject_id}".
+  RoleMask roles = 0;      ///< 0: open (no token needed).
+  bool json_body = false;  ///< requires an application/json object body.
+  std::string tag;         ///< OpenAPI tag.
+  std::string summary = {};
+  std::vector<QueryParam> query = {};
   int success_status = 200;
   std::string produces = "application/json";  ///< or "text/event-stream", …
-  nlohmann::json request_schema;   ///< JSON Schema of the body (null: generic object).
-  nlohmann::json response_schema;  ///< JSON Schema of the success body (null: object).
+  nlohmann::json request_schema = nullptr;    ///< JSON Schema of the body (null: generic object).
+  nlohmann::json response_schema = nullptr;   ///< JSON Schema of the success body (null: object).
   Handler handler;
   /// The handler reads the request body itself (uploads of any media type);
   /// otherwise a body on a route without json_body is refused.

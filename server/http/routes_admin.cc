@@ -69,9 +69,13 @@ json TokenRowToJson(const TokenRow& t) {
 void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   Authenticator& auth = *deps.auth;
-  table.Add({"GET", "/api/v1/users", kAdmin, false, "users", "List users", PageParams(), 200,
-             "application/json", nullptr, nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/users",
+             .roles = kAdmin,
+             .tag = "users",
+             .summary = "List users",
+             .query = PageParams(),
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto page = ParsePage(ctx);
                if (!page.ok()) return page.status();
                auto users = storage::UserRepository(db).ListUsers();
@@ -79,56 +83,71 @@ void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply(MakePage(
                    *users, *page, [](const storage::User& u) { return u.id; }, UserToJson));
              }});
-  table.Add({"POST", "/api/v1/users", kAdmin, true, "users", "Create a user with a role", {},
-             201, "application/json",
-             ObjectSchema({{"name", {{"type", "string"}, {"minLength", 1}, {"maxLength", 64}}},
-                           {"role", {{"enum", {"clinician", "analyst", "admin"}}}}},
-                          {"name", "role"}),
-             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
-               auto request = NewUserFromJson(ctx.body);
-               if (!request.ok()) return request.status();
-               auto user = AuditedWrite<storage::User>(
-                   db, ctx, 201,
-                   [&] { return storage::UserRepository(db).CreateUser(request->name, request->role); },
-                   [](const storage::User& u) { return "users/" + std::to_string(u.id); });
-               if (!user.ok()) return user.status();
-               return JsonReply(UserToJson(*user), 201);
-             }});
-  table.Add({"POST", "/api/v1/users/{user_id}/deactivate", kAdmin, true, "users",
-             "Deactivate a user (their tokens stop working)", {}, 200, "application/json",
-             ObjectSchema({{"reason", {{"type", "string"}, {"minLength", 1}, {"maxLength", 512}}}},
-                          {"reason"}),
-             nullptr, [&db, &auth](RequestContext& ctx) -> api::Result<Reply> {
-               JsonFields f(ctx.body);
-               auto reason = f.String("reason", true, 512);
-               if (auto st = f.Finish(); !st.ok()) return st;
-               if (reason->empty()) return api::Status::InvalidArgument("must not be empty", "reason");
-               const std::int64_t user_id = ctx.Id("user_id");
-               if (ctx.user && ctx.user->id == user_id) {
-                 return api::Status::FailedPrecondition("an admin cannot deactivate themself");
-               }
-               auto user = AuditedWrite<storage::User>(
-                   db, ctx, 200,
-                   [&]() -> api::Result<storage::User> {
-                     storage::UserRepository users(db);
-                     if (auto st = users.DeactivateUser(user_id, *reason); !st.ok()) return st;
-                     return users.GetUser(user_id);
-                   },
-                   [](const storage::User& u) { return "users/" + std::to_string(u.id); });
-               if (!user.ok()) return user.status();
-               auth.Invalidate();
-               return JsonReply(UserToJson(*user));
-             }});
+  table.Add(
+      {.method = "POST",
+       .path = "/api/v1/users",
+       .roles = kAdmin,
+       .json_body = true,
+       .tag = "users",
+       .summary = "Create a user with a role",
+       .success_status = 201,
+       .request_schema =
+           ObjectSchema({{"name", {{"type", "string"}, {"minLength", 1}, {"maxLength", 64}}},
+                         {"role", {{"enum", {"clinician", "analyst", "admin"}}}}},
+                        {"name", "role"}),
+       .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
+         auto request = NewUserFromJson(ctx.body);
+         if (!request.ok()) return request.status();
+         auto user = AuditedWrite<storage::User>(
+             db, ctx, 201,
+             [&] { return storage::UserRepository(db).CreateUser(request->name, request->role); },
+             [](const storage::User& u) { return "users/" + std::to_string(u.id); });
+         if (!user.ok()) return user.status();
+         return JsonReply(UserToJson(*user), 201);
+       }});
+  table.Add(
+      {.method = "POST",
+       .path = "/api/v1/users/{user_id}/deactivate",
+       .roles = kAdmin,
+       .json_body = true,
+       .tag = "users",
+       .summary = "Deactivate a user (their tokens stop working)",
+       .request_schema = ObjectSchema(
+           {{"reason", {{"type", "string"}, {"minLength", 1}, {"maxLength", 512}}}}, {"reason"}),
+       .handler = [&db, &auth](RequestContext& ctx) -> api::Result<Reply> {
+         JsonFields f(ctx.body);
+         auto reason = f.String("reason", true, 512);
+         if (auto st = f.Finish(); !st.ok()) return st;
+         if (reason->empty()) return api::Status::InvalidArgument("must not be empty", "reason");
+         const std::int64_t user_id = ctx.Id("user_id");
+         if (ctx.user && ctx.user->id == user_id) {
+           return api::Status::FailedPrecondition("an admin cannot deactivate themself");
+         }
+         auto user = AuditedWrite<storage::User>(
+             db, ctx, 200,
+             [&]() -> api::Result<storage::User> {
+               storage::UserRepository users(db);
+               if (auto st = users.DeactivateUser(user_id, *reason); !st.ok()) return st;
+               return users.GetUser(user_id);
+             },
+             [](const storage::User& u) { return "users/" + std::to_string(u.id); });
+         if (!user.ok()) return user.status();
+         auth.Invalidate();
+         return JsonReply(UserToJson(*user));
+       }});
 }
 
 // Tokens: list, create (shown once), revoke.
 void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   Authenticator& auth = *deps.auth;
-  table.Add({"GET", "/api/v1/tokens", kAdmin, false, "tokens",
-             "List tokens (metadata; secrets are never shown again)", PageParams(), 200,
-             "application/json", nullptr, nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/tokens",
+             .roles = kAdmin,
+             .tag = "tokens",
+             .summary = "List tokens (metadata; secrets are never shown again)",
+             .query = PageParams(),
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto page = ParsePage(ctx);
                if (!page.ok()) return page.status();
                auto tokens = ListTokens(db);
@@ -136,45 +155,53 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply(MakePage(
                    *tokens, *page, [](const TokenRow& t) { return t.id; }, TokenRowToJson));
              }});
-  table.Add({"POST", "/api/v1/tokens", kAdmin, true, "tokens",
-             "Issue a bearer token for a user (the secret is in this response only)", {}, 201,
-             "application/json",
-             ObjectSchema({{"user_id", {{"type", "integer"}, {"minimum", 1}}},
-                           {"label", {{"type", "string"}, {"maxLength", 128}}},
-                           {"expires_in_s", {{"type", "integer"}, {"minimum", 60}}}},
-                          {"user_id"}),
-             nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
-               auto request = NewTokenFromJson(ctx.body);
-               if (!request.ok()) return request.status();
-               std::optional<storage::UtcTime> expires;
-               if (request->expires_in_s) {
-                 expires = storage::NowUtc() + std::chrono::seconds(*request->expires_in_s);
-               }
-               auto issued = AuditedWrite<storage::IssuedToken>(
-                   db, ctx, 201,
-                   [&] {
-                     return storage::UserRepository(db).IssueToken(request->user_id, request->label,
-                                                                   expires);
-                   },
-                   [](const storage::IssuedToken& t) { return "tokens/" + std::to_string(t.token_id); });
-               if (!issued.ok()) {
-                 if (issued.status().code() == api::ErrorCode::kNotFound) {
-                   return api::Status(api::ErrorCode::kNotFound, issued.status().message(), "user_id");
-                 }
-                 return issued.status();
-               }
-               return JsonReply({{"id", issued->token_id},
-                                 {"user_id", request->user_id},
-                                 {"label", request->label},
-                                 {"token", issued->token},
-                                 {"expires_at_utc", issued->expires_at
-                                                        ? json(storage::FormatUtc(*issued->expires_at))
-                                                        : json(nullptr)}},
-                                201);
-             }});
-  table.Add({"DELETE", "/api/v1/tokens/{token_id}", kAdmin, false, "tokens", "Revoke a token",
-             {}, 200, "application/json", nullptr, nullptr,
-             [&db, &auth](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add(
+      {.method = "POST",
+       .path = "/api/v1/tokens",
+       .roles = kAdmin,
+       .json_body = true,
+       .tag = "tokens",
+       .summary = "Issue a bearer token for a user (the secret is in this response only)",
+       .success_status = 201,
+       .request_schema = ObjectSchema({{"user_id", {{"type", "integer"}, {"minimum", 1}}},
+                                       {"label", {{"type", "string"}, {"maxLength", 128}}},
+                                       {"expires_in_s", {{"type", "integer"}, {"minimum", 60}}}},
+                                      {"user_id"}),
+       .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
+         auto request = NewTokenFromJson(ctx.body);
+         if (!request.ok()) return request.status();
+         std::optional<storage::UtcTime> expires;
+         if (request->expires_in_s) {
+           expires = storage::NowUtc() + std::chrono::seconds(*request->expires_in_s);
+         }
+         auto issued = AuditedWrite<storage::IssuedToken>(
+             db, ctx, 201,
+             [&] {
+               return storage::UserRepository(db).IssueToken(request->user_id, request->label,
+                                                             expires);
+             },
+             [](const storage::IssuedToken& t) { return "tokens/" + std::to_string(t.token_id); });
+         if (!issued.ok()) {
+           if (issued.status().code() == api::ErrorCode::kNotFound) {
+             return api::Status(api::ErrorCode::kNotFound, issued.status().message(), "user_id");
+           }
+           return issued.status();
+         }
+         return JsonReply(
+             {{"id", issued->token_id},
+              {"user_id", request->user_id},
+              {"label", request->label},
+              {"token", issued->token},
+              {"expires_at_utc",
+               issued->expires_at ? json(storage::FormatUtc(*issued->expires_at)) : json(nullptr)}},
+             201);
+       }});
+  table.Add({.method = "DELETE",
+             .path = "/api/v1/tokens/{token_id}",
+             .roles = kAdmin,
+             .tag = "tokens",
+             .summary = "Revoke a token",
+             .handler = [&db, &auth](RequestContext& ctx) -> api::Result<Reply> {
                const std::int64_t id = ctx.Id("token_id");
                auto revoked = AuditedWrite<json>(
                    db, ctx, 200,
@@ -199,10 +226,13 @@ void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
                                  {"user_id", "integer", "only this user's requests"},
                                  {"from", "string", "at or after (YYYY-MM-DD or UTC time)"},
                                  {"to", "string", "before (YYYY-MM-DD or UTC time)"}};
-    table.Add({"GET", "/api/v1/audit", kAdmin, false, "audit",
-               "The audit log of state-changing requests, newest first", q, 200,
-               "application/json", nullptr, nullptr,
-               [&db](RequestContext& ctx) -> api::Result<Reply> {
+    table.Add({.method = "GET",
+               .path = "/api/v1/audit",
+               .roles = kAdmin,
+               .tag = "audit",
+               .summary = "The audit log of state-changing requests, newest first",
+               .query = q,
+               .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                  auto page = ParsePage(ctx);
                  if (!page.ok()) return page.status();
                  storage::AuditQuery query;
@@ -229,15 +259,19 @@ void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
                    last = (*entries)[i].id;
                  }
                  const bool more = entries->size() > page->limit;
-                 return JsonReply({{"items", std::move(items)},
-                                   {"next_cursor", more ? json(EncodeCursor(last)) : json(nullptr)}});
+                 return JsonReply(
+                     {{"items", std::move(items)},
+                      {"next_cursor", more ? json(EncodeCursor(last)) : json(nullptr)}});
                }});
   }
 
-  table.Add({"POST", "/api/v1/backup", kAdmin, false, "system",
-             "Online backup of the database into the server's backup folder", {}, 201,
-             "application/json", nullptr, nullptr,
-             [&db, backup_dir](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "POST",
+             .path = "/api/v1/backup",
+             .roles = kAdmin,
+             .tag = "system",
+             .summary = "Online backup of the database into the server's backup folder",
+             .success_status = 201,
+             .handler = [&db, backup_dir](RequestContext& ctx) -> api::Result<Reply> {
                std::error_code ec;
                std::filesystem::create_directories(backup_dir, ec);
                if (ec) return api::Status::Unavailable("cannot create the backup folder");

@@ -124,61 +124,74 @@ json VirtualSubjectPutSchema() {
 // Runs: start, get, cancel, stop, heartbeat.
 void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
   services::RunService* runs = deps.runs;
-  table.Add({"POST", "/api/v1/sessions/{session_id}/runs", kClinician | kAdmin, true, "runs",
-             "Start a protocol for a session (one run at a time; 409 while the bench is busy)",
-             {}, 201, "application/json",
-             ObjectSchema({{"protocol", {{"type", "string"}}},
-                           {"parameters",
-                            {{"type", "object"},
-                             {"additionalProperties",
-                              {{"type", {"number", "string"}},
-                               {"description", "a number; a choice parameter also its name"}}}}},
-                           {"ceiling_reason", {{"type", "string"}, {"maxLength", 500}}},
-                           {"target_samples",
-                            {{"type", "object"},
-                             {"description",
-                              "tracking with parameters.target = uploaded: the trajectory, "
-                              "t_s (strictly increasing) and angle_deg, ≤ 40000 samples each"},
-                             {"properties",
-                              {{"t_s", {{"type", "array"}, {"items", {{"type", "number"}}}}},
-                               {"angle_deg", {{"type", "array"}, {"items", {{"type", "number"}}}}}}}}}},
-                          {"protocol"}),
-             nullptr, [runs](RequestContext& ctx) -> api::Result<Reply> {
-               if (!runs) return NotAvailable("the bench");
-               auto request = StartRunFromJson(ctx.body);
-               if (!request.ok()) return request.status();
-               auto view = runs->Start(ActorOf(*ctx.user), ctx.Id("session_id"),
-                                       request->protocol, request->parameters,
-                                       request->ceiling_reason,
-                                       request->target ? &*request->target : nullptr);
-               if (!view.ok()) return view.status();
-               ctx.audited = true;  // RunService audits the start with the stored run
-               ctx.res.set_header("Location", "/api/v1/runs/" + std::to_string(view->run_id));
-               return JsonReply(RunViewJson(*view), 201);
-             }});
-  table.Add({"GET", "/api/v1/runs/{run_id}", kAnyRole, false, "runs",
-             "A run's state, progress (fraction, ETA), trials and result", {}, 200,
-             "application/json", nullptr, nullptr,
-             [runs](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add(
+      {.method = "POST",
+       .path = "/api/v1/sessions/{session_id}/runs",
+       .roles = kClinician | kAdmin,
+       .json_body = true,
+       .tag = "runs",
+       .summary = "Start a protocol for a session (one run at a time; 409 while the bench is busy)",
+       .success_status = 201,
+       .request_schema = ObjectSchema(
+           {{"protocol", {{"type", "string"}}},
+            {"parameters",
+             {{"type", "object"},
+              {"additionalProperties",
+               {{"type", {"number", "string"}},
+                {"description", "a number; a choice parameter also its name"}}}}},
+            {"ceiling_reason", {{"type", "string"}, {"maxLength", 500}}},
+            {"target_samples",
+             {{"type", "object"},
+              {"description",
+               "tracking with parameters.target = uploaded: the trajectory, "
+               "t_s (strictly increasing) and angle_deg, ≤ 40000 samples each"},
+              {"properties",
+               {{"t_s", {{"type", "array"}, {"items", {{"type", "number"}}}}},
+                {"angle_deg", {{"type", "array"}, {"items", {{"type", "number"}}}}}}}}}},
+           {"protocol"}),
+       .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
+         if (!runs) return NotAvailable("the bench");
+         auto request = StartRunFromJson(ctx.body);
+         if (!request.ok()) return request.status();
+         auto view = runs->Start(ActorOf(*ctx.user), ctx.Id("session_id"), request->protocol,
+                                 request->parameters, request->ceiling_reason,
+                                 request->target ? &*request->target : nullptr);
+         if (!view.ok()) return view.status();
+         ctx.audited = true;  // RunService audits the start with the stored run
+         ctx.res.set_header("Location", "/api/v1/runs/" + std::to_string(view->run_id));
+         return JsonReply(RunViewJson(*view), 201);
+       }});
+  table.Add({.method = "GET",
+             .path = "/api/v1/runs/{run_id}",
+             .roles = kAnyRole,
+             .tag = "runs",
+             .summary = "A run's state, progress (fraction, ETA), trials and result",
+             .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                auto view = runs->Get(ctx.Id("run_id"));
                if (!view.ok()) return view.status();
                return JsonReply(RunViewJson(*view));
              }});
-  table.Add({"POST", "/api/v1/runs/{run_id}/cancel", kClinician | kAdmin, false, "runs",
-             "Cancel the run in progress (stimulation to zero)", {}, 200, "application/json",
-             nullptr, nullptr, [runs](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "POST",
+             .path = "/api/v1/runs/{run_id}/cancel",
+             .roles = kClinician | kAdmin,
+             .tag = "runs",
+             .summary = "Cancel the run in progress (stimulation to zero)",
+             .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
-               if (auto st = runs->Cancel(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok()) return st;
+               if (auto st = runs->Cancel(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok())
+                 return st;
                ctx.audited = true;
                auto view = runs->Get(ctx.Id("run_id"));
                if (!view.ok()) return view.status();
                return JsonReply(RunViewJson(*view));
              }});
-  table.Add({"POST", "/api/v1/runs/{run_id}/stop", kClinician | kAdmin, false, "runs",
-             "Stop with result (tolerance_test keeps the amplitude reached)", {}, 200,
-             "application/json", nullptr, nullptr,
-             [runs](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "POST",
+             .path = "/api/v1/runs/{run_id}/stop",
+             .roles = kClinician | kAdmin,
+             .tag = "runs",
+             .summary = "Stop with result (tolerance_test keeps the amplitude reached)",
+             .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                if (auto st = runs->StopWithResult(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok()) {
                  return st;
@@ -188,11 +201,13 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!view.ok()) return view.status();
                return JsonReply(RunViewJson(*view));
              }});
-  table.Add({"POST", "/api/v1/runs/{run_id}/heartbeat", kClinician | kAdmin, false, "runs",
-             "Heartbeat of the controlling user (at least once per second during a run; "
-             "not audited: it changes nothing)",
-             {}, 200, "application/json", nullptr, nullptr,
-             [runs](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "POST",
+             .path = "/api/v1/runs/{run_id}/heartbeat",
+             .roles = kClinician | kAdmin,
+             .tag = "runs",
+             .summary = "Heartbeat of the controlling user (at least once per second during a run; "
+                        "not audited: it changes nothing)",
+             .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                ctx.audited = true;
                if (auto st = runs->Heartbeat(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok()) {
@@ -207,15 +222,19 @@ void AddStreamRoutes(RouteTable& table, const ApiDependencies& deps) {
   services::RunService* runs = deps.runs;
   services::SampleHub* hub = deps.samples;
   StreamSlots* slots = deps.streams;
-  table.Add({"GET", "/api/v1/runs/{run_id}/stream", kAnyRole, false, "runs",
-             "Server-Sent Events of a run: state, progress, samples (batched, with "
-             "first_sample), trial, end",
-             {}, 200, "text/event-stream", nullptr, nullptr,
-             [runs, hub, slots](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/runs/{run_id}/stream",
+             .roles = kAnyRole,
+             .tag = "runs",
+             .summary = "Server-Sent Events of a run: state, progress, samples (batched, with "
+                        "first_sample), trial, end",
+             .produces = "text/event-stream",
+             .handler = [runs, hub, slots](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs || !hub) return NotAvailable("the bench");
                const std::int64_t run_id = ctx.Id("run_id");
                auto slot = slots->TryAcquire();
-               if (!slot) return api::Status::Unavailable("too many open event streams; retry later");
+               if (!slot)
+                 return api::Status::Unavailable("too many open event streams; retry later");
                auto stream = std::make_shared<EventStream>();
                stream->slot = std::move(slot);
                services::SubscribeOptions options;
@@ -241,79 +260,97 @@ void AddStreamRoutes(RouteTable& table, const ApiDependencies& deps) {
                }
                return ServeEventStream(ctx, std::move(stream), slots);
              }});
-  table.Add({"GET", "/api/v1/events/parameter-sets", kAnyRole, false, "parameter-sets",
-             "Server-Sent Events: one parameter_set event (parameter_set_id, subject_id, "
-             "leg_id) for every parameter set stored from now on, by a run, an "
-             "identification job or an import; the stream ends after timeout_s",
-             {{"timeout_s", "integer",
-               "seconds until the stream ends and the client reconnects, 1–3600 (default 300)"}},
-             200, "text/event-stream", nullptr, nullptr,
-             [hub, slots](RequestContext& ctx) -> api::Result<Reply> {
-               if (!hub) return NotAvailable("the event hub");
-               auto timeout = QueryId(ctx, "timeout_s");
-               if (!timeout.ok() || (*timeout && **timeout > 3600)) {
-                 return api::Status::InvalidArgument(
-                     "must be 1–3600 s, got " + ctx.Query("timeout_s").value_or(""), "timeout_s");
-               }
-               auto slot = slots->TryAcquire();
-               if (!slot) return api::Status::Unavailable("too many open event streams; retry later");
-               auto stream = std::make_shared<EventStream>();
-               stream->slot = std::move(slot);
-               services::SubscribeOptions options;
-               options.kind = services::HubItem::Kind::kParameterSet;
-               stream->subscription = hub->Subscribe(options);
-               stream->deadline = std::chrono::steady_clock::now() +
-                                  std::chrono::seconds(timeout->value_or(300));
-               return ServeEventStream(ctx, std::move(stream), slots);
-             }});
+  table.Add(
+      {.method = "GET",
+       .path = "/api/v1/events/parameter-sets",
+       .roles = kAnyRole,
+       .tag = "parameter-sets",
+       .summary = "Server-Sent Events: one parameter_set event (parameter_set_id, subject_id, "
+                  "leg_id) for every parameter set stored from now on, by a run, an "
+                  "identification job or an import; the stream ends after timeout_s",
+       .query = {{"timeout_s", "integer",
+                  "seconds until the stream ends and the client reconnects, 1–3600 (default 300)"}},
+       .produces = "text/event-stream",
+       .handler = [hub, slots](RequestContext& ctx) -> api::Result<Reply> {
+         if (!hub) return NotAvailable("the event hub");
+         auto timeout = QueryId(ctx, "timeout_s");
+         if (!timeout.ok() || (*timeout && **timeout > 3600)) {
+           return api::Status::InvalidArgument(
+               "must be 1–3600 s, got " + ctx.Query("timeout_s").value_or(""), "timeout_s");
+         }
+         auto slot = slots->TryAcquire();
+         if (!slot) return api::Status::Unavailable("too many open event streams; retry later");
+         auto stream = std::make_shared<EventStream>();
+         stream->slot = std::move(slot);
+         services::SubscribeOptions options;
+         options.kind = services::HubItem::Kind::kParameterSet;
+         stream->subscription = hub->Subscribe(options);
+         stream->deadline =
+             std::chrono::steady_clock::now() + std::chrono::seconds(timeout->value_or(300));
+         return ServeEventStream(ctx, std::move(stream), slots);
+       }});
 }
 
 // The bench: its state, e-stop and clearing it, the virtual subject.
 void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
   services::RunService* runs = deps.runs;
   services::BenchService* bench = deps.bench;
-  table.Add({"GET", "/api/v1/bench", kAnyRole, false, "bench",
-             "The bench: kind, limits, mode, e-stop, owner, current run and progress", {}, 200,
-             "application/json", nullptr, nullptr,
-             [bench](RequestContext&) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/bench",
+             .roles = kAnyRole,
+             .tag = "bench",
+             .summary = "The bench: kind, limits, mode, e-stop, owner, current run and progress",
+             .handler = [bench](RequestContext&) -> api::Result<Reply> {
                if (!bench) return NotAvailable("the bench");
                return JsonReply(services::BenchInfoToJson(bench->Info()));
              }});
-  table.Add({"POST", "/api/v1/bench/estop", kAnyRole, false, "bench",
-             "Emergency stop: stimulation to zero and motor disabled at once; latches "
-             "(any signed-in user may press it)",
-             {}, 200, "application/json", nullptr, nullptr,
-             [runs](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "POST",
+             .path = "/api/v1/bench/estop",
+             .roles = kAnyRole,
+             .tag = "bench",
+             .summary = "Emergency stop: stimulation to zero and motor disabled at once; latches "
+                        "(any signed-in user may press it)",
+             .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                if (auto st = runs->EStop(ActorOf(*ctx.user), "http"); !st.ok()) return st;
                ctx.audited = true;
                return JsonReply(services::BenchStateToJson(runs->State()));
              }});
-  table.Add({"DELETE", "/api/v1/bench/estop", kClinician | kAdmin, false, "bench",
-             "Clear a latched e-stop", {}, 200, "application/json", nullptr, nullptr,
-             [runs](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "DELETE",
+             .path = "/api/v1/bench/estop",
+             .roles = kClinician | kAdmin,
+             .tag = "bench",
+             .summary = "Clear a latched e-stop",
+             .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                if (auto st = runs->ClearEStop(ActorOf(*ctx.user)); !st.ok()) return st;
                ctx.audited = true;
                return JsonReply(services::BenchStateToJson(runs->State()));
              }});
-  table.Add({"GET", "/api/v1/bench/virtual-subject", kAdmin, false, "bench",
-             "The simulated bench's virtual subject (truth JSON); 409 on a real bench", {}, 200,
-             "application/json", nullptr, nullptr,
-             [bench](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/bench/virtual-subject",
+             .roles = kAdmin,
+             .tag = "bench",
+             .summary = "The simulated bench's virtual subject (truth JSON); 409 on a real bench",
+             .handler = [bench](RequestContext& ctx) -> api::Result<Reply> {
                if (!bench) return NotAvailable("the bench");
                auto subject = bench->GetVirtualSubject(ActorOf(*ctx.user));
                if (!subject.ok()) return subject.status();
                return JsonReply(std::move(*subject));
              }});
-  table.Add({"PUT", "/api/v1/bench/virtual-subject", kAdmin, true, "bench",
-             "Replace the virtual subject between runs: a full subject, or {\"draw_seed\": N, "
-             "\"family\": F} (N a non-negative integer; F \"thesis\", the default, or "
-             "\"analytic\": gravity + exponential end-range stiffness, asymmetric damping, "
-             "other Gaussian f_ata, tanh f_atv; no other key) for the server's seeded draw "
-             "(simulation only; 409 on a real bench or while a run holds the bench)",
-             {}, 200, "application/json", VirtualSubjectPutSchema(), nullptr,
-             [bench](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "PUT",
+             .path = "/api/v1/bench/virtual-subject",
+             .roles = kAdmin,
+             .json_body = true,
+             .tag = "bench",
+             .summary =
+                 "Replace the virtual subject between runs: a full subject, or {\"draw_seed\": N, "
+                 "\"family\": F} (N a non-negative integer; F \"thesis\", the default, or "
+                 "\"analytic\": gravity + exponential end-range stiffness, asymmetric damping, "
+                 "other Gaussian f_ata, tanh f_atv; no other key) for the server's seeded draw "
+                 "(simulation only; 409 on a real bench or while a run holds the bench)",
+             .request_schema = VirtualSubjectPutSchema(),
+             .handler = [bench](RequestContext& ctx) -> api::Result<Reply> {
                if (!bench) return NotAvailable("the bench");
                auto subject = bench->PutVirtualSubject(ActorOf(*ctx.user), ctx.body);
                if (!subject.ok()) return subject.status();

@@ -99,7 +99,9 @@ api::Result<services::ImportResult> ImportRecordingBody(storage::Database& db, R
   const std::string data = body["data"].get<std::string>();
   return AuditedWrite<services::ImportResult>(
       db, ctx, 201, [&] { return services::ImportRecording(db, session_id, data, *spec, user); },
-      [](const services::ImportResult& r) { return "trial " + std::to_string(r.trials.front().id); });
+      [](const services::ImportResult& r) {
+        return "trial " + std::to_string(r.trials.front().id);
+      });
 }
 
 /// POST /sessions/{id}/trials with a zip or tar.gz body: a session archive.
@@ -121,47 +123,43 @@ api::Result<services::ImportResult> ImportArchiveBody(storage::Database& db, Req
 // The trial kinds, and importing a recording or a session archive.
 void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
-  table.Add(
-      {"GET",
-       "/api/v1/trial-kinds",
-       kAnyRole,
-       false,
-       "trials",
-       "The trial kinds the server knows (an import declares one), with the channels each needs",
-       {},
-       200,
-       "application/json",
-       nullptr,
-       nullptr,
-       [](RequestContext&) -> api::Result<Reply> {
-         json items = json::array();
-         for (const api::TrialKindInfo& k : api::TrialKinds()) {
-           json channels = json::array({std::string(api::kTimeChannel)});
-           for (std::string_view c : k.required_channels) channels.push_back(std::string(c));
-           items.push_back({{"name", k.name},
-                            {"family", k.family},
-                            {"protocol", k.protocol},
-                            {"description", k.description},
-                            {"required_channels", std::move(channels)}});
-         }
-         return JsonReply({{"items", std::move(items)}});
-       }});
+  table.Add({.method = "GET",
+             .path = "/api/v1/trial-kinds",
+             .roles = kAnyRole,
+             .tag = "trials",
+             .summary = "The trial kinds the server knows (an import declares one), with the "
+                        "channels each needs",
+             .handler = [](RequestContext&) -> api::Result<Reply> {
+               json items = json::array();
+               for (const api::TrialKindInfo& k : api::TrialKinds()) {
+                 json channels = json::array({std::string(api::kTimeChannel)});
+                 for (std::string_view c : k.required_channels) channels.push_back(std::string(c));
+                 items.push_back({{"name", k.name},
+                                  {"family", k.family},
+                                  {"protocol", k.protocol},
+                                  {"description", k.description},
+                                  {"required_channels", std::move(channels)},
+                                  {"motor", k.motor},
+                                  {"knee_locked", k.knee_locked},
+                                  {"free_swing", api::IsFreeSwing(k.kind)},
+                                  {"validation", api::IsValidation(k.kind)}});
+               }
+               return JsonReply({{"items", std::move(items)}});
+             }});
 
   table.Add(
-      {"POST",
-       "/api/v1/sessions/{session_id}/trials",
-       kAnyRole,
-       false,
-       "trials",
-       "Import trials into a session: one recording (CSV, TSV or OpenSim .sto, with its trial "
-       "kind and column mapping) as JSON, or a whole session archive (zip or tar.gz); checked "
-       "first, stored all or nothing, each trial with its import provenance",
-       {{"name", "string", "archive uploads: the file name, kept as provenance"}},
-       201,
-       "application/json",
-       ImportSchema(),
-       nullptr,
-       [&db](RequestContext& ctx) -> api::Result<Reply> {
+      {.method = "POST",
+       .path = "/api/v1/sessions/{session_id}/trials",
+       .roles = kAnyRole,
+       .tag = "trials",
+       .summary =
+           "Import trials into a session: one recording (CSV, TSV or OpenSim .sto, with its trial "
+           "kind and column mapping) as JSON, or a whole session archive (zip or tar.gz); checked "
+           "first, stored all or nothing, each trial with its import provenance",
+       .query = {{"name", "string", "archive uploads: the file name, kept as provenance"}},
+       .success_status = 201,
+       .request_schema = ImportSchema(),
+       .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
          const std::int64_t session_id = ctx.Id("session_id");
          if (auto s = storage::SessionRepository(db).Get(session_id); !s.ok()) return s.status();
          const std::string type = MediaType(ctx.req);
@@ -179,28 +177,25 @@ void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (!imported.ok()) return imported.status();
          return JsonReply(services::ImportResultToJson(*imported), 201);
        },
-       true});
+       .raw_body = true});
 }
 
 // A session's report and its export as an archive.
 void AddReportAndExportRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   table.Add(
-      {"GET",
-       "/api/v1/sessions/{session_id}/report",
-       kAnyRole,
-       false,
-       "sessions",
-       "The session report: one self-contained, printable HTML page (subject by pseudonymous "
-       "code, session values, runs and outcomes, e-stops and clamps, trials, parameter sets with "
-       "their curves, predictions on fresh trials, warnings); print it to PDF from the browser",
-       {},
-       200,
-       "text/html",
-       nullptr,
-       nullptr,
-       [&db, runs_service = deps.runs,
-        version = deps.server_version](RequestContext& ctx) -> api::Result<Reply> {
+      {.method = "GET",
+       .path = "/api/v1/sessions/{session_id}/report",
+       .roles = kAnyRole,
+       .tag = "sessions",
+       .summary =
+           "The session report: one self-contained, printable HTML page (subject by pseudonymous "
+           "code, session values, runs and outcomes, e-stops and clamps, trials, parameter sets "
+           "with "
+           "their curves, predictions on fresh trials, warnings); print it to PDF from the browser",
+       .produces = "text/html",
+       .handler = [&db, runs_service = deps.runs,
+                   version = deps.server_version](RequestContext& ctx) -> api::Result<Reply> {
          const std::int64_t session_id = ctx.Id("session_id");
          auto session = storage::SessionRepository(db).Get(session_id);
          if (!session.ok()) return session.status();
@@ -231,21 +226,18 @@ void AddReportAndExportRoutes(RouteTable& table, const ApiDependencies& deps) {
        }});
 
   table.Add(
-      {"GET",
-       "/api/v1/sessions/{session_id}/export",
-       kAnyRole,
-       false,
-       "sessions",
-       "The whole session as one archive laid out after BIDS (motion/EMG TSV with channels and "
-       "JSON sidecars, stimulation pulses as events), with its parameter sets, run log and a "
-       "README of the layout; zip (default) or tar.gz by ?format or Accept",
-       {{"format", "string", "zip (default) or tar.gz"}},
-       200,
-       "application/zip",
-       nullptr,
-       nullptr,
-       [&db, runs_service = deps.runs,
-        version = deps.server_version](RequestContext& ctx) -> api::Result<Reply> {
+      {.method = "GET",
+       .path = "/api/v1/sessions/{session_id}/export",
+       .roles = kAnyRole,
+       .tag = "sessions",
+       .summary =
+           "The whole session as one archive laid out after BIDS (motion/EMG TSV with channels and "
+           "JSON sidecars, stimulation pulses as events), with its parameter sets, run log and a "
+           "README of the layout; zip (default) or tar.gz by ?format or Accept",
+       .query = {{"format", "string", "zip (default) or tar.gz"}},
+       .produces = "application/zip",
+       .handler = [&db, runs_service = deps.runs,
+                   version = deps.server_version](RequestContext& ctx) -> api::Result<Reply> {
          services::ArchiveFormat format = services::ArchiveFormat::kZip;
          if (const auto f = ctx.Query("format")) {
            const auto parsed = services::ParseArchiveFormat(*f);

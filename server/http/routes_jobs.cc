@@ -38,80 +38,74 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
   services::PredictionService* prediction = deps.prediction;
   services::ComparisonService* comparison = deps.comparison;
 
+  table.Add({.method = "POST",
+             .path = "/api/v1/identifications",
+             .roles = kAnalyst | kAdmin,
+             .json_body = true,
+             .tag = "jobs",
+             .summary = "Fit a model from stored trials (a session's, or listed trial ids); a job",
+             .success_status = 202,
+             .request_schema = ObjectSchema(
+                 {{"session_id", IdSchema()},
+                  {"trial_ids", {{"type", "array"}, {"items", IdSchema()}}},
+                  {"method", {{"enum", {"thesis", "rapid"}}}},
+                  {"irc_method", {{"type", "string"}}},
+                  {"passive_method", {{"enum", {"sequential", "simultaneous", "free_swing"}}}},
+                  {"contraction_order", {{"enum", {0, 2, 3}}}},
+                  {"pole_method", {{"enum", {"peak", "least_squares"}}}},
+                  {"models", {{"type", "array"}, {"items", {{"type", "string"}}}}},
+                  {"breakpoints", {{"type", "object"}}},
+                  {"inertia_kgm2", {{"type", "number"}, {"exclusiveMinimum", 0}}},
+                  {"torque_angle_parameter_set_id", IdSchema()}},
+                 {}),
+             .handler = [jobs, identification](RequestContext& ctx) -> api::Result<Reply> {
+               if (!jobs || !identification) return NotAvailable("identification");
+               auto request = services::IdentificationRequestFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               return Submitted(ctx, *jobs,
+                                services::SubmitIdentification(*jobs, *identification,
+                                                               ActorOf(*ctx.user), *request));
+             }});
   table.Add(
-      {"POST",
-       "/api/v1/identifications",
-       kAnalyst | kAdmin,
-       true,
-       "jobs",
-       "Fit a model from stored trials (a session's, or listed trial ids); a job",
-       {},
-       202,
-       "application/json",
-       ObjectSchema({{"session_id", IdSchema()},
-                     {"trial_ids", {{"type", "array"}, {"items", IdSchema()}}},
-                     {"method", {{"enum", {"thesis", "rapid"}}}},
-                     {"irc_method", {{"type", "string"}}},
-                     {"passive_method", {{"enum", {"sequential", "simultaneous", "free_swing"}}}},
-                     {"contraction_order", {{"enum", {0, 2, 3}}}},
-                     {"pole_method", {{"enum", {"peak", "least_squares"}}}},
-                     {"models", {{"type", "array"}, {"items", {{"type", "string"}}}}},
-                     {"breakpoints", {{"type", "object"}}},
-                     {"inertia_kgm2", {{"type", "number"}, {"exclusiveMinimum", 0}}},
-                     {"torque_angle_parameter_set_id", IdSchema()}},
-                    {}),
-       nullptr,
-       [jobs, identification](RequestContext& ctx) -> api::Result<Reply> {
-         if (!jobs || !identification) return NotAvailable("identification");
-         auto request = services::IdentificationRequestFromJson(ctx.body);
+      {.method = "POST",
+       .path = "/api/v1/predictions",
+       .roles = kAnalyst | kAdmin,
+       .json_body = true,
+       .tag = "jobs",
+       .summary = "Simulate a parameter set on a named stimulus or a stored trial (with errors "
+                  "against it); free swing stops at the bench's range of motion; fit_scale "
+                  "(isometric trial) scales the torque by the best-fit constant of §6.1.2; a job",
+       .success_status = 202,
+       .request_schema = ObjectSchema(
+           {{"parameter_set_id", IdSchema()},
+            {"trial_id", IdSchema()},
+            {"stimulus",
+             ObjectSchema({{"generator", {{"type", "string"}}}, {"params", {{"type", "object"}}}},
+                          {"generator"})},
+            {"mode", {{"enum", {"free_swing", "isometric"}}}},
+            {"initial_angle_deg", {{"type", "number"}}},
+            {"initial_velocity_deg_s", {{"type", "number"}}},
+            {"duration_s", {{"type", "number"}}},
+            {"fit_scale", {{"type", "boolean"}}}},
+           {"parameter_set_id"}),
+       .handler = [jobs, prediction](RequestContext& ctx) -> api::Result<Reply> {
+         if (!jobs || !prediction) return NotAvailable("prediction");
+         auto request = services::PredictionRequestFromJson(ctx.body);
          if (!request.ok()) return request.status();
          return Submitted(
              ctx, *jobs,
-             services::SubmitIdentification(*jobs, *identification, ActorOf(*ctx.user), *request));
+             services::SubmitPrediction(*jobs, *prediction, ActorOf(*ctx.user), *request));
        }});
-  table.Add({"POST",
-             "/api/v1/predictions",
-             kAnalyst | kAdmin,
-             true,
-             "jobs",
-             "Simulate a parameter set on a named stimulus or a stored trial (with errors "
-             "against it); free swing stops at the bench's range of motion; fit_scale "
-             "(isometric trial) scales the torque by the best-fit constant of §6.1.2; a job",
-             {},
-             202,
-             "application/json",
-             ObjectSchema({{"parameter_set_id", IdSchema()},
-                           {"trial_id", IdSchema()},
-                           {"stimulus", ObjectSchema({{"generator", {{"type", "string"}}},
-                                                      {"params", {{"type", "object"}}}},
-                                                     {"generator"})},
-                           {"mode", {{"enum", {"free_swing", "isometric"}}}},
-                           {"initial_angle_deg", {{"type", "number"}}},
-                           {"initial_velocity_deg_s", {{"type", "number"}}},
-                           {"duration_s", {{"type", "number"}}},
-                           {"fit_scale", {{"type", "boolean"}}}},
-                          {"parameter_set_id"}),
-             nullptr,
-             [jobs, prediction](RequestContext& ctx) -> api::Result<Reply> {
-               if (!jobs || !prediction) return NotAvailable("prediction");
-               auto request = services::PredictionRequestFromJson(ctx.body);
-               if (!request.ok()) return request.status();
-               return Submitted(
-                   ctx, *jobs,
-                   services::SubmitPrediction(*jobs, *prediction, ActorOf(*ctx.user), *request));
-             }});
   table.Add(
-      {"POST",
-       "/api/v1/comparisons",
-       kAnalyst | kAdmin,
-       true,
-       "jobs",
-       "Paired t-test of two parameter sets' (or models') errors across subjects and "
-       "trials; a job",
-       {},
-       202,
-       "application/json",
-       ObjectSchema(
+      {.method = "POST",
+       .path = "/api/v1/comparisons",
+       .roles = kAnalyst | kAdmin,
+       .json_body = true,
+       .tag = "jobs",
+       .summary = "Paired t-test of two parameter sets' (or models') errors across subjects and "
+                  "trials; a job",
+       .success_status = 202,
+       .request_schema = ObjectSchema(
            {{"pairs",
              {{"type", "array"},
               {"items", ObjectSchema({{"a_parameter_set_id", IdSchema()},
@@ -121,8 +115,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
             {"metric", {{"type", "string"}}},
             {"confidence", {{"type", "number"}}}},
            {"pairs"}),
-       nullptr,
-       [jobs, comparison](RequestContext& ctx) -> api::Result<Reply> {
+       .handler = [jobs, comparison](RequestContext& ctx) -> api::Result<Reply> {
          if (!jobs || !comparison) return NotAvailable("comparison");
          auto request = services::ComparisonRequestFromJson(ctx.body);
          if (!request.ok()) return request.status();
@@ -131,18 +124,13 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
              services::SubmitComparison(*jobs, *comparison, ActorOf(*ctx.user), *request));
        }});
 
-  table.Add({"GET",
-             "/api/v1/jobs",
-             kAnalyst | kAdmin,
-             false,
-             "jobs",
-             "Recent jobs (identifications, predictions, comparisons), newest first",
-             {{"limit", "integer", "at most this many, 1–500 (default 50)"}},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [jobs](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/jobs",
+             .roles = kAnalyst | kAdmin,
+             .tag = "jobs",
+             .summary = "Recent jobs (identifications, predictions, comparisons), newest first",
+             .query = {{"limit", "integer", "at most this many, 1–500 (default 50)"}},
+             .handler = [jobs](RequestContext& ctx) -> api::Result<Reply> {
                if (!jobs) return NotAvailable("the job pool");
                auto page = ParsePage(ctx);
                if (!page.ok()) return page.status();
@@ -152,18 +140,12 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
                }
                return JsonReply({{"items", std::move(items)}, {"next_cursor", nullptr}});
              }});
-  table.Add({"GET",
-             "/api/v1/jobs/{job_id}",
-             kAnalyst | kAdmin,
-             false,
-             "jobs",
-             "A job: state (queued, running, done, failed) and result or error",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [jobs](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/jobs/{job_id}",
+             .roles = kAnalyst | kAdmin,
+             .tag = "jobs",
+             .summary = "A job: state (queued, running, done, failed) and result or error",
+             .handler = [jobs](RequestContext& ctx) -> api::Result<Reply> {
                if (!jobs) return NotAvailable("the job pool");
                auto record = jobs->Get(ctx.Id("job_id"));
                if (!record.ok()) return record.status();

@@ -109,18 +109,12 @@ json CorrectionSchema(json details) {
 void AddHealthRoute(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   const std::string version = deps.server_version;
-  table.Add({"GET",
-             "/api/v1/health",
-             0,
-             false,
-             "system",
-             "Liveness and database health",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [&db, version](RequestContext&) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/health",
+             .roles = 0,
+             .tag = "system",
+             .summary = "Liveness and database health",
+             .handler = [&db, version](RequestContext&) -> api::Result<Reply> {
                auto schema = db.SchemaVersion();
                if (!schema.ok()) return schema.status();
                return JsonReply({{"status", "ok"},
@@ -136,9 +130,13 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
   {
     auto q = PageParams();
     q.push_back({"code", "string", "exact pseudonymous code"});
-    table.Add({"GET", "/api/v1/subjects", kAnyRole, false, "subjects", "List subjects", q, 200,
-               "application/json", nullptr, nullptr,
-               [&db](RequestContext& ctx) -> api::Result<Reply> {
+    table.Add({.method = "GET",
+               .path = "/api/v1/subjects",
+               .roles = kAnyRole,
+               .tag = "subjects",
+               .summary = "List subjects",
+               .query = q,
+               .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                  auto page = ParsePage(ctx);
                  if (!page.ok()) return page.status();
                  storage::SubjectRepository subjects(db);
@@ -172,23 +170,20 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
                  return JsonReply(std::move(body));
                }});
   }
-  table.Add({"POST",
-             "/api/v1/subjects",
-             kClinician | kAdmin,
-             true,
-             "subjects",
-             "Create a subject (pseudonymous code, anthropometrics, legs)",
-             {},
-             201,
-             "application/json",
-             ObjectSchema(
+  table.Add({.method = "POST",
+             .path = "/api/v1/subjects",
+             .roles = kClinician | kAdmin,
+             .json_body = true,
+             .tag = "subjects",
+             .summary = "Create a subject (pseudonymous code, anthropometrics, legs)",
+             .success_status = 201,
+             .request_schema = ObjectSchema(
                  {{"code", {{"type", "string"}, {"pattern", "^[A-Za-z0-9_-]{1,32}$"}}},
                   {"details", DetailsSchema()},
                   {"legs",
                    {{"type", "array"}, {"items", {{"enum", {"left", "right"}}}}, {"maxItems", 2}}}},
                  {"code"}),
-             nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto request = NewSubjectFromJson(ctx.body);
                if (!request.ok()) return request.status();
                auto created = AuditedWrite<json>(
@@ -210,18 +205,12 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!created.ok()) return created.status();
                return JsonReply(std::move(*created), 201);
              }});
-  table.Add({"GET",
-             "/api/v1/subjects/{subject_id}",
-             kAnyRole,
-             false,
-             "subjects",
-             "One subject with its current details and legs",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/subjects/{subject_id}",
+             .roles = kAnyRole,
+             .tag = "subjects",
+             .summary = "One subject with its current details and legs",
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto subject = storage::SubjectRepository(db).Get(ctx.Id("subject_id"));
                if (!subject.ok()) return subject.status();
                auto j = SubjectJson(db, *subject);
@@ -229,49 +218,39 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply(std::move(*j));
              }});
 
-  table.Add({"PATCH",
-             "/api/v1/subjects/{subject_id}",
-             kClinician | kAdmin,
-             true,
-             "subjects",
-             "Correct a subject's details: a new revision with a reason (given fields replace "
-             "the current ones, null clears one); audited",
-             {},
-             200,
-             "application/json",
-             CorrectionSchema(DetailsSchema()),
-             nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
-               const std::int64_t id = ctx.Id("subject_id");
-               storage::SubjectRepository subjects(db);
-               auto current = subjects.Get(id);
-               if (!current.ok()) return current.status();
-               auto correction = SubjectCorrectionFromJson(ctx.body, current->current.details);
-               if (!correction.ok()) return correction.status();
-               auto corrected = AuditedCorrection(
-                   db, ctx, "subjects/" + std::to_string(id), correction->reason,
-                   correction->changed, SubjectDetailsToJson(correction->details),
-                   [&]() -> api::Result<json> {
-                     auto s = subjects.Correct(id, correction->details, correction->reason,
-                                               ctx.user ? ctx.user->name : std::string());
-                     if (!s.ok()) return s.status();
-                     return SubjectJson(db, *s);
-                   });
-               if (!corrected.ok()) return corrected.status();
-               return JsonReply(std::move(*corrected));
-             }});
-  table.Add({"GET",
-             "/api/v1/subjects/{subject_id}/revisions",
-             kAnyRole,
-             false,
-             "subjects",
-             "A subject's revisions, oldest first (who, when, why, the details)",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add(
+      {.method = "PATCH",
+       .path = "/api/v1/subjects/{subject_id}",
+       .roles = kClinician | kAdmin,
+       .json_body = true,
+       .tag = "subjects",
+       .summary = "Correct a subject's details: a new revision with a reason (given fields replace "
+                  "the current ones, null clears one); audited",
+       .request_schema = CorrectionSchema(DetailsSchema()),
+       .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
+         const std::int64_t id = ctx.Id("subject_id");
+         storage::SubjectRepository subjects(db);
+         auto current = subjects.Get(id);
+         if (!current.ok()) return current.status();
+         auto correction = SubjectCorrectionFromJson(ctx.body, current->current.details);
+         if (!correction.ok()) return correction.status();
+         auto corrected = AuditedCorrection(
+             db, ctx, "subjects/" + std::to_string(id), correction->reason, correction->changed,
+             SubjectDetailsToJson(correction->details), [&]() -> api::Result<json> {
+               auto s = subjects.Correct(id, correction->details, correction->reason,
+                                         ctx.user ? ctx.user->name : std::string());
+               if (!s.ok()) return s.status();
+               return SubjectJson(db, *s);
+             });
+         if (!corrected.ok()) return corrected.status();
+         return JsonReply(std::move(*corrected));
+       }});
+  table.Add({.method = "GET",
+             .path = "/api/v1/subjects/{subject_id}/revisions",
+             .roles = kAnyRole,
+             .tag = "subjects",
+             .summary = "A subject's revisions, oldest first (who, when, why, the details)",
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto revisions = storage::SubjectRepository(db).Revisions(ctx.Id("subject_id"));
                if (!revisions.ok()) return revisions.status();
                return JsonReply(RevisionsJson(*revisions, &SubjectRevisionToJson));
@@ -285,9 +264,13 @@ void AddSessionRoutes(RouteTable& table, const ApiDependencies& deps) {
     auto q = PageParams();
     q.push_back({"from", "string", "sessions on or after this date (YYYY-MM-DD)"});
     q.push_back({"to", "string", "sessions before this date (YYYY-MM-DD)"});
-    table.Add({"GET", "/api/v1/subjects/{subject_id}/sessions", kAnyRole, false, "sessions",
-               "A subject's sessions (filter by date range)", q, 200, "application/json", nullptr,
-               nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+    table.Add({.method = "GET",
+               .path = "/api/v1/subjects/{subject_id}/sessions",
+               .roles = kAnyRole,
+               .tag = "sessions",
+               .summary = "A subject's sessions (filter by date range)",
+               .query = q,
+               .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                  auto page = ParsePage(ctx);
                  if (!page.ok()) return page.status();
                  auto from = QueryTime(ctx, "from");
@@ -317,71 +300,62 @@ void AddSessionRoutes(RouteTable& table, const ApiDependencies& deps) {
                  return JsonReply(std::move(body));
                }});
   }
-  table.Add(
-      {"POST",
-       "/api/v1/subjects/{subject_id}/sessions",
-       kClinician | kAdmin,
-       true,
-       "sessions",
-       "Open a session for one leg of a subject",
-       {},
-       201,
-       "application/json",
-       ObjectSchema({{"leg", {{"enum", {"left", "right"}}}},
-                     {"date", {{"type", "string"}, {"format", "date"}}},
-                     {"accelerometer_placement", {{"type", "string"}, {"maxLength", 256}}},
-                     {"threshold_ma", {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
-                     {"max_tolerated_ma", {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
-                     {"notes", {{"type", "string"}, {"maxLength", 4096}}}},
-                    {"leg", "date"}),
-       nullptr,
-       [&db](RequestContext& ctx) -> api::Result<Reply> {
-         auto request = NewSessionFromJson(ctx.body);
-         if (!request.ok()) return request.status();
-         const std::int64_t subject_id = ctx.Id("subject_id");
-         auto created = AuditedWrite<json>(
-             db, ctx, 201,
-             [&]() -> api::Result<json> {
-               storage::SubjectRepository subjects(db);
-               auto legs = subjects.Legs(subject_id);
-               if (!legs.ok()) return legs.status();
-               std::optional<std::int64_t> leg_id;
-               for (const auto& leg : *legs) {
-                 if (leg.side == request->leg) leg_id = leg.id;
-               }
-               if (!leg_id) {
-                 auto leg = subjects.AddLeg(subject_id, request->leg);
-                 if (!leg.ok()) return leg.status();
-                 leg_id = leg->id;
-               }
-               auto session =
-                   storage::SessionRepository(db).Create(subject_id, *leg_id, request->details);
-               if (!session.ok()) return session.status();
-               return SessionToJson(*session, storage::SideName(request->leg));
-             },
-             [](const json& s) {
-               return "sessions/" + std::to_string(s["id"].get<std::int64_t>());
-             });
-         if (!created.ok()) return created.status();
-         return JsonReply(std::move(*created), 201);
-       }});
+  table.Add({.method = "POST",
+             .path = "/api/v1/subjects/{subject_id}/sessions",
+             .roles = kClinician | kAdmin,
+             .json_body = true,
+             .tag = "sessions",
+             .summary = "Open a session for one leg of a subject",
+             .success_status = 201,
+             .request_schema = ObjectSchema(
+                 {{"leg", {{"enum", {"left", "right"}}}},
+                  {"date", {{"type", "string"}, {"format", "date"}}},
+                  {"accelerometer_placement", {{"type", "string"}, {"maxLength", 256}}},
+                  {"threshold_ma", {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
+                  {"max_tolerated_ma", {{"type", "number"}, {"minimum", 0}, {"maximum", 100}}},
+                  {"notes", {{"type", "string"}, {"maxLength", 4096}}}},
+                 {"leg", "date"}),
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
+               auto request = NewSessionFromJson(ctx.body);
+               if (!request.ok()) return request.status();
+               const std::int64_t subject_id = ctx.Id("subject_id");
+               auto created = AuditedWrite<json>(
+                   db, ctx, 201,
+                   [&]() -> api::Result<json> {
+                     storage::SubjectRepository subjects(db);
+                     auto legs = subjects.Legs(subject_id);
+                     if (!legs.ok()) return legs.status();
+                     std::optional<std::int64_t> leg_id;
+                     for (const auto& leg : *legs) {
+                       if (leg.side == request->leg) leg_id = leg.id;
+                     }
+                     if (!leg_id) {
+                       auto leg = subjects.AddLeg(subject_id, request->leg);
+                       if (!leg.ok()) return leg.status();
+                       leg_id = leg->id;
+                     }
+                     auto session = storage::SessionRepository(db).Create(subject_id, *leg_id,
+                                                                          request->details);
+                     if (!session.ok()) return session.status();
+                     return SessionToJson(*session, storage::SideName(request->leg));
+                   },
+                   [](const json& s) {
+                     return "sessions/" + std::to_string(s["id"].get<std::int64_t>());
+                   });
+               if (!created.ok()) return created.status();
+               return JsonReply(std::move(*created), 201);
+             }});
 }
 
 // One session: get, correct, revisions.
 void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
-  table.Add({"GET",
-             "/api/v1/sessions/{session_id}",
-             kAnyRole,
-             false,
-             "sessions",
-             "One session",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/sessions/{session_id}",
+             .roles = kAnyRole,
+             .tag = "sessions",
+             .summary = "One session",
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto session = storage::SessionRepository(db).Get(ctx.Id("session_id"));
                if (!session.ok()) return session.status();
                auto j = SessionJson(db, *session);
@@ -389,25 +363,21 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply(std::move(*j));
              }});
   table.Add(
-      {"PATCH",
-       "/api/v1/sessions/{session_id}",
-       kClinician | kAdmin,
-       true,
-       "sessions",
-       "Correct a session's details: a new revision with a reason (given fields replace "
-       "the current ones, null clears one); audited",
-       {},
-       200,
-       "application/json",
-       CorrectionSchema(ObjectSchema(
+      {.method = "PATCH",
+       .path = "/api/v1/sessions/{session_id}",
+       .roles = kClinician | kAdmin,
+       .json_body = true,
+       .tag = "sessions",
+       .summary = "Correct a session's details: a new revision with a reason (given fields replace "
+                  "the current ones, null clears one); audited",
+       .request_schema = CorrectionSchema(ObjectSchema(
            {{"date", {{"type", "string"}, {"format", "date"}}},
             {"accelerometer_placement", {{"type", {"string", "null"}}, {"maxLength", 256}}},
             {"threshold_ma", {{"type", {"number", "null"}}, {"minimum", 0}, {"maximum", 100}}},
             {"max_tolerated_ma", {{"type", {"number", "null"}}, {"minimum", 0}, {"maximum", 100}}},
             {"notes", {{"type", {"string", "null"}}, {"maxLength", 4096}}}},
            {})),
-       nullptr,
-       [&db](RequestContext& ctx) -> api::Result<Reply> {
+       .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
          const std::int64_t id = ctx.Id("session_id");
          storage::SessionRepository sessions(db);
          auto current = sessions.Get(id);
@@ -427,18 +397,12 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (!corrected.ok()) return corrected.status();
          return JsonReply(std::move(*corrected));
        }});
-  table.Add({"GET",
-             "/api/v1/sessions/{session_id}/revisions",
-             kAnyRole,
-             false,
-             "sessions",
-             "A session's revisions, oldest first (who, when, why, the details)",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/sessions/{session_id}/revisions",
+             .roles = kAnyRole,
+             .tag = "sessions",
+             .summary = "A session's revisions, oldest first (who, when, why, the details)",
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto revisions = storage::SessionRepository(db).Revisions(ctx.Id("session_id"));
                if (!revisions.ok()) return revisions.status();
                return JsonReply(RevisionsJson(*revisions, &SessionRevisionToJson));
@@ -448,35 +412,42 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
 // A session's runs and trials, paged.
 void AddSessionRunAndTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
-  table.Add({"GET", "/api/v1/sessions/{session_id}/runs", kAnyRole, false, "runs",
-             "The runs of a session (history; each item has the shape of GET /runs/{id})",
-             PageParams(), 200, "application/json", nullptr, nullptr,
-             [&db, runs_service = deps.runs](RequestContext& ctx) -> api::Result<Reply> {
-               auto page = ParsePage(ctx);
-               if (!page.ok()) return page.status();
-               storage::SessionRepository sessions(db);
-               if (auto s = sessions.Get(ctx.Id("session_id")); !s.ok()) return s.status();
-               auto runs =
-                   sessions.ListRunsPage(ctx.Id("session_id"), page->after_id, page->limit + 1);
-               if (!runs.ok()) return runs.status();
-               api::Status failure;
-               json body = MakePage(
-                   *runs, *page, [](const storage::Run& r) { return r.id; },
-                   [&](const storage::Run& r) -> json {
-                     if (!runs_service) return RunToJson(r);
-                     auto view = runs_service->Get(r.id);
-                     if (!view.ok()) {
-                       failure = view.status();
-                       return nullptr;
-                     }
-                     return services::RunViewToJson(*view);
-                   });
-               if (!failure.ok()) return failure;
-               return JsonReply(std::move(body));
-             }});
-  table.Add({"GET", "/api/v1/sessions/{session_id}/trials", kAnyRole, false, "trials",
-             "The trials recorded in a session (summaries)", PageParams(), 200, "application/json",
-             nullptr, nullptr, [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add(
+      {.method = "GET",
+       .path = "/api/v1/sessions/{session_id}/runs",
+       .roles = kAnyRole,
+       .tag = "runs",
+       .summary = "The runs of a session (history; each item has the shape of GET /runs/{id})",
+       .query = PageParams(),
+       .handler = [&db, runs_service = deps.runs](RequestContext& ctx) -> api::Result<Reply> {
+         auto page = ParsePage(ctx);
+         if (!page.ok()) return page.status();
+         storage::SessionRepository sessions(db);
+         if (auto s = sessions.Get(ctx.Id("session_id")); !s.ok()) return s.status();
+         auto runs = sessions.ListRunsPage(ctx.Id("session_id"), page->after_id, page->limit + 1);
+         if (!runs.ok()) return runs.status();
+         api::Status failure;
+         json body = MakePage(
+             *runs, *page, [](const storage::Run& r) { return r.id; },
+             [&](const storage::Run& r) -> json {
+               if (!runs_service) return RunToJson(r);
+               auto view = runs_service->Get(r.id);
+               if (!view.ok()) {
+                 failure = view.status();
+                 return nullptr;
+               }
+               return services::RunViewToJson(*view);
+             });
+         if (!failure.ok()) return failure;
+         return JsonReply(std::move(body));
+       }});
+  table.Add({.method = "GET",
+             .path = "/api/v1/sessions/{session_id}/trials",
+             .roles = kAnyRole,
+             .tag = "trials",
+             .summary = "The trials recorded in a session (summaries)",
+             .query = PageParams(),
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto page = ParsePage(ctx);
                if (!page.ok()) return page.status();
                if (auto s = storage::SessionRepository(db).Get(ctx.Id("session_id")); !s.ok()) {
@@ -495,22 +466,18 @@ void AddSessionRunAndTrialRoutes(RouteTable& table, const ApiDependencies& deps)
 void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   table.Add(
-      {"GET",
-       "/api/v1/trials/{trial_id}",
-       kAnyRole,
-       false,
-       "trials",
-       "A recorded trial: JSON, CSV or OpenSim .sto (?format=json|csv|sto, or Accept: "
-       "text/csv); a download with a Content-Disposition file name when ?format is given. CSV "
-       "and .sto hold one channel group (?group=main, the default, or emg); the .sto header "
-       "names the trial, session, subject (pseudonymous code), leg and start time",
-       {{"format", "string", "json (default), csv or sto"},
-        {"group", "string", "csv and sto: main (default) or emg"}},
-       200,
-       "application/json",
-       nullptr,
-       nullptr,
-       [&db](RequestContext& ctx) -> api::Result<Reply> {
+      {.method = "GET",
+       .path = "/api/v1/trials/{trial_id}",
+       .roles = kAnyRole,
+       .tag = "trials",
+       .summary =
+           "A recorded trial: JSON, CSV or OpenSim .sto (?format=json|csv|sto, or Accept: "
+           "text/csv); a download with a Content-Disposition file name when ?format is given. CSV "
+           "and .sto hold one channel group (?group=main, the default, or emg); the .sto header "
+           "names the trial, session, subject (pseudonymous code), leg and start time",
+       .query = {{"format", "string", "json (default), csv or sto"},
+                 {"group", "string", "csv and sto: main (default) or emg"}},
+       .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
          const std::optional<std::string> format = ctx.Query("format");
          if (format && *format != "json" && *format != "csv" && *format != "sto") {
            return api::Status::InvalidArgument("must be json, csv or sto", "format");
@@ -606,10 +573,13 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
     q.push_back({"method", "string", "IRC, passive or active identification method"});
     q.push_back({"from", "string", "created at or after (YYYY-MM-DD or UTC time)"});
     q.push_back({"to", "string", "created before (YYYY-MM-DD or UTC time)"});
-    table.Add({"GET", "/api/v1/parameter-sets", kAnyRole, false, "parameter-sets",
-               "Parameter-set history (filter by subject, leg, method, date range)", q, 200,
-               "application/json", nullptr, nullptr,
-               [&db](RequestContext& ctx) -> api::Result<Reply> {
+    table.Add({.method = "GET",
+               .path = "/api/v1/parameter-sets",
+               .roles = kAnyRole,
+               .tag = "parameter-sets",
+               .summary = "Parameter-set history (filter by subject, leg, method, date range)",
+               .query = q,
+               .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                  auto page = ParsePage(ctx);
                  if (!page.ok()) return page.status();
                  auto subject_id = QueryId(ctx, "subject_id");
@@ -652,18 +622,12 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                      ParameterSetSummaryToJson));
                }});
   }
-  table.Add({"GET",
-             "/api/v1/parameter-sets/{parameter_set_id}",
-             kAnyRole,
-             false,
-             "parameter-sets",
-             "One parameter set (DESIGN.md §3 JSON) with its provenance",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [&db, cache](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/parameter-sets/{parameter_set_id}",
+             .roles = kAnyRole,
+             .tag = "parameter-sets",
+             .summary = "One parameter set (DESIGN.md §3 JSON) with its provenance",
+             .handler = [&db, cache](RequestContext& ctx) -> api::Result<Reply> {
                const std::int64_t id = ctx.Id("parameter_set_id");
                auto body = cache->Find(id);
                if (!body) {
@@ -676,10 +640,13 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                ctx.res.set_content(std::move(*body), "application/json");
                return Reply{200, nullptr, true};
              }});
-  table.Add({"GET", "/api/v1/parameter-sets/{parameter_set_id}/predictions", kAnyRole, false,
-             "predictions", "Stored predictions of a parameter set", PageParams(), 200,
-             "application/json", nullptr, nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/parameter-sets/{parameter_set_id}/predictions",
+             .roles = kAnyRole,
+             .tag = "predictions",
+             .summary = "Stored predictions of a parameter set",
+             .query = PageParams(),
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto page = ParsePage(ctx);
                if (!page.ok()) return page.status();
                const std::int64_t id = ctx.Id("parameter_set_id");
@@ -698,18 +665,12 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                                  {"created_at_utc", storage::FormatUtc(p.created_at)}};
                    }));
              }});
-  table.Add({"GET",
-             "/api/v1/predictions/{prediction_id}",
-             kAnyRole,
-             false,
-             "predictions",
-             "A stored prediction with its input and output",
-             {},
-             200,
-             "application/json",
-             nullptr,
-             nullptr,
-             [&db](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/predictions/{prediction_id}",
+             .roles = kAnyRole,
+             .tag = "predictions",
+             .summary = "A stored prediction with its input and output",
+             .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto p = storage::PredictionRepository(db).GetPrediction(ctx.Id("prediction_id"));
                if (!p.ok()) return p.status();
                auto parse = [](const std::string& text) {
@@ -744,21 +705,28 @@ void AddProtocolRoutes(RouteTable& table, const ApiDependencies& deps) {
   const std::vector<QueryParam> protocol_query = {
       {"session_id", "integer",
        "resolve the defaults derived from this session (threshold, max tolerated, range)"}};
-  table.Add({"GET", "/api/v1/protocols", kAnyRole, false, "protocols",
-             "The protocol catalog (DESIGN.md §5): labels, units, defaults (resolved with "
-             "?session_id), thesis sections",
-             protocol_query, 200, "application/json", nullptr, nullptr,
-             [session_context](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/protocols",
+             .roles = kAnyRole,
+             .tag = "protocols",
+             .summary =
+                 "The protocol catalog (DESIGN.md §5): labels, units, defaults (resolved with "
+                 "?session_id), thesis sections",
+             .query = protocol_query,
+             .handler = [session_context](RequestContext& ctx) -> api::Result<Reply> {
                auto context = session_context(ctx);
                if (!context.ok()) return context.status();
                if (!*context) return JsonReply(protocols::CatalogToJson());
                return JsonReply(protocols::CatalogToJson(&(*context)->subject,
                                                          (*context)->has_stimulation_limits));
              }});
-  table.Add({"GET", "/api/v1/protocols/{name}", kAnyRole, false, "protocols",
-             "One protocol with its parameters, labels, units and defaults", protocol_query, 200,
-             "application/json", nullptr, nullptr,
-             [session_context](RequestContext& ctx) -> api::Result<Reply> {
+  table.Add({.method = "GET",
+             .path = "/api/v1/protocols/{name}",
+             .roles = kAnyRole,
+             .tag = "protocols",
+             .summary = "One protocol with its parameters, labels, units and defaults",
+             .query = protocol_query,
+             .handler = [session_context](RequestContext& ctx) -> api::Result<Reply> {
                const auto* protocol = protocols::FindProtocol(ctx.path.at("name"));
                if (!protocol) {
                  return api::Status::NotFound("protocol " + ctx.path.at("name") + " not found");

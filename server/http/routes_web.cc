@@ -7,19 +7,22 @@
 namespace fesbench::server::http {
 
 void AddWebRoutes(RouteTable& table, const ApiDependencies&) {
-  table.Add({"GET", "/api/v1/me", kAnyRole, false, "users",
-             "The signed-in user (id, name, role) of the bearer token", {}, 200,
-             "application/json", nullptr,
-             ObjectSchema({{"id", {{"type", "integer"}}},
-                           {"name", {{"type", "string"}}},
-                           {"role", {{"enum", {"clinician", "analyst", "admin"}}}}},
-                          {"id", "name", "role"}),
-             [](RequestContext& ctx) -> api::Result<Reply> {
-               const storage::User& user = *ctx.user;
-               return JsonReply({{"id", user.id},
-                                 {"name", user.name},
-                                 {"role", std::string(storage::RoleName(user.role))}});
-             }});
+  table.Add(
+      {.method = "GET",
+       .path = "/api/v1/me",
+       .roles = kAnyRole,
+       .tag = "users",
+       .summary = "The signed-in user (id, name, role) of the bearer token",
+       .response_schema = ObjectSchema({{"id", {{"type", "integer"}}},
+                                        {"name", {{"type", "string"}}},
+                                        {"role", {{"enum", {"clinician", "analyst", "admin"}}}}},
+                                       {"id", "name", "role"}),
+       .handler = [](RequestContext& ctx) -> api::Result<Reply> {
+         const storage::User& user = *ctx.user;
+         return JsonReply({{"id", user.id},
+                           {"name", user.name},
+                           {"role", std::string(storage::RoleName(user.role))}});
+       }});
 }
 
 }  // namespace fesbench::server::http
