@@ -13,11 +13,11 @@
 #include "model/tracking.h"
 #include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_json.h"
+#include "server/services/run_service_internal.h"
 #include "storage/audit_log.h"
 #include "storage/estop_latch.h"
 #include "storage/parameter_sets.h"
 #include "storage/subjects.h"
-#include "server/services/run_service_internal.h"
 #include "storage/trials.h"
 
 namespace fesbench::server::services {
@@ -33,8 +33,7 @@ protocols::BenchOwnerOptions OwnerOptions(const RunServiceConfig& c) {
   o.runner.batch_samples = std::max<std::size_t>(1, c.batch_samples);
   o.runner.arm_watchdog = c.arm_watchdog;
   o.runner.heartbeat_timeout_s = c.heartbeat_timeout_s;
-  o.runner.wall_clock = c.wall_clock;
-  o.wall_clock = c.wall_clock;
+  o.clock = c.clock;
   return o;
 }
 
@@ -187,31 +186,40 @@ api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
   return v;
 }
 
-api::Result<RunView> RunService::Get(std::int64_t run_id) {
+// The last guard around each command. Every expected failure comes back from
+// the body as a Status; an exception here is resource exhaustion or a broken
+// invariant (bad_alloc, system_error): logged, and answered with kInternal
+// saying what could not be done.
+template <class Fn>
+auto RunService::Guarded(std::string_view command, const char* failure, Fn&& fn) const
+    -> decltype(fn()) {
   try {
+    return fn();
+  } catch (const std::exception& e) {
+    Log(std::string(command) + ": " + e.what());
+    return api::Status::Internal(failure);
+  }
+}
+
+api::Result<RunView> RunService::Get(std::int64_t run_id) {
+  return Guarded("Get", "reading the run failed", [&]() -> api::Result<RunView> {
     if (auto run = FindLive(run_id)) {
       std::lock_guard lock(mu_);
       return run->view;
     }
     return StoredView(run_id);
-  } catch (const std::exception& e) {
-    Log(std::string("Get: ") + e.what());
-    return api::Status::Internal("reading the run failed");
-  }
+  });
 }
 
 api::Result<RunView> RunService::Wait(std::int64_t run_id, std::chrono::milliseconds timeout) {
-  try {
+  return Guarded("Wait", "reading the run failed", [&]() -> api::Result<RunView> {
     if (auto run = FindLive(run_id)) {
       std::unique_lock lock(mu_);
       final_cv_.wait_for(lock, timeout, [&] { return run->final; });
       return run->view;
     }
     return StoredView(run_id);
-  } catch (const std::exception& e) {
-    Log(std::string("Wait: ") + e.what());
-    return api::Status::Internal("reading the run failed");
-  }
+  });
 }
 
 BenchState RunService::State() const {
@@ -245,12 +253,9 @@ api::Result<RunView> RunService::Start(const Actor& actor, std::int64_t session_
                                        const protocols::ParameterValues& parameters,
                                        const std::optional<std::string>& ceiling_reason,
                                        const TargetSamples* target) {
-  try {
+  return Guarded("Start", "starting the run failed", [&]() -> api::Result<RunView> {
     return StartImpl(actor, session_id, protocol, parameters, ceiling_reason, target);
-  } catch (const std::exception& e) {
-    Log(std::string("Start: ") + e.what());
-    return api::Status::Internal("starting the run failed");
-  }
+  });
 }
 
 namespace {
@@ -258,8 +263,7 @@ namespace {
 // Who may start which protocol with which values: the checks that need no
 // session and no bench.
 api::Result<const protocols::ProtocolDescription*> CheckStartRequest(
-    const Actor& actor, const std::string& protocol,
-    const protocols::ParameterValues& parameters) {
+    const Actor& actor, const std::string& protocol, const protocols::ParameterValues& parameters) {
   if (!MayOperateBench(actor)) {
     return api::Status(api::ErrorCode::kPermissionDenied,
                        "starting a run needs the clinician or admin role");
@@ -332,8 +336,8 @@ api::Status RunService::CheckBenchFree() {
 
 api::Result<protocols::StartRequest> RunService::BuildStartRequest(
     const SessionContext& context, const std::string& protocol,
-    const protocols::ParameterValues& parameters,
-    const std::optional<std::string>& ceiling_reason, const TargetSamples* target) {
+    const protocols::ParameterValues& parameters, const std::optional<std::string>& ceiling_reason,
+    const TargetSamples* target) {
   protocols::StartRequest request;
   request.protocol = protocol;
   request.parameters = parameters;
@@ -366,8 +370,8 @@ api::Result<storage::Run> RunService::CreateRunRecord(
   return db_.Write([&](storage::Connection&) -> api::Result<storage::Run> {
     api::Result<storage::Run> r = storage::SessionRepository(db_).CreateRun(session_id, new_run);
     if (!r.ok()) return r;
-    std::string summary = "session " + std::to_string(session_id) + ", " + protocol + " v" +
-                          new_run.protocol_version;
+    std::string summary =
+        "session " + std::to_string(session_id) + ", " + protocol + " v" + new_run.protocol_version;
     for (const auto& [k, v] : parameters) summary += ", " + k + "=" + FormatNumber(v);
     if (api::Status a = Audit(actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
       return a;
@@ -465,8 +469,8 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
     if (!inertia.ok()) return inertia.status();
   }
 
-  api::Result<storage::Run> created = CreateRunRecord(actor, session_id, protocol, parameters,
-                                                      *plan, *context, ceiling_reason);
+  api::Result<storage::Run> created =
+      CreateRunRecord(actor, session_id, protocol, parameters, *plan, *context, ceiling_reason);
   if (!created.ok()) return created.status();
   std::shared_ptr<LiveRun> run =
       RegisterLiveRun(actor, *created, *plan, **description, *context, session_id, protocol);
@@ -512,7 +516,7 @@ api::Status RunService::CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRu
 }
 
 api::Status RunService::Cancel(const Actor& actor, std::int64_t run_id) {
-  try {
+  return Guarded("Cancel", "cancelling the run failed", [&]() -> api::Status {
     if (!MayOperateBench(actor)) {
       return api::Status(api::ErrorCode::kPermissionDenied,
                          "cancelling a run needs the clinician or admin role");
@@ -526,14 +530,11 @@ api::Status RunService::Cancel(const Actor& actor, std::int64_t run_id) {
       Log("audit of cancel: " + a.ToString());
     }
     return api::Status::Ok();
-  } catch (const std::exception& e) {
-    Log(std::string("Cancel: ") + e.what());
-    return api::Status::Internal("cancelling the run failed");
-  }
+  });
 }
 
 api::Status RunService::StopWithResult(const Actor& actor, std::int64_t run_id) {
-  try {
+  return Guarded("StopWithResult", "stopping the run failed", [&]() -> api::Status {
     if (!MayOperateBench(actor)) {
       return api::Status(api::ErrorCode::kPermissionDenied,
                          "stopping a run needs the clinician or admin role");
@@ -548,14 +549,11 @@ api::Status RunService::StopWithResult(const Actor& actor, std::int64_t run_id) 
       Log("audit of stop: " + a.ToString());
     }
     return api::Status::Ok();
-  } catch (const std::exception& e) {
-    Log(std::string("StopWithResult: ") + e.what());
-    return api::Status::Internal("stopping the run failed");
-  }
+  });
 }
 
 api::Status RunService::Heartbeat(const Actor& actor, std::int64_t run_id) {
-  try {
+  return Guarded("Heartbeat", "heartbeat failed", [&]() -> api::Status {
     std::shared_ptr<LiveRun> run;
     if (api::Status st = CheckCurrent(run_id, &run); !st.ok()) return st;
     if (run->actor.user_id != actor.user_id || run->actor.user_name != actor.user_name) {
@@ -565,10 +563,7 @@ api::Status RunService::Heartbeat(const Actor& actor, std::int64_t run_id) {
     }
     owner_.Heartbeat();
     return api::Status::Ok();
-  } catch (const std::exception& e) {
-    Log(std::string("Heartbeat: ") + e.what());
-    return api::Status::Internal("heartbeat failed");
-  }
+  });
 }
 
 api::Status RunService::EStop(const Actor& actor, std::string_view source) {
@@ -600,7 +595,7 @@ api::Status RunService::EStop(const Actor& actor, std::string_view source) {
 }
 
 api::Status RunService::ClearEStop(const Actor& actor) {
-  try {
+  return Guarded("ClearEStop", "clearing the e-stop failed", [&]() -> api::Status {
     if (!MayOperateBench(actor)) {
       return api::Status(api::ErrorCode::kPermissionDenied,
                          "clearing the e-stop needs the clinician or admin role");
@@ -631,10 +626,7 @@ api::Status RunService::ClearEStop(const Actor& actor) {
       estop_source_.clear();
     }
     return api::Status::Ok();
-  } catch (const std::exception& e) {
-    Log(std::string("ClearEStop: ") + e.what());
-    return api::Status::Internal("clearing the e-stop failed");
-  }
+  });
 }
 
 api::Result<Recovery> RunService::RecoverAfterRestart() {
@@ -682,7 +674,7 @@ api::Result<Recovery> RunService::RecoverAfterRestart() {
 }
 
 api::Status RunService::WithIdleBench(const std::function<api::Status()>& fn) {
-  try {
+  return Guarded("WithIdleBench", "changing the bench failed", [&]() -> api::Status {
     std::lock_guard start_lock(start_mu_);
     {
       std::lock_guard lock(mu_);
@@ -692,10 +684,7 @@ api::Status RunService::WithIdleBench(const std::function<api::Status()>& fn) {
       return api::Status::Conflict("a run of " + owner_.owner() + " holds the bench");
     }
     return fn();
-  } catch (const std::exception& e) {
-    Log(std::string("WithIdleBench: ") + e.what());
-    return api::Status::Internal("changing the bench failed");
-  }
+  });
 }
 
 void RunService::Shutdown() {

@@ -58,11 +58,11 @@ struct RunServiceConfig {
   /// The controlling user must heartbeat within this many wall seconds
   /// during a run (DESIGN.md §6).
   double heartbeat_timeout_s = 1.0;
-  bool arm_watchdog = true;             ///< false only in tests and offline replays.
-  double progress_interval_s = 0.1;     ///< bench seconds between progress events.
-  std::size_t batch_samples = 40;       ///< samples per live batch.
-  std::size_t finished_runs_kept = 64;  ///< finished run views kept in memory.
-  SafeBench::WallClock wall_clock;      ///< empty = steady clock.
+  bool arm_watchdog = true;                ///< false only in tests and offline replays.
+  double progress_interval_s = 0.1;        ///< bench seconds between progress events.
+  std::size_t batch_samples = 40;          ///< samples per live batch.
+  std::size_t finished_runs_kept = 64;     ///< finished run views kept in memory.
+  api::Clock* clock = api::Clock::Real();  ///< watchdog and run durations; outlives the service.
   /// Where unexpected errors are logged; empty = std::cerr.
   std::function<void(std::string_view)> log;
 };
@@ -101,8 +101,8 @@ struct RunView {
 ///  "progress" (0–1), "eta_s" (wall s, null when unknown), "created_at_utc",
 ///  "started_at_utc", "finished_at_utc" (ISO-8601 UTC or null), "result"
 ///  (RunView::result), "controller" (user name or null)}, plus the details
-///  "bench_elapsed_s", "bench_total_s" (bench time of the plan), "trial_ids", "parameter_set_id", "values", "safety_events", "live" and,
-///  for tolerance_test runs of this process, "tolerance".
+///  "bench_elapsed_s", "bench_total_s" (bench time of the plan), "trial_ids", "parameter_set_id",
+///  "values", "safety_events", "live" and, for tolerance_test runs of this process, "tolerance".
 nlohmann::json RunViewToJson(const RunView& view);
 
 /// What the bench is doing (GET bench, DDS fesbench/bench/state).
@@ -276,14 +276,18 @@ class RunService {
   std::shared_ptr<LiveRun> RegisterLiveRun(const Actor& actor, const storage::Run& created,
                                            const protocols::Plan& plan,
                                            const protocols::ProtocolDescription& description,
-                                           const SessionContext& context,
-                                           std::int64_t session_id, const std::string& protocol);
+                                           const SessionContext& context, std::int64_t session_id,
+                                           const std::string& protocol);
   api::Result<RunView> StartImpl(const Actor& actor, std::int64_t session_id,
                                  const std::string& protocol,
                                  const protocols::ParameterValues& parameters,
                                  const std::optional<std::string>& ceiling_reason,
                                  const TargetSamples* target);
   void Log(std::string_view message) const;
+  /// Runs a command's body; an exception (never an expected failure) is
+  /// logged under `command` and becomes kInternal(`failure`).
+  template <class Fn>
+  auto Guarded(std::string_view command, const char* failure, Fn&& fn) const -> decltype(fn());
   void Forget();
 
   storage::Database& db_;
