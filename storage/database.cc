@@ -118,7 +118,9 @@ api::Status CopyDatabase(SqliteConnection& source, SqliteConnection& destination
 
 }  // namespace
 
-Database::Database(DatabaseOptions options) : options_(std::move(options)) {}
+Database::Database(DatabaseOptions options) : options_(std::move(options)) {
+  if (options_.clock == nullptr) options_.clock = api::Clock::Real();
+}
 
 Database::~Database() {
   // Free the bench at once (closing the connection frees it only once the
@@ -130,7 +132,7 @@ Database::~Database() {
   writer_.reset();
 }
 
-UtcTime Database::Now() const { return options_.clock ? options_.clock() : NowUtc(); }
+UtcTime Database::Now() const { return options_.clock->UtcNow(); }
 
 bool IsPostgresUrl(std::string_view location) {
   return location.starts_with("postgresql://") || location.starts_with("postgres://");

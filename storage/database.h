@@ -68,8 +68,8 @@ struct DatabaseOptions {
   /// bench '') belong to every bench. On PostgreSQL a second process that
   /// opens the database for the same bench is refused.
   std::string bench_id;
-  /// The clock for every *_utc column; NowUtc when empty.
-  std::function<UtcTime()> clock;
+  /// The clock of every *_utc column; outlives the database.
+  api::Clock* clock = api::Clock::Real();
 };
 
 class PostgresListener;
@@ -178,9 +178,9 @@ class Database {
   std::unique_ptr<Connection> writer_;
   std::mutex writer_mutex_;
   std::minstd_rand jitter_{std::random_device{}()};  // back-off jitter, under writer_mutex_
-  std::atomic<std::thread::id> writer_owner_{};  // the thread inside a write transaction
+  std::atomic<std::thread::id> writer_owner_{};      // the thread inside a write transaction
   std::vector<std::function<void()>> after_commit_;  // owned by the writer_owner_ thread
-  std::mutex listener_mutex_;                         // guards parameter_set_listener_
+  std::mutex listener_mutex_;                        // guards parameter_set_listener_
   ParameterSetListener parameter_set_listener_;
 
   std::unique_ptr<Connection> bench_lock_;  // PostgreSQL: holds the bench's advisory lock

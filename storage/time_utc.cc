@@ -35,8 +35,6 @@ std::optional<std::chrono::year_month_day> ParseDate(std::string_view text) {
 
 }  // namespace
 
-UtcTime NowUtc() { return std::chrono::floor<microseconds>(std::chrono::system_clock::now()); }
-
 std::string FormatUtc(UtcTime t) {
   const auto day = std::chrono::floor<days>(t);
   const std::chrono::year_month_day ymd{day};

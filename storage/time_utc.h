@@ -10,13 +10,12 @@
 #include <string>
 #include <string_view>
 
+#include "api/clock.h"
+
 namespace fesbench::storage {
 
-/// A point in time, UTC, microsecond resolution.
-using UtcTime = std::chrono::sys_time<std::chrono::microseconds>;
-
-/// The current time from the system clock, truncated to microseconds.
-UtcTime NowUtc();
+/// A point in time, UTC, microsecond resolution (api/clock.h).
+using UtcTime = api::UtcTime;
 
 /// "2026-11-21T10:36:43.123456Z". Years outside 0000–9999 are clamped.
 std::string FormatUtc(UtcTime t);

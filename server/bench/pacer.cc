@@ -1,27 +1,11 @@
 #include "server/bench/pacer.h"
 
-#include <chrono>
 #include <cmath>
-#include <thread>
 
 namespace fesbench::server {
 
-PacerClock PacerClock::Steady() {
-  PacerClock c;
-  c.now_s = [] {
-    using namespace std::chrono;
-    return duration<double>(steady_clock::now().time_since_epoch()).count();
-  };
-  c.sleep_for_s = [](double s) {
-    if (s > 0.0) std::this_thread::sleep_for(std::chrono::duration<double>(s));
-  };
-  return c;
-}
-
-Pacer::Pacer(PacerClock clock, double time_scale) : clock_(std::move(clock)) {
-  const PacerClock steady = PacerClock::Steady();
-  if (!clock_.now_s) clock_.now_s = steady.now_s;
-  if (!clock_.sleep_for_s) clock_.sleep_for_s = steady.sleep_for_s;
+Pacer::Pacer(api::Clock* clock, double time_scale)
+    : clock_(clock != nullptr ? clock : api::Clock::Real()) {
   set_time_scale(time_scale);
 }
 
@@ -32,7 +16,7 @@ void Pacer::set_time_scale(double time_scale) {
 
 void Pacer::Pace(double bench_t_s) {
   if (time_scale_ <= 0.0) return;
-  const double now = clock_.now_s();
+  const double now = clock_->MonotonicSeconds();
   if (!anchored_) {
     anchored_ = true;
     wall0_s_ = now;
@@ -45,7 +29,7 @@ void Pacer::Pace(double bench_t_s) {
     bench0_s_ = bench_t_s;
     return;
   }
-  if (target > now) clock_.sleep_for_s(target - now);
+  if (target > now) clock_->SleepFor(target - now);
 }
 
 }  // namespace fesbench::server

@@ -6,17 +6,9 @@
 /// injected so tests run without real sleeping (STYLE.md: hardware and time
 /// come through interfaces).
 
-#include <functional>
+#include "api/clock.h"
 
 namespace fesbench::server {
-
-/// A monotonic wall clock and a way to wait on it.
-struct PacerClock {
-  std::function<double()> now_s;             ///< monotonic seconds.
-  std::function<void(double)> sleep_for_s;   ///< blocks about that long (s ≥ 0).
-  /// std::chrono::steady_clock and std::this_thread::sleep_for.
-  static PacerClock Steady();
-};
 
 /// Keeps bench time at `time_scale` × wall time: Pace(t) sleeps until the
 /// wall clock has run (t − t₀)/scale since the anchor (t₀, w₀). The anchor is
@@ -25,16 +17,16 @@ struct PacerClock {
 /// caller paused). Scale 0 never sleeps.
 class Pacer {
  public:
-  /// @param clock empty members default to PacerClock::Steady().
+  /// @param clock read and slept on (monotonic seconds); must outlive the pacer.
   /// @param time_scale ≥ 0 (negative or non-finite is taken as 0).
-  Pacer(PacerClock clock, double time_scale);
+  Pacer(api::Clock* clock, double time_scale);
 
   void set_time_scale(double time_scale);
   double time_scale() const { return time_scale_; }
   void Pace(double bench_t_s);
 
  private:
-  PacerClock clock_;
+  api::Clock* clock_;
   double time_scale_ = 0.0;
   bool anchored_ = false;
   double wall0_s_ = 0.0;

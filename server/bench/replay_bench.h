@@ -63,7 +63,7 @@ struct ReplayCommand {
 struct ReplayBenchOptions {
   BenchLimits limits;
   double time_scale = 0.0;  ///< 0 = as fast as possible.
-  PacerClock clock;
+  api::Clock* clock = api::Clock::Real();  ///< paces the replay; outlives the bench.
 };
 
 class ReplayBench final : public Bench {

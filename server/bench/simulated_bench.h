@@ -73,7 +73,7 @@ struct SimulatedBenchOptions {
   BenchLimits limits;
   double time_scale = 0.0;        ///< bench s per wall s; 0 = as fast as possible.
   std::uint64_t seed = 1;         ///< combined with the subject's seed.
-  PacerClock clock;               ///< empty = steady clock and real sleeping.
+  api::Clock* clock = api::Clock::Real();  ///< paces the bench; outlives it.
   /// Initial knee angle; unset = the passive rest angle (τ_pta + τ_ptv(0) = 0),
   /// or 90° if there is none in range.
   std::optional<double> initial_angle_deg;

@@ -22,12 +22,15 @@ bool WellFormed(std::string_view header) {
 
 Authenticator::Authenticator(storage::Database& db, AuthenticatorOptions options)
     : db_(db), users_(db), options_(std::move(options)) {
+  if (options_.clock == nullptr) options_.clock = api::Clock::Real();
   options_.failed_tokens.burst = std::max(1.0, options_.failed_tokens.burst);
   if (!(options_.failed_tokens.refill_per_s > 0.0)) options_.failed_tokens.refill_per_s = 1.0;
 }
 
 std::chrono::steady_clock::time_point Authenticator::Now() const {
-  return options_.clock ? options_.clock() : std::chrono::steady_clock::now();
+  return std::chrono::steady_clock::time_point(
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+          std::chrono::duration<double>(options_.clock->MonotonicSeconds())));
 }
 
 std::optional<storage::User> Authenticator::Cached(const std::string& token) {

@@ -25,6 +25,7 @@
 #include <string_view>
 #include <unordered_map>
 
+#include "api/clock.h"
 #include "api/status.h"
 #include "storage/database.h"
 #include "storage/users.h"
@@ -42,8 +43,8 @@ inline constexpr RoleMask kAnyRole = kClinician | kAnalyst | kAdmin;
 /// The per-address budget of failed tokens: a bucket of `burst` failures
 /// that refills at `refill_per_s`.
 struct FailedTokenLimits {
-  double burst = 30.0;        ///< failed tokens an address may present at once, ≥ 1.
-  double refill_per_s = 1.0;  ///< failures regained per second, > 0.
+  double burst = 30.0;                ///< failed tokens an address may present at once, ≥ 1.
+  double refill_per_s = 1.0;          ///< failures regained per second, > 0.
   std::size_t max_addresses = 10000;  ///< addresses tracked; the fullest buckets are dropped.
 };
 
@@ -51,8 +52,8 @@ struct AuthenticatorOptions {
   std::chrono::milliseconds cache_ttl = std::chrono::seconds(2);
   std::size_t cache_capacity = 4096;
   FailedTokenLimits failed_tokens;
-  /// Monotonic time (tests); steady_clock when empty.
-  std::function<std::chrono::steady_clock::time_point()> clock;
+  /// Monotonic time of the cache and the rate limit; outlives the authenticator.
+  api::Clock* clock = api::Clock::Real();
 };
 
 /// Admit's answer for one request.
@@ -82,8 +83,8 @@ class Authenticator {
   /// fails (actor = the address, never the token), a role refusal (actor =
   /// the user), and the first request of a slowed-down burst. A request
   /// without an Authorization header is 401 but neither audited nor counted.
-  Admission Admit(std::string_view authorization_header, std::string_view address,
-                  RoleMask allowed, std::string_view action, std::string_view target);
+  Admission Admit(std::string_view authorization_header, std::string_view address, RoleMask allowed,
+                  std::string_view action, std::string_view target);
 
   /// Drops every cached answer.
   void Invalidate();

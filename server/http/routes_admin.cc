@@ -172,7 +172,7 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (!request.ok()) return request.status();
          std::optional<storage::UtcTime> expires;
          if (request->expires_in_s) {
-           expires = storage::NowUtc() + std::chrono::seconds(*request->expires_in_s);
+           expires = db.Now() + std::chrono::seconds(*request->expires_in_s);
          }
          auto issued = AuditedWrite<storage::IssuedToken>(
              db, ctx, 201,
@@ -275,7 +275,7 @@ void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
                std::error_code ec;
                std::filesystem::create_directories(backup_dir, ec);
                if (ec) return api::Status::Unavailable("cannot create the backup folder");
-               std::string stamp = storage::FormatUtc(storage::NowUtc());
+               std::string stamp = storage::FormatUtc(db.Now());
                for (char& c : stamp) {
                  if (c == ':' || c == '.') c = '-';
                }

@@ -120,7 +120,7 @@ void AddHealthRoute(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply({{"status", "ok"},
                                  {"version", version},
                                  {"schema_version", *schema},
-                                 {"time_utc", storage::FormatUtc(storage::NowUtc())}});
+                                 {"time_utc", storage::FormatUtc(db.Now())}});
              }});
 }
 

@@ -5,7 +5,7 @@
 namespace fesbench::server::protocols {
 
 BenchOwner::BenchOwner(Bench& bench, BenchOwnerOptions options)
-    : options_(std::move(options)), safe_(bench, log_.sink(), options_.wall_clock) {}
+    : options_(std::move(options)), safe_(bench, log_.sink(), options_.clock) {}
 
 BenchOwner::~BenchOwner() {
   {
@@ -51,7 +51,7 @@ api::Status BenchOwner::Start(const StartRequest& request, std::shared_ptr<RunOb
   last_.reset();
   observer_ = std::move(observer);
   RunnerOptions ro = options_.runner;
-  if (!ro.wall_clock && options_.wall_clock) ro.wall_clock = options_.wall_clock;
+  ro.clock = options_.clock;
   runner_ = std::make_unique<ProtocolRunner>(safe_, &log_, observer_.get(), ro);
   thread_ = std::thread([this, p = std::move(plan).value(), subject = request.subject] {
     RunResult r = runner_->Run(p, subject);

@@ -12,8 +12,8 @@
 #include <mutex>
 #include <optional>
 #include <string>
-#include <vector>
 #include <thread>
+#include <vector>
 
 #include "api/status.h"
 #include "server/protocols/plan.h"
@@ -33,8 +33,10 @@ struct StartRequest {
 };
 
 struct BenchOwnerOptions {
-  RunnerOptions runner;             ///< time_scale, watchdog, batching.
-  SafeBench::WallClock wall_clock;  ///< heartbeat clock; empty = steady clock.
+  RunnerOptions runner;  ///< time_scale, watchdog, batching.
+  /// The heartbeat watchdog's and the runs' clock (it replaces runner.clock);
+  /// must outlive the owner.
+  api::Clock* clock = api::Clock::Real();
 };
 
 class BenchOwner {

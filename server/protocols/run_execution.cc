@@ -37,7 +37,7 @@ RunExecution::RunExecution(ProtocolRunner& runner, const Plan& plan, const Subje
   result_.protocol_version = plan.protocol_version;
   result_.parameters = plan.parameters;
   first_event_ = runner_.log_ != nullptr ? runner_.log_->size() : 0;
-  wall0_ = runner_.options_.wall_clock();
+  wall0_ = runner_.options_.clock->MonotonicSeconds();
   if (plan.tolerance) {
     tolerance_.emplace(*plan.tolerance);
     result_.tolerance = tolerance_->current();
@@ -262,7 +262,7 @@ void RunExecution::ReportProgress(std::size_t index, const Step& step) {
   p.bench_total_s = TickSeconds(total);
   p.fraction = std::min(1.0, static_cast<double>(n_ + 1) / static_cast<double>(total));
   const double left = p.bench_total_s - p.bench_elapsed_s;
-  const double wall_rate = (runner_.options_.wall_clock() - wall0_) / p.bench_elapsed_s;
+  const double wall_rate = (runner_.options_.clock->MonotonicSeconds() - wall0_) / p.bench_elapsed_s;
   p.eta_s = runner_.options_.time_scale > 0.0 ? left / runner_.options_.time_scale
                                               : left * wall_rate;
   p.step = index;
@@ -380,7 +380,7 @@ RunResult RunExecution::Finish() {
   bench_.SetStimAmplitude(0.0);
   bench_.DisarmWatchdog();
   if (runner_.log_ != nullptr) result_.safety_events = runner_.log_->Since(first_event_);
-  result_.wall_duration_s = runner_.options_.wall_clock() - wall0_;
+  result_.wall_duration_s = runner_.options_.clock->MonotonicSeconds() - wall0_;
   if (runner_.observer_ != nullptr) runner_.observer_->OnFinished(result_);
   runner_.result_ = nullptr;
   return std::move(result_);

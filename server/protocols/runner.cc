@@ -13,11 +13,6 @@
 namespace fesbench::server::protocols {
 namespace {
 
-double SteadyNow() {
-  using namespace std::chrono;
-  return duration<double>(steady_clock::now().time_since_epoch()).count();
-}
-
 }  // namespace
 
 void ApplySearchedAmplitude(const Plan& plan, std::optional<double> reached_ma,
@@ -71,7 +66,7 @@ std::vector<SafetyEvent> SafetyEventLog::Since(std::size_t from) const {
 ProtocolRunner::ProtocolRunner(SafeBench& bench, SafetyEventLog* log, RunObserver* observer,
                                RunnerOptions options)
     : bench_(bench), log_(log), observer_(observer), options_(std::move(options)) {
-  if (!options_.wall_clock) options_.wall_clock = SteadyNow;
+  if (options_.clock == nullptr) options_.clock = api::Clock::Real();
 }
 
 void ProtocolRunner::Cancel(const std::string& reason) {

@@ -134,7 +134,7 @@ struct RunnerOptions {
   std::size_t batch_samples = 40;    ///< samples per OnSamples batch.
   bool arm_watchdog = true;          ///< arm SafeBench's heartbeat watchdog.
   double heartbeat_timeout_s = 1.0;
-  SafeBench::WallClock wall_clock;  ///< for wall durations; empty = steady clock.
+  api::Clock* clock = api::Clock::Real();  ///< for wall durations; must outlive the runner.
 };
 
 class RunExecution;

@@ -14,16 +14,10 @@ constexpr double kReadBackToleranceMa = 1e-6;
 constexpr std::size_t kMaxReadBackPulses = 100'000;
 }  // namespace
 
-SafeBench::SafeBench(Bench& bench, EventSink sink, WallClock wall_clock)
-    : bench_(bench), sink_(std::move(sink)), wall_clock_(std::move(wall_clock)) {
-  if (!wall_clock_) {
-    wall_clock_ = [] {
-      using namespace std::chrono;
-      return duration<double>(steady_clock::now().time_since_epoch()).count();
-    };
-  }
+SafeBench::SafeBench(Bench& bench, EventSink sink, api::Clock* clock)
+    : bench_(bench), sink_(std::move(sink)), clock_(clock != nullptr ? clock : api::Clock::Real()) {
   estop_.store(bench_.HardwareEStopped());
-  last_heartbeat_s_.store(wall_clock_());
+  last_heartbeat_s_.store(clock_->MonotonicSeconds());
 }
 
 void SafeBench::Configure(const SafetyLimits& limits) {
@@ -55,9 +49,11 @@ std::pair<double, double> SafeBench::AngleRange() const {
   // The subject's range, always inside the bench's; a non-finite or empty
   // range shrinks to a point that is still inside the bench's range.
   const double lo = std::isfinite(limits_.min_angle_deg)
-                        ? std::clamp(limits_.min_angle_deg, bench_lo, bench_hi) : bench_lo;
+                        ? std::clamp(limits_.min_angle_deg, bench_lo, bench_hi)
+                        : bench_lo;
   const double hi = std::isfinite(limits_.max_angle_deg)
-                        ? std::clamp(limits_.max_angle_deg, bench_lo, bench_hi) : bench_lo;
+                        ? std::clamp(limits_.max_angle_deg, bench_lo, bench_hi)
+                        : bench_lo;
   return {lo, std::max(lo, hi)};
 }
 
@@ -143,8 +139,8 @@ void SafeBench::CheckReadBack() {
   std::lock_guard lock(readback_mu_);
   if (readback_.size() + pulses.size() > kMaxReadBackPulses) {
     readback_.erase(readback_.begin(),
-                    readback_.begin() + static_cast<std::ptrdiff_t>(std::min(
-                                            readback_.size(), kMaxReadBackPulses / 2)));
+                    readback_.begin() + static_cast<std::ptrdiff_t>(
+                                            std::min(readback_.size(), kMaxReadBackPulses / 2)));
   }
   readback_.insert(readback_.end(), pulses.begin(), pulses.end());
 }
@@ -173,10 +169,10 @@ void SafeBench::ClearEStop(const std::string& source) {
 
 bool SafeBench::estopped() const { return estop_.load(); }
 
-void SafeBench::Heartbeat() { last_heartbeat_s_.store(wall_clock_()); }
+void SafeBench::Heartbeat() { last_heartbeat_s_.store(clock_->MonotonicSeconds()); }
 
 void SafeBench::ArmWatchdog() {
-  last_heartbeat_s_.store(wall_clock_());
+  last_heartbeat_s_.store(clock_->MonotonicSeconds());
   watchdog_fired_.store(false);
   watchdog_armed_.store(true);
 }
@@ -190,7 +186,7 @@ void SafeBench::CheckWatchdog() {
     std::lock_guard lock(mu_);
     timeout_s = limits_.heartbeat_timeout_s;
   }
-  const double silent = wall_clock_() - last_heartbeat_s_.load();
+  const double silent = clock_->MonotonicSeconds() - last_heartbeat_s_.load();
   if (silent > timeout_s) {
     watchdog_fired_.store(true);
     MakeSafe();

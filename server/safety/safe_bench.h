@@ -24,6 +24,7 @@
 #include <utility>
 #include <vector>
 
+#include "api/clock.h"
 #include "server/bench/bench.h"
 
 namespace fesbench::server {
@@ -31,33 +32,32 @@ namespace fesbench::server {
 /// Per-session limits. The effective limits are the intersection with the
 /// bench's own (BenchLimits).
 struct SafetyLimits {
-  double max_stim_ma = 0.0;           ///< subject's recorded max tolerated amplitude.
-  double min_angle_deg = 10.0;        ///< subject's range of motion.
+  double max_stim_ma = 0.0;     ///< subject's recorded max tolerated amplitude.
+  double min_angle_deg = 10.0;  ///< subject's range of motion.
   double max_angle_deg = 110.0;
-  double heartbeat_timeout_s = 1.0;   ///< watchdog period of the controlling client.
+  double heartbeat_timeout_s = 1.0;  ///< watchdog period of the controlling client.
 };
 
 struct SafetyEvent {
   enum class Kind { kStimClamped, kSetpointClamped, kEStop, kEStopCleared, kWatchdog };
   Kind kind;
-  double t_s;             ///< bench time.
-  double requested;       ///< what was asked (mA or deg), NaN if not applicable.
-  double applied;         ///< what the bench got.
+  double t_s;        ///< bench time.
+  double requested;  ///< what was asked (mA or deg), NaN if not applicable.
+  double applied;    ///< what the bench got.
   std::string detail;
 };
 
 class SafeBench {
  public:
   using EventSink = std::function<void(const SafetyEvent&)>;
-  /// Monotonic wall-clock seconds. Client liveness is a wall-clock matter
-  /// even when the simulated bench runs faster than real time.
-  using WallClock = std::function<double()>;
 
   /// @param bench the hardware; must outlive this object.
   /// @param sink receives every safety event (may be called from any thread
   ///   that triggers an e-stop). May be empty.
-  /// @param wall_clock for the heartbeat watchdog; empty = steady_clock.
-  SafeBench(Bench& bench, EventSink sink, WallClock wall_clock = {});
+  /// @param clock the heartbeat watchdog's (monotonic seconds): client
+  ///   liveness is a wall-clock matter even when the simulated bench runs
+  ///   faster than real time. Must outlive this object.
+  SafeBench(Bench& bench, EventSink sink, api::Clock* clock = api::Clock::Real());
 
   /// Sets the session's limits; until called, stimulation is limited to 0 mA.
   void Configure(const SafetyLimits& limits);
@@ -113,7 +113,7 @@ class SafeBench {
 
   Bench& bench_;
   EventSink sink_;
-  WallClock wall_clock_;
+  api::Clock* clock_;
   mutable std::mutex mu_;  // guards limits_
   SafetyLimits limits_;
   bool configured_ = false;

@@ -46,6 +46,7 @@ nlohmann::json JobToJson(const JobRecord& job) {
 }
 
 JobPool::JobPool(JobPoolConfig config) : config_(std::move(config)) {
+  if (config_.clock == nullptr) config_.clock = api::Clock::Real();
   config_.workers = std::clamp(config_.workers, 1, 64);
   config_.queue_capacity = std::max<std::size_t>(config_.queue_capacity, 1);
   config_.history = std::max<std::size_t>(config_.history, 1);
@@ -56,7 +57,7 @@ JobPool::JobPool(JobPoolConfig config) : config_(std::move(config)) {
 JobPool::~JobPool() { Shutdown(/*drain=*/false); }
 
 storage::UtcTime JobPool::Now() const {
-  return config_.clock ? config_.clock() : storage::NowUtc();
+  return config_.clock->UtcNow();
 }
 
 api::Result<std::int64_t> JobPool::Submit(std::string kind, const Actor& actor, JobFunction fn) {

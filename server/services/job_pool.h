@@ -40,8 +40,8 @@ struct JobPoolConfig {
   /// Memory the kept results may take together (ApproximateJsonBytes); the
   /// oldest finished records are dropped beyond it, except the newest one.
   std::size_t history_bytes = 32u << 20;
-  /// Clock of the submitted/started/finished stamps; storage::NowUtc when empty.
-  std::function<storage::UtcTime()> clock;
+  /// Clock of the submitted/started/finished stamps; outlives the pool.
+  api::Clock* clock = api::Clock::Real();
 };
 
 /// queued → running → done | failed. Jobs still queued at shutdown end

@@ -1,12 +1,13 @@
 #include "server/bench/replay_bench.h"
 
+#include <gtest/gtest.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <thread>
 
-#include <unistd.h>
-
-#include <gtest/gtest.h>
+#include "tests/support/manual_clock.h"
 
 namespace fesbench::server {
 namespace {
@@ -116,15 +117,14 @@ TEST(ReplayBench, RecordsCommandsAndHonoursEStop) {
 }
 
 TEST(ReplayBench, PacesWithTheInjectedClock) {
-  double wall = 0.0;
+  ::fesbench::testing::ManualClock clock;  // sleeping advances it
   ReplayBenchOptions o;
   o.time_scale = 1.0;
-  o.clock.now_s = [&] { return wall; };
-  o.clock.sleep_for_s = [&](double s) { wall += s; };
+  o.clock = &clock;
   auto r = ReplayBench::Create({MakeTrial(0.0)}, o);
   ASSERT_TRUE(r.ok());
   (*r)->AdvanceTo(0.5);
-  EXPECT_NEAR(wall, 0.499, 1e-9);
+  EXPECT_NEAR(clock.MonotonicSeconds(), 0.499, 1e-9);
 }
 
 TEST(ReplayBench, RejectsBadInput) {
@@ -137,8 +137,8 @@ TEST(ReplayBench, RejectsBadInput) {
 }
 
 TEST(ReplayBench, ReadsCsvFiles) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("fesbench_replay_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("fesbench_replay_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   api::Trial t = MakeTrial(20.0);
   t.emg.reset();

@@ -23,6 +23,7 @@
 #include "server/services/sample_hub.h"
 #include "storage/subjects.h"
 #include "storage/users.h"
+#include "tests/support/manual_clock.h"
 
 namespace fesbench::server::services::test {
 
@@ -97,7 +98,11 @@ struct Rig {
 
     config.time_scale = o.time_scale;
     config.arm_watchdog = o.arm_watchdog;
-    if (o.wall_clock_is_bench_time) config.wall_clock = [this] { return bench->Now_s(); };
+    if (o.wall_clock_is_bench_time) {
+      bench_time =
+          std::make_unique<::fesbench::testing::ReadingClock>([this] { return bench->Now_s(); });
+      config.clock = bench_time.get();
+    }
     config.log = [this](std::string_view m) {
       std::lock_guard lock(log_mu);
       logs.emplace_back(m);
@@ -146,6 +151,7 @@ struct Rig {
   std::int64_t subject_id = 0, leg_id = 0, session_id = 0;
   std::function<void(double)> hook;  // set before a run starts only
   std::unique_ptr<SwappableSimulatedBench> bench;
+  std::unique_ptr<::fesbench::testing::ReadingClock> bench_time;  // wall_clock_is_bench_time
   SampleHub hub;
   RunServiceConfig config;
   std::unique_ptr<RunService> service;

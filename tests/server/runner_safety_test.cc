@@ -16,6 +16,7 @@
 #include "server/protocols/plan.h"
 #include "server/protocols/protocol.h"
 #include "server/protocols/runner.h"
+#include "tests/support/manual_clock.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -303,17 +304,17 @@ TEST(SafetyFuzz, TenThousandRandomPlansAndCommandSequences) {
 
 TEST(SafetyFuzz, WatchdogFiresWhenTheClientFallsSilent) {
   // Wall clock driven by the test: 10 ms of wall per 1 ms tick.
-  double wall = 0.0;
+  ::fesbench::testing::ManualClock wall;
   FakeBench bench;
   SafetyEventLog log;
-  SafeBench safe(bench, log.sink(), [&] { return wall; });
-  bench.on_advance = [&](double) { wall += 0.01; };
+  SafeBench safe(bench, log.sink(), &wall);
+  bench.on_advance = [&](double) { wall.Advance(0.01); };
   SubjectContext s;
   auto plan = MakePlan("prediction_step", {}, s);
   ASSERT_TRUE(plan.ok());
   RunnerOptions ro;
   ro.heartbeat_timeout_s = 0.5;
-  ro.wall_clock = [&] { return wall; };
+  ro.clock = &wall;
   ProtocolRunner runner(safe, &log, nullptr, ro);
   const RunResult r = runner.Run(*plan, s);
   EXPECT_EQ(r.state, RunState::kAborted);

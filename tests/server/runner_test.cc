@@ -24,6 +24,7 @@
 #include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_json.h"
 #include "tests/server/runner_rig.h"
+#include "tests/support/manual_clock.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -339,7 +340,7 @@ TEST(Runner, OverLimitCommandInjectedBelowTheRunnerNeverReachesTheLeg) {
   const std::vector<double>& delivered = *t.Values("stim_delivered_ma");
   const double max_commanded = *std::max_element(commanded.begin(), commanded.end());
   const double max_delivered = *std::max_element(delivered.begin(), delivered.end());
-  EXPECT_LT(max_commanded, limit - 1.0);  // the plan's own level
+  EXPECT_LT(max_commanded, limit - 1.0);   // the plan's own level
   EXPECT_DOUBLE_EQ(max_delivered, limit);  // the injection, clamped
   ASSERT_TRUE(t.pulses.has_value());
   std::size_t at_limit = 0;
@@ -402,12 +403,12 @@ TEST(Runner, EStopCutsStimulationWithinOneControlPeriodAndLatches) {
 
 TEST(Runner, WatchdogStopsTheRunWhenHeartbeatsStop) {
   // Wall clock = bench time (the bench is paced at real time in effect).
-  std::atomic<double> wall{0.0};
+  ::fesbench::testing::ManualClock wall;
   std::atomic<bool> beating{true};
   SimulatedBenchOptions o;
   BenchOwner* owner = nullptr;
   o.on_control_step = [&](double t_s) {
-    wall.store(t_s);
+    wall.Set(t_s);
     // The client heart-beats every 0.2 s until 3 s, then goes silent.
     if (owner != nullptr && beating.load() && std::fmod(t_s + 1e-9, 0.2) < 1e-6) {
       if (t_s < 3.0) {
@@ -420,7 +421,7 @@ TEST(Runner, WatchdogStopsTheRunWhenHeartbeatsStop) {
   const VirtualSubject vs = Subject(7);
   SimulatedBench bench(vs, o);
   BenchOwnerOptions bo;
-  bo.wall_clock = [&] { return wall.load(); };
+  bo.clock = &wall;
   BenchOwner own(bench, bo);
   owner = &own;
   StartRequest req{"prediction_ramp", {}, Context(vs), "web"};

@@ -1,12 +1,14 @@
 #include "server/safety/safe_bench.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <random>
 #include <thread>
 #include <vector>
 
-#include <gtest/gtest.h>
+#include "tests/support/manual_clock.h"
 
 namespace fesbench::server {
 namespace {
@@ -59,9 +61,8 @@ class RecordingBench final : public Bench {
 struct Fixture {
   RecordingBench hw;
   std::vector<SafetyEvent> events;
-  double wall_s = 0.0;
-  SafeBench safe{hw, [this](const SafetyEvent& e) { events.push_back(e); },
-                 [this] { return wall_s; }};
+  ::fesbench::testing::ManualClock wall;
+  SafeBench safe{hw, [this](const SafetyEvent& e) { events.push_back(e); }, &wall};
 };
 
 TEST(SafeBench, NoStimulationBeforeConfiguration) {
@@ -106,14 +107,15 @@ TEST(SafeBench, ClampsSetpointsToRangeOfMotion) {
 TEST(SafeBench, NonsenseLimitsFailSafe) {
   Fixture f;
   f.safe.Configure({.max_stim_ma = std::numeric_limits<double>::quiet_NaN(),
-                    .min_angle_deg = 130.0, .max_angle_deg = 150.0});
+                    .min_angle_deg = 130.0,
+                    .max_angle_deg = 150.0});
   f.safe.SetStimAmplitude(20.0);
   EXPECT_EQ(f.hw.stim_history_.back(), 0.0);
   f.safe.SetMotorSetpoint(140.0);
   EXPECT_EQ(f.hw.setpoints_.back(), 110.0);  // never outside the bench's range
   f.safe.Configure({.max_stim_ma = 40.0, .min_angle_deg = 80.0, .max_angle_deg = 60.0});
   f.safe.SetMotorSetpoint(20.0);
-  EXPECT_EQ(f.hw.setpoints_.back(), 80.0);   // an empty range is a single point
+  EXPECT_EQ(f.hw.setpoints_.back(), 80.0);  // an empty range is a single point
   f.safe.SetMotorSetpoint(100.0);
   EXPECT_EQ(f.hw.setpoints_.back(), 80.0);
 }
@@ -143,12 +145,12 @@ TEST(SafeBench, WatchdogStopsARunWhoseClientFellSilent) {
   f.safe.Configure({.max_stim_ma = 40.0, .heartbeat_timeout_s = 1.0});
   f.safe.ArmWatchdog();
   f.safe.SetStimAmplitude(30.0);
-  f.wall_s = 0.9;
+  f.wall.Set(0.9);
   f.safe.Heartbeat();
-  f.wall_s = 1.8;
+  f.wall.Set(1.8);
   f.safe.AdvanceTo(0.01);
   EXPECT_FALSE(f.safe.watchdog_fired());
-  f.wall_s = 2.0;
+  f.wall.Set(2.0);
   f.safe.AdvanceTo(0.02);
   EXPECT_TRUE(f.safe.watchdog_fired());
   EXPECT_EQ(f.hw.stim_ma_, 0.0);
@@ -186,14 +188,30 @@ TEST(SafeBench, RandomCommandSequencesNeverBreachLimits) {
     bool estopped = false;
     for (int k = 0; k < 20; ++k) {
       switch (op(rng)) {
-        case 0: f.safe.SetStimAmplitude(any(rng)); break;
-        case 1: f.safe.TriggerPulse(any(rng)); break;
-        case 2: f.safe.SetMotorSetpoint(any(rng)); break;
-        case 3: f.safe.SetMotorMode(static_cast<MotorMode>(rng() % 4)); break;
-        case 4: f.safe.EStop("random"); estopped = true; break;
-        case 5: f.safe.AdvanceTo(f.hw.t_s_ + 0.001); break;
+        case 0:
+          f.safe.SetStimAmplitude(any(rng));
+          break;
+        case 1:
+          f.safe.TriggerPulse(any(rng));
+          break;
+        case 2:
+          f.safe.SetMotorSetpoint(any(rng));
+          break;
+        case 3:
+          f.safe.SetMotorMode(static_cast<MotorMode>(rng() % 4));
+          break;
+        case 4:
+          f.safe.EStop("random");
+          estopped = true;
+          break;
+        case 5:
+          f.safe.AdvanceTo(f.hw.t_s_ + 0.001);
+          break;
         case 6:
-          if (rng() % 4 == 0) { f.safe.ClearEStop("random"); estopped = false; }
+          if (rng() % 4 == 0) {
+            f.safe.ClearEStop("random");
+            estopped = false;
+          }
           break;
       }
       ASSERT_LE(f.hw.stim_ma_, stim_cap + 1e-12);
@@ -211,7 +229,6 @@ TEST(SafeBench, RandomCommandSequencesNeverBreachLimits) {
     }
   }
 }
-
 
 // --- stimulator read-back (issue 16 item 4) -------------------------------------
 

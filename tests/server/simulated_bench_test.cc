@@ -15,6 +15,7 @@
 #include "model/stimulus_generators.h"
 #include "model/units.h"
 #include "server/bench/virtual_subject.h"
+#include "tests/support/manual_clock.h"
 
 namespace fesbench::server {
 namespace {
@@ -548,18 +549,23 @@ TEST(SimulatedBench, EStopFromAnotherThreadZeroesStimulationWithinOneControlPeri
 }
 
 TEST(SimulatedBench, TimeScalePacesAgainstTheInjectedClock) {
-  double wall = 100.0;
-  int sleeps = 0;
+  // Sleeping advances the clock and is counted.
+  struct CountingClock : ::fesbench::testing::ManualClock {
+    using ManualClock::ManualClock;
+    void SleepFor(double s) override {
+      ManualClock::SleepFor(s);
+      ++sleeps;
+    }
+    int sleeps = 0;
+  } clock(100.0);
+  int& sleeps = clock.sleeps;
   SimulatedBenchOptions o = Options(90.0, MotorMode::kLocked);
-  o.clock.now_s = [&] { return wall; };
-  o.clock.sleep_for_s = [&](double s) {
-    wall += s;
-    ++sleeps;
-  };
+  o.clock = &clock;
   o.time_scale = 2.0;
   SimulatedBench bench(ExampleSubject(Fidelity::Off()), o);
   bench.AdvanceTo(1.0);
-  EXPECT_NEAR(wall - 100.0, (1.0 - 1e-3) / 2.0, 1e-9);  // anchored at the first step
+  EXPECT_NEAR(clock.MonotonicSeconds() - 100.0, (1.0 - 1e-3) / 2.0,
+              1e-9);  // anchored at the first step
   EXPECT_GT(sleeps, 900);
   bench.set_time_scale(0.0);
   const int before = sleeps;

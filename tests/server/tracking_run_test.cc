@@ -16,6 +16,7 @@
 #include "server/protocols/runner.h"
 #include "server/protocols/tracking_loop.h"
 #include "tests/server/runner_rig.h"
+#include "tests/support/manual_clock.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -90,7 +91,8 @@ TEST(Tracking, AnUploadedTrajectoryIsFollowed) {
   std::vector<double> angles;
   for (int i = 0; i <= 2000; ++i) {  // 10 s at 200 Hz
     const double t = i / 200.0;
-    angles.push_back(50.0 + 12.0 * std::sin(2.0 * M_PI * 0.15 * t) + 4.0 * std::sin(2.0 * M_PI * 0.4 * t));
+    angles.push_back(50.0 + 12.0 * std::sin(2.0 * M_PI * 0.15 * t) +
+                     4.0 * std::sin(2.0 * M_PI * 0.4 * t));
   }
   auto plan = MakePlan("tracking", {{"target", 3}}, ctx, angles);
   ASSERT_TRUE(plan.ok()) << plan.status().ToString();
@@ -125,10 +127,9 @@ TEST(Tracking, RefusesWithoutASetAndTargetsTheSetCannotReach) {
   EXPECT_EQ(outside.status().field(), "parameters.lo_deg");
   // Full extension held with a maximum just above threshold: the set says
   // the muscle cannot, for longer than the controller may saturate.
-  auto weak = MakePlan("tracking",
-                       {{"target", 1}, {"lo_deg", 16.0}, {"hi_deg", 20.0},
-                        {"max_ma", ctx.threshold_ma + 1.0}},
-                       ctx);
+  auto weak = MakePlan(
+      "tracking",
+      {{"target", 1}, {"lo_deg", 16.0}, {"hi_deg", 20.0}, {"max_ma", ctx.threshold_ma + 1.0}}, ctx);
   ASSERT_FALSE(weak.ok());
   EXPECT_EQ(weak.status().code(), api::ErrorCode::kFailedPrecondition);
   EXPECT_NE(weak.status().message().find("cannot be followed"), std::string::npos)
@@ -142,14 +143,14 @@ TEST(Tracking, ALegWeakerThanItsSetSaturatesAndTheRunStopsWithTheReason) {
   Rig rig(11);
   SubjectContext ctx = Context(rig.subject);
   ctx.parameter_set->active.torque_scale_nm *= 3.0;
-  const RunResult r = Track(rig, ctx,
-                            {{"target", 1},
-                             {"lo_deg", 16.0},
-                             {"hi_deg", 18.0},
-                             {"hold_s", 20.0},
-                             {"max_ma", ctx.threshold_ma + 0.3 * (ctx.max_tolerated_ma -
-                                                                  ctx.threshold_ma)},
-                             {"max_saturation_s", 1.0}});
+  const RunResult r =
+      Track(rig, ctx,
+            {{"target", 1},
+             {"lo_deg", 16.0},
+             {"hi_deg", 18.0},
+             {"hold_s", 20.0},
+             {"max_ma", ctx.threshold_ma + 0.3 * (ctx.max_tolerated_ma - ctx.threshold_ma)},
+             {"max_saturation_s", 1.0}});
   EXPECT_EQ(r.state, RunState::kFailed);
   EXPECT_NE(r.reason.find("more than the maximum"), std::string::npos) << r.reason;
   EXPECT_LT(r.bench_duration_s, 20.0);
@@ -178,18 +179,18 @@ TEST(Tracking, EStopDuringTrackingActsWithinOneControlPeriod) {
 }
 
 TEST(Tracking, TheWatchdogStopsAnUnattendedRun) {
-  std::atomic<double> wall{0.0};
+  ::fesbench::testing::ManualClock wall;
   SimulatedBenchOptions o;
   BenchOwner* owner = nullptr;
   o.on_control_step = [&](double t_s) {
-    wall.store(t_s);
+    wall.Set(t_s);
     // Heart-beats every 0.2 s until 6 s, then the client is gone.
     if (owner != nullptr && t_s < 6.0 && std::fmod(t_s + 1e-9, 0.2) < 1e-6) owner->Heartbeat();
   };
   const VirtualSubject vs = DrawVirtualSubject(11);
   SimulatedBench bench(vs, o);
   BenchOwnerOptions bo;
-  bo.wall_clock = [&] { return wall.load(); };
+  bo.clock = &wall;
   BenchOwner own(bench, bo);
   owner = &own;
   StartRequest req{"tracking", {}, Context(vs), "web"};
@@ -213,8 +214,8 @@ TEST(Tracking, SeededRandomTargetsAndGainsStayWithinTheMaximumTheSlewLimitAndThe
     Rig rig(100 + static_cast<std::uint64_t>(c));
     const SubjectContext ctx = Context(rig.subject);
     const double lo = 15.0 + 60.0 * u(rng);
-    const double max_ma = ctx.threshold_ma + (0.2 + 0.8 * u(rng)) *
-                                                 (ctx.max_tolerated_ma - ctx.threshold_ma);
+    const double max_ma =
+        ctx.threshold_ma + (0.2 + 0.8 * u(rng)) * (ctx.max_tolerated_ma - ctx.threshold_ma);
     ParameterValues v = {{"controller", std::floor(3.0 * u(rng))},
                          {"target", std::floor(3.0 * u(rng))},
                          {"lo_deg", lo},

@@ -38,10 +38,19 @@ inline UtcTime Epoch2026() {
   return std::chrono::sys_days{std::chrono::year{2026} / 1 / 1} + std::chrono::microseconds(0);
 }
 
-/// A clock that advances one second per call; `ticks` counts the calls.
-inline std::function<UtcTime()> SteppingClock(std::shared_ptr<std::atomic<long long>> ticks) {
-  return [ticks] { return Epoch2026() + std::chrono::seconds(ticks->fetch_add(1)); };
-}
+/// A clock whose UTC advances one second per reading, from
+/// 2026-01-01T00:00:00Z; `ticks` counts the readings.
+class SteppingClock : public api::Clock {
+ public:
+  explicit SteppingClock(std::shared_ptr<std::atomic<long long>> ticks)
+      : ticks_(std::move(ticks)) {}
+  double MonotonicSeconds() override { return static_cast<double>(ticks_->load()); }
+  UtcTime UtcNow() override { return Epoch2026() + std::chrono::seconds(ticks_->fetch_add(1)); }
+  void SleepFor(double) override {}
+
+ private:
+  std::shared_ptr<std::atomic<long long>> ticks_;
+};
 
 /// A 200 Hz trial with t_s, angle_deg, torque_nm, stim_ma (closed-form values).
 inline api::Trial MakeTrial(std::size_t samples, double phase = 0.0) {
@@ -100,7 +109,7 @@ class StorageFixture {
   DatabaseOptions Options() const {
     DatabaseOptions options;
     options.path = path_;
-    options.clock = clock_;
+    options.clock = clock_.get();
     options.bench_id = "bench-a";
     return options;
   }
@@ -173,8 +182,7 @@ class StorageFixture {
                 std::string::npos)
           << sql << "\n"
           << *plan;
-      EXPECT_EQ(plan->find("TEMP B-TREE"), std::string::npos) << "a sort: " << sql << "\n"
-                                                              << *plan;
+      EXPECT_EQ(plan->find("TEMP B-TREE"), std::string::npos) << "a sort: " << sql << "\n" << *plan;
     }
   }
 
@@ -184,7 +192,7 @@ class StorageFixture {
   std::unique_ptr<::fesbench::testing::ScratchDatabase> scratch_;
   std::string skip_;
   std::shared_ptr<std::atomic<long long>> ticks_ = std::make_shared<std::atomic<long long>>(0);
-  std::function<UtcTime()> clock_ = SteppingClock(ticks_);
+  std::unique_ptr<SteppingClock> clock_ = std::make_unique<SteppingClock>(ticks_);
   std::unique_ptr<Database> db_;
 };
 

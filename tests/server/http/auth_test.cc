@@ -14,6 +14,7 @@
 #include <filesystem>
 
 #include "storage/audit_log.h"
+#include "tests/support/manual_clock.h"
 
 namespace fesbench::server::http {
 namespace {
@@ -36,7 +37,7 @@ struct AuthRig {
     AuthenticatorOptions options;
     options.failed_tokens.burst = 3;
     options.failed_tokens.refill_per_s = 0.5;
-    options.clock = [this] { return now; };
+    options.clock = &clock;
     auth = std::make_unique<Authenticator>(*db, options);
   }
   ~AuthRig() {
@@ -59,7 +60,7 @@ struct AuthRig {
   std::filesystem::path dir;
   std::unique_ptr<storage::Database> db;
   std::string analyst_token;
-  std::chrono::steady_clock::time_point now{};
+  ::fesbench::testing::ManualClock clock;
   std::unique_ptr<Authenticator> auth;
 };
 
@@ -71,8 +72,8 @@ TEST(Authenticator, FailedSignInsAndRoleRefusalsAreAuditedWithoutTheToken) {
   EXPECT_FALSE(bad.user);
   EXPECT_EQ(bad.status.code(), api::ErrorCode::kUnauthenticated);
   EXPECT_EQ(bad.retry_after_s, 0);
-  Admission denied = rig.auth->Admit(rig.analyst_token, "10.0.0.7", kAdmin, "GET /api/v1/audit",
-                                     "/api/v1/audit");
+  Admission denied =
+      rig.auth->Admit(rig.analyst_token, "10.0.0.7", kAdmin, "GET /api/v1/audit", "/api/v1/audit");
   EXPECT_EQ(denied.status.code(), api::ErrorCode::kPermissionDenied);
   Admission ok = rig.Try(rig.analyst_token);
   ASSERT_TRUE(ok.user);
@@ -126,12 +127,12 @@ TEST(Authenticator, ABurstOfFailedTokensFromOneAddressIsSlowedDown) {
             3);
 
   // Time refills the bucket: one failure per 2 s.
-  rig.now += 1s;
+  rig.clock.Advance(1);
   EXPECT_EQ(rig.Try(kWrong).retry_after_s, 1);
-  rig.now += 1s;
+  rig.clock.Advance(1);
   EXPECT_EQ(rig.Try(kWrong).retry_after_s, 0);
   EXPECT_EQ(rig.Try(kWrong).retry_after_s, 2);
-  rig.now += 10s;  // the token's cache entry has expired by now
+  rig.clock.Advance(10);  // the token's cache entry has expired by now
   ASSERT_TRUE(rig.Try(rig.analyst_token).user) << "a full bucket checks tokens again";
 }
 
