@@ -28,6 +28,9 @@ export async function predictionView(ctx, presetId) {
     }));
   const trialSelect = h('select', { id: 'predict-trial', name: 'trial_id' });
   let training = new Set();
+  // How each trial kind ranks as a default (fetched once per page): trials
+  // recorded to validate a model first, then the other free-swing trials.
+  let kindRank = null;
   const showTrainingNote = () => { trainingNote.hidden = !training.has(Number(trialSelect.value)); };
   trialSelect.addEventListener('change', showTrainingNote);
 
@@ -38,13 +41,14 @@ export async function predictionView(ctx, presetId) {
     try {
       // Honest validation by default: the trials the set was NOT fitted on
       // come first; its training trials are marked as such.
-      const [set, sessions, kinds] = await Promise.all([api('GET', `/parameter-sets/${summary.id}`),
-        listAll(`/subjects/${summary.subject_id}/sessions`), api('GET', '/trial-kinds')]);
+      kindRank ??= api('GET', '/trial-kinds').then((kinds) =>
+        new Map(kinds.items.map((k) => [k.name, 2 * Number(k.validation) + Number(k.free_swing)])))
+        .catch((e) => { kindRank = null; throw e; });  // asked again next time
+      const [set, sessions, rank] = await Promise.all([api('GET', `/parameter-sets/${summary.id}`),
+        listAll(`/subjects/${summary.subject_id}/sessions`), kindRank]);
       training = new Set(set.trial_ids || []);
       const legSessions = sessions.filter((s) => s.leg_id === undefined || s.leg_id === summary.leg_id);
       const trials = (await Promise.all(legSessions.map((s) => listAll(`/sessions/${s.id}/trials`)))).flat();
-      // Trials recorded to validate a model come first, then the other free-swing trials.
-      const rank = new Map(kinds.items.map((k) => [k.name, 2 * Number(k.validation) + Number(k.free_swing)]));
       const score = (t) => rank.get(t.kind) || 0;
       trials.sort((a, b) => score(b) - score(a) || b.id - a.id);
       const option = (t) => h('option', { value: t.id, dataset: { training: training.has(t.id) ? '1' : '0' } },
