@@ -30,6 +30,8 @@ enum class ErrorCode {
 
 /// The wire name of an error code: "invalid_argument", "not_found", ….
 std::string_view ErrorCodeName(ErrorCode code);
+/// The code of a wire name; nullopt for a name no code has.
+std::optional<ErrorCode> ParseErrorCode(std::string_view name);
 
 class [[nodiscard]] Status {
  public:

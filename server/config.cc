@@ -7,7 +7,7 @@
 #include <ostream>
 #include <sstream>
 
-#include "server/http/json_fields.h"
+#include "api/json_fields.h"
 
 namespace fesbench::server {
 
@@ -90,9 +90,9 @@ std::string DefaultWebRoot() {
 }
 
 api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
-  auto json = http::ParseJsonObject(json_text);
+  auto json = api::ParseJsonObject(json_text);
   if (!json.ok()) return json.status();
-  http::JsonFields f(*json);
+  api::JsonFields f(*json);
   if (auto v = f.String("bind", false, 255)) c.bind = *v;
   if (auto v = f.Integer("port", false, 0, 65535)) c.port = static_cast<int>(*v);
   if (auto v = f.String("db", false, 4096)) c.db = *v;

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "api/analysis_requests.h"
 #include "api/trial.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/output.h"
@@ -132,11 +133,13 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     identify->add_option("--irc-method", form->irc_method, "IRC method, e.g. ramp_correlation");
     identify->callback([form, &context] {
       context.action = [form, &context] {
-        json body = {{"session_id", ParseId(form->session, "session")}, {"method", form->method}};
-        if (!form->passive_method.empty()) body["passive_method"] = form->passive_method;
-        if (!form->irc_method.empty()) body["irc_method"] = form->irc_method;
+        api::IdentificationRequest request;
+        request.session_id = ParseId(form->session, "session");
+        request.method = form->method;
+        if (!form->passive_method.empty()) request.passive_method = form->passive_method;
+        if (!form->irc_method.empty()) request.irc_method = form->irc_method;
         auto client = Connect(context);
-        const json job = client->Post("/identifications", body);
+        const json job = client->Post("/identifications", api::IdentificationRequestToJson(request));
         const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
         if (context.options.json) {
           context.out << result.dump(2) << "\n";
@@ -185,9 +188,11 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
           json results = json::array();
           std::vector<std::vector<std::string>> rows;
           for (const auto& trial : trials) {
-            json body = {{"parameter_set_id", set_id}, {"trial_id", trial}};
-            if (!form->mode.empty()) body["mode"] = form->mode;
-            const json job = client->Post("/predictions", body);
+            api::PredictionRequest request;
+            request.parameter_set_id = set_id;
+            request.trial_id = trial.get<std::int64_t>();
+            request.mode = api::ParsePredictionMode(form->mode);
+            const json job = client->Post("/predictions", api::PredictionRequestToJson(request));
             json result = WaitForJob(*client, job["id"].get<std::int64_t>());
             result.erase("columns");
             const json errors = result.value("errors", json(nullptr));
@@ -208,10 +213,11 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
           PrintTable(context.out, {"trial", "name", "E_RMS", "E_ABS", "unit", "prediction"}, rows);
           return;
         }
-        json body = {{"parameter_set_id", set_id}};
+        api::PredictionRequest request;
+        request.parameter_set_id = set_id;
         const bool is_trial = form->stimulus.find_first_not_of("0123456789") == std::string::npos;
         if (is_trial) {
-          body["trial_id"] = ParseId(form->stimulus, "--stimulus trial");
+          request.trial_id = ParseId(form->stimulus, "--stimulus trial");
           if (!form->stimulus_params.empty()) {
             throw CliError::Usage("--param applies to a stimulus generator, not to a trial");
           }
@@ -219,22 +225,22 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
           const auto alias = StimulusAliases().find(form->stimulus);
           const std::string generator =
               alias == StimulusAliases().end() ? form->stimulus : alias->second;
-          json params = json::object();
+          api::StimulusSpec stimulus{generator};
           for (const auto& text : form->stimulus_params) {
             const auto [key, value] = ParseKeyValue(text);
-            params[key] = value;
+            stimulus.params[key] = value;
           }
-          body["stimulus"] = {{"generator", generator}, {"params", params}};
+          request.stimulus = std::move(stimulus);
         }
-        if (!form->mode.empty()) body["mode"] = form->mode;
-        if (form->fit_scale) body["fit_scale"] = true;
+        request.mode = api::ParsePredictionMode(form->mode);
+        request.fit_scale = form->fit_scale;
         auto client = Connect(context);
-        const json job = client->Post("/predictions", body);
+        const json job = client->Post("/predictions", api::PredictionRequestToJson(request));
         json result = WaitForJob(*client, job["id"].get<std::int64_t>());
         const bool training =
-            body.contains("trial_id") &&
+            request.trial_id.has_value() &&
             Contains(TrainingTrials(client->Get("/parameter-sets/" + std::to_string(set_id))),
-                     body["trial_id"].get<std::int64_t>());
+                     *request.trial_id);
         if (!form->out_path.empty()) {
           api::ChannelGroup group;
           group.sample_rate_hz = result.value("sample_rate_hz", 200.0);
@@ -320,11 +326,11 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
           ids.emplace_back(ParseId(form->a[i], "--params-a"), ParseId(form->b[i], "--params-b"));
         }
         auto client = Connect(context);
-        json pairs = json::array();
+        api::ComparisonRequest request;
         for (const auto& [a, b] : ids) {
-          json pair_trials = trials;
+          api::ComparisonPair pair{a, b, trials};
           if (trials.empty()) {
-            pair_trials = ValidationTrials(*client, a);
+            pair.trial_ids = ValidationTrials(*client, a).get<std::vector<std::int64_t>>();
           } else {
             for (std::int64_t set : {a, b}) {
               const std::vector<std::int64_t> training =
@@ -337,13 +343,11 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
               }
             }
           }
-          pairs.push_back(
-              {{"a_parameter_set_id", a}, {"b_parameter_set_id", b}, {"trial_ids", pair_trials}});
+          request.pairs.push_back(std::move(pair));
         }
-        json body = {{"pairs", pairs}};
-        if (!form->metric.empty()) body["metric"] = form->metric;
-        if (form->confidence > 0.0) body["confidence"] = form->confidence;
-        const json job = client->Post("/comparisons", body);
+        if (!form->metric.empty()) request.metric = form->metric;
+        if (form->confidence > 0.0) request.confidence = form->confidence;
+        const json job = client->Post("/comparisons", api::ComparisonRequestToJson(request));
         const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
         if (context.options.json) {
           context.out << result.dump(2) << "\n";

@@ -1,10 +1,12 @@
 #include "clients/cli/cli.h"
 
+#include <algorithm>
 #include <chrono>
 #include <exception>
 #include <ostream>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
@@ -42,24 +44,28 @@ std::int64_t ResolveSubject(ApiClient& client, const std::string& id_or_code) {
   return page["items"][0]["id"].get<std::int64_t>();
 }
 
-nlohmann::json WaitForJob(ApiClient& client, std::int64_t job_id) {
-  auto delay = std::chrono::milliseconds(20);
+api::JobReport AwaitJob(ApiClient& client, std::int64_t job_id,
+                        std::chrono::milliseconds first_delay, std::chrono::milliseconds max_delay) {
+  auto delay = first_delay;
   for (;;) {
-    nlohmann::json job = client.Get("/jobs/" + std::to_string(job_id));
-    const std::string state = job.value("state", "");
-    if (state == "done") return job.contains("result") ? job["result"] : nlohmann::json(nullptr);
-    if (state == "failed") {
-      std::string message = "job failed";
-      if (job.contains("error") && job["error"].is_object()) {
-        message = job["error"].value("message", message);
-        const std::string field = job["error"].value("field", "");
-        if (!field.empty()) message += " (field " + field + ")";
-      }
-      throw CliError::Server("server: job " + std::to_string(job_id) + " failed: " + message);
+    api::Result<api::JobReport> job =
+        api::JobReportFromJson(client.Get("/jobs/" + std::to_string(job_id)));
+    if (!job.ok()) {
+      throw CliError::Server("server: job " + std::to_string(job_id) +
+                             ": unexpected record: " + job.status().ToString());
     }
+    if (job->state == api::JobState::kDone || job->state == api::JobState::kFailed) return *job;
     std::this_thread::sleep_for(delay);
-    delay = std::min(delay * 2, std::chrono::milliseconds(250));
+    delay = std::min(delay * 2, max_delay);
   }
+}
+
+nlohmann::json WaitForJob(ApiClient& client, std::int64_t job_id) {
+  api::JobReport job = AwaitJob(client, job_id);
+  if (job.state == api::JobState::kDone) return std::move(job.result);
+  std::string message = job.error.message();
+  if (!job.error.field().empty()) message += " (field " + job.error.field() + ")";
+  throw CliError::Server("server: job " + std::to_string(job_id) + " failed: " + message);
 }
 
 int RunFesbenchCli(int argc, const char* const* argv, std::ostream& out, std::ostream& err,

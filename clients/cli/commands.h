@@ -5,11 +5,13 @@
 /// (see cli.h), and helpers they share. RunFesbenchCli calls them in the
 /// order listed in kCommands (cli.cc).
 
+#include <chrono>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
 
+#include "api/job.h"
 #include "clients/cli/api_client.h"
 #include "clients/cli/cli.h"
 
@@ -45,8 +47,13 @@ std::unique_ptr<ApiClient> Connect(const CliContext& context);
 /// A subject id from an id or a subject code (looked up on the server).
 std::int64_t ResolveSubject(ApiClient& client, const std::string& id_or_code);
 
-/// Polls GET /jobs/{id} until done (returns its result) or failed (throws
-/// CliError with the job's error message).
+/// Polls GET /jobs/{id} until the job is done or failed, waiting
+/// `first_delay` between the first polls and doubling up to `max_delay`.
+api::JobReport AwaitJob(ApiClient& client, std::int64_t job_id,
+                        std::chrono::milliseconds first_delay = std::chrono::milliseconds(20),
+                        std::chrono::milliseconds max_delay = std::chrono::milliseconds(250));
+
+/// AwaitJob's result, or CliError with the failed job's error message.
 nlohmann::json WaitForJob(ApiClient& client, std::int64_t job_id);
 
 }  // namespace fesbench::cli

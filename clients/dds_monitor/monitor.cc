@@ -78,17 +78,6 @@ const char* RunStateName(dds::RunState state) {
   return "?";
 }
 
-api::ErrorCode CodeFromName(const std::string& name) {
-  for (auto code :
-       {api::ErrorCode::kInvalidArgument, api::ErrorCode::kNotFound, api::ErrorCode::kAlreadyExists,
-        api::ErrorCode::kConflict, api::ErrorCode::kFailedPrecondition,
-        api::ErrorCode::kUnauthenticated, api::ErrorCode::kPermissionDenied,
-        api::ErrorCode::kUnavailable, api::ErrorCode::kDataLoss}) {
-    if (api::ErrorCodeName(code) == name) return code;
-  }
-  return api::ErrorCode::kInternal;
-}
-
 }  // namespace
 
 api::Result<int> ListBenches(const MonitorOptions& options, std::ostream& out) {
@@ -271,11 +260,11 @@ api::Status SendEStop(const MonitorOptions& options, const std::string& token,
       if (r.request_id() != command.request_id()) continue;
       out << r.bench_id() << ": " << (r.accepted() ? "e-stop latched" : "refused: " + r.code())
           << (r.reason().empty() ? "" : " (" + r.reason() + ")") << "\n";
-      if (!any) {
-        result = r.accepted() ? api::Status::Ok() : api::Status(CodeFromName(r.code()), r.reason());
-      } else if (!r.accepted()) {
-        result = api::Status(CodeFromName(r.code()), r.reason());
-      }
+      const api::Status reply =
+          r.accepted() ? api::Status::Ok()
+                       : api::Status(api::ParseErrorCode(r.code()).value_or(api::ErrorCode::kInternal),
+                                     r.reason());
+      if (!any || !reply.ok()) result = reply;
       any = true;
       if (!bench_id.empty()) return result;
       deadline = std::min(deadline, Deadline(0.5));

@@ -23,7 +23,7 @@
 #include <thread>
 
 #include "server/http/errors.h"
-#include "server/http/json_fields.h"
+#include "api/json_fields.h"
 #include "server/http/request_framing.h"
 #include "server/http/http_server_internal.h"
 #include "storage/audit_log.h"
@@ -378,7 +378,7 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
       }
     }
     if (route.json_body) {
-      auto body = ParseJsonObject(req.body);
+      auto body = api::ParseJsonObject(req.body);
       if (!body.ok()) {
         refuse(ToHttpError(body.status()));
         return;
@@ -415,7 +415,7 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
     }
   } catch (const nlohmann::json::exception& e) {
     // A JSON value of the wrong type or range that a handler read without
-    // JsonFields: the client's bytes, so a 400 (and audited), never a 500.
+    // api::JsonFields: the client's bytes, so a 400 (and audited), never a 500.
     std::string what = e.what();
     if (const auto close = what.find("] "); what.starts_with("[json.exception") &&
                                             close != std::string::npos) {

@@ -27,7 +27,7 @@
 #include <thread>
 
 #include "server/http/errors.h"
-#include "server/http/json_fields.h"
+#include "api/json_fields.h"
 #include "server/http/request_framing.h"
 #include "server/http/http_server.h"
 #include "storage/audit_log.h"

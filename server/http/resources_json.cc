@@ -4,7 +4,7 @@
 #include <sstream>
 
 #include "api/parameter_set_json.h"
-#include "server/http/json_fields.h"
+#include "api/json_fields.h"
 #include "storage/time_utc.h"
 
 namespace fesbench::server::http {
@@ -146,7 +146,7 @@ nlohmann::json AuditEntryToJson(const storage::AuditEntry& e) {
 
 api::Result<storage::SubjectDetails> SubjectDetailsFromJson(const nlohmann::json& json,
                                                             const std::string& path) {
-  JsonFields f(json, path);
+  api::JsonFields f(json, path);
   storage::SubjectDetails d;
   if (auto age = f.Integer("age_years", false, 0, 130)) d.age_years = static_cast<int>(*age);
   if (auto sex = f.String("sex", false, 32)) {
@@ -170,7 +170,7 @@ api::Result<storage::SubjectDetails> SubjectDetailsFromJson(const nlohmann::json
 }
 
 api::Result<NewSubjectRequest> NewSubjectFromJson(const nlohmann::json& body) {
-  JsonFields f(body);
+  api::JsonFields f(body);
   NewSubjectRequest out;
   if (auto code = f.String("code", true, 32)) out.code = *code;
   if (const auto* details = f.Object("details", false)) {
@@ -201,7 +201,7 @@ api::Result<NewSubjectRequest> NewSubjectFromJson(const nlohmann::json& body) {
 }
 
 api::Result<NewSessionRequest> NewSessionFromJson(const nlohmann::json& body) {
-  JsonFields f(body);
+  api::JsonFields f(body);
   NewSessionRequest out;
   if (auto leg = f.String("leg", true, 16)) {
     auto side = storage::ParseSide(*leg);
@@ -236,7 +236,7 @@ std::string FormatBound(double v) {
 // The correction's envelope: {"reason", "details"}; the reason is required.
 api::Result<std::pair<std::string, const nlohmann::json*>> CorrectionEnvelope(
     const nlohmann::json& body) {
-  JsonFields f(body);
+  api::JsonFields f(body);
   std::optional<std::string> reason = f.String("reason", true, 100000);
   const nlohmann::json* details = f.Object("details", true);
   if (auto st = f.Finish(); !st.ok()) return st;
@@ -432,7 +432,7 @@ nlohmann::json SessionRevisionToJson(const storage::SessionRevision& r,
 }
 
 api::Result<NewUserRequest> NewUserFromJson(const nlohmann::json& body) {
-  JsonFields f(body);
+  api::JsonFields f(body);
   NewUserRequest out;
   if (auto name = f.String("name", true, 64)) out.name = *name;
   if (auto role = f.String("role", true, 16)) {
@@ -446,7 +446,7 @@ api::Result<NewUserRequest> NewUserFromJson(const nlohmann::json& body) {
 }
 
 api::Result<NewTokenRequest> NewTokenFromJson(const nlohmann::json& body) {
-  JsonFields f(body);
+  api::JsonFields f(body);
   NewTokenRequest out;
   if (auto id = f.Integer("user_id", true, 1)) out.user_id = *id;
   if (auto label = f.String("label", false, 128)) out.label = *label;

@@ -4,7 +4,7 @@
 #include <filesystem>
 
 #include "server/http/api_routes.h"
-#include "server/http/json_fields.h"
+#include "api/json_fields.h"
 #include "server/http/resources_json.h"
 #include "server/http/routes_common.h"
 #include "storage/audit_log.h"
@@ -115,7 +115,7 @@ void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
        .request_schema = ObjectSchema(
            {{"reason", {{"type", "string"}, {"minLength", 1}, {"maxLength", 512}}}}, {"reason"}),
        .handler = [&db, &auth](RequestContext& ctx) -> api::Result<Reply> {
-         JsonFields f(ctx.body);
+         api::JsonFields f(ctx.body);
          auto reason = f.String("reason", true, 512);
          if (auto st = f.Finish(); !st.ok()) return st;
          if (reason->empty()) return api::Status::InvalidArgument("must not be empty", "reason");

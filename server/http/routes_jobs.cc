@@ -60,7 +60,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
                  {}),
              .handler = [jobs, identification](RequestContext& ctx) -> api::Result<Reply> {
                if (!jobs || !identification) return NotAvailable("identification");
-               auto request = services::IdentificationRequestFromJson(ctx.body);
+               auto request = services::ReadIdentificationRequest(ctx.body);
                if (!request.ok()) return request.status();
                return Submitted(ctx, *jobs,
                                 services::SubmitIdentification(*jobs, *identification,
@@ -90,7 +90,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
            {"parameter_set_id"}),
        .handler = [jobs, prediction](RequestContext& ctx) -> api::Result<Reply> {
          if (!jobs || !prediction) return NotAvailable("prediction");
-         auto request = services::PredictionRequestFromJson(ctx.body);
+         auto request = services::ReadPredictionRequest(ctx.body);
          if (!request.ok()) return request.status();
          return Submitted(
              ctx, *jobs,
@@ -117,7 +117,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
            {"pairs"}),
        .handler = [jobs, comparison](RequestContext& ctx) -> api::Result<Reply> {
          if (!jobs || !comparison) return NotAvailable("comparison");
-         auto request = services::ComparisonRequestFromJson(ctx.body);
+         auto request = services::ReadComparisonRequest(ctx.body);
          if (!request.ok()) return request.status();
          return Submitted(
              ctx, *jobs,

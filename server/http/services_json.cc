@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "server/http/json_fields.h"
+#include "api/json_fields.h"
 
 namespace fesbench::server::http {
 
@@ -11,7 +11,7 @@ using nlohmann::json;
 services::Actor ActorOf(const storage::User& user) { return {user.id, user.name, user.role}; }
 
 api::Result<StartRunRequest> StartRunFromJson(const json& body) {
-  JsonFields f(body);
+  api::JsonFields f(body);
   StartRunRequest out;
   if (auto protocol = f.String("protocol", true, 64)) out.protocol = *protocol;
   const protocols::ProtocolDescription* description = protocols::FindProtocol(out.protocol);
@@ -19,7 +19,7 @@ api::Result<StartRunRequest> StartRunFromJson(const json& body) {
     if (parameters->size() > 64) {
       return api::Status::InvalidArgument("too many parameters", "parameters");
     }
-    JsonFields p(*parameters, "parameters");
+    api::JsonFields p(*parameters, "parameters");
     for (const auto& [name, value] : parameters->items()) {
       // A choice parameter takes its name as well as its index.
       if (value.is_string() && description != nullptr) {

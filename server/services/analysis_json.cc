@@ -1,9 +1,6 @@
 #include "server/services/analysis_json.h"
 
-#include <cmath>
 #include <cstdint>
-#include <limits>
-#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -13,110 +10,8 @@ namespace {
 
 using nlohmann::json;
 
-// Thrown only inside this file and caught by each *FromJson.
-struct ParseError {
-  api::Status status;
-};
-
-[[noreturn]] void Fail(const std::string& field, const std::string& message) {
-  throw ParseError{api::Status::InvalidArgument(message, field)};
-}
-
-std::string Join(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
-}
-
-// Reads the fields of one JSON object; Done() rejects the fields not read.
-class Fields {
- public:
-  Fields(const json& j, std::string path) : j_(j), path_(std::move(path)) {
-    if (!j_.is_object()) Fail(path_.empty() ? "body" : path_, "must be a JSON object");
-  }
-  const json* Get(const std::string& key) {
-    known_.insert(key);
-    const auto it = j_.find(key);
-    return (it == j_.end() || it->is_null()) ? nullptr : &*it;
-  }
-  std::string Path(const std::string& key) const { return Join(path_, key); }
-  void Done() const {
-    for (const auto& [k, v] : j_.items()) {
-      if (!known_.count(k)) Fail(Join(path_, k), "unknown field");
-    }
-  }
-
- private:
-  const json& j_;
-  std::string path_;
-  std::set<std::string> known_;
-};
-
-std::int64_t Id(const json& v, const std::string& field) {
-  if (!v.is_number_integer() || v.get<std::int64_t>() <= 0) {
-    Fail(field, "must be a positive integer id");
-  }
-  return v.get<std::int64_t>();
-}
-
-double Number(const json& v, const std::string& field) {
-  if (!v.is_number()) Fail(field, "must be a number");
-  const double d = v.get<double>();
-  if (!std::isfinite(d)) Fail(field, "must be finite");
-  return d;
-}
-
-int Integer(const json& v, const std::string& field, int lo, int hi) {
-  if (!v.is_number_integer()) Fail(field, "must be an integer");
-  const auto i = v.get<std::int64_t>();
-  if (i < lo || i > hi) {
-    Fail(field, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-  }
-  return static_cast<int>(i);
-}
-
-std::string Text(const json& v, const std::string& field) {
-  if (!v.is_string()) Fail(field, "must be a string");
-  return v.get<std::string>();
-}
-
-std::vector<std::int64_t> Ids(const json& v, const std::string& field) {
-  if (!v.is_array()) Fail(field, "must be an array of ids");
-  std::vector<std::int64_t> out;
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    out.push_back(Id(v[i], field + "[" + std::to_string(i) + "]"));
-  }
-  return out;
-}
-
-model::BreakpointSpec Breakpoints(const json& v, const std::string& field) {
-  model::BreakpointSpec spec;
-  if (v.is_number_integer()) {
-    spec.count = Integer(v, field, 2, 101);
-    return spec;
-  }
-  if (!v.is_array()) Fail(field, "must be a count (integer) or an array of breakpoints");
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    spec.explicit_x.push_back(Number(v[i], field + "[" + std::to_string(i) + "]"));
-  }
-  return spec;
-}
-
-template <typename T, typename F>
-api::Result<T> Parse(F&& f) {
-  try {
-    return f();
-  } catch (const ParseError& e) {
-    return e.status;
-  } catch (const json::exception& e) {
-    return api::Status::InvalidArgument(std::string("malformed JSON value: ") + e.what());
-  }
-}
-
 json Nullable(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); }
 json Nullable(const std::optional<std::int64_t>& v) { return v ? json(*v) : json(nullptr); }
-
-json SpecToJson(const model::BreakpointSpec& s) {
-  return s.explicit_x.empty() ? json(s.count) : json(s.explicit_x);
-}
 
 json ReportToJson(const model::IdentifyReport& r) {
   return {{"fit_rms", r.fit_rms}, {"values", r.values}, {"warnings", r.warnings}};
@@ -124,71 +19,25 @@ json ReportToJson(const model::IdentifyReport& r) {
 
 }  // namespace
 
-api::Result<IdentificationRequest> IdentificationRequestFromJson(const json& j) {
-  return Parse<IdentificationRequest>([&] {
-    IdentificationRequest r;
-    Fields f(j, "");
-    if (const json* v = f.Get("session_id")) r.session_id = Id(*v, "session_id");
-    if (const json* v = f.Get("trial_ids")) r.trial_ids = Ids(*v, "trial_ids");
-    if (const json* v = f.Get("method")) r.method = Text(*v, "method");
-    if (const json* v = f.Get("irc_method")) r.irc_method = Text(*v, "irc_method");
-    if (const json* v = f.Get("passive_method")) r.passive_method = Text(*v, "passive_method");
-    if (const json* v = f.Get("contraction_order")) {
-      r.contraction_order = Integer(*v, "contraction_order", 0, 3);
-    }
-    if (const json* v = f.Get("pole_method")) r.pole_method = Text(*v, "pole_method");
-    if (const json* v = f.Get("models")) {
-      if (!v->is_array()) Fail("models", "must be an array of model names");
-      r.models.clear();
-      for (std::size_t i = 0; i < v->size(); ++i) {
-        r.models.push_back(Text((*v)[i], "models[" + std::to_string(i) + "]"));
-      }
-    }
-    if (const json* v = f.Get("breakpoints")) {
-      Fields b(*v, "breakpoints");
-      const auto read = [&](const char* key, std::optional<model::BreakpointSpec>& dst) {
-        if (const json* x = b.Get(key)) dst = Breakpoints(*x, b.Path(key));
-      };
-      read("passive_angle", r.breakpoints.passive_angle);
-      read("passive_velocity", r.breakpoints.passive_velocity);
-      read("active_angle", r.breakpoints.active_angle);
-      read("active_velocity", r.breakpoints.active_velocity);
-      b.Done();
-    }
-    if (const json* v = f.Get("inertia_kgm2")) r.inertia_kgm2 = Number(*v, "inertia_kgm2");
-    if (const json* v = f.Get("torque_angle_parameter_set_id")) {
-      r.torque_angle_parameter_set_id = Id(*v, "torque_angle_parameter_set_id");
-    }
-    f.Done();
-    if (api::Status s = ValidateIdentificationRequest(r); !s.ok()) throw ParseError{s};
-    return r;
-  });
+api::Result<IdentificationRequest> ReadIdentificationRequest(const json& j) {
+  api::Result<IdentificationRequest> request = api::IdentificationRequestFromJson(j);
+  if (!request.ok()) return request;
+  if (api::Status s = ValidateIdentificationRequest(*request); !s.ok()) return s;
+  return request;
 }
 
-json IdentificationRequestToJson(const IdentificationRequest& r) {
-  json j = {{"method", r.method},
-            {"irc_method", r.irc_method},
-            {"passive_method", r.passive_method},
-            {"contraction_order", r.contraction_order},
-            {"pole_method", r.pole_method},
-            {"models", r.models}};
-  if (r.session_id) j["session_id"] = *r.session_id;
-  if (!r.trial_ids.empty()) j["trial_ids"] = r.trial_ids;
-  json bp = json::object();
-  if (r.breakpoints.passive_angle) bp["passive_angle"] = SpecToJson(*r.breakpoints.passive_angle);
-  if (r.breakpoints.passive_velocity) {
-    bp["passive_velocity"] = SpecToJson(*r.breakpoints.passive_velocity);
-  }
-  if (r.breakpoints.active_angle) bp["active_angle"] = SpecToJson(*r.breakpoints.active_angle);
-  if (r.breakpoints.active_velocity) {
-    bp["active_velocity"] = SpecToJson(*r.breakpoints.active_velocity);
-  }
-  j["breakpoints"] = bp;
-  if (r.inertia_kgm2) j["inertia_kgm2"] = *r.inertia_kgm2;
-  if (r.torque_angle_parameter_set_id) {
-    j["torque_angle_parameter_set_id"] = *r.torque_angle_parameter_set_id;
-  }
-  return j;
+api::Result<PredictionRequest> ReadPredictionRequest(const json& j) {
+  api::Result<PredictionRequest> request = api::PredictionRequestFromJson(j);
+  if (!request.ok()) return request;
+  if (api::Status s = ValidatePredictionRequest(*request); !s.ok()) return s;
+  return request;
+}
+
+api::Result<ComparisonRequest> ReadComparisonRequest(const json& j) {
+  api::Result<ComparisonRequest> request = api::ComparisonRequestFromJson(j);
+  if (!request.ok()) return request;
+  if (api::Status s = ValidateComparisonRequest(*request); !s.ok()) return s;
+  return request;
 }
 
 json IdentificationResultToJson(const IdentificationResult& r) {
@@ -199,70 +48,6 @@ json IdentificationResultToJson(const IdentificationResult& r) {
   return {{"subject_id", r.subject_id},       {"leg_id", r.leg_id},
           {"parameter_sets", sets},           {"trial_ids", r.trial_ids},
           {"report", ReportToJson(r.report)}, {"audit_id", r.audit_id}};
-}
-
-api::Result<PredictionRequest> PredictionRequestFromJson(const json& j) {
-  return Parse<PredictionRequest>([&] {
-    PredictionRequest r;
-    Fields f(j, "");
-    const json* set = f.Get("parameter_set_id");
-    if (set == nullptr) Fail("parameter_set_id", "required");
-    r.parameter_set_id = Id(*set, "parameter_set_id");
-    if (const json* v = f.Get("trial_id")) r.trial_id = Id(*v, "trial_id");
-    if (const json* v = f.Get("stimulus")) {
-      Fields s(*v, "stimulus");
-      StimulusSpec spec;
-      const json* g = s.Get("generator");
-      if (g == nullptr) Fail("stimulus.generator", "required");
-      spec.generator = Text(*g, "stimulus.generator");
-      if (const json* p = s.Get("params")) {
-        if (!p->is_object()) Fail("stimulus.params", "must be an object of numbers");
-        for (const auto& [k, x] : p->items()) spec.params[k] = Number(x, "stimulus.params." + k);
-      }
-      s.Done();
-      r.stimulus = std::move(spec);
-    }
-    if (const json* v = f.Get("mode")) {
-      const std::string m = Text(*v, "mode");
-      if (m == "free_swing") {
-        r.mode = PredictionMode::kFreeSwing;
-      } else if (m == "isometric") {
-        r.mode = PredictionMode::kIsometric;
-      } else {
-        Fail("mode", "must be free_swing or isometric");
-      }
-    }
-    if (const json* v = f.Get("initial_angle_deg")) {
-      r.initial_angle_deg = Number(*v, "initial_angle_deg");
-    }
-    if (const json* v = f.Get("initial_velocity_deg_s")) {
-      r.initial_velocity_deg_s = Number(*v, "initial_velocity_deg_s");
-    }
-    if (const json* v = f.Get("duration_s")) r.duration_s = Number(*v, "duration_s");
-    if (const json* v = f.Get("fit_scale")) {
-      if (!v->is_boolean()) Fail("fit_scale", "must be true or false");
-      r.fit_scale = v->get<bool>();
-    }
-    f.Done();
-    if (api::Status s = ValidatePredictionRequest(r); !s.ok()) throw ParseError{s};
-    return r;
-  });
-}
-
-json PredictionRequestToJson(const PredictionRequest& r) {
-  json j = {{"parameter_set_id", r.parameter_set_id}};
-  if (r.trial_id) j["trial_id"] = *r.trial_id;
-  if (r.stimulus) {
-    json params = json::object();
-    for (const auto& [k, v] : r.stimulus->params) params[k] = v;
-    j["stimulus"] = {{"generator", r.stimulus->generator}, {"params", params}};
-  }
-  if (r.mode) j["mode"] = PredictionModeName(*r.mode);
-  if (r.initial_angle_deg) j["initial_angle_deg"] = *r.initial_angle_deg;
-  if (r.stimulus) j["initial_velocity_deg_s"] = r.initial_velocity_deg_s;
-  if (r.duration_s) j["duration_s"] = *r.duration_s;
-  if (r.fit_scale) j["fit_scale"] = true;
-  return j;
 }
 
 json PredictionErrorsToJson(const PredictionErrors& e) {
@@ -305,37 +90,6 @@ json PredictionResultToJson(const PredictionResult& r, bool include_columns) {
                     {"activation", r.predicted.activation}};
   }
   return j;
-}
-
-api::Result<ComparisonRequest> ComparisonRequestFromJson(const json& j) {
-  return Parse<ComparisonRequest>([&] {
-    ComparisonRequest r;
-    Fields f(j, "");
-    const json* pairs = f.Get("pairs");
-    if (pairs == nullptr) Fail("pairs", "required");
-    if (!pairs->is_array()) Fail("pairs", "must be an array of pairs");
-    for (std::size_t i = 0; i < pairs->size(); ++i) {
-      const std::string path = "pairs[" + std::to_string(i) + "]";
-      Fields p((*pairs)[i], path);
-      ComparisonPair pair;
-      const json* a = p.Get("a_parameter_set_id");
-      if (a == nullptr) Fail(p.Path("a_parameter_set_id"), "required");
-      pair.a_parameter_set_id = Id(*a, p.Path("a_parameter_set_id"));
-      const json* b = p.Get("b_parameter_set_id");
-      if (b == nullptr) Fail(p.Path("b_parameter_set_id"), "required");
-      pair.b_parameter_set_id = Id(*b, p.Path("b_parameter_set_id"));
-      const json* t = p.Get("trial_ids");
-      if (t == nullptr) Fail(p.Path("trial_ids"), "required");
-      pair.trial_ids = Ids(*t, p.Path("trial_ids"));
-      p.Done();
-      r.pairs.push_back(std::move(pair));
-    }
-    if (const json* v = f.Get("metric")) r.metric = Text(*v, "metric");
-    if (const json* v = f.Get("confidence")) r.confidence = Number(*v, "confidence");
-    f.Done();
-    if (api::Status s = ValidateComparisonRequest(r); !s.ok()) throw ParseError{s};
-    return r;
-  });
 }
 
 json ComparisonResultToJson(const ComparisonResult& r) {

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "api/analysis_requests.h"
 #include "api/status.h"
 #include "model/evaluation.h"
 #include "server/services/prediction_service.h"
@@ -21,19 +22,9 @@
 namespace fesbench::server::services {
 
 /// One subject's (leg's) pair: the same trials predicted by set a and set b.
-struct ComparisonPair {
-  std::int64_t a_parameter_set_id = 0;
-  std::int64_t b_parameter_set_id = 0;
-  std::vector<std::int64_t> trial_ids;  ///< 1–50 trials of the sets' leg.
-};
-
-struct ComparisonRequest {
-  std::vector<ComparisonPair> pairs;  ///< ≥ 2 (t-test), ≤ 200.
-  /// "e_rms" (Eq. 6.9), "e_abs" (Eq. 6.10), "normalised_rms" (Eq. 6.1),
-  /// "e_ave" (Eq. 6.2).
-  std::string metric = "e_rms";
-  double confidence = 0.95;  ///< of the two-sided critical value, in (0, 1).
-};
+/// The request's wire form (api/analysis_requests.h).
+using ComparisonPair = api::ComparisonPair;
+using ComparisonRequest = api::ComparisonRequest;
 
 /// The errors of one trial under both sets.
 struct TrialComparison {

@@ -33,6 +33,7 @@
 #include <string>
 #include <vector>
 
+#include "api/analysis_requests.h"
 #include "api/status.h"
 #include "model/identify_common.h"
 #include "model/simulate.h"
@@ -48,43 +49,9 @@ struct IdentificationConfig {
   std::optional<model::JointLimits> joint_limits;
 };
 
-/// Breakpoints of the fitted curves: a count over the visited range or
-/// explicit abscissae (model::BreakpointSpec); unset = the method's default
-/// (simultaneous τ_pta 11, τ_ptv 9; free swing τ_ptv 4; active 11 and 11;
-/// rapid 9, 7, 7, 7).
-struct IdentificationBreakpoints {
-  std::optional<model::BreakpointSpec> passive_angle;     ///< τ_pta, deg.
-  std::optional<model::BreakpointSpec> passive_velocity;  ///< τ_ptv, deg/s.
-  std::optional<model::BreakpointSpec> active_angle;      ///< f_ata, deg.
-  std::optional<model::BreakpointSpec> active_velocity;   ///< f_atv, deg/s.
-};
-
-struct IdentificationRequest {
-  /// Exactly one of session_id and trial_ids (all of one subject and leg).
-  std::optional<std::int64_t> session_id;
-  std::vector<std::int64_t> trial_ids;
-  /// "thesis" (the chapter 4 methods below) or "rapid" (§7.4.1, from the
-  /// rapid_* trials).
-  std::string method = "thesis";
-  /// "step", "impulse", "ramp_correlation", "ramp_deconvolution_ideal",
-  /// "ramp_deconvolution_measured".
-  std::string irc_method = "ramp_correlation";
-  /// "sequential", "simultaneous", "free_swing".
-  std::string passive_method = "simultaneous";
-  int contraction_order = 3;         ///< 2, 3, or 0 = the better-fitting order.
-  std::string pole_method = "peak";  ///< "peak" or "least_squares".
-  /// Model variants to fit and store, "full" and/or the simplified ones
-  /// (model::ModelKindName). One stored version each.
-  std::vector<std::string> models = {"full"};
-  IdentificationBreakpoints breakpoints;
-  /// Limb inertia, kg·m²: sequential and rapid. Unset: the subject's
-  /// anthropometrics (Eq. 4.13: weight, shank length), else (rapid) the
-  /// leg's latest parameter set.
-  std::optional<double> inertia_kgm2;
-  /// free_swing without a passive_positions trial: the stored set whose
-  /// τ_pta is used (default: the leg's latest).
-  std::optional<std::int64_t> torque_angle_parameter_set_id;
-};
+/// The request's wire form (api/analysis_requests.h).
+using IdentificationBreakpoints = api::IdentificationBreakpoints;
+using IdentificationRequest = api::IdentificationRequest;
 
 /// One stored version.
 struct StoredFit {

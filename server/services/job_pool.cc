@@ -6,20 +6,6 @@
 
 namespace fesbench::server::services {
 
-std::string_view JobStateName(JobState state) {
-  switch (state) {
-    case JobState::kQueued:
-      return "queued";
-    case JobState::kRunning:
-      return "running";
-    case JobState::kDone:
-      return "done";
-    case JobState::kFailed:
-      return "failed";
-  }
-  return "failed";
-}
-
 nlohmann::json JobToJson(const JobRecord& job) {
   const auto stamp = [](const std::optional<storage::UtcTime>& t) {
     return t ? nlohmann::json(storage::FormatUtc(*t)) : nlohmann::json(nullptr);
@@ -38,9 +24,7 @@ nlohmann::json JobToJson(const JobRecord& job) {
   };
   if (job.state == JobState::kDone) j["result"] = job.result;
   if (job.state == JobState::kFailed) {
-    j["error"] = {{"code", api::ErrorCodeName(job.error.code())},
-                  {"message", job.error.message()},
-                  {"field", job.error.field()}};
+    j["error"] = api::ErrorToJson(job.error);
   }
   return j;
 }

@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "api/job.h"
 #include "api/status.h"
 #include "server/services/actor.h"
 #include "storage/time_utc.h"
@@ -44,12 +45,10 @@ struct JobPoolConfig {
   api::Clock* clock = api::Clock::Real();
 };
 
-/// queued → running → done | failed. Jobs still queued at shutdown end
-/// failed with kUnavailable ("cancelled: job pool shutting down").
-enum class JobState { kQueued, kRunning, kDone, kFailed };
-
-/// "queued", "running", "done", "failed".
-std::string_view JobStateName(JobState state);
+/// queued → running → done | failed (api/job.h). Jobs still queued at
+/// shutdown end failed with kUnavailable ("cancelled: job pool shutting down").
+using JobState = api::JobState;
+using api::JobStateName;
 
 /// What a job computes: a JSON result, or the Status saying why not. An
 /// exception escaping it is caught and recorded as kInternal.
@@ -71,8 +70,8 @@ struct JobRecord {
 
 /// JSON of a record: {"id", "kind", "state", "submitted_by": {"user_id",
 /// "user_name", "role"}, "submitted_at_utc", "started_at_utc",
-/// "finished_at_utc" (null until set), "result" (done) or "error": {"code",
-/// "message", "field"} (failed)}.
+/// "finished_at_utc" (null until set), "result" (done) or "error"
+/// (failed, api::ErrorToJson)}.
 nlohmann::json JobToJson(const JobRecord& job);
 
 /// The heap a JSON value takes, approximately: one nlohmann::json node per

@@ -57,10 +57,6 @@ PredictionErrors Errors(const std::vector<double>& predicted, const std::vector<
 
 }  // namespace
 
-std::string_view PredictionModeName(PredictionMode mode) {
-  return mode == PredictionMode::kIsometric ? "isometric" : "free_swing";
-}
-
 api::Status ValidatePredictionRequest(const PredictionRequest& r, const PredictionConfig& config) {
   if (r.parameter_set_id <= 0) {
     return api::Status::InvalidArgument("must be a positive id", "parameter_set_id");
@@ -356,7 +352,7 @@ api::Result<PredictionResult> PredictionService::Predict(const Actor& actor,
   if (!computed.ok()) return computed.status();
   PredictionResult result = std::move(computed).value();
   try {
-    const std::string input = PredictionRequestToJson(request).dump();
+    const std::string input = api::PredictionRequestToJson(request).dump();
     const std::string output = PredictionResultToJson(result).dump();
     api::Status stored = db_.Write([&](storage::Connection&) -> api::Status {
       storage::PredictionRepository repo(db_);

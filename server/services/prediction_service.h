@@ -24,6 +24,7 @@
 #include <optional>
 #include <string>
 
+#include "api/analysis_requests.h"
 #include "api/status.h"
 #include "model/parameter_set.h"
 #include "model/simulate.h"
@@ -43,35 +44,11 @@ struct PredictionConfig {
   std::optional<model::JointLimits> joint_limits = model::JointLimits{};
 };
 
-enum class PredictionMode { kFreeSwing, kIsometric };
-/// "free_swing", "isometric".
-std::string_view PredictionModeName(PredictionMode mode);
-
-/// A named stimulus generator (model/stimulus_generators.h) and its values.
-struct StimulusSpec {
-  std::string generator;
-  model::GeneratorParams params;
-};
-
-struct PredictionRequest {
-  std::int64_t parameter_set_id = 0;
-  /// Exactly one of trial_id (replay its stimulation from its measured
-  /// initial state and compare) and stimulus.
-  std::optional<std::int64_t> trial_id;
-  std::optional<StimulusSpec> stimulus;
-  /// Stimulus: default free swing. Trial: default its protocol's mode.
-  std::optional<PredictionMode> mode;
-  /// Stimulus only. Free swing θ(0), deg, 0–180 (default: the passive rest
-  /// angle, else 90°); isometric lock angle, deg (default 90°).
-  std::optional<double> initial_angle_deg;
-  double initial_velocity_deg_s = 0.0;  ///< stimulus free swing θ̇(0), |·| ≤ 2000 deg/s.
-  std::optional<double> duration_s;     ///< stimulus only; default: the envelope's length.
-  /// Isometric trial only: scale the predicted torque by the least-squares
-  /// constant before the errors, as the isometric IRC comparisons of §6.1.2
-  /// and §6.2 do ("the maximum isometric torque output was determined by
-  /// scaling the simulation result by a constant to get a best fit").
-  bool fit_scale = false;
-};
+/// The request's wire form (api/analysis_requests.h).
+using PredictionMode = api::PredictionMode;
+using api::PredictionModeName;
+using StimulusSpec = api::StimulusSpec;
+using PredictionRequest = api::PredictionRequest;
 
 /// The errors of a prediction against a measured trial (ch. 6).
 struct PredictionErrors {

@@ -435,7 +435,7 @@ TEST_F(AnalysisServicesTest, IsometricPredictionFitsTheScaleOfSection612) {
   EXPECT_EQ(service.Compute(stim).status().field(), "fit_scale");
   req.mode = PredictionMode::kFreeSwing;
   EXPECT_EQ(service.Compute(req).status().field(), "fit_scale");
-  EXPECT_EQ(PredictionRequestFromJson({{"parameter_set_id", 1}, {"trial_id", 2}, {"fit_scale", 1}})
+  EXPECT_EQ(ReadPredictionRequest({{"parameter_set_id", 1}, {"trial_id", 2}, {"fit_scale", 1}})
                 .status()
                 .field(),
             "fit_scale");
@@ -537,23 +537,23 @@ TEST_F(AnalysisServicesTest, PredictionRejectsBadInputNamingTheField) {
   EXPECT_EQ(service.Predict(kAnalyst, trial_req).status().code(), api::ErrorCode::kNotFound);
 
   // Strict JSON: unknown fields and wrong types are refused with the path.
-  auto unknown = PredictionRequestFromJson({{"parameter_set_id", 1}, {"trial_id", 2}, {"x", 1}});
+  auto unknown = ReadPredictionRequest({{"parameter_set_id", 1}, {"trial_id", 2}, {"x", 1}});
   EXPECT_EQ(unknown.status().field(), "x");
-  auto typed = PredictionRequestFromJson({{"parameter_set_id", "1"}, {"trial_id", 2}});
+  auto typed = ReadPredictionRequest({{"parameter_set_id", "1"}, {"trial_id", 2}});
   EXPECT_EQ(typed.status().field(), "parameter_set_id");
-  auto nested = PredictionRequestFromJson(
+  auto nested = ReadPredictionRequest(
       {{"parameter_set_id", 1}, {"stimulus", {{"generator", "prediction_step"}, {"p", 1}}}});
   EXPECT_EQ(nested.status().field(), "stimulus.p");
-  auto ok = PredictionRequestFromJson(
+  auto ok = ReadPredictionRequest(
       {{"parameter_set_id", 1},
        {"stimulus", {{"generator", "prediction_step"}, {"params", {{"max_ma", 40}}}}},
        {"mode", "isometric"}});
   ASSERT_TRUE(ok.ok()) << ok.status().ToString();
   EXPECT_EQ(ok->stimulus->params.at("max_ma"), 40.0);
-  auto ident = IdentificationRequestFromJson(
+  auto ident = ReadIdentificationRequest(
       {{"session_id", 1}, {"breakpoints", {{"active_angle", {10, 5}}}}});
   EXPECT_EQ(ident.status().field(), "breakpoints.active_angle[1]");
-  auto ident_unknown = IdentificationRequestFromJson({{"session_id", 1}, {"breakpoint", 3}});
+  auto ident_unknown = ReadIdentificationRequest({{"session_id", 1}, {"breakpoint", 3}});
   EXPECT_EQ(ident_unknown.status().field(), "breakpoint");
 }
 
@@ -627,7 +627,7 @@ TEST_F(AnalysisServicesTest, ComparisonReproducesHandComputedPairedTTest) {
   auto mixed = service.Compare(crossed);
   EXPECT_EQ(mixed.status().code(), api::ErrorCode::kInvalidArgument);
   EXPECT_EQ(mixed.status().field(), "pairs[0].b_parameter_set_id");
-  auto parsed = ComparisonRequestFromJson(
+  auto parsed = ReadComparisonRequest(
       {{"pairs",
         {{{"a_parameter_set_id", 1}, {"b_parameter_set_id", 2}, {"trial_ids", {3}}},
          {{"a_parameter_set_id", 1}, {"b_parameter_set_id", 2}, {"trial_id", {3}}}}}});

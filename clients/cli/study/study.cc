@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "api/analysis_requests.h"
 #include "api/parameter_set_json.h"
 #include "api/trial.h"
 #include "clients/cli/cli.h"
@@ -66,7 +67,6 @@ const std::vector<RunSpec> kRuns = {
 };
 
 
-void Pause(std::chrono::milliseconds d) { std::this_thread::sleep_for(d); }
 
 DrawnSubject DrawSubject(ApiClient& client, std::uint64_t draw_seed, const std::string& family) {
   const json drawn =
@@ -98,33 +98,21 @@ struct JobOutcome {
   json result;
   std::string error;
 };
-JobOutcome AwaitJob(ApiClient& client, std::int64_t job_id) {
-  auto delay = std::chrono::milliseconds(5);
-  for (;;) {
-    const json job = client.Get("/jobs/" + std::to_string(job_id));
-    const std::string state = job.value("state", "");
-    if (state == "done") return {job.value("result", json()), ""};
-    if (state == "failed") {
-      std::string message = "failed";
-      if (job.contains("error") && job["error"].is_object()) {
-        message = job["error"].value("message", message);
-        const std::string field = job["error"].value("field", "");
-        if (!field.empty()) message = field + ": " + message;
-      }
-      return {json(), message};
-    }
-    Pause(delay);
-    delay = std::min(delay * 2, std::chrono::milliseconds(100));
-  }
+JobOutcome AwaitStudyJob(ApiClient& client, std::int64_t job_id) {
+  api::JobReport job =
+      AwaitJob(client, job_id, std::chrono::milliseconds(5), std::chrono::milliseconds(100));
+  if (job.state == api::JobState::kDone) return {std::move(job.result), ""};
+  const api::Status& error = job.error;
+  return {json(), error.field().empty() ? error.message() : error.field() + ": " + error.message()};
 }
 
 JobOutcome Submit(ApiClient& client, const std::string& path, const json& body) {
   const json job = client.Post(path, body);
-  return AwaitJob(client, job.at("id").get<std::int64_t>());
+  return AwaitStudyJob(client, job.at("id").get<std::int64_t>());
 }
 
-json TrialIds(const LegData& leg, const std::vector<std::string>& names) {
-  json ids = json::array();
+std::vector<std::int64_t> TrialIds(const LegData& leg, const std::vector<std::string>& names) {
+  std::vector<std::int64_t> ids;
   for (const auto& name : names) {
     auto it = leg.trials.find(name);
     if (it != leg.trials.end()) ids.push_back(it->second);
@@ -132,11 +120,21 @@ json TrialIds(const LegData& leg, const std::vector<std::string>& names) {
   return ids;
 }
 
+// A thesis-method identification from `trial_ids` with `passive_method`.
+api::IdentificationRequest ThesisFit(std::vector<std::int64_t> trial_ids,
+                                     std::string passive_method) {
+  api::IdentificationRequest request;
+  request.trial_ids = std::move(trial_ids);
+  request.passive_method = std::move(passive_method);
+  return request;
+}
+
 // One identification; stores every returned set under `keys` (by model
 // order) or records the failure.
-void Identify(ApiClient& client, LegData& leg, const json& request,
+void Identify(ApiClient& client, LegData& leg, const api::IdentificationRequest& request,
               const std::vector<std::string>& keys, int& failures, std::ostream& log) {
-  const JobOutcome outcome = Submit(client, "/identifications", request);
+  const JobOutcome outcome =
+      Submit(client, "/identifications", api::IdentificationRequestToJson(request));
   if (!outcome.error.empty()) {
     for (const auto& key : keys) leg.set_failures[key] = outcome.error;
     ++failures;
@@ -182,11 +180,13 @@ void Predict(ApiClient& client, LegData& leg, const std::string& key, const std:
     leg.errors[key][input] = {kNaN, kNaN};
     return;
   }
-  json request = {{"parameter_set_id", set->second}, {"trial_id", trial_id}};
-  if (isometric) request["fit_scale"] = true;
+  api::PredictionRequest request;
+  request.parameter_set_id = set->second;
+  request.trial_id = trial_id;
+  request.fit_scale = isometric;
   JobOutcome outcome;
   try {
-    outcome = Submit(client, "/predictions", request);
+    outcome = Submit(client, "/predictions", api::PredictionRequestToJson(request));
   } catch (const CliError& e) {
     // A refusal (e.g. 409: the set cannot simulate this input) is a result.
     if (e.exit_code() != kExitServer) throw;
@@ -280,28 +280,27 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   for (const auto& train : kTrains) {
     const std::string active = "active_random_binary_" + train;
     Identify(client, leg,
-             {{"trial_ids", TrialIds(leg, {"isometric_ramp_irc", "passive_simultaneous_1",
-                                           "passive_simultaneous_2", active})},
-              {"passive_method", "simultaneous"}},
+             ThesisFit(TrialIds(leg, {"isometric_ramp_irc", "passive_simultaneous_1",
+                                      "passive_simultaneous_2", active}),
+                       "simultaneous"),
              {SetKey("simultaneous", train)}, failures, log);
     Identify(client, leg,
-             {{"trial_ids", TrialIds(leg, {"isometric_ramp_irc", "passive_positions",
-                                           "passive_velocities", active})},
-              {"passive_method", "sequential"}},
+             ThesisFit(TrialIds(leg, {"isometric_ramp_irc", "passive_positions",
+                                      "passive_velocities", active}),
+                       "sequential"),
              {SetKey("sequential", train)}, failures, log);
     std::vector<std::string> keys = {SetKey("free_swing", train)};
-    json models = {"full"};
+    api::IdentificationRequest request = ThesisFit(
+        TrialIds(leg, {"isometric_ramp_irc", "passive_positions", "free_swing_passive", active}),
+        "free_swing");
     if (train == "rb1") {
       for (const auto& m : kSimplified) {
         keys.push_back(m);
-        models.push_back(m);
+        request.models.push_back(m);
       }
     }
-    json request = {{"trial_ids", TrialIds(leg, {"isometric_ramp_irc", "passive_positions",
-                                                 "free_swing_passive", active})},
-                    {"passive_method", "free_swing"},
-                    {"models", models}};
-    const JobOutcome first = Submit(client, "/identifications", request);
+    const JobOutcome first =
+        Submit(client, "/identifications", api::IdentificationRequestToJson(request));
     if (first.error.empty()) {
       const json& sets = first.result.at("parameter_sets");
       for (std::size_t i = 0; i < keys.size() && i < sets.size(); ++i) {
@@ -311,8 +310,8 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
       log << "  leg " << leg.index << ": " << keys.front() << " with the position holds failed ("
           << first.error << "); retrying with the simultaneous set's tau_pta\n";
       // τ_pta from the simultaneous set (Eq. 4.35 needs a τ_pta).
-      request["trial_ids"] = TrialIds(leg, {"isometric_ramp_irc", "free_swing_passive", active});
-      request["torque_angle_parameter_set_id"] = leg.sets[SetKey("simultaneous", train)];
+      request.trial_ids = TrialIds(leg, {"isometric_ramp_irc", "free_swing_passive", active});
+      request.torque_angle_parameter_set_id = leg.sets[SetKey("simultaneous", train)];
       Identify(client, leg, request, keys, failures, log);
     } else {
       for (const auto& key : keys) leg.set_failures[key] = first.error;
@@ -321,14 +320,14 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   }
   // IRC variants for the isometric prediction (Tables 6.1, 6.2).
   for (const auto& variant : kIrcVariants) {
-    Identify(client, leg,
-             {{"trial_ids",
-               TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc", "passive_simultaneous_1",
-                              "passive_simultaneous_2", "active_random_binary_rb1"})},
-              {"passive_method", "simultaneous"},
-              {"irc_method", variant.irc_method},
-              {"contraction_order", variant.order}},
-             {"irc_" + variant.key}, failures, log);
+    api::IdentificationRequest request =
+        ThesisFit(TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc",
+                                 "passive_simultaneous_1", "passive_simultaneous_2",
+                                 "active_random_binary_rb1"}),
+                  "simultaneous");
+    request.irc_method = variant.irc_method;
+    request.contraction_order = variant.order;
+    Identify(client, leg, request, {"irc_" + variant.key}, failures, log);
   }
   FetchParams(client, leg);
 

@@ -1,6 +1,5 @@
-// Unit tests of the HTTP layer's pure parts: route matching, strict JSON
-// reading, paging cursors, the status mapping, the OpenAPI builder and the
-// server config reader.
+// Unit tests of the HTTP layer's pure parts: route matching, paging cursors,
+// the status mapping, the OpenAPI builder and the server config reader.
 
 #include "server/http/router.h"
 
@@ -8,7 +7,6 @@
 
 #include "server/config.h"
 #include "server/http/errors.h"
-#include "server/http/json_fields.h"
 #include "server/http/openapi.h"
 #include "server/http/routes_common.h"
 
@@ -56,61 +54,6 @@ TEST(RouterTest, MatchesTemplatesAndIds) {
   EXPECT_EQ(wrong_method.route, nullptr);
   EXPECT_EQ(wrong_method.allowed_methods, (std::vector<std::string>{"GET", "POST"}));
   EXPECT_TRUE(table.Match("GET", "/nothing").allowed_methods.empty());
-}
-
-TEST(JsonFieldsTest, ReadsStrictlyWithFieldPaths) {
-  json body = {{"name", "x"},  {"n", 3},        {"f", 2.5},
-               {"flag", true}, {"ids", {1, 2}}, {"inner", {{"a", 1}}}};
-  JsonFields f(body);
-  EXPECT_EQ(f.String("name", true), "x");
-  EXPECT_EQ(f.Integer("n", true, 0, 10), 3);
-  EXPECT_EQ(f.Number("f", true, 0, 10), 2.5);
-  EXPECT_EQ(f.Bool("flag", true), true);
-  EXPECT_EQ(f.IdList("ids", true), (std::vector<std::int64_t>{1, 2}));
-  EXPECT_NE(f.Object("inner", true), nullptr);
-  EXPECT_TRUE(f.Finish().ok());
-
-  auto first_error = [](json j, auto read) {
-    JsonFields f(j, "outer");
-    read(f);
-    return f.Finish();
-  };
-  auto st = first_error({{"n", "3"}}, [](JsonFields& f) { (void)f.Integer("n", true); });
-  EXPECT_EQ(st.code(), api::ErrorCode::kInvalidArgument);
-  EXPECT_EQ(st.field(), "outer.n");
-  st = first_error({{"n", 2.5}}, [](JsonFields& f) { (void)f.Integer("n", true); });
-  EXPECT_EQ(st.field(), "outer.n");
-  st = first_error(json::object(), [](JsonFields& f) { (void)f.String("s", true); });
-  EXPECT_EQ(st.field(), "outer.s");
-  EXPECT_NE(st.message().find("required"), std::string::npos);
-  st = first_error({{"x", 11}}, [](JsonFields& f) { (void)f.Number("x", true, 0, 10); });
-  EXPECT_EQ(st.field(), "outer.x");
-  st = first_error({{"x", 1}, {"typo", 2}}, [](JsonFields& f) { (void)f.Number("x", true); });
-  EXPECT_EQ(st.field(), "outer.typo");
-  st = first_error({{"ids", {1, -2}}}, [](JsonFields& f) { (void)f.IdList("ids", true); });
-  EXPECT_EQ(st.field(), "outer.ids[1]");
-  st = first_error({{"s", std::string(20, 'a')}},
-                   [](JsonFields& f) { (void)f.String("s", true, 10); });
-  EXPECT_EQ(st.field(), "outer.s");
-  // null counts as absent.
-  st = first_error({{"s", nullptr}}, [](JsonFields& f) { EXPECT_FALSE(f.String("s", false)); });
-  EXPECT_TRUE(st.ok());
-}
-
-TEST(JsonFieldsTest, ParseRefusesMalformedDeepAndNonObjects) {
-  EXPECT_TRUE(ParseJsonObject("{\"a\": [1, {\"b\": \"[[[\"}]}").ok());
-  EXPECT_FALSE(ParseJsonObject("").ok());
-  EXPECT_FALSE(ParseJsonObject("{").ok());
-  EXPECT_FALSE(ParseJsonObject("[]").ok());
-  EXPECT_FALSE(ParseJsonObject("{\"a\": NaN}").ok());
-  std::string deep =
-      "{\"a\":" + std::string(kMaxJsonDepth, '[') + std::string(kMaxJsonDepth, ']') + "}";
-  auto r = ParseJsonObject(deep);
-  ASSERT_FALSE(r.ok());
-  EXPECT_NE(r.status().message().find("nested"), std::string::npos);
-  std::string shallow =
-      "{\"a\":" + std::string(kMaxJsonDepth - 1, '[') + std::string(kMaxJsonDepth - 1, ']') + "}";
-  EXPECT_TRUE(ParseJsonObject(shallow).ok());
 }
 
 TEST(PagingTest, CursorRoundTripsAndRejectsForgeries) {

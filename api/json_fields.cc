@@ -1,4 +1,4 @@
-#include "server/http/json_fields.h"
+#include "api/json_fields.h"
 
 #include <cmath>
 #include <cstdio>
@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-namespace fesbench::server::http {
+namespace fesbench::api {
 
 namespace {
 
@@ -131,10 +131,10 @@ std::string RangeMessage(std::string_view key, T min, T max, const std::string& 
 
 }  // namespace
 
-api::Result<nlohmann::json> ParseJsonObject(std::string_view body) {
-  if (body.empty()) return api::Status::InvalidArgument("request body is empty; expected a JSON object");
+Result<nlohmann::json> ParseJsonObject(std::string_view body) {
+  if (body.empty()) return Status::InvalidArgument("request body is empty; expected a JSON object");
   if (NestingDepth(body, kMaxJsonDepth) > kMaxJsonDepth) {
-    return api::Status::InvalidArgument("JSON nested deeper than " +
+    return Status::InvalidArgument("JSON nested deeper than " +
                                         std::to_string(kMaxJsonDepth) + " levels");
   }
   nlohmann::json json;
@@ -142,14 +142,14 @@ api::Result<nlohmann::json> ParseJsonObject(std::string_view body) {
   try {
     json = nlohmann::json::parse(body, std::ref(tracker));
   } catch (const nlohmann::json::parse_error& e) {
-    return api::Status::InvalidArgument("malformed JSON at byte " + std::to_string(e.byte) +
+    return Status::InvalidArgument("malformed JSON at byte " + std::to_string(e.byte) +
                                         ": " + e.what());
   } catch (const nlohmann::json::exception&) {
     // out_of_range.406: a number beyond the range of a double (1e400).
-    return api::Status::InvalidArgument("number out of range (beyond ±1.8e308)", tracker.Path());
+    return Status::InvalidArgument("number out of range (beyond ±1.8e308)", tracker.Path());
   }
   if (!json.is_object()) {
-    return api::Status::InvalidArgument("expected a JSON object, got " + TypeName(json));
+    return Status::InvalidArgument("expected a JSON object, got " + TypeName(json));
   }
   return json;
 }
@@ -157,7 +157,7 @@ api::Result<nlohmann::json> ParseJsonObject(std::string_view body) {
 JsonFields::JsonFields(const nlohmann::json& object, std::string path)
     : object_(object), path_(std::move(path)) {
   if (!object_.is_object()) {
-    status_ = api::Status::InvalidArgument("must be an object, got " + TypeName(object_), path_);
+    status_ = Status::InvalidArgument("must be an object, got " + TypeName(object_), path_);
   }
 }
 
@@ -166,7 +166,7 @@ std::string JsonFields::PathOf(std::string_view key) const {
 }
 
 void JsonFields::Fail(std::string_view key, std::string message) {
-  if (status_.ok()) status_ = api::Status::InvalidArgument(std::move(message), PathOf(key));
+  if (status_.ok()) status_ = Status::InvalidArgument(std::move(message), PathOf(key));
 }
 
 const nlohmann::json* JsonFields::Find(std::string_view key, bool required) {
@@ -285,7 +285,7 @@ const nlohmann::json* JsonFields::Any(std::string_view key, bool required) {
   return Find(key, required);
 }
 
-api::Status JsonFields::Finish() {
+Status JsonFields::Finish() {
   if (!status_.ok()) return status_;
   for (const auto& [key, value] : object_.items()) {
     if (!seen_.contains(key)) {
@@ -296,4 +296,4 @@ api::Status JsonFields::Finish() {
   return status_;
 }
 
-}  // namespace fesbench::server::http
+}  // namespace fesbench::api

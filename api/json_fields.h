@@ -18,7 +18,7 @@
 
 #include "api/status.h"
 
-namespace fesbench::server::http {
+namespace fesbench::api {
 
 /// Deepest nesting of arrays and objects a request body may have.
 inline constexpr int kMaxJsonDepth = 32;
@@ -26,7 +26,7 @@ inline constexpr int kMaxJsonDepth = 32;
 /// Parses a request body. kInvalidArgument for an empty body, malformed
 /// JSON (the message names the byte offset), nesting deeper than
 /// kMaxJsonDepth, or a top level that is not an object.
-api::Result<nlohmann::json> ParseJsonObject(std::string_view body);
+Result<nlohmann::json> ParseJsonObject(std::string_view body);
 
 /// Reads the fields of one JSON object. The first failure is kept (later
 /// calls then return nullopt); Finish() adds the unknown-field check.
@@ -55,9 +55,9 @@ class JsonFields {
 
   /// OK, or the first failure, or kInvalidArgument for the first field not
   /// read by any call above ("unknown field").
-  api::Status Finish();
+  Status Finish();
   bool ok() const { return status_.ok(); }
-  const api::Status& status() const { return status_; }
+  const Status& status() const { return status_; }
   /// The dotted path of `key` in this object.
   std::string PathOf(std::string_view key) const;
 
@@ -68,7 +68,7 @@ class JsonFields {
   const nlohmann::json& object_;
   std::string path_;
   std::set<std::string, std::less<>> seen_;
-  api::Status status_;
+  Status status_;
 };
 
-}  // namespace fesbench::server::http
+}  // namespace fesbench::api

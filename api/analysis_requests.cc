@@ -1,0 +1,227 @@
+#include "api/analysis_requests.h"
+
+#include <cmath>
+#include <utility>
+
+#include "api/json_fields.h"
+
+namespace fesbench::api {
+namespace {
+
+using nlohmann::json;
+
+std::string Indexed(const std::string& path, std::size_t i) {
+  return path + "[" + std::to_string(i) + "]";
+}
+
+// A breakpoint spec at `path`: a count (2–101) or an array of finite numbers.
+Result<model::BreakpointSpec> BreakpointsFromJson(const json& value, const std::string& path) {
+  model::BreakpointSpec spec;
+  if (value.is_number_integer()) {
+    const auto count = value.get<std::int64_t>();
+    if (count < 2 || count > 101) {
+      return Status::InvalidArgument("must be 2–101 breakpoints, got " + value.dump(), path);
+    }
+    spec.count = static_cast<int>(count);
+    return spec;
+  }
+  if (!value.is_array()) {
+    return Status::InvalidArgument("must be a count (integer) or an array of breakpoints", path);
+  }
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    if (!value[i].is_number() || !std::isfinite(value[i].get<double>())) {
+      return Status::InvalidArgument("must be a finite number, got " + value[i].dump(),
+                                     Indexed(path, i));
+    }
+    spec.explicit_x.push_back(value[i].get<double>());
+  }
+  return spec;
+}
+
+json BreakpointsToJson(const model::BreakpointSpec& spec) {
+  return spec.explicit_x.empty() ? json(spec.count) : json(spec.explicit_x);
+}
+
+Status ReadBreakpoints(const json& object, const std::string& path,
+                       IdentificationBreakpoints& out) {
+  JsonFields fields(object, path);
+  const std::pair<const char*, std::optional<model::BreakpointSpec>*> kCurves[] = {
+      {"passive_angle", &out.passive_angle},
+      {"passive_velocity", &out.passive_velocity},
+      {"active_angle", &out.active_angle},
+      {"active_velocity", &out.active_velocity},
+  };
+  for (const auto& [key, spec] : kCurves) {
+    if (const json* value = fields.Any(key, false)) {
+      Result<model::BreakpointSpec> read = BreakpointsFromJson(*value, fields.PathOf(key));
+      if (!read.ok()) return read.status();
+      *spec = *std::move(read);
+    }
+  }
+  return fields.Finish();
+}
+
+Result<std::vector<std::string>> Names(const json& value, const std::string& path) {
+  if (!value.is_array()) return Status::InvalidArgument("must be an array of names", path);
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    if (!value[i].is_string()) {
+      return Status::InvalidArgument("must be a string, got " + value[i].dump(), Indexed(path, i));
+    }
+    names.push_back(value[i].get<std::string>());
+  }
+  return names;
+}
+
+Result<StimulusSpec> StimulusFromJson(const json& object, const std::string& path) {
+  JsonFields fields(object, path);
+  StimulusSpec spec;
+  spec.generator = fields.String("generator", true).value_or("");
+  if (const json* params = fields.Object("params", false)) {
+    for (const auto& [key, value] : params->items()) {
+      if (!value.is_number() || !std::isfinite(value.get<double>())) {
+        return Status::InvalidArgument("must be a finite number, got " + value.dump(),
+                                       fields.PathOf("params") + "." + key);
+      }
+      spec.params[key] = value.get<double>();
+    }
+  }
+  if (Status s = fields.Finish(); !s.ok()) return s;
+  return spec;
+}
+
+}  // namespace
+
+std::string_view PredictionModeName(PredictionMode mode) {
+  return mode == PredictionMode::kIsometric ? "isometric" : "free_swing";
+}
+
+std::optional<PredictionMode> ParsePredictionMode(std::string_view name) {
+  if (name == "free_swing") return PredictionMode::kFreeSwing;
+  if (name == "isometric") return PredictionMode::kIsometric;
+  return std::nullopt;
+}
+
+Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
+  IdentificationRequest r;
+  JsonFields fields(body);
+  r.session_id = fields.Integer("session_id", false, 1);
+  r.trial_ids = fields.IdList("trial_ids", false).value_or(std::vector<std::int64_t>{});
+  r.method = fields.String("method", false).value_or(r.method);
+  r.irc_method = fields.String("irc_method", false).value_or(r.irc_method);
+  r.passive_method = fields.String("passive_method", false).value_or(r.passive_method);
+  r.contraction_order =
+      static_cast<int>(fields.Integer("contraction_order", false, 0, 3).value_or(3));
+  r.pole_method = fields.String("pole_method", false).value_or(r.pole_method);
+  if (const json* models = fields.Any("models", false)) {
+    Result<std::vector<std::string>> names = Names(*models, fields.PathOf("models"));
+    if (!names.ok()) return names.status();
+    r.models = *std::move(names);
+  }
+  if (const json* breakpoints = fields.Object("breakpoints", false)) {
+    Status s = ReadBreakpoints(*breakpoints, fields.PathOf("breakpoints"), r.breakpoints);
+    if (!s.ok()) return s;
+  }
+  r.inertia_kgm2 = fields.Number("inertia_kgm2", false);
+  r.torque_angle_parameter_set_id = fields.Integer("torque_angle_parameter_set_id", false, 1);
+  if (Status s = fields.Finish(); !s.ok()) return s;
+  return r;
+}
+
+json IdentificationRequestToJson(const IdentificationRequest& r) {
+  json j = {{"method", r.method},
+            {"irc_method", r.irc_method},
+            {"passive_method", r.passive_method},
+            {"contraction_order", r.contraction_order},
+            {"pole_method", r.pole_method},
+            {"models", r.models}};
+  if (r.session_id) j["session_id"] = *r.session_id;
+  if (!r.trial_ids.empty()) j["trial_ids"] = r.trial_ids;
+  json breakpoints = json::object();
+  const std::pair<const char*, const std::optional<model::BreakpointSpec>*> kCurves[] = {
+      {"passive_angle", &r.breakpoints.passive_angle},
+      {"passive_velocity", &r.breakpoints.passive_velocity},
+      {"active_angle", &r.breakpoints.active_angle},
+      {"active_velocity", &r.breakpoints.active_velocity},
+  };
+  for (const auto& [key, spec] : kCurves) {
+    if (*spec) breakpoints[key] = BreakpointsToJson(**spec);
+  }
+  j["breakpoints"] = breakpoints;
+  if (r.inertia_kgm2) j["inertia_kgm2"] = *r.inertia_kgm2;
+  if (r.torque_angle_parameter_set_id) {
+    j["torque_angle_parameter_set_id"] = *r.torque_angle_parameter_set_id;
+  }
+  return j;
+}
+
+Result<PredictionRequest> PredictionRequestFromJson(const json& body) {
+  PredictionRequest r;
+  JsonFields fields(body);
+  r.parameter_set_id = fields.Integer("parameter_set_id", true, 1).value_or(0);
+  r.trial_id = fields.Integer("trial_id", false, 1);
+  if (const json* stimulus = fields.Object("stimulus", false)) {
+    Result<StimulusSpec> spec = StimulusFromJson(*stimulus, fields.PathOf("stimulus"));
+    if (!spec.ok()) return spec.status();
+    r.stimulus = *std::move(spec);
+  }
+  if (std::optional<std::string> mode = fields.String("mode", false)) {
+    r.mode = ParsePredictionMode(*mode);
+    if (!r.mode) return Status::InvalidArgument("must be free_swing or isometric", "mode");
+  }
+  r.initial_angle_deg = fields.Number("initial_angle_deg", false);
+  r.initial_velocity_deg_s = fields.Number("initial_velocity_deg_s", false).value_or(0.0);
+  r.duration_s = fields.Number("duration_s", false);
+  r.fit_scale = fields.Bool("fit_scale", false).value_or(false);
+  if (Status s = fields.Finish(); !s.ok()) return s;
+  return r;
+}
+
+json PredictionRequestToJson(const PredictionRequest& r) {
+  json j = {{"parameter_set_id", r.parameter_set_id}};
+  if (r.trial_id) j["trial_id"] = *r.trial_id;
+  if (r.stimulus) {
+    json params = json::object();
+    for (const auto& [key, value] : r.stimulus->params) params[key] = value;
+    j["stimulus"] = {{"generator", r.stimulus->generator}, {"params", params}};
+  }
+  if (r.mode) j["mode"] = PredictionModeName(*r.mode);
+  if (r.initial_angle_deg) j["initial_angle_deg"] = *r.initial_angle_deg;
+  if (r.stimulus) j["initial_velocity_deg_s"] = r.initial_velocity_deg_s;
+  if (r.duration_s) j["duration_s"] = *r.duration_s;
+  if (r.fit_scale) j["fit_scale"] = true;
+  return j;
+}
+
+Result<ComparisonRequest> ComparisonRequestFromJson(const json& body) {
+  ComparisonRequest r;
+  JsonFields fields(body);
+  if (const json* pairs = fields.Any("pairs", true)) {
+    if (!pairs->is_array()) return Status::InvalidArgument("must be an array of pairs", "pairs");
+    for (std::size_t i = 0; i < pairs->size(); ++i) {
+      JsonFields pair_fields((*pairs)[i], Indexed("pairs", i));
+      ComparisonPair pair;
+      pair.a_parameter_set_id = pair_fields.Integer("a_parameter_set_id", true, 1).value_or(0);
+      pair.b_parameter_set_id = pair_fields.Integer("b_parameter_set_id", true, 1).value_or(0);
+      pair.trial_ids = pair_fields.IdList("trial_ids", true).value_or(std::vector<std::int64_t>{});
+      if (Status s = pair_fields.Finish(); !s.ok()) return s;
+      r.pairs.push_back(std::move(pair));
+    }
+  }
+  r.metric = fields.String("metric", false).value_or(r.metric);
+  r.confidence = fields.Number("confidence", false).value_or(r.confidence);
+  if (Status s = fields.Finish(); !s.ok()) return s;
+  return r;
+}
+
+json ComparisonRequestToJson(const ComparisonRequest& r) {
+  json pairs = json::array();
+  for (const ComparisonPair& p : r.pairs) {
+    pairs.push_back({{"a_parameter_set_id", p.a_parameter_set_id},
+                     {"b_parameter_set_id", p.b_parameter_set_id},
+                     {"trial_ids", p.trial_ids}});
+  }
+  return {{"pairs", pairs}, {"metric", r.metric}, {"confidence", r.confidence}};
+}
+
+}  // namespace fesbench::api

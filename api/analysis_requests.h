@@ -1,0 +1,139 @@
+#pragma once
+
+/// @file
+/// The analysis requests as they travel (DESIGN.md §8 `identifications`,
+/// `predictions`, `comparisons`): one definition for the server that reads
+/// them and the clients (CLI, study) that send them. Every physical
+/// quantity names its unit in its key.
+///
+/// Reading is strict and checks the form only: unknown fields, wrong types,
+/// non-integral or non-positive ids and out-of-range counts are
+/// kInvalidArgument with the field path ("breakpoints.active_angle[2]",
+/// "pairs[1].trial_ids[0]"). Whether the values make sense together (known
+/// method names, increasing breakpoints, two pairs for a t-test) is the
+/// services' validation (server/services), which runs on the parsed value.
+///
+/// Identification request:
+///   {"session_id": 3 | "trial_ids": [..], "method": "thesis" | "rapid",
+///    "irc_method": "ramp_correlation", "passive_method": "simultaneous",
+///    "contraction_order": 3, "pole_method": "peak", "models": ["full", ..],
+///    "breakpoints": {"passive_angle": 11 | [deg..], "passive_velocity": ..,
+///                    "active_angle": .., "active_velocity": ..},
+///    "inertia_kgm2": 0.36, "torque_angle_parameter_set_id": 4}
+/// Prediction request:
+///   {"parameter_set_id": 1, "trial_id": 2} or
+///   {"parameter_set_id": 1, "stimulus": {"generator": "prediction_step",
+///    "params": {"threshold_ma": 20, ..}}, "mode": "free_swing" | "isometric",
+///    "initial_angle_deg": 90, "initial_velocity_deg_s": 0, "duration_s": 5}
+/// Comparison request:
+///   {"pairs": [{"a_parameter_set_id": 1, "b_parameter_set_id": 2,
+///               "trial_ids": [5, 6]}, ..],
+///    "metric": "e_rms", "confidence": 0.95}
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "api/status.h"
+#include "model/identify_common.h"
+#include "model/stimulus_generators.h"
+
+namespace fesbench::api {
+
+/// Breakpoints of the fitted curves: a count over the visited range or
+/// explicit abscissae (model::BreakpointSpec); unset = the method's default
+/// (simultaneous τ_pta 11, τ_ptv 9; free swing τ_ptv 4; active 11 and 11;
+/// rapid 9, 7, 7, 7).
+struct IdentificationBreakpoints {
+  std::optional<model::BreakpointSpec> passive_angle;     ///< τ_pta, deg.
+  std::optional<model::BreakpointSpec> passive_velocity;  ///< τ_ptv, deg/s.
+  std::optional<model::BreakpointSpec> active_angle;      ///< f_ata, deg.
+  std::optional<model::BreakpointSpec> active_velocity;   ///< f_atv, deg/s.
+};
+
+struct IdentificationRequest {
+  /// Exactly one of session_id and trial_ids (all of one subject and leg).
+  std::optional<std::int64_t> session_id;
+  std::vector<std::int64_t> trial_ids;
+  /// "thesis" (the chapter 4 methods below) or "rapid" (§7.4.1, from the
+  /// rapid_* trials).
+  std::string method = "thesis";
+  /// "step", "impulse", "ramp_correlation", "ramp_deconvolution_ideal",
+  /// "ramp_deconvolution_measured".
+  std::string irc_method = "ramp_correlation";
+  /// "sequential", "simultaneous", "free_swing".
+  std::string passive_method = "simultaneous";
+  int contraction_order = 3;         ///< 2, 3, or 0 = the better-fitting order.
+  std::string pole_method = "peak";  ///< "peak" or "least_squares".
+  /// Model variants to fit and store, "full" and/or the simplified ones
+  /// (model::ModelKindName). One stored version each.
+  std::vector<std::string> models = {"full"};
+  IdentificationBreakpoints breakpoints;
+  /// Limb inertia, kg·m²: sequential and rapid. Unset: the subject's
+  /// anthropometrics (Eq. 4.13: weight, shank length), else (rapid) the
+  /// leg's latest parameter set.
+  std::optional<double> inertia_kgm2;
+  /// free_swing without a passive_positions trial: the stored set whose
+  /// τ_pta is used (default: the leg's latest).
+  std::optional<std::int64_t> torque_angle_parameter_set_id;
+};
+
+enum class PredictionMode { kFreeSwing, kIsometric };
+/// "free_swing", "isometric".
+std::string_view PredictionModeName(PredictionMode mode);
+/// The mode of a name, nullopt for any other.
+std::optional<PredictionMode> ParsePredictionMode(std::string_view name);
+
+/// A named stimulus generator (model/stimulus_generators.h) and its values.
+struct StimulusSpec {
+  std::string generator;
+  model::GeneratorParams params = {};
+};
+
+struct PredictionRequest {
+  std::int64_t parameter_set_id = 0;
+  /// Exactly one of trial_id (replay its stimulation from its measured
+  /// initial state and compare) and stimulus.
+  std::optional<std::int64_t> trial_id;
+  std::optional<StimulusSpec> stimulus;
+  /// Stimulus: default free swing. Trial: default its protocol's mode.
+  std::optional<PredictionMode> mode;
+  /// Stimulus only. Free swing θ(0), deg, 0–180 (default: the passive rest
+  /// angle, else 90°); isometric lock angle, deg (default 90°).
+  std::optional<double> initial_angle_deg;
+  double initial_velocity_deg_s = 0.0;  ///< stimulus free swing θ̇(0), |·| ≤ 2000 deg/s.
+  std::optional<double> duration_s;     ///< stimulus only; default: the envelope's length.
+  /// Isometric trial only: scale the predicted torque by the least-squares
+  /// constant before the errors, as the isometric IRC comparisons of §6.1.2
+  /// and §6.2 do ("the maximum isometric torque output was determined by
+  /// scaling the simulation result by a constant to get a best fit").
+  bool fit_scale = false;
+};
+
+struct ComparisonPair {
+  std::int64_t a_parameter_set_id = 0;
+  std::int64_t b_parameter_set_id = 0;
+  std::vector<std::int64_t> trial_ids;  ///< 1–50 trials of the sets' leg.
+};
+
+struct ComparisonRequest {
+  std::vector<ComparisonPair> pairs;  ///< ≥ 2 (t-test), ≤ 200.
+  /// "e_rms" (Eq. 6.9), "e_abs" (Eq. 6.10), "normalised_rms" (Eq. 6.1),
+  /// "e_ave" (Eq. 6.2).
+  std::string metric = "e_rms";
+  double confidence = 0.95;  ///< of the two-sided critical value, in (0, 1).
+};
+
+Result<IdentificationRequest> IdentificationRequestFromJson(const nlohmann::json& json);
+nlohmann::json IdentificationRequestToJson(const IdentificationRequest& request);
+
+Result<PredictionRequest> PredictionRequestFromJson(const nlohmann::json& json);
+nlohmann::json PredictionRequestToJson(const PredictionRequest& request);
+
+Result<ComparisonRequest> ComparisonRequestFromJson(const nlohmann::json& json);
+nlohmann::json ComparisonRequestToJson(const ComparisonRequest& request);
+
+}  // namespace fesbench::api

@@ -1,0 +1,140 @@
+#include "api/analysis_requests.h"
+
+#include <gtest/gtest.h>
+
+namespace fesbench::api {
+namespace {
+
+using nlohmann::json;
+
+TEST(AnalysisRequests, IdentificationRoundTripsThroughItsJson) {
+  IdentificationRequest request;
+  request.trial_ids = {4, 5, 9};
+  request.method = "thesis";
+  request.passive_method = "free_swing";
+  request.contraction_order = 2;
+  request.models = {"full", "parametric"};
+  request.breakpoints.active_angle = model::BreakpointSpec{};
+  request.breakpoints.active_angle->explicit_x = {20.0, 60.0, 100.0};
+  request.breakpoints.passive_velocity = model::BreakpointSpec{};
+  request.breakpoints.passive_velocity->count = 5;
+  request.inertia_kgm2 = 0.36;
+  request.torque_angle_parameter_set_id = 7;
+
+  const Result<IdentificationRequest> back =
+      IdentificationRequestFromJson(IdentificationRequestToJson(request));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->trial_ids, request.trial_ids);
+  EXPECT_FALSE(back->session_id.has_value());
+  EXPECT_EQ(back->passive_method, "free_swing");
+  EXPECT_EQ(back->contraction_order, 2);
+  EXPECT_EQ(back->models, request.models);
+  ASSERT_TRUE(back->breakpoints.active_angle.has_value());
+  EXPECT_EQ(back->breakpoints.active_angle->explicit_x, (std::vector<double>{20.0, 60.0, 100.0}));
+  ASSERT_TRUE(back->breakpoints.passive_velocity.has_value());
+  EXPECT_EQ(back->breakpoints.passive_velocity->count, 5);
+  EXPECT_FALSE(back->breakpoints.passive_angle.has_value());
+  EXPECT_EQ(back->inertia_kgm2, 0.36);
+  EXPECT_EQ(back->torque_angle_parameter_set_id, 7);
+}
+
+TEST(AnalysisRequests, AnEmptyIdentificationBodyTakesTheDefaults) {
+  const Result<IdentificationRequest> r = IdentificationRequestFromJson(json::object());
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->method, "thesis");
+  EXPECT_EQ(r->irc_method, "ramp_correlation");
+  EXPECT_EQ(r->passive_method, "simultaneous");
+  EXPECT_EQ(r->contraction_order, 3);
+  EXPECT_EQ(r->models, std::vector<std::string>{"full"});
+}
+
+TEST(AnalysisRequests, IdentificationErrorsNameTheField) {
+  const auto field = [](const json& body) {
+    return IdentificationRequestFromJson(body).status().field();
+  };
+  EXPECT_EQ(field({{"session_id", 0}}), "session_id");
+  EXPECT_EQ(field({{"session_id", 1.5}}), "session_id");
+  EXPECT_EQ(field({{"trial_ids", {1, -2}}}), "trial_ids[1]");
+  EXPECT_EQ(field({{"contraction_order", 4}}), "contraction_order");
+  EXPECT_EQ(field({{"models", {"full", 3}}}), "models[1]");
+  EXPECT_EQ(field({{"breakpoints", {{"active_angle", 1}}}}), "breakpoints.active_angle");
+  EXPECT_EQ(field({{"breakpoints", {{"active_angle", {10, "x"}}}}}), "breakpoints.active_angle[1]");
+  EXPECT_EQ(field({{"breakpoints", {{"activ_angle", 5}}}}), "breakpoints.activ_angle");
+  EXPECT_EQ(field({{"inertia_kgm2", "heavy"}}), "inertia_kgm2");
+  EXPECT_EQ(field({{"methd", "rapid"}}), "methd");
+  EXPECT_EQ(IdentificationRequestFromJson(json::array()).status().code(),
+            ErrorCode::kInvalidArgument);
+}
+
+TEST(AnalysisRequests, PredictionRoundTripsWithAStimulusOrATrial) {
+  PredictionRequest stimulus;
+  stimulus.parameter_set_id = 3;
+  stimulus.stimulus = StimulusSpec{"prediction_sine", {{"max_ma", 30.0}, {"period_s", 2.5}}};
+  stimulus.mode = PredictionMode::kIsometric;
+  stimulus.initial_angle_deg = 70.0;
+  stimulus.initial_velocity_deg_s = -5.0;
+  stimulus.duration_s = 4.0;
+  const Result<PredictionRequest> a = PredictionRequestFromJson(PredictionRequestToJson(stimulus));
+  ASSERT_TRUE(a.ok()) << a.status().ToString();
+  EXPECT_EQ(a->parameter_set_id, 3);
+  ASSERT_TRUE(a->stimulus.has_value());
+  EXPECT_EQ(a->stimulus->generator, "prediction_sine");
+  EXPECT_EQ(a->stimulus->params, stimulus.stimulus->params);
+  EXPECT_EQ(a->mode, PredictionMode::kIsometric);
+  EXPECT_EQ(a->initial_angle_deg, 70.0);
+  EXPECT_EQ(a->initial_velocity_deg_s, -5.0);
+  EXPECT_EQ(a->duration_s, 4.0);
+
+  PredictionRequest trial;
+  trial.parameter_set_id = 3;
+  trial.trial_id = 11;
+  trial.fit_scale = true;
+  const json j = PredictionRequestToJson(trial);
+  EXPECT_FALSE(j.contains("stimulus"));
+  EXPECT_FALSE(j.contains("mode"));
+  const Result<PredictionRequest> b = PredictionRequestFromJson(j);
+  ASSERT_TRUE(b.ok());
+  EXPECT_EQ(b->trial_id, 11);
+  EXPECT_TRUE(b->fit_scale);
+  EXPECT_FALSE(b->mode.has_value());
+}
+
+TEST(AnalysisRequests, PredictionErrorsNameTheField) {
+  const auto field = [](const json& body) {
+    return PredictionRequestFromJson(body).status().field();
+  };
+  EXPECT_EQ(field(json::object()), "parameter_set_id");
+  EXPECT_EQ(field({{"parameter_set_id", 1}, {"mode", "swing"}}), "mode");
+  EXPECT_EQ(field({{"parameter_set_id", 1}, {"stimulus", {{"params", json::object()}}}}),
+            "stimulus.generator");
+  EXPECT_EQ(
+      field({{"parameter_set_id", 1},
+             {"stimulus", {{"generator", "prediction_step"}, {"params", {{"max_ma", "x"}}}}}}),
+      "stimulus.params.max_ma");
+  EXPECT_EQ(ParsePredictionMode("free_swing"), PredictionMode::kFreeSwing);
+  EXPECT_EQ(PredictionModeName(PredictionMode::kIsometric), "isometric");
+  EXPECT_FALSE(ParsePredictionMode("Isometric").has_value());
+}
+
+TEST(AnalysisRequests, ComparisonRoundTripsAndNamesItsPairs) {
+  ComparisonRequest request;
+  request.pairs = {{1, 2, {5, 6}}, {3, 4, {7}}};
+  request.metric = "e_abs";
+  request.confidence = 0.99;
+  const Result<ComparisonRequest> back =
+      ComparisonRequestFromJson(ComparisonRequestToJson(request));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_EQ(back->pairs.size(), 2u);
+  EXPECT_EQ(back->pairs[1].a_parameter_set_id, 3);
+  EXPECT_EQ(back->pairs[1].b_parameter_set_id, 4);
+  EXPECT_EQ(back->pairs[0].trial_ids, (std::vector<std::int64_t>{5, 6}));
+  EXPECT_EQ(back->metric, "e_abs");
+  EXPECT_EQ(back->confidence, 0.99);
+
+  EXPECT_EQ(ComparisonRequestFromJson(json::object()).status().field(), "pairs");
+  EXPECT_EQ(ComparisonRequestFromJson({{"pairs", {{{"a_parameter_set_id", 1}}}}}).status().field(),
+            "pairs[0].b_parameter_set_id");
+}
+
+}  // namespace
+}  // namespace fesbench::api
