@@ -85,12 +85,9 @@ bool Stimulator::HandleSpontaneous(const Reply& reply) {
 
 bool Stimulator::AwaitAck(Command command) {
   const auto deadline = std::chrono::steady_clock::now() + config_.reply_timeout;
-  std::uint8_t buffer[256];
   while (true) {
-    while (!frames_.empty()) {
-      const auto frame = std::move(frames_.front());
-      frames_.erase(frames_.begin());
-      const DecodeResult r = DecodePacket(frame);
+    while (const auto frame = reader_.Pop()) {
+      const DecodeResult r = DecodePacket(*frame);
       if (!r.packet) {
         Fault("stimulator reply garbled: " + DecodeErrorName(*r.error));
         return false;
@@ -119,20 +116,16 @@ bool Stimulator::AwaitAck(Command command) {
       }
       return true;
     }
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-        deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) {
-      Fault("stimulator timeout: no reply within " + std::to_string(config_.reply_timeout.count()) +
-            " ms");
-      return false;
-    }
-    const int n = port_.Read(buffer, left);
-    if (n < 0) {
-      Fault("stimulator lost: the serial port hung up (cable pulled or device off)");
-      return false;
-    }
-    for (auto& f : splitter_.Feed(std::span(buffer, static_cast<std::size_t>(n)))) {
-      frames_.push_back(std::move(f));
+    switch (reader_.ReadBefore(deadline)) {
+      case FrameReader::ReadOutcome::kRead:
+        break;
+      case FrameReader::ReadOutcome::kTimedOut:
+        Fault("stimulator timeout: no reply within " + std::to_string(config_.reply_timeout.count()) +
+              " ms");
+        return false;
+      case FrameReader::ReadOutcome::kHungUp:
+        Fault(kStimulatorLost);
+        return false;
     }
   }
 }
@@ -150,23 +143,21 @@ bool Stimulator::Connect() {
   }
   // §3.5: the device sends Init every InitRepetitionTime; answer InitAck 0.
   const auto deadline = std::chrono::steady_clock::now() + config_.connect_timeout;
-  std::uint8_t buffer[256];
   bool got_init = false;
   while (!got_init) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-        deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) {
-      Fault("stimulator timeout: no Init from the device within " +
-            std::to_string(config_.connect_timeout.count()) + " ms (is ScienceMode2 selected?)");
-      return false;
+    switch (reader_.ReadBefore(deadline)) {
+      case FrameReader::ReadOutcome::kRead:
+        break;
+      case FrameReader::ReadOutcome::kTimedOut:
+        Fault("stimulator timeout: no Init from the device within " +
+              std::to_string(config_.connect_timeout.count()) + " ms (is ScienceMode2 selected?)");
+        return false;
+      case FrameReader::ReadOutcome::kHungUp:
+        Fault(kStimulatorLost);
+        return false;
     }
-    const int n = port_.Read(buffer, left);
-    if (n < 0) {
-      Fault("stimulator lost: the serial port hung up");
-      return false;
-    }
-    for (auto& f : splitter_.Feed(std::span(buffer, static_cast<std::size_t>(n)))) {
-      const DecodeResult r = DecodePacket(f);
+    while (const auto frame = reader_.Pop()) {
+      const DecodeResult r = DecodePacket(*frame);
       if (!r.packet) continue;  // a partial first frame after opening the port
       const auto reply = ParseReply(*r.packet);
       if (reply && reply->command == Command::kInit) {
@@ -274,14 +265,12 @@ bool Stimulator::KeepAlive() {
 
 bool Stimulator::KeepAliveLocked() {
   if (faulted()) return false;
-  std::uint8_t buffer[256];
-  const int n = port_.Read(buffer, std::chrono::milliseconds(0));
-  if (n < 0) {
-    Fault("stimulator lost: the serial port hung up (cable pulled or device off)");
+  if (reader_.ReadAvailable() == FrameReader::ReadOutcome::kHungUp) {
+    Fault(kStimulatorLost);
     return false;
   }
-  for (auto& f : splitter_.Feed(std::span(buffer, static_cast<std::size_t>(n)))) {
-    const DecodeResult r = DecodePacket(f);
+  while (const auto frame = reader_.Pop()) {
+    const DecodeResult r = DecodePacket(*frame);
     if (!r.packet) {
       Fault("stimulator reply garbled: " + DecodeErrorName(*r.error));
       return false;

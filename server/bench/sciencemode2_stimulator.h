@@ -26,6 +26,7 @@
 #include <thread>
 
 #include "server/bench/sciencemode2_packet.h"
+#include "server/bench/sciencemode_frames.h"
 #include "server/bench/serial_port.h"
 #include "server/bench/stimulator_device.h"
 
@@ -106,8 +107,7 @@ class Stimulator final : public StimulatorDevice {
 
   StimulatorConfig config_;
   SerialPort port_;
-  FrameSplitter splitter_;
-  std::vector<std::vector<std::uint8_t>> frames_;
+  FrameReader reader_{port_};
   std::atomic<std::uint8_t> packet_number_{0};
   std::uint8_t last_sent_number_ = 0;
   std::chrono::steady_clock::time_point last_send_{};

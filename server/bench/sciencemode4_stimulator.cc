@@ -61,12 +61,9 @@ bool Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
 
 bool Stimulator::AwaitAck(Command ack) {
   const auto deadline = std::chrono::steady_clock::now() + config_.reply_timeout;
-  std::uint8_t buffer[512];
   while (true) {
-    while (!frames_.empty()) {
-      const auto frame = std::move(frames_.front());
-      frames_.erase(frames_.begin());
-      const DecodeResult r = DecodePacket(frame);
+    while (const auto frame = reader_.Pop()) {
+      const DecodeResult r = DecodePacket(*frame);
       if (!r.packet) {
         Fault("stimulator reply garbled: " + DecodeErrorName(*r.error));
         return false;
@@ -80,20 +77,16 @@ bool Stimulator::AwaitAck(Command ack) {
       }
       return true;
     }
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-        deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) {
-      Fault("stimulator timeout: no reply within " + std::to_string(config_.reply_timeout.count()) +
-            " ms");
-      return false;
-    }
-    const int n = port_.Read(buffer, left);
-    if (n < 0) {
-      Fault("stimulator lost: the serial port hung up (cable pulled or device off)");
-      return false;
-    }
-    for (auto& f : splitter_.Feed(std::span(buffer, static_cast<std::size_t>(n)))) {
-      frames_.push_back(std::move(f));
+    switch (reader_.ReadBefore(deadline)) {
+      case FrameReader::ReadOutcome::kRead:
+        break;
+      case FrameReader::ReadOutcome::kTimedOut:
+        Fault("stimulator timeout: no reply within " + std::to_string(config_.reply_timeout.count()) +
+              " ms");
+        return false;
+      case FrameReader::ReadOutcome::kHungUp:
+        Fault(kStimulatorLost);
+        return false;
     }
   }
 }
@@ -162,14 +155,12 @@ std::optional<double> Stimulator::SinglePulse(double stim_ma) {
 bool Stimulator::Service() {
   std::lock_guard io(io_mu_);
   if (faulted()) return false;
-  std::uint8_t buffer[512];
-  const int n = port_.Read(buffer, std::chrono::milliseconds(0));
-  if (n < 0) {
-    Fault("stimulator lost: the serial port hung up (cable pulled or device off)");
+  if (reader_.ReadAvailable() == FrameReader::ReadOutcome::kHungUp) {
+    Fault(kStimulatorLost);
     return false;
   }
-  for (auto& f : splitter_.Feed(std::span(buffer, static_cast<std::size_t>(n)))) {
-    const DecodeResult r = DecodePacket(f);
+  while (const auto frame = reader_.Pop()) {
+    const DecodeResult r = DecodePacket(*frame);
     if (!r.packet) {
       Fault("stimulator reply garbled: " + DecodeErrorName(*r.error));
       return false;

@@ -21,6 +21,7 @@
 
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/sciencemode4_packet.h"
+#include "server/bench/sciencemode_frames.h"
 #include "server/bench/serial_port.h"
 #include "server/bench/stimulator_device.h"
 
@@ -74,8 +75,7 @@ class Stimulator final : public StimulatorDevice {
 
   StimulatorConfig config_;
   SerialPort port_;
-  sciencemode2::FrameSplitter splitter_;  // same delimiters and stuffing
-  std::vector<std::vector<std::uint8_t>> frames_;
+  FrameReader reader_{port_};  // ScienceMode2's delimiters and stuffing
   std::atomic<std::uint8_t> packet_number_{0};
   std::uint8_t last_sent_number_ = 0;
   std::mutex io_mu_;     // one exchange with the device at a time
