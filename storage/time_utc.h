@@ -1,6 +1,7 @@
 #pragma once
 
 /// @file
+/// (The functions live in api/time_utc.h, shared with the clients.)
 /// UTC timestamps as stored in the database: ISO 8601 with microseconds,
 /// "YYYY-MM-DDTHH:MM:SS.ffffffZ". The fixed width makes text order equal time
 /// order, so `*_utc` columns are range-scanned through ordinary indexes.
@@ -11,20 +12,14 @@
 #include <string_view>
 
 #include "api/clock.h"
+#include "api/time_utc.h"
 
 namespace fesbench::storage {
 
 /// A point in time, UTC, microsecond resolution (api/clock.h).
 using UtcTime = api::UtcTime;
-
-/// "2026-11-21T10:36:43.123456Z". Years outside 0000–9999 are clamped.
-std::string FormatUtc(UtcTime t);
-
-/// Inverse of FormatUtc; nullopt unless `text` has exactly that form and
-/// names a valid calendar date and time of day.
-std::optional<UtcTime> ParseUtc(std::string_view text);
-
-/// True when `text` is a valid calendar date "YYYY-MM-DD".
-bool IsIsoDate(std::string_view text);
+using api::FormatUtc;
+using api::IsIsoDate;
+using api::ParseUtc;
 
 }  // namespace fesbench::storage

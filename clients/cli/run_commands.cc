@@ -26,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "api/run.h"
 #include "api/trial.h"
 #include "api/trial_import.h"
 #include "clients/cli/commands.h"
@@ -41,9 +42,9 @@ using nlohmann::json;
 constexpr auto kHeartbeatPeriod = std::chrono::milliseconds(250);
 constexpr int kBarWidth = 30;
 
-std::string FormatEta(const json& eta_s) {
-  if (!eta_s.is_number()) return "--";
-  const double s = std::max(0.0, eta_s.get<double>());
+std::string FormatEta(double eta_s) {
+  if (!std::isfinite(eta_s)) return "--";
+  const double s = std::max(0.0, eta_s);
   char buffer[32];
   if (s >= 60.0) {
     std::snprintf(buffer, sizeof buffer, "%dm%02ds", static_cast<int>(s) / 60,
@@ -60,12 +61,11 @@ class ProgressPrinter {
  public:
   ProgressPrinter(std::ostream& out, bool terminal) : out_(out), terminal_(terminal) {}
 
-  void Progress(const json& progress) {
-    if (!progress.is_object()) return;
-    const double fraction = std::clamp(progress.value("fraction", 0.0), 0.0, 1.0);
+  void Progress(const api::Progress& progress) {
+    const double fraction = std::clamp(progress.fraction, 0.0, 1.0);
     const int percent = static_cast<int>(std::floor(fraction * 100.0));
-    const std::string phase = progress.value("phase", "");
-    const std::string eta = FormatEta(progress.contains("eta_s") ? progress["eta_s"] : json());
+    const std::string phase(api::StepPhaseName(progress.phase));
+    const std::string eta = FormatEta(progress.eta_s);
     if (terminal_) {
       const int filled = static_cast<int>(std::round(fraction * kBarWidth));
       out_ << "\r[" << std::string(static_cast<std::size_t>(filled), '#')
@@ -78,7 +78,7 @@ class ProgressPrinter {
     }
     if (percent / 5 == last_bucket_) return;
     last_bucket_ = percent / 5;
-    out_ << "progress " << percent << "% eta " << eta << " step " << progress.value("step", 0)
+    out_ << "progress " << percent << "% eta " << eta << " step " << progress.step
          << " " << phase << "\n"
          << std::flush;
   }
@@ -220,8 +220,8 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
     stopper.emplace(connection, run_id, progress_out);
   }
   ProgressPrinter printer(progress_out, context.out_is_terminal && &progress_out == &context.out);
-  json end;
-  std::string last_state;
+  std::optional<api::RunEvent> end;
+  std::optional<api::RunState> last_state;
   bool cancel_sent = false;
   client.Stream("/runs/" + std::to_string(run_id) + "/stream",
                 [&](const std::string& event, const json& data) {
@@ -235,46 +235,50 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
                       printer.Line(std::string("cancel: ") + e.what());
                     }
                   }
-                  if (json_lines) {
-                    JsonLine(context, event, run_id, data);
-                    if (event == "end" && data.is_object()) {
-                      end = data;
-                      return false;
-                    }
+                  if (json_lines) JsonLine(context, event, run_id, data);
+                  api::Result<api::RunEvent> parsed = api::RunEventFromJson(data);
+                  if (!parsed.ok()) {
+                    printer.Line("note: unreadable " + event +
+                                 " event: " + parsed.status().ToString());
                     return true;
                   }
-                  if (!data.is_object()) return true;
-                  if (event == "state") {
-                    const std::string state = data.value("state", "");
-                    if (state != last_state) {
-                      last_state = state;
-                      printer.Line("state " + state);
-                    }
-                    if (data.contains("progress")) printer.Progress(data["progress"]);
-                  } else if (event == "progress") {
-                    printer.Progress(data["progress"]);
-                  } else if (event == "trial") {
-                    printer.Line("trial " + Cell(data.value("trial_name", json(nullptr))) +
-                                 " stored as trial " + Cell(data.value("trial_id", json(nullptr))));
-                  } else if (event == "end") {
-                    end = data;
+                  if (parsed->kind == api::RunEvent::Kind::kEnd) {
+                    end = *std::move(parsed);
                     return false;
+                  }
+                  if (json_lines) return true;
+                  const api::RunEvent& e = *parsed;
+                  switch (e.kind) {
+                    case api::RunEvent::Kind::kState:
+                      if (e.state != last_state) {
+                        last_state = e.state;
+                        printer.Line("state " + std::string(api::RunStateName(e.state)));
+                      }
+                      printer.Progress(e.progress);
+                      break;
+                    case api::RunEvent::Kind::kProgress:
+                      printer.Progress(e.progress);
+                      break;
+                    case api::RunEvent::Kind::kTrial:
+                      printer.Line("trial " + e.samples.trial_name + " stored as trial " +
+                                   (e.trial_id ? std::to_string(*e.trial_id) : "-"));
+                      break;
+                    default:
+                      break;
                   }
                   return true;
                 });
-  if (end.is_null()) {
+  if (!end) {
     throw CliError::Unreachable("the event stream of run " + std::to_string(run_id) +
                                 " closed before the run ended");
   }
-  const std::string state = end.value("state", "");
+  const std::string state(api::RunStateName(end->state));
   if (json_lines) {
     JsonLine(context, "run", run_id, client.Get("/runs/" + std::to_string(run_id)));
   }
   std::string line = "end " + state;
-  if (end.contains("parameter_set_id") && end["parameter_set_id"].is_number_integer()) {
-    line += " parameter_set " + Cell(end["parameter_set_id"]);
-  }
-  const json result = end.value("result", json(nullptr));
+  if (end->parameter_set_id) line += " parameter_set " + std::to_string(*end->parameter_set_id);
+  const json& result = end->result;
   if (result.is_object() && result.contains("session_revision")) {
     line += " threshold_ma " + Cell(result.value("threshold_ma", json(nullptr))) +
             " max_tolerated_ma " + Cell(result.value("max_tolerated_ma", json(nullptr))) +
@@ -283,10 +287,10 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
   if (!json_lines) printer.Line(line);
   if (cancel_sent) {
     throw CliError(kExitInterrupted, "run " + std::to_string(run_id) + " cancelled (Ctrl-C): " +
-                                         state + " " + end.value("reason", ""));
+                                         state + " " + end->reason);
   }
-  if (state != "done") {
-    std::string reason = end.value("reason", "");
+  if (end->state != api::RunState::kDone) {
+    const std::string& reason = end->reason;
     throw CliError::Server("server: run " + std::to_string(run_id) + " ended " + state +
                            (reason.empty() ? "" : ": " + reason));
   }
@@ -361,12 +365,14 @@ void AddRunRequest(CLI::App& run, CliContext& context, const std::string& verb,
     context.action = [id, &context, verb, lead] {
       const std::int64_t run_id = ParseId(*id, "run");
       auto client = Connect(context);
-      const json view = client->Post("/runs/" + std::to_string(run_id) + "/" + verb);
+      const json reply = client->Post("/runs/" + std::to_string(run_id) + "/" + verb);
       if (context.options.json) {
-        context.out << view.dump(2) << "\n";
+        context.out << reply.dump(2) << "\n";
         return;
       }
-      context.out << "run " << run_id << ": " << lead << Cell(view.value("state", json(nullptr)))
+      const api::Result<api::RunView> view = api::RunViewFromJson(reply);
+      if (!view.ok()) throw CliError::Server("server sent an unreadable run: " + view.status().ToString());
+      context.out << "run " << run_id << ": " << lead << api::RunStateName(view->state)
                   << (lead.empty() ? "" : ")") << "\n";
     };
   });
@@ -479,8 +485,13 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
           context.out << state.dump(2) << "\n";
           return;
         }
+        const api::Result<api::BenchState> bench = api::BenchStateFromJson(state);
+        if (!bench.ok()) {
+          throw CliError::Server("server sent an unreadable bench state: " +
+                                 bench.status().ToString());
+        }
         context.out << (*clear ? "e-stop cleared" : "e-stop latched")
-                    << "; bench estopped: " << Cell(state.value("estopped", json(nullptr))) << "\n";
+                    << "; bench estopped: " << (bench->estopped ? "yes" : "no") << "\n";
       };
     });
   }

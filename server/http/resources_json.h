@@ -31,7 +31,7 @@ nlohmann::json SubjectToJson(const storage::Subject& subject, const std::vector<
 ///  "details": {"date", "accelerometer_placement", "threshold_ma",
 ///  "max_tolerated_ma", "notes"}}.
 nlohmann::json SessionToJson(const storage::Session& session, std::string_view leg_side);
-/// A stored run in the run resource's shape (services::RunViewToJson) as far
+/// A stored run in the run resource's shape (api::RunViewToJson) as far
 /// as storage knows it: "result" and "controller" null (used only when the
 /// server has no run service).
 nlohmann::json RunToJson(const storage::Run& run);

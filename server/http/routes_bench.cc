@@ -73,12 +73,12 @@ api::Result<Reply> ServeEventStream(RequestContext& ctx, std::shared_ptr<EventSt
         bool end = false;
         auto item = stream->subscription->Next(milliseconds(250));
         for (int n = 0; item && n < 256; ++n) {
-          json data = services::HubItemToJson(*item);
+          json data = api::RunEventToJson(*item);
           if (item->kind == services::HubItem::Kind::kEnd) {
             data["dropped"] = stream->subscription->dropped();
             end = true;
           }
-          frames += SseFrame(item->seq, services::HubItemKindName(item->kind), data);
+          frames += SseFrame(item->seq, api::RunEventKindName(item->kind), data);
           if (end) break;
           item = stream->subscription->Next(milliseconds(0));
         }
@@ -97,7 +97,7 @@ api::Result<Reply> ServeEventStream(RequestContext& ctx, std::shared_ptr<EventSt
   return Reply{200, nullptr, true};
 }
 
-json RunViewJson(const services::RunView& view) { return services::RunViewToJson(view); }
+json RunViewJson(const services::RunView& view) { return api::RunViewToJson(view); }
 
 // PUT /bench/virtual-subject: a seeded draw of a shape family, or a full
 // subject (server/bench/virtual_subject_json.h).
@@ -314,7 +314,7 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!runs) return NotAvailable("the bench");
                if (auto st = runs->EStop(ActorOf(*ctx.user), "http"); !st.ok()) return st;
                ctx.audited = true;
-               return JsonReply(services::BenchStateToJson(runs->State()));
+               return JsonReply(api::BenchStateToJson(runs->State()));
              }});
   table.Add({.method = "DELETE",
              .path = "/api/v1/bench/estop",
@@ -325,7 +325,7 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!runs) return NotAvailable("the bench");
                if (auto st = runs->ClearEStop(ActorOf(*ctx.user)); !st.ok()) return st;
                ctx.audited = true;
-               return JsonReply(services::BenchStateToJson(runs->State()));
+               return JsonReply(api::BenchStateToJson(runs->State()));
              }});
   table.Add({.method = "GET",
              .path = "/api/v1/bench/virtual-subject",

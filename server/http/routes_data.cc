@@ -72,7 +72,7 @@ api::Result<json> RunsJson(storage::Database& db, services::RunService* runs_ser
     }
     auto view = runs_service->Get(r.id);
     if (!view.ok()) return view.status();
-    out.push_back(services::RunViewToJson(*view));
+    out.push_back(api::RunViewToJson(*view));
   }
   return out;
 }

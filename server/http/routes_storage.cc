@@ -436,7 +436,7 @@ void AddSessionRunAndTrialRoutes(RouteTable& table, const ApiDependencies& deps)
                  failure = view.status();
                  return nullptr;
                }
-               return services::RunViewToJson(*view);
+               return api::RunViewToJson(*view);
              });
          if (!failure.ok()) return failure;
          return JsonReply(std::move(body));

@@ -398,24 +398,6 @@ void BuildRapid(const ParameterValues& v, double min_rest_s, const SubjectContex
 
 }  // namespace
 
-std::string_view StepPhaseName(StepPhase phase) {
-  switch (phase) {
-    case StepPhase::kPrepare:
-      return "prepare";
-    case StepPhase::kOffset:
-      return "offset";
-    case StepPhase::kStimulate:
-      return "stimulate";
-    case StepPhase::kRest:
-      return "rest";
-    case StepPhase::kMove:
-      return "move";
-    case StepPhase::kIdentify:
-      return "identify";
-  }
-  return "rest";
-}
-
 std::int64_t Plan::total_ticks() const {
   std::int64_t n = 0;
   for (const Step& s : steps) n += s.ticks;

@@ -33,8 +33,8 @@ inline constexpr std::int64_t kTicksPerSample = 5;
 inline constexpr std::int64_t kOffsetSamples = 50;
 
 /// What a step is doing (reported to observers).
-enum class StepPhase { kPrepare, kOffset, kStimulate, kRest, kMove, kIdentify };
-std::string_view StepPhaseName(StepPhase phase);
+using StepPhase = api::StepPhase;
+using api::StepPhaseName;
 
 /// One step of a plan.
 struct Step {

@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "api/run.h"
 #include "api/status.h"
 #include "model/identify_common.h"
 #include "model/parameter_set.h"
@@ -152,7 +153,7 @@ struct TargetSamples {
 api::Status ValidateSubject(const SubjectContext& subject);
 
 /// Parameter values by name.
-using ParameterValues = std::map<std::string, double, std::less<>>;
+using ParameterValues = api::ParameterValues;
 
 /// The value a parameter takes by default for this subject.
 double DefaultFor(const ParameterSpec& spec, const SubjectContext& subject);

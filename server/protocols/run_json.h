@@ -1,28 +1,15 @@
 #pragma once
 
 /// @file
-/// JSON of what a run reports (DESIGN.md §8 runs/{id}, runs/{id}/stream):
-/// the run summary, progress, live sample batches and safety events. Keys
-/// carry units. Trials themselves go out as api::TrialToJson.
+/// JSON of a runner's result (what a run produced, for tests and logs).
+/// The run's wire forms (progress, safety events, sample batches, the run
+/// resource) are in api/run.h; trials go out as api::TrialToJson.
 
 #include <nlohmann/json.hpp>
 
 #include "server/protocols/runner.h"
 
 namespace fesbench::server::protocols {
-
-/// "stim_clamped", "setpoint_clamped", "estop", "estop_cleared", "watchdog".
-std::string_view SafetyEventKindName(SafetyEvent::Kind kind);
-
-/// {"kind", "t_s", "requested", "applied", "detail"} (NaN numbers as null).
-nlohmann::json SafetyEventToJson(const SafetyEvent& event);
-
-/// {"fraction", "eta_s", "bench_elapsed_s", "bench_total_s", "step", "phase"}.
-nlohmann::json ProgressToJson(const Progress& progress);
-
-/// {"trial", "trial_name", "t_s": [..], "stim_ma": [..], "angle_deg": [..],
-///  "torque_nm": [..], "accel_m_s2": [..]}.
-nlohmann::json SampleBatchToJson(const SampleBatch& batch);
 
 /// {"state", "reason", "protocol", "protocol_version", "parameters": {..},
 ///  "trials": [{"name", "samples", "sample_rate_hz", "duration_s",

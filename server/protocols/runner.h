@@ -33,6 +33,7 @@
 #include <string>
 #include <vector>
 
+#include "api/run.h"
 #include "api/status.h"
 #include "api/trial.h"
 #include "model/identify_common.h"
@@ -66,15 +67,8 @@ struct RecordedTrial {
   bool complete = true;            ///< false if the run ended inside it.
 };
 
-/// The tolerance test's outcome (Appendix F part II.K).
-struct ToleranceResult {
-  std::optional<double> threshold_ma;  ///< first amplitude with torque above the band.
-  double max_tolerated_ma = 0.0;       ///< amplitude when stopped (or the ceiling).
-  double max_torque_nm = 0.0;          ///< largest smoothed torque (offset removed).
-  double noise_band_nm = 0.0;          ///< torque band used for the threshold.
-  bool stopped_by_clinician = false;
-  std::vector<std::string> warnings;
-};
+/// The tolerance test's outcome (Appendix F part II.K; api/run.h).
+using ToleranceResult = api::ToleranceResult;
 
 /// What a run produced.
 struct RunResult {
@@ -95,24 +89,11 @@ struct RunResult {
   double wall_duration_s = 0.0;
 };
 
-/// A block of recorded samples for live streaming (SSE, DDS).
-struct SampleBatch {
-  int trial = -1;
-  std::string trial_name;
-  std::vector<double> t_s, stim_ma, angle_deg, torque_nm, accel_m_s2;
-  /// Tracking runs only (empty otherwise): the target and τ̂_scale.
-  std::vector<double> target_deg, tau_scale_nm;
-};
+/// A block of recorded samples for live streaming (SSE, DDS; api/run.h).
+using SampleBatch = api::SampleBatch;
 
-/// Progress of a run: bench-time fraction and an ETA in wall seconds.
-struct Progress {
-  double fraction = 0.0;  ///< 0–1.
-  double eta_s = 0.0;     ///< wall seconds left (bench s / time scale, or measured).
-  double bench_elapsed_s = 0.0;
-  double bench_total_s = 0.0;
-  std::size_t step = 0;
-  StepPhase phase = StepPhase::kPrepare;
-};
+/// Progress of a run: bench-time fraction and an ETA in wall seconds (api/run.h).
+using Progress = api::Progress;
 
 /// Receives a run's events on the run's thread. Default: ignore.
 class RunObserver {

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "api/clock.h"
+#include "api/run.h"
 #include "server/bench/bench.h"
 
 namespace fesbench::server {
@@ -38,14 +39,8 @@ struct SafetyLimits {
   double heartbeat_timeout_s = 1.0;  ///< watchdog period of the controlling client.
 };
 
-struct SafetyEvent {
-  enum class Kind { kStimClamped, kSetpointClamped, kEStop, kEStopCleared, kWatchdog };
-  Kind kind;
-  double t_s;        ///< bench time.
-  double requested;  ///< what was asked (mA or deg), NaN if not applicable.
-  double applied;    ///< what the bench got.
-  std::string detail;
-};
+/// What the safety layer did (api/run.h: the wire form is one with the events).
+using SafetyEvent = api::SafetyEvent;
 
 class SafeBench {
  public:

@@ -38,7 +38,7 @@ nlohmann::json BenchInfoToJson(const BenchInfo& info) {
                         ? nlohmann::json(std::string(protocols::RunStateName(info.state.run_state)))
                         : nlohmann::json(nullptr)},
       {"progress", info.state.progress.fraction},
-      {"state", BenchStateToJson(info.state)}};
+      {"state", api::BenchStateToJson(info.state)}};
 }
 
 BenchService::BenchService(storage::Database& db, RunService& runs,

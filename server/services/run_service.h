@@ -67,62 +67,11 @@ struct RunServiceConfig {
   std::function<void(std::string_view)> log;
 };
 
-/// The live or stored view of a run (GET runs/{id}).
-struct RunView {
-  std::int64_t run_id = 0;
-  std::int64_t session_id = 0;
-  std::string protocol;
-  int protocol_version = 1;
-  protocols::ParameterValues parameters;  ///< resolved values (defaults filled in).
-  protocols::RunState state = protocols::RunState::kQueued;
-  std::string reason;  ///< why failed or aborted; empty otherwise.
-  std::string owner;   ///< user name of the actor who started it.
-  std::optional<std::int64_t> owner_user_id;
-  storage::UtcTime created_at;
-  std::optional<storage::UtcTime> started_at;
-  std::optional<storage::UtcTime> finished_at;
-  protocols::Progress progress;                  ///< fraction 0–1 and ETA (wall s).
-  std::vector<std::int64_t> trial_ids;           ///< stored trials, in recording order.
-  std::optional<std::int64_t> parameter_set_id;  ///< rapid_parameterisation's stored set.
-  std::vector<SafetyEvent> safety_events;        ///< of this run (live/in-memory views only).
-  std::optional<protocols::ToleranceResult> tolerance;  ///< tolerance_test.
-  std::map<std::string, double> values;                 ///< figures decided during the run.
-  /// What the run produced, for clients (null while running or when it
-  /// produced nothing): tolerance_test {"threshold_ma", "max_tolerated_ma",
-  /// "session_revision"} (the session revision it stored), rapid
-  /// {"parameter_set_id"}.
-  nlohmann::json result;
-  bool live = false;  ///< from memory (this process ran it) rather than storage.
-};
+/// The live or stored view of a run (GET runs/{id}; api/run.h).
+using RunView = api::RunView;
 
-/// The run resource (contract of issue 14 §4, one vocabulary on every
-/// route): {"run_id", "session_id", "protocol", "protocol_version" (int),
-///  "parameters", "state" (queued|running|done|failed|aborted), "reason",
-///  "progress" (0–1), "eta_s" (wall s, null when unknown), "created_at_utc",
-///  "started_at_utc", "finished_at_utc" (ISO-8601 UTC or null), "result"
-///  (RunView::result), "controller" (user name or null)}, plus the details
-///  "bench_elapsed_s", "bench_total_s" (bench time of the plan), "trial_ids", "parameter_set_id",
-///  "values", "safety_events", "live" and, for tolerance_test runs of this process, "tolerance".
-nlohmann::json RunViewToJson(const RunView& view);
-
-/// What the bench is doing (GET bench, DDS fesbench/bench/state).
-struct BenchState {
-  std::string kind;           ///< "sim", "replay", …
-  std::string mode = "idle";  ///< the current run's bench mode, or "idle".
-  bool busy = false;
-  bool estopped = false;
-  std::string estop_source;  ///< who latched it (last e-stop through this service).
-  std::string owner;         ///< controlling user name, empty when idle.
-  std::optional<std::int64_t> owner_user_id;
-  std::optional<std::int64_t> run_id;  ///< the current run, or the last one.
-  std::string protocol;
-  protocols::RunState run_state = protocols::RunState::kQueued;
-  protocols::Progress progress;
-};
-
-/// {"kind", "mode", "busy", "estopped", "estop_source", "owner",
-///  "owner_user_id", "run_id", "protocol", "run_state", "progress"}.
-nlohmann::json BenchStateToJson(const BenchState& state);
+/// What the bench is doing (GET bench, DDS fesbench/bench/state; api/run.h).
+using BenchState = api::BenchState;
 
 /// A session with the context its runs are scaled to.
 struct SessionContext {

@@ -46,63 +46,6 @@ struct Subscription::Queue {
   }
 };
 
-std::string_view HubItemKindName(HubItem::Kind kind) {
-  switch (kind) {
-    case HubItem::Kind::kState:
-      return "state";
-    case HubItem::Kind::kProgress:
-      return "progress";
-    case HubItem::Kind::kSamples:
-      return "samples";
-    case HubItem::Kind::kTrial:
-      return "trial";
-    case HubItem::Kind::kEnd:
-      return "end";
-    case HubItem::Kind::kParameterSet:
-      return "parameter_set";
-  }
-  return "state";
-}
-
-nlohmann::json HubItemToJson(const HubItem& item) {
-  nlohmann::json j = {{"seq", item.seq},
-                      {"run_id", item.run_id},
-                      {"kind", std::string(HubItemKindName(item.kind))}};
-  switch (item.kind) {
-    case HubItem::Kind::kState:
-      j["state"] = std::string(protocols::RunStateName(item.state));
-      j["reason"] = item.reason;
-      j["progress"] = protocols::ProgressToJson(item.progress);
-      break;
-    case HubItem::Kind::kProgress:
-      j["progress"] = protocols::ProgressToJson(item.progress);
-      break;
-    case HubItem::Kind::kSamples:
-      j["first_sample"] = item.first_sample;
-      j["samples"] = protocols::SampleBatchToJson(item.samples);
-      break;
-    case HubItem::Kind::kTrial:
-      j["trial"] = item.samples.trial;
-      j["trial_name"] = item.samples.trial_name;
-      j["trial_id"] = item.trial_id ? nlohmann::json(*item.trial_id) : nlohmann::json(nullptr);
-      break;
-    case HubItem::Kind::kEnd:
-      j["state"] = std::string(protocols::RunStateName(item.state));
-      j["reason"] = item.reason;
-      j["parameter_set_id"] =
-          item.parameter_set_id ? nlohmann::json(*item.parameter_set_id) : nlohmann::json(nullptr);
-      j["result"] = item.result;
-      break;
-    case HubItem::Kind::kParameterSet:
-      j["parameter_set_id"] =
-          item.parameter_set_id ? nlohmann::json(*item.parameter_set_id) : nlohmann::json(nullptr);
-      j["subject_id"] = item.subject_id;
-      j["leg_id"] = item.leg_id;
-      break;
-  }
-  return j;
-}
-
 namespace detail {
 
 struct HubCore {

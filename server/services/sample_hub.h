@@ -26,48 +26,10 @@
 
 namespace fesbench::server::services {
 
-/// One event of a run.
-struct HubItem {
-  enum class Kind {
-    kState,     ///< state (and reason) of the run; also the first item of a subscription.
-    kProgress,  ///< progress fraction 0–1 and ETA.
-    kSamples,   ///< a batch of samples.
-    kTrial,     ///< a trial was stored (trial index, name, stored id).
-    kEnd,       ///< the run ended and everything it produced is stored.
-    /// A parameter set was stored (by a run, an identification job or an
-    /// import; run_id 0): parameter_set_id, subject_id, leg_id. Published
-    /// after its transaction committed (storage::Database's listener).
-    kParameterSet,
-  };
-  Kind kind = Kind::kState;
-  std::uint64_t seq = 0;    ///< hub-wide, strictly increasing in publish order (from 1).
-  std::int64_t run_id = 0;  ///< 0 when no run has started yet (initial state).
-  protocols::RunState state = protocols::RunState::kQueued;  ///< kState, kEnd.
-  std::string reason;                                        ///< kState, kEnd.
-  protocols::Progress progress;                              ///< kProgress (last known otherwise).
-  protocols::SampleBatch samples;                            ///< kSamples.
-  /// kSamples: index within the run of the batch's first sample (0, 40, 80,
-  /// … over all trials of the run): consecutive batches continue it without
-  /// gaps, so a subscriber can check it received every sample in order.
-  std::uint64_t first_sample = 0;
-  std::optional<std::int64_t> trial_id;          ///< kTrial: the stored trial.
-  std::optional<std::int64_t> parameter_set_id;  ///< kEnd, kParameterSet: a stored set.
-  std::int64_t subject_id = 0;                   ///< kParameterSet.
-  std::int64_t leg_id = 0;                       ///< kParameterSet.
-  nlohmann::json result;  ///< kEnd: what the run produced (RunView::result), or null.
-};
+/// One event of a run (api/run.h).
+using HubItem = api::RunEvent;
 
 using HubItemPtr = std::shared_ptr<const HubItem>;
-
-/// "state", "progress", "samples", "trial", "end", "parameter_set" (the SSE
-/// event name).
-std::string_view HubItemKindName(HubItem::Kind kind);
-
-/// The JSON data of an item: {"seq", "run_id", "kind", …} plus, by kind,
-/// "state"/"reason", "progress" (protocols::ProgressToJson), "samples"
-/// (protocols::SampleBatchToJson) with "first_sample", "trial"/"trial_name"/
-/// "trial_id", or "state"/"reason"/"parameter_set_id"/"result".
-nlohmann::json HubItemToJson(const HubItem& item);
 
 struct SubscribeOptions {
   /// Queue length in items (≥ 1); when full the oldest is dropped. At the

@@ -149,7 +149,7 @@ TEST(RunService, IsometricRampRunStoresStatesTrialsAndAudit) {
   EXPECT_EQ(stored->trial_ids, view->trial_ids);
   EXPECT_EQ(stored->parameters, view->parameters);
   EXPECT_EQ(stored->finished_at, view->finished_at);
-  const nlohmann::json j = RunViewToJson(*view);
+  const nlohmann::json j = api::RunViewToJson(*view);
   EXPECT_EQ(j.at("state"), "done");
   EXPECT_EQ(j.at("trial_ids").size(), plan.trials.size());
 }

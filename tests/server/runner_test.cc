@@ -230,19 +230,19 @@ TEST(RunJson, SummarisesTheRunWithUnitsInKeys) {
   EXPECT_NEAR(j.at("tolerance").at("max_tolerated_ma").get<double>(), 30.0, 0.05);
   EXPECT_FALSE(j.contains("parameter_set"));
   SafetyEvent e{SafetyEvent::Kind::kStimClamped, 1.5, 120.0, 45.0, "limited"};
-  const nlohmann::json ej = SafetyEventToJson(e);
+  const nlohmann::json ej = api::SafetyEventToJson(e);
   EXPECT_EQ(ej.at("kind"), "stim_clamped");
   EXPECT_DOUBLE_EQ(ej.at("requested").get<double>(), 120.0);
   e.requested = std::nan("");
-  EXPECT_TRUE(SafetyEventToJson(e).at("requested").is_null());
+  EXPECT_TRUE(api::SafetyEventToJson(e).at("requested").is_null());
   Progress p;
   p.fraction = 0.25;
   p.phase = StepPhase::kStimulate;
-  EXPECT_EQ(ProgressToJson(p).at("phase"), "stimulate");
+  EXPECT_EQ(api::ProgressToJson(p).at("phase"), "stimulate");
   SampleBatch b;
   b.t_s = {0.0, 0.005};
   b.angle_deg = {90.0, 90.1};
-  EXPECT_EQ(SampleBatchToJson(b).at("angle_deg").size(), 2u);
+  EXPECT_EQ(api::SampleBatchToJson(b).at("angle_deg").size(), 2u);
 }
 
 TEST(Runner, ToleranceTestRunsToTheCeilingWithoutStop) {

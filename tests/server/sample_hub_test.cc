@@ -159,7 +159,7 @@ TEST(SampleHub, ASubscriptionMayOutliveTheHub) {
 TEST(SampleHub, ItemJsonCarriesKindSeqAndPayload) {
   HubItem item = Samples(9, 80, 2);
   item.seq = 5;
-  const nlohmann::json j = HubItemToJson(item);
+  const nlohmann::json j = api::RunEventToJson(item);
   EXPECT_EQ(j.at("kind"), "samples");
   EXPECT_EQ(j.at("seq"), 5);
   EXPECT_EQ(j.at("run_id"), 9);
@@ -169,7 +169,7 @@ TEST(SampleHub, ItemJsonCarriesKindSeqAndPayload) {
   end.kind = HubItem::Kind::kEnd;
   end.state = protocols::RunState::kDone;
   end.parameter_set_id = 12;
-  const nlohmann::json e = HubItemToJson(end);
+  const nlohmann::json e = api::RunEventToJson(end);
   EXPECT_EQ(e.at("kind"), "end");
   EXPECT_EQ(e.at("state"), "done");
   EXPECT_EQ(e.at("parameter_set_id"), 12);

@@ -5,6 +5,7 @@
 #include <ostream>
 #include <thread>
 
+#include "api/run.h"
 #include "clients/cli/cli.h"
 #include "clients/cli/study/tables.h"
 
@@ -61,11 +62,14 @@ json RunProtocol(ApiClient& client, std::int64_t session_id, const std::string& 
       // The run may have just ended; its state below says so.
     }
     const json run = client.Get(path);
-    const std::string state = run.value("state", "");
-    if (state == "done") return run;
-    if (state == "failed" || state == "aborted") {
+    const api::Result<api::RunView> view = api::RunViewFromJson(run);
+    if (!view.ok()) {
+      throw CliError::Server("study: run " + std::to_string(run_id) + ": " + view.status().ToString());
+    }
+    if (view->state == api::RunState::kDone) return run;
+    if (api::IsFinal(view->state)) {
       throw CliError::Server("study: run " + std::to_string(run_id) + " (" + protocol + ") " +
-                             state + ": " + run.value("reason", ""));
+                             std::string(api::RunStateName(view->state)) + ": " + view->reason);
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(30));
   }

@@ -1,9 +1,9 @@
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 
 #include <algorithm>
 #include <cstdio>
 
-namespace fesbench::storage {
+namespace fesbench::api {
 namespace {
 
 using std::chrono::days;
@@ -67,4 +67,4 @@ std::optional<UtcTime> ParseUtc(std::string_view text) {
 
 bool IsIsoDate(std::string_view text) { return text.size() == 10 && ParseDate(text).has_value(); }
 
-}  // namespace fesbench::storage
+}  // namespace fesbench::api
