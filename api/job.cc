@@ -4,16 +4,21 @@ namespace fesbench::api {
 
 std::string_view JobStateName(JobState state) {
   switch (state) {
-    case JobState::kQueued: return "queued";
-    case JobState::kRunning: return "running";
-    case JobState::kDone: return "done";
-    case JobState::kFailed: return "failed";
+    case JobState::kQueued:
+      return "queued";
+    case JobState::kRunning:
+      return "running";
+    case JobState::kDone:
+      return "done";
+    case JobState::kFailed:
+      return "failed";
   }
   return "failed";
 }
 
 std::optional<JobState> ParseJobState(std::string_view name) {
-  for (JobState state : {JobState::kQueued, JobState::kRunning, JobState::kDone, JobState::kFailed}) {
+  for (JobState state :
+       {JobState::kQueued, JobState::kRunning, JobState::kDone, JobState::kFailed}) {
     if (JobStateName(state) == name) return state;
   }
   return std::nullopt;
@@ -46,9 +51,9 @@ Result<JobReport> JobReportFromJson(const nlohmann::json& job) {
   }
   report.id = id->get<std::int64_t>();
   const auto state = job.find("state");
-  const std::optional<JobState> parsed =
-      state != job.end() && state->is_string() ? ParseJobState(state->get<std::string>())
-                                               : std::nullopt;
+  const std::optional<JobState> parsed = state != job.end() && state->is_string()
+                                             ? ParseJobState(state->get<std::string>())
+                                             : std::nullopt;
   if (!parsed) return Status::InvalidArgument("must be queued, running, done or failed", "state");
   report.state = *parsed;
   if (const auto kind = job.find("kind"); kind != job.end() && kind->is_string()) {

@@ -296,4 +296,47 @@ Status JsonFields::Finish() {
   return status_;
 }
 
+namespace {
+
+// Long enough for any text a server sends back (descriptions, reasons).
+constexpr std::size_t kAnyLength = std::size_t{1} << 20;
+
+template <typename T>
+void ReadArray(JsonFields& in, std::string_view key, std::vector<T>& out, const char* what) {
+  const nlohmann::json* v = in.Any(key, false);
+  if (v == nullptr) return;
+  try {
+    out = v->get<std::vector<T>>();
+  } catch (const nlohmann::json::exception&) {
+    in.Fail(key, std::string("must be an array of ") + what + ", got " + TypeName(*v));
+  }
+}
+
+}  // namespace
+
+void ReadInto(JsonFields& in, std::string_view key, double& out) {
+  if (const auto v = in.Number(key, false)) out = *v;
+}
+void ReadInto(JsonFields& in, std::string_view key, bool& out) {
+  if (const auto v = in.Bool(key, false)) out = *v;
+}
+void ReadInto(JsonFields& in, std::string_view key, std::string& out) {
+  if (auto v = in.String(key, false, kAnyLength)) out = std::move(*v);
+}
+void ReadInto(JsonFields& in, std::string_view key, std::optional<double>& out) {
+  if (const auto v = in.Number(key, false)) out = *v;
+}
+void ReadInto(JsonFields& in, std::string_view key, std::optional<std::string>& out) {
+  if (auto v = in.String(key, false, kAnyLength)) out = std::move(*v);
+}
+void ReadInto(JsonFields& in, std::string_view key, std::vector<double>& out) {
+  ReadArray(in, key, out, "numbers");
+}
+void ReadInto(JsonFields& in, std::string_view key, std::vector<std::string>& out) {
+  ReadArray(in, key, out, "strings");
+}
+void ReadInto(JsonFields& in, std::string_view key, std::vector<std::int64_t>& out) {
+  ReadArray(in, key, out, "integers");
+}
+
 }  // namespace fesbench::api

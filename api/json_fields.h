@@ -14,6 +14,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "api/status.h"
@@ -60,15 +61,54 @@ class JsonFields {
   const Status& status() const { return status_; }
   /// The dotted path of `key` in this object.
   std::string PathOf(std::string_view key) const;
+  /// Records a failure of `key` found by the caller's own check (kept only
+  /// if it is the first).
+  void Fail(std::string_view key, std::string message);
 
  private:
   const nlohmann::json* Find(std::string_view key, bool required);
-  void Fail(std::string_view key, std::string message);
 
   const nlohmann::json& object_;
   std::string path_;
   std::set<std::string, std::less<>> seen_;
   Status status_;
 };
+
+/// Lenient reading, for clients of a server that may send more than they
+/// know: ReadInto stores a present, well-typed value of `key` in `out` and
+/// leaves `out` as it is when the field is absent or null; a value of the
+/// wrong type is the reader's failure. Finish() is not called, so unknown
+/// fields pass.
+void ReadInto(JsonFields& in, std::string_view key, double& out);
+void ReadInto(JsonFields& in, std::string_view key, bool& out);
+void ReadInto(JsonFields& in, std::string_view key, std::string& out);
+void ReadInto(JsonFields& in, std::string_view key, std::optional<double>& out);
+void ReadInto(JsonFields& in, std::string_view key, std::optional<std::string>& out);
+void ReadInto(JsonFields& in, std::string_view key, std::vector<double>& out);
+void ReadInto(JsonFields& in, std::string_view key, std::vector<std::string>& out);
+void ReadInto(JsonFields& in, std::string_view key, std::vector<std::int64_t>& out);
+template <typename Int>
+  requires(std::is_integral_v<Int> && !std::is_same_v<Int, bool>)
+void ReadInto(JsonFields& in, std::string_view key, Int& out) {
+  if (const auto v = in.Integer(key, false)) out = static_cast<Int>(*v);
+}
+template <typename Int>
+  requires(std::is_integral_v<Int> && !std::is_same_v<Int, bool>)
+void ReadInto(JsonFields& in, std::string_view key, std::optional<Int>& out) {
+  if (const auto v = in.Integer(key, false)) out = static_cast<Int>(*v);
+}
+/// A name read with `parse` ("kind": "estop" → SafetyEvent::Kind::kEStop);
+/// a name `parse` does not know is a failure.
+template <typename Enum>
+void ReadNamed(JsonFields& in, std::string_view key, bool required, Enum& out,
+               std::optional<Enum> (*parse)(std::string_view)) {
+  if (const auto name = in.String(key, required)) {
+    if (const std::optional<Enum> parsed = parse(*name)) {
+      out = *parsed;
+    } else {
+      in.Fail(key, "unknown value \"" + name->substr(0, 40) + "\"");
+    }
+  }
+}
 
 }  // namespace fesbench::api

@@ -4,6 +4,7 @@
 #include <limits>
 #include <utility>
 
+#include "api/json_fields.h"
 #include "api/time_utc.h"
 
 namespace fesbench::api {
@@ -20,156 +21,52 @@ json Nullable(const std::optional<T>& v) {
   return v ? json(*v) : json(nullptr);
 }
 
-json TimeOrNull(const std::optional<UtcTime>& t) {
-  return t ? json(FormatUtc(*t)) : json(nullptr);
+json TimeOrNull(const std::optional<UtcTime>& t) { return t ? json(FormatUtc(*t)) : json(nullptr); }
+
+// A time field: ISO-8601 UTC or null.
+void ReadTime(JsonFields& in, std::string_view key, std::optional<UtcTime>& out) {
+  if (const auto text = in.String(key, false)) {
+    out = ParseUtc(*text);
+    if (!out) in.Fail(key, "must be an ISO-8601 UTC time, got \"" + text->substr(0, 40) + "\"");
+  }
 }
 
-// Reads the fields a client needs from one object: typed, the first
-// mistake kept, unknown fields ignored (a newer server may send more).
-class Reader {
- public:
-  Reader(const json& object, std::string path) : object_(object), path_(std::move(path)) {
-    if (!object_.is_object()) Fail("", "must be an object, got " + std::string(object_.type_name()));
+// A nested object read by `from`, its failure named by the nested path.
+template <typename T>
+void ReadNested(JsonFields& in, std::string_view key, T& out, Result<T> (*from)(const json&)) {
+  const json* object = in.Any(key, false);
+  if (object == nullptr) return;
+  Result<T> read = from(*object);
+  if (read.ok()) {
+    out = *std::move(read);
+  } else {
+    const std::string& field = read.status().field();
+    in.Fail(field.empty() ? key : std::string(key) + "." + field, read.status().message());
   }
-
-  // A number; null (an unknown value) reads as NaN.
-  void Number(const char* key, double& out, bool required = false) {
-    if (const json* v = Find(key, required)) {
-      if (v->is_number()) {
-        out = v->get<double>();
-      } else if (v->is_null()) {
-        out = kNaN;
-      } else {
-        Fail(key, "must be a number");
-      }
-    }
-  }
-  template <typename Int>
-  void Integer(const char* key, Int& out, bool required = false) {
-    if (const json* v = Find(key, required)) {
-      if (v->is_number_integer()) {
-        out = v->get<Int>();
-      } else {
-        Fail(key, "must be an integer");
-      }
-    }
-  }
-  template <typename Int>
-  void Integer(const char* key, std::optional<Int>& out) {
-    if (const json* v = Find(key, false); v != nullptr && !v->is_null()) {
-      Int value{};
-      Integer(key, value);
-      out = value;
-    }
-  }
-  void Text(const char* key, std::string& out) {
-    if (const json* v = Find(key, false); v != nullptr && !v->is_null()) {
-      if (v->is_string()) {
-        out = v->get<std::string>();
-      } else {
-        Fail(key, "must be a string");
-      }
-    }
-  }
-  void Bool(const char* key, bool& out) {
-    if (const json* v = Find(key, false)) {
-      if (v->is_boolean()) {
-        out = v->get<bool>();
-      } else {
-        Fail(key, "must be true or false");
-      }
-    }
-  }
-  template <typename T>
-  void Array(const char* key, std::vector<T>& out) {
-    if (const json* v = Find(key, false); v != nullptr && !v->is_null()) {
-      try {
-        out = v->get<std::vector<T>>();
-      } catch (const json::exception&) {
-        Fail(key, "must be an array of the right type");
-      }
-    }
-  }
-  template <typename Enum>
-  void Named(const char* key, Enum& out, std::optional<Enum> (*parse)(std::string_view),
-             bool required = true) {
-    if (const json* v = Find(key, required)) {
-      const std::optional<Enum> parsed =
-          v->is_string() ? parse(v->get<std::string>()) : std::nullopt;
-      if (parsed) {
-        out = *parsed;
-      } else {
-        Fail(key, "unknown value " + v->dump());
-      }
-    }
-  }
-  void Time(const char* key, std::optional<UtcTime>& out) {
-    if (const json* v = Find(key, false); v != nullptr && !v->is_null()) {
-      std::optional<UtcTime> parsed =
-          v->is_string() ? ParseUtc(v->get<std::string>()) : std::nullopt;
-      if (parsed) {
-        out = parsed;
-      } else {
-        Fail(key, "must be an ISO-8601 UTC time");
-      }
-    }
-  }
-  const json* Raw(const char* key) { return Find(key, false); }
-
-  std::string PathOf(std::string_view key) const {
-    if (key.empty()) return path_;
-    return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
-  }
-  void Fail(std::string_view key, std::string message) {
-    if (status_.ok()) status_ = Status::InvalidArgument(std::move(message), PathOf(key));
-  }
-  void Adopt(const Status& nested) {
-    if (status_.ok() && !nested.ok()) status_ = nested;
-  }
-  const Status& status() const { return status_; }
-
- private:
-  const json* Find(const char* key, bool required) {
-    if (!status_.ok()) return nullptr;
-    const auto it = object_.find(key);
-    if (it == object_.end()) {
-      if (required) Fail(key, "is required");
-      return nullptr;
-    }
-    return &*it;
-  }
-
-  const json& object_;
-  std::string path_;
-  Status status_;
-};
+}
 
 template <typename T>
-Result<T> Finish(const Reader& reader, T value) {
-  if (!reader.status().ok()) return reader.status();
+Result<T> Done(const JsonFields& in, T value) {
+  if (!in.ok()) return in.status();
   return value;
-}
-
-Progress ReadProgress(Reader& in, const json& object, const std::string& path) {
-  Result<Progress> progress = ProgressFromJson(object);
-  if (!progress.ok()) {
-    in.Adopt(Status::InvalidArgument(progress.status().message(),
-                                     path + "." + progress.status().field()));
-    return {};
-  }
-  return *progress;
 }
 
 }  // namespace
 
 std::string_view StepPhaseName(StepPhase phase) {
   switch (phase) {
-    case StepPhase::kPrepare: return "prepare";
-    case StepPhase::kOffset: return "offset";
-    case StepPhase::kStimulate: return "stimulate";
-    case StepPhase::kRest: return "rest";
-    case StepPhase::kMove: return "move";
-    case StepPhase::kIdentify: return "identify";
+    case StepPhase::kPrepare:
+      return "prepare";
+    case StepPhase::kOffset:
+      return "offset";
+    case StepPhase::kStimulate:
+      return "stimulate";
+    case StepPhase::kRest:
+      return "rest";
+    case StepPhase::kMove:
+      return "move";
+    case StepPhase::kIdentify:
+      return "identify";
   }
   return "rest";
 }
@@ -192,32 +89,38 @@ json ProgressToJson(const Progress& p) {
 }
 
 Result<Progress> ProgressFromJson(const json& j) {
-  Reader in(j, "");
+  JsonFields in(j);
   Progress p;
-  in.Number("fraction", p.fraction, true);
-  in.Number("eta_s", p.eta_s);
-  in.Number("bench_elapsed_s", p.bench_elapsed_s);
-  in.Number("bench_total_s", p.bench_total_s);
-  in.Integer("step", p.step);
-  in.Named("phase", p.phase, &ParseStepPhase, false);
-  return Finish(in, p);
+  p.eta_s = kNaN;  // null or absent: unknown
+  p.fraction = in.Number("fraction", true).value_or(0.0);
+  ReadInto(in, "eta_s", p.eta_s);
+  ReadInto(in, "bench_elapsed_s", p.bench_elapsed_s);
+  ReadInto(in, "bench_total_s", p.bench_total_s);
+  ReadInto(in, "step", p.step);
+  ReadNamed(in, "phase", false, p.phase, &ParseStepPhase);
+  return Done(in, p);
 }
 
 std::string_view SafetyEventKindName(SafetyEvent::Kind kind) {
   switch (kind) {
-    case SafetyEvent::Kind::kStimClamped: return "stim_clamped";
-    case SafetyEvent::Kind::kSetpointClamped: return "setpoint_clamped";
-    case SafetyEvent::Kind::kEStop: return "estop";
-    case SafetyEvent::Kind::kEStopCleared: return "estop_cleared";
-    case SafetyEvent::Kind::kWatchdog: return "watchdog";
+    case SafetyEvent::Kind::kStimClamped:
+      return "stim_clamped";
+    case SafetyEvent::Kind::kSetpointClamped:
+      return "setpoint_clamped";
+    case SafetyEvent::Kind::kEStop:
+      return "estop";
+    case SafetyEvent::Kind::kEStopCleared:
+      return "estop_cleared";
+    case SafetyEvent::Kind::kWatchdog:
+      return "watchdog";
   }
   return "estop";
 }
 
 std::optional<SafetyEvent::Kind> ParseSafetyEventKind(std::string_view name) {
   using Kind = SafetyEvent::Kind;
-  for (Kind kind : {Kind::kStimClamped, Kind::kSetpointClamped, Kind::kEStop,
-                    Kind::kEStopCleared, Kind::kWatchdog}) {
+  for (Kind kind : {Kind::kStimClamped, Kind::kSetpointClamped, Kind::kEStop, Kind::kEStopCleared,
+                    Kind::kWatchdog}) {
     if (SafetyEventKindName(kind) == name) return kind;
   }
   return std::nullopt;
@@ -232,19 +135,20 @@ json SafetyEventToJson(const SafetyEvent& e) {
 }
 
 Result<SafetyEvent> SafetyEventFromJson(const json& j) {
-  Reader in(j, "");
+  JsonFields in(j);
   SafetyEvent e;
-  in.Named("kind", e.kind, &ParseSafetyEventKind);
-  in.Number("t_s", e.t_s);
-  in.Number("requested", e.requested);
-  in.Number("applied", e.applied);
-  in.Text("detail", e.detail);
-  return Finish(in, e);
+  e.t_s = e.requested = e.applied = kNaN;  // null: not applicable
+  ReadNamed(in, "kind", true, e.kind, &ParseSafetyEventKind);
+  ReadInto(in, "t_s", e.t_s);
+  ReadInto(in, "requested", e.requested);
+  ReadInto(in, "applied", e.applied);
+  ReadInto(in, "detail", e.detail);
+  return Done(in, e);
 }
 
 json SampleBatchToJson(const SampleBatch& b) {
-  json j = {{"trial", b.trial},         {"trial_name", b.trial_name}, {"t_s", b.t_s},
-            {"stim_ma", b.stim_ma},     {"angle_deg", b.angle_deg},   {"torque_nm", b.torque_nm},
+  json j = {{"trial", b.trial},          {"trial_name", b.trial_name}, {"t_s", b.t_s},
+            {"stim_ma", b.stim_ma},      {"angle_deg", b.angle_deg},   {"torque_nm", b.torque_nm},
             {"accel_m_s2", b.accel_m_s2}};
   if (!b.target_deg.empty()) j["target_deg"] = b.target_deg;
   if (!b.tau_scale_nm.empty()) j["tau_scale_nm"] = b.tau_scale_nm;
@@ -252,18 +156,18 @@ json SampleBatchToJson(const SampleBatch& b) {
 }
 
 Result<SampleBatch> SampleBatchFromJson(const json& j) {
-  Reader in(j, "");
+  JsonFields in(j);
   SampleBatch b;
-  in.Integer("trial", b.trial);
-  in.Text("trial_name", b.trial_name);
-  in.Array("t_s", b.t_s);
-  in.Array("stim_ma", b.stim_ma);
-  in.Array("angle_deg", b.angle_deg);
-  in.Array("torque_nm", b.torque_nm);
-  in.Array("accel_m_s2", b.accel_m_s2);
-  in.Array("target_deg", b.target_deg);
-  in.Array("tau_scale_nm", b.tau_scale_nm);
-  return Finish(in, b);
+  ReadInto(in, "trial", b.trial);
+  ReadInto(in, "trial_name", b.trial_name);
+  ReadInto(in, "t_s", b.t_s);
+  ReadInto(in, "stim_ma", b.stim_ma);
+  ReadInto(in, "angle_deg", b.angle_deg);
+  ReadInto(in, "torque_nm", b.torque_nm);
+  ReadInto(in, "accel_m_s2", b.accel_m_s2);
+  ReadInto(in, "target_deg", b.target_deg);
+  ReadInto(in, "tau_scale_nm", b.tau_scale_nm);
+  return Done(in, b);
 }
 
 json ToleranceResultToJson(const ToleranceResult& t) {
@@ -309,48 +213,52 @@ json RunViewToJson(const RunView& v) {
 }
 
 Result<RunView> RunViewFromJson(const json& j) {
-  Reader in(j, "");
+  JsonFields in(j);
   RunView v;
-  in.Integer("run_id", v.run_id, true);
-  in.Integer("session_id", v.session_id);
-  in.Text("protocol", v.protocol);
-  in.Integer("protocol_version", v.protocol_version);
-  if (const json* parameters = in.Raw("parameters"); parameters != nullptr && parameters->is_object()) {
-    for (const auto& [k, x] : parameters->items()) {
-      if (x.is_number()) v.parameters[k] = x.get<double>();
+  v.run_id = in.Integer("run_id", true).value_or(0);
+  ReadInto(in, "session_id", v.session_id);
+  ReadInto(in, "protocol", v.protocol);
+  ReadInto(in, "protocol_version", v.protocol_version);
+  if (const json* parameters = in.Object("parameters", false)) {
+    JsonFields p(*parameters, in.PathOf("parameters"));
+    for (const auto& [name, value] : parameters->items()) ReadInto(p, name, v.parameters[name]);
+    if (!p.ok()) in.Fail("parameters", p.status().message());
+  }
+  ReadNamed(in, "state", true, v.state, &ParseRunState);
+  ReadInto(in, "reason", v.reason);
+  ReadInto(in, "progress", v.progress.fraction);
+  v.progress.eta_s = kNaN;  // null: unknown
+  ReadInto(in, "eta_s", v.progress.eta_s);
+  std::optional<UtcTime> created;
+  ReadTime(in, "created_at_utc", created);
+  if (created) v.created_at = *created;
+  ReadTime(in, "started_at_utc", v.started_at);
+  ReadTime(in, "finished_at_utc", v.finished_at);
+  if (const json* result = in.Any("result", false)) v.result = *result;
+  ReadInto(in, "controller", v.owner);
+  ReadInto(in, "bench_elapsed_s", v.progress.bench_elapsed_s);
+  ReadInto(in, "bench_total_s", v.progress.bench_total_s);
+  ReadInto(in, "trial_ids", v.trial_ids);
+  ReadInto(in, "parameter_set_id", v.parameter_set_id);
+  if (const json* values = in.Object("values", false)) {
+    for (const auto& [name, value] : values->items()) {
+      v.values[name] = value.is_number() ? value.get<double>() : kNaN;
     }
   }
-  in.Named("state", v.state, &ParseRunState);
-  in.Text("reason", v.reason);
-  in.Number("progress", v.progress.fraction);
-  v.progress.eta_s = kNaN;
-  in.Number("eta_s", v.progress.eta_s);
-  std::optional<UtcTime> created;
-  in.Time("created_at_utc", created);
-  if (created) v.created_at = *created;
-  in.Time("started_at_utc", v.started_at);
-  in.Time("finished_at_utc", v.finished_at);
-  if (const json* result = in.Raw("result")) v.result = *result;
-  in.Text("controller", v.owner);
-  in.Number("bench_elapsed_s", v.progress.bench_elapsed_s);
-  in.Number("bench_total_s", v.progress.bench_total_s);
-  in.Array("trial_ids", v.trial_ids);
-  in.Integer("parameter_set_id", v.parameter_set_id);
-  if (const json* values = in.Raw("values"); values != nullptr && values->is_object()) {
-    for (const auto& [k, x] : values->items()) v.values[k] = x.is_number() ? x.get<double>() : kNaN;
-  }
-  if (const json* events = in.Raw("safety_events"); events != nullptr && events->is_array()) {
-    for (std::size_t i = 0; i < events->size(); ++i) {
+  if (const json* events = in.Any("safety_events", false)) {
+    if (!events->is_array()) in.Fail("safety_events", "must be an array");
+    for (std::size_t i = 0; in.ok() && events->is_array() && i < events->size(); ++i) {
       Result<SafetyEvent> e = SafetyEventFromJson((*events)[i]);
       if (!e.ok()) {
-        in.Fail("safety_events[" + std::to_string(i) + "]", e.status().message());
-        break;
+        in.Fail("safety_events[" + std::to_string(i) + "]." + e.status().field(),
+                e.status().message());
+      } else {
+        v.safety_events.push_back(*std::move(e));
       }
-      v.safety_events.push_back(*std::move(e));
     }
   }
-  in.Bool("live", v.live);
-  return Finish(in, std::move(v));
+  ReadInto(in, "live", v.live);
+  return Done(in, std::move(v));
 }
 
 json BenchStateToJson(const BenchState& s) {
@@ -368,30 +276,36 @@ json BenchStateToJson(const BenchState& s) {
 }
 
 Result<BenchState> BenchStateFromJson(const json& j) {
-  Reader in(j, "");
+  JsonFields in(j);
   BenchState s;
-  in.Text("kind", s.kind);
-  in.Text("mode", s.mode);
-  in.Bool("busy", s.busy);
-  in.Bool("estopped", s.estopped);
-  in.Text("estop_source", s.estop_source);
-  in.Text("owner", s.owner);
-  in.Integer("owner_user_id", s.owner_user_id);
-  in.Integer("run_id", s.run_id);
-  in.Text("protocol", s.protocol);
-  in.Named("run_state", s.run_state, &ParseRunState, false);
-  if (const json* progress = in.Raw("progress")) s.progress = ReadProgress(in, *progress, "progress");
-  return Finish(in, std::move(s));
+  ReadInto(in, "kind", s.kind);
+  ReadInto(in, "mode", s.mode);
+  ReadInto(in, "busy", s.busy);
+  ReadInto(in, "estopped", s.estopped);
+  ReadInto(in, "estop_source", s.estop_source);
+  ReadInto(in, "owner", s.owner);
+  ReadInto(in, "owner_user_id", s.owner_user_id);
+  ReadInto(in, "run_id", s.run_id);
+  ReadInto(in, "protocol", s.protocol);
+  ReadNamed(in, "run_state", false, s.run_state, &ParseRunState);
+  ReadNested(in, "progress", s.progress, &ProgressFromJson);
+  return Done(in, std::move(s));
 }
 
 std::string_view RunEventKindName(RunEvent::Kind kind) {
   switch (kind) {
-    case RunEvent::Kind::kState: return "state";
-    case RunEvent::Kind::kProgress: return "progress";
-    case RunEvent::Kind::kSamples: return "samples";
-    case RunEvent::Kind::kTrial: return "trial";
-    case RunEvent::Kind::kEnd: return "end";
-    case RunEvent::Kind::kParameterSet: return "parameter_set";
+    case RunEvent::Kind::kState:
+      return "state";
+    case RunEvent::Kind::kProgress:
+      return "progress";
+    case RunEvent::Kind::kSamples:
+      return "samples";
+    case RunEvent::Kind::kTrial:
+      return "trial";
+    case RunEvent::Kind::kEnd:
+      return "end";
+    case RunEvent::Kind::kParameterSet:
+      return "parameter_set";
   }
   return "state";
 }
@@ -441,35 +355,26 @@ json RunEventToJson(const RunEvent& e) {
 }
 
 Result<RunEvent> RunEventFromJson(const json& j) {
-  Reader in(j, "");
+  JsonFields in(j);
   RunEvent e;
-  in.Named("kind", e.kind, &ParseRunEventKind);
-  in.Integer("seq", e.seq);
-  in.Integer("run_id", e.run_id);
-  if (!in.status().ok()) return in.status();
-  const bool has_state = e.kind == RunEvent::Kind::kState || e.kind == RunEvent::Kind::kEnd;
-  if (has_state) {
-    in.Named("state", e.state, &ParseRunState);
-    in.Text("reason", e.reason);
+  ReadNamed(in, "kind", true, e.kind, &ParseRunEventKind);
+  ReadInto(in, "seq", e.seq);
+  ReadInto(in, "run_id", e.run_id);
+  if (e.kind == RunEvent::Kind::kState || e.kind == RunEvent::Kind::kEnd) {
+    ReadNamed(in, "state", true, e.state, &ParseRunState);
+    ReadInto(in, "reason", e.reason);
   }
-  if (const json* progress = in.Raw("progress")) e.progress = ReadProgress(in, *progress, "progress");
-  if (const json* samples = in.Raw("samples")) {
-    Result<SampleBatch> batch = SampleBatchFromJson(*samples);
-    if (batch.ok()) {
-      e.samples = *std::move(batch);
-    } else {
-      in.Fail("samples", batch.status().ToString());
-    }
-  }
-  in.Integer("first_sample", e.first_sample);
-  in.Integer("trial", e.samples.trial);
-  in.Text("trial_name", e.samples.trial_name);
-  in.Integer("trial_id", e.trial_id);
-  in.Integer("parameter_set_id", e.parameter_set_id);
-  in.Integer("subject_id", e.subject_id);
-  in.Integer("leg_id", e.leg_id);
-  if (const json* result = in.Raw("result")) e.result = *result;
-  return Finish(in, std::move(e));
+  ReadNested(in, "progress", e.progress, &ProgressFromJson);
+  ReadNested(in, "samples", e.samples, &SampleBatchFromJson);
+  ReadInto(in, "first_sample", e.first_sample);
+  ReadInto(in, "trial", e.samples.trial);
+  ReadInto(in, "trial_name", e.samples.trial_name);
+  ReadInto(in, "trial_id", e.trial_id);
+  ReadInto(in, "parameter_set_id", e.parameter_set_id);
+  ReadInto(in, "subject_id", e.subject_id);
+  ReadInto(in, "leg_id", e.leg_id);
+  if (const json* result = in.Any("result", false)) e.result = *result;
+  return Done(in, std::move(e));
 }
 
 }  // namespace fesbench::api

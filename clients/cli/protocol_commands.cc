@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "api/protocol_info.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/output.h"
 
@@ -26,36 +27,39 @@ std::string SessionQuery(const std::string& session) {
 
 // A limit or default as the server states it (up to 10 digits, so that
 // e.g. a seed's 4294967295 is not rounded).
-std::string Value(const json& value) {
-  if (!value.is_number()) return Cell(value);
+std::string Value(double value) {
   char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.10g", value.get<double>());
+  std::snprintf(buffer, sizeof buffer, "%.10g", value);
   return buffer;
 }
 
 // "default" cell: the value in its unit, else the rule the server gives.
-std::string DefaultCell(const json& p) {
-  const json def = p.value("default", json(nullptr));
-  if (!def.is_null()) return Value(def);
-  const json rule = p.value("default_rule", json(nullptr));
-  return rule.is_string() ? "(" + rule.get<std::string>() + ")" : "-";
+std::string DefaultCell(const api::ProtocolParameterInfo& p) {
+  if (p.default_value) return Value(*p.default_value);
+  return p.default_rule ? "(" + *p.default_rule + ")" : "-";
 }
 
-void PrintProtocol(CliContext& context, const json& protocol) {
-  context.out << Cell(protocol["name"]) << " (version " << Cell(protocol.value("version", json()))
-              << "): " << Cell(protocol.value("title", json())) << "\n"
-              << "thesis section: " << Cell(protocol.value("thesis_section", json())) << "\n"
-              << "stimulates: " << Cell(protocol.value("stimulates", json())) << "\n"
-              << "bench mode: " << Cell(protocol.value("bench_mode", json())) << "\n"
-              << "min rest: " << Cell(protocol.value("min_rest_s", json())) << " s\n";
-  const std::string description = protocol.value("description", "");
-  if (!description.empty()) context.out << description << "\n";
+api::ProtocolInfo ReadProtocol(const json& sent) {
+  api::Result<api::ProtocolInfo> protocol = api::ProtocolInfoFromJson(sent);
+  if (!protocol.ok()) {
+    throw CliError::Server("server sent an unreadable protocol: " + protocol.status().ToString());
+  }
+  return *std::move(protocol);
+}
+
+void PrintProtocol(CliContext& context, const api::ProtocolInfo& protocol) {
+  context.out << protocol.name << " (version " << protocol.version << "): " << protocol.title
+              << "\n"
+              << "thesis section: " << protocol.thesis_section << "\n"
+              << "stimulates: " << (protocol.stimulates ? "yes" : "no") << "\n"
+              << "bench mode: " << protocol.bench_mode << "\n"
+              << "min rest: " << Cell(json(protocol.min_rest_s)) << " s\n";
+  if (!protocol.description.empty()) context.out << protocol.description << "\n";
   std::vector<std::vector<std::string>> rows;
-  for (const auto& p : protocol.value("parameters", json::array())) {
-    rows.push_back({Cell(p["name"]), Cell(p.value("unit", json(nullptr))), DefaultCell(p),
-                    Value(p.value("min", json(nullptr))), Value(p.value("max", json(nullptr))),
-                    p.value("integer", false) ? "integer" : "number",
-                    p.value("advanced", false) ? "advanced" : "", Cell(p.value("label", ""))});
+  for (const api::ProtocolParameterInfo& p : protocol.parameters) {
+    rows.push_back({p.name, p.unit, DefaultCell(p), Value(p.min),
+                    Value(p.max), p.integer ? "integer" : "number", p.advanced ? "advanced" : "",
+                    p.label});
   }
   context.out << "parameters (--param NAME=VALUE in the unit shown):\n";
   PrintTable(context.out, {"name", "unit", "default", "min", "max", "type", "", "label"}, rows);
@@ -82,12 +86,10 @@ void RegisterProtocolCommands(CLI::App& app, CliContext& context) {
           return;
         }
         std::vector<std::vector<std::string>> rows;
-        for (const auto& p : items) {
-          rows.push_back({Cell(p["name"]), Cell(p.value("thesis_section", json(nullptr))),
-                          Cell(p.value("stimulates", json(nullptr))),
-                          Cell(p.value("bench_mode", json(nullptr))),
-                          std::to_string(p.value("parameters", json::array()).size()),
-                          Cell(p.value("title", json(nullptr)))});
+        for (const json& item : items) {
+          const api::ProtocolInfo p = ReadProtocol(item);
+          rows.push_back({p.name, p.thesis_section, p.stimulates ? "yes" : "no", p.bench_mode,
+                          std::to_string(p.parameters.size()), p.title});
         }
         PrintTable(context.out,
                    {"name", "thesis_section", "stimulates", "bench_mode", "parameters", "title"},
@@ -113,7 +115,7 @@ void RegisterProtocolCommands(CLI::App& app, CliContext& context) {
           context.out << protocol.dump(2) << "\n";
           return;
         }
-        PrintProtocol(context, protocol);
+        PrintProtocol(context, ReadProtocol(protocol));
       };
     });
   }

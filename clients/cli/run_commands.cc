@@ -26,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "api/protocol_info.h"
 #include "api/run.h"
 #include "api/trial.h"
 #include "api/trial_import.h"
@@ -338,12 +339,16 @@ struct StartForm {
 // Why a run of `protocol` (GET /protocols/{name}) cannot be left alone, or
 // "" if it can: the watchdog aborts every run whose controller stops
 // heart-beating, and it is there for stimulation and the motor.
-std::string DetachRefusal(const json& protocol) {
-  const std::string name = protocol.value("name", "");
+std::string DetachRefusal(const json& sent) {
+  const api::Result<api::ProtocolInfo> protocol = api::ProtocolInfoFromJson(sent);
+  if (!protocol.ok()) {
+    throw CliError::Server("server sent an unreadable protocol: " + protocol.status().ToString());
+  }
+  const std::string& name = protocol->name;
   std::string what;
-  if (protocol.value("stimulates", true)) {
+  if (protocol->stimulates) {
     what = "stimulates the subject";
-  } else if (protocol.value("bench_mode", "") != "decoupled") {
+  } else if (protocol->bench_mode != "decoupled") {
     what = "moves the brace with the motor";
   } else {
     return "";

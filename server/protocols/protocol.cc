@@ -365,42 +365,45 @@ bool Stimulates(const ProtocolDescription& protocol) {
   return protocol.kind != ProtocolKind::kPassive;
 }
 
-nlohmann::json ProtocolToJson(const ProtocolDescription& protocol, const SubjectContext* session,
-                              bool session_has_limits) {
-  nlohmann::json params = nlohmann::json::array();
+api::ProtocolInfo ProtocolInfoOf(const ProtocolDescription& protocol,
+                                  const SubjectContext* session, bool session_has_limits) {
+  api::ProtocolInfo info{.name = protocol.name,
+                         .version = protocol.version,
+                         .title = protocol.title,
+                         .description = protocol.description,
+                         .thesis_section = ThesisSection(protocol),
+                         .stimulates = Stimulates(protocol),
+                         .bench_mode = std::string(BenchModeName(protocol.bench_mode)),
+                         .min_rest_s = protocol.min_rest_s};
   for (const ParameterSpec& p : protocol.parameters) {
     const ParameterPresentation look = PresentationOf(p.name);
-    nlohmann::json def = p.default_value;
-    nlohmann::json rule = nullptr;
+    api::ProtocolParameterInfo& out = info.parameters.emplace_back(api::ProtocolParameterInfo{
+        .name = p.name,
+        .label = look.label,
+        .unit = look.unit,
+        .description = p.description,
+        .default_value = p.default_value,
+        .default_rule = std::nullopt,
+        .min = p.min_value,
+        .max = p.max_value,
+        .integer = p.integer,
+        .advanced = look.advanced,
+        .scales_to = std::string(ScalingName(p.scaling)),
+        .rest = p.is_rest,
+        .choices = p.choices});
     if (p.scaling != Scaling::kNone) {
       const bool resolvable =
           session != nullptr && (session_has_limits || !IsStimulationScaling(p.scaling));
-      def = resolvable ? nlohmann::json(DefaultFor(p, *session)) : nlohmann::json(nullptr);
-      rule = DefaultRule(p);
+      out.default_value = resolvable ? std::optional<double>(DefaultFor(p, *session)) : std::nullopt;
+      out.default_rule = DefaultRule(p);
     }
-    params.push_back({{"name", p.name},
-                      {"label", look.label},
-                      {"unit", look.unit},
-                      {"description", p.description},
-                      {"default", std::move(def)},
-                      {"default_rule", std::move(rule)},
-                      {"min", p.min_value},
-                      {"max", p.max_value},
-                      {"integer", p.integer},
-                      {"advanced", look.advanced},
-                      {"scales_to", std::string(ScalingName(p.scaling))},
-                      {"rest", p.is_rest},
-                      {"choices", p.choices}});
   }
-  return {{"name", protocol.name},
-          {"version", protocol.version},
-          {"title", protocol.title},
-          {"description", protocol.description},
-          {"thesis_section", ThesisSection(protocol)},
-          {"stimulates", Stimulates(protocol)},
-          {"bench_mode", std::string(BenchModeName(protocol.bench_mode))},
-          {"min_rest_s", protocol.min_rest_s},
-          {"parameters", std::move(params)}};
+  return info;
+}
+
+nlohmann::json ProtocolToJson(const ProtocolDescription& protocol, const SubjectContext* session,
+                              bool session_has_limits) {
+  return api::ProtocolInfoToJson(ProtocolInfoOf(protocol, session, session_has_limits));
 }
 
 nlohmann::json CatalogToJson(const SubjectContext* session, bool session_has_limits) {

@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "api/protocol_info.h"
 #include "api/run.h"
 #include "api/status.h"
 #include "model/identify_common.h"
@@ -188,16 +189,16 @@ std::string ThesisSection(const ProtocolDescription& protocol);
 /// True if the protocol delivers stimulation (every kind but kPassive).
 bool Stimulates(const ProtocolDescription& protocol);
 
-/// JSON of a description (GET /api/v1/protocols/{name}, issue 14 §5):
-/// {"name", "version", "title", "description", "thesis_section",
-///  "stimulates", "bench_mode", "min_rest_s", "parameters": [{"name",
-///  "label", "unit", "description", "default", "default_rule", "min", "max",
-///  "integer", "advanced", "scales_to", "rest"}]}. A default derived from
-/// the session (threshold, max tolerated, range-scaled amplitudes, range of
-/// motion) is resolved for `session` in the parameter's own unit; without a
-/// session (or, for stimulation values, a session without recorded limits)
-/// it is null and "default_rule" says how it is derived. "default_rule" is
-/// null for fixed defaults.
+/// A description as it is listed (GET /api/v1/protocols/{name}, issue 14
+/// §5; api::ProtocolInfo). A default derived from the session (threshold,
+/// max tolerated, range-scaled amplitudes, range of motion) is resolved for
+/// `session` in the parameter's own unit; without a session (or, for
+/// stimulation values, a session without recorded limits) it is unset and
+/// the default rule says how it is derived. Fixed defaults have no rule.
+api::ProtocolInfo ProtocolInfoOf(const ProtocolDescription& protocol,
+                                 const SubjectContext* session = nullptr,
+                                 bool session_has_limits = false);
+/// api::ProtocolInfoToJson of ProtocolInfoOf.
 nlohmann::json ProtocolToJson(const ProtocolDescription& protocol,
                               const SubjectContext* session = nullptr,
                               bool session_has_limits = false);

@@ -1,0 +1,75 @@
+#include "api/protocol_info.h"
+
+#include <utility>
+
+#include "api/json_fields.h"
+
+namespace fesbench::api {
+
+using nlohmann::json;
+
+json ProtocolInfoToJson(const ProtocolInfo& protocol) {
+  json parameters = json::array();
+  for (const ProtocolParameterInfo& p : protocol.parameters) {
+    parameters.push_back({{"name", p.name},
+                          {"label", p.label},
+                          {"unit", p.unit},
+                          {"description", p.description},
+                          {"default", p.default_value ? json(*p.default_value) : json(nullptr)},
+                          {"default_rule", p.default_rule ? json(*p.default_rule) : json(nullptr)},
+                          {"min", p.min},
+                          {"max", p.max},
+                          {"integer", p.integer},
+                          {"advanced", p.advanced},
+                          {"scales_to", p.scales_to},
+                          {"rest", p.rest},
+                          {"choices", p.choices}});
+  }
+  return {{"name", protocol.name},
+          {"version", protocol.version},
+          {"title", protocol.title},
+          {"description", protocol.description},
+          {"thesis_section", protocol.thesis_section},
+          {"stimulates", protocol.stimulates},
+          {"bench_mode", protocol.bench_mode},
+          {"min_rest_s", protocol.min_rest_s},
+          {"parameters", std::move(parameters)}};
+}
+
+Result<ProtocolInfo> ProtocolInfoFromJson(const json& j) {
+  JsonFields in(j);
+  ProtocolInfo protocol;
+  protocol.name = in.String("name", true).value_or("");
+  ReadInto(in, "version", protocol.version);
+  ReadInto(in, "title", protocol.title);
+  ReadInto(in, "description", protocol.description);
+  ReadInto(in, "thesis_section", protocol.thesis_section);
+  ReadInto(in, "stimulates", protocol.stimulates);
+  ReadInto(in, "bench_mode", protocol.bench_mode);
+  ReadInto(in, "min_rest_s", protocol.min_rest_s);
+  const json* parameters = in.Any("parameters", false);
+  if (parameters != nullptr && !parameters->is_array()) in.Fail("parameters", "must be a list");
+  for (std::size_t i = 0; in.ok() && parameters != nullptr && i < parameters->size(); ++i) {
+    JsonFields f((*parameters)[i], "parameters[" + std::to_string(i) + "]");
+    ProtocolParameterInfo p;
+    p.name = f.String("name", true).value_or("");
+    ReadInto(f, "label", p.label);
+    ReadInto(f, "unit", p.unit);
+    ReadInto(f, "description", p.description);
+    ReadInto(f, "default", p.default_value);
+    ReadInto(f, "default_rule", p.default_rule);
+    ReadInto(f, "min", p.min);
+    ReadInto(f, "max", p.max);
+    ReadInto(f, "integer", p.integer);
+    ReadInto(f, "advanced", p.advanced);
+    ReadInto(f, "scales_to", p.scales_to);
+    ReadInto(f, "rest", p.rest);
+    ReadInto(f, "choices", p.choices);
+    if (!f.ok()) return f.status();
+    protocol.parameters.push_back(std::move(p));
+  }
+  if (!in.ok()) return in.status();
+  return protocol;
+}
+
+}  // namespace fesbench::api
