@@ -4,11 +4,16 @@
 #include <utility>
 
 #include "api/json_fields.h"
+#include "api/name_table.h"
 
 namespace fesbench::api {
 namespace {
 
 using nlohmann::json;
+
+constexpr NameTable<PredictionMode, 2> kPredictionModes(
+    {{{PredictionMode::kFreeSwing, "free_swing"}, {PredictionMode::kIsometric, "isometric"}}},
+    "free_swing");
 
 std::string Indexed(const std::string& path, std::size_t i) {
   return path + "[" + std::to_string(i) + "]";
@@ -92,14 +97,10 @@ Result<StimulusSpec> StimulusFromJson(const json& object, const std::string& pat
 
 }  // namespace
 
-std::string_view PredictionModeName(PredictionMode mode) {
-  return mode == PredictionMode::kIsometric ? "isometric" : "free_swing";
-}
+std::string_view PredictionModeName(PredictionMode mode) { return kPredictionModes.Name(mode); }
 
 std::optional<PredictionMode> ParsePredictionMode(std::string_view name) {
-  if (name == "free_swing") return PredictionMode::kFreeSwing;
-  if (name == "isometric") return PredictionMode::kIsometric;
-  return std::nullopt;
+  return kPredictionModes.Parse(name);
 }
 
 Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {

@@ -1,28 +1,22 @@
 #include "api/job.h"
 
+#include "api/name_table.h"
+
 namespace fesbench::api {
 
-std::string_view JobStateName(JobState state) {
-  switch (state) {
-    case JobState::kQueued:
-      return "queued";
-    case JobState::kRunning:
-      return "running";
-    case JobState::kDone:
-      return "done";
-    case JobState::kFailed:
-      return "failed";
-  }
-  return "failed";
-}
+namespace {
 
-std::optional<JobState> ParseJobState(std::string_view name) {
-  for (JobState state :
-       {JobState::kQueued, JobState::kRunning, JobState::kDone, JobState::kFailed}) {
-    if (JobStateName(state) == name) return state;
-  }
-  return std::nullopt;
-}
+constexpr NameTable<JobState, 4> kJobStates({{{JobState::kQueued, "queued"},
+                                              {JobState::kRunning, "running"},
+                                              {JobState::kDone, "done"},
+                                              {JobState::kFailed, "failed"}}},
+                                            "failed");
+
+}  // namespace
+
+std::string_view JobStateName(JobState state) { return kJobStates.Name(state); }
+
+std::optional<JobState> ParseJobState(std::string_view name) { return kJobStates.Parse(name); }
 
 nlohmann::json ErrorToJson(const Status& status) {
   nlohmann::json error = {{"code", ErrorCodeName(status.code())}, {"message", status.message()}};

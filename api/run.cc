@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "api/json_fields.h"
+#include "api/name_table.h"
 #include "api/time_utc.h"
 
 namespace fesbench::api {
@@ -13,6 +14,31 @@ namespace {
 using nlohmann::json;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+constexpr NameTable<StepPhase, 6> kStepPhases({{{StepPhase::kPrepare, "prepare"},
+                                                {StepPhase::kOffset, "offset"},
+                                                {StepPhase::kStimulate, "stimulate"},
+                                                {StepPhase::kRest, "rest"},
+                                                {StepPhase::kMove, "move"},
+                                                {StepPhase::kIdentify, "identify"}}},
+                                              "rest");
+
+constexpr NameTable<SafetyEvent::Kind, 5> kSafetyEventKinds(
+    {{{SafetyEvent::Kind::kStimClamped, "stim_clamped"},
+      {SafetyEvent::Kind::kSetpointClamped, "setpoint_clamped"},
+      {SafetyEvent::Kind::kEStop, "estop"},
+      {SafetyEvent::Kind::kEStopCleared, "estop_cleared"},
+      {SafetyEvent::Kind::kWatchdog, "watchdog"}}},
+    "estop");
+
+constexpr NameTable<RunEvent::Kind, 6> kRunEventKinds({{{RunEvent::Kind::kState, "state"},
+                                                        {RunEvent::Kind::kProgress, "progress"},
+                                                        {RunEvent::Kind::kSamples, "samples"},
+                                                        {RunEvent::Kind::kTrial, "trial"},
+                                                        {RunEvent::Kind::kEnd, "end"},
+                                                        {RunEvent::Kind::kParameterSet,
+                                                         "parameter_set"}}},
+                                                      "state");
 
 json Finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
@@ -53,31 +79,9 @@ Result<T> Done(const JsonFields& in, T value) {
 
 }  // namespace
 
-std::string_view StepPhaseName(StepPhase phase) {
-  switch (phase) {
-    case StepPhase::kPrepare:
-      return "prepare";
-    case StepPhase::kOffset:
-      return "offset";
-    case StepPhase::kStimulate:
-      return "stimulate";
-    case StepPhase::kRest:
-      return "rest";
-    case StepPhase::kMove:
-      return "move";
-    case StepPhase::kIdentify:
-      return "identify";
-  }
-  return "rest";
-}
+std::string_view StepPhaseName(StepPhase phase) { return kStepPhases.Name(phase); }
 
-std::optional<StepPhase> ParseStepPhase(std::string_view name) {
-  for (StepPhase phase : {StepPhase::kPrepare, StepPhase::kOffset, StepPhase::kStimulate,
-                          StepPhase::kRest, StepPhase::kMove, StepPhase::kIdentify}) {
-    if (StepPhaseName(phase) == name) return phase;
-  }
-  return std::nullopt;
-}
+std::optional<StepPhase> ParseStepPhase(std::string_view name) { return kStepPhases.Parse(name); }
 
 json ProgressToJson(const Progress& p) {
   return {{"fraction", p.fraction},
@@ -102,28 +106,11 @@ Result<Progress> ProgressFromJson(const json& j) {
 }
 
 std::string_view SafetyEventKindName(SafetyEvent::Kind kind) {
-  switch (kind) {
-    case SafetyEvent::Kind::kStimClamped:
-      return "stim_clamped";
-    case SafetyEvent::Kind::kSetpointClamped:
-      return "setpoint_clamped";
-    case SafetyEvent::Kind::kEStop:
-      return "estop";
-    case SafetyEvent::Kind::kEStopCleared:
-      return "estop_cleared";
-    case SafetyEvent::Kind::kWatchdog:
-      return "watchdog";
-  }
-  return "estop";
+  return kSafetyEventKinds.Name(kind);
 }
 
 std::optional<SafetyEvent::Kind> ParseSafetyEventKind(std::string_view name) {
-  using Kind = SafetyEvent::Kind;
-  for (Kind kind : {Kind::kStimClamped, Kind::kSetpointClamped, Kind::kEStop, Kind::kEStopCleared,
-                    Kind::kWatchdog}) {
-    if (SafetyEventKindName(kind) == name) return kind;
-  }
-  return std::nullopt;
+  return kSafetyEventKinds.Parse(name);
 }
 
 json SafetyEventToJson(const SafetyEvent& e) {
@@ -292,31 +279,10 @@ Result<BenchState> BenchStateFromJson(const json& j) {
   return Done(in, std::move(s));
 }
 
-std::string_view RunEventKindName(RunEvent::Kind kind) {
-  switch (kind) {
-    case RunEvent::Kind::kState:
-      return "state";
-    case RunEvent::Kind::kProgress:
-      return "progress";
-    case RunEvent::Kind::kSamples:
-      return "samples";
-    case RunEvent::Kind::kTrial:
-      return "trial";
-    case RunEvent::Kind::kEnd:
-      return "end";
-    case RunEvent::Kind::kParameterSet:
-      return "parameter_set";
-  }
-  return "state";
-}
+std::string_view RunEventKindName(RunEvent::Kind kind) { return kRunEventKinds.Name(kind); }
 
 std::optional<RunEvent::Kind> ParseRunEventKind(std::string_view name) {
-  using Kind = RunEvent::Kind;
-  for (Kind kind : {Kind::kState, Kind::kProgress, Kind::kSamples, Kind::kTrial, Kind::kEnd,
-                    Kind::kParameterSet}) {
-    if (RunEventKindName(kind) == name) return kind;
-  }
-  return std::nullopt;
+  return kRunEventKinds.Parse(name);
 }
 
 json RunEventToJson(const RunEvent& e) {

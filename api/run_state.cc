@@ -1,30 +1,23 @@
 #include "api/run_state.h"
 
+#include "api/name_table.h"
+
 namespace fesbench::api {
 
-std::string_view RunStateName(RunState state) {
-  switch (state) {
-    case RunState::kQueued:
-      return "queued";
-    case RunState::kRunning:
-      return "running";
-    case RunState::kDone:
-      return "done";
-    case RunState::kFailed:
-      return "failed";
-    case RunState::kAborted:
-      return "aborted";
-  }
-  return "failed";
-}
+namespace {
 
-std::optional<RunState> ParseRunState(std::string_view name) {
-  for (RunState state : {RunState::kQueued, RunState::kRunning, RunState::kDone, RunState::kFailed,
-                         RunState::kAborted}) {
-    if (RunStateName(state) == name) return state;
-  }
-  return std::nullopt;
-}
+constexpr NameTable<RunState, 5> kRunStates({{{RunState::kQueued, "queued"},
+                                              {RunState::kRunning, "running"},
+                                              {RunState::kDone, "done"},
+                                              {RunState::kFailed, "failed"},
+                                              {RunState::kAborted, "aborted"}}},
+                                            "failed");
+
+}  // namespace
+
+std::string_view RunStateName(RunState state) { return kRunStates.Name(state); }
+
+std::optional<RunState> ParseRunState(std::string_view name) { return kRunStates.Parse(name); }
 
 bool IsFinal(RunState state) {
   return state == RunState::kDone || state == RunState::kFailed || state == RunState::kAborted;

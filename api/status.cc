@@ -1,31 +1,30 @@
 #include "api/status.h"
 
+#include "api/name_table.h"
+
 namespace fesbench::api {
 
-std::string_view ErrorCodeName(ErrorCode code) {
-  switch (code) {
-    case ErrorCode::kOk: return "ok";
-    case ErrorCode::kInvalidArgument: return "invalid_argument";
-    case ErrorCode::kNotFound: return "not_found";
-    case ErrorCode::kAlreadyExists: return "already_exists";
-    case ErrorCode::kConflict: return "conflict";
-    case ErrorCode::kFailedPrecondition: return "failed_precondition";
-    case ErrorCode::kUnauthenticated: return "unauthenticated";
-    case ErrorCode::kPermissionDenied: return "permission_denied";
-    case ErrorCode::kUnavailable: return "unavailable";
-    case ErrorCode::kDataLoss: return "data_loss";
-    case ErrorCode::kInternal: return "internal";
-  }
-  return "internal";
-}
+namespace {
 
-std::optional<ErrorCode> ParseErrorCode(std::string_view name) {
-  for (int i = 0; i <= static_cast<int>(ErrorCode::kInternal); ++i) {
-    const auto code = static_cast<ErrorCode>(i);
-    if (ErrorCodeName(code) == name) return code;
-  }
-  return std::nullopt;
-}
+constexpr NameTable<ErrorCode, 11> kErrorCodes(
+    {{{ErrorCode::kOk, "ok"},
+      {ErrorCode::kInvalidArgument, "invalid_argument"},
+      {ErrorCode::kNotFound, "not_found"},
+      {ErrorCode::kAlreadyExists, "already_exists"},
+      {ErrorCode::kConflict, "conflict"},
+      {ErrorCode::kFailedPrecondition, "failed_precondition"},
+      {ErrorCode::kUnauthenticated, "unauthenticated"},
+      {ErrorCode::kPermissionDenied, "permission_denied"},
+      {ErrorCode::kUnavailable, "unavailable"},
+      {ErrorCode::kDataLoss, "data_loss"},
+      {ErrorCode::kInternal, "internal"}}},
+    "internal");
+
+}  // namespace
+
+std::string_view ErrorCodeName(ErrorCode code) { return kErrorCodes.Name(code); }
+
+std::optional<ErrorCode> ParseErrorCode(std::string_view name) { return kErrorCodes.Parse(name); }
 
 std::string Status::ToString() const {
   if (ok()) return "ok";

@@ -77,16 +77,9 @@ bool Stimulator::AwaitAck(Command ack) {
       }
       return true;
     }
-    switch (reader_.ReadBefore(deadline)) {
-      case FrameReader::ReadOutcome::kRead:
-        break;
-      case FrameReader::ReadOutcome::kTimedOut:
-        Fault("stimulator timeout: no reply within " + std::to_string(config_.reply_timeout.count()) +
-              " ms");
-        return false;
-      case FrameReader::ReadOutcome::kHungUp:
-        Fault(kStimulatorLost);
-        return false;
+    if (const std::string why = reader_.ReadReply(deadline, config_.reply_timeout); !why.empty()) {
+      Fault(why);
+      return false;
     }
   }
 }

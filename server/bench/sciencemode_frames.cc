@@ -19,6 +19,19 @@ FrameReader::ReadOutcome FrameReader::ReadBefore(std::chrono::steady_clock::time
   return ReadFor(left);
 }
 
+std::string FrameReader::ReadReply(std::chrono::steady_clock::time_point deadline,
+                                   std::chrono::milliseconds reply_timeout) {
+  switch (ReadBefore(deadline)) {
+    case ReadOutcome::kRead:
+      return "";
+    case ReadOutcome::kTimedOut:
+      return "stimulator timeout: no reply within " + std::to_string(reply_timeout.count()) + " ms";
+    case ReadOutcome::kHungUp:
+      return kStimulatorLost;
+  }
+  return kStimulatorLost;
+}
+
 FrameReader::ReadOutcome FrameReader::ReadAvailable() {
   return ReadFor(std::chrono::milliseconds(0));
 }

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "server/bench/sciencemode2_packet.h"
@@ -41,6 +42,12 @@ class FrameReader {
   /// One read of what arrives before `deadline` (kTimedOut at once if it has
   /// passed), split into frames.
   ReadOutcome ReadBefore(std::chrono::steady_clock::time_point deadline);
+
+  /// ReadBefore for a reply due within `reply_timeout` of the request: ""
+  /// once the port answered, else the fault the driver reports
+  /// ("stimulator timeout: no reply within 150 ms", kStimulatorLost).
+  std::string ReadReply(std::chrono::steady_clock::time_point deadline,
+                        std::chrono::milliseconds reply_timeout);
 
   /// One read of what the port already holds, without waiting: kRead or
   /// kHungUp.
