@@ -28,6 +28,7 @@
 
 #include "api/protocol_info.h"
 #include "api/run.h"
+#include "api/run_start.h"
 #include "api/trial.h"
 #include "api/trial_import.h"
 #include "clients/cli/commands.h"
@@ -308,20 +309,21 @@ void PrintRun(CliContext& context, const json& run) {
 }
 
 // A target trajectory file: CSV with the columns t_s and angle_deg (any
-// order, others ignored), as {"t_s": [...], "angle_deg": [...]}.
-json TargetSamplesFromCsv(const std::string& path) {
+// order, others ignored).
+api::TargetSamples TargetSamplesFromCsv(const std::string& path) {
   const api::Result<std::string> text = api::ReadTextFile(path);
   if (!text.ok()) throw CliError::Usage("--target-csv: " + text.status().ToString());
   const api::Result<api::TextTable> table = api::ReadTextTable(*text, "csv");
   if (!table.ok()) throw CliError::Usage("--target-csv " + path + ": " + table.status().message());
-  json out = json::object();
+  api::TargetSamples out;
   for (const char* name : {"t_s", "angle_deg"}) {
     const auto it = std::find(table->labels.begin(), table->labels.end(), name);
     if (it == table->labels.end()) {
       throw CliError::Usage("--target-csv " + path + ": no column " + name +
                             " (the file needs t_s and angle_deg)");
     }
-    out[name] = table->columns[static_cast<std::size_t>(it - table->labels.begin())];
+    (std::string(name) == "t_s" ? out.t_s : out.angle_deg) =
+        table->columns[static_cast<std::size_t>(it - table->labels.begin())];
   }
   return out;
 }
@@ -416,10 +418,14 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
           throw CliError::Usage("--detach and --follow exclude each other");
         }
         const std::int64_t session = ParseId(form->session, "session");
-        json parameters = json::object();
+        api::StartRunRequest request{.protocol = form->protocol};
         for (const auto& text : form->params) {
           const auto [key, value] = ParseRunParameter(text);
-          parameters[key] = value;
+          if (value.is_string()) {
+            request.choices[key] = value.get<std::string>();
+          } else {
+            request.parameters[key] = value.get<double>();
+          }
         }
         const CliConfig connection = ResolveConnection(context.options);
         ApiClient client(connection);
@@ -427,13 +433,13 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
           const std::string refusal = DetachRefusal(client.Get("/protocols/" + form->protocol));
           if (!refusal.empty()) throw CliError::Usage(refusal);
         }
-        json body = {{"protocol", form->protocol}, {"parameters", parameters}};
-        if (!form->ceiling_reason.empty()) body["ceiling_reason"] = form->ceiling_reason;
+        if (!form->ceiling_reason.empty()) request.ceiling_reason = form->ceiling_reason;
         if (!form->target_csv.empty()) {
-          body["target_samples"] = TargetSamplesFromCsv(form->target_csv);
-          if (!body["parameters"].contains("target")) body["parameters"]["target"] = "uploaded";
+          request.target = TargetSamplesFromCsv(form->target_csv);
+          if (!request.parameters.contains("target")) request.choices.try_emplace("target", "uploaded");
         }
-        const json started = client.Post("/sessions/" + std::to_string(session) + "/runs", body);
+        const json started = client.Post("/sessions/" + std::to_string(session) + "/runs",
+                                         api::StartRunRequestToJson(request));
         const std::int64_t run_id = started["run_id"].get<std::int64_t>();
         if (form->detach) {
           if (context.options.json) {

@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 
+#include "api/run_start.h"
 #include "api/status.h"
 #include "server/protocols/protocol.h"
 #include "server/services/actor.h"
@@ -20,17 +21,10 @@ namespace fesbench::server::http {
 /// The services' Actor for an authenticated user.
 services::Actor ActorOf(const storage::User& user);
 
-/// POST /sessions/{id}/runs: {"protocol": "<name>", "parameters"?: {"<name>": number},
-/// "ceiling_reason"?: "<why a tolerance test goes above the recorded max>"}.
-/// "target_samples"?: {"t_s": [...], "angle_deg": [...]} (tracking's uploaded
-/// target, at most kMaxTargetSamples samples).
-struct StartRunRequest {
-  std::string protocol;
-  protocols::ParameterValues parameters;
-  std::optional<std::string> ceiling_reason;
-  std::optional<protocols::TargetSamples> target;
-};
-inline constexpr std::size_t kMaxTargetSamples = 40000;
+/// POST /sessions/{id}/runs (api/run_start.h), with the protocol looked up
+/// in the catalogue (kNotFound naming "protocol") and every choice given by
+/// name turned into its index (kInvalidArgument naming the parameter).
+using StartRunRequest = api::StartRunRequest;
 api::Result<StartRunRequest> StartRunFromJson(const nlohmann::json& body);
 
 }  // namespace fesbench::server::http

@@ -18,6 +18,7 @@
 
 #include "api/protocol_info.h"
 #include "api/run.h"
+#include "api/run_start.h"
 #include "api/status.h"
 #include "model/identify_common.h"
 #include "model/parameter_set.h"
@@ -144,10 +145,7 @@ struct SubjectContext {
 
 /// A tracking run's uploaded target trajectory, as sent (POST
 /// /sessions/{id}/runs "target_samples"): strictly increasing t_s, deg.
-struct TargetSamples {
-  std::vector<double> t_s;
-  std::vector<double> angle_deg;
-};
+using TargetSamples = api::TargetSamples;
 
 /// Checks a context: finite values, 0 ≤ threshold < max tolerated ≤ 100 mA,
 /// 0 ≤ min angle < max angle ≤ 180°; kInvalidArgument naming the field.

@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "api/run.h"
+#include "api/run_start.h"
 #include "clients/cli/cli.h"
 #include "clients/cli/study/tables.h"
 
@@ -20,22 +21,28 @@ const std::vector<std::string> kControllers = {"pid", "inverse_model", "adaptive
 // the leg is given for it (0: the subject's own).
 struct Condition {
   std::string name;
-  json parameters;
+  api::StartRunRequest tracking;  // without the controller and the parameter set
   double fatigue_factor = 0.0;
   std::string description;
 };
 const std::vector<Condition>& Conditions() {
   static const std::vector<Condition> conditions = {
       {"sine",
-       {{"target", "sine"}, {"lo_deg", 30}, {"hi_deg", 80}, {"frequency_hz", 0.2}, {"duration_s", 30}},
+       {.protocol = "tracking",
+        .parameters = {{"lo_deg", 30}, {"hi_deg", 80}, {"frequency_hz", 0.2}, {"duration_s", 30}},
+        .choices = {{"target", "sine"}}},
        0.0,
        "0.2 Hz sine 30–80°, 30 s"},
       {"holds",
-       {{"target", "holds"}, {"lo_deg", 30}, {"hi_deg", 80}, {"duration_s", 30}},
+       {.protocol = "tracking",
+        .parameters = {{"lo_deg", 30}, {"hi_deg", 80}, {"duration_s", 30}},
+        .choices = {{"target", "holds"}}},
        0.0,
        "holds at 55, 30, 67.5, 42.5, 55, 30° (4 s each, 1 s moves), 30 s"},
       {"fatigue",
-       {{"target", "sine"}, {"lo_deg", 30}, {"hi_deg", 80}, {"frequency_hz", 0.2}, {"duration_s", 120}},
+       {.protocol = "tracking",
+        .parameters = {{"lo_deg", 30}, {"hi_deg", 80}, {"frequency_hz", 0.2}, {"duration_s", 120}},
+        .choices = {{"target", "sine"}}},
        5.0,
        "0.2 Hz sine 30–80°, 2 min, fatigue rate five times the leg's"},
   };
@@ -49,10 +56,10 @@ double ValueOr(const json& values, const char* key) {
 
 }  // namespace
 
-json RunProtocol(ApiClient& client, std::int64_t session_id, const std::string& protocol,
-                 const json& parameters) {
+json RunProtocol(ApiClient& client, std::int64_t session_id, const api::StartRunRequest& request) {
+  const std::string& protocol = request.protocol;
   const json started = client.Post("/sessions/" + std::to_string(session_id) + "/runs",
-                                   {{"protocol", protocol}, {"parameters", parameters}});
+                                   api::StartRunRequestToJson(request));
   const std::int64_t run_id = started.at("run_id").get<std::int64_t>();
   const std::string path = "/runs/" + std::to_string(run_id);
   for (;;) {
@@ -91,12 +98,12 @@ LegControl RunLegControl(ApiClient& client, int index, const std::string& family
     for (const std::string& controller : kControllers) {
       // A fresh bench: no controller inherits another's fatigue.
       client.Put("/bench/virtual-subject", put);
-      json parameters = condition.parameters;
-      parameters["controller"] = controller;
-      parameters["parameter_set_id"] = parameter_set_id;
+      api::StartRunRequest request = condition.tracking;
+      request.choices["controller"] = controller;
+      request.parameters["parameter_set_id"] = static_cast<double>(parameter_set_id);
       TrackingFigures& f = leg.runs[condition.name][controller];
       try {
-        const json run = RunProtocol(client, session_id, "tracking", parameters);
+        const json run = RunProtocol(client, session_id, request);
         const json& v = run.at("values");
         f.rms_deg = ValueOr(v, "tracking_rms_deg");
         f.max_error_deg = ValueOr(v, "tracking_max_error_deg");

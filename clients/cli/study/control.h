@@ -18,14 +18,15 @@
 #include <string>
 #include <vector>
 
+#include "api/run_start.h"
 #include "clients/cli/api_client.h"
 
 namespace fesbench::cli::study {
 
 /// Starts a protocol and heart-beats it to its end; the run's final JSON.
 /// Throws CliError (server class) when the run is refused, fails or aborts.
-nlohmann::json RunProtocol(ApiClient& client, std::int64_t session_id, const std::string& protocol,
-                           const nlohmann::json& parameters);
+nlohmann::json RunProtocol(ApiClient& client, std::int64_t session_id,
+                           const api::StartRunRequest& request);
 
 /// One tracking run's figures, or why there are none.
 struct TrackingFigures {

@@ -46,24 +46,24 @@ namespace fs = std::filesystem;
 // the rapid run there is none, so each leg's fresh prediction trials exist
 // whatever the rapid set is like (docs/STUDY.md, method).
 struct RunSpec {
-  std::string protocol;
-  json parameters;
+  api::StartRunRequest request;
   std::string label;  // the run's key and its (single) trial's name in the study
 };
 const std::vector<RunSpec> kRuns = {
-    {"isometric_ramp_irc", json::object(), "isometric_ramp_irc"},
-    {"isometric_step_irc", json::object(), "isometric_step_irc"},
-    {"isometric_prediction", json::object(), "isometric_prediction"},
-    {"passive_sequential", json::object(), "passive_sequential"},
-    {"passive_simultaneous", json::object(), "passive_simultaneous"},
-    {"free_swing_passive", json::object(), "free_swing_passive"},
-    {"active_random_binary", json::object(), "active_random_binary"},
-    {"prediction_step", json::object(), "prediction_step"},
-    {"prediction_ramp", json::object(), "prediction_ramp"},
-    {"prediction_sine", json::object(), "prediction_sine"},
-    {"prediction_random_binary", json::object(), "prediction_random_binary_seed3"},
-    {"prediction_random_binary", {{"seed", 4}}, "prediction_random_binary_seed4"},
-    {"rapid_parameterisation", json::object(), "rapid_parameterisation"},
+    {{.protocol = "isometric_ramp_irc"}, "isometric_ramp_irc"},
+    {{.protocol = "isometric_step_irc"}, "isometric_step_irc"},
+    {{.protocol = "isometric_prediction"}, "isometric_prediction"},
+    {{.protocol = "passive_sequential"}, "passive_sequential"},
+    {{.protocol = "passive_simultaneous"}, "passive_simultaneous"},
+    {{.protocol = "free_swing_passive"}, "free_swing_passive"},
+    {{.protocol = "active_random_binary"}, "active_random_binary"},
+    {{.protocol = "prediction_step"}, "prediction_step"},
+    {{.protocol = "prediction_ramp"}, "prediction_ramp"},
+    {{.protocol = "prediction_sine"}, "prediction_sine"},
+    {{.protocol = "prediction_random_binary"}, "prediction_random_binary_seed3"},
+    {{.protocol = "prediction_random_binary", .parameters = {{"seed", 4}}},
+     "prediction_random_binary_seed4"},
+    {{.protocol = "rapid_parameterisation"}, "rapid_parameterisation"},
 };
 
 
@@ -247,7 +247,7 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   for (const auto& spec : kRuns) {
     json run;
     try {
-      run = RunProtocol(client, leg.session_id, spec.protocol, spec.parameters);
+      run = RunProtocol(client, leg.session_id, spec.request);
     } catch (const CliError& e) {
       // A failed or refused run (e.g. the model gate's 409) costs its
       // trials or set; the fits and predictions that need them are listed
@@ -259,8 +259,8 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
       continue;
     }
     leg.bench_s[spec.label] = run.value("bench_total_s", kNaN);
-    if (spec.label != spec.protocol) relabel[run.at("run_id").get<std::int64_t>()] = spec.label;
-    if (spec.protocol == kRapid && run["parameter_set_id"].is_number_integer()) {
+    if (spec.label != spec.request.protocol) relabel[run.at("run_id").get<std::int64_t>()] = spec.label;
+    if (spec.request.protocol == kRapid && run["parameter_set_id"].is_number_integer()) {
       rapid_set = run["parameter_set_id"].get<std::int64_t>();
     }
   }
