@@ -1,5 +1,6 @@
 #include "api/job.h"
 
+#include "api/json_fields.h"
 #include "api/name_table.h"
 
 namespace fesbench::api {
@@ -26,33 +27,24 @@ nlohmann::json ErrorToJson(const Status& status) {
 
 Status ErrorFromJson(const nlohmann::json& error) {
   if (!error.is_object()) return Status::Internal("malformed error object: " + error.dump());
-  const auto text = [&](const char* key) {
-    const auto it = error.find(key);
-    return it != error.end() && it->is_string() ? it->get<std::string>() : std::string();
-  };
-  const ErrorCode code = ParseErrorCode(text("code")).value_or(ErrorCode::kInternal);
-  std::string message = text("message");
-  if (message.empty()) message = "no message";
-  return {code == ErrorCode::kOk ? ErrorCode::kInternal : code, std::move(message), text("field")};
+  JsonFields in(error);
+  ErrorCode code = ErrorCode::kInternal;
+  std::string message = "no message";
+  std::string field;
+  ReadInto(in, "message", message);
+  ReadInto(in, "field", field);
+  ReadNamed(in, "code", false, code, &ParseErrorCode);  // last: an unknown code keeps the text
+  if (!in.ok() || code == ErrorCode::kOk) code = ErrorCode::kInternal;
+  return {code, std::move(message), std::move(field)};
 }
 
 Result<JobReport> JobReportFromJson(const nlohmann::json& job) {
-  if (!job.is_object()) return Status::InvalidArgument("must be a job object", "job");
+  JsonFields in(job);
   JobReport report;
-  const auto id = job.find("id");
-  if (id == job.end() || !id->is_number_integer()) {
-    return Status::InvalidArgument("a job needs an integer id", "id");
-  }
-  report.id = id->get<std::int64_t>();
-  const auto state = job.find("state");
-  const std::optional<JobState> parsed = state != job.end() && state->is_string()
-                                             ? ParseJobState(state->get<std::string>())
-                                             : std::nullopt;
-  if (!parsed) return Status::InvalidArgument("must be queued, running, done or failed", "state");
-  report.state = *parsed;
-  if (const auto kind = job.find("kind"); kind != job.end() && kind->is_string()) {
-    report.kind = kind->get<std::string>();
-  }
+  report.id = in.Integer("id", true).value_or(0);
+  ReadNamed(in, "state", true, report.state, &ParseJobState);
+  ReadInto(in, "kind", report.kind);
+  if (!in.ok()) return in.status();
   if (report.state == JobState::kDone) report.result = job.value("result", nlohmann::json());
   if (report.state == JobState::kFailed) {
     report.error = ErrorFromJson(job.value("error", nlohmann::json()));

@@ -48,13 +48,9 @@ api::JobReport AwaitJob(ApiClient& client, std::int64_t job_id,
                         std::chrono::milliseconds first_delay, std::chrono::milliseconds max_delay) {
   auto delay = first_delay;
   for (;;) {
-    api::Result<api::JobReport> job =
-        api::JobReportFromJson(client.Get("/jobs/" + std::to_string(job_id)));
-    if (!job.ok()) {
-      throw CliError::Server("server: job " + std::to_string(job_id) +
-                             ": unexpected record: " + job.status().ToString());
-    }
-    if (job->state == api::JobState::kDone || job->state == api::JobState::kFailed) return *job;
+    api::JobReport job =
+        FromServer(api::JobReportFromJson(client.Get("/jobs/" + std::to_string(job_id))), "job");
+    if (job.state == api::JobState::kDone || job.state == api::JobState::kFailed) return job;
     std::this_thread::sleep_for(delay);
     delay = std::min(delay * 2, max_delay);
   }

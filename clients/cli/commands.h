@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "api/job.h"
 #include "clients/cli/api_client.h"
@@ -46,6 +47,17 @@ std::unique_ptr<ApiClient> Connect(const CliContext& context);
 
 /// A subject id from an id or a subject code (looked up on the server).
 std::int64_t ResolveSubject(ApiClient& client, const std::string& id_or_code);
+
+/// What a typed reader (api::…FromJson) made of a server's reply, or
+/// CliError (server class) saying the reply was not a readable `what`.
+template <typename T>
+T FromServer(api::Result<T> read, std::string_view what) {
+  if (!read.ok()) {
+    throw CliError::Server("server sent an unreadable " + std::string(what) + ": " +
+                           read.status().ToString());
+  }
+  return *std::move(read);
+}
 
 /// Polls GET /jobs/{id} until the job is done or failed, waiting
 /// `first_delay` between the first polls and doubling up to `max_delay`.

@@ -39,14 +39,6 @@ std::string DefaultCell(const api::ProtocolParameterInfo& p) {
   return p.default_rule ? "(" + *p.default_rule + ")" : "-";
 }
 
-api::ProtocolInfo ReadProtocol(const json& sent) {
-  api::Result<api::ProtocolInfo> protocol = api::ProtocolInfoFromJson(sent);
-  if (!protocol.ok()) {
-    throw CliError::Server("server sent an unreadable protocol: " + protocol.status().ToString());
-  }
-  return *std::move(protocol);
-}
-
 void PrintProtocol(CliContext& context, const api::ProtocolInfo& protocol) {
   context.out << protocol.name << " (version " << protocol.version << "): " << protocol.title
               << "\n"
@@ -87,7 +79,7 @@ void RegisterProtocolCommands(CLI::App& app, CliContext& context) {
         }
         std::vector<std::vector<std::string>> rows;
         for (const json& item : items) {
-          const api::ProtocolInfo p = ReadProtocol(item);
+          const api::ProtocolInfo p = FromServer(api::ProtocolInfoFromJson(item), "protocol");
           rows.push_back({p.name, p.thesis_section, p.stimulates ? "yes" : "no", p.bench_mode,
                           std::to_string(p.parameters.size()), p.title});
         }
@@ -115,7 +107,7 @@ void RegisterProtocolCommands(CLI::App& app, CliContext& context) {
           context.out << protocol.dump(2) << "\n";
           return;
         }
-        PrintProtocol(context, ReadProtocol(protocol));
+        PrintProtocol(context, FromServer(api::ProtocolInfoFromJson(protocol), "protocol"));
       };
     });
   }

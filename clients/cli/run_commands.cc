@@ -342,15 +342,12 @@ struct StartForm {
 // "" if it can: the watchdog aborts every run whose controller stops
 // heart-beating, and it is there for stimulation and the motor.
 std::string DetachRefusal(const json& sent) {
-  const api::Result<api::ProtocolInfo> protocol = api::ProtocolInfoFromJson(sent);
-  if (!protocol.ok()) {
-    throw CliError::Server("server sent an unreadable protocol: " + protocol.status().ToString());
-  }
-  const std::string& name = protocol->name;
+  const api::ProtocolInfo protocol = FromServer(api::ProtocolInfoFromJson(sent), "protocol");
+  const std::string& name = protocol.name;
   std::string what;
-  if (protocol->stimulates) {
+  if (protocol.stimulates) {
     what = "stimulates the subject";
-  } else if (protocol->bench_mode != "decoupled") {
+  } else if (protocol.bench_mode != "decoupled") {
     what = "moves the brace with the motor";
   } else {
     return "";
@@ -377,9 +374,8 @@ void AddRunRequest(CLI::App& run, CliContext& context, const std::string& verb,
         context.out << reply.dump(2) << "\n";
         return;
       }
-      const api::Result<api::RunView> view = api::RunViewFromJson(reply);
-      if (!view.ok()) throw CliError::Server("server sent an unreadable run: " + view.status().ToString());
-      context.out << "run " << run_id << ": " << lead << api::RunStateName(view->state)
+      const api::RunView view = FromServer(api::RunViewFromJson(reply), "run");
+      context.out << "run " << run_id << ": " << lead << api::RunStateName(view.state)
                   << (lead.empty() ? "" : ")") << "\n";
     };
   });
@@ -496,13 +492,9 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
           context.out << state.dump(2) << "\n";
           return;
         }
-        const api::Result<api::BenchState> bench = api::BenchStateFromJson(state);
-        if (!bench.ok()) {
-          throw CliError::Server("server sent an unreadable bench state: " +
-                                 bench.status().ToString());
-        }
+        const api::BenchState bench = FromServer(api::BenchStateFromJson(state), "bench state");
         context.out << (*clear ? "e-stop cleared" : "e-stop latched")
-                    << "; bench estopped: " << (bench->estopped ? "yes" : "no") << "\n";
+                    << "; bench estopped: " << (bench.estopped ? "yes" : "no") << "\n";
       };
     });
   }

@@ -8,6 +8,7 @@
 #include "api/run.h"
 #include "api/run_start.h"
 #include "clients/cli/cli.h"
+#include "clients/cli/commands.h"
 #include "clients/cli/study/tables.h"
 
 namespace fesbench::cli::study {
@@ -69,14 +70,11 @@ json RunProtocol(ApiClient& client, std::int64_t session_id, const api::StartRun
       // The run may have just ended; its state below says so.
     }
     const json run = client.Get(path);
-    const api::Result<api::RunView> view = api::RunViewFromJson(run);
-    if (!view.ok()) {
-      throw CliError::Server("study: run " + std::to_string(run_id) + ": " + view.status().ToString());
-    }
-    if (view->state == api::RunState::kDone) return run;
-    if (api::IsFinal(view->state)) {
+    const api::RunView view = FromServer(api::RunViewFromJson(run), "run");
+    if (view.state == api::RunState::kDone) return run;
+    if (api::IsFinal(view.state)) {
       throw CliError::Server("study: run " + std::to_string(run_id) + " (" + protocol + ") " +
-                             std::string(api::RunStateName(view->state)) + ": " + view->reason);
+                             std::string(api::RunStateName(view.state)) + ": " + view.reason);
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(30));
   }
