@@ -74,6 +74,13 @@ class JsonFields {
   Status status_;
 };
 
+/// An unset value as JSON null, a set one as itself (writers' counterpart
+/// of the readers below).
+template <typename T>
+nlohmann::json OrNull(const std::optional<T>& value) {
+  return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
+}
+
 /// Lenient reading, for clients of a server that may send more than they
 /// know: ReadInto stores a present, well-typed value of `key` in `out` and
 /// leaves `out` as it is when the field is absent or null; a value of the

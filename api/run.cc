@@ -42,11 +42,6 @@ constexpr NameTable<RunEvent::Kind, 6> kRunEventKinds({{{RunEvent::Kind::kState,
 
 json Finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
-template <typename T>
-json Nullable(const std::optional<T>& v) {
-  return v ? json(*v) : json(nullptr);
-}
-
 json TimeOrNull(const std::optional<UtcTime>& t) { return t ? json(FormatUtc(*t)) : json(nullptr); }
 
 // A time field: ISO-8601 UTC or null.
@@ -158,7 +153,7 @@ Result<SampleBatch> SampleBatchFromJson(const json& j) {
 }
 
 json ToleranceResultToJson(const ToleranceResult& t) {
-  return {{"threshold_ma", Nullable(t.threshold_ma)},
+  return {{"threshold_ma", OrNull(t.threshold_ma)},
           {"max_tolerated_ma", t.max_tolerated_ma},
           {"max_torque_nm", t.max_torque_nm},
           {"noise_band_nm", t.noise_band_nm},
@@ -191,7 +186,7 @@ json RunViewToJson(const RunView& v) {
             {"bench_elapsed_s", v.progress.bench_elapsed_s},
             {"bench_total_s", v.progress.bench_total_s},
             {"trial_ids", v.trial_ids},
-            {"parameter_set_id", Nullable(v.parameter_set_id)},
+            {"parameter_set_id", OrNull(v.parameter_set_id)},
             {"values", std::move(values)},
             {"safety_events", std::move(events)},
             {"live", v.live}};
@@ -255,8 +250,8 @@ json BenchStateToJson(const BenchState& s) {
           {"estopped", s.estopped},
           {"estop_source", s.estop_source},
           {"owner", s.owner},
-          {"owner_user_id", Nullable(s.owner_user_id)},
-          {"run_id", Nullable(s.run_id)},
+          {"owner_user_id", OrNull(s.owner_user_id)},
+          {"run_id", OrNull(s.run_id)},
           {"protocol", s.protocol},
           {"run_state", std::string(RunStateName(s.run_state))},
           {"progress", ProgressToJson(s.progress)}};
@@ -303,16 +298,16 @@ json RunEventToJson(const RunEvent& e) {
     case RunEvent::Kind::kTrial:
       j["trial"] = e.samples.trial;
       j["trial_name"] = e.samples.trial_name;
-      j["trial_id"] = Nullable(e.trial_id);
+      j["trial_id"] = OrNull(e.trial_id);
       break;
     case RunEvent::Kind::kEnd:
       j["state"] = std::string(RunStateName(e.state));
       j["reason"] = e.reason;
-      j["parameter_set_id"] = Nullable(e.parameter_set_id);
+      j["parameter_set_id"] = OrNull(e.parameter_set_id);
       j["result"] = e.result;
       break;
     case RunEvent::Kind::kParameterSet:
-      j["parameter_set_id"] = Nullable(e.parameter_set_id);
+      j["parameter_set_id"] = OrNull(e.parameter_set_id);
       j["subject_id"] = e.subject_id;
       j["leg_id"] = e.leg_id;
       break;

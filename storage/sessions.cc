@@ -1,5 +1,6 @@
 #include "storage/sessions.h"
 
+#include <charconv>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -127,6 +128,31 @@ api::Status AppendRunEvent(Connection& c, std::int64_t run_id, RunState state,
 }
 
 }  // namespace
+
+api::RunView RunViewOf(const Run& run) {
+  api::RunView v;
+  v.run_id = run.id;
+  v.session_id = run.session_id;
+  v.protocol = run.protocol_name;
+  const std::string& version = run.protocol_version;
+  if (std::from_chars(version.data(), version.data() + version.size(), v.protocol_version).ec !=
+      std::errc()) {
+    v.protocol_version = 0;
+  }
+  const nlohmann::json params = nlohmann::json::parse(run.parameters_json, nullptr, false);
+  if (params.is_object()) {
+    for (const auto& [k, x] : params.items()) {
+      if (x.is_number()) v.parameters[k] = x.get<double>();
+    }
+  }
+  v.state = run.state;
+  if (v.state == RunState::kFailed || v.state == RunState::kAborted) v.reason = run.message;
+  v.created_at = run.created_at;
+  v.started_at = run.started_at;
+  v.finished_at = run.finished_at;
+  if (v.state == RunState::kDone) v.progress.fraction = 1.0;
+  return v;
+}
 
 api::Status ValidateSessionDetails(const SessionDetails& d) {
   if (!IsIsoDate(d.date)) {

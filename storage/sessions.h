@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "api/run.h"
 #include "api/run_state.h"
 #include "api/status.h"
 #include "storage/database.h"
@@ -72,6 +73,13 @@ struct Run {
 /// Checks SessionDetails (field names the member): a valid date, currents in
 /// [0, 100] mA, threshold ≤ max tolerated.
 api::Status ValidateSessionDetails(const SessionDetails& details);
+
+/// The run resource (api/run.h) of a stored run, as far as the runs table
+/// knows it: no trials, result or parameter set. A done run's progress is
+/// 1; the reason is kept for failed and aborted runs; a stored protocol
+/// version that is not a number reads as 0 and parameters that are not
+/// numbers are left out.
+api::RunView RunViewOf(const Run& run);
 
 class SessionRepository {
  public:

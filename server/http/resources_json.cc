@@ -16,13 +16,6 @@ void PutOptional(nlohmann::json& j, const char* key, const std::optional<T>& val
   if (value) j[key] = *value;
 }
 
-nlohmann::json OptionalTime(const std::optional<storage::UtcTime>& t) {
-  return t ? nlohmann::json(storage::FormatUtc(*t)) : nlohmann::json(nullptr);
-}
-
-nlohmann::json OptionalId(const std::optional<std::int64_t>& id) {
-  return id ? nlohmann::json(*id) : nlohmann::json(nullptr);
-}
 
 }  // namespace
 
@@ -65,35 +58,10 @@ nlohmann::json SessionToJson(const storage::Session& s, std::string_view leg_sid
           {"details", std::move(details)}};
 }
 
-nlohmann::json RunToJson(const storage::Run& r) {
-  nlohmann::json parameters = nlohmann::json::parse(r.parameters_json, nullptr, false);
-  if (parameters.is_discarded()) parameters = nlohmann::json::object();
-  int version = 0;
-  try {
-    version = std::stoi(r.protocol_version);
-  } catch (const std::exception&) {
-  }
-  const bool done = r.state == api::RunState::kDone;
-  return {{"run_id", r.id},
-          {"session_id", r.session_id},
-          {"protocol", r.protocol_name},
-          {"protocol_version", version},
-          {"parameters", std::move(parameters)},
-          {"state", api::RunStateName(r.state)},
-          {"reason", r.message},
-          {"progress", done ? 1.0 : 0.0},
-          {"eta_s", done ? nlohmann::json(0.0) : nlohmann::json(nullptr)},
-          {"created_at_utc", storage::FormatUtc(r.created_at)},
-          {"started_at_utc", OptionalTime(r.started_at)},
-          {"finished_at_utc", OptionalTime(r.finished_at)},
-          {"result", nullptr},
-          {"controller", nullptr}};
-}
-
 nlohmann::json TrialSummaryToJson(const storage::TrialSummary& t) {
   return {{"id", t.id},
           {"session_id", t.session_id},
-          {"run_id", OptionalId(t.run_id)},
+          {"run_id", api::OrNull(t.run_id)},
           {"name", t.name ? nlohmann::json(*t.name) : nlohmann::json(nullptr)},
           {"kind", t.kind ? nlohmann::json(api::TrialKindName(*t.kind)) : nlohmann::json(nullptr)},
           {"num_samples", t.num_samples},
@@ -114,7 +82,7 @@ nlohmann::json ParameterSetSummaryToJson(const storage::ParameterSetSummary& s) 
           {"passive_method", s.passive_method},
           {"active_method", s.active_method},
           {"software_version", s.software_version},
-          {"supersedes_id", OptionalId(s.supersedes_id)},
+          {"supersedes_id", api::OrNull(s.supersedes_id)},
           {"created_at_utc", storage::FormatUtc(s.created_at)}};
 }
 
@@ -136,7 +104,7 @@ nlohmann::json UserToJson(const storage::User& u) {
 nlohmann::json AuditEntryToJson(const storage::AuditEntry& e) {
   return {{"id", e.id},
           {"at_utc", storage::FormatUtc(e.at)},
-          {"user_id", OptionalId(e.entry.user_id)},
+          {"user_id", api::OrNull(e.entry.user_id)},
           {"actor", e.entry.actor},
           {"action", e.entry.action},
           {"target", e.entry.target},

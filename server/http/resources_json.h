@@ -31,10 +31,6 @@ nlohmann::json SubjectToJson(const storage::Subject& subject, const std::vector<
 ///  "details": {"date", "accelerometer_placement", "threshold_ma",
 ///  "max_tolerated_ma", "notes"}}.
 nlohmann::json SessionToJson(const storage::Session& session, std::string_view leg_side);
-/// A stored run in the run resource's shape (api::RunViewToJson) as far
-/// as storage knows it: "result" and "controller" null (used only when the
-/// server has no run service).
-nlohmann::json RunToJson(const storage::Run& run);
 /// {"id", "session_id", "run_id", "name", "kind" (the protocol's trial name),
 ///  "num_samples", "sample_rate_hz", "duration_s", "created_at_utc"}.
 nlohmann::json TrialSummaryToJson(const storage::TrialSummary& trial);

@@ -67,7 +67,7 @@ api::Result<json> RunsJson(storage::Database& db, services::RunService* runs_ser
   json out = json::array();
   for (const storage::Run& r : *runs) {
     if (!runs_service) {
-      out.push_back(RunToJson(r));
+      out.push_back(api::RunViewToJson(storage::RunViewOf(r)));
       continue;
     }
     auto view = runs_service->Get(r.id);

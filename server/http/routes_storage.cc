@@ -430,7 +430,7 @@ void AddSessionRunAndTrialRoutes(RouteTable& table, const ApiDependencies& deps)
          json body = MakePage(
              *runs, *page, [](const storage::Run& r) { return r.id; },
              [&](const storage::Run& r) -> json {
-               if (!runs_service) return RunToJson(r);
+               if (!runs_service) return api::RunViewToJson(storage::RunViewOf(r));
                auto view = runs_service->Get(r.id);
                if (!view.ok()) {
                  failure = view.status();

@@ -5,13 +5,12 @@
 #include <utility>
 #include <vector>
 
+#include "api/json_fields.h"
+
 namespace fesbench::server::services {
 namespace {
 
 using nlohmann::json;
-
-json Nullable(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); }
-json Nullable(const std::optional<std::int64_t>& v) { return v ? json(*v) : json(nullptr); }
 
 json ReportToJson(const model::IdentifyReport& r) {
   return {{"fit_rms", r.fit_rms}, {"values", r.values}, {"warnings", r.warnings}};
@@ -57,24 +56,24 @@ json PredictionErrorsToJson(const PredictionErrors& e) {
           {"e_rms", e.e_rms},
           {"e_abs", e.e_abs},
           {"max_abs", e.max_abs},
-          {"normalised_rms", Nullable(e.normalised_rms)},
+          {"normalised_rms", api::OrNull(e.normalised_rms)},
           {"normalised_samples_used", e.normalised_samples_used},
-          {"e_ave", Nullable(e.e_ave)}};
+          {"e_ave", api::OrNull(e.e_ave)}};
 }
 
 json PredictionResultToJson(const PredictionResult& r, bool include_columns) {
   json j = {{"prediction_id", r.prediction_id > 0 ? json(r.prediction_id) : json(nullptr)},
-            {"evaluation_id", Nullable(r.evaluation_id)},
+            {"evaluation_id", api::OrNull(r.evaluation_id)},
             {"parameter_set_id", r.parameter_set_id},
-            {"trial_id", Nullable(r.trial_id)},
+            {"trial_id", api::OrNull(r.trial_id)},
             {"mode", PredictionModeName(r.mode)},
             {"model", r.model},
             {"initial_angle_deg", r.initial_angle_deg},
             {"initial_velocity_deg_s", r.initial_velocity_deg_s},
             {"samples", r.predicted.size()},
             {"errors", r.errors ? PredictionErrorsToJson(*r.errors) : json(nullptr)},
-            {"fitted_scale", Nullable(r.fitted_scale)},
-            {"share_outside_identified_ranges", Nullable(r.share_outside_identified_ranges)}};
+            {"fitted_scale", api::OrNull(r.fitted_scale)},
+            {"share_outside_identified_ranges", api::OrNull(r.share_outside_identified_ranges)}};
   j["joint_limits"] = r.joint_limits ? json{{"min_angle_deg", r.joint_limits->min_angle_deg},
                                             {"max_angle_deg", r.joint_limits->max_angle_deg}}
                                      : json(nullptr);

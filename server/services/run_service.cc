@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <charconv>
 #include <cmath>
 #include <exception>
 #include <iostream>
@@ -111,28 +110,7 @@ std::shared_ptr<RunService::LiveRun> RunService::Current() const {
 api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
   api::Result<storage::Run> run = storage::SessionRepository(db_).GetRun(run_id);
   if (!run.ok()) return run.status();
-  RunView v;
-  v.run_id = run->id;
-  v.session_id = run->session_id;
-  v.protocol = run->protocol_name;
-  // A stored version that is not a number reads as 0.
-  const std::string& version = run->protocol_version;
-  if (std::from_chars(version.data(), version.data() + version.size(), v.protocol_version).ec !=
-      std::errc()) {
-    v.protocol_version = 0;
-  }
-  const nlohmann::json params = nlohmann::json::parse(run->parameters_json, nullptr, false);
-  if (params.is_object()) {
-    for (const auto& [k, x] : params.items()) {
-      if (x.is_number()) v.parameters[k] = x.get<double>();
-    }
-  }
-  v.state = run->state;
-  if (v.state == RunState::kFailed || v.state == RunState::kAborted) v.reason = run->message;
-  v.created_at = run->created_at;
-  v.started_at = run->started_at;
-  v.finished_at = run->finished_at;
-  if (v.state == RunState::kDone) v.progress.fraction = 1.0;
+  RunView v = storage::RunViewOf(*run);
 
   api::Result<std::vector<std::int64_t>> trial_ids = storage::TrialRepository(db_).IdsOfRun(run_id);
   if (!trial_ids.ok()) return trial_ids.status();
