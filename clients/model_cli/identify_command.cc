@@ -16,6 +16,7 @@
 #include "model/identify_active.h"
 #include "model/identify_isometric.h"
 #include "model/identify_passive.h"
+#include "model/identify_rapid.h"
 #include "model/identify_simplified.h"
 #include "model/quality.h"
 #include "model/signal.h"
@@ -141,6 +142,40 @@ void EnsureActivation(std::vector<model::TrialColumns>& trials, const model::Par
   }
 }
 
+// The output-error step of the rapid routine (model/identify_rapid.h, beyond
+// the thesis) on any free-swing trials: τ_pta, τ_ptv, f_ata, f_atv and
+// τ_scale of `in` refined on the knee angle (Eq. 6.9). iterations=0 only
+// evaluates: the report's output_error_deg is then the set's E_RMS on the
+// trials, stops included when min_angle_deg/max_angle_deg are given.
+model::ParameterSet RefineByOutputError(std::vector<model::TrialColumns>& trials,
+                                        const model::ParameterSet& in, Options& opt,
+                                        double pulse_rate, model::IdentifyReport& report) {
+  model::OutputErrorOptions o;
+  o.pulse_rate_hz = pulse_rate;
+  const double iterations = opt.Number("iterations", o.iterations);
+  if (!(iterations >= 0.0) || iterations != std::floor(iterations) || iterations > 1000.0) {
+    throw CliError::Usage("--option iterations: an integer from 0 to 1000");
+  }
+  o.iterations = static_cast<int>(iterations);
+  o.prior_weight = opt.Number("prior_weight", o.prior_weight);
+  if (!(o.prior_weight >= 0.0)) throw CliError::Usage("--option prior_weight: must be >= 0");
+  const auto lo = opt.Number("min_angle_deg");
+  const auto hi = opt.Number("max_angle_deg");
+  if (lo.has_value() != hi.has_value()) {
+    throw CliError::Usage("--option min_angle_deg and max_angle_deg: give both stops or neither");
+  }
+  if (lo) {
+    if (!(*lo < *hi)) throw CliError::Usage("--option min_angle_deg: must be < max_angle_deg");
+    o.joint_limits = model::JointLimits{*lo, *hi};
+  }
+  for (model::TrialColumns& tr : trials) {
+    if (tr.velocity_deg_s.size() != tr.size()) model::AddKinematics(tr);
+  }
+  model::OutputErrorResult r = model::RefineOutputError(in, trials, o);
+  report.Merge(r.report);
+  return std::move(r.parameters);
+}
+
 model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialColumns>& trials,
                              const model::ParameterSet& in, Options& opt,
                              model::IdentifyReport& report) {
@@ -224,6 +259,10 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
     out.provenance.passive_method = "free_swing";
     report.Merge(r.report);
     return out;
+  }
+  if (method == "output_error") {
+    RequireTrials(method, trials, 1);
+    return RefineByOutputError(trials, in, opt, pulse_rate, report);
   }
   ActiveOptions ao;
   opt.Breakpoints("angle_breakpoints", ao.angle);
@@ -328,6 +367,7 @@ const std::vector<std::string>& IdentifyMethodNames() {
                                                   "passive_simultaneous",
                                                   "passive_free_swing",
                                                   "active",
+                                                  "output_error",
                                                   "torque_generator",
                                                   "single_segment",
                                                   "static_gain_pwl_velocity",

@@ -22,7 +22,9 @@ namespace fesbench::cli {
 /// irc_ramp_correlation, irc_ramp_deconvolution_ideal,
 /// irc_ramp_deconvolution_measured, passive_sequential (trials: positions
 /// then velocities), passive_simultaneous, passive_free_swing (τ_pta from
-/// --params-in), active (passive from --params-in), torque_generator,
+/// --params-in), active (passive from --params-in), output_error (the
+/// rapid routine's output-error refinement of --params-in on free-swing
+/// trials; iterations=0 evaluates the set), torque_generator,
 /// single_segment, static_gain_pwl_velocity, parametric.
 const std::vector<std::string>& IdentifyMethodNames();
 

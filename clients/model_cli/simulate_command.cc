@@ -87,6 +87,7 @@ struct SimulateArgs {
   double duration_s = 0.0;  // 0: unset
   double pulse_rate_hz = model::kDefaultPulseRateHz;
   double step_s = 1e-3;
+  std::vector<double> stops_deg;  // empty, or {extension stop, flexion stop}
 };
 
 void RunSimulateCommand(const SimulateArgs& args, CliContext& context) {
@@ -105,6 +106,16 @@ void RunSimulateCommand(const SimulateArgs& args, CliContext& context) {
   options.pulse_rate_hz = args.pulse_rate_hz;
   if (args.duration_s > 0.0) options.duration_s = args.duration_s;
   if (!args.model.empty()) options.model_kind = *model::ParseModelKind(args.model);
+  if (!args.stops_deg.empty()) {
+    if (mode != SimulateMode::kFreeSwing) throw CliError::Usage("--stops is for --mode free_swing");
+    const double lo = args.stops_deg[0], hi = args.stops_deg[1];
+    if (!(lo < hi))
+      throw CliError::Usage("--stops: the extension stop must be below the flexion stop");
+    if (args.angle_deg < lo || args.angle_deg > hi) {
+      throw CliError::Usage("--angle-deg: the initial angle must lie between the --stops");
+    }
+    options.joint_limits = model::JointLimits{lo, hi};
+  }
 
   const model::ParameterSet params = ReadParameterSetFile(args.params_path);
   const api::Trial stimulus = ReadUniformCsv(args.stimulus_path, "stimulus", {"stim_ma"});
@@ -181,6 +192,11 @@ void RegisterSimulateCommand(CLI::App& app, CliContext& context) {
                   "isometric: locked knee angle; free swing: initial angle (deg, 0-180)")
       ->check(CLI::Range(0.0, 180.0))
       ->capture_default_str();
+  sub->add_option("--stops", args->stops_deg,
+                  "free swing: the knee's stops MIN MAX in deg (e.g. 10 110, the bench's range "
+                  "of motion, as the server's predictions); default none (the thesis's model)")
+      ->expected(2)
+      ->check(CLI::Range(0.0, 180.0));
   sub->add_option("--trajectory", args->trajectory_path,
                   "trajectory mode: CSV with t_s, angle_deg, velocity_deg_s, accel_deg_s2 "
                   "(uniform, from t_s = 0)");

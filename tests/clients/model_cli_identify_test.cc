@@ -151,6 +151,52 @@ TEST_F(IdentifyCliTest, FreeSwingFromPositionAndEnvelopeOnly) {
   EXPECT_EQ(p.provenance.passive_method, "free_swing");
 }
 
+TEST_F(IdentifyCliTest, OutputErrorRecoversTheTorqueScaleAndEvaluatesAtZeroIterations) {
+  // A free swing of the example knee between the bench's stops, recorded as
+  // position and envelope only; the start set's τ_scale is 20 % low.
+  const model::ParameterSet truth = model::ExampleParameterSet();
+  const auto env = model::MakeStimulus("random_binary_dense", {{"amplitude_ma", 40}, {"seed", 2}});
+  model::SimulationOptions opt;
+  opt.duration_s = env.EndTime();
+  opt.joint_limits = model::JointLimits{10.0, 110.0};
+  const auto sim = model::SimulateFreeSwing(truth, model::PulsesFromEnvelope(env, 33.0), opt);
+  api::Trial t;
+  t.sample_rate_hz = 200.0;
+  t.SetChannel("t_s", sim.t_s);
+  t.SetChannel("stim_ma",
+               std::vector<double>(env.values.begin(),
+                                   env.values.begin() + static_cast<std::ptrdiff_t>(sim.size())));
+  t.SetChannel("angle_deg", sim.angle_deg);
+  ASSERT_TRUE(api::WriteTextFile(dir_ / "rb.csv", api::TrialToCsv(t)).ok());
+  model::ParameterSet start = truth;
+  start.active.torque_scale_nm *= 0.8;
+  ASSERT_TRUE(api::WriteTextFile(Path("truth.json"), api::ParameterSetToJson(truth).dump()).ok());
+  ASSERT_TRUE(api::WriteTextFile(Path("start.json"), api::ParameterSetToJson(start).dump()).ok());
+  const auto error_deg = [&](const std::string& params, int iterations) {
+    EXPECT_EQ(Run({"identify", "output_error", "--trial", Path("rb.csv"), "--params-in", params,
+                   "--option", "iterations=" + std::to_string(iterations), "--option",
+                   "min_angle_deg=10", "--option", "max_angle_deg=110", "--out", Path("r.json")}),
+              kExitOk)
+        << err_.str();
+    return nlohmann::json::parse(out_.str())["fit_rms"]["output_error_deg"].get<double>();
+  };
+  // The truth reproduces its own swing (initial velocity from the spline).
+  EXPECT_LT(error_deg(Path("truth.json"), 0), 0.2);
+  const double start_error = error_deg(Path("start.json"), 0);
+  EXPECT_GT(start_error, 2.0);
+  EXPECT_LT(error_deg(Path("start.json"), 10), 0.2 * start_error);
+  EXPECT_NEAR(ReadParams(Path("r.json")).active.torque_scale_nm, truth.active.torque_scale_nm,
+              0.05 * truth.active.torque_scale_nm);
+
+  EXPECT_EQ(Run({"identify", "output_error", "--trial", Path("rb.csv"), "--params-in",
+                 Path("start.json"), "--option", "min_angle_deg=10", "--out", Path("r.json")}),
+            kExitUsage);
+  EXPECT_NE(err_.str().find("both stops"), std::string::npos);
+  EXPECT_EQ(Run({"identify", "output_error", "--trial", Path("rb.csv"), "--params-in",
+                 Path("start.json"), "--option", "iterations=-1", "--out", Path("r.json")}),
+            kExitUsage);
+}
+
 TEST_F(IdentifyCliTest, UsageErrors) {
   EXPECT_EQ(Run({"identify", "no_such_method", "--trial", "x.csv", "--out", Path("o.json")}),
             kExitUsage);

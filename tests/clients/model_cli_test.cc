@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "api/parameter_set_json.h"
@@ -133,6 +135,29 @@ TEST_F(ModelCliTest, StimulusThenFreeSwingSimulationRoundTrip) {
   EXPECT_LT(min_angle, 60.0);
   EXPECT_GT((*sim.Values("activation"))[600], 0.5);
   EXPECT_EQ((*sim.Values("activation"))[50], 0.0);
+}
+
+TEST_F(ModelCliTest, FreeSwingStopsAtTheGivenRangeOfMotion) {
+  const std::string stim = Path("rb.csv");
+  ASSERT_EQ(
+      Run("stimulus random_binary_dense --param amplitude_ma=45 --out '" + stim + "'").exit_code,
+      0);
+  const auto extremes = [&](const std::string& stops) {
+    const std::string out = Path("swing.csv");
+    const RunResult r = Run("simulate --params '" + params_ + "' --stimulus '" + stim +
+                            "' --angle-deg 60 " + stops + " --out '" + out + "'");
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    const api::Trial swing = ReadCsv(out);
+    const std::vector<double>& angle = *swing.Values("angle_deg");
+    return std::pair(*std::min_element(angle.begin(), angle.end()),
+                     *std::max_element(angle.begin(), angle.end()));
+  };
+  // Without stops the strong train extends the knee past the bench's 10°.
+  EXPECT_LT(extremes("").first, 10.0);
+  const auto [lo, hi] = extremes("--stops 10 110");
+  EXPECT_GE(lo, 10.0);
+  EXPECT_LE(hi, 110.0);
+  EXPECT_NEAR(lo, 10.0, 1e-6);  // it reaches full extension and stays there
 }
 
 TEST_F(ModelCliTest, IsometricTorqueRisesWithStimulationAndWritesSto) {
@@ -261,6 +286,11 @@ TEST_F(ModelCliTest, UsageErrorsExitWithTwo) {
   ExpectError("simulate " + common + "--mode trajectory --out x.csv", 2, "--trajectory");
   ExpectError("simulate " + common + "--trajectory t.csv --out x.csv", 2, "--mode trajectory");
   ExpectError("simulate " + common + "--out x.csv --frobnicate", 2, "frobnicate");
+  ExpectError("simulate " + common + "--stops 110 10 --out x.csv", 2, "extension stop");
+  ExpectError("simulate " + common + "--stops 10 --out x.csv", 2, "--stops");
+  ExpectError("simulate " + common + "--stops 20 110 --angle-deg 15 --out x.csv", 2, "between");
+  ExpectError("simulate " + common + "--mode isometric --stops 10 110 --out x.csv", 2,
+              "free_swing");
   ExpectError("stimulus", 2, "generator NAME");
   ExpectError("stimulus prediction_step", 2, "--out");
   ExpectError("stimulus warp_drive --out x.csv", 2, "unknown generator 'warp_drive'");
