@@ -285,6 +285,9 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
     line += " threshold_ma " + Cell(result.value("threshold_ma", json(nullptr))) +
             " max_tolerated_ma " + Cell(result.value("max_tolerated_ma", json(nullptr))) +
             " session_revision " + Cell(result["session_revision"]);
+    if (result.value("subject_signalled_limit", false)) {
+      line += " (the subject signalled the limit)";
+    }
   }
   if (!json_lines) printer.Line(line);
   if (cancel_sent) {

@@ -63,6 +63,12 @@ struct SensorFrame {
   bool limit_flexion = false;    ///< limit switch near the 110° stop.
   bool limit_extension = false;  ///< limit switch near the 10° stop.
   bool estop = false;            ///< hardware e-stop engaged.
+  /// The subject signals "no higher" (Appendix F part II.K: the tolerance
+  /// test's amplitude rises until the subject asks to stop): a hand-held
+  /// switch where the bench has one. The simulated subject gives it while
+  /// the stimulation is at or above its max tolerated amplitude. Only the
+  /// tolerance test reads it; the interlocks do not depend on it.
+  bool subject_limit = false;
 };
 
 class Bench {

@@ -76,13 +76,14 @@ std::vector<ProtocolDescription> MakeCatalog() {
 
   c.push_back(
       {.name = "tolerance_test",
-       .version = 1,
+       .version = 2,
        .title = "Stimulation tolerance test",
        .description =
            "Knee locked at 90°; the amplitude rises slowly from start_ma at rate_ma_per_s "
-           "until the clinician stops (or ceiling_ma). Records the threshold (first torque "
-           "above the offset's noise band) and the max tolerated amplitude (where it was "
-           "stopped). Appendix F part II.K, §5.2.1.",
+           "until the clinician stops, the subject signals the limit (a hand-held switch; the "
+           "simulated subject does at its own max tolerated amplitude) or ceiling_ma. Records "
+           "the threshold (first torque above the offset's noise band) and the max tolerated "
+           "amplitude (where it was stopped). Appendix F part II.K, §5.2.1.",
        .bench_mode = BenchMode::kLocked,
        .kind = ProtocolKind::kTolerance,
        .min_rest_s = 0.0,

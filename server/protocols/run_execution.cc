@@ -148,6 +148,7 @@ void RunExecution::RunTicks(std::size_t index, const Step& step) {
       if (tolerance_) tolerance_->MarkStoppedByClinician();
       break;
     }
+    if (step.tolerance_ramp && subject_limit_) break;
     if (search_reached_ma_) break;
     DriveMotor(step, k);
     const std::optional<double> planned = PlannedAmplitude(step, k);
@@ -250,7 +251,10 @@ void RunExecution::RecordSample(const Step& step, double u) {
   if (step.end_below_angle_deg && f.angle_deg <= *step.end_below_angle_deg) {
     search_reached_ma_ = applied;
   }
-  if (step.tolerance_ramp && tolerance_) tolerance_->Sample(torque, applied);
+  if (step.tolerance_ramp && tolerance_) {
+    tolerance_->Sample(torque, applied);
+    subject_limit_ = subject_limit_ || f.subject_limit;
+  }
 }
 
 void RunExecution::ReportProgress(std::size_t index, const Step& step) {
@@ -278,7 +282,7 @@ void RunExecution::FinishStep(const Step& step) {
     const double variance = offset_sq_ / count - mean * mean;
     if (tolerance_) tolerance_->SetOffsetNoise(std::sqrt(std::max(0.0, variance)));
   }
-  if (step.tolerance_ramp && runner_.stop_.load() && tolerance_) {
+  if (step.tolerance_ramp && runner_.stop_.load() && !subject_limit_ && tolerance_) {
     tolerance_->MarkStoppedByClinician();
   }
   if (step.end_below_angle_deg && !aborted_) {
@@ -325,7 +329,13 @@ RunResult RunExecution::Conclude() {
   bench_.SetStimAmplitude(0.0);
   CloseTrial(!aborted_);
   result_.bench_duration_s = bench_.Now_s() - t0_;
-  if (tolerance_) result_.tolerance = tolerance_->Finish();
+  if (tolerance_) {
+    result_.tolerance = tolerance_->Finish();
+    // 1: the ramp ended where the subject signalled the limit (not the
+    // clinician's stop, not the ceiling).
+    result_.values["subject_signalled_limit"] =
+        subject_limit_ && !result_.tolerance->stopped_by_clinician ? 1.0 : 0.0;
+  }
   if (tracking_ && !result_.trials.empty()) {
     tracking_->Summarise(result_.trials.back().trial, result_.values);
   }

@@ -95,6 +95,7 @@ class RunExecution {
   double offset_sum_ = 0.0, offset_sq_ = 0.0;
   std::int64_t offset_count_ = 0;
   std::optional<double> search_reached_ma_;
+  bool subject_limit_ = false;  // the subject signalled "no higher" (tolerance ramp)
   std::optional<Abort> aborted_;
 };
 

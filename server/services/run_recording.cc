@@ -259,12 +259,12 @@ void RunService::PublishFinish(const std::shared_ptr<LiveRun>& run,
     }
     v.values = result.values;
     if (f.session_revision && f.measured) {
-      v.result = ToleranceResultJson(*f.measured, *f.session_revision);
+      v.result = ToleranceResultJson(*f.measured, *f.session_revision, v.values);
     } else if (f.state == RunState::kDone && result.tolerance) {
       storage::SessionDetails d;  // measured, but not stored in the session
       d.threshold_ma = result.tolerance->threshold_ma;
       d.max_tolerated_ma = result.tolerance->max_tolerated_ma;
-      v.result = ToleranceResultJson(d, 0);
+      v.result = ToleranceResultJson(d, 0, v.values);
       v.result["session_revision"] = nullptr;
     } else if (f.state == RunState::kDone && result.daily_check) {
       v.result = *result.daily_check;

@@ -121,7 +121,7 @@ api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
     if (!revisions.ok()) return revisions.status();
     const std::string reason = ToleranceRevisionReason(run_id);
     for (const storage::SessionRevision& r : *revisions) {
-      if (r.reason == reason) v.result = ToleranceResultJson(r.details, r.revision);
+      if (r.reason == reason) v.result = ToleranceResultJson(r.details, r.revision, v.values);
     }
   }
   // The set a completed run stored names the run (migration 13); a set

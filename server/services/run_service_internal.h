@@ -11,6 +11,7 @@
 #include <cmath>
 #include <exception>
 #include <iostream>
+#include <map>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -37,11 +38,17 @@ inline std::string ToleranceRevisionReason(std::int64_t run_id) {
   return "tolerance_test run " + std::to_string(run_id);
 }
 
-inline nlohmann::json ToleranceResultJson(const storage::SessionDetails& d, int revision) {
+/// The tolerance test's result: the measured limits, the session revision
+/// that stores them (0 when none did) and whether the subject signalled the
+/// limit (the run value "subject_signalled_limit", RunExecution).
+inline nlohmann::json ToleranceResultJson(const storage::SessionDetails& d, int revision,
+                                          const std::map<std::string, double>& values) {
+  const auto signalled = values.find("subject_signalled_limit");
   return {{"threshold_ma", d.threshold_ma ? nlohmann::json(*d.threshold_ma) : nlohmann::json()},
           {"max_tolerated_ma",
            d.max_tolerated_ma ? nlohmann::json(*d.max_tolerated_ma) : nlohmann::json()},
-          {"session_revision", revision}};
+          {"session_revision", revision},
+          {"subject_signalled_limit", signalled != values.end() && signalled->second == 1.0}};
 }
 
 inline std::string FormatNumber(double v) {

@@ -98,9 +98,11 @@ double MaxStoredStim(storage::Database& db, const RunView& view) {
 
 // Issue 16 §1: a tolerance test on a session with a recorded max tolerated
 // amplitude ramps at most to it unless a clinician gives an explicit,
-// audited ceiling above it.
+// audited ceiling above it. The subject now tolerates more than the
+// recorded max (it signals its own limit only at 100 mA), so only the
+// ceiling ends the ramp.
 TEST(RunService, ToleranceTestNeverGoesAboveTheRecordedMaxByDefault) {
-  Rig rig;
+  Rig rig({.subject_tolerates_ma = 100.0});
   const double max_ma = rig.vs.max_tolerated_ma;
   const protocols::ParameterValues fast = {{"settle_s", 0.2}, {"rate_ma_per_s", 5.0}};
   auto run = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", fast);
@@ -166,7 +168,7 @@ TEST(RunService, ToleranceTestNeverGoesAboveTheRecordedMaxByDefault) {
 // A session without a recorded max (the first session of a new subject):
 // the tolerance test finds it, up to the stated 60 mA default ceiling.
 TEST(RunService, ToleranceTestWithoutARecordedMaxStatesItsDefaultCeiling) {
-  Rig rig({.with_limits = false});
+  Rig rig({.with_limits = false, .subject_tolerates_ma = 100.0});
   auto context = LoadSessionContext(*rig.db, rig.session_id, rig.bench->limits());
   ASSERT_TRUE(context.ok());
   EXPECT_FALSE(context->subject.max_tolerated_recorded);
@@ -180,6 +182,27 @@ TEST(RunService, ToleranceTestWithoutARecordedMaxStatesItsDefaultCeiling) {
   const double delivered = MaxStoredStim(*rig.db, *view);
   EXPECT_LE(delivered, 60.0 + 1e-9);
   EXPECT_GT(delivered, 59.9);
+}
+
+// A new subject's first tolerance test, left running: it ends where the
+// subject signals its limit, which the session then records.
+TEST(RunService, ToleranceTestLeftRunningRecordsWhereTheSubjectSignalledTheLimit) {
+  Rig rig({.with_limits = false});
+  const double limit = rig.vs.max_tolerated_ma;
+  ASSERT_LT(limit, 58.0);
+  auto run =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test",
+                         {{"settle_s", 0.2}, {"start_ma", limit - 2.0}, {"rate_ma_per_s", 5.0}});
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  auto view = rig.service->Wait(run->run_id, kWait);
+  ASSERT_TRUE(view.ok());
+  ASSERT_EQ(view->state, RunState::kDone) << view->reason;
+  EXPECT_EQ(view->values.at("subject_signalled_limit"), 1.0);
+  EXPECT_EQ(view->result.at("subject_signalled_limit"), true);
+  const double recorded = view->result.at("max_tolerated_ma").get<double>();
+  EXPECT_GE(recorded, limit);
+  EXPECT_LT(recorded, limit + 0.25);
+  EXPECT_LT(MaxStoredStim(*rig.db, *view), limit + 0.25);
 }
 
 // Issue 16 §2–§3 in process: a new RunService on the same database (a

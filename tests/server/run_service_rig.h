@@ -47,6 +47,9 @@ struct RigOptions {
   bool arm_watchdog = false;
   bool wall_clock_is_bench_time = false;
   bool with_limits = true;  // the session records threshold and max tolerated
+  /// > 0: what the subject on the bench now tolerates, mA (it signals the
+  /// tolerance test's limit there); 0: the drawn max tolerated, as recorded.
+  double subject_tolerates_ma = 0.0;
 };
 
 /// A database with users, a subject, a leg and a session, a simulated bench
@@ -94,7 +97,9 @@ struct Rig {
     bo.on_control_step = [this](double t_s) {
       if (hook) hook(t_s);
     };
-    bench = std::make_unique<SwappableSimulatedBench>(vs, bo);
+    VirtualSubject on_bench = vs;
+    if (o.subject_tolerates_ma > 0.0) on_bench.max_tolerated_ma = o.subject_tolerates_ma;
+    bench = std::make_unique<SwappableSimulatedBench>(on_bench, bo);
 
     config.time_scale = o.time_scale;
     config.arm_watchdog = o.arm_watchdog;

@@ -254,8 +254,31 @@ TEST(Runner, ToleranceTestRunsToTheCeilingWithoutStop) {
   const RunResult r = runner.Run(*plan, ctx);
   ASSERT_EQ(r.state, RunState::kDone);
   EXPECT_FALSE(r.tolerance->stopped_by_clinician);
+  EXPECT_EQ(r.values.at("subject_signalled_limit"), 0.0);
   EXPECT_NEAR(r.tolerance->max_tolerated_ma, 30.0, 0.05);
   EXPECT_FALSE(r.tolerance->warnings.empty());  // < 6 N·m at 30 mA for this subject
+}
+
+TEST(Runner, ToleranceTestLeftRunningEndsWhereTheSubjectSignalsTheLimit) {
+  // A first session (no recorded max: the 60 mA ceiling stands alone) and a
+  // clinician who never stops: the simulated subject signals its own limit.
+  Rig rig(7);
+  SubjectContext ctx = Context(rig.subject);
+  ctx.max_tolerated_ma = 100.0;
+  ctx.max_tolerated_recorded = false;
+  auto plan = MakePlan("tolerance_test", {{"rate_ma_per_s", 5.0}}, ctx);
+  ASSERT_TRUE(plan.ok());
+  ASSERT_LT(rig.subject.max_tolerated_ma, 60.0);
+  ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+  const RunResult r = runner.Run(*plan, ctx);
+  ASSERT_EQ(r.state, RunState::kDone) << r.reason;
+  EXPECT_FALSE(r.tolerance->stopped_by_clinician);
+  EXPECT_EQ(r.values.at("subject_signalled_limit"), 1.0);
+  // The first pulse at or above the limit, seen at the next 5 ms sample:
+  // pulses 30 ms apart at 5 mA/s put it at most 0.2 mA above.
+  EXPECT_GE(r.tolerance->max_tolerated_ma, rig.subject.max_tolerated_ma);
+  EXPECT_LT(r.tolerance->max_tolerated_ma, rig.subject.max_tolerated_ma + 0.25);
+  EXPECT_LT(r.bench_duration_s, plan->duration_s());
 }
 
 // --- e-stop, watchdog, cancel, one run at a time, model gate -----------------------------

@@ -371,7 +371,8 @@ export async function sessionView(ctx, sessionId) {
       let recorded = '';
       if (r && r.session_revision) {
         recorded = h('p', { class: 'msg msg-ok', id: 'run-recorded' }, `Recorded in this session: threshold ${fmt(r.threshold_ma, 4)} mA, ` +
-          `max tolerated ${fmt(r.max_tolerated_ma, 4)} mA (revision ${r.session_revision}).`);
+          `max tolerated ${fmt(r.max_tolerated_ma, 4)} mA (revision ${r.session_revision})` +
+          (r.subject_signalled_limit ? ', where the subject signalled the limit.' : '.'));
       } else if (r && 'max_tolerated_ma' in r) {
         recorded = h('p', { class: 'msg msg-error', id: 'run-not-recorded' }, Number.isFinite(r.threshold_ma)
           ? `Measured threshold ${fmt(r.threshold_ma, 4)} mA and max tolerated ${fmt(r.max_tolerated_ma, 4)} mA, but they were not ` +
