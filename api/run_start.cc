@@ -46,7 +46,8 @@ Result<StartRunRequest> StartRunRequestFromJson(const json& body) {
     JsonFields p(*parameters, "parameters");
     for (const auto& [name, value] : parameters->items()) {
       if (value.is_string()) {
-        out.choices[name] = *p.String(name, true, 64);
+        // Unset when the name is too long or an earlier parameter failed.
+        if (auto choice = p.String(name, true, 64)) out.choices[name] = std::move(*choice);
       } else if (const auto number = p.Number(name, true)) {
         out.parameters[name] = *number;
       }

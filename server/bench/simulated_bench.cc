@@ -507,7 +507,7 @@ SensorFrame SimulatedBench::ReadSensors() {
   frame.limit_flexion = truth.angle_deg >= options_.limits.max_angle_deg - kLimitSwitchMarginDeg;
   frame.limit_extension = truth.angle_deg <= options_.limits.min_angle_deg + kLimitSwitchMarginDeg;
   frame.estop = HardwareEStopped();
-  frame.subject_limit = frame.stim_ma > 0.0 && frame.stim_ma >= subject_.max_tolerated_ma;
+  frame.subject_limit = frame.stim_ma >= subject_.max_tolerated_ma;  // max tolerated > 0
   return frame;
 }
 

@@ -39,16 +39,20 @@ inline std::string ToleranceRevisionReason(std::int64_t run_id) {
 }
 
 /// The tolerance test's result: the measured limits, the session revision
-/// that stores them (0 when none did) and whether the subject signalled the
+/// that stores them (0 when none did) and, when the run's values still say
+/// (the runs table does not keep them), whether the subject signalled the
 /// limit (the run value "subject_signalled_limit", RunExecution).
 inline nlohmann::json ToleranceResultJson(const storage::SessionDetails& d, int revision,
                                           const std::map<std::string, double>& values) {
-  const auto signalled = values.find("subject_signalled_limit");
-  return {{"threshold_ma", d.threshold_ma ? nlohmann::json(*d.threshold_ma) : nlohmann::json()},
-          {"max_tolerated_ma",
-           d.max_tolerated_ma ? nlohmann::json(*d.max_tolerated_ma) : nlohmann::json()},
-          {"session_revision", revision},
-          {"subject_signalled_limit", signalled != values.end() && signalled->second == 1.0}};
+  nlohmann::json result = {
+      {"threshold_ma", d.threshold_ma ? nlohmann::json(*d.threshold_ma) : nlohmann::json()},
+      {"max_tolerated_ma",
+       d.max_tolerated_ma ? nlohmann::json(*d.max_tolerated_ma) : nlohmann::json()},
+      {"session_revision", revision}};
+  if (const auto signalled = values.find("subject_signalled_limit"); signalled != values.end()) {
+    result["subject_signalled_limit"] = signalled->second == 1.0;
+  }
+  return result;
 }
 
 inline std::string FormatNumber(double v) {

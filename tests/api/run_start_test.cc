@@ -41,6 +41,11 @@ TEST(StartRunRequest, NamesTheFieldOfAMalformedRequest) {
   EXPECT_EQ(field({{"protocol", "x"}, {"ceiling_reason", std::string(501, 'a')}}),
             "ceiling_reason");
   EXPECT_EQ(field({{"protocol", "x"}, {"param", 1}}), "param");
+  // A choice too long, and a choice after a parameter that already failed.
+  EXPECT_EQ(field({{"protocol", "x"}, {"parameters", {{"controller", std::string(65, 'p')}}}}),
+            "parameters.controller");
+  EXPECT_EQ(field({{"protocol", "x"}, {"parameters", {{"a", true}, {"b", "pid"}}}}),
+            "parameters.a");
   json many = json::object();
   for (int i = 0; i <= static_cast<int>(kMaxRunParameters); ++i) many["p" + std::to_string(i)] = i;
   EXPECT_EQ(field({{"protocol", "x"}, {"parameters", many}}), "parameters");

@@ -50,6 +50,20 @@ class IdentifyCliTest : public ::testing::Test {
     return Path(name);
   }
 
+  // A recording as a bench without accelerometer makes it: the stimulation
+  // envelope and the knee angle only.
+  void WriteRecording(const std::string& name, const model::SampledSignal& env,
+                      const model::SimulationResult& sim) {
+    api::Trial t;
+    t.sample_rate_hz = 200.0;
+    t.SetChannel("t_s", sim.t_s);
+    t.SetChannel("stim_ma", std::vector<double>(env.values.begin(),
+                                                env.values.begin() +
+                                                    static_cast<std::ptrdiff_t>(sim.size())));
+    t.SetChannel("angle_deg", sim.angle_deg);
+    ASSERT_TRUE(api::WriteTextFile(dir_ / name, api::TrialToCsv(t)).ok());
+  }
+
   int Run(std::vector<std::string> args) {
     args.insert(args.begin(), "fesbench-model");
     std::vector<const char*> argv;
@@ -130,15 +144,8 @@ TEST_F(IdentifyCliTest, FreeSwingFromPositionAndEnvelopeOnly) {
   const auto env = model::MakeStimulus("random_binary_sparse", {{"amplitude_ma", 26}, {"seed", 4}});
   model::SimulationOptions opt;
   opt.duration_s = env.EndTime();
-  const auto sim = model::SimulateFreeSwing(truth, model::PulsesFromEnvelope(env, 33.0), opt);
-  api::Trial t;
-  t.sample_rate_hz = 200.0;
-  t.SetChannel("t_s", sim.t_s);
-  t.SetChannel("stim_ma",
-               std::vector<double>(env.values.begin(),
-                                   env.values.begin() + static_cast<std::ptrdiff_t>(sim.size())));
-  t.SetChannel("angle_deg", sim.angle_deg);
-  ASSERT_TRUE(api::WriteTextFile(dir_ / "fs.csv", api::TrialToCsv(t)).ok());
+  WriteRecording("fs.csv", env,
+                 model::SimulateFreeSwing(truth, model::PulsesFromEnvelope(env, 33.0), opt));
   const std::string params = Path("truth.json");
   ASSERT_TRUE(api::WriteTextFile(params, api::ParameterSetToJson(truth).dump()).ok());
   ASSERT_EQ(Run({"identify", "passive_free_swing", "--trial", Path("fs.csv"), "--params-in", params,
@@ -159,15 +166,8 @@ TEST_F(IdentifyCliTest, OutputErrorRecoversTheTorqueScaleAndEvaluatesAtZeroItera
   model::SimulationOptions opt;
   opt.duration_s = env.EndTime();
   opt.joint_limits = model::JointLimits{10.0, 110.0};
-  const auto sim = model::SimulateFreeSwing(truth, model::PulsesFromEnvelope(env, 33.0), opt);
-  api::Trial t;
-  t.sample_rate_hz = 200.0;
-  t.SetChannel("t_s", sim.t_s);
-  t.SetChannel("stim_ma",
-               std::vector<double>(env.values.begin(),
-                                   env.values.begin() + static_cast<std::ptrdiff_t>(sim.size())));
-  t.SetChannel("angle_deg", sim.angle_deg);
-  ASSERT_TRUE(api::WriteTextFile(dir_ / "rb.csv", api::TrialToCsv(t)).ok());
+  WriteRecording("rb.csv", env,
+                 model::SimulateFreeSwing(truth, model::PulsesFromEnvelope(env, 33.0), opt));
   model::ParameterSet start = truth;
   start.active.torque_scale_nm *= 0.8;
   ASSERT_TRUE(api::WriteTextFile(Path("truth.json"), api::ParameterSetToJson(truth).dump()).ok());
