@@ -29,6 +29,16 @@
 
 namespace fesbench::server::http {
 
+/// An upload's body (routes with `raw_body` whose requests are uploads,
+/// request_framing.h IsUpload): the front end spools it to an unlinked
+/// temporary file as it arrives instead of holding it in memory, so a
+/// handler reads it from `fd` (a regular file, positioned at 0, open for the
+/// request only) and `req.body` is empty.
+struct UploadBody {
+  int fd = -1;
+  std::size_t size = 0;  ///< bytes in the file: the request's Content-Length.
+};
+
 /// What a handler sees.
 struct RequestContext {
   const httplib::Request& req;
@@ -39,6 +49,8 @@ struct RequestContext {
   /// Set by handlers that wrote their own audit entry (in the transaction of
   /// the change); otherwise the dispatcher audits state-changing requests.
   bool audited = false;
+  /// Set for uploads (UploadBody); nullptr otherwise.
+  const UploadBody* upload = nullptr;
 
   /// The integer path parameter `name` (the template guarantees digits).
   std::int64_t Id(std::string_view name) const;
