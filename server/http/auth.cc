@@ -122,9 +122,13 @@ Admission Authenticator::Admit(std::string_view header, std::string_view address
     out.status = kBadToken;  // no sign-in attempted: neither audited nor counted
     return out;
   }
-  std::optional<storage::User> user;
-  if (WellFormed(header)) user = Cached(std::string(header.substr(kScheme.size())));
-  if (!user) {
+  // A valid token is looked up first: the failed-token throttle slows only
+  // requests whose token is wrong, never a user behind somebody else's
+  // failures (an e-stop from the same address among them).
+  auto user = Authenticate(header);
+  if (!user.ok()) {
+    out.status = user.status();
+    if (out.status.code() != api::ErrorCode::kUnauthenticated) return out;
     bool first_refusal = false;
     if (const int wait_s = WaitFor(who, &first_refusal); wait_s > 0) {
       out.retry_after_s = wait_s;
@@ -141,19 +145,12 @@ Admission Authenticator::Admit(std::string_view header, std::string_view address
       }
       return out;
     }
-    auto authenticated = Authenticate(header);
-    if (!authenticated.ok()) {
-      out.status = authenticated.status();
-      if (out.status.code() == api::ErrorCode::kUnauthenticated) {
-        TakeFailure(who);
-        AuditEntry(std::nullopt, who, action, target,
-                   WellFormed(header) ? "unknown, revoked or expired bearer token"
-                                      : "malformed Authorization header",
-                   "401 unauthenticated");
-      }
-      return out;
-    }
-    user = std::move(*authenticated);
+    TakeFailure(who);
+    AuditEntry(std::nullopt, who, action, target,
+               WellFormed(header) ? "unknown, revoked or expired bearer token"
+                                  : "malformed Authorization header",
+               "401 unauthenticated");
+    return out;
   }
   if (api::Status st = Authorise(*user, allowed); !st.ok()) {
     AuditEntry(user->id, user->name, action, target, "role " + std::string(storage::RoleName(user->role)),
@@ -161,7 +158,7 @@ Admission Authenticator::Admit(std::string_view header, std::string_view address
     out.status = st;
     return out;
   }
-  out.user = std::move(user);
+  out.user = std::move(*user);
   return out;
 }
 

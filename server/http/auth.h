@@ -12,9 +12,12 @@
 /// failed sign-in (a presented token that is not valid: 401) and every
 /// request refused for its role (403, any method), and slows down a burst
 /// of failed tokens from one client address with a token bucket: while the
-/// address's bucket is empty its requests get 429 with Retry-After without
-/// their token being looked up, except tokens that signed in successfully
-/// within the cache's lifetime.
+/// address's bucket is empty its requests with a wrong token get 429 with
+/// Retry-After instead of 401 (and only the first is audited). A valid
+/// token is always looked up first and admitted: the throttle never makes a
+/// user wait for somebody else's failures. (Tokens carry 256 random bits,
+/// storage/users.h, so the throttle guards the audit log and the database,
+/// not the tokens' secrecy.)
 
 #include <chrono>
 #include <cstddef>

@@ -2,8 +2,8 @@
 // hand-driven clock: failed sign-ins (401) and role refusals (403, any
 // method) are audited without the token; a burst of failed tokens from one
 // address is slowed down (429 with Retry-After, audited once per burst)
-// while other addresses and recently signed-in tokens are not; the bucket
-// refills with time.
+// while other addresses and valid tokens from the same address are not; the
+// bucket refills with time.
 #include "server/http/auth.h"
 
 #include <gtest/gtest.h>
@@ -34,6 +34,8 @@ struct AuthRig {
     storage::UserRepository users(*db);
     auto analyst = users.CreateUser("ana", storage::Role::kAnalyst);
     analyst_token = "Bearer " + users.IssueToken(analyst->id, "t")->token;
+    auto clinician = users.CreateUser("cli", storage::Role::kClinician);
+    clinician_token = "Bearer " + users.IssueToken(clinician->id, "t")->token;
     AuthenticatorOptions options;
     options.failed_tokens.burst = 3;
     options.failed_tokens.refill_per_s = 0.5;
@@ -60,6 +62,7 @@ struct AuthRig {
   std::filesystem::path dir;
   std::unique_ptr<storage::Database> db;
   std::string analyst_token;
+  std::string clinician_token;  ///< never presented before the burst: not cached.
   ::fesbench::testing::ManualClock clock;
   std::unique_ptr<Authenticator> auth;
 };
@@ -106,12 +109,14 @@ TEST(Authenticator, ABurstOfFailedTokensFromOneAddressIsSlowedDown) {
   Admission slowed = rig.Try(kWrong);
   EXPECT_FALSE(slowed.user);
   EXPECT_EQ(slowed.retry_after_s, 2);
-  // Even a token nobody checked is not looked up while slowed down ...
-  Admission valid_uncached = rig.Try("Bearer fsb_" + std::string(64, '1'));
-  EXPECT_EQ(valid_uncached.retry_after_s, 2);
-  // ... but the token that signed in a moment ago still works, and so does
-  // another address.
+  // A valid token is looked up and admitted whatever the address's failures:
+  // one never checked before (not cached) as well as a recent one. Only
+  // wrong tokens are slowed down.
+  Admission valid_uncached = rig.Try(rig.clinician_token);
+  EXPECT_TRUE(valid_uncached.user);
+  EXPECT_EQ(valid_uncached.retry_after_s, 0);
   EXPECT_TRUE(rig.Try(rig.analyst_token).user);
+  EXPECT_EQ(rig.Try("Bearer fsb_" + std::string(64, '1')).retry_after_s, 2);
   EXPECT_EQ(rig.Try(kWrong, "10.0.0.8").retry_after_s, 0);
 
   auto audit = rig.Audit();
