@@ -13,9 +13,7 @@ void HttpServer::Accept() {
                              SOCK_NONBLOCK | SOCK_CLOEXEC);
     if (fd < 0) {
       if (errno == EINTR || errno == ECONNABORTED) continue;
-      if (errno == EMFILE || errno == ENFILE) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
+      if ((errno == EMFILE || errno == ENFILE) && EvictOne(nullptr, 0)) continue;
       return;  // EAGAIN: all taken
     }
     const int yes = 1;
@@ -27,30 +25,27 @@ void HttpServer::Accept() {
     socklen_t local_length = sizeof local;
     ::getsockname(fd, reinterpret_cast<sockaddr*>(&local), &local_length);
     c->local_ip = AddressText(local, c->local_port);
-    c->deadline = Clock::now() + options_.keep_alive_timeout;
-    bool full = false;
+    // A new connection's first head is due within head_timeout; it is idle
+    // (not request_started) until its first byte.
+    c->deadline = Clock::now() + options_.head_timeout;
+    std::size_t open = 0, from_address = 0;
     {
       std::lock_guard lock(connections_mutex_);
-      full = connections_.size() >= options_.max_open_connections;
-      if (!full) {
-        c->id = next_id_++;
-        connections_.emplace(c->id, c);
-      }
+      c->id = next_id_++;
+      connections_.emplace(c->id, c);
+      open = connections_.size();
+      from_address = ++per_address_[c->remote_ip];
     }
-    if (full) {
-      const std::string body =
-          ErrorJson(HttpError{503, "unavailable", "too many open connections; retry later", {}})
-              .dump();
-      const std::string response = "HTTP/1.1 503 Service Unavailable\r\nContent-Type: "
-                                   "application/json\r\nRetry-After: 1\r\nConnection: close\r\n"
-                                   "Content-Length: " +
-                                   std::to_string(body.size()) + "\r\n\r\n" + body;
-      if (!tls_) c->SendAll(response, std::chrono::milliseconds(0));
-      ::shutdown(fd, SHUT_WR);
-      ::close(fd);
-      continue;
+    // Never refuse a connection (it may carry an e-stop): make room instead.
+    bool no_room = false;
+    if (from_address > options_.max_connections_per_address) {
+      no_room = !EvictOne(&c->remote_ip, c->id);
+    } else if (open > options_.max_open_connections) {
+      no_room = !EvictOne(nullptr, c->id);
     }
     std::lock_guard lock(c->mutex);
+    if (c->closed) continue;  // made room for another worker's new connection
+    c->urgent_only = no_room;
     if (tls_) {
       c->ssl = SSL_new(tls_);
       if (!c->ssl || SSL_set_fd(c->ssl, fd) != 1) {
@@ -63,6 +58,29 @@ void HttpServer::Accept() {
     event.data.u64 = c->id;
     if (::epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, fd, &event) != 0) Close(*c, false);
   }
+}
+
+bool HttpServer::EvictOne(const std::string* address, std::uint64_t except) {
+  std::vector<std::shared_ptr<Connection>> candidates;  // oldest first
+  {
+    std::lock_guard lock(connections_mutex_);
+    candidates.reserve(connections_.size());
+    for (const auto& [id, c] : connections_) {
+      if (id != except && (address == nullptr || c->remote_ip == *address)) candidates.push_back(c);
+    }
+  }
+  // Idle and lingering connections first, then one whose request is still
+  // arriving; never one a worker is handling (its mutex is held).
+  for (const bool idle_only : {true, false}) {
+    for (const auto& c : candidates) {
+      std::unique_lock lock(c->mutex, std::try_to_lock);
+      if (!lock.owns_lock() || c->closed) continue;
+      if (idle_only && !c->lingering && c->request_started) continue;
+      Close(*c, false);
+      return true;
+    }
+  }
+  return false;
 }
 
 void HttpServer::Serve(std::uint64_t id) {
@@ -93,8 +111,8 @@ void HttpServer::Serve(std::uint64_t id) {
       const int error = SSL_get_error(c->ssl, r);
       if (error == SSL_ERROR_WANT_READ || error == SSL_ERROR_WANT_WRITE) {
         if (!c->request_started) {
-          c->request_started = true;  // the handshake counts against the request deadline
-          c->deadline = Clock::now() + options_.request_timeout;
+          c->request_started = true;  // the handshake counts against the head's deadline
+          c->deadline = Clock::now() + options_.head_timeout;
         }
         Rearm(*c, error == SSL_ERROR_WANT_WRITE);
       } else {
@@ -106,51 +124,119 @@ void HttpServer::Serve(std::uint64_t id) {
   HandleBytes(*c);
 }
 
+namespace {
+
+// The head of an upload as httplib is to see it: the body is in a file, so
+// Content-Length is 0 (and Expect is gone: 100 Continue was ours to send).
+std::string HeadWithoutBody(std::string_view head) {
+  std::string out;
+  out.reserve(head.size());
+  while (!head.empty()) {
+    const std::size_t eol = head.find("\r\n");
+    const std::string_view line = head.substr(0, eol == std::string_view::npos ? head.size() : eol + 2);
+    head.remove_prefix(line.size());
+    if (line == "\r\n") {
+      if (out.empty()) continue;  // empty lines before the request line
+      out += "Content-Length: 0\r\n\r\n";
+      break;
+    }
+    const std::string_view name = line.substr(0, line.find(':'));
+    auto is = [&](std::string_view header) {
+      return name.size() == header.size() &&
+             std::equal(name.begin(), name.end(), header.begin(), [](char a, char b) {
+               return std::tolower(static_cast<unsigned char>(a)) == b;
+             });
+    };
+    if (!is("content-length") && !is("expect")) out += line;
+  }
+  return out;
+}
+
+int OpenSpoolFile(const std::string& dir) {
+  int fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+  if (fd >= 0) return fd;
+  std::string path = dir + "/fesbench-upload-XXXXXX";
+  fd = ::mkostemp(path.data(), O_CLOEXEC);
+  if (fd >= 0) ::unlink(path.c_str());
+  return fd;
+}
+
+bool WriteAll(int fd, std::string_view data) {
+  while (!data.empty()) {
+    const ssize_t n = ::write(fd, data.data(), data.size());
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return false;
+    }
+    data.remove_prefix(static_cast<std::size_t>(n));
+  }
+  return true;
+}
+
+}  // namespace
+
 void HttpServer::HandleBytes(Connection& c) {
   FramingLimits limits;
   limits.max_head_bytes = options_.max_head_bytes;
   limits.max_headers = options_.max_headers;
   limits.max_body_bytes = options_.max_body_bytes;
   limits.max_upload_bytes = options_.max_upload_bytes;
-  // Read no further than one whole request beyond a full one: pipelined
-  // requests wait in the kernel until their turn. An upload's head raises
-  // the limit to its own length.
-  std::size_t read_limit = options_.max_head_bytes + options_.max_body_bytes + kReadChunk;
-  if (!c.in.empty()) {
-    const Framing pending = FrameRequest(c.in, limits);
-    if (pending.head_complete && IsUpload(pending.method, pending.path)) {
-      read_limit = std::max(read_limit, pending.total() + kReadChunk);
-    }
-  }
   for (;;) {
+    // Read no further than one whole request beyond a full one (pipelined
+    // requests wait in the kernel until their turn), and while spooling no
+    // more than a few chunks past the head at a time.
+    const std::size_t read_limit =
+        c.spool_fd >= 0 ? c.head_length + 4 * kReadChunk
+                        : options_.max_head_bytes + options_.max_body_bytes + kReadChunk;
+    const std::size_t before = c.in.size();
     if (!c.ReadAvailable(read_limit)) {
       Close(c, false);
       return;
     }
-    bool handled_any = false;  // (read again only for TLS-buffered bytes)
+    bool progress = c.in.size() != before;
     while (!c.in.empty()) {
+      if (c.spool_fd >= 0) {
+        if (!SpoolBody(c)) return;
+        if (c.spool_written < c.spool_expected) break;
+        const UploadBody upload{c.spool_fd, c.spool_expected};
+        ::lseek(c.spool_fd, 0, SEEK_SET);
+        const std::string head = HeadWithoutBody(std::string_view(c.in).substr(0, c.head_length));
+        if (!Answer(c, head, c.head_length, true, &upload)) return;
+        progress = true;
+        continue;
+      }
       const Framing f = FrameRequest(c.in, limits);
       if (f.state == Framing::State::kError) {
         Refuse(c, f.error, true);
         return;
       }
+      const auto now = Clock::now();
+      if (!c.request_started) {
+        c.request_started = true;
+        c.deadline = now + options_.head_timeout;
+      }
+      if (!f.head_complete) break;
+      const bool upload = IsUpload(f.method, f.path);
+      if (!c.admitted && (upload || f.state == Framing::State::kIncomplete)) {
+        // Checked on the head alone, before a byte of the body is read.
+        std::string extra_headers;
+        if (auto refusal = Preadmit(c, f.method, f.path, f.authorization, f.content_type,
+                                    extra_headers)) {
+          Refuse(c, *refusal, true, extra_headers);
+          return;
+        }
+        c.admitted = true;
+      }
+      if (upload) {
+        if (!StartSpool(c, f.skip + f.head_bytes, f.body_bytes, f.expect_continue)) return;
+        continue;
+      }
       if (f.state == Framing::State::kIncomplete) {
-        const auto now = Clock::now();
-        if (!c.request_started) {
-          c.request_started = true;
+        if (!c.head_seen) {
+          c.head_seen = true;
           c.deadline = now + options_.request_timeout;
         }
-        const bool upload = f.head_complete && IsUpload(f.method, f.path);
-        if (upload) read_limit = std::max(read_limit, f.total() + kReadChunk);
-        if (f.head_complete && !c.head_seen) {
-          c.head_seen = true;
-          // A body gets as long again as the head had; an upload one more
-          // second per MiB.
-          auto allowance = options_.request_timeout;
-          if (upload) allowance += std::chrono::seconds(f.body_bytes >> 20);
-          c.deadline = std::max(c.deadline, now + allowance);
-        }
-        if (f.head_complete && f.expect_continue && !c.continue_sent) {
+        if (f.expect_continue && !c.continue_sent) {
           c.continue_sent = true;
           if (!c.SendAll("HTTP/1.1 100 Continue\r\n\r\n", options_.write_timeout)) {
             Close(c, false);
@@ -159,34 +245,9 @@ void HttpServer::HandleBytes(Connection& c) {
         }
         break;
       }
-      const bool urgent = IsUrgent(f.method, f.path);
-      const bool more_allowed = c.served + 1 < options_.keep_alive_max_count &&
-                                !stop_requested_.load() && !(c.peer_closed && c.in.size() == f.total());
-      const bool last = !f.keep_alive || !more_allowed;
-      bool keep;
-      if (!urgent && busy_.load() >= workers_ - kUrgentReserve) {
-        Refuse(c,
-               HttpError{503, "unavailable",
-                         "the server is handling " + std::to_string(busy_.load()) +
-                             " requests; retry later",
-                         {}},
-               last);
-        if (last) return;
-        keep = true;
-      } else {
-        ++busy_;
-        keep = ProcessOne(c, f.skip, f.total(), last);
-        --busy_;
-      }
-      if (c.closed) return;
-      c.in.erase(0, f.total());
-      ++c.served;
-      c.request_started = c.head_seen = c.continue_sent = false;
-      if (!keep || last) {
-        Close(c, true);
-        return;
-      }
-      handled_any = true;
+      const std::string_view request = std::string_view(c.in).substr(f.skip, f.total() - f.skip);
+      if (!Answer(c, request, f.total(), f.keep_alive, nullptr)) return;
+      progress = true;
     }
     if (c.peer_closed) {
       // Half-closed with nothing complete left: nothing more can come.
@@ -194,17 +255,155 @@ void HttpServer::HandleBytes(Connection& c) {
       return;
     }
     // TLS may hold decrypted bytes that epoll cannot see.
-    if (handled_any && c.ssl && SSL_pending(c.ssl) > 0) continue;
+    if (progress && c.ssl && SSL_pending(c.ssl) > 0) continue;
     break;
   }
   if (!c.request_started) c.deadline = Clock::now() + options_.keep_alive_timeout;
   Rearm(c);
 }
 
-bool HttpServer::ProcessOne(Connection& c, std::size_t skip, std::size_t total, bool last) {
-  RequestStream stream(c, std::string_view(c.in).substr(skip, total - skip),
-                       options_.write_timeout);
+bool HttpServer::Answer(Connection& c, std::string_view request, std::size_t consumed,
+                        bool keep_alive, const UploadBody* upload) {
+  // The request line: "METHOD SP target SP version" (framed already).
+  const std::size_t sp1 = request.find(' ');
+  const std::string_view method = request.substr(0, sp1);
+  const std::string_view target = request.substr(sp1 + 1, request.find(' ', sp1 + 1) - sp1 - 1);
+  const bool urgent = IsUrgent(method, target.substr(0, target.find('?')));
+  const bool more_allowed = c.served + 1 < options_.keep_alive_max_count &&
+                            !stop_requested_.load() && !(c.peer_closed && c.in.size() == consumed);
+  const bool last = !keep_alive || !more_allowed;
+  bool keep = true;
+  if (!urgent && (c.urgent_only || busy_.load() >= workers_ - kUrgentReserve)) {
+    Refuse(c,
+           HttpError{503, "unavailable",
+                     c.urgent_only ? std::string("the server has no room for another connection; "
+                                                 "retry later")
+                                   : "the server is handling " + std::to_string(busy_.load()) +
+                                         " requests; retry later",
+                     {}},
+           last);
+    if (last || c.closed) return false;
+  } else {
+    ++busy_;
+    keep = ProcessOne(c, request, last, upload);
+    --busy_;
+  }
+  if (c.closed) return false;
+  EndSpool(c);
+  c.in.erase(0, consumed);
+  ++c.served;
+  c.request_started = c.head_seen = c.admitted = c.continue_sent = false;
+  if (!keep || last) {
+    Close(c, true);
+    return false;
+  }
+  return true;
+}
+
+std::optional<HttpError> HttpServer::Preadmit(const Connection& c, std::string_view method,
+                                              std::string_view path,
+                                              std::string_view authorization,
+                                              std::string_view content_type,
+                                              std::string& extra_headers) {
+  // The raw path: a target that matches no route here (percent-encoded, say)
+  // is routed by the dispatcher once its body (at most max_body_bytes) is in.
+  const RouteMatch match = routes_.Match(method, path);
+  if (!match.route) return std::nullopt;
+  const Route& route = *match.route;
+  if (route.roles != 0) {
+    const std::string where(path.substr(0, 200));
+    Admission admitted = auth_.Admit(authorization, c.remote_ip, route.roles,
+                                     std::string(method) + " " + where, where);
+    if (!admitted.user) {
+      if (admitted.retry_after_s > 0) {
+        extra_headers = "Retry-After: " + std::to_string(admitted.retry_after_s) + "\r\n";
+        return HttpError{429, "too_many_requests", admitted.status.message(), {}};
+      }
+      if (admitted.status.code() == api::ErrorCode::kUnauthenticated) {
+        extra_headers = "WWW-Authenticate: Bearer\r\n";
+      }
+      return ToHttpError(admitted.status);
+    }
+  }
+  if (route.json_body && !IsJsonContentType(content_type)) {
+    return HttpError{415, "unsupported_media_type",
+                     "the request body must be JSON (Content-Type: application/json)", {}};
+  }
+  return std::nullopt;
+}
+
+bool HttpServer::StartSpool(Connection& c, std::size_t head_length, std::size_t body_bytes,
+                            bool expect_continue) {
+  std::size_t held = spooled_bytes_.load();
+  do {
+    if (held + body_bytes > options_.max_spooled_bytes) {
+      Refuse(c,
+             HttpError{503, "unavailable",
+                       "the server is receiving " + std::to_string(held >> 20) +
+                           " MiB of other uploads; retry later",
+                       {}},
+             true);
+      return false;
+    }
+  } while (!spooled_bytes_.compare_exchange_weak(held, held + body_bytes));
+  c.spool_expected = body_bytes;  // reserved: EndSpool gives it back
+  c.spool_written = 0;
+  c.head_length = head_length;
+  c.spool_fd = OpenSpoolFile(options_.upload_dir);
+  if (c.spool_fd < 0) {
+    const int error = errno;
+    std::cerr << "fesbench-server: cannot spool an upload in " << options_.upload_dir << ": "
+              << std::strerror(error) << std::endl;
+    EndSpool(c);
+    Refuse(c, HttpError{503, "unavailable", "the server cannot store uploads now; retry later", {}},
+           true);
+    return false;
+  }
+  const auto now = Clock::now();
+  c.head_seen = true;
+  c.spool_deadline =
+      now + options_.request_timeout + std::chrono::seconds(body_bytes >> 20);
+  c.deadline = std::min(c.spool_deadline, now + options_.request_timeout);
+  if (expect_continue && !c.continue_sent) {
+    c.continue_sent = true;
+    if (!c.SendAll("HTTP/1.1 100 Continue\r\n\r\n", options_.write_timeout)) {
+      Close(c, false);
+      return false;
+    }
+  }
+  return true;
+}
+
+bool HttpServer::SpoolBody(Connection& c) {
+  const std::size_t take =
+      std::min(c.in.size() - c.head_length, c.spool_expected - c.spool_written);
+  if (take == 0) return true;
+  if (!WriteAll(c.spool_fd, std::string_view(c.in).substr(c.head_length, take))) {
+    const int error = errno;
+    std::cerr << "fesbench-server: cannot spool an upload: " << std::strerror(error) << std::endl;
+    Refuse(c, HttpError{503, "unavailable", "the server cannot store uploads now; retry later", {}},
+           true);
+    return false;
+  }
+  c.in.erase(c.head_length, take);
+  c.spool_written += take;
+  // Progress: the body may stall request_timeout again, within its whole.
+  c.deadline = std::min(c.spool_deadline, Clock::now() + options_.request_timeout);
+  return true;
+}
+
+void HttpServer::EndSpool(Connection& c) {
+  if (c.spool_fd >= 0) ::close(c.spool_fd);
+  if (c.spool_fd >= 0 || c.spool_expected > 0) spooled_bytes_ -= c.spool_expected;
+  c.spool_fd = -1;
+  c.head_length = c.spool_expected = c.spool_written = 0;
+}
+
+bool HttpServer::ProcessOne(Connection& c, std::string_view request, bool last,
+                            const UploadBody* upload) {
+  RequestStream stream(c, request, options_.write_timeout);
   bool connection_closed = false;
+  current_upload = upload;
   const bool ok = engine_->process_request(
       stream, last, connection_closed, [](httplib::Request& req) {
         // Ranges are for files: an API answer (or its error) is never cut
@@ -224,6 +423,7 @@ bool HttpServer::ProcessOne(Connection& c, std::size_t skip, std::size_t total, 
           }
         }
       });
+  current_upload = nullptr;
   return stream.Finish() && ok && !connection_closed;
 }
 
@@ -234,7 +434,8 @@ void HttpServer::Rearm(Connection& c, bool want_write) {
   if (::epoll_ctl(epoll_fd_, EPOLL_CTL_MOD, c.fd, &event) != 0) Close(c, false);
 }
 
-void HttpServer::Refuse(Connection& c, const HttpError& error, bool close) {
+void HttpServer::Refuse(Connection& c, const HttpError& error, bool close,
+                        std::string_view extra_headers) {
   const std::string body = ErrorJson(error).dump(-1, ' ', false,
                                                  nlohmann::json::error_handler_t::replace);
   std::string response = "HTTP/1.1 " + std::to_string(error.http_status) + " " +
@@ -243,6 +444,7 @@ void HttpServer::Refuse(Connection& c, const HttpError& error, bool close) {
                          std::to_string(body.size()) +
                          "\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\n";
   if (error.http_status == 503) response += "Retry-After: 1\r\n";
+  response += extra_headers;
   response += close ? "Connection: close\r\n\r\n" : "\r\n";
   response += body;
   const bool sent = c.SendAll(c.out + response, options_.write_timeout);
@@ -252,6 +454,7 @@ void HttpServer::Refuse(Connection& c, const HttpError& error, bool close) {
 
 void HttpServer::Close(Connection& c, bool graceful) {
   if (c.closed) return;
+  EndSpool(c);
   if (graceful && !c.lingering && !stop_requested_.load()) {
     // Shut our side and keep reading briefly: closing with unread input
     // would reset the connection and could destroy the answer just sent.
@@ -272,6 +475,9 @@ void HttpServer::Close(Connection& c, bool graceful) {
   ::close(c.fd);
   std::lock_guard lock(connections_mutex_);
   connections_.erase(c.id);
+  if (auto it = per_address_.find(c.remote_ip); it != per_address_.end() && --it->second == 0) {
+    per_address_.erase(it);
+  }
 }
 
 }  // namespace fesbench::server::http

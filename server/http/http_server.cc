@@ -9,6 +9,7 @@
 #include <openssl/ssl.h>
 #include <poll.h>
 #include <sys/epoll.h>
+#include <sys/resource.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -17,6 +18,7 @@
 #include <atomic>
 #include <cctype>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <iostream>
@@ -32,6 +34,12 @@ namespace fesbench::server::http {
 
 namespace {
 
+constexpr const char* kTls12Ciphers =
+    "ECDHE-ECDSA-AES128-GCM-SHA256:ECDHE-RSA-AES128-GCM-SHA256:ECDHE-ECDSA-AES256-GCM-SHA384:"
+    "ECDHE-RSA-AES256-GCM-SHA384:ECDHE-ECDSA-CHACHA20-POLY1305:ECDHE-RSA-CHACHA20-POLY1305";
+constexpr const char* kTls13Ciphers =
+    "TLS_AES_128_GCM_SHA256:TLS_AES_256_GCM_SHA384:TLS_CHACHA20_POLY1305_SHA256";
+
 bool IsStateChanging(std::string_view method) {
   return method == "POST" || method == "PUT" || method == "DELETE" || method == "PATCH";
 }
@@ -39,14 +47,6 @@ bool IsStateChanging(std::string_view method) {
 // Echo at most a short prefix of client text in messages.
 std::string Clip(std::string_view text, std::size_t n = 120) {
   return text.size() <= n ? std::string(text) : std::string(text.substr(0, n)) + "…";
-}
-
-bool IsJsonContentType(std::string_view value) {
-  std::string lower;
-  for (char c : value.substr(0, value.find(';'))) {
-    if (c != ' ' && c != '\t') lower.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
-  }
-  return lower == "application/json";
 }
 
 // Library-made errors (parse failures, 413, 414, …) get the same JSON form.
@@ -110,10 +110,30 @@ api::Result<int> HttpServer::Bind() {
         SSL_CTX_check_private_key(tls_) != 1) {
       return api::Status::InvalidArgument("cannot load the TLS certificate or key", "tls-cert");
     }
-    SSL_CTX_set_options(tls_, SSL_OP_NO_COMPRESSION | SSL_OP_NO_RENEGOTIATION);
+    // Forward-secret AEAD suites only (TLS 1.2: ECDHE with AES-GCM or
+    // ChaCha20-Poly1305; TLS 1.3's suites all are), server's order.
+    if (SSL_CTX_set_cipher_list(tls_, kTls12Ciphers) != 1 ||
+        SSL_CTX_set_ciphersuites(tls_, kTls13Ciphers) != 1) {
+      return api::Status::InvalidArgument("cannot set the TLS cipher suites", "tls-cert");
+    }
+    SSL_CTX_set_options(tls_, SSL_OP_NO_COMPRESSION | SSL_OP_NO_RENEGOTIATION |
+                                  SSL_OP_CIPHER_SERVER_PREFERENCE);
     SSL_CTX_set_mode(tls_, SSL_MODE_ENABLE_PARTIAL_WRITE | SSL_MODE_ACCEPT_MOVING_WRITE_BUFFER);
   }
 
+  // Room for every connection the caps allow, and then some, before accept
+  // can fail for want of descriptors (the soft limit is often 1,024).
+  if (rlimit files{}; ::getrlimit(RLIMIT_NOFILE, &files) == 0) {
+    const rlim_t wanted = static_cast<rlim_t>(2 * options_.max_open_connections + 1024);
+    if (files.rlim_cur != RLIM_INFINITY && files.rlim_cur < wanted) {
+      files.rlim_cur = files.rlim_max == RLIM_INFINITY ? wanted : std::min(wanted, files.rlim_max);
+      ::setrlimit(RLIMIT_NOFILE, &files);
+    }
+  }
+  if (options_.upload_dir.empty()) {
+    const char* tmp = std::getenv("TMPDIR");
+    options_.upload_dir = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
+  }
   engine_ = std::make_unique<Engine>();
   Engine& svr = *engine_;
   svr.set_payload_max_length(std::max(options_.max_body_bytes, options_.max_upload_bytes));
@@ -296,12 +316,17 @@ void HttpServer::SweepLoop() {
       if (c->lingering) {
         Close(*c, false);
       } else if (c->request_started) {
-        Refuse(*c,
-               HttpError{408, "request_timeout",
-                         "the request was not complete within " +
-                             std::to_string(options_.request_timeout.count()) + " ms",
-                         {}},
-               true);
+        const std::string message =
+            !c->head_seen
+                ? "the request head was not complete within " +
+                      std::to_string(options_.head_timeout.count()) + " ms"
+                : c->spool_fd >= 0
+                      ? "the upload stalled or came too slowly (" +
+                            std::to_string(c->spool_written) + " of " +
+                            std::to_string(c->spool_expected) + " bytes arrived)"
+                      : "the request body was not complete within " +
+                            std::to_string(options_.request_timeout.count()) + " ms";
+        Refuse(*c, HttpError{408, "request_timeout", message, {}}, true);
       } else {
         Close(*c, false);  // idle keep-alive connection
       }
@@ -339,7 +364,7 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
     return;
   }
   const Route& route = *match.route;
-  RequestContext ctx{req, res, match.path, std::nullopt, nullptr, false};
+  RequestContext ctx{req, res, match.path, std::nullopt, nullptr, false, current_upload};
   auto refuse = [&](const HttpError& error) {
     WriteError(res, error);
     AuditRefusal(ctx, error.http_status, error.code);

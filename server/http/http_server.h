@@ -10,21 +10,37 @@
 ///   SO_REUSEPORT): a second server on a port in use fails "address in use".
 /// - Worker threads share one epoll set. A worker reads what a connection
 ///   has sent (non-blocking) and frames it (request_framing.h); only a whole
-///   request (head and body) is handed to httplib, from memory. A request
-///   must be complete within `request_timeout` of its first byte (408
-///   otherwise), whatever pace the bytes come at, and an idle keep-alive
-///   connection is closed after `keep_alive_timeout`. Slow clients therefore
-///   hold no thread. Pipelined requests are answered in order; a request
+///   request (head and body) is handed to httplib, from memory (an upload:
+///   its head, the body being in a file). Deadlines (below) hold whatever
+///   pace the bytes come at, and an idle keep-alive connection is closed
+///   after `keep_alive_timeout`. Slow clients therefore hold no thread. Pipelined requests are answered in order; a request
 ///   whose client half-closed is still answered.
 /// - Admission: at most `max_connections` requests are handled at once
 ///   (plus `max_streams` event streams); a request beyond that is answered
 ///   503 at once. Two more workers are kept for the urgent routes (e-stop,
-///   health), which are never refused and never wait behind other requests.
-///   At most `max_open_connections` connections are open; beyond: 503.
+///   health), which are never refused for load and never wait behind other
+///   requests. Connections are always accepted: beyond
+///   `max_open_connections` in all, or `max_connections_per_address` from
+///   one address, the oldest connection that no worker is handling (idle
+///   ones first) is closed to make room, so idle or half-sent connections
+///   can never keep an e-stop out (docs/SAFETY.md, "The e-stop under load").
+/// - Heads first: a request's head must be complete within `head_timeout`
+///   of its first byte (a new connection's within `head_timeout` of its
+///   accept). Before any of a body is read, the route, the bearer token, the
+///   role and the media type are checked on the head alone; a refusal is
+///   answered at once and the connection closed, and `100 Continue` is sent
+///   only to an admitted request.
+/// - Uploads (request_framing.h IsUpload) are spooled to an unlinked
+///   temporary file in `upload_dir` as they arrive (at most
+///   `max_spooled_bytes` of them at once; beyond: 503), never held in
+///   memory; the handler reads them from RequestContext::upload. An upload's
+///   body may stall at most `request_timeout` between bytes and must be
+///   complete within `request_timeout` plus one second per MiB.
 /// - HTTPS (both TLS paths set) runs in the same loop over OpenSSL.
 ///
 /// Dispatch order for each request: route (404 / 405 with Allow), bearer
-/// token (401), role (403), Content-Type (415), JSON body (400), handler.
+/// token (401, or 429 for an address presenting many wrong tokens), role
+/// (403), Content-Type (415), JSON body (400), handler.
 /// Any exception from a client's bytes ends as a 400 (never a 500).
 /// State-changing requests (POST, PUT, DELETE) by an authenticated user are
 /// audited: handlers that change storage audit in the same transaction;
@@ -66,15 +82,23 @@ struct HttpServerOptions {
   std::size_t max_upload_bytes = std::size_t{256} << 20;
   std::size_t max_headers = 64;          ///< more header lines: 431.
   std::size_t max_head_bytes = 16 * 1024;  ///< request line and headers; beyond: 431.
-  /// A whole request (head and body) must arrive within this of its first
-  /// byte; otherwise 408 and the connection is closed.
+  /// A request's head must be complete within this of its first byte (and a
+  /// new connection's first head within this of its accept); otherwise 408.
+  std::chrono::milliseconds head_timeout{3000};
+  /// A body must be complete within this of its head (uploads: may stall at
+  /// most this long, see above); otherwise 408 and the connection is closed.
   std::chrono::milliseconds request_timeout{5000};
   std::chrono::milliseconds write_timeout{5000};  ///< per blocked write.
   std::chrono::milliseconds keep_alive_timeout{5000};  ///< idle connection: closed.
   std::size_t keep_alive_max_count = 10000;  ///< requests per connection.
   std::size_t max_connections = 48;  ///< requests handled at once (beyond: 503).
   std::size_t max_streams = 16;      ///< open event streams (beyond: 503).
-  std::size_t max_open_connections = 512;  ///< open connections (beyond: 503).
+  std::size_t max_open_connections = 512;  ///< open connections (beyond: the oldest idle closed).
+  std::size_t max_connections_per_address = 256;  ///< from one client address (the same).
+  /// Where uploads are spooled; empty: $TMPDIR, or /tmp.
+  std::string upload_dir;
+  /// Upload bytes spooled at once, all connections together (beyond: 503).
+  std::size_t max_spooled_bytes = std::size_t{1} << 30;
   /// "METHOD /path" of routes that are never refused for load and never
   /// wait behind other requests.
   std::vector<std::string> urgent_routes = {"POST /api/v1/bench/estop", "GET /api/v1/health",
@@ -121,9 +145,19 @@ class HttpServer {
   void Accept();
   void Serve(std::uint64_t id);
   void HandleBytes(Connection& c);
-  bool ProcessOne(Connection& c, std::size_t skip, std::size_t total, bool last);
+  bool ProcessOne(Connection& c, std::string_view request, bool last, const UploadBody* upload);
+  bool Answer(Connection& c, std::string_view request, std::size_t consumed, bool keep_alive,
+              const UploadBody* upload);
+  std::optional<HttpError> Preadmit(const Connection& c, std::string_view method,
+                                    std::string_view path, std::string_view authorization,
+                                    std::string_view content_type, std::string& extra_headers);
+  bool StartSpool(Connection& c, std::size_t head_length, std::size_t body_bytes,
+                  bool expect_continue);
+  bool SpoolBody(Connection& c);
+  void EndSpool(Connection& c);
+  bool EvictOne(const std::string* address, std::uint64_t except);
   void Rearm(Connection& c, bool want_write = false);
-  void Refuse(Connection& c, const HttpError& error, bool close);
+  void Refuse(Connection& c, const HttpError& error, bool close, std::string_view extra_headers = {});
   void Close(Connection& c, bool graceful);
   bool IsUrgent(std::string_view method, std::string_view path) const;
 
@@ -141,7 +175,9 @@ class HttpServer {
   std::size_t workers_ = 0;
   std::atomic<std::size_t> busy_{0};  ///< requests being handled now.
   std::mutex connections_mutex_;
-  std::map<std::uint64_t, std::shared_ptr<Connection>> connections_;
+  std::map<std::uint64_t, std::shared_ptr<Connection>> connections_;  ///< oldest first.
+  std::map<std::string, std::size_t, std::less<>> per_address_;  ///< open connections per address.
+  std::atomic<std::size_t> spooled_bytes_{0};  ///< upload bytes reserved by spooling connections.
   std::uint64_t next_id_ = 1;
   std::mutex run_mutex_;
   std::condition_variable run_cv_;

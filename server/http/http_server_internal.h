@@ -6,6 +6,7 @@
 /// connections). Not for other users.
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <httplib.h>
 #include <netdb.h>
 #include <netinet/in.h>
@@ -21,6 +22,7 @@
 #include <atomic>
 #include <cctype>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <iostream>
@@ -48,6 +50,12 @@ inline constexpr std::size_t kWriteBuffer = 64 * 1024;
 inline const char* ReasonPhrase(int status) {
   switch (status) {
     case 400: return "Bad Request";
+    case 401: return "Unauthorized";
+    case 403: return "Forbidden";
+    case 404: return "Not Found";
+    case 405: return "Method Not Allowed";
+    case 415: return "Unsupported Media Type";
+    case 429: return "Too Many Requests";
     case 408: return "Request Timeout";
     case 411: return "Length Required";
     case 413: return "Payload Too Large";
@@ -57,6 +65,19 @@ inline const char* ReasonPhrase(int status) {
     default: return "Error";
   }
 }
+
+// "application/json", parameters and case aside.
+inline bool IsJsonContentType(std::string_view value) {
+  std::string lower;
+  for (char c : value.substr(0, value.find(';'))) {
+    if (c != ' ' && c != '\t') lower.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
+  }
+  return lower == "application/json";
+}
+
+// The upload of the request a worker is answering, for the dispatcher
+// (httplib's Request has no room for it): set around process_request.
+inline thread_local const UploadBody* current_upload = nullptr;
 
 inline std::string AddressText(const sockaddr_storage& addr, int& port) {
   char text[INET6_ADDRSTRLEN] = "";
@@ -98,7 +119,16 @@ struct HttpServer::Connection {
   Clock::time_point deadline;
   bool request_started = false;  ///< `in` holds part of a request.
   bool head_seen = false;
+  bool admitted = false;  ///< the pending request's head passed the route, token and role checks.
   bool continue_sent = false;
+  bool urgent_only = false;  ///< accepted with no room left: serves urgent routes only.
+  // Spooling an upload: its head is the first `head_length` bytes of `in`;
+  // the body goes to `spool_fd` as it arrives.
+  int spool_fd = -1;
+  std::size_t head_length = 0;
+  std::size_t spool_expected = 0;
+  std::size_t spool_written = 0;
+  Clock::time_point spool_deadline;  ///< the whole body by then.
   bool peer_closed = false;  ///< the client half-closed (FIN read).
   bool lingering = false;    ///< answered and shut down; discarding input.
   bool closed = false;

@@ -214,6 +214,10 @@ Framing FrameRequest(std::string_view buffer, const FramingLimits& limits) {
       keep_alive_token = keep_alive_token || HasToken(value, "keep-alive");
     } else if (EqualsIgnoreCase(name, "expect")) {
       f.expect_continue = EqualsIgnoreCase(value, "100-continue");
+    } else if (EqualsIgnoreCase(name, "authorization")) {
+      f.authorization = value;
+    } else if (EqualsIgnoreCase(name, "content-type")) {
+      f.content_type = value;
     }
   }
   f.keep_alive = !close_token && (!http10 || keep_alive_token);

@@ -47,6 +47,8 @@ struct Framing {
   bool expect_continue = false;  ///< "Expect: 100-continue".
   std::string_view method;       ///< head_complete: the request method.
   std::string_view path;  ///< head_complete: the target's path (origin form, before '?').
+  std::string_view authorization;  ///< head_complete: the Authorization header's value, if any.
+  std::string_view content_type;   ///< head_complete: the Content-Type header's value, if any.
 
   /// Bytes of the whole request from the start of the buffer (kComplete).
   std::size_t total() const { return skip + head_bytes + body_bytes; }

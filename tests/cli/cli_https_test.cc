@@ -116,6 +116,27 @@ std::string HttpsUrl(const ServerProcess& server) {
   return "https://127.0.0.1:" + std::to_string(server.port());
 }
 
+// Whether `openssl s_client` completes a handshake with `cipher_args`.
+bool Handshakes(const ServerProcess& server, const std::string& cipher_args) {
+  const std::string command = std::string("'") + FESBENCH_OPENSSL_TOOL +
+                              "' s_client -connect 127.0.0.1:" + std::to_string(server.port()) +
+                              " " + cipher_args + " </dev/null >/dev/null 2>&1";
+  return std::system(command.c_str()) == 0;
+}
+
+TEST(CliHttpsTest, OnlyForwardSecretAeadSuitesAreOffered) {
+  TestCa ca("fesbench");
+  if (::testing::Test::HasFatalFailure()) return;
+  auto server = StartTlsServer(ca);
+  EXPECT_TRUE(Handshakes(*server, "-tls1_3"));
+  EXPECT_TRUE(Handshakes(*server, "-tls1_2 -cipher ECDHE-ECDSA-AES128-GCM-SHA256"));
+  EXPECT_TRUE(Handshakes(*server, "-tls1_2 -cipher ECDHE-ECDSA-CHACHA20-POLY1305"));
+  // Forward secret but not AEAD (CBC with HMAC): refused.
+  EXPECT_FALSE(Handshakes(*server, "-tls1_2 -cipher ECDHE-ECDSA-AES128-SHA"));
+  EXPECT_FALSE(Handshakes(*server, "-tls1_2 -cipher ECDHE-ECDSA-AES256-SHA384"));
+  EXPECT_FALSE(Handshakes(*server, "-tls1_1"));
+}
+
 TEST(CliHttpsTest, LoginAndJsonReadWithTheTestCa) {
   TestCa ca("fesbench");
   if (::testing::Test::HasFatalFailure()) return;

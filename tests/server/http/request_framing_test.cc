@@ -49,6 +49,19 @@ TEST(RequestFramingTest, ConnectionExpectAndAbsoluteForm) {
   EXPECT_EQ(Frame("GET HTTPS://h HTTP/1.1\r\n\r\n").path, "/");
 }
 
+TEST(RequestFramingTest, TheHeadersJudgedBeforeTheBody) {
+  const std::string head =
+      "POST /api/v1/sessions/3/trials HTTP/1.1\r\nauthorization:  Bearer fsb_x \r\n"
+      "Content-Type: application/zip\r\nContent-Length: 9\r\n\r\n";
+  const Framing f = Frame(head);  // the body has not come yet
+  EXPECT_EQ(f.state, State::kIncomplete);
+  EXPECT_TRUE(f.head_complete);
+  EXPECT_EQ(f.authorization, "Bearer fsb_x");
+  EXPECT_EQ(f.content_type, "application/zip");
+  EXPECT_TRUE(IsUpload(f.method, f.path));
+  EXPECT_TRUE(Frame("GET / HTTP/1.1\r\n\r\n").authorization.empty());
+}
+
 TEST(RequestFramingTest, Refusals) {
   const std::pair<std::string, int> cases[] = {
       {"POST / HTTP/1.1\r\nContent-Length: -1\r\n\r\n", 400},

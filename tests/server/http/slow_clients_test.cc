@@ -1,8 +1,8 @@
-// Integration: slow clients do not lock anyone out (issue 16 item 6).
+// Integration: slow clients do not lock anyone out.
 // 80 connections each send one header line every 0.5 s; while all 80 are
 // still open, a new client's GET /api/v1/health and POST e-stop are
-// answered. Then every slow connection is answered 408 once its request
-// deadline (5 s for the whole request) passes. The bounds are generous on
+// answered. Then every slow connection is answered 408 once its head's
+// deadline (3 s from its first byte) passes. The bounds are generous on
 // purpose: the property is "answered while the 80 are open"; the measured
 // times are printed (and recorded as test properties) for the report.
 
@@ -60,7 +60,7 @@ TEST(SlowClientsTest, HealthAndEStopAnsweredWhileEightySlowClientsAreOpen) {
   EXPECT_EQ(estop.status, 200) << estop.text;
   EXPECT_TRUE(estop.body.value("estopped", false)) << estop.text;
   // The functional property: answered while all 80 are still open (they
-  // are not closed before their 5 s request deadline).
+  // are not closed before their 3 s head deadline).
   EXPECT_EQ(still_open, kSlow);
   EXPECT_LT(answered_at_ms, 4500.0);
   std::cout << "slow clients: " << kSlow << " open; health answered in " << health_ms
@@ -68,7 +68,7 @@ TEST(SlowClientsTest, HealthAndEStopAnsweredWhileEightySlowClientsAreOpen) {
   ::testing::Test::RecordProperty("health_ms", std::to_string(health_ms));
   ::testing::Test::RecordProperty("estop_ms", std::to_string(estop_ms));
 
-  // Every slow client is answered 408 (whole-request deadline), not left hanging.
+  // Every slow client is answered 408 (the head's deadline), not left hanging.
   int timed_out = 0;
   for (auto& c : slow) {
     const std::string response = c->ReadUntil(
