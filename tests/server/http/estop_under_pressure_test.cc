@@ -57,7 +57,7 @@ class Crowd {
         held.push_back(std::move(c));
         ++opened_;
       }
-      std::this_thread::sleep_for(milliseconds(50));
+      std::this_thread::sleep_for(milliseconds(200));
     }
   }
 
@@ -125,8 +125,9 @@ TEST(EStopUnderPressureTest, AnsweredEveryTimeWhileIdleConnectionsUploadHeadsAnd
   ::testing::Test::RecordProperty("estop_p50_ms", std::to_string(p50));
   ::testing::Test::RecordProperty("estop_p99_ms", std::to_string(p99));
   EXPECT_EQ(answered, kPresses);
-  // Generous: a press waiting for any deadline (≥ 3 s) fails this.
-  EXPECT_LT(latencies.back(), 1000.0);
+  // Generous (sanitizer builds run this too): a press that waited for any
+  // deadline (≥ 3 s) fails it.
+  EXPECT_LT(latencies.back(), 2000.0);
   EXPECT_GT(wrong_429.load(), 0) << "the wrong tokens were slowed down";
   EXPECT_EQ(Call(client, "GET", "/api/v1/health", "").status, 200);
 }
