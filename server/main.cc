@@ -278,7 +278,9 @@ int main(int argc, char** argv) {
   db_options.bench_id = bench_id;
   auto db = storage::Database::Open(db_options);
   if (!db.ok()) return Fail("cannot open " + db_name, db.status());
-  for (const std::string& note : (*db)->open_notes()) std::cout << "fesbench-server: " << note << "\n";
+  for (const std::string& note : (*db)->open_notes()) {
+    std::cout << "fesbench-server: " << note << "\n";
+  }
 
   const std::filesystem::path token_path = data_dir / "admin.token";
   if (auto st = BootstrapAdmin(**db, token_path); !st.ok()) return Fail("admin bootstrap", st);

@@ -247,8 +247,7 @@ bool PostgresBenchLock::TryTakeBack() {
   // Not taken: a failed query (try again), or the server has not yet ended
   // the lost connection's session, which still holds it (wait for it).
   if (!taken.ok() || holder == 0 || holder == lost_backend_pid_) return false;
-  Report(BenchLockState::kHeldElsewhere,
-         "bench '" + options_.bench_id + "' is now held by " + who);
+  Report(BenchLockState::kHeldElsewhere, "bench '" + options_.bench_id + "' is now held by " + who);
   return true;
 }
 

@@ -94,11 +94,11 @@ class PostgresBenchLock {
   void Report(BenchLockState state, std::string detail);
 
   BenchLockOptions options_;
-  pg_conn* conn_ = nullptr;  // the lock's connection (the watcher's, once started)
+  pg_conn* conn_ = nullptr;   // the lock's connection (the watcher's, once started)
   int lost_backend_pid_ = 0;  // the server process of the connection that was lost
   std::atomic<BenchLockState> state_{BenchLockState::kHeld};
   std::atomic<bool> stop_{false};
-  int wake_[2] = {-1, -1};  // a pipe: the destructor wakes the watcher through it
+  int wake_[2] = {-1, -1};     // a pipe: the destructor wakes the watcher through it
   std::mutex listener_mutex_;  // guards listener_ and last_ and serialises the calls
   BenchLockListener listener_;
   BenchLockEvent last_;

@@ -32,8 +32,8 @@ pid_t DatabaseFileLock::HolderOf(const std::string& lock_path) {
 api::Result<std::unique_ptr<DatabaseFileLock>> DatabaseFileLock::Acquire(
     const std::string& database_path) {
   const std::string lock_path = LockPathOf(database_path);
-  const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW,
-                        kPrivateFileMode);
+  const int fd =
+      ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, kPrivateFileMode);
   if (fd < 0) {
     return api::Status::Unavailable("cannot open the lock file '" + lock_path +
                                     "' of the database: " + std::strerror(errno));

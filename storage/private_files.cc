@@ -58,9 +58,9 @@ api::Result<std::optional<mode_t>> NarrowToOwner(const std::filesystem::path& pa
   const mode_t mode = info.st_mode & 07777;
   if ((mode & 077) == 0) return std::optional<mode_t>();
   if (::chmod(path.c_str(), kPrivateFileMode) != 0) {
-    return api::Status::Unavailable("'" + path.string() + "' is readable by other users (mode " +
-                                    ModeText(mode) + ") and its mode cannot be set to 0600: " +
-                                    std::strerror(errno));
+    return api::Status::Unavailable(
+        "'" + path.string() + "' is readable by other users (mode " + ModeText(mode) +
+        ") and its mode cannot be set to 0600: " + std::strerror(errno));
   }
   return std::optional<mode_t>(mode);
 }

@@ -334,7 +334,8 @@ TEST(RunService, ALostBenchStopsTheRunLatchesAndRefusesUntilItIsRegained) {
   auto latched = storage::EStopLatchRepository(*rig.db).Current();
   ASSERT_TRUE(latched.ok() && latched->has_value());
 
-  auto refused = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
+  auto refused =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
   EXPECT_EQ(refused.status().code(), api::ErrorCode::kUnavailable);
   EXPECT_EQ(refused.status().message(), reason);
   EXPECT_EQ(rig.service->ClearEStop(rig.clinician).code(), api::ErrorCode::kUnavailable);
@@ -343,7 +344,8 @@ TEST(RunService, ALostBenchStopsTheRunLatchesAndRefusesUntilItIsRegained) {
   EXPECT_EQ(std::count(actions.begin(), actions.end(), "bench.estop"), 1);
 
   rig.service->RegainBench();
-  auto latched_still = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
+  auto latched_still =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
   EXPECT_EQ(latched_still.status().code(), api::ErrorCode::kConflict);  // a person clears it
   ASSERT_TRUE(rig.service->ClearEStop(rig.clinician).ok());
   auto next = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);

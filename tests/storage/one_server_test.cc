@@ -109,8 +109,7 @@ TEST(DatabaseFiles, AnOlderDatabaseOpenToOthersIsNarrowedAndSaid) {
   EXPECT_EQ(ModeOf(path), 0600u);
   EXPECT_EQ(ModeOf(path + ".lock"), 0600u);
   ASSERT_EQ((*db)->open_notes().size(), 1u);
-  EXPECT_NE((*db)->open_notes()[0].find("'" + path + "' from mode 0644 to 0600"),
-            std::string::npos)
+  EXPECT_NE((*db)->open_notes()[0].find("'" + path + "' from mode 0644 to 0600"), std::string::npos)
       << (*db)->open_notes()[0];
   db->reset();
   std::filesystem::remove_all(dir);
@@ -190,9 +189,10 @@ TEST_F(PostgresStorageTest, AKilledLockConnectionIsReportedAndTheLockTakenBack) 
   auto back = events.Wait(1, std::chrono::seconds(10), &back_at);
   ASSERT_TRUE(back);
   EXPECT_EQ(back->state, BenchLockState::kHeld) << back->detail;
-  std::printf("bench lock: connection killed → lost reported in %.1f ms, taken back after %.1f ms\n",
-              std::chrono::duration<double, std::milli>(lost_at - killed_at).count(),
-              std::chrono::duration<double, std::milli>(back_at - killed_at).count());
+  std::printf(
+      "bench lock: connection killed → lost reported in %.1f ms, taken back after %.1f ms\n",
+      std::chrono::duration<double, std::milli>(lost_at - killed_at).count(),
+      std::chrono::duration<double, std::milli>(back_at - killed_at).count());
 
   // Held again, on the new connection: a second server is still refused.
   auto second = Database::Open(Options());

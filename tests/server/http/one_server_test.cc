@@ -43,20 +43,20 @@ std::int64_t MakeSession(httplib::Client& client, const std::string& admin,
                          const std::string& code) {
   auto truth = Call(client, "GET", "/api/v1/bench/virtual-subject", admin);
   EXPECT_EQ(truth.status, 200) << truth.text;
-  auto subject = Call(client, "POST", "/api/v1/subjects", admin,
-                      {{"code", code},
-                       {"details",
-                        {{"weight_kg", truth.body["anthropometrics"]["body_mass_kg"]},
-                         {"shank_length_cm",
-                          truth.body["anthropometrics"]["shank_length_m"].get<double>() * 100}}},
-                       {"legs", {"right"}}});
+  auto subject = Call(
+      client, "POST", "/api/v1/subjects", admin,
+      {{"code", code},
+       {"details",
+        {{"weight_kg", truth.body["anthropometrics"]["body_mass_kg"]},
+         {"shank_length_cm", truth.body["anthropometrics"]["shank_length_m"].get<double>() * 100}}},
+       {"legs", {"right"}}});
   EXPECT_EQ(subject.status, 201) << subject.text;
-  auto session = Call(client, "POST",
-                      "/api/v1/subjects/" + subject.body["id"].dump() + "/sessions", admin,
-                      {{"leg", "right"},
-                       {"date", "2026-11-27"},
-                       {"threshold_ma", truth.body["threshold_ma"]},
-                       {"max_tolerated_ma", truth.body["max_tolerated_ma"]}});
+  auto session =
+      Call(client, "POST", "/api/v1/subjects/" + subject.body["id"].dump() + "/sessions", admin,
+           {{"leg", "right"},
+            {"date", "2026-11-27"},
+            {"threshold_ma", truth.body["threshold_ma"]},
+            {"max_tolerated_ma", truth.body["max_tolerated_ma"]}});
   EXPECT_EQ(session.status, 201) << session.text;
   return session.body["id"];
 }
@@ -102,11 +102,11 @@ TEST(OneServerTest, ASecondServerOnTheSqliteFileIsRefusedAndTheFirstRunGoesOn) {
   const std::int64_t run_id = run.body["run_id"];
   Heartbeats heartbeats(first, first.admin_token(), run_id);
 
-  const ExitedServer second = RunServerToExit(
-      {"--port", "0", "--db", first.db_path().string(), "--data-dir",
-       (first.dir() / "data").string(), "--time-scale", "0", "--dds-transport", "off"});
-  std::printf("second server on the same SQLite file: exit %d after %.0f ms\n",
-              second.exit_code, second.elapsed_ms);
+  const ExitedServer second = RunServerToExit({"--port", "0", "--db", first.db_path().string(),
+                                               "--data-dir", (first.dir() / "data").string(),
+                                               "--time-scale", "0", "--dds-transport", "off"});
+  std::printf("second server on the same SQLite file: exit %d after %.0f ms\n", second.exit_code,
+              second.elapsed_ms);
   EXPECT_EQ(second.exit_code, 1) << second.output << second.error;
   EXPECT_NE(second.error.find("'" + first.db_path().string() + "'"), std::string::npos)
       << second.error;
@@ -150,11 +150,12 @@ TEST(OneServerTest, WhatTheServerCreatesIsTheOwnersOnlyUnderUmask022) {
   EXPECT_EQ(ModeOf(data / "admin.token"), 0600u);
   EXPECT_EQ(ModeOf(data / "backups"), 0700u);
   EXPECT_EQ(ModeOf(backup.body["path"].get<std::string>()), 0600u);
-  std::printf("modes under umask 022: data/ %04o, fesbench.db %04o, -wal %04o, -shm %04o, "
-              ".lock %04o, admin.token %04o, backups/ %04o, backup %04o\n",
-              ModeOf(data), ModeOf(db), ModeOf(db + "-wal"), ModeOf(db + "-shm"),
-              ModeOf(db + ".lock"), ModeOf(data / "admin.token"), ModeOf(data / "backups"),
-              ModeOf(backup.body["path"].get<std::string>()));
+  std::printf(
+      "modes under umask 022: data/ %04o, fesbench.db %04o, -wal %04o, -shm %04o, "
+      ".lock %04o, admin.token %04o, backups/ %04o, backup %04o\n",
+      ModeOf(data), ModeOf(db), ModeOf(db + "-wal"), ModeOf(db + "-shm"), ModeOf(db + ".lock"),
+      ModeOf(data / "admin.token"), ModeOf(data / "backups"),
+      ModeOf(backup.body["path"].get<std::string>()));
 }
 
 // --- PostgreSQL ----------------------------------------------------------------------
@@ -172,14 +173,14 @@ std::string KillLockConnection(const std::string& url, const std::string& bench_
 }
 
 std::vector<std::string> ServerArgs(const std::string& url, const std::string& bench_id) {
-  return {"--port", "0", "--db", url, "--bench-id", bench_id, "--time-scale", "20",
+  return {"--port",          "0",  "--db", url, "--bench-id", bench_id, "--time-scale", "20",
           "--dds-transport", "off"};
 }
 
-#define SKIP_WITHOUT_POSTGRES(database)                                       \
-  if (!(database).ok()) {                                                     \
-    if ((database).skippable()) GTEST_SKIP() << (database).skip_reason();     \
-    FAIL() << (database).skip_reason();                                       \
+#define SKIP_WITHOUT_POSTGRES(database)                                   \
+  if (!(database).ok()) {                                                 \
+    if ((database).skippable()) GTEST_SKIP() << (database).skip_reason(); \
+    FAIL() << (database).skip_reason();                                   \
   }
 
 TEST(OneServerTest, OnPostgresTheFirstServerLatchesAndRefusesRunsWhileItsLockIsLost) {
@@ -231,8 +232,7 @@ TEST(OneServerTest, OnPostgresTheFirstServerLatchesAndRefusesRunsWhileItsLockIsL
          MsSince(t0) < 10000) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  ASSERT_NE(first.Stderr().find("holds bench 'knee-a' again"), std::string::npos)
-      << first.Stderr();
+  ASSERT_NE(first.Stderr().find("holds bench 'knee-a' again"), std::string::npos) << first.Stderr();
   const ExitedServer after = RunServerToExit(ServerArgs(database.url(), "knee-a"));
   EXPECT_EQ(after.exit_code, 1) << after.output << after.error;
   EXPECT_NE(after.error.find("bench 'knee-a'"), std::string::npos) << after.error;
@@ -249,9 +249,8 @@ TEST(OneServerTest, OnPostgresTheFirstServerLatchesAndRefusesRunsWhileItsLockIsL
 TEST(OneServerTest, OnPostgresABenchTakenWhileTheLockIsLostStopsTheFirstServer) {
   ScratchDatabase database;
   SKIP_WITHOUT_POSTGRES(database);
-  auto first = std::make_unique<ServerProcess>(
-      std::vector<std::string>{"--db", database.url(), "--bench-id", "knee-a", "--time-scale",
-                               "20"});
+  auto first = std::make_unique<ServerProcess>(std::vector<std::string>{
+      "--db", database.url(), "--bench-id", "knee-a", "--time-scale", "20"});
   const std::string admin = first->admin_token();
   auto client = first->Client();
   const std::int64_t session = MakeSession(client, admin, "PG-2");
