@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <csignal>
 #include <filesystem>
 #include <iostream>
@@ -25,6 +26,7 @@
 #include "server/bench/virtual_subject.h"
 #include "server/config.h"
 #include "server/dds/dds_server.h"
+#include "server/services/bench_lock_guard.h"
 #include "server/services/bench_service.h"
 #include "server/services/commands.h"
 #include "server/services/comparison_service.h"
@@ -35,6 +37,7 @@
 #include "server/services/sample_hub.h"
 #include "storage/database.h"
 #include "storage/postgres_connection.h"
+#include "storage/private_files.h"
 #include "storage/users.h"
 // (separate block: Eigen, above, before httplib.h, see routes_bench.cc)
 #include "server/http/api_routes.h"
@@ -206,6 +209,27 @@ void PrintBanner(const server::ServerConfig& config, std::string_view bench_kind
             << std::endl;
 }
 
+// The data folder and the SQLite file's folder: missing ones are made 0700
+// (docs/SAFETY.md, "Files"); existing ones are left as they are, with a note
+// when other users may enter them.
+api::Status MakeFolders(bool postgres, const std::string& db_name,
+                        const std::filesystem::path& data_dir) {
+  std::vector<std::filesystem::path> folders = {data_dir};
+  if (!postgres) folders.push_back(std::filesystem::path(db_name).parent_path());
+  for (const auto& folder : folders) {
+    std::error_code ec;
+    const bool existed = std::filesystem::exists(folder, ec);
+    if (auto st = storage::CreatePrivateFolders(folder); !st.ok()) return st;
+    struct stat info {};
+    if (existed && ::stat(folder.c_str(), &info) == 0 && (info.st_mode & 077) != 0) {
+      std::cout << "fesbench-server: note: folder " << folder.string() << " is open to other users"
+                << " (mode " << storage::ModeText(info.st_mode) << "); left as it is, the"
+                << " server's files in it are 0600\n";
+    }
+  }
+  return api::Status::Ok();
+}
+
 int Fail(const std::string& what, const api::Status& status) {
   std::cerr << "fesbench-server: " << what << ": " << status.ToString() << std::endl;
   return 1;
@@ -220,6 +244,10 @@ int main(int argc, char** argv) {
       return 0;
     }
   }
+  // Whatever the caller's umask: the files and folders the server makes are
+  // its owner's only (docs/SAFETY.md, "Files"); where they are made the
+  // modes are also explicit.
+  ::umask(077);
   auto parsed = server::ParseServerConfig(argc, argv, std::cout, std::cerr);
   if (parsed.exit_code) return *parsed.exit_code;
   const server::ServerConfig& config = parsed.config;
@@ -242,9 +270,7 @@ int main(int argc, char** argv) {
       !config.data_dir.empty() ? std::filesystem::path(config.data_dir)
       : postgres               ? std::filesystem::path("data")
                                : std::filesystem::absolute(config.db).parent_path());
-  std::error_code ec;
-  std::filesystem::create_directories(data_dir, ec);
-  if (ec) return Fail("cannot create " + data_dir.string(), api::Status::Unavailable(ec.message()));
+  if (auto st = MakeFolders(postgres, db_name, data_dir); !st.ok()) return Fail("folders", st);
   const std::string bench_id = config.bench_id.empty() ? HostName() : config.bench_id;
 
   storage::DatabaseOptions db_options;
@@ -252,6 +278,9 @@ int main(int argc, char** argv) {
   db_options.bench_id = bench_id;
   auto db = storage::Database::Open(db_options);
   if (!db.ok()) return Fail("cannot open " + db_name, db.status());
+  for (const std::string& note : (*db)->open_notes()) {
+    std::cout << "fesbench-server: " << note << "\n";
+  }
 
   const std::filesystem::path token_path = data_dir / "admin.token";
   if (auto st = BootstrapAdmin(**db, token_path); !st.ok()) return Fail("admin bootstrap", st);
@@ -333,6 +362,17 @@ int main(int argc, char** argv) {
                                 slots);
   auto port = http.Bind();
   if (!port.ok()) return Fail("cannot listen", port.status());
+  // One server per bench (docs/SAFETY.md): a lost bench lock stops the bench
+  // and refuses runs; the bench held by another server ends this one.
+  std::atomic<bool> bench_taken{false};
+  std::optional<server::services::BenchLockGuard> bench_lock;
+  bench_lock.emplace(
+      **db, runs,
+      [&](const std::string&) {
+        bench_taken = true;
+        http.Stop();
+      },
+      [](std::string_view line) { std::cerr << "fesbench-server: " << line << std::endl; });
 
   PrintBanner(config, bench->kind(), db_name, bench_id, token_path, dds.get(), *port);
 
@@ -341,8 +381,8 @@ int main(int argc, char** argv) {
     sigwait(&signals, &signal);
     http.Stop();
   });
-  const bool served = http.Run();
-  if (!served) std::cerr << "fesbench-server: the HTTP server failed" << std::endl;
+  const bool served = http.Run() && !bench_taken;
+  if (!served && !bench_taken) std::cerr << "fesbench-server: the HTTP server failed" << std::endl;
   http.Stop();
   // Wake the waiter if the server ended on its own.
   pthread_kill(waiter.native_handle(), SIGTERM);
@@ -353,6 +393,7 @@ int main(int argc, char** argv) {
   hub.Close();
   jobs.Shutdown();
   set_events.reset();
+  bench_lock.reset();
   db->reset();
   std::cout << "fesbench-server: stopped" << std::endl;
   return served ? 0 : 1;

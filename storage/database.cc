@@ -10,8 +10,10 @@
 #include <filesystem>
 #include <system_error>
 
+#include "storage/file_lock.h"
 #include "storage/migrations.h"
 #include "storage/postgres_connection.h"
+#include "storage/private_files.h"
 #include "storage/sqlite_connection.h"
 
 namespace fesbench::storage {
@@ -126,10 +128,10 @@ Database::~Database() {
   // Free the bench at once (closing the connection frees it only once the
   // server has noticed), so a restarted server can take it straight away.
   notifications_.reset();
-  if (bench_lock_ != nullptr) (void)bench_lock_->ExecScript("SELECT pg_advisory_unlock_all()");
   bench_lock_.reset();
   readers_.clear();
   writer_.reset();
+  file_lock_.reset();  // last: the file is free only once every connection is closed
 }
 
 UtcTime Database::Now() const { return options_.clock->UtcNow(); }
@@ -158,6 +160,13 @@ api::Status Database::Initialise() {
   if (engine() == Engine::kPostgres) return InitialisePostgres();
   const std::string& path = options_.path;
   const int timeout_ms = static_cast<int>(options_.busy_timeout.count());
+  // Before anything touches the file: a second server on it is refused here.
+  if (options_.lock_file) {
+    auto lock = DatabaseFileLock::Acquire(path);
+    if (!lock.ok()) return lock.status();
+    file_lock_ = std::move(*lock);
+  }
+  if (auto status = MakePrivateFiles(); !status.ok()) return status;
   auto writer = SqliteConnection::Open(
       path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, timeout_ms);
   if (!writer.ok()) return CheckedOpenStep(writer.status(), path);
@@ -205,6 +214,15 @@ api::Status Database::Initialise() {
 }
 
 api::Status Database::InitialisePostgres() {
+  // One server per bench, before anything else: a session lock on the bench
+  // id, held and watched for as long as this process has the database.
+  BenchLockOptions lock_options;
+  lock_options.url = options_.path;
+  lock_options.bench_id = options_.bench_id;
+  lock_options.check_interval = options_.bench_lock_check_interval;
+  auto lock = PostgresBenchLock::Acquire(std::move(lock_options));
+  if (!lock.ok()) return lock.status();
+  bench_lock_ = std::move(*lock);
   auto writer = PostgresConnection::Open(options_.path);
   if (!writer.ok()) return writer.status();
   writer_ = std::move(*writer);
@@ -214,27 +232,6 @@ api::Status Database::InitialisePostgres() {
   api::Status unlocked = writer_->ExecScript(kMigrationUnlock);
   if (!migrated.ok()) return migrated;
   if (!unlocked.ok()) return unlocked;
-  // One server per bench: a session lock on the bench id, held by a
-  // connection of its own for as long as this process has the database.
-  auto lock = PostgresConnection::Open(options_.path);
-  if (!lock.ok()) return lock.status();
-  auto held = [&]() -> api::Result<bool> {
-    auto statement =
-        (*lock)->Prepare("SELECT pg_try_advisory_lock(hashtext('fesbench bench ' || ?1))");
-    if (!statement.ok()) return statement.status();
-    statement->Bind(1, options_.bench_id);
-    auto row = statement->Step();
-    if (!row.ok()) return row.status();
-    return *row && statement->Int64(0) == 1;
-  }();
-  if (!held.ok()) return held.status();
-  if (!*held) {
-    return api::Status::FailedPrecondition(
-        "bench '" + options_.bench_id +
-        "' is already served by another fesbench-server on this database; give each server its "
-        "own --bench-id");
-  }
-  bench_lock_ = std::move(*lock);
   // Sets stored by the other servers, as events (issue 18).
   instance_id_ = options_.bench_id + "/" + std::to_string(::getpid()) + "/" +
                  std::to_string(std::random_device{}());
@@ -255,6 +252,27 @@ api::Status Database::InitialisePostgres() {
     readers_.push_back(std::move(*reader));
   }
   return api::Status::Ok();
+}
+
+// The database file is created 0600 before SQLite opens it (its -wal and
+// -shm then take the same mode); the files of an older version that group
+// or others can read are narrowed to 0600 and said in open_notes().
+api::Status Database::MakePrivateFiles() {
+  const std::string& path = options_.path;
+  if (auto status = CreatePrivateFile(path); !status.ok()) return status;
+  for (const std::string& file : {path, path + "-wal", path + "-shm"}) {
+    auto narrowed = NarrowToOwner(file);
+    if (!narrowed.ok()) return narrowed.status();
+    if (*narrowed) {
+      open_notes_.push_back("narrowed '" + file + "' from mode " + ModeText(**narrowed) +
+                            " to 0600 (the database is readable by its owner only)");
+    }
+  }
+  return api::Status::Ok();
+}
+
+void Database::SetBenchLockListener(BenchLockListener listener) {
+  if (bench_lock_ != nullptr) bench_lock_->SetListener(std::move(listener));
 }
 
 Engine Database::engine() const {
@@ -486,6 +504,7 @@ api::Status Database::Backup(const std::string& destination_path) {
   std::error_code ignored;
   fs::remove(temporary, ignored);
   api::Status status;
+  if (auto made = CreatePrivateFile(temporary); !made.ok()) return made;
   {
     auto destination = SqliteConnection::Open(
         temporary, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,

@@ -18,6 +18,12 @@
 /// Write transactions are SERIALIZABLE there and reads REPEATABLE READ (one
 /// snapshot), and a serialization failure is retried like SQLite's busy.
 ///
+/// One server per database file and per bench: an SQLite file is locked
+/// (`<file>.lock`, storage/file_lock.h) before anything else touches it; on
+/// PostgreSQL the bench's advisory lock is taken before migrating and
+/// watched for as long as the Database is open (storage/bench_lock.h).
+/// The files it creates are 0600 (storage/private_files.h).
+///
 /// IsPostgresUrl tells the two apart: postgresql:// or postgres://.
 
 #include <atomic>
@@ -36,6 +42,7 @@
 #include <vector>
 
 #include "api/status.h"
+#include "storage/bench_lock.h"
 #include "storage/connection.h"
 #include "storage/time_utc.h"
 
@@ -70,9 +77,19 @@ struct DatabaseOptions {
   std::string bench_id;
   /// The clock of every *_utc column; outlives the database.
   api::Clock* clock = api::Clock::Real();
+  /// SQLite: hold `<path>.lock` exclusively while open, so a second server
+  /// (or a second Database in this process) on the file is refused
+  /// (storage/file_lock.h). false only for tests that open one file twice
+  /// in one process, as two benches would.
+  bool lock_file = true;
+  /// PostgreSQL: how often the bench lock is checked, and a lost one tried
+  /// again (storage/bench_lock.h).
+  std::chrono::milliseconds bench_lock_check_interval{250};
 };
 
 class PostgresListener;
+class PostgresBenchLock;
+class DatabaseFileLock;
 
 class Database {
  public:
@@ -141,6 +158,15 @@ class Database {
   /// Notifies the listener after the current transaction commits, and on
   /// PostgreSQL every other server's (a NOTIFY in the same transaction).
   api::Status NotifyParameterSetStored(const ParameterSetStored& event);
+  /// The bench lock's changes of state (PostgreSQL, storage/bench_lock.h),
+  /// on its watcher thread; told the current state at once when the lock is
+  /// not held now. An SQLite file's lock cannot be lost: never called there.
+  /// When it returns, no thread is inside the listener it replaced.
+  void SetBenchLockListener(BenchLockListener listener);
+  /// What Open changed on its way, for the server to say: the files of the
+  /// database that group or others could read, narrowed to 0600.
+  const std::vector<std::string>& open_notes() const { return open_notes_; }
+
   const DatabaseOptions& options() const { return options_; }
   /// The engine behind options().path.
   Engine engine() const;
@@ -183,7 +209,11 @@ class Database {
   std::mutex listener_mutex_;                        // guards parameter_set_listener_
   ParameterSetListener parameter_set_listener_;
 
-  std::unique_ptr<Connection> bench_lock_;  // PostgreSQL: holds the bench's advisory lock
+  api::Status MakePrivateFiles();
+
+  std::unique_ptr<DatabaseFileLock> file_lock_;    // SQLite: one server per file
+  std::unique_ptr<PostgresBenchLock> bench_lock_;  // PostgreSQL: one server per bench
+  std::vector<std::string> open_notes_;
   // PostgreSQL: the sets other servers store (their NOTIFY payloads carry
   // the storing Database's instance id, so this one skips its own).
   std::string instance_id_;

@@ -8,6 +8,7 @@
 #include "server/http/resources_json.h"
 #include "server/http/routes_common.h"
 #include "storage/audit_log.h"
+#include "storage/private_files.h"
 #include "storage/users.h"
 
 namespace fesbench::server::http {
@@ -272,9 +273,9 @@ void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
              .summary = "Online backup of the database into the server's backup folder",
              .success_status = 201,
              .handler = [&db, backup_dir](RequestContext& ctx) -> api::Result<Reply> {
+               // 0700, like every folder the server makes (docs/SAFETY.md, "Files").
+               if (auto made = storage::CreatePrivateFolders(backup_dir); !made.ok()) return made;
                std::error_code ec;
-               std::filesystem::create_directories(backup_dir, ec);
-               if (ec) return api::Status::Unavailable("cannot create the backup folder");
                std::string stamp = storage::FormatUtc(db.Now());
                for (char& c : stamp) {
                  if (c == ':' || c == '.') c = '-';

@@ -420,6 +420,7 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   {
     std::lock_guard lock(mu_);
     if (shutting_down_) return api::Status::Unavailable("the server is shutting down");
+    if (!bench_lost_.empty()) return api::Status::Unavailable(bench_lost_);
   }
   api::Result<SessionContext> context = LoadSessionContext(db_, session_id, bench_.limits());
   if (!context.ok()) return context.status();
@@ -581,6 +582,10 @@ api::Status RunService::ClearEStop(const Actor& actor) {
     if (owner_.busy()) {
       return api::Status::Conflict("a run is still stopping; clear the e-stop after it ends");
     }
+    {
+      std::lock_guard lock(mu_);
+      if (!bench_lost_.empty()) return api::Status::Unavailable(bench_lost_);
+    }
     // While latched no run can start, so the bench stays idle from here on.
     const bool was = owner_.safe_bench().estopped() || bench_.HardwareEStopped();
     // Stored and audited first, in one transaction: if that fails the latch
@@ -605,6 +610,23 @@ api::Status RunService::ClearEStop(const Actor& actor) {
     }
     return api::Status::Ok();
   });
+}
+
+void RunService::LoseBench(const std::string& reason) {
+  {
+    // Refused first, so a start in progress either sees it or is stopped
+    // by the e-stop below (BenchOwner refuses to start while latched).
+    std::lock_guard lock(mu_);
+    const bool latched_already = !bench_lost_.empty();  // ClearEStop is refused since
+    bench_lost_ = reason.empty() ? std::string("this server lost its bench lock") : reason;
+    if (latched_already) return;
+  }
+  (void)EStop(SystemActor(), "bench lock lost");
+}
+
+void RunService::RegainBench() {
+  std::lock_guard lock(mu_);
+  bench_lost_.clear();
 }
 
 api::Result<Recovery> RunService::RecoverAfterRestart() {

@@ -158,6 +158,15 @@ class RunService {
   /// kConflict while a run is still winding down. Audited.
   api::Status ClearEStop(const Actor& actor);
 
+  /// This server no longer holds its bench (docs/SAFETY.md, "One server per
+  /// bench"): acts as an e-stop from "bench lock lost" (stimulation stops at
+  /// once, the latch is set and stored), then refuses to start runs and to
+  /// clear the e-stop with kUnavailable naming `reason`, until RegainBench.
+  void LoseBench(const std::string& reason);
+  /// The bench is this server's again: runs may start once a person has
+  /// cleared the e-stop LoseBench latched.
+  void RegainBench();
+
   /// At start, before serving (no run of this process exists yet): closes
   /// every run that a stopped process left queued or running — state failed,
   /// reason kStoppedDuringRunReason, audited "run.recovered" by "system";
@@ -252,6 +261,7 @@ class RunService {
   std::int64_t current_run_id_ = 0;
   std::string estop_source_;
   bool shutting_down_ = false;
+  std::string bench_lost_;  // why this server lost its bench; empty while it holds it
 
   std::mutex queue_mu_;
   std::condition_variable queue_cv_;

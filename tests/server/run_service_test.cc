@@ -315,6 +315,44 @@ TEST(RunService, EStopAbortsLatchesAndClearsByClinicianOnly) {
   EXPECT_EQ(std::count(actions.begin(), actions.end(), "bench.clear_estop"), 1);
 }
 
+// docs/SAFETY.md, "One server per bench": a server that lost its bench lock
+// stops the run as an e-stop does, latches, and refuses runs and the clearing
+// of the e-stop (503 naming the lock) until it holds the bench again.
+TEST(RunService, ALostBenchStopsTheRunLatchesAndRefusesUntilItIsRegained) {
+  Rig rig({.time_scale = 1.0});
+  auto run = rig.service->Start(rig.clinician, rig.session_id, "isometric_ramp_irc", {});
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  WaitRunning(*rig.service, run->run_id);
+  const std::string reason = "this server lost its lock on bench 'knee-a' (killed)";
+  rig.service->LoseBench(reason);
+  auto view = rig.service->Wait(run->run_id, kWait);
+  ASSERT_TRUE(view.ok());
+  EXPECT_EQ(view->state, RunState::kAborted);
+  EXPECT_DOUBLE_EQ(rig.bench->ReadSensors().stim_ma, 0.0);
+  EXPECT_TRUE(rig.service->State().estopped);
+  EXPECT_EQ(rig.service->State().estop_source, "bench lock lost (system)");
+  auto latched = storage::EStopLatchRepository(*rig.db).Current();
+  ASSERT_TRUE(latched.ok() && latched->has_value());
+
+  auto refused =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
+  EXPECT_EQ(refused.status().code(), api::ErrorCode::kUnavailable);
+  EXPECT_EQ(refused.status().message(), reason);
+  EXPECT_EQ(rig.service->ClearEStop(rig.clinician).code(), api::ErrorCode::kUnavailable);
+  rig.service->LoseBench(reason + " again");  // no second latch while lost
+  std::vector<std::string> actions = rig.AuditActions();
+  EXPECT_EQ(std::count(actions.begin(), actions.end(), "bench.estop"), 1);
+
+  rig.service->RegainBench();
+  auto latched_still =
+      rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
+  EXPECT_EQ(latched_still.status().code(), api::ErrorCode::kConflict);  // a person clears it
+  ASSERT_TRUE(rig.service->ClearEStop(rig.clinician).ok());
+  auto next = rig.service->Start(rig.clinician, rig.session_id, "tolerance_test", kShortTolerance);
+  ASSERT_TRUE(next.ok()) << next.status().ToString();
+  EXPECT_TRUE(rig.service->Wait(next->run_id, kWait).ok());
+}
+
 TEST(RunService, WatchdogStopsARunWithoutHeartbeatsAndHeartbeatsKeepItGoing) {
   // Wall clock = bench time, so the 1 s watchdog is exact at time scale 0.
   Rig rig({.arm_watchdog = true, .wall_clock_is_bench_time = true});

@@ -353,6 +353,7 @@ TEST_P(StorageTest, ConcurrentReadersAndWritersNeverSeeLocked) {
   DatabaseOptions second_options = Options();
   second_options.busy_timeout = std::chrono::milliseconds(5);  // force retries
   second_options.bench_id = "bench-b";  // another server (PostgreSQL refuses two on one bench)
+  second_options.lock_file = false;     // SQLite refuses a second on one file: as if it were not
   auto second = Database::Open(second_options);
   ASSERT_TRUE(second.ok());
 
@@ -413,6 +414,7 @@ TEST_P(StorageTest, RunsAndLatchesBelongToTheirBench) {
   const Session session = MakeSession("K1");
   DatabaseOptions other = Options();
   other.bench_id = "bench-b";
+  other.lock_file = false;  // SQLite: a file has one server; here, as if it had two
   auto b = Database::Open(other);
   ASSERT_TRUE(b.ok()) << b.status().ToString();
   SessionRepository on_a(*db_);

@@ -151,6 +151,60 @@ std::optional<int> ServerProcess::WaitExit(std::chrono::seconds timeout) {
   return std::nullopt;
 }
 
+std::optional<int> ServerProcess::AwaitExit(std::chrono::seconds timeout) {
+  if (pid_ <= 0) return std::nullopt;
+  const std::optional<int> status = WaitExit(timeout);
+  if (!status) return std::nullopt;
+  return WIFEXITED(*status) ? WEXITSTATUS(*status) : -1;
+}
+
+ExitedServer RunServerToExit(const std::vector<std::string>& args, std::chrono::seconds timeout) {
+  const std::filesystem::path dir = NewTempDir();
+  const auto out_path = dir / "stdout.log";
+  const auto err_path = dir / "stderr.log";
+  std::vector<std::string> argv_text = {FESBENCH_SERVER_BINARY};
+  argv_text.insert(argv_text.end(), args.begin(), args.end());
+  const auto started = std::chrono::steady_clock::now();
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    if (out >= 0) ::dup2(out, STDOUT_FILENO);
+    if (err >= 0) ::dup2(err, STDERR_FILENO);
+    std::vector<char*> argv;
+    for (auto& a : argv_text) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  ExitedServer result;
+  int status = 0;
+  const auto deadline = started + timeout;
+  bool exited = false;
+  while (!exited && std::chrono::steady_clock::now() < deadline) {
+    if (::waitpid(pid, &status, WNOHANG) == pid) {
+      exited = true;
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+  }
+  result.elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+  if (!exited) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
+  } else if (WIFEXITED(status)) {
+    result.exit_code = WEXITSTATUS(status);
+  }
+  std::ifstream out_file(out_path), err_file(err_path);
+  result.output.assign(std::istreambuf_iterator<char>(out_file), {});
+  result.error.assign(std::istreambuf_iterator<char>(err_file), {});
+  std::error_code ec;
+  std::filesystem::remove_all(dir, ec);
+  return result;
+}
+
 std::string ServerProcess::Stop(std::chrono::seconds timeout) {
   ::kill(pid_, SIGTERM);
   const std::optional<int> status = WaitExit(timeout);

@@ -49,6 +49,9 @@ class ServerProcess {
   /// SIGTERM, then waits up to `timeout`; the exit code (−1 on timeout or a
   /// signal death).
   int Terminate(std::chrono::seconds timeout = std::chrono::seconds(20));
+  /// Waits up to `timeout` for the server to exit on its own (no signal);
+  /// its exit code (−1 for a death by signal), or nullopt if it still runs.
+  std::optional<int> AwaitExit(std::chrono::seconds timeout);
   /// SIGKILL (a crash: no clean-up of any kind), then waits for the process.
   void Kill();
 
@@ -73,6 +76,17 @@ class ServerProcess {
   std::string admin_token_;
   std::string output_;
 };
+
+/// A fesbench-server that is expected not to start: run with exactly `args`
+/// until it exits (SIGKILL after `timeout`).
+struct ExitedServer {
+  int exit_code = -1;     ///< −1: killed at the timeout, or a death by signal.
+  std::string output;     ///< stdout.
+  std::string error;      ///< stderr.
+  double elapsed_ms = 0;  ///< from the start to its exit.
+};
+ExitedServer RunServerToExit(const std::vector<std::string>& args,
+                             std::chrono::seconds timeout = std::chrono::seconds(20));
 
 /// A request with a JSON body (or none when body is null), with a bearer
 /// token when `token` is not empty. Returns status and parsed body (null if
