@@ -47,7 +47,8 @@ std::string MediaType(const httplib::Request& req) {
 // server may grow by for imports, the rest being transient buffers.
 constexpr std::size_t kImportMemoryBytes = std::size_t{192} << 20;
 
-// Closes a descriptor this file opened.
+// Closes the descriptor BodyIntoMemfdUntilFrontEndSpools opened (goes
+// with it).
 class OwnedFd {
  public:
   OwnedFd() = default;
@@ -74,7 +75,9 @@ api::Result<UploadBody> BodyIntoMemfdUntilFrontEndSpools(const httplib::Request&
   while (done < req.body.size()) {
     const ssize_t n = ::write(fd, req.body.data() + done, req.body.size() - done);
     if (n < 0 && errno == EINTR) continue;
-    if (n < 0) return api::Status::Internal("writing the upload: " + std::string(std::strerror(errno)));
+    if (n < 0) {
+      return api::Status::Internal("writing the upload: " + std::string(std::strerror(errno)));
+    }
     done += static_cast<std::size_t>(n);
   }
   ::lseek(fd, 0, SEEK_SET);

@@ -41,15 +41,13 @@ api::Status Hold(MemoryBudget::Reservation& memory, std::size_t bytes, const Mem
 enum class EntryKind { kSmall, kParameterSet, kData };
 
 bool IsLabel(std::string_view s) {
-  return !s.empty() && std::all_of(s.begin(), s.end(), [](unsigned char c) {
-    return std::isalnum(c) != 0;
-  });
+  return !s.empty() &&
+         std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isalnum(c) != 0; });
 }
 
 bool IsDigits(std::string_view s) {
-  return !s.empty() && std::all_of(s.begin(), s.end(), [](unsigned char c) {
-    return std::isdigit(c) != 0;
-  });
+  return !s.empty() &&
+         std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
 }
 
 std::vector<std::string_view> SplitSlashes(std::string_view path) {
@@ -68,8 +66,10 @@ std::vector<std::string_view> SplitSlashes(std::string_view path) {
 std::optional<EntryKind> TrialFileKind(std::string_view subject, std::string_view session,
                                        std::string_view datatype, std::string_view name) {
   static constexpr std::pair<std::string_view, EntryKind> kMotion[] = {
-      {"_motion.tsv", EntryKind::kData},    {"_events.tsv", EntryKind::kData},
-      {"_channels.tsv", EntryKind::kSmall}, {"_motion.json", EntryKind::kSmall},
+      {"_motion.tsv", EntryKind::kData},
+      {"_events.tsv", EntryKind::kData},
+      {"_channels.tsv", EntryKind::kSmall},
+      {"_motion.json", EntryKind::kSmall},
       {"_events.json", EntryKind::kSmall}};
   static constexpr std::pair<std::string_view, EntryKind> kEmg[] = {
       {"_emg.tsv", EntryKind::kData},
@@ -77,7 +77,9 @@ std::optional<EntryKind> TrialFileKind(std::string_view subject, std::string_vie
       {"_channels.tsv", EntryKind::kSmall}};
   const std::string prefix = "sub-" + std::string(subject) + "_ses-" + std::string(session) + "_";
   if (!name.starts_with(prefix)) return std::nullopt;
-  const auto allowed = [](unsigned char c) { return std::isalnum(c) != 0 || c == '_' || c == '-' || c == '.'; };
+  const auto allowed = [](unsigned char c) {
+    return std::isalnum(c) != 0 || c == '_' || c == '-' || c == '.';
+  };
   if (!std::all_of(name.begin(), name.end(), allowed)) return std::nullopt;
   const auto check = [&](const auto& suffixes) -> std::optional<EntryKind> {
     for (const auto& [suffix, kind] : suffixes) {
@@ -116,8 +118,8 @@ std::optional<EntryKind> LayoutKind(std::string_view path) {
   const std::string_view session = p[1].substr(4);
   if (!IsLabel(subject) || !IsLabel(session)) return std::nullopt;
   if (p.size() == 3) {
-    const std::string scans = "sub-" + std::string(subject) + "_ses-" + std::string(session) +
-                              "_scans.tsv";
+    const std::string scans =
+        "sub-" + std::string(subject) + "_ses-" + std::string(session) + "_scans.tsv";
     return p[2] == scans ? std::optional(EntryKind::kSmall) : std::nullopt;
   }
   if (p.size() == 4) return TrialFileKind(subject, session, p[2], p[3]);
@@ -259,8 +261,7 @@ api::Status Unpacker::ReadEntries(ArchiveFormat format) {
                                           "refused)");
     }
     const bool directory = type == AE_IFDIR;
-    if (api::Status s = CheckPath(directory && !path.ends_with('/') ? path + "/" : path);
-        !s.ok()) {
+    if (api::Status s = CheckPath(directory && !path.ends_with('/') ? path + "/" : path); !s.ok()) {
       return s;
     }
     if (directory) {
@@ -288,7 +289,9 @@ api::Status Unpacker::ReadEntries(ArchiveFormat format) {
 // buffer both exist and both are held.
 api::Status Unpacker::Grow(std::string& content, std::size_t needed, bool exact,
                            const std::string& path) {
-  const std::size_t old_capacity = content.capacity();
+  // A string's inline buffer (an empty one's capacity) is no allocation.
+  const std::size_t old_capacity =
+      content.capacity() > std::string().capacity() ? content.capacity() : 0;
   const std::size_t room = limits_.max_unpacked_bytes - (unpacked_ - content.size());
   const std::size_t capacity =
       exact ? needed : std::min(std::max({needed, 2 * old_capacity, std::size_t{64} << 10}), room);
@@ -304,8 +307,8 @@ api::Status Unpacker::Grow(std::string& content, std::size_t needed, bool exact,
 api::Status Unpacker::ReadEntry(archive_entry* entry, const std::string& path, EntryKind kind) {
   const std::size_t entry_limit = EntryLimit(kind);
   const auto too_large = [&](std::size_t limit, const char* what) {
-    return api::Status::PayloadTooLarge("archive entry '" + path + "' unpacks beyond " + MiB(limit) +
-                                        ", the limit of " + what);
+    return api::Status::PayloadTooLarge("archive entry '" + path + "' unpacks beyond " +
+                                        MiB(limit) + ", the limit of " + what);
   };
   constexpr const char* kOfFile = "a file of its kind";
   constexpr const char* kOfArchive = "a whole archive unpacked";
@@ -331,9 +334,8 @@ api::Status Unpacker::ReadEntry(archive_entry* entry, const std::string& path, E
     }
     const std::size_t size = content.size() + static_cast<std::size_t>(n);
     if (declared && size > *declared) {
-      return api::Status::InvalidArgument("archive entry '" + path +
-                                          "' holds more than the " + std::to_string(*declared) +
-                                          " bytes its header declares");
+      return api::Status::InvalidArgument("archive entry '" + path + "' holds more than the " +
+                                          std::to_string(*declared) + " bytes its header declares");
     }
     if (unpacked_ + static_cast<std::size_t>(n) > limits_.max_unpacked_bytes) {
       return too_large(limits_.max_unpacked_bytes, kOfArchive);
@@ -429,8 +431,7 @@ api::Result<RecordingUpload> ReadRecordingUpload(int fd, std::size_t size, Memor
   // The text, and its document: the data string and at most
   // kMaxRecordingJsonValues small values.
   const std::size_t document = size + kMaxRecordingJsonValues * 128;
-  if (api::Status s = Hold(upload.memory, size + document, budget, "the recording");
-      !s.ok()) {
+  if (api::Status s = Hold(upload.memory, size + document, budget, "the recording"); !s.ok()) {
     return s;
   }
   json body;

@@ -82,13 +82,12 @@ api::FileMap ExportFiles() {
   model::ParameterSet params = model::ExampleParameterSet();
   params.provenance.trial_ids = {41};
   params.provenance.active_trial_id.reset();
-  files["derivatives/fesbench/parameter_sets/paramset-5.json"] =
-      json{{"id", 5},
-           {"version", 1},
-           {"created_at", "2026-11-25T10:00:00.000000Z"},
-           {"supersedes_id", nullptr},
-           {"parameter_set", api::ParameterSetToJson(params)}}
-          .dump(2);
+  files["derivatives/fesbench/parameter_sets/paramset-5.json"] = json{
+      {"id", 5},
+      {"version", 1},
+      {"created_at", "2026-11-25T10:00:00.000000Z"},
+      {"supersedes_id", nullptr},
+      {"parameter_set", api::ParameterSetToJson(params)}}.dump(2);
   return files;
 }
 
@@ -100,7 +99,8 @@ std::vector<Entry> Entries(const api::FileMap& files, const std::string& root = 
 
 const std::string kMotion =
     std::string(kRoot) +
-    "/sub-S01/ses-7/motion/sub-S01_ses-7_task-freeSwingPassive_tracksys-kneebench_run-41_motion.tsv";
+    "/sub-S01/ses-7/motion/"
+    "sub-S01_ses-7_task-freeSwingPassive_tracksys-kneebench_run-41_motion.tsv";
 
 api::Result<UnpackedArchive> Unpack(const std::string& bytes, MemoryBudget& budget,
                                     ArchiveFormat format = ArchiveFormat::kZip) {
@@ -133,8 +133,8 @@ TEST(UnpackArchiveTest, AZipBombIsRefusedNamingTheEntryAndTheLimit) {
       << unpacked.status().message();
   // The same zeros as a small file of the layout (a sidecar): its own limit.
   const std::string sidecar = std::string(kRoot) + "/participants.tsv";
-  auto small = Unpack(MakeArchive({{sidecar, "", 8}}, ArchiveFormat::kTarGz), budget,
-                      ArchiveFormat::kTarGz);
+  auto small =
+      Unpack(MakeArchive({{sidecar, "", 8}}, ArchiveFormat::kTarGz), budget, ArchiveFormat::kTarGz);
   ASSERT_FALSE(small.ok());
   EXPECT_EQ(small.status().code(), api::ErrorCode::kPayloadTooLarge);
   EXPECT_NE(small.status().message().find(sidecar + "' unpacks beyond 1 MiB"), std::string::npos)
@@ -239,8 +239,8 @@ const std::string kCsv = "t_s,angle_deg\n0,90\n0.005,91\n0.01,92\n";
 
 TEST(ReadRecordingUploadTest, ReadsSpecAndDataWithinTheBudget) {
   MemoryBudget budget(192 * kMiB);
-  auto upload = ReadBody(json{{"spec", {{"kind", "free_swing_passive"}}}, {"data", kCsv}}.dump(),
-                         budget);
+  auto upload =
+      ReadBody(json{{"spec", {{"kind", "free_swing_passive"}}}, {"data", kCsv}}.dump(), budget);
   ASSERT_TRUE(upload.ok()) << upload.status().ToString();
   EXPECT_EQ(upload->spec.kind, "free_swing_passive");
   EXPECT_EQ(upload->data, kCsv);
@@ -284,8 +284,7 @@ TEST(ReadRecordingUploadTest, RefusesDeepDuplicatedAndUnknownNamingThePlace) {
 }
 
 TEST(ReadRecordingUploadTest, ARecordingBeyondTheBudgetIsTooLargeAndABusyOneWaits) {
-  const std::string body =
-      json{{"spec", {{"kind", "free_swing_passive"}}}, {"data", kCsv}}.dump();
+  const std::string body = json{{"spec", {{"kind", "free_swing_passive"}}}, {"data", kCsv}}.dump();
   MemoryBudget tiny(1 << 20);
   auto too_large = ReadBody(body, tiny);
   ASSERT_FALSE(too_large.ok());

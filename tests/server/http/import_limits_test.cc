@@ -35,10 +35,10 @@ std::int64_t NewSession(httplib::Client& client, const std::string& token) {
   auto subject = Call(client, "POST", "/api/v1/subjects", token,
                       {{"code", "BOMB-01"}, {"details", json::object()}, {"legs", {"right"}}});
   EXPECT_EQ(subject.status, 201) << subject.text;
-  auto session = Call(client, "POST",
-                      "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) +
-                          "/sessions",
-                      token, {{"leg", "right"}, {"date", "2026-11-25"}});
+  auto session =
+      Call(client, "POST",
+           "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) + "/sessions", token,
+           {{"leg", "right"}, {"date", "2026-11-25"}});
   EXPECT_EQ(session.status, 201) << session.text;
   return session.body["id"];
 }
@@ -90,8 +90,7 @@ TEST(ImportLimitsTest, ThreeZipBombsAtOnceStayWithinTheBudget) {
   // 1,000 MiB of zeros as a trial's data file: about 1 MB of zip.
   const std::string bomb = MakeArchive({{motion + "_motion.tsv", "", 1000}}, ArchiveFormat::kZip);
   EXPECT_LT(bomb.size(), std::size_t{2} << 20);
-  for (const Answer& a :
-       PostConcurrently(server, import_path, token, bomb, "application/zip", 3)) {
+  for (const Answer& a : PostConcurrently(server, import_path, token, bomb, "application/zip", 3)) {
     EXPECT_TRUE(a.status == 413 || a.status == 503) << a.status << " " << a.body;
     if (a.status == 413) {
       EXPECT_NE(a.body.find(motion + "_motion.tsv' unpacks beyond 128 MiB"), std::string::npos)
@@ -110,8 +109,7 @@ TEST(ImportLimitsTest, ThreeZipBombsAtOnceStayWithinTheBudget) {
   for (int i = 0; i < 120; ++i) table_bomb.front().content += column;
   const std::string tgz = MakeArchive(table_bomb, ArchiveFormat::kTarGz);
   table_bomb.clear();
-  for (const Answer& a :
-       PostConcurrently(server, import_path, token, tgz, "application/gzip", 3)) {
+  for (const Answer& a : PostConcurrently(server, import_path, token, tgz, "application/gzip", 3)) {
     EXPECT_TRUE(a.status == 413 || a.status == 503) << a.status << " " << a.body;
     const bool named = a.body.find("the archive (120 MiB unpacked) needs") != std::string::npos ||
                        a.body.find("busy with other uploads") != std::string::npos;
@@ -141,10 +139,10 @@ TEST(ImportLimitsTest, StrayEntriesAndBadJsonAreRefusedNamingThemAndStoreNothing
   };
   // An archive with one stray file: refused by name, even though the rest
   // would import.
-  const Answer stray = post(MakeArchive({{"fesbench-session-3/README.md", "x"},
-                                         {"fesbench-session-3/notes.txt", "x"}},
-                                        ArchiveFormat::kZip),
-                            "application/zip");
+  const Answer stray = post(
+      MakeArchive({{"fesbench-session-3/README.md", "x"}, {"fesbench-session-3/notes.txt", "x"}},
+                  ArchiveFormat::kZip),
+      "application/zip");
   EXPECT_EQ(stray.status, 400) << stray.body;
   EXPECT_NE(stray.body.find("'fesbench-session-3/notes.txt' is not part of the layout"),
             std::string::npos)
@@ -164,9 +162,9 @@ TEST(ImportLimitsTest, StrayEntriesAndBadJsonAreRefusedNamingThemAndStoreNothing
   EXPECT_NE(nested.body.find("nested deeper than 32"), std::string::npos) << nested.body;
   deep = {};
   const std::string csv = R"(t_s,angle_deg\n0,90\n0.005,91\n0.01,92\n)";
-  const Answer twice = post(R"({"spec": {"kind": "free_swing_passive", "kind": "rb"}, "data": ")" +
-                                csv + R"("})",
-                            "application/json");
+  const Answer twice =
+      post(R"({"spec": {"kind": "free_swing_passive", "kind": "rb"}, "data": ")" + csv + R"("})",
+           "application/json");
   EXPECT_EQ(twice.status, 400) << twice.body;
   EXPECT_EQ(json::parse(twice.body)["error"]["field"], "spec.kind") << twice.body;
   const Answer unknown =
