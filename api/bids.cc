@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "api/json_fields.h"
 #include "api/trial_import.h"
 
 namespace fesbench::api {
@@ -88,9 +89,12 @@ Result<StringTable> ReadStringTable(const std::string& text, const std::string& 
 Result<json> ReadJson(const FileMap& files, const std::string& path) {
   const auto it = files.find(path);
   if (it == files.end()) return Status::InvalidArgument("missing file " + path);
-  json j = json::parse(it->second, nullptr, false);
-  if (j.is_discarded() || !j.is_object()) {
-    return Status::InvalidArgument(path + ": not a JSON object");
+  // Client input (an uploaded archive): read strictly.
+  Result<json> j = ParseJsonObject(it->second);
+  if (!j.ok()) {
+    const Status& s = j.status();
+    return Status::InvalidArgument(
+        path + ": " + (s.field().empty() ? "" : s.field() + ": ") + s.message(), s.field());
   }
   return j;
 }

@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <set>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -42,17 +44,27 @@ int NestingDepth(std::string_view text, int limit) {
 
 std::string TypeName(const nlohmann::json& j) { return j.type_name(); }
 
+// A refusal found while parsing, thrown out of the parser callback.
+struct ParseRefusal {
+  std::string message;
+  std::string path;
+};
+
 // The dotted path of the value being parsed, kept up to date by the parser
 // callback, so that an error inside a value (a number beyond double range:
-// 1e400) can name its field.
+// 1e400) can name its field; it also refuses a key its object already has
+// and a text with more values than allowed.
 class PathTracker {
  public:
+  explicit PathTracker(std::size_t max_values) : max_values_(max_values) {}
+
   bool operator()(int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
     using Event = nlohmann::json::parse_event_t;
     switch (event) {
       case Event::object_start:
       case Event::array_start:
-        frames_.push_back({event == Event::array_start, {}, 0});
+        CountValue();
+        frames_.push_back({event == Event::array_start, {}, 0, {}});
         break;
       case Event::object_end:
       case Event::array_end:
@@ -60,9 +72,10 @@ class PathTracker {
         if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
         break;
       case Event::key:
-        if (!frames_.empty() && parsed.is_string()) frames_.back().key = parsed.get<std::string>();
+        if (!frames_.empty() && parsed.is_string()) Key(parsed.get<std::string>());
         break;
       case Event::value:
+        CountValue();
         if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
         break;
     }
@@ -85,7 +98,24 @@ class PathTracker {
     bool array;
     std::string key;
     std::size_t index;
+    std::set<std::string, std::less<>> keys;  // an object's keys so far.
   };
+
+  void Key(std::string key) {
+    Frame& frame = frames_.back();
+    frame.key = key;
+    if (!frame.keys.insert(std::move(key)).second) {
+      throw ParseRefusal{"duplicate key: the object already has this field", Path()};
+    }
+  }
+  void CountValue() {
+    if (++values_ > max_values_) {
+      throw ParseRefusal{"more than " + std::to_string(max_values_) + " JSON values", Path()};
+    }
+  }
+
+  std::size_t max_values_;
+  std::size_t values_ = 0;
   std::vector<Frame> frames_;
 };
 // The unit a field name carries as its suffix (STYLE.md: `weight_kg`,
@@ -131,16 +161,18 @@ std::string RangeMessage(std::string_view key, T min, T max, const std::string& 
 
 }  // namespace
 
-Result<nlohmann::json> ParseJsonObject(std::string_view body) {
+Result<nlohmann::json> ParseJsonObject(std::string_view body, const JsonLimits& limits) {
   if (body.empty()) return Status::InvalidArgument("request body is empty; expected a JSON object");
   if (NestingDepth(body, kMaxJsonDepth) > kMaxJsonDepth) {
     return Status::InvalidArgument("JSON nested deeper than " +
                                         std::to_string(kMaxJsonDepth) + " levels");
   }
   nlohmann::json json;
-  PathTracker tracker;
+  PathTracker tracker(limits.max_values);
   try {
     json = nlohmann::json::parse(body, std::ref(tracker));
+  } catch (const ParseRefusal& refusal) {
+    return Status::InvalidArgument(refusal.message, refusal.path);
   } catch (const nlohmann::json::parse_error& e) {
     return Status::InvalidArgument("malformed JSON at byte " + std::to_string(e.byte) +
                                         ": " + e.what());

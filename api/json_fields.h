@@ -24,10 +24,21 @@ namespace fesbench::api {
 /// Deepest nesting of arrays and objects a request body may have.
 inline constexpr int kMaxJsonDepth = 32;
 
-/// Parses a request body. kInvalidArgument for an empty body, malformed
-/// JSON (the message names the byte offset), nesting deeper than
-/// kMaxJsonDepth, or a top level that is not an object.
-Result<nlohmann::json> ParseJsonObject(std::string_view body);
+/// What ParseJsonObject accepts beyond well-formed JSON.
+struct JsonLimits {
+  /// Most values (objects, arrays, strings, numbers, literals) in the text:
+  /// a parsed document costs up to ~16 bytes of memory per byte of text
+  /// ("[0,0,...]"), so a reader that expects few values says so.
+  std::size_t max_values = std::numeric_limits<std::size_t>::max();
+};
+
+/// Parses client JSON (request bodies, uploaded files). kInvalidArgument
+/// for an empty body, malformed JSON (the message names the byte offset),
+/// nesting deeper than kMaxJsonDepth, an object with the same key twice
+/// (the field names its path: "spec.columns[0].unit"; JSON leaves which
+/// one counts to the reader, so neither does), more values than
+/// `limits.max_values`, or a top level that is not an object.
+Result<nlohmann::json> ParseJsonObject(std::string_view body, const JsonLimits& limits = {});
 
 /// Reads the fields of one JSON object. The first failure is kept (later
 /// calls then return nullopt); Finish() adds the unknown-field check.

@@ -6,7 +6,7 @@ namespace fesbench::api {
 
 namespace {
 
-constexpr NameTable<ErrorCode, 11> kErrorCodes(
+constexpr NameTable<ErrorCode, 12> kErrorCodes(
     {{{ErrorCode::kOk, "ok"},
       {ErrorCode::kInvalidArgument, "invalid_argument"},
       {ErrorCode::kNotFound, "not_found"},
@@ -16,6 +16,7 @@ constexpr NameTable<ErrorCode, 11> kErrorCodes(
       {ErrorCode::kUnauthenticated, "unauthenticated"},
       {ErrorCode::kPermissionDenied, "permission_denied"},
       {ErrorCode::kUnavailable, "unavailable"},
+      {ErrorCode::kPayloadTooLarge, "payload_too_large"},
       {ErrorCode::kDataLoss, "data_loss"},
       {ErrorCode::kInternal, "internal"}}},
     "internal");

@@ -24,6 +24,7 @@ enum class ErrorCode {
   kUnauthenticated,     ///< missing or invalid token (401).
   kPermissionDenied,    ///< wrong role (403).
   kUnavailable,         ///< busy database or bench fault; retry may succeed (503).
+  kPayloadTooLarge,     ///< input beyond a size limit, however often sent (413).
   kDataLoss,            ///< corrupt stored data.
   kInternal,            ///< a bug; never caused by client input.
 };
@@ -53,6 +54,9 @@ class [[nodiscard]] Status {
   }
   static Status Unavailable(std::string message) {
     return {ErrorCode::kUnavailable, std::move(message)};
+  }
+  static Status PayloadTooLarge(std::string message, std::string field = {}) {
+    return {ErrorCode::kPayloadTooLarge, std::move(message), std::move(field)};
   }
   static Status DataLoss(std::string message) { return {ErrorCode::kDataLoss, std::move(message)}; }
   static Status Internal(std::string message) { return {ErrorCode::kInternal, std::move(message)}; }

@@ -21,6 +21,8 @@ int HttpStatusFor(api::ErrorCode code) {
       return 409;
     case ErrorCode::kUnavailable:
       return 503;
+    case ErrorCode::kPayloadTooLarge:
+      return 413;
     case ErrorCode::kDataLoss:
     case ErrorCode::kInternal:
       return 500;

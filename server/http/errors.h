@@ -14,6 +14,7 @@
 ///   not_found                                 404
 ///   already_exists, conflict,
 ///   failed_precondition                       409
+///   payload_too_large                         413 (an upload beyond a limit)
 ///   unavailable                               503 (real overload only)
 ///   data_loss, internal                       500 (never caused by client input)
 /// Transport-level refusals that have no api::ErrorCode use HttpError

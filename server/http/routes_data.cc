@@ -1,14 +1,24 @@
 // Data in and out of a session (services/session_archive.h): POST
-// /sessions/{id}/trials imports a recording or a session archive, GET
-// /sessions/{id}/export writes one.
+// /sessions/{id}/trials imports a recording or a session archive, read
+// within bounds (services/import_upload.h), GET /sessions/{id}/export
+// writes one.
+
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <memory>
+#include <optional>
 
 #include "api/trial_kind.h"
 #include "server/http/api_routes.h"
 #include "server/http/resources_json.h"
 #include "server/http/routes_common.h"
+#include "server/services/import_upload.h"
+#include "server/services/memory_budget.h"
 #include "server/services/run_service.h"
 #include "server/services/session_archive.h"
 #include "server/services/session_report.h"
@@ -31,9 +41,47 @@ std::string MediaType(const httplib::Request& req) {
   return type;
 }
 
-bool IsArchiveType(std::string_view type) {
-  return type == "application/zip" || type == "application/gzip" || type == "application/x-gzip" ||
-         type == "application/x-tar" || type == "application/octet-stream";
+// The memory every import in flight draws from together (docs/SAFETY.md
+// "Uploads"): unpacked archive entries, recordings' text and what reading
+// them holds. 192 MiB keeps three concurrent uploads within the 256 MiB the
+// server may grow by for imports, the rest being transient buffers.
+constexpr std::size_t kImportMemoryBytes = std::size_t{192} << 20;
+
+// Closes the descriptor BodyIntoMemfdUntilFrontEndSpools opened (goes
+// with it).
+class OwnedFd {
+ public:
+  OwnedFd() = default;
+  ~OwnedFd() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  OwnedFd(const OwnedFd&) = delete;
+  OwnedFd& operator=(const OwnedFd&) = delete;
+  int Reset(int fd) { return fd_ = fd; }
+
+ private:
+  int fd_ = -1;
+};
+
+// Until the front end spools upload bodies to a file (router.h UploadBody)
+// an upload arrives in req.body: this copies it into an anonymous memory
+// file so that the import reads every upload from a descriptor. Delete it,
+// and its one call, once ctx.upload is always set for this route.
+api::Result<UploadBody> BodyIntoMemfdUntilFrontEndSpools(const httplib::Request& req,
+                                                         OwnedFd& owner) {
+  const int fd = owner.Reset(::memfd_create("fesbench-upload", MFD_CLOEXEC));
+  if (fd < 0) return api::Status::Internal("memfd_create: " + std::string(std::strerror(errno)));
+  std::size_t done = 0;
+  while (done < req.body.size()) {
+    const ssize_t n = ::write(fd, req.body.data() + done, req.body.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      return api::Status::Internal("writing the upload: " + std::string(std::strerror(errno)));
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  ::lseek(fd, 0, SEEK_SET);
+  return UploadBody{fd, req.body.size()};
 }
 
 json ImportSchema() {
@@ -79,26 +127,18 @@ api::Result<json> RunsJson(storage::Database& db, services::RunService* runs_ser
 
 /// POST /sessions/{id}/trials with a JSON {spec, data} body: one recording.
 api::Result<services::ImportResult> ImportRecordingBody(storage::Database& db, RequestContext& ctx,
+                                                        const UploadBody& upload,
+                                                        services::MemoryBudget& budget,
                                                         std::int64_t session_id,
                                                         const std::string& user) {
-  json body = json::parse(ctx.req.body, nullptr, false);
-  if (body.is_discarded() || !body.is_object()) {
-    return api::Status::InvalidArgument("the body must be a JSON object {spec, data}");
-  }
-  if (!body.contains("spec")) {
-    return api::Status::InvalidArgument("required (kind, format, columns, ...)", "spec");
-  }
-  if (!body.contains("data") || !body["data"].is_string()) {
-    return api::Status::InvalidArgument("required: the recording's text", "data");
-  }
-  auto spec = api::ImportSpecFromJson(body["spec"]);
-  if (!spec.ok()) {
-    return api::Status::InvalidArgument(spec.status().message(), "spec." + spec.status().field());
-  }
-  ctx.body = {{"spec", body["spec"]}};
-  const std::string data = body["data"].get<std::string>();
+  auto recording = services::ReadRecordingUpload(upload.fd, upload.size, budget);
+  if (!recording.ok()) return recording.status();
+  ctx.body = {{"spec", recording->spec_json}};
   return AuditedWrite<services::ImportResult>(
-      db, ctx, 201, [&] { return services::ImportRecording(db, session_id, data, *spec, user); },
+      db, ctx, 201,
+      [&] {
+        return services::ImportRecording(db, session_id, recording->data, recording->spec, user);
+      },
       [](const services::ImportResult& r) {
         return "trial " + std::to_string(r.trials.front().id);
       });
@@ -106,23 +146,63 @@ api::Result<services::ImportResult> ImportRecordingBody(storage::Database& db, R
 
 /// POST /sessions/{id}/trials with a zip or tar.gz body: a session archive.
 api::Result<services::ImportResult> ImportArchiveBody(storage::Database& db, RequestContext& ctx,
+                                                      const UploadBody& upload,
+                                                      services::ArchiveFormat format,
+                                                      services::MemoryBudget& budget,
                                                       std::int64_t session_id,
                                                       const std::string& user) {
-  auto files = services::UnpackArchive(ctx.req.body);
-  if (!files.ok()) return files.status();
+  auto archive = services::UnpackArchive(upload.fd, format, budget);
+  if (!archive.ok()) return archive.status();
   const std::string name = ctx.Query("name").value_or("upload");
-  ctx.body = {{"archive", name}, {"bytes", ctx.req.body.size()}};
+  ctx.body = {{"archive", name}, {"bytes", upload.size}};
   return AuditedWrite<services::ImportResult>(
-      db, ctx, 201, [&] { return services::ImportArchive(db, session_id, *files, name, user); },
+      db, ctx, 201,
+      [&] { return services::ImportArchive(db, session_id, archive->files, name, user); },
       [session_id](const services::ImportResult& r) {
         return "session " + std::to_string(session_id) + ": " + std::to_string(r.trials.size()) +
                " trials";
       });
 }
 
+// The import route's handler: the media type chooses the reader.
+api::Result<Reply> ImportTrials(storage::Database& db, services::MemoryBudget& budget,
+                                RequestContext& ctx) {
+  const std::int64_t session_id = ctx.Id("session_id");
+  if (auto s = storage::SessionRepository(db).Get(session_id); !s.ok()) return s.status();
+  const std::string type = MediaType(ctx.req);
+  const std::optional<services::ArchiveFormat> format =
+      type == "application/zip"    ? std::optional(services::ArchiveFormat::kZip)
+      : type == "application/gzip" ? std::optional(services::ArchiveFormat::kTarGz)
+                                   : std::nullopt;
+  if (type != "application/json" && !format) {
+    return api::Status::InvalidArgument(
+        "send a recording as application/json {spec, data} or a session archive as "
+        "application/zip or application/gzip, not '" +
+            type + "'",
+        "Content-Type");
+  }
+  OwnedFd fallback;
+  UploadBody upload;
+  if (ctx.upload != nullptr) {
+    upload = *ctx.upload;
+  } else {
+    auto spooled = BodyIntoMemfdUntilFrontEndSpools(ctx.req, fallback);
+    if (!spooled.ok()) return spooled.status();
+    upload = *spooled;
+  }
+  const std::string user = ctx.user ? ctx.user->name : std::string("anonymous");
+  api::Result<services::ImportResult> imported =
+      format ? ImportArchiveBody(db, ctx, upload, *format, budget, session_id, user)
+             : ImportRecordingBody(db, ctx, upload, budget, session_id, user);
+  if (!imported.ok()) return imported.status();
+  return JsonReply(services::ImportResultToJson(*imported), 201);
+}
+
 // The trial kinds, and importing a recording or a session archive.
 void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
+  // One budget for every import this server runs.
+  auto budget = std::make_shared<services::MemoryBudget>(kImportMemoryBytes);
   table.Add({.method = "GET",
              .path = "/api/v1/trial-kinds",
              .roles = kAnyRole,
@@ -159,24 +239,7 @@ void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
        .query = {{"name", "string", "archive uploads: the file name, kept as provenance"}},
        .success_status = 201,
        .request_schema = ImportSchema(),
-       .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
-         const std::int64_t session_id = ctx.Id("session_id");
-         if (auto s = storage::SessionRepository(db).Get(session_id); !s.ok()) return s.status();
-         const std::string type = MediaType(ctx.req);
-         const std::string user = ctx.user ? ctx.user->name : std::string("anonymous");
-         if (type != "application/json" && !IsArchiveType(type)) {
-           return api::Status::InvalidArgument(
-               "send a recording as application/json {spec, data} or a session archive as "
-               "application/zip or application/gzip, not '" +
-                   type + "'",
-               "Content-Type");
-         }
-         api::Result<services::ImportResult> imported =
-             type == "application/json" ? ImportRecordingBody(db, ctx, session_id, user)
-                                        : ImportArchiveBody(db, ctx, session_id, user);
-         if (!imported.ok()) return imported.status();
-         return JsonReply(services::ImportResultToJson(*imported), 201);
-       },
+       .handler = [&db, budget](RequestContext& ctx) { return ImportTrials(db, *budget, ctx); },
        .raw_body = true});
 }
 

@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 
+#include "api/json_fields.h"
 #include "api/parameter_set_json.h"
 #include "api/trial_kind.h"
 #include "storage/parameter_sets.h"
@@ -24,11 +25,6 @@ using nlohmann::json;
 struct ArchiveDeleter {
   void operator()(archive* a) const {
     if (a != nullptr) archive_write_free(a);
-  }
-};
-struct ReadArchiveDeleter {
-  void operator()(archive* a) const {
-    if (a != nullptr) archive_read_free(a);
   }
 };
 struct EntryDeleter {
@@ -83,6 +79,54 @@ std::string ReadmeText(std::int64_t session_id, const std::string& subject_label
          "    ch = pd.read_csv(prefix + '_channels.tsv', sep='\\t')\n"
          "    data = pd.read_csv(prefix + '_motion.tsv', sep='\\t', header=None, "
          "names=ch['name'])\n";
+}
+
+// A parameter set as the archive holds it (session_archive.h layout).
+struct ArchivedSet {
+  std::int64_t original_id = 0;
+  std::optional<std::int64_t> supersedes_id;
+  std::optional<storage::UtcTime> created_at;
+  model::ParameterSet params;
+};
+
+// A refusal inside the archive's file `path`: "path: field: message".
+api::Status InFile(const std::string& path, const api::Status& s) {
+  return api::Status::InvalidArgument(
+      path + ": " + (s.field().empty() ? "" : s.field() + ": ") + s.message(), s.field());
+}
+
+// One derivatives/fesbench/parameter_sets/paramset-<id>.json, read
+// strictly: {id, version, created_at, supersedes_id, parameter_set} as
+// SessionExportFiles writes it, nothing else.
+api::Result<ArchivedSet> ReadArchivedSet(const std::string& path, const std::string& text) {
+  auto j = api::ParseJsonObject(text);
+  if (!j.ok()) return InFile(path, j.status());
+  api::JsonFields fields(*j);
+  ArchivedSet set;
+  const std::optional<std::int64_t> id = fields.Integer("id", true, 1);
+  (void)fields.Integer("version", false, 1);
+  const std::optional<std::string> created_at = fields.String("created_at", false);
+  set.supersedes_id = fields.Integer("supersedes_id", false, 1);
+  const json* params = fields.Object("parameter_set", true);
+  if (api::Status s = fields.Finish(); !s.ok()) return InFile(path, s);
+  set.original_id = *id;
+  if (created_at) {
+    set.created_at = storage::ParseUtc(*created_at);
+    if (!set.created_at) {
+      return InFile(path, api::Status::InvalidArgument("must be a UTC time such as "
+                                                       "2026-11-25T10:00:00.000000Z",
+                                                       "created_at"));
+    }
+  }
+  auto read = api::ParameterSetFromJson(*params);
+  if (!read.ok()) {
+    const std::string& field = read.status().field();
+    return InFile(path, api::Status::InvalidArgument(
+                            read.status().message(),
+                            field.empty() ? "parameter_set" : "parameter_set." + field));
+  }
+  set.params = std::move(*read);
+  return set;
 }
 
 std::string AcqTime(std::optional<std::int64_t> start_ms) {
@@ -143,87 +187,6 @@ api::Result<std::string> PackArchive(const api::FileMap& files, ArchiveFormat fo
     return api::Status::Internal("archive: " + ArchiveError(a.get()));
   }
   return out;
-}
-
-api::Result<api::FileMap> UnpackArchive(std::string_view bytes, const UnpackLimits& limits) {
-  if (bytes.empty()) return api::Status::InvalidArgument("empty archive");
-  std::unique_ptr<archive, ReadArchiveDeleter> a(archive_read_new());
-  if (!a) return api::Status::Internal("libarchive: out of memory");
-  archive_read_support_filter_gzip(a.get());
-  archive_read_support_format_zip(a.get());
-  archive_read_support_format_tar(a.get());
-  if (archive_read_open_memory(a.get(), bytes.data(), bytes.size()) != ARCHIVE_OK) {
-    return api::Status::InvalidArgument("not a zip or tar.gz archive: " + ArchiveError(a.get()));
-  }
-  api::FileMap files;
-  std::size_t total = 0;
-  std::size_t entries = 0;
-  archive_entry* entry = nullptr;
-  while (true) {
-    const int r = archive_read_next_header(a.get(), &entry);
-    if (r == ARCHIVE_EOF) break;
-    if (r != ARCHIVE_OK) {
-      return api::Status::InvalidArgument("corrupt archive after " + std::to_string(entries) +
-                                          " entries: " + ArchiveError(a.get()));
-    }
-    if (++entries > limits.max_entries) {
-      return api::Status::InvalidArgument("the archive has more than " +
-                                          std::to_string(limits.max_entries) + " entries");
-    }
-    const char* raw_path = archive_entry_pathname(entry);
-    const std::string path = raw_path != nullptr ? raw_path : "";
-    const auto type = archive_entry_filetype(entry);
-    if (type == AE_IFDIR) continue;
-    if (type != AE_IFREG) {
-      return api::Status::InvalidArgument("archive entry '" + path +
-                                          "' is not a regular file (links and devices are "
-                                          "refused)");
-    }
-    if (path.empty() || path.front() == '/' || path.find("..") != std::string::npos ||
-        path.find('\\') != std::string::npos) {
-      return api::Status::InvalidArgument("archive entry '" + path +
-                                          "': absolute paths and '..' are refused");
-    }
-    std::string content;
-    const la_int64_t declared = archive_entry_size(entry);
-    if (declared > 0) {
-      if (total + static_cast<std::size_t>(declared) > limits.max_total_bytes) {
-        return api::Status::InvalidArgument("the archive unpacks to more than " +
-                                            std::to_string(limits.max_total_bytes >> 20) + " MiB");
-      }
-      content.reserve(static_cast<std::size_t>(declared));
-    }
-    char buffer[65536];
-    while (true) {
-      const la_ssize_t n = archive_read_data(a.get(), buffer, sizeof buffer);
-      if (n == 0) break;
-      if (n < 0) {
-        return api::Status::InvalidArgument("archive entry '" + path +
-                                            "' is corrupt: " + ArchiveError(a.get()));
-      }
-      total += static_cast<std::size_t>(n);
-      if (total > limits.max_total_bytes) {
-        return api::Status::InvalidArgument("the archive unpacks to more than " +
-                                            std::to_string(limits.max_total_bytes >> 20) + " MiB");
-      }
-      content.append(buffer, static_cast<std::size_t>(n));
-    }
-    files[path] = std::move(content);
-  }
-  if (files.empty()) return api::Status::InvalidArgument("the archive holds no files");
-  // Drop one top-level directory shared by every entry.
-  const std::string& first = files.begin()->first;
-  const std::size_t slash = first.find('/');
-  if (slash != std::string::npos) {
-    const std::string top = first.substr(0, slash + 1);
-    if (std::all_of(files.begin(), files.end(),
-                    [&](const auto& f) { return f.first.starts_with(top); })) {
-      api::FileMap stripped;
-      for (auto& [path, content] : files) stripped[path.substr(top.size())] = std::move(content);
-      files = std::move(stripped);
-    }
-  }
-  return files;
 }
 
 api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const SessionExportInfo& info) {
@@ -359,35 +322,14 @@ api::Result<ImportResult> ImportArchive(storage::Database& db, std::int64_t sess
       return api::Status::InvalidArgument(t.motion_path + ": " + s.message());
     }
   }
-  // Parameter sets, parsed before anything is written.
-  struct ArchivedSet {
-    std::int64_t original_id = 0;
-    std::optional<std::int64_t> supersedes_id;
-    std::optional<storage::UtcTime> created_at;
-    model::ParameterSet params;
-  };
+  // Parameter sets, read before anything is written.
   std::vector<ArchivedSet> archived_sets;
   const std::string prefix = "derivatives/fesbench/parameter_sets/";
   for (const auto& [path, text] : files) {
     if (!path.starts_with(prefix) || !path.ends_with(".json")) continue;
-    const json j = json::parse(text, nullptr, false);
-    if (j.is_discarded() || !j.is_object() || !j.contains("parameter_set") || !j.contains("id") ||
-        !j["id"].is_number_integer()) {
-      return api::Status::InvalidArgument(path + ": not a fesbench parameter-set file");
-    }
-    auto params = api::ParameterSetFromJson(j["parameter_set"]);
-    if (!params.ok()) {
-      return api::Status::InvalidArgument(path + ": " + params.status().message(),
-                                          params.status().field());
-    }
-    ArchivedSet set{j["id"].get<std::int64_t>(), std::nullopt, std::nullopt, *params};
-    if (j.contains("supersedes_id") && j["supersedes_id"].is_number_integer()) {
-      set.supersedes_id = j["supersedes_id"].get<std::int64_t>();
-    }
-    if (j.contains("created_at") && j["created_at"].is_string()) {
-      set.created_at = storage::ParseUtc(j["created_at"].get<std::string>());
-    }
-    archived_sets.push_back(std::move(set));
+    auto set = ReadArchivedSet(path, text);
+    if (!set.ok()) return set.status();
+    archived_sets.push_back(std::move(*set));
   }
   std::sort(
       archived_sets.begin(), archived_sets.end(),

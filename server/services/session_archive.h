@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Data in and out of a session (DESIGN.md §7, §8): one archive per session,
+/// Data in and out of a session (docs/API.md "Session archives"): one archive per session,
 /// laid out after BIDS (api/bids.h) with the session's parameter sets, run
 /// log and a README of the layout; and imports — such an archive, or one
 /// recording made elsewhere (api/trial_import.h) — stored as trials of a
@@ -19,7 +19,10 @@
 ///     derivatives/fesbench/runs.json      every run with its states and reason
 ///     derivatives/fesbench/parameter_sets/paramset-<id>.json
 ///                                    {id, version, created_at, supersedes_id,
-///                                     parameter_set (DESIGN.md §3)}
+///                                     parameter_set (docs/MODEL.md)}
+///
+/// An imported archive holds these files and no others, under one root
+/// directory fesbench-session-<id>/ of any id (import_upload.h).
 
 #include <cstdint>
 #include <nlohmann/json.hpp>
@@ -47,19 +50,6 @@ std::string_view ArchiveMediaType(ArchiveFormat format);
 /// regular files, mode 0644, sorted by path.
 api::Result<std::string> PackArchive(const api::FileMap& files, ArchiveFormat format,
                                      std::string_view root);
-
-/// Limits on what UnpackArchive accepts (an archive is client input).
-struct UnpackLimits {
-  std::size_t max_entries = 20000;
-  std::size_t max_total_bytes = std::size_t{1} << 30;  ///< unpacked.
-};
-
-/// Unpacks a zip or tar.gz (detected from its bytes). A single top-level
-/// directory shared by every entry is removed from the paths. Refused with
-/// kInvalidArgument naming the entry: not an archive, a corrupt or
-/// truncated one, absolute paths or "..", links and devices, more entries
-/// or more unpacked bytes than `limits`.
-api::Result<api::FileMap> UnpackArchive(std::string_view bytes, const UnpackLimits& limits = {});
 
 /// What a session export holds besides the trials, in resource shapes the
 /// HTTP layer renders (so the archive's JSON matches the API's).
@@ -94,10 +84,13 @@ api::Result<ImportResult> ImportRecording(storage::Database& db, std::int64_t se
                                           std::string_view text, const api::ImportSpec& spec,
                                           std::string_view imported_by);
 
-/// Stores every trial of an unpacked session archive (ReadBidsTrials) in
-/// the session, and the archive's parameter sets whose provenance trials
-/// all came with it (trial ids mapped to the new ones, stored for the
-/// session's subject and leg). All or nothing: one write transaction.
+/// Stores every trial of an unpacked session archive (ReadBidsTrials;
+/// import_upload.h UnpackArchive reads it) in the session, and the
+/// archive's parameter sets whose provenance trials all came with it (trial
+/// ids mapped to the new ones, stored for the session's subject and leg).
+/// Each parameter-set file is read strictly: the fields the export writes
+/// and no others (kInvalidArgument naming the file and the field). All or
+/// nothing: checked first, then one write transaction.
 api::Result<ImportResult> ImportArchive(storage::Database& db, std::int64_t session_id,
                                         const api::FileMap& files, std::string_view archive_name,
                                         std::string_view imported_by);

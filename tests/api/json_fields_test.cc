@@ -66,5 +66,30 @@ TEST(JsonFieldsTest, ParseRefusesMalformedDeepAndNonObjects) {
   EXPECT_TRUE(ParseJsonObject(shallow).ok());
 }
 
+TEST(JsonFieldsTest, ParseRefusesAKeyTwiceNamingItsPath) {
+  const auto field_of = [](std::string_view text) {
+    auto r = ParseJsonObject(text);
+    EXPECT_FALSE(r.ok()) << text;
+    if (r.ok()) return std::string("(accepted)");
+    EXPECT_EQ(r.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(r.status().message().find("duplicate key"), std::string::npos);
+    return r.status().field();
+  };
+  EXPECT_EQ(field_of(R"({"code": "S1", "code": "S2"})"), "code");
+  EXPECT_EQ(field_of(R"({"details": {"height_cm": 170, "weight_kg": 70, "height_cm": 180}})"),
+            "details.height_cm");
+  EXPECT_EQ(field_of(R"({"pairs": [{"a": 1}, {"b": 1, "b": 2}]})"), "pairs[1].b");
+  // The same key in different objects, or as a value, is no repetition.
+  EXPECT_TRUE(ParseJsonObject(R"({"a": {"a": "a"}, "b": [{"a": 1}, {"a": 2}]})").ok());
+}
+
+TEST(JsonFieldsTest, ParseRefusesMoreValuesThanTheReaderExpects) {
+  EXPECT_TRUE(ParseJsonObject(R"({"a": [1, 2, 3]})", {.max_values = 5}).ok());
+  auto r = ParseJsonObject(R"({"a": [1, 2, 3, 4, 5]})", {.max_values = 5});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("more than 5 JSON values"), std::string::npos);
+  EXPECT_EQ(r.status().field(), "a[3]");
+}
+
 }  // namespace
 }  // namespace fesbench::api

@@ -6,6 +6,8 @@
 // loads the export with pandas.
 
 #include <gtest/gtest.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <fstream>
@@ -13,7 +15,7 @@
 #include <thread>
 
 #include "api/bids.h"
-#include "server/services/session_archive.h"
+#include "server/services/import_upload.h"
 #include "tests/server/http/server_process.h"
 
 namespace fesbench::testing {
@@ -100,6 +102,18 @@ httplib::Result PostBytes(httplib::Client& client, const std::string& path,
   return client.Post(path, {{"Authorization", "Bearer " + token}}, body, type);
 }
 
+// An export read back as the server reads an upload: from a file.
+api::Result<server::services::UnpackedArchive> Unpack(const std::string& bytes,
+                                                      server::services::ArchiveFormat format,
+                                                      server::services::MemoryBudget& budget) {
+  const int fd = ::memfd_create("export", MFD_CLOEXEC);
+  EXPECT_EQ(::write(fd, bytes.data(), bytes.size()), static_cast<ssize_t>(bytes.size()));
+  ::lseek(fd, 0, SEEK_SET);
+  auto unpacked = server::services::UnpackArchive(fd, format, budget);
+  ::close(fd);
+  return unpacked;
+}
+
 TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
   ServerProcess a;
   auto ca = a.Client();
@@ -124,11 +138,13 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
   ASSERT_TRUE(tgz);
   ASSERT_EQ(tgz->status, 200);
   EXPECT_EQ(tgz->get_header_value("Content-Type"), "application/gzip");
-  auto files = server::services::UnpackArchive(zip->body);
-  ASSERT_TRUE(files.ok()) << files.status().ToString();
-  auto files_tgz = server::services::UnpackArchive(tgz->body);
-  ASSERT_TRUE(files_tgz.ok()) << files_tgz.status().ToString();
-  EXPECT_EQ(*files, *files_tgz);
+  server::services::MemoryBudget budget(std::size_t{192} << 20);
+  auto unpacked = Unpack(zip->body, server::services::ArchiveFormat::kZip, budget);
+  ASSERT_TRUE(unpacked.ok()) << unpacked.status().ToString();
+  auto unpacked_tgz = Unpack(tgz->body, server::services::ArchiveFormat::kTarGz, budget);
+  ASSERT_TRUE(unpacked_tgz.ok()) << unpacked_tgz.status().ToString();
+  const api::FileMap* files = &unpacked->files;
+  EXPECT_EQ(*files, unpacked_tgz->files);
   // The BIDS layout's required files and columns (api/bids.h: v1.11.0).
   const api::Status layout = api::ValidateBidsLayout(*files);
   EXPECT_TRUE(layout.ok()) << layout.ToString();
@@ -210,7 +226,7 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
   auto garbage = PostBytes(cb, import_path, admin_b, "not an archive", "application/zip");
   ASSERT_TRUE(garbage);
   EXPECT_EQ(garbage->status, 400) << garbage->body;
-  EXPECT_NE(garbage->body.find("not a zip or tar.gz"), std::string::npos) << garbage->body;
+  EXPECT_NE(garbage->body.find("not a zip archive"), std::string::npos) << garbage->body;
   auto truncated = PostBytes(cb, import_path, admin_b, zip->body.substr(0, zip->body.size() / 2),
                              "application/zip");
   ASSERT_TRUE(truncated);

@@ -84,6 +84,8 @@ TEST(ErrorsTest, OneMappingForEveryCode) {
   EXPECT_EQ(HttpStatusFor(ErrorCode::kConflict), 409);
   EXPECT_EQ(HttpStatusFor(ErrorCode::kFailedPrecondition), 409);
   EXPECT_EQ(HttpStatusFor(ErrorCode::kUnavailable), 503);
+  EXPECT_EQ(HttpStatusFor(ErrorCode::kPayloadTooLarge), 413);
+  EXPECT_EQ(ErrorCodeName(ErrorCode::kPayloadTooLarge), "payload_too_large");
   EXPECT_EQ(HttpStatusFor(ErrorCode::kInternal), 500);
   auto j = ErrorJson(ToHttpError(api::Status::InvalidArgument("must be positive", "a.b")));
   EXPECT_EQ(
