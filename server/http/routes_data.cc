@@ -3,13 +3,8 @@
 // within bounds (services/import_upload.h), GET /sessions/{id}/export
 // writes one.
 
-#include <sys/mman.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cctype>
-#include <cerrno>
-#include <cstring>
 #include <memory>
 #include <optional>
 
@@ -46,43 +41,6 @@ std::string MediaType(const httplib::Request& req) {
 // them holds. 192 MiB keeps three concurrent uploads within the 256 MiB the
 // server may grow by for imports, the rest being transient buffers.
 constexpr std::size_t kImportMemoryBytes = std::size_t{192} << 20;
-
-// Closes the descriptor BodyIntoMemfdUntilFrontEndSpools opened (goes
-// with it).
-class OwnedFd {
- public:
-  OwnedFd() = default;
-  ~OwnedFd() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  OwnedFd(const OwnedFd&) = delete;
-  OwnedFd& operator=(const OwnedFd&) = delete;
-  int Reset(int fd) { return fd_ = fd; }
-
- private:
-  int fd_ = -1;
-};
-
-// Until the front end spools upload bodies to a file (router.h UploadBody)
-// an upload arrives in req.body: this copies it into an anonymous memory
-// file so that the import reads every upload from a descriptor. Delete it,
-// and its one call, once ctx.upload is always set for this route.
-api::Result<UploadBody> BodyIntoMemfdUntilFrontEndSpools(const httplib::Request& req,
-                                                         OwnedFd& owner) {
-  const int fd = owner.Reset(::memfd_create("fesbench-upload", MFD_CLOEXEC));
-  if (fd < 0) return api::Status::Internal("memfd_create: " + std::string(std::strerror(errno)));
-  std::size_t done = 0;
-  while (done < req.body.size()) {
-    const ssize_t n = ::write(fd, req.body.data() + done, req.body.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      return api::Status::Internal("writing the upload: " + std::string(std::strerror(errno)));
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  ::lseek(fd, 0, SEEK_SET);
-  return UploadBody{fd, req.body.size()};
-}
 
 json ImportSchema() {
   json column = ObjectSchema({{"column", {{"type", "string"}}},
@@ -181,15 +139,9 @@ api::Result<Reply> ImportTrials(storage::Database& db, services::MemoryBudget& b
             type + "'",
         "Content-Type");
   }
-  OwnedFd fallback;
-  UploadBody upload;
-  if (ctx.upload != nullptr) {
-    upload = *ctx.upload;
-  } else {
-    auto spooled = BodyIntoMemfdUntilFrontEndSpools(ctx.req, fallback);
-    if (!spooled.ok()) return spooled.status();
-    upload = *spooled;
-  }
+  // The front end spools every upload to a file (http_server.h).
+  if (ctx.upload == nullptr) return api::Status::Internal("the upload was not spooled");
+  const UploadBody& upload = *ctx.upload;
   const std::string user = ctx.user ? ctx.user->name : std::string("anonymous");
   api::Result<services::ImportResult> imported =
       format ? ImportArchiveBody(db, ctx, upload, *format, budget, session_id, user)
