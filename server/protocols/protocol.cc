@@ -5,6 +5,7 @@
 #include <map>
 #include <sstream>
 
+#include "api/json_fields.h"
 #include "api/trial.h"
 
 namespace fesbench::server::protocols {
@@ -124,9 +125,11 @@ namespace {
 api::Status CheckToleranceCeiling(const ParameterValues& v, const SubjectContext& subject) {
   const double ceiling = v.at("ceiling_ma");
   if (subject.ceiling_above_max) {
-    if (subject.ceiling_above_max->empty()) {
-      return api::Status::InvalidArgument("must say why the ceiling goes above the max",
-                                          "ceiling_reason");
+    // The reason is the clinician's decision in words (docs/SAFETY.md,
+    // tolerance test ceiling): blank or control characters authorise nothing.
+    if (api::Status text = api::CheckPrintableText(*subject.ceiling_above_max, "ceiling_reason");
+        !text.ok()) {
+      return text;
     }
     if (!subject.max_tolerated_recorded) {
       return api::Status::InvalidArgument(
