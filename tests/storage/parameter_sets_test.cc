@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
@@ -167,6 +168,68 @@ TEST_P(StorageTest, TheNewestApprovalMakesALegsApprovedSet) {
     return s->Run();
   });
   EXPECT_EQ(update.code(), api::ErrorCode::kFailedPrecondition) << "approvals are append-only";
+}
+
+// Migration 15 on a database of schema 14: a set a bench run stored is
+// approved by that run, the newest such set of the leg is its approved set,
+// and a set no run stored stays a candidate.
+TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
+  std::unique_ptr<::fesbench::testing::ScratchDatabase> scratch;
+  DatabaseOptions v14 = Options();
+  if (GetParam() == Engine::kPostgres) {
+    scratch = std::make_unique<::fesbench::testing::ScratchDatabase>();
+    ASSERT_TRUE(scratch->ok()) << scratch->skip_reason();
+    v14.path = scratch->url();
+  } else {
+    v14.path = (dir_ / "v14.db").string();
+  }
+  v14.target_schema_version = 14;
+  std::int64_t leg_id = 0, run_id = 0, older = 0, by_run = 0, candidate = 0;
+  {
+    auto db = Database::Open(v14);
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    SubjectRepository subjects(**db);
+    auto subject = subjects.Create("M15", SubjectDetails{});
+    ASSERT_TRUE(subject.ok());
+    auto leg = subjects.AddLeg(subject->id, Side::kLeft);
+    ASSERT_TRUE(leg.ok());
+    leg_id = leg->id;
+    SessionDetails details;
+    details.date = "2026-01-02";
+    auto session = SessionRepository(**db).Create(subject->id, leg_id, details);
+    ASSERT_TRUE(session.ok());
+    auto first = SessionRepository(**db).CreateRun(session->id, {"rapid_parameterisation", "1", "{}"});
+    auto second = SessionRepository(**db).CreateRun(session->id, {"daily_check", "1", "{}"});
+    ASSERT_TRUE(first.ok() && second.ok());
+    run_id = second->id;
+    ParameterSetRepository sets(**db);
+    auto insert = [&](std::optional<std::int64_t> run) {
+      NewParameterSet set{subject->id, leg_id, Params("ramp_correlation", "free_swing"),
+                          std::nullopt, std::nullopt};
+      set.run_id = run;
+      auto stored = sets.Insert(set);
+      EXPECT_TRUE(stored.ok()) << stored.status().ToString();
+      return stored->id;
+    };
+    older = insert(first->id);
+    by_run = insert(second->id);
+    candidate = insert(std::nullopt);  // an import or a re-identification
+  }
+  DatabaseOptions latest = v14;
+  latest.target_schema_version.reset();
+  auto db = Database::Open(latest);
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  ParameterSetRepository sets(**db);
+  auto approved = sets.Approved(leg_id);
+  ASSERT_TRUE(approved.ok()) << approved.status().ToString();
+  EXPECT_EQ(approved->summary.id, by_run) << "the newest set a run stored, not the newest set";
+  auto approval = sets.LegApproval(leg_id);
+  ASSERT_TRUE(approval.ok() && approval->has_value());
+  EXPECT_EQ((*approval)->run_id, run_id);
+  EXPECT_EQ((*approval)->approved_by, "run " + std::to_string(run_id));
+  EXPECT_FALSE((*approval)->approved_by_user_id.has_value());
+  EXPECT_EQ(sets.Approvals(older)->size(), 1u);
+  EXPECT_TRUE(sets.Approvals(candidate)->empty());
 }
 
 // Issue 18: a stored set is an event, raised after its transaction commits
