@@ -246,6 +246,7 @@ api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool wi
       if (!ins.ok()) return ins.status();
       f.set_id = ins->id;
       summary += "; parameter set " + std::to_string(ins->id);
+      if (api::Status st = ApproveRunSet(run, ins->id); !st.ok()) return st;
     }
     api::Result<storage::Run> r =
         storage::SessionRepository(db_).RecordRunState(run.run_id, f.state, f.reason);
@@ -253,6 +254,24 @@ api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool wi
     f.stored = *r;
     return Audit(run.actor, "run.finish", RunTarget(run.run_id), summary, "ok");
   });
+}
+
+// docs/SAFETY.md, which set gates stimulation: a set a bench run measured
+// is the operating clinician's own measurement, approved by the run that
+// stored it (audited with the run), in the transaction that stores it.
+api::Status RunService::ApproveRunSet(const LiveRun& run, std::int64_t set_id) {
+  if (!MayOperateBench(run.actor)) return api::Status::Ok();  // a candidate, as any other
+  storage::NewApproval approval;
+  approval.parameter_set_id = set_id;
+  if (run.actor.user_id > 0) approval.approved_by_user_id = run.actor.user_id;
+  approval.approved_by = run.actor.user_name.empty() ? std::string("unknown") : run.actor.user_name;
+  approval.run_id = run.run_id;
+  approval.note = "identified by run " + std::to_string(run.run_id) + " (" + run.view.protocol +
+                  ") on the bench";
+  api::Result<storage::Approval> approved = storage::ParameterSetRepository(db_).Approve(approval);
+  if (!approved.ok()) return approved.status();
+  return Audit(run.actor, "parameter_set.approve", "parameter-sets/" + std::to_string(set_id),
+               "approved by run " + std::to_string(run.run_id) + ": " + approval.note, "ok");
 }
 
 void RunService::StoreFinish(const LiveRun& run, FinishRecord& f) {

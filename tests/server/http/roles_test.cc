@@ -61,6 +61,8 @@ const Expectation kRoutes[] = {
     {"GET", "/api/v1/parameter-sets", "cad"},
     {"GET", "/api/v1/parameter-sets/{parameter_set_id}", "cad"},
     {"GET", "/api/v1/parameter-sets/{parameter_set_id}/predictions", "cad"},
+    {"POST", "/api/v1/parameter-sets/{parameter_set_id}/approve", "cd"},
+    {"GET", "/api/v1/subjects/{subject_id}/legs/{leg}/approved-parameter-set", "cad"},
     {"GET", "/api/v1/predictions/{prediction_id}", "cad"},
     {"POST", "/api/v1/identifications", "ad"},
     {"POST", "/api/v1/predictions", "ad"},
