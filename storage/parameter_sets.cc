@@ -333,8 +333,8 @@ api::Result<Approval> ParameterSetRepository::Approve(const NewApproval& approva
                                      approval.parameter_set_id, "parameter set");
     if (!leg.ok()) return leg.status();
     if (approval.run_id) {
-      if (auto s = internal::RequireRow(c, "SELECT 1 FROM runs WHERE id = ?1", *approval.run_id,
-                                        "run");
+      if (auto s =
+              internal::RequireRow(c, "SELECT 1 FROM runs WHERE id = ?1", *approval.run_id, "run");
           !s.ok()) {
         return s;
       }
@@ -414,8 +414,8 @@ api::Result<std::vector<Approval>> ParameterSetRepository::Approvals(
   });
 }
 
-api::Result<std::vector<std::int64_t>> ParameterSetRepository::ApprovedHistory(
-    std::int64_t leg_id, std::size_t limit) {
+api::Result<std::vector<std::int64_t>> ParameterSetRepository::ApprovedHistory(std::int64_t leg_id,
+                                                                               std::size_t limit) {
   return db_.Read([&](Connection& c) {
     return internal::QueryRows(
         c,

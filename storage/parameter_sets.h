@@ -83,8 +83,8 @@ struct NewApproval {
   std::int64_t parameter_set_id = 0;
   std::optional<std::int64_t> approved_by_user_id;  ///< unset: no user row (a migration).
   std::string approved_by;                          ///< the user's name, not empty.
-  std::optional<std::int64_t> run_id;  ///< the bench run whose own measurement the set is.
-  std::string note;                    ///< why, 1–500 bytes.
+  std::optional<std::int64_t> run_id;    ///< the bench run whose own measurement the set is.
+  std::string note;                      ///< why, 1–500 bytes.
   std::optional<UtcTime> approved_at{};  ///< default: the database clock.
 };
 

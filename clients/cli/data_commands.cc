@@ -74,8 +74,8 @@ void PrintWritten(CliContext& context, const std::string& what, std::int64_t id,
 std::string ApprovedCell(const json& set) {
   const json approval = set.value("approval", json(nullptr));
   if (!approval.is_object()) return "no";
-  const std::string who = approval.value("approved_by", "") + " " +
-                          approval.value("approved_at_utc", "");
+  const std::string who =
+      approval.value("approved_by", "") + " " + approval.value("approved_at_utc", "");
   return (set.value("approved", false) ? "yes (" : "earlier (") + who + ")";
 }
 
@@ -89,14 +89,13 @@ void RegisterApprove(CLI::App& params, CliContext& context) {
       "Approve a parameter set (clinician): it becomes its leg's approved set, the one the model "
       "gate, tracking and the daily check use.");
   approve->add_option("id", *id, "parameter set id")->required();
-  approve->add_option("--note", *note, "why (printable text, at most 500 characters)")
-      ->required();
+  approve->add_option("--note", *note, "why (printable text, at most 500 characters)")->required();
   approve->callback([id, note, &context] {
     context.action = [id, note, &context] {
       const std::int64_t set_id = ParseId(*id, "parameter set");
       auto client = Connect(context);
-      const json approved = client->Post("/parameter-sets/" + std::to_string(set_id) + "/approve",
-                                         {{"note", *note}});
+      const json approved =
+          client->Post("/parameter-sets/" + std::to_string(set_id) + "/approve", {{"note", *note}});
       if (context.options.json) {
         json shown = approved;
         shown.erase("parameters");

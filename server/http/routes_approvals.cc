@@ -32,8 +32,8 @@ api::Result<json> ApprovedSetJson(storage::Database& db, const storage::StoredPa
   auto approval = storage::ParameterSetRepository(db).LatestApprovals({set.summary.id});
   if (!approval.ok()) return approval.status();
   json j = StoredParameterSetToJson(set);
-  j.update(ApprovalFieldsToJson(approval->empty() ? std::nullopt
-                                                  : std::optional(approval->front())));
+  j.update(
+      ApprovalFieldsToJson(approval->empty() ? std::nullopt : std::optional(approval->front())));
   return j;
 }
 
@@ -70,8 +70,8 @@ api::Result<Reply> LegApprovedSet(storage::Database& db, RequestContext& ctx) {
   const auto leg = std::find_if(legs->begin(), legs->end(),
                                 [&](const storage::Leg& l) { return l.side == *side; });
   if (leg == legs->end()) {
-    return api::Status::NotFound("subject " + std::to_string(subject_id) + " has no " +
-                                 side_name + " leg");
+    return api::Status::NotFound("subject " + std::to_string(subject_id) + " has no " + side_name +
+                                 " leg");
   }
   auto set = storage::ParameterSetRepository(db).Approved(leg->id);
   if (!set.ok()) {
@@ -91,19 +91,19 @@ api::Result<Reply> LegApprovedSet(storage::Database& db, RequestContext& ctx) {
 
 void AddApprovalRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
-  table.Add(
-      {.method = "POST",
-       .path = "/api/v1/parameter-sets/{parameter_set_id}/approve",
-       .roles = kClinician | kAdmin,
-       .json_body = true,
-       .tag = "parameter-sets",
-       .summary = "Approve a parameter set: it becomes its leg's approved set, the one the model "
-                  "gate, tracking and the daily check use (earlier approvals stay in history); "
-                  "audited",
-       .request_schema = ObjectSchema(
-           {{"note", {{"type", "string"}, {"minLength", 1}, {"maxLength", kMaxNoteLength}}}},
-           {"note"}),
-       .handler = [&db](RequestContext& ctx) { return Approve(db, ctx); }});
+  table.Add({.method = "POST",
+             .path = "/api/v1/parameter-sets/{parameter_set_id}/approve",
+             .roles = kClinician | kAdmin,
+             .json_body = true,
+             .tag = "parameter-sets",
+             .summary =
+                 "Approve a parameter set: it becomes its leg's approved set, the one the model "
+                 "gate, tracking and the daily check use (earlier approvals stay in history); "
+                 "audited",
+             .request_schema = ObjectSchema(
+                 {{"note", {{"type", "string"}, {"minLength", 1}, {"maxLength", kMaxNoteLength}}}},
+                 {"note"}),
+             .handler = [&db](RequestContext& ctx) { return Approve(db, ctx); }});
   table.Add({.method = "GET",
              .path = "/api/v1/subjects/{subject_id}/legs/{leg}/approved-parameter-set",
              .roles = kAnyRole,

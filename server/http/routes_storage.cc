@@ -671,10 +671,10 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!approval.ok()) return approval.status();
                ctx.res.status = 200;
                ctx.res.set_content(
-                   WithFields(std::move(*body),
-                              ApprovalFieldsToJson(approval->empty()
-                                                       ? std::nullopt
-                                                       : std::optional(approval->front()))),
+                   WithFields(
+                       std::move(*body),
+                       ApprovalFieldsToJson(approval->empty() ? std::nullopt
+                                                              : std::optional(approval->front()))),
                    "application/json");
                return Reply{200, nullptr, true};
              }});

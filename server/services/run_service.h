@@ -88,8 +88,8 @@ struct SessionContext {
 /// range of motion = the bench's mechanical range (storage keeps none),
 /// body mass and leg length (shank length) from the subject's current
 /// anthropometrics for Eq. 4.13 (§4.2.1), and the leg's approved parameter
-/// set (or, with none, whether sets await approval). kNotFound for an unknown session; kDataLoss for unreadable stored
-/// data.
+/// set (or, with none, whether sets await approval). kNotFound for an
+/// unknown session; kDataLoss for unreadable stored data.
 api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64_t session_id,
                                                const BenchLimits& limits);
 

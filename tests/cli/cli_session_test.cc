@@ -152,9 +152,9 @@ TEST(CliSessionTest, WholeAnalystSession) {
   ASSERT_EQ(relisted.exit_code, 0);
   EXPECT_EQ(json::parse(relisted.out)[0]["approved"], true);
   EXPECT_EQ(json::parse(relisted.out)[0]["approval"]["note"], "day 1 fits the swing better");
-  ASSERT_EQ(cli.Run({"params", "approve", std::to_string(second_sets[0]), "--note", "back"})
-                .exit_code,
-            0);
+  ASSERT_EQ(
+      cli.Run({"params", "approve", std::to_string(second_sets[0]), "--note", "back"}).exit_code,
+      0);
 
   // A parameter set as JSON (reads back as the wire type) and as CSV.
   auto params_json = cli.Run({"params", "get", std::to_string(first_sets[0]), "--format", "json"});

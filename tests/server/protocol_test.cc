@@ -214,9 +214,9 @@ TEST(ResolveParameters, ToleranceCeilingFollowsTheRecordedMax) {
   EXPECT_EQ(ResolveParameters(d, {}, decided).status().field(), "ceiling_reason")
       << "a reason that authorises nothing";
   // Only printable words authorise it: not blank, not control characters.
-  for (const std::string& reason : {std::string(), std::string(" "), std::string(" \t\r\n "),
-                                   std::string("\0x", 2), std::string("x\x1b[2J"),
-                                   std::string("x\x7f"), std::string("x\xc2\x9b")}) {
+  for (const std::string& reason :
+       {std::string(), std::string(" "), std::string(" \t\r\n "), std::string("\0x", 2),
+        std::string("x\x1b[2J"), std::string("x\x7f"), std::string("x\xc2\x9b")}) {
     decided.ceiling_above_max = reason;
     const auto refused = ResolveParameters(d, {{"ceiling_ma", 20.0}}, decided);
     EXPECT_EQ(refused.status().field(), "ceiling_reason") << ::testing::PrintToString(reason);

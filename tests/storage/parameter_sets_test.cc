@@ -3,9 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <memory>
-#include <tuple>
-
 #include <nlohmann/json.hpp>
+#include <tuple>
 
 #include "api/parameter_set_json.h"
 #include "storage/trials.h"
@@ -198,7 +197,8 @@ TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
     details.date = "2026-01-02";
     auto session = SessionRepository(**db).Create(subject->id, leg_id, details);
     ASSERT_TRUE(session.ok());
-    auto first = SessionRepository(**db).CreateRun(session->id, {"rapid_parameterisation", "1", "{}"});
+    auto first =
+        SessionRepository(**db).CreateRun(session->id, {"rapid_parameterisation", "1", "{}"});
     auto second = SessionRepository(**db).CreateRun(session->id, {"daily_check", "1", "{}"});
     ASSERT_TRUE(first.ok() && second.ok());
     run_id = second->id;

@@ -209,17 +209,13 @@ TEST_F(BadInputTest, ContentTypeAndBodiesWhereNoneIsTaken) {
 // A ceiling_reason authorises stimulation above the recorded max
 // (docs/SAFETY.md): only printable words do; nothing starts, nothing is audited.
 TEST_F(BadInputTest, CeilingReasonMustBePrintableText) {
-  auto subject = Call(*client_, "POST", "/api/v1/subjects", admin_,
-                      {{"code", "CEIL-1"}, {"legs", {"right"}}});
+  auto subject =
+      Call(*client_, "POST", "/api/v1/subjects", admin_, {{"code", "CEIL-1"}, {"legs", {"right"}}});
   ASSERT_EQ(subject.status, 201) << subject.text;
-  auto session = Call(*client_, "POST",
-                      "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) +
-                          "/sessions",
-                      admin_,
-                      {{"leg", "right"},
-                       {"date", "2026-11-25"},
-                       {"threshold_ma", 3},
-                       {"max_tolerated_ma", 8.5}});
+  auto session = Call(
+      *client_, "POST",
+      "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) + "/sessions", admin_,
+      {{"leg", "right"}, {"date", "2026-11-25"}, {"threshold_ma", 3}, {"max_tolerated_ma", 8.5}});
   ASSERT_EQ(session.status, 201) << session.text;
   const std::string runs =
       "/api/v1/sessions/" + std::to_string(session.body["id"].get<int>()) + "/runs";

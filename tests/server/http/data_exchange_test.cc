@@ -363,10 +363,9 @@ TEST(DataExchangeTest, OnlyAClinicianApprovedSetGatesStimulation) {
                    {{"Authorization", "Bearer " + clinician}});
   ASSERT_TRUE(zip);
   ASSERT_EQ(zip->status, 200);
-  auto second = Call(c, "POST", "/api/v1/subjects/" + std::to_string(subject_id) + "/sessions",
-                     clinician,
-                     {{"leg", "right"}, {"date", "2026-11-26"}, {"threshold_ma", 14},
-                      {"max_tolerated_ma", 45}});
+  auto second = Call(
+      c, "POST", "/api/v1/subjects/" + std::to_string(subject_id) + "/sessions", clinician,
+      {{"leg", "right"}, {"date", "2026-11-26"}, {"threshold_ma", 14}, {"max_tolerated_ma", 45}});
   ASSERT_EQ(second.status, 201) << second.text;
   const std::int64_t second_id = second.body["id"];
   auto imported = PostBytes(c, "/api/v1/sessions/" + std::to_string(second_id) + "/trials",
@@ -374,7 +373,8 @@ TEST(DataExchangeTest, OnlyAClinicianApprovedSetGatesStimulation) {
   ASSERT_TRUE(imported);
   ASSERT_EQ(imported->status, 201) << imported->body.substr(0, 1000);
   const std::int64_t imported_set = json::parse(imported->body)["parameter_sets"][0]["id"];
-  auto candidate = Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(imported_set), analyst);
+  auto candidate =
+      Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(imported_set), analyst);
   EXPECT_EQ(candidate.body["approved"], false) << candidate.text;
   EXPECT_TRUE(candidate.body["approval"].is_null());
   EXPECT_EQ(approved_id(), rapid_set) << "an import changed the gating set";

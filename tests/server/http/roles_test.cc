@@ -229,7 +229,8 @@ std::map<std::string, std::string> DocumentedRoles() {
   while (std::getline(in, line)) {
     std::smatch m;
     if (!std::regex_search(line, m, row)) continue;
-    const std::string letters = RoleLetters(m[2].str().substr(0, m[2].str().find_last_not_of(' ') + 1));
+    const std::string letters =
+        RoleLetters(m[2].str().substr(0, m[2].str().find_last_not_of(' ') + 1));
     const std::string routes = m[1];
     for (std::sregex_iterator it(routes.begin(), routes.end(), route), end; it != end; ++it) {
       roles[RouteKey((*it)[1], (*it)[2])] = letters;
@@ -266,23 +267,22 @@ TEST(RolesTest, AnAnalystsImportIsRefusedAndStoresNothing) {
   const std::string admin = server.admin_token();
   const std::string clinician = CreateUserToken(client, admin, "cli", "clinician");
   const std::string analyst = CreateUserToken(client, admin, "ana", "analyst");
-  auto subject = Call(client, "POST", "/api/v1/subjects", clinician,
-                      {{"code", "IMP-R"}, {"legs", {"right"}}});
+  auto subject =
+      Call(client, "POST", "/api/v1/subjects", clinician, {{"code", "IMP-R"}, {"legs", {"right"}}});
   ASSERT_EQ(subject.status, 201) << subject.text;
-  auto session = Call(client, "POST",
-                      "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) +
-                          "/sessions",
-                      clinician, {{"leg", "right"}, {"date", "2026-11-25"}});
+  auto session =
+      Call(client, "POST",
+           "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) + "/sessions",
+           clinician, {{"leg", "right"}, {"date", "2026-11-25"}});
   ASSERT_EQ(session.status, 201) << session.text;
   const std::string trials =
       "/api/v1/sessions/" + std::to_string(session.body["id"].get<int>()) + "/trials";
-  const json recording = {
-      {"spec",
-       {{"kind", "free_swing_passive"},
-        {"format", "csv"},
-        {"time_column", "t_s"},
-        {"columns", {{{"column", "angle_deg"}, {"channel", "angle_deg"}}}}}},
-      {"data", "t_s,angle_deg\n0,90\n0.005,89.5\n0.01,89\n"}};
+  const json recording = {{"spec",
+                           {{"kind", "free_swing_passive"},
+                            {"format", "csv"},
+                            {"time_column", "t_s"},
+                            {"columns", {{{"column", "angle_deg"}, {"channel", "angle_deg"}}}}}},
+                          {"data", "t_s,angle_deg\n0,90\n0.005,89.5\n0.01,89\n"}};
 
   auto refused = Call(client, "POST", trials, analyst, recording);
   EXPECT_EQ(refused.status, 403) << refused.text;
