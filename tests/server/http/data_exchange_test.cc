@@ -436,6 +436,15 @@ TEST(DataExchangeTest, OnlyAClinicianApprovedSetGatesStimulation) {
                       {{"protocol", "prediction_step"}});
   EXPECT_EQ(refused.status, 409) << refused.text;
   EXPECT_NE(refused.text.find("no set is approved for the leg"), std::string::npos) << refused.text;
+  for (const std::string& protocol : {std::string("tracking"), std::string("daily_check")}) {
+    auto needs = Call(c, "POST", "/api/v1/sessions/" + std::to_string(other) + "/runs", clinician,
+                      {{"protocol", protocol}});
+    EXPECT_EQ(needs.status, 409) << needs.text;
+    EXPECT_NE(needs.text.find(protocol + " needs the leg's approved parameter set"),
+              std::string::npos)
+        << needs.text;
+    EXPECT_NE(needs.text.find("/approve"), std::string::npos) << "says how to approve one";
+  }
   EXPECT_EQ(server.Terminate(), 0);
 }
 
