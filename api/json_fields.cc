@@ -228,6 +228,28 @@ std::optional<std::string> JsonFields::String(std::string_view key, bool require
   return s;
 }
 
+Status CheckPrintableText(std::string_view text, std::string_view field) {
+  bool written = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    // C1 controls are U+0080–U+009F: 0xC2 0x80–0x9F in UTF-8.
+    const bool c1 = c == 0xC2 && i + 1 < text.size() &&
+                    static_cast<unsigned char>(text[i + 1]) >= 0x80 &&
+                    static_cast<unsigned char>(text[i + 1]) <= 0x9F;
+    if (c < 0x20 || c == 0x7F || c1) {
+      return Status::InvalidArgument(
+          "must be printable text: a control character at byte " + std::to_string(i),
+          std::string(field));
+    }
+    written = written || c != ' ';
+  }
+  if (!written) {
+    return Status::InvalidArgument("must be printable text, not empty or only spaces",
+                                   std::string(field));
+  }
+  return Status::Ok();
+}
+
 std::optional<double> JsonFields::Number(std::string_view key, bool required, double min,
                                          double max) {
   const auto* j = Find(key, required);

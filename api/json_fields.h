@@ -85,6 +85,11 @@ class JsonFields {
   Status status_;
 };
 
+/// OK when `text` is printable text a person wrote: no control characters
+/// (U+0000–U+001F, U+007F, U+0080–U+009F), and something besides spaces.
+/// Otherwise kInvalidArgument naming `field`: "must be printable text: …".
+Status CheckPrintableText(std::string_view text, std::string_view field);
+
 /// An unset value as JSON null, a set one as itself (writers' counterpart
 /// of the readers below).
 template <typename T>

@@ -283,6 +283,148 @@ api::Result<StoredParameterSet> ParameterSetRepository::Latest(std::int64_t subj
   });
 }
 
+namespace {
+
+constexpr std::string_view kApprovalColumns =
+    "a.id, a.parameter_set_id, a.leg_id, a.approved_by_user_id, a.approved_by, a.run_id, a.note,"
+    " a.approved_at_utc,"
+    " CASE WHEN a.id = (SELECT MAX(b.id) FROM parameter_set_approvals b"
+    " WHERE b.leg_id = a.leg_id) THEN 1 ELSE 0 END";
+
+api::Result<Approval> ReadApproval(const Statement& s) {
+  Approval a;
+  a.id = s.Int64(0);
+  a.parameter_set_id = s.Int64(1);
+  a.leg_id = s.Int64(2);
+  a.approved_by_user_id = s.OptionalInt64(3);
+  a.approved_by = s.Text(4);
+  a.run_id = s.OptionalInt64(5);
+  a.note = s.Text(6);
+  const auto at = ParseUtc(s.Text(7));
+  if (!at) return internal::BadStoredValue("parameter set approval");
+  a.approved_at = *at;
+  a.current = s.Int64(8) != 0;
+  return a;
+}
+
+api::Result<std::optional<Approval>> NewestApproval(Connection& c, std::string_view column,
+                                                    std::int64_t id) {
+  auto rows = internal::QueryRows(c,
+                                  "SELECT " + std::string(kApprovalColumns) +
+                                      " FROM parameter_set_approvals a WHERE a." +
+                                      std::string(column) + " = ?1 ORDER BY a.id DESC LIMIT 1",
+                                  ReadApproval, id);
+  if (!rows.ok()) return rows.status();
+  if (rows->empty()) return std::optional<Approval>();
+  return std::optional<Approval>(std::move(rows->front()));
+}
+
+}  // namespace
+
+api::Result<Approval> ParameterSetRepository::Approve(const NewApproval& approval) {
+  if (approval.note.empty() || approval.note.size() > 500) {
+    return api::Status::InvalidArgument("must be 1–500 bytes", "note");
+  }
+  if (approval.approved_by.empty()) {
+    return api::Status::InvalidArgument("must name who approves", "approved_by");
+  }
+  return db_.Write([&](Connection& c) -> api::Result<Approval> {
+    auto leg = internal::LookupInt64(c, "SELECT leg_id FROM parameter_sets WHERE id = ?1",
+                                     approval.parameter_set_id, "parameter set");
+    if (!leg.ok()) return leg.status();
+    if (approval.run_id) {
+      if (auto s =
+              internal::RequireRow(c, "SELECT 1 FROM runs WHERE id = ?1", *approval.run_id, "run");
+          !s.ok()) {
+        return s;
+      }
+    }
+    auto current = NewestApproval(c, "leg_id", *leg);
+    if (!current.ok()) return current.status();
+    if (*current && (*current)->parameter_set_id == approval.parameter_set_id) {
+      return api::Status::FailedPrecondition(
+          "parameter set " + std::to_string(approval.parameter_set_id) +
+          " already is its leg's approved set (approved by " + (*current)->approved_by + " at " +
+          FormatUtc((*current)->approved_at) + ")");
+    }
+    const UtcTime at = approval.approved_at.value_or(db_.Now());
+    auto id = internal::InsertRow(
+        c,
+        "INSERT INTO parameter_set_approvals (parameter_set_id, leg_id, approved_by_user_id,"
+        " approved_by, run_id, note, approved_at_utc) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+        approval.parameter_set_id, *leg, approval.approved_by_user_id, approval.approved_by,
+        approval.run_id, approval.note, FormatUtc(at));
+    if (!id.ok()) return id.status();
+    Approval stored;
+    stored.id = *id;
+    stored.parameter_set_id = approval.parameter_set_id;
+    stored.leg_id = *leg;
+    stored.approved_by_user_id = approval.approved_by_user_id;
+    stored.approved_by = approval.approved_by;
+    stored.run_id = approval.run_id;
+    stored.note = approval.note;
+    stored.approved_at = at;
+    stored.current = true;
+    return stored;
+  });
+}
+
+api::Result<std::optional<Approval>> ParameterSetRepository::LegApproval(std::int64_t leg_id) {
+  return db_.Read([&](Connection& c) { return NewestApproval(c, "leg_id", leg_id); });
+}
+
+api::Result<StoredParameterSet> ParameterSetRepository::Approved(std::int64_t leg_id) {
+  return db_.Read([&](Connection& c) -> api::Result<StoredParameterSet> {
+    auto approval = NewestApproval(c, "leg_id", leg_id);
+    if (!approval.ok()) return approval.status();
+    if (!*approval) {
+      return api::Status::NotFound("no parameter set is approved for leg " +
+                                   std::to_string(leg_id));
+    }
+    return GetIn(c, (*approval)->parameter_set_id);
+  });
+}
+
+api::Result<std::vector<Approval>> ParameterSetRepository::LatestApprovals(
+    const std::vector<std::int64_t>& set_ids) {
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<Approval>> {
+    std::vector<Approval> out;
+    for (std::int64_t id : set_ids) {
+      auto approval = NewestApproval(c, "parameter_set_id", id);
+      if (!approval.ok()) return approval.status();
+      if (*approval) out.push_back(std::move(**approval));
+    }
+    return out;
+  });
+}
+
+api::Result<std::vector<Approval>> ParameterSetRepository::Approvals(
+    std::int64_t parameter_set_id) {
+  return db_.Read([&](Connection& c) -> api::Result<std::vector<Approval>> {
+    if (auto s = internal::RequireRow(c, "SELECT 1 FROM parameter_sets WHERE id = ?1",
+                                      parameter_set_id, "parameter set");
+        !s.ok()) {
+      return s;
+    }
+    return internal::QueryRows(c,
+                               "SELECT " + std::string(kApprovalColumns) +
+                                   " FROM parameter_set_approvals a WHERE a.parameter_set_id = ?1"
+                                   " ORDER BY a.id",
+                               ReadApproval, parameter_set_id);
+  });
+}
+
+api::Result<std::vector<std::int64_t>> ParameterSetRepository::ApprovedHistory(std::int64_t leg_id,
+                                                                               std::size_t limit) {
+  return db_.Read([&](Connection& c) {
+    return internal::QueryRows(
+        c,
+        "SELECT parameter_set_id FROM parameter_set_approvals WHERE leg_id = ?1"
+        " GROUP BY parameter_set_id ORDER BY MAX(id) DESC LIMIT ?2",
+        [](const Statement& s) { return s.Int64(0); }, leg_id, static_cast<std::int64_t>(limit));
+  });
+}
+
 api::Result<std::optional<std::int64_t>> ParameterSetRepository::IdForRun(std::int64_t run_id) {
   return db_.Read([&](Connection& c) -> api::Result<std::optional<std::int64_t>> {
     auto ids = internal::QueryRows(

@@ -76,6 +76,30 @@ struct ParameterSetListQuery {
   std::size_t limit = 50;
 };
 
+/// A clinician's approval of a set for its leg (migration 15). The leg's
+/// approved set, the one gating stimulation (docs/SAFETY.md), is the set of
+/// the leg's newest approval; approvals are never withdrawn, only followed.
+struct NewApproval {
+  std::int64_t parameter_set_id = 0;
+  std::optional<std::int64_t> approved_by_user_id;  ///< unset: no user row (a migration).
+  std::string approved_by;                          ///< the user's name, not empty.
+  std::optional<std::int64_t> run_id;    ///< the bench run whose own measurement the set is.
+  std::string note;                      ///< why, 1–500 bytes.
+  std::optional<UtcTime> approved_at{};  ///< default: the database clock.
+};
+
+struct Approval {
+  std::int64_t id = 0;
+  std::int64_t parameter_set_id = 0;
+  std::int64_t leg_id = 0;
+  std::optional<std::int64_t> approved_by_user_id;
+  std::string approved_by;
+  std::optional<std::int64_t> run_id;
+  std::string note;
+  UtcTime approved_at;
+  bool current = false;  ///< the leg's newest approval: its set is the leg's approved set.
+};
+
 /// The software version recorded when a set's provenance names none.
 std::string_view StorageSoftwareVersion();
 
@@ -98,6 +122,25 @@ class ParameterSetRepository {
   api::Result<std::vector<ParameterSetSummary>> List(const ParameterSetListQuery& query);
   /// The latest version for a subject and leg (kNotFound if there is none).
   api::Result<StoredParameterSet> Latest(std::int64_t subject_id, std::int64_t leg_id);
+
+  /// Records an approval; the set becomes its leg's approved set. kNotFound
+  /// for an unknown set or run; kInvalidArgument "note" for an empty note or
+  /// one over 500 bytes; kFailedPrecondition when the set already is its
+  /// leg's approved set.
+  api::Result<Approval> Approve(const NewApproval& approval);
+  /// The leg's approved set (kNotFound "no parameter set is approved for
+  /// leg N" when no set of the leg was ever approved).
+  api::Result<StoredParameterSet> Approved(std::int64_t leg_id);
+  /// The leg's newest approval, if any set of it was approved.
+  api::Result<std::optional<Approval>> LegApproval(std::int64_t leg_id);
+  /// Each set's newest approval (sets never approved are absent), read in
+  /// one transaction.
+  api::Result<std::vector<Approval>> LatestApprovals(const std::vector<std::int64_t>& set_ids);
+  /// A set's approvals, oldest first.
+  api::Result<std::vector<Approval>> Approvals(std::int64_t parameter_set_id);
+  /// The leg's sets a clinician approved at some time, newest approval
+  /// first, each once, at most `limit`.
+  api::Result<std::vector<std::int64_t>> ApprovedHistory(std::int64_t leg_id, std::size_t limit);
   /// Ids of the sets identified from at least one trial of the session,
   /// ascending (kNotFound for an unknown session).
   api::Result<std::vector<std::int64_t>> IdsForSession(std::int64_t session_id);

@@ -69,6 +69,46 @@ void PrintWritten(CliContext& context, const std::string& what, std::int64_t id,
       << "\n";
 }
 
+// "yes (cora 2026-11-25T…)" for the leg's approved set; "earlier (…)" for a
+// set approved before it; "no" for a candidate never approved.
+std::string ApprovedCell(const json& set) {
+  const json approval = set.value("approval", json(nullptr));
+  if (!approval.is_object()) return "no";
+  const std::string who =
+      approval.value("approved_by", "") + " " + approval.value("approved_at_utc", "");
+  return (set.value("approved", false) ? "yes (" : "earlier (") + who + ")";
+}
+
+// `params approve ID --note TEXT`: a clinician makes the set its leg's
+// approved set, the one that gates stimulation (docs/SAFETY.md).
+void RegisterApprove(CLI::App& params, CliContext& context) {
+  auto id = std::make_shared<std::string>();
+  auto note = std::make_shared<std::string>();
+  CLI::App* approve = params.add_subcommand(
+      "approve",
+      "Approve a parameter set (clinician): it becomes its leg's approved set, the one the model "
+      "gate, tracking and the daily check use.");
+  approve->add_option("id", *id, "parameter set id")->required();
+  approve->add_option("--note", *note, "why (printable text, at most 500 characters)")->required();
+  approve->callback([id, note, &context] {
+    context.action = [id, note, &context] {
+      const std::int64_t set_id = ParseId(*id, "parameter set");
+      auto client = Connect(context);
+      const json approved =
+          client->Post("/parameter-sets/" + std::to_string(set_id) + "/approve", {{"note", *note}});
+      if (context.options.json) {
+        json shown = approved;
+        shown.erase("parameters");
+        context.out << shown.dump(2) << "\n";
+        return;
+      }
+      context.out << "parameter set " << set_id << " approved for leg "
+                  << Cell(approved.value("leg_id", json(nullptr))) << ": " << ApprovedCell(approved)
+                  << "\n";
+    };
+  });
+}
+
 }  // namespace
 
 void RegisterDataCommands(CLI::App& app, CliContext& context) {
@@ -119,11 +159,11 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
           rows.push_back({Cell(s["id"]), side == sides.end() ? Cell(s["leg_id"]) : side->second,
                           Cell(s["version"]), Cell(s["model"]), Cell(s["irc_method"]),
                           Cell(s["passive_method"]), Cell(s["active_method"]),
-                          Cell(s["supersedes_id"]), Cell(s["created_at_utc"])});
+                          Cell(s["supersedes_id"]), Cell(s["created_at_utc"]), ApprovedCell(s)});
         }
         PrintTable(context.out,
                    {"id", "leg", "version", "model", "irc_method", "passive_method",
-                    "active_method", "supersedes", "created_at_utc"},
+                    "active_method", "supersedes", "created_at_utc", "approved"},
                    rows);
       };
     });
@@ -182,6 +222,8 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
       };
     });
   }
+
+  RegisterApprove(*params, context);
 
   CLI::App* trials = app.add_subcommand("trials", "Recorded trials: list, export.");
   trials->require_subcommand(1);

@@ -288,6 +288,9 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
     if (result.value("subject_signalled_limit", false)) {
       line += " (the subject signalled the limit)";
     }
+    if (result.value("ended_at_ceiling", false)) {
+      line += " (no max tolerated recorded: " + result.value("message", std::string()) + ")";
+    }
   }
   if (!json_lines) printer.Line(line);
   if (cancel_sent) {

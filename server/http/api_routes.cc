@@ -25,6 +25,7 @@ RouteTable BuildApiRoutes(const ApiDependencies& deps) {
   AddBenchRoutes(table, deps);
   AddJobRoutes(table, deps);
   AddDataRoutes(table, deps);
+  AddApprovalRoutes(table, deps);
   AddWebRoutes(table, deps);
   *document = BuildOpenApi(table, deps.server_version).dump();
   return table;

@@ -58,6 +58,8 @@ void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddJobRoutes(RouteTable& table, const ApiDependencies& deps);
+/// Approving parameter sets, a leg's approved set (routes_approvals.cc).
+void AddApprovalRoutes(RouteTable& table, const ApiDependencies& deps);
 /// Trial import and session export (routes_data.cc).
 void AddDataRoutes(RouteTable& table, const ApiDependencies& deps);
 /// GET /api/v1/me (routes_web.cc): the signed-in user, for the web client.

@@ -86,6 +86,17 @@ nlohmann::json ParameterSetSummaryToJson(const storage::ParameterSetSummary& s) 
           {"created_at_utc", storage::FormatUtc(s.created_at)}};
 }
 
+nlohmann::json ApprovalFieldsToJson(const std::optional<storage::Approval>& newest) {
+  if (!newest) return {{"approved", false}, {"approval", nullptr}};
+  return {{"approved", newest->current},
+          {"approval",
+           {{"approved_by", newest->approved_by},
+            {"approved_by_user_id", api::OrNull(newest->approved_by_user_id)},
+            {"approved_at_utc", storage::FormatUtc(newest->approved_at)},
+            {"note", newest->note},
+            {"run_id", api::OrNull(newest->run_id)}}}};
+}
+
 nlohmann::json StoredParameterSetToJson(const storage::StoredParameterSet& set) {
   nlohmann::json j = ParameterSetSummaryToJson(set.summary);
   j["trial_ids"] = set.trial_ids;

@@ -38,6 +38,11 @@ nlohmann::json TrialSummaryToJson(const storage::TrialSummary& trial);
 ///  "passive_method", "active_method", "software_version", "supersedes_id",
 ///  "created_at_utc"}.
 nlohmann::json ParameterSetSummaryToJson(const storage::ParameterSetSummary& summary);
+/// A set's approval state (docs/API.md, parameter-set approval): {"approved":
+/// the set is its leg's approved set now, "approval": its newest approval
+/// {"approved_by", "approved_by_user_id", "approved_at_utc", "note",
+/// "run_id"} or null when never approved}.
+nlohmann::json ApprovalFieldsToJson(const std::optional<storage::Approval>& newest);
 /// The summary plus "parameters" (api::ParameterSetToJson) and "trial_ids".
 nlohmann::json StoredParameterSetToJson(const storage::StoredParameterSet& set);
 /// {"id", "name", "role", "active", "created_at_utc"}.

@@ -182,7 +182,9 @@ void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/sessions/{session_id}/trials",
-       .roles = kAnyRole,
+       // Writing a session's data is a clinician's (docs/API.md, roles);
+       // analysts read and analyse.
+       .roles = kClinician | kAdmin,
        .tag = "trials",
        .summary =
            "Import trials into a session: one recording (CSV, TSV or OpenSim .sto, with its trial "

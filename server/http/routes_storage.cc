@@ -27,7 +27,7 @@ namespace {
 using nlohmann::json;
 
 // Parameter sets are immutable (DESIGN.md §3): their rendered JSON can be
-// kept without ever being stale.
+// kept without ever being stale. Their approval is not part of it.
 class ParameterSetCache {
  public:
   std::optional<std::string> Find(std::int64_t id) {
@@ -47,6 +47,28 @@ class ParameterSetCache {
   std::mutex mu_;
   std::unordered_map<std::int64_t, std::string> bodies_;
 };
+
+// A rendered JSON object with `fields` added (the cached, immutable body of
+// a set with its approval, which changes).
+std::string WithFields(std::string object, const json& fields) {
+  object.pop_back();  // the closing brace
+  for (const auto& [key, value] : fields.items()) {
+    object += "," + json(key).dump() + ":" + value.dump();
+  }
+  return object + "}";
+}
+
+// The newest approval of each listed set, by set id.
+api::Result<std::map<std::int64_t, storage::Approval>> NewestApprovals(
+    storage::Database& db, const std::vector<storage::ParameterSetSummary>& sets) {
+  std::vector<std::int64_t> ids;
+  for (const storage::ParameterSetSummary& s : sets) ids.push_back(s.id);
+  auto approvals = storage::ParameterSetRepository(db).LatestApprovals(ids);
+  if (!approvals.ok()) return approvals.status();
+  std::map<std::int64_t, storage::Approval> out;
+  for (storage::Approval& a : *approvals) out.emplace(a.parameter_set_id, std::move(a));
+  return out;
+}
 
 json DetailsSchema() {
   return ObjectSchema(
@@ -617,9 +639,18 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                  }
                  auto found = storage::ParameterSetRepository(db).List(query);
                  if (!found.ok()) return found.status();
+                 auto approvals = NewestApprovals(db, *found);
+                 if (!approvals.ok()) return approvals.status();
                  return JsonReply(MakePage(
                      *found, *page, [](const storage::ParameterSetSummary& s) { return s.id; },
-                     ParameterSetSummaryToJson));
+                     [&](const storage::ParameterSetSummary& s) {
+                       json j = ParameterSetSummaryToJson(s);
+                       const auto it = approvals->find(s.id);
+                       j.update(ApprovalFieldsToJson(
+                           it == approvals->end() ? std::nullopt
+                                                  : std::optional<storage::Approval>(it->second)));
+                       return j;
+                     }));
                }});
   }
   table.Add({.method = "GET",
@@ -636,8 +667,15 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                  body = StoredParameterSetToJson(*set).dump();
                  cache->Put(id, *body);
                }
+               auto approval = storage::ParameterSetRepository(db).LatestApprovals({id});
+               if (!approval.ok()) return approval.status();
                ctx.res.status = 200;
-               ctx.res.set_content(std::move(*body), "application/json");
+               ctx.res.set_content(
+                   WithFields(
+                       std::move(*body),
+                       ApprovalFieldsToJson(approval->empty() ? std::nullopt
+                                                              : std::optional(approval->front()))),
+                   "application/json");
                return Reply{200, nullptr, true};
              }});
   table.Add({.method = "GET",

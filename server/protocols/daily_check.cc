@@ -45,7 +45,7 @@ api::Result<DailyCheckOutcome> EvaluateDailyCheck(const DailyCheckSettings& sett
                                                   const SubjectContext& subject,
                                                   const model::JointLimits& stops) {
   if (!subject.parameter_set) {
-    return api::Status::FailedPrecondition("daily_check: the leg has no parameter set");
+    return api::Status::FailedPrecondition(NoApprovedSetMessage("daily_check"));
   }
   const auto trial = [&](int index) -> const api::Trial* {
     if (index < 0 || static_cast<std::size_t>(index) >= trials.size()) return nullptr;

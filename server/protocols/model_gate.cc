@@ -127,7 +127,13 @@ api::Result<GatePrediction> PredictPlanSwing(const Plan& plan, const model::Para
 api::Status CheckModelGate(const Plan& plan, const SubjectContext& subject, double pulse_rate_hz,
                            double max_impact_speed_deg_s) {
   const bool gated = plan.kind == ProtocolKind::kPrediction || plan.kind == ProtocolKind::kDailyCheck;
-  if (!gated || !subject.parameter_set) return api::Status::Ok();
+  if (!gated) return api::Status::Ok();
+  // docs/SAFETY.md, model gate: only a set a clinician approved gates; a
+  // leg whose sets all await approval is not let through ungated.
+  if (!subject.parameter_set && subject.sets_await_approval) {
+    return api::Status::FailedPrecondition(NoApprovedSetMessage("model-gated stimulation"));
+  }
+  if (!subject.parameter_set) return api::Status::Ok();
   const std::string set = subject.parameter_set_id
                               ? "parameter set " + std::to_string(*subject.parameter_set_id)
                               : std::string("the leg's parameter set");

@@ -72,8 +72,11 @@ struct GatePrediction {
 api::Result<GatePrediction> PredictPlanSwing(const Plan& plan, const model::ParameterSet& params,
                                              const model::JointLimits& stops, double pulse_rate_hz);
 
-/// OK unless the plan is a prediction protocol, the subject has a parameter
-/// set, and either the set cannot simulate the input (kFailedPrecondition
+/// kFailedPrecondition (NoApprovedSetMessage) for a prediction protocol or
+/// daily check on a leg whose sets all await a clinician's approval
+/// (subject.sets_await_approval). Otherwise OK unless the plan is a
+/// prediction protocol, the subject has an approved parameter set, and
+/// either the set cannot simulate the input (kFailedPrecondition
 /// "parameter set N cannot simulate this input: …") or the knee is predicted
 /// to hit a stop of the subject's range of motion faster than
 /// `max_impact_speed_deg_s` (kFailedPrecondition: "model-gated stimulation:

@@ -472,8 +472,7 @@ std::pair<std::size_t, std::size_t> LongestUnreachable(const model::Feedforward&
 api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subject,
                           const std::vector<double>& uploaded, Plan& plan, Builder& b) {
   if (!subject.parameter_set) {
-    return api::Status::FailedPrecondition(
-        "tracking needs the leg's parameter set: run rapid_parameterisation first");
+    return api::Status::FailedPrecondition(NoApprovedSetMessage("tracking"));
   }
   const bool upload = static_cast<int>(v.at("target")) == 3;
   if (!upload && !(v.at("lo_deg") < v.at("hi_deg"))) {
@@ -554,9 +553,7 @@ api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subjec
 api::Status BuildDailyCheck(const ParameterValues& v, double min_rest_s,
                             const SubjectContext& subject, Plan& plan, Builder& b) {
   if (!subject.parameter_set) {
-    return api::Status::FailedPrecondition(
-        "daily_check compares today's leg with its stored parameter set: run "
-        "rapid_parameterisation first");
+    return api::Status::FailedPrecondition(NoApprovedSetMessage("daily_check"));
   }
   const double lock = v.at("lock_angle_deg");
   b.Prepare("lock", MotorMode::kLocked, lock, v.at("settle_s"));

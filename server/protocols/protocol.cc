@@ -5,6 +5,7 @@
 #include <map>
 #include <sstream>
 
+#include "api/json_fields.h"
 #include "api/trial.h"
 
 namespace fesbench::server::protocols {
@@ -115,6 +116,14 @@ double DefaultFor(const ParameterSpec& spec, const SubjectContext& s) {
   return spec.default_value;
 }
 
+std::string NoApprovedSetMessage(std::string_view what) {
+  return std::string(what) +
+         " needs the leg's approved parameter set: no set is approved for the leg; a clinician "
+         "approves one of its sets (POST /api/v1/parameter-sets/{id}/approve with a note, or "
+         "`fesbench params approve ID --note TEXT`), or runs rapid_parameterisation, whose set "
+         "is approved by its run";
+}
+
 namespace {
 
 // DESIGN.md §6: stimulation never above the session's max tolerated
@@ -124,9 +133,11 @@ namespace {
 api::Status CheckToleranceCeiling(const ParameterValues& v, const SubjectContext& subject) {
   const double ceiling = v.at("ceiling_ma");
   if (subject.ceiling_above_max) {
-    if (subject.ceiling_above_max->empty()) {
-      return api::Status::InvalidArgument("must say why the ceiling goes above the max",
-                                          "ceiling_reason");
+    // The reason is the clinician's decision in words (docs/SAFETY.md,
+    // tolerance test ceiling): blank or control characters authorise nothing.
+    if (api::Status text = api::CheckPrintableText(*subject.ceiling_above_max, "ceiling_reason");
+        !text.ok()) {
+      return text;
     }
     if (!subject.max_tolerated_recorded) {
       return api::Status::InvalidArgument(
@@ -306,7 +317,7 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"max_rate_ma_per_s", {"Fastest amplitude change", "mA/s", true}},
       {"max_saturation_s", {"Longest saturation before the run stops", "s", true}},
       {"forgetting", {"Adaptive forgetting factor", "1", true}},
-      {"parameter_set_id", {"Parameter set (0 = the leg's newest)", "1", true}},
+      {"parameter_set_id", {"Parameter set (0 = the leg's approved set)", "1", true}},
       {"swing_s", {"Validation free swing", "s", true}},
       // Anthropometrics.
       {"inertia_kgm2",

@@ -129,13 +129,18 @@ struct SubjectContext {
   std::optional<double> inertia_kgm2;
   std::optional<double> body_mass_kg;
   std::optional<double> leg_length_m;  ///< femoral condyle to medial malleolus, m.
-  /// The leg's current parameter set, if any: gates prediction protocols
-  /// (model-gated stimulation) and supplies the inertia for the rapid fit.
+  /// The leg's approved parameter set, if a clinician approved one
+  /// (docs/SAFETY.md): gates prediction protocols (model-gated
+  /// stimulation), is what tracking inverts and daily_check compares with,
+  /// and supplies the inertia for the rapid fit.
   std::optional<model::ParameterSet> parameter_set;
+  /// True when the leg has stored sets but none is approved: the model gate
+  /// then refuses instead of letting stimulation run ungated.
+  bool sets_await_approval = false;
   /// Its stored id, when it has one (named in the model gate's messages).
   std::optional<std::int64_t> parameter_set_id;
-  /// The leg's stored sets, newest first (at most 20): daily_check learns
-  /// its drift bounds from their spread (§7.6.4).
+  /// The leg's sets a clinician approved, newest approval first (at most
+  /// 20): daily_check learns its drift bounds from their spread (§7.6.4).
   std::vector<model::ParameterSet> history;
   /// The isometric ramp trial the current set's IRC came from (its rapid
   /// or daily-check ramp), when stored: daily_check compares today's ramp
@@ -146,6 +151,11 @@ struct SubjectContext {
 /// A tracking run's uploaded target trajectory, as sent (POST
 /// /sessions/{id}/runs "target_samples"): strictly increasing t_s, deg.
 using TargetSamples = api::TargetSamples;
+
+/// Why a protocol that needs the leg's approved set cannot run, and how to
+/// approve one: "<what> needs the leg's approved parameter set: no set is
+/// approved for the leg; …".
+std::string NoApprovedSetMessage(std::string_view what);
 
 /// Checks a context: finite values, 0 ≤ threshold < max tolerated ≤ 100 mA,
 /// 0 ≤ min angle < max angle ≤ 180°; kInvalidArgument naming the field.

@@ -441,7 +441,9 @@ std::vector<ProtocolDescription> MakeCatalog() {
            Number("forgetting",
                   "adaptive: forgetting factor of the τ_scale estimate (per 5 ms sample)",
                   {.value = 0.999, .min = 0.9, .max = 1.0}),
-           Count("parameter_set_id", "the leg's parameter set to invert (0: its newest)",
+           Count("parameter_set_id",
+                 "the leg's parameter set to invert (0: its approved set; another must have "
+                 "been approved)",
                  {.value = 0.0, .min = 0.0, .max = 9007199254740992.0}),
            SettleS(2.0, "swing after decoupling before the lead-in, s")}});
 

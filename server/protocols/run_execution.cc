@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "api/json_fields.h"
 #include "model/simulate.h"
 #include "server/protocols/daily_check.h"
 #include "server/protocols/protocol.h"
@@ -91,9 +92,10 @@ void RunExecution::ConfigureSafety() {
   SafetyLimits limits;
   const double plan_max_ma =
       std::isfinite(plan_.max_stim_ma) ? std::max(plan_.max_stim_ma, 0.0) : 0.0;
+  const bool reasoned = subject_.ceiling_above_max &&
+                        api::CheckPrintableText(*subject_.ceiling_above_max, "ceiling_reason").ok();
   const bool ceiling_alone =
-      plan_.kind == ProtocolKind::kTolerance &&
-      (!subject_.max_tolerated_recorded || subject_.ceiling_above_max.has_value());
+      plan_.kind == ProtocolKind::kTolerance && (!subject_.max_tolerated_recorded || reasoned);
   limits.max_stim_ma =
       ceiling_alone ? plan_max_ma : std::min(plan_max_ma, subject_.max_tolerated_ma);
   limits.min_angle_deg = subject_.min_angle_deg;

@@ -624,8 +624,9 @@ api::Result<IdentificationResult> IdentificationService::Fit(const Actor& actor,
     ctx.body_mass_kg = d.weight_kg;
     if (d.shank_length_cm) ctx.leg_length_m = *d.shank_length_cm / 100.0;
     storage::ParameterSetRepository sets(db_);
-    api::Result<storage::StoredParameterSet> latest =
-        sets.Latest(selection->subject_id, selection->leg_id);
+    // The prior a refit starts from is the leg's approved set, not its
+    // newest row (docs/SAFETY.md): a candidate never feeds another fit.
+    api::Result<storage::StoredParameterSet> latest = sets.Approved(selection->leg_id);
     if (latest.ok()) {
       ctx.latest = latest->params;
     } else if (latest.status().code() != api::ErrorCode::kNotFound) {

@@ -86,6 +86,8 @@ struct RunService::FinishRecord {
   std::vector<std::optional<std::int64_t>> trial_ids;  // stored id per plan trial
   std::optional<storage::NewParameterSet> new_set;
   std::optional<storage::SessionDetails> measured;  // tolerance_test's limits
+  // Set when a tolerance test ended at its ceiling: why no max is recorded.
+  std::optional<std::string> max_not_recorded;
   std::vector<std::string> warnings;
   // Filled by StoreFinish.
   std::optional<std::int64_t> set_id;
@@ -162,6 +164,32 @@ void RunService::PrepareParameterSet(const LiveRun& run, const protocols::RunRes
   f.new_set = std::move(ns);
 }
 
+namespace {
+
+// docs/SAFETY.md, tolerance test ceiling: the ramp reaching its ceiling
+// says only that the subject bore the ceiling, not where their limit is.
+// Only a limit the subject signalled or the clinician stopped at is a
+// measured max tolerated amplitude.
+bool EndedAtCeiling(const protocols::RunResult& result) {
+  const auto signalled = result.values.find("subject_signalled_limit");
+  return result.tolerance && !result.tolerance->stopped_by_clinician &&
+         (signalled == result.values.end() || signalled->second != 1.0);
+}
+
+std::string CeilingMessage(const RunView& view) {
+  const auto ceiling = view.parameters.find("ceiling_ma");
+  const std::string at = ceiling == view.parameters.end()
+                             ? std::string("its ceiling")
+                             : "its ceiling of " + FormatNumber(ceiling->second) + " mA";
+  return "the ramp reached " + at +
+         " without the subject signalling the limit or a clinician stopping it: no max "
+         "tolerated amplitude was measured, and the session's threshold and max tolerated are "
+         "unchanged; re-test (stop the ramp where the subject says so), or enter the max "
+         "tolerated amplitude as a clinician (a correction of the session)";
+}
+
+}  // namespace
+
 void RunService::PrepareMeasuredLimits(const LiveRun& run, const protocols::RunResult& result,
                                        FinishRecord& f) {
   // tolerance_test writes what it measured into the session (issue 14):
@@ -169,6 +197,11 @@ void RunService::PrepareMeasuredLimits(const LiveRun& run, const protocols::RunR
   // threshold and max tolerated may run at once.
   if (f.state != RunState::kDone || !result.tolerance) return;
   const protocols::ToleranceResult& t = *result.tolerance;
+  if (EndedAtCeiling(result)) {
+    f.max_not_recorded = CeilingMessage(run.view);
+    f.warnings.push_back(*f.max_not_recorded);
+    return;
+  }
   if (!t.threshold_ma) {
     f.warnings.push_back(
         "no threshold was detected: the session's threshold and max tolerated are unchanged");
@@ -213,6 +246,7 @@ api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool wi
       if (!ins.ok()) return ins.status();
       f.set_id = ins->id;
       summary += "; parameter set " + std::to_string(ins->id);
+      if (api::Status st = ApproveRunSet(run, ins->id); !st.ok()) return st;
     }
     api::Result<storage::Run> r =
         storage::SessionRepository(db_).RecordRunState(run.run_id, f.state, f.reason);
@@ -220,6 +254,24 @@ api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool wi
     f.stored = *r;
     return Audit(run.actor, "run.finish", RunTarget(run.run_id), summary, "ok");
   });
+}
+
+// docs/SAFETY.md, which set gates stimulation: a set a bench run measured
+// is the operating clinician's own measurement, approved by the run that
+// stored it (audited with the run), in the transaction that stores it.
+api::Status RunService::ApproveRunSet(const LiveRun& run, std::int64_t set_id) {
+  if (!MayOperateBench(run.actor)) return api::Status::Ok();  // a candidate, as any other
+  storage::NewApproval approval;
+  approval.parameter_set_id = set_id;
+  if (run.actor.user_id > 0) approval.approved_by_user_id = run.actor.user_id;
+  approval.approved_by = run.actor.user_name.empty() ? std::string("unknown") : run.actor.user_name;
+  approval.run_id = run.run_id;
+  approval.note = "identified by run " + std::to_string(run.run_id) + " (" + run.view.protocol +
+                  ") on the bench";
+  api::Result<storage::Approval> approved = storage::ParameterSetRepository(db_).Approve(approval);
+  if (!approved.ok()) return approved.status();
+  return Audit(run.actor, "parameter_set.approve", "parameter-sets/" + std::to_string(set_id),
+               "approved by run " + std::to_string(run.run_id) + ": " + approval.note, "ok");
 }
 
 void RunService::StoreFinish(const LiveRun& run, FinishRecord& f) {
@@ -263,9 +315,13 @@ void RunService::PublishFinish(const std::shared_ptr<LiveRun>& run,
     } else if (f.state == RunState::kDone && result.tolerance) {
       storage::SessionDetails d;  // measured, but not stored in the session
       d.threshold_ma = result.tolerance->threshold_ma;
-      d.max_tolerated_ma = result.tolerance->max_tolerated_ma;
+      if (!f.max_not_recorded) d.max_tolerated_ma = result.tolerance->max_tolerated_ma;
       v.result = ToleranceResultJson(d, 0, v.values);
       v.result["session_revision"] = nullptr;
+      if (f.max_not_recorded) {
+        v.result["ended_at_ceiling"] = true;
+        v.result["message"] = *f.max_not_recorded;
+      }
     } else if (f.state == RunState::kDone && result.daily_check) {
       v.result = *result.daily_check;
       v.result["parameter_set_id"] = f.set_id ? nlohmann::json(*f.set_id) : nlohmann::json(nullptr);

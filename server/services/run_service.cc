@@ -270,7 +270,8 @@ api::Status ResampleUploadedTarget(const TargetSamples& target, protocols::Start
 }
 
 // A tracking run may name the leg's set to invert (parameter_set_id; 0: its
-// newest): it must be one of this session's leg's sets.
+// approved set): it must be one of this session's leg's sets that a
+// clinician approved (docs/SAFETY.md), now or earlier.
 api::Status ChooseParameterSet(storage::Database& db, const SessionContext& context,
                                const protocols::ParameterValues& parameters,
                                protocols::StartRequest& request) {
@@ -290,6 +291,16 @@ api::Status ChooseParameterSet(storage::Database& db, const SessionContext& cont
     return api::Status::InvalidArgument(
         "parameter set " + std::to_string(id) + " belongs to another subject or leg",
         "parameters.parameter_set_id");
+  }
+  api::Result<std::vector<storage::Approval>> approvals =
+      storage::ParameterSetRepository(db).Approvals(id);
+  if (!approvals.ok()) return approvals.status();
+  if (approvals->empty()) {
+    return api::Status::FailedPrecondition(
+        "parameter set " + std::to_string(id) +
+        " was never approved: a clinician approves it first (POST /api/v1/parameter-sets/" +
+        std::to_string(id) + "/approve, or `fesbench params approve " + std::to_string(id) +
+        " --note TEXT`)");
   }
   request.subject.parameter_set = chosen->params;
   request.subject.parameter_set_id = id;

@@ -77,7 +77,8 @@ using BenchState = api::BenchState;
 struct SessionContext {
   storage::Session session;
   protocols::SubjectContext subject;
-  /// The leg's latest stored parameter set (model gate, rapid inertia).
+  /// The leg's approved parameter set (model gate, tracking, daily check,
+  /// rapid inertia; docs/SAFETY.md).
   std::optional<std::int64_t> parameter_set_id;
   bool has_stimulation_limits = false;  ///< the session records threshold and max tolerated.
 };
@@ -86,9 +87,9 @@ struct SessionContext {
 /// session (absent: 0 and the bench's max, usable by tolerance_test only),
 /// range of motion = the bench's mechanical range (storage keeps none),
 /// body mass and leg length (shank length) from the subject's current
-/// anthropometrics for Eq. 4.13 (§4.2.1), and the leg's latest parameter
-/// set. kNotFound for an unknown session; kDataLoss for unreadable stored
-/// data.
+/// anthropometrics for Eq. 4.13 (§4.2.1), and the leg's approved parameter
+/// set (or, with none, whether sets await approval). kNotFound for an
+/// unknown session; kDataLoss for unreadable stored data.
 api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64_t session_id,
                                                const BenchLimits& limits);
 
@@ -210,6 +211,7 @@ class RunService {
   void PrepareMeasuredLimits(const LiveRun& run, const protocols::RunResult& result,
                              FinishRecord& f);
   api::Status WriteFinish(const LiveRun& run, FinishRecord& f, bool with_results);
+  api::Status ApproveRunSet(const LiveRun& run, std::int64_t set_id);
   void StoreFinish(const LiveRun& run, FinishRecord& f);
   void PublishFinish(const std::shared_ptr<LiveRun>& run, const protocols::RunResult& result,
                      FinishRecord& f);

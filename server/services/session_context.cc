@@ -7,6 +7,46 @@
 
 namespace fesbench::server::services {
 
+namespace {
+
+// The leg's approved set (docs/SAFETY.md: the set a clinician approved, not
+// the newest row), the sets approved before it, and the ramp it came from.
+api::Status LoadApprovedSet(storage::Database& db, const storage::Session& session,
+                            SessionContext& out) {
+  protocols::SubjectContext& c = out.subject;
+  storage::ParameterSetRepository sets(db);
+  api::Result<storage::StoredParameterSet> approved = sets.Approved(session.leg_id);
+  if (!approved.ok()) {
+    if (approved.status().code() != api::ErrorCode::kNotFound) return approved.status();
+    api::Result<storage::StoredParameterSet> any = sets.Latest(session.subject_id, session.leg_id);
+    if (!any.ok() && any.status().code() != api::ErrorCode::kNotFound) return any.status();
+    c.sets_await_approval = any.ok();
+    return api::Status::Ok();
+  }
+  c.parameter_set = approved->params;
+  c.parameter_set_id = approved->summary.id;
+  out.parameter_set_id = approved->summary.id;
+  // The leg's approved history, newest first (daily_check's drift bounds).
+  api::Result<std::vector<std::int64_t>> history = sets.ApprovedHistory(session.leg_id, 20);
+  if (!history.ok()) return history.status();
+  for (std::int64_t id : *history) {
+    api::Result<storage::StoredParameterSet> s = sets.Get(id);
+    if (s.ok()) c.history.push_back(s->params);
+  }
+  storage::TrialRepository trials(db);
+  for (std::int64_t id : approved->trial_ids) {
+    api::Result<api::Trial> t = trials.Get(id);
+    if (!t.ok()) continue;
+    if (t->kind == api::TrialKind::kRapidRamp || t->kind == api::TrialKind::kDailyCheckRamp) {
+      c.base_ramp_trial = api::ToTrialColumns(*t);
+      break;
+    }
+  }
+  return api::Status::Ok();
+}
+
+}  // namespace
+
 api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64_t session_id,
                                                const BenchLimits& limits) {
   api::Result<storage::Session> session = storage::SessionRepository(db).Get(session_id);
@@ -34,35 +74,7 @@ api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64
   if (a.weight_kg) c.body_mass_kg = *a.weight_kg;
   if (a.shank_length_cm) c.leg_length_m = *a.shank_length_cm / 100.0;
 
-  api::Result<storage::StoredParameterSet> latest =
-      storage::ParameterSetRepository(db).Latest(session->subject_id, session->leg_id);
-  if (latest.ok()) {
-    c.parameter_set = latest->params;
-    c.parameter_set_id = latest->summary.id;
-    out.parameter_set_id = latest->summary.id;
-    // The leg's history, newest first (daily_check's drift bounds).
-    storage::ParameterSetRepository sets(db);
-    storage::HistoryQuery q;
-    q.subject_id = session->subject_id;
-    q.leg_id = session->leg_id;
-    api::Result<std::vector<storage::ParameterSetSummary>> history = sets.History(q);
-    if (!history.ok()) return history.status();
-    for (auto it = history->rbegin(); it != history->rend() && c.history.size() < 20; ++it) {
-      api::Result<storage::StoredParameterSet> s = sets.Get(it->id);
-      if (s.ok()) c.history.push_back(s->params);
-    }
-    storage::TrialRepository trials(db);
-    for (std::int64_t id : latest->trial_ids) {
-      api::Result<api::Trial> t = trials.Get(id);
-      if (!t.ok()) continue;
-      if (t->kind == api::TrialKind::kRapidRamp || t->kind == api::TrialKind::kDailyCheckRamp) {
-        c.base_ramp_trial = api::ToTrialColumns(*t);
-        break;
-      }
-    }
-  } else if (latest.status().code() != api::ErrorCode::kNotFound) {
-    return latest.status();
-  }
+  if (api::Status st = LoadApprovedSet(db, *session, out); !st.ok()) return st;
   return out;
 }
 

@@ -128,6 +128,33 @@ TEST(CliSessionTest, WholeAnalystSession) {
   auto history_json = cli.Run({"params", "list", "--subject", "CLI-A", "--json"});
   ASSERT_EQ(history_json.exit_code, 0);
   EXPECT_EQ(json::parse(history_json.out)[0]["id"], first_sets[0]);
+  // Which set gates stimulation (docs/SAFETY.md): each rapid run's set is
+  // approved by its run, so the leg's approved set is the second run's.
+  EXPECT_EQ(json::parse(history_json.out)[0]["approved"], false);
+  EXPECT_EQ(json::parse(history_json.out)[1]["approved"], true);
+  EXPECT_THAT(history.out, HasSubstr("approved"));
+  EXPECT_THAT(history.out, HasSubstr("earlier (admin "));
+  EXPECT_THAT(history.out, HasSubstr("yes (admin "));
+  // A clinician's approval switches it back, and again; a blank note or
+  // approving the approved set is refused.
+  const std::string first = std::to_string(first_sets[0]);
+  auto approved = cli.Run({"params", "approve", first, "--note", "day 1 fits the swing better"});
+  ASSERT_EQ(approved.exit_code, 0) << approved.err;
+  EXPECT_THAT(approved.out, HasSubstr("parameter set " + first + " approved for leg"));
+  EXPECT_THAT(approved.out, HasSubstr(": yes (admin "));
+  auto twice = cli.Run({"params", "approve", first, "--note", "again"});
+  EXPECT_NE(twice.exit_code, 0);
+  EXPECT_THAT(twice.err, HasSubstr("already is its leg's approved set"));
+  auto blank = cli.Run({"params", "approve", std::to_string(second_sets[0]), "--note", " "});
+  EXPECT_NE(blank.exit_code, 0);
+  EXPECT_THAT(blank.err, HasSubstr("note"));
+  auto relisted = cli.Run({"params", "list", "--subject", "CLI-A", "--json"});
+  ASSERT_EQ(relisted.exit_code, 0);
+  EXPECT_EQ(json::parse(relisted.out)[0]["approved"], true);
+  EXPECT_EQ(json::parse(relisted.out)[0]["approval"]["note"], "day 1 fits the swing better");
+  ASSERT_EQ(
+      cli.Run({"params", "approve", std::to_string(second_sets[0]), "--note", "back"}).exit_code,
+      0);
 
   // A parameter set as JSON (reads back as the wire type) and as CSV.
   auto params_json = cli.Run({"params", "get", std::to_string(first_sets[0]), "--format", "json"});

@@ -213,9 +213,17 @@ TEST(ResolveParameters, ToleranceCeilingFollowsTheRecordedMax) {
   EXPECT_DOUBLE_EQ(explicit_ceiling->at("ceiling_ma"), 20.0);
   EXPECT_EQ(ResolveParameters(d, {}, decided).status().field(), "ceiling_reason")
       << "a reason that authorises nothing";
-  decided.ceiling_above_max = "";
-  EXPECT_EQ(ResolveParameters(d, {{"ceiling_ma", 20.0}}, decided).status().field(),
-            "ceiling_reason");
+  // Only printable words authorise it: not blank, not control characters.
+  for (const std::string& reason :
+       {std::string(), std::string(" "), std::string(" \t\r\n "), std::string("\0x", 2),
+        std::string("x\x1b[2J"), std::string("x\x7f"), std::string("x\xc2\x9b")}) {
+    decided.ceiling_above_max = reason;
+    const auto refused = ResolveParameters(d, {{"ceiling_ma", 20.0}}, decided);
+    EXPECT_EQ(refused.status().field(), "ceiling_reason") << ::testing::PrintToString(reason);
+    EXPECT_NE(refused.status().message().find("printable"), std::string::npos);
+  }
+  decided.ceiling_above_max = "  re-test: \xc3\xa9l\xc3\xa8ve ";  // spaces around, UTF-8 inside
+  EXPECT_TRUE(ResolveParameters(d, {{"ceiling_ma", 20.0}}, decided).ok());
   SubjectContext other = Subject();
   other.ceiling_above_max = "x";
   EXPECT_EQ(ResolveParameters(*FindProtocol("isometric_ramp_irc"), {}, other).status().field(),

@@ -182,6 +182,24 @@ TEST(RunService, ToleranceTestWithoutARecordedMaxStatesItsDefaultCeiling) {
   const double delivered = MaxStoredStim(*rig.db, *view);
   EXPECT_LE(delivered, 60.0 + 1e-9);
   EXPECT_GT(delivered, 59.9);
+
+  // The subject bore the whole ramp: the ceiling is not their limit, so no
+  // max tolerated is recorded and the session is unchanged (docs/SAFETY.md).
+  EXPECT_EQ(view->values.at("subject_signalled_limit"), 0.0);
+  EXPECT_TRUE(view->result.at("max_tolerated_ma").is_null()) << view->result.dump();
+  EXPECT_TRUE(view->result.at("session_revision").is_null());
+  EXPECT_EQ(view->result.at("ended_at_ceiling"), true);
+  const std::string message = view->result.at("message");
+  EXPECT_NE(message.find("60 mA"), std::string::npos) << message;
+  EXPECT_NE(message.find("re-test"), std::string::npos) << message;
+  ASSERT_TRUE(view->tolerance.has_value());
+  EXPECT_NE(std::find(view->tolerance->warnings.begin(), view->tolerance->warnings.end(), message),
+            view->tolerance->warnings.end());
+  auto session = storage::SessionRepository(*rig.db).Get(rig.session_id);
+  ASSERT_TRUE(session.ok());
+  EXPECT_EQ(session->current.revision, 1) << "the session was revised";
+  EXPECT_FALSE(session->current.details.max_tolerated_ma.has_value());
+  EXPECT_FALSE(session->current.details.threshold_ma.has_value());
 }
 
 // A new subject's first tolerance test, left running: it ends where the
@@ -203,6 +221,12 @@ TEST(RunService, ToleranceTestLeftRunningRecordsWhereTheSubjectSignalledTheLimit
   EXPECT_GE(recorded, limit);
   EXPECT_LT(recorded, limit + 0.25);
   EXPECT_LT(MaxStoredStim(*rig.db, *view), limit + 0.25);
+  EXPECT_FALSE(view->result.contains("ended_at_ceiling"));
+  auto session = storage::SessionRepository(*rig.db).Get(rig.session_id);
+  ASSERT_TRUE(session.ok());
+  EXPECT_EQ(session->current.revision, 2);
+  ASSERT_TRUE(session->current.details.max_tolerated_ma.has_value());
+  EXPECT_DOUBLE_EQ(*session->current.details.max_tolerated_ma, recorded);
 }
 
 // Issue 16 §2–§3 in process: a new RunService on the same database (a

@@ -228,6 +228,30 @@ TEST(RunService, RapidProtocolStoresAParameterSetWhoseProvenanceTrialsExist) {
   ASSERT_TRUE(set2.ok());
   EXPECT_EQ(set2->summary.version, 2);
   EXPECT_EQ(set2->summary.supersedes_id, view->parameter_set_id);
+
+  // Each run's set is approved by its run (docs/SAFETY.md): the leg's
+  // approved set is the second. A newer set nobody approved (an import, a
+  // re-identification) changes nothing, and tracking may not name it.
+  auto approval = sets.LegApproval(rig.leg_id);
+  ASSERT_TRUE(approval.ok() && approval->has_value());
+  EXPECT_EQ((*approval)->parameter_set_id, *second->parameter_set_id);
+  EXPECT_EQ((*approval)->run_id, again->run_id);
+  EXPECT_EQ((*approval)->approved_by, rig.clinician.user_name);
+  storage::NewParameterSet candidate{rig.subject_id, rig.leg_id, set2->params, std::nullopt,
+                                     std::nullopt};
+  auto unapproved = sets.Insert(candidate);
+  ASSERT_TRUE(unapproved.ok()) << unapproved.status().ToString();
+  auto context = LoadSessionContext(*rig.db, rig.session_id, rig.bench->limits());
+  ASSERT_TRUE(context.ok());
+  EXPECT_EQ(context->parameter_set_id, second->parameter_set_id);
+  EXPECT_EQ(context->subject.parameter_set_id, second->parameter_set_id);
+  EXPECT_FALSE(context->subject.sets_await_approval);
+  auto tracking = rig.service->Start(rig.clinician, rig.session_id, "tracking",
+                                     {{"parameter_set_id", static_cast<double>(unapproved->id)}});
+  ASSERT_FALSE(tracking.ok());
+  EXPECT_EQ(tracking.status().code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(tracking.status().message().find("never approved"), std::string::npos)
+      << tracking.status().ToString();
 }
 
 // --- one run at a time, cancel, e-stop, watchdog, shutdown ----------------------------

@@ -2,9 +2,9 @@
 
 #include <gtest/gtest.h>
 
-#include <tuple>
-
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <tuple>
 
 #include "api/parameter_set_json.h"
 #include "storage/trials.h"
@@ -97,6 +97,139 @@ TEST_P(StorageTest, ASetNamesItsRun) {
   EXPECT_FALSE(none->has_value());
   set.run_id = 999;  // no such run
   EXPECT_EQ(sets.Insert(set).status().code(), api::ErrorCode::kInvalidArgument);
+}
+
+// Migration 15: a clinician's approval makes a set its leg's approved set;
+// the newest approval wins, earlier ones stay in history, nothing is
+// overwritten.
+TEST_P(StorageTest, TheNewestApprovalMakesALegsApprovedSet) {
+  const Session session = MakeSession("AP1");
+  const Session other = MakeSession("AP2");
+  ParameterSetRepository sets(*db_);
+  auto insert = [&](const Session& s) {
+    auto stored = sets.Insert({s.subject_id, s.leg_id, Params("ramp_correlation", "free_swing"),
+                               std::nullopt, std::nullopt});
+    EXPECT_TRUE(stored.ok()) << stored.status().ToString();
+    return stored->id;
+  };
+  const std::int64_t first = insert(session);
+  const std::int64_t second = insert(session);
+  const std::int64_t elsewhere = insert(other);
+
+  auto none = sets.Approved(session.leg_id);
+  EXPECT_EQ(none.status().code(), api::ErrorCode::kNotFound);
+  EXPECT_NE(none.status().message().find("no parameter set is approved"), std::string::npos);
+  EXPECT_FALSE(sets.LegApproval(session.leg_id)->has_value());
+
+  auto approved = sets.Approve({first, std::nullopt, "cora", std::nullopt, "rapid run on day 1"});
+  ASSERT_TRUE(approved.ok()) << approved.status().ToString();
+  EXPECT_TRUE(approved->current);
+  EXPECT_EQ(approved->leg_id, session.leg_id);
+  EXPECT_EQ(sets.Approved(session.leg_id)->summary.id, first);
+  EXPECT_EQ(sets.Latest(session.subject_id, session.leg_id)->summary.id, second)
+      << "the newest set is not the approved one";
+  auto again = sets.Approve({first, std::nullopt, "cora", std::nullopt, "twice"});
+  EXPECT_EQ(again.status().code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(again.status().message().find("already"), std::string::npos);
+
+  ASSERT_TRUE(sets.Approve({second, std::nullopt, "cora", std::nullopt, "refit looks right"}).ok());
+  EXPECT_EQ(sets.Approved(session.leg_id)->summary.id, second);
+  auto history = sets.Approvals(first);
+  ASSERT_TRUE(history.ok());
+  ASSERT_EQ(history->size(), 1u);
+  EXPECT_FALSE(history->front().current) << "a later approval of the leg supersedes it";
+  EXPECT_EQ(history->front().approved_by, "cora");
+  EXPECT_EQ(history->front().note, "rapid run on day 1");
+  auto latest = sets.LatestApprovals({first, second, elsewhere});
+  ASSERT_TRUE(latest.ok());
+  ASSERT_EQ(latest->size(), 2u);
+  EXPECT_EQ(latest->at(1).parameter_set_id, second);
+  EXPECT_TRUE(latest->at(1).current);
+  // Back to the first: the history keeps every approval, newest first.
+  ASSERT_TRUE(sets.Approve({first, std::nullopt, "cora", std::nullopt, "back to day 1"}).ok());
+  EXPECT_EQ(*sets.ApprovedHistory(session.leg_id, 20), (std::vector<std::int64_t>{first, second}));
+  EXPECT_EQ(sets.Approvals(first)->size(), 2u);
+  EXPECT_FALSE(sets.Approved(other.leg_id).ok()) << "another leg's approvals are its own";
+
+  EXPECT_EQ(sets.Approve({second, std::nullopt, "cora", std::nullopt, ""}).status().field(),
+            "note");
+  EXPECT_EQ(sets.Approve({second, std::nullopt, "cora", std::nullopt, std::string(501, 'x')})
+                .status()
+                .field(),
+            "note");
+  EXPECT_EQ(sets.Approve({999, std::nullopt, "cora", std::nullopt, "x"}).status().code(),
+            api::ErrorCode::kNotFound);
+  EXPECT_EQ(sets.Approve({second, std::nullopt, "cora", 999, "x"}).status().code(),
+            api::ErrorCode::kNotFound);
+  auto update = db_->Write([](Connection& c) -> api::Status {
+    auto s = c.Prepare("UPDATE parameter_set_approvals SET note = 'rewritten'");
+    if (!s.ok()) return s.status();
+    return s->Run();
+  });
+  EXPECT_EQ(update.code(), api::ErrorCode::kFailedPrecondition) << "approvals are append-only";
+}
+
+// Migration 15 on a database of schema 14: a set a bench run stored is
+// approved by that run, the newest such set of the leg is its approved set,
+// and a set no run stored stays a candidate.
+TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
+  std::unique_ptr<::fesbench::testing::ScratchDatabase> scratch;
+  DatabaseOptions v14 = Options();
+  if (GetParam() == Engine::kPostgres) {
+    scratch = std::make_unique<::fesbench::testing::ScratchDatabase>();
+    ASSERT_TRUE(scratch->ok()) << scratch->skip_reason();
+    v14.path = scratch->url();
+  } else {
+    v14.path = (dir_ / "v14.db").string();
+  }
+  v14.target_schema_version = 14;
+  std::int64_t leg_id = 0, run_id = 0, older = 0, by_run = 0, candidate = 0;
+  {
+    auto db = Database::Open(v14);
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    SubjectRepository subjects(**db);
+    auto subject = subjects.Create("M15", SubjectDetails{});
+    ASSERT_TRUE(subject.ok());
+    auto leg = subjects.AddLeg(subject->id, Side::kLeft);
+    ASSERT_TRUE(leg.ok());
+    leg_id = leg->id;
+    SessionDetails details;
+    details.date = "2026-01-02";
+    auto session = SessionRepository(**db).Create(subject->id, leg_id, details);
+    ASSERT_TRUE(session.ok());
+    auto first =
+        SessionRepository(**db).CreateRun(session->id, {"rapid_parameterisation", "1", "{}"});
+    auto second = SessionRepository(**db).CreateRun(session->id, {"daily_check", "1", "{}"});
+    ASSERT_TRUE(first.ok() && second.ok());
+    run_id = second->id;
+    ParameterSetRepository sets(**db);
+    auto insert = [&](std::optional<std::int64_t> run) {
+      NewParameterSet set{subject->id, leg_id, Params("ramp_correlation", "free_swing"),
+                          std::nullopt, std::nullopt};
+      set.run_id = run;
+      auto stored = sets.Insert(set);
+      EXPECT_TRUE(stored.ok()) << stored.status().ToString();
+      return stored->id;
+    };
+    older = insert(first->id);
+    by_run = insert(second->id);
+    candidate = insert(std::nullopt);  // an import or a re-identification
+  }
+  DatabaseOptions latest = v14;
+  latest.target_schema_version.reset();
+  auto db = Database::Open(latest);
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  ParameterSetRepository sets(**db);
+  auto approved = sets.Approved(leg_id);
+  ASSERT_TRUE(approved.ok()) << approved.status().ToString();
+  EXPECT_EQ(approved->summary.id, by_run) << "the newest set a run stored, not the newest set";
+  auto approval = sets.LegApproval(leg_id);
+  ASSERT_TRUE(approval.ok() && approval->has_value());
+  EXPECT_EQ((*approval)->run_id, run_id);
+  EXPECT_EQ((*approval)->approved_by, "run " + std::to_string(run_id));
+  EXPECT_FALSE((*approval)->approved_by_user_id.has_value());
+  EXPECT_EQ(sets.Approvals(older)->size(), 1u);
+  EXPECT_TRUE(sets.Approvals(candidate)->empty());
 }
 
 // Issue 18: a stored set is an event, raised after its transaction commits

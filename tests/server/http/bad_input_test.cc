@@ -206,6 +206,39 @@ TEST_F(BadInputTest, ContentTypeAndBodiesWhereNoneIsTaken) {
               "invalid_argument");
 }
 
+// A ceiling_reason authorises stimulation above the recorded max
+// (docs/SAFETY.md): only printable words do; nothing starts, nothing is audited.
+TEST_F(BadInputTest, CeilingReasonMustBePrintableText) {
+  auto subject =
+      Call(*client_, "POST", "/api/v1/subjects", admin_, {{"code", "CEIL-1"}, {"legs", {"right"}}});
+  ASSERT_EQ(subject.status, 201) << subject.text;
+  auto session = Call(
+      *client_, "POST",
+      "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) + "/sessions", admin_,
+      {{"leg", "right"}, {"date", "2026-11-25"}, {"threshold_ma", 3}, {"max_tolerated_ma", 8.5}});
+  ASSERT_EQ(session.status, 201) << session.text;
+  const std::string runs =
+      "/api/v1/sessions/" + std::to_string(session.body["id"].get<int>()) + "/runs";
+  for (const std::string& reason :
+       {std::string(" "), std::string("\0x", 2), std::string(" \t "), std::string("ok\x7f"),
+        std::string("new\nline"), std::string("\xc2\x85")}) {
+    SCOPED_TRACE(json(reason).dump());
+    auto r = Call(*client_, "POST", runs, admin_,
+                  {{"protocol", "tolerance_test"},
+                   {"parameters", {{"ceiling_ma", 20}}},
+                   {"ceiling_reason", reason}});
+    ExpectError(r, 400, "invalid_argument", "ceiling_reason");
+    EXPECT_NE(r.body["error"]["message"].get<std::string>().find("printable"), std::string::npos)
+        << r.text;
+  }
+  EXPECT_TRUE(Call(*client_, "GET", runs, admin_).body["items"].empty()) << "a run was created";
+  const JsonResponse audit = Call(*client_, "GET", "/api/v1/audit", admin_);
+  ASSERT_EQ(audit.status, 200);
+  for (const json& e : audit.body["items"]) {
+    EXPECT_NE(e["action"], "run.ceiling_above_max") << e.dump();
+  }
+}
+
 TEST_F(BadInputTest, HugeBodyChunkedBodyAndThousandHeaders) {
   const std::string big(10 * 1024 * 1024, 'x');
   auto huge = client_->Post("/api/v1/subjects", {{"Authorization", "Bearer " + admin_}},

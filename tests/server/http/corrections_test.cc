@@ -214,10 +214,10 @@ TEST_F(CorrectionsTest, ToleranceTestWritesTheSessionAndRapidTakesAnExplicitIner
   auto truth = Do("GET", "/api/v1/bench/virtual-subject", admin_);
   ASSERT_EQ(truth.status, 200);
   const double true_max = truth.body["max_tolerated_ma"];
-  // The ramp ends at the ceiling (the subject's tolerance) when nobody stops it.
+  // Nobody stops the ramp: it ends where the subject signals the limit
+  // (below the 60 mA default ceiling), which is what the session records.
   auto run = Do("POST", runs, clinician_,
-                {{"protocol", "tolerance_test"},
-                 {"parameters", {{"ceiling_ma", std::floor(true_max)}, {"rate_ma_per_s", 2.0}}}});
+                {{"protocol", "tolerance_test"}, {"parameters", {{"rate_ma_per_s", 2.0}}}});
   ASSERT_EQ(run.status, 201) << run.text;
   const std::int64_t run_id = run.body["run_id"];
   std::atomic<bool> beating{true};
@@ -241,9 +241,11 @@ TEST_F(CorrectionsTest, ToleranceTestWritesTheSessionAndRapidTakesAnExplicitIner
   ASSERT_TRUE(result.is_object()) << view.dump();
   EXPECT_EQ(result["session_revision"], 2);
   const double threshold = result["threshold_ma"];
-  EXPECT_NEAR(result["max_tolerated_ma"].get<double>(), std::floor(true_max), 0.05);
+  EXPECT_EQ(result["subject_signalled_limit"], true);
+  EXPECT_GE(result["max_tolerated_ma"].get<double>(), true_max);
+  EXPECT_LT(result["max_tolerated_ma"].get<double>(), true_max + 0.25);
   EXPECT_GT(threshold, 0.0);
-  EXPECT_LT(threshold, std::floor(true_max));
+  EXPECT_LT(threshold, true_max);
 
   auto session = Do("GET", "/api/v1/sessions/" + std::to_string(session_id), analyst_);
   EXPECT_EQ(session.body["revision"], 2);

@@ -341,5 +341,128 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
   EXPECT_EQ(b.Terminate(), 0);
 }
 
+// docs/SAFETY.md, which set gates stimulation: the rapid run's set is
+// approved by its run; an imported set and an analyst's re-identification
+// are candidates that change nothing until a clinician approves one, which
+// is audited and switches what the daily check uses; a leg whose only sets
+// await approval gets no ungated prediction run.
+TEST(DataExchangeTest, OnlyAClinicianApprovedSetGatesStimulation) {
+  ServerProcess server;
+  auto c = server.Client();
+  c.set_read_timeout(60);
+  const std::string admin = server.admin_token();
+  const std::string clinician = CreateUserToken(c, admin, "cora", "clinician");
+  const std::string analyst = CreateUserToken(c, admin, "ana", "analyst");
+  const std::int64_t session = NewSession(c, clinician, "APR-01");
+  const json rapid = RunToEnd(c, clinician, session, {{"protocol", "rapid_parameterisation"}});
+  ASSERT_EQ(rapid["state"], "done") << rapid.dump();
+  const std::int64_t rapid_set = rapid["parameter_set_id"];
+  const std::int64_t subject_id =
+      Call(c, "GET", "/api/v1/sessions/" + std::to_string(session), clinician).body["subject_id"];
+  const std::string approved_path =
+      "/api/v1/subjects/" + std::to_string(subject_id) + "/legs/right/approved-parameter-set";
+  const auto approved_id = [&] {
+    auto r = Call(c, "GET", approved_path, analyst);
+    EXPECT_EQ(r.status, 200) << r.text;
+    EXPECT_EQ(r.body["approved"], true);
+    return r.body.value("id", std::int64_t{0});
+  };
+  auto by_run = Call(c, "GET", approved_path, analyst);
+  ASSERT_EQ(by_run.status, 200) << by_run.text;
+  EXPECT_EQ(by_run.body["id"], rapid_set);
+  EXPECT_EQ(by_run.body["approval"]["run_id"], rapid["run_id"]);
+  EXPECT_EQ(by_run.body["approval"]["approved_by"], "cora");
+
+  // A clinician imports the session's archive into another session of the
+  // leg: its set is stored, a candidate.
+  auto zip = c.Get("/api/v1/sessions/" + std::to_string(session) + "/export",
+                   {{"Authorization", "Bearer " + clinician}});
+  ASSERT_TRUE(zip);
+  ASSERT_EQ(zip->status, 200);
+  auto second = Call(
+      c, "POST", "/api/v1/subjects/" + std::to_string(subject_id) + "/sessions", clinician,
+      {{"leg", "right"}, {"date", "2026-11-26"}, {"threshold_ma", 14}, {"max_tolerated_ma", 45}});
+  ASSERT_EQ(second.status, 201) << second.text;
+  const std::int64_t second_id = second.body["id"];
+  auto imported = PostBytes(c, "/api/v1/sessions/" + std::to_string(second_id) + "/trials",
+                            clinician, zip->body, "application/zip");
+  ASSERT_TRUE(imported);
+  ASSERT_EQ(imported->status, 201) << imported->body.substr(0, 1000);
+  const std::int64_t imported_set = json::parse(imported->body)["parameter_sets"][0]["id"];
+  auto candidate =
+      Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(imported_set), analyst);
+  EXPECT_EQ(candidate.body["approved"], false) << candidate.text;
+  EXPECT_TRUE(candidate.body["approval"].is_null());
+  EXPECT_EQ(approved_id(), rapid_set) << "an import changed the gating set";
+
+  // An analyst's re-identification: a newer set, still not the gating one.
+  auto submitted = Call(c, "POST", "/api/v1/identifications", analyst,
+                        {{"session_id", session}, {"method", "rapid"}});
+  ASSERT_EQ(submitted.status, 202) << submitted.text;
+  const json job = WaitForJob(c, analyst, submitted.body["id"]);
+  ASSERT_EQ(job["state"], "done") << job.dump().substr(0, 1000);
+  EXPECT_GT(job["result"]["parameter_sets"][0]["id"].get<std::int64_t>(), imported_set);
+  EXPECT_EQ(approved_id(), rapid_set) << "a re-identification changed the gating set";
+
+  // Only a clinician approves, with a printable note.
+  const std::string approve = "/api/v1/parameter-sets/" + std::to_string(imported_set) + "/approve";
+  EXPECT_EQ(Call(c, "POST", approve, analyst, {{"note", "looks fine"}}).status, 403);
+  auto blank = Call(c, "POST", approve, clinician, {{"note", " "}});
+  EXPECT_EQ(blank.status, 400) << blank.text;
+  EXPECT_EQ(blank.body["error"]["field"], "note");
+  EXPECT_EQ(approved_id(), rapid_set);
+  auto approved = Call(c, "POST", approve, clinician, {{"note", "reviewed: rig B's import"}});
+  ASSERT_EQ(approved.status, 200) << approved.text;
+  EXPECT_EQ(approved.body["approved"], true);
+  EXPECT_EQ(approved.body["approval"]["approved_by"], "cora");
+  EXPECT_EQ(approved.body["approval"]["note"], "reviewed: rig B's import");
+  EXPECT_EQ(approved_id(), imported_set);
+  auto earlier = Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(rapid_set), analyst);
+  EXPECT_EQ(earlier.body["approved"], false);
+  EXPECT_EQ(earlier.body["approval"]["run_id"], rapid["run_id"]) << "the history stays";
+  EXPECT_EQ(Call(c, "POST", approve, clinician, {{"note", "again"}}).status, 409);
+  int audited = 0;
+  const JsonResponse audit = Call(c, "GET", "/api/v1/audit?limit=500", admin);
+  ASSERT_EQ(audit.status, 200);
+  for (const json& e : audit.body["items"]) {
+    if (e["action"] == "POST " + approve && e["outcome"] == "200") {
+      EXPECT_EQ(e["actor"], "cora");
+      EXPECT_NE(e["request_summary"].get<std::string>().find("rig B"), std::string::npos);
+      ++audited;
+    }
+    if (e["action"] == "parameter_set.approve") {
+      EXPECT_EQ(e["target"], "parameter-sets/" + std::to_string(rapid_set));
+      ++audited;
+    }
+  }
+  EXPECT_EQ(audited, 2);
+
+  // The daily check now compares with the approved import.
+  const json daily = RunToEnd(c, clinician, second_id, {{"protocol", "daily_check"}});
+  ASSERT_EQ(daily["state"], "done") << daily.dump().substr(0, 1000);
+  EXPECT_EQ(daily["result"]["base_parameter_set_id"], imported_set);
+
+  // Another subject whose only set is an import: no ungated prediction.
+  const std::int64_t other = NewSession(c, clinician, "APR-02");
+  auto only = PostBytes(c, "/api/v1/sessions/" + std::to_string(other) + "/trials", clinician,
+                        zip->body, "application/zip");
+  ASSERT_TRUE(only);
+  ASSERT_EQ(only->status, 201);
+  auto refused = Call(c, "POST", "/api/v1/sessions/" + std::to_string(other) + "/runs", clinician,
+                      {{"protocol", "prediction_step"}});
+  EXPECT_EQ(refused.status, 409) << refused.text;
+  EXPECT_NE(refused.text.find("no set is approved for the leg"), std::string::npos) << refused.text;
+  for (const std::string& protocol : {std::string("tracking"), std::string("daily_check")}) {
+    auto needs = Call(c, "POST", "/api/v1/sessions/" + std::to_string(other) + "/runs", clinician,
+                      {{"protocol", protocol}});
+    EXPECT_EQ(needs.status, 409) << needs.text;
+    EXPECT_NE(needs.text.find(protocol + " needs the leg's approved parameter set"),
+              std::string::npos)
+        << needs.text;
+    EXPECT_NE(needs.text.find("/approve"), std::string::npos) << "says how to approve one";
+  }
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
 }  // namespace
 }  // namespace fesbench::testing

@@ -2,13 +2,18 @@
 // tried with no token, a revoked token and each role: 401 without a valid
 // token, 403 for a role not allowed, anything else (the handler ran) for an
 // allowed role. The table below is this test's own inventory of the API;
-// it must equal the routes the OpenAPI document lists, and every documented
-// route must exist on the server.
+// it must equal the routes the OpenAPI document lists and the roles column
+// of docs/API.md's resource table, and every documented route must exist on
+// the server.
 
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <fstream>
+#include <map>
+#include <regex>
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include "server_process.h"
@@ -24,7 +29,8 @@ struct Expectation {
   const char* roles;  // "open", or letters c (clinician), a (analyst), d (admin)
 };
 
-// DESIGN.md §8 plus the issue's admin resources; admin may do everything.
+// docs/API.md, roles: clinicians write subjects, sessions, their trials and
+// runs; analysts read and analyse; admin may do everything.
 const Expectation kRoutes[] = {
     {"GET", "/api/v1/health", "open"},
     {"GET", "/api/v1/openapi.json", "open"},
@@ -41,7 +47,7 @@ const Expectation kRoutes[] = {
     {"GET", "/api/v1/sessions/{session_id}/runs", "cad"},
     {"POST", "/api/v1/sessions/{session_id}/runs", "cd"},
     {"GET", "/api/v1/sessions/{session_id}/trials", "cad"},
-    {"POST", "/api/v1/sessions/{session_id}/trials", "cad"},
+    {"POST", "/api/v1/sessions/{session_id}/trials", "cd"},
     {"GET", "/api/v1/sessions/{session_id}/export", "cad"},
     {"GET", "/api/v1/sessions/{session_id}/report", "cad"},
     {"GET", "/api/v1/trial-kinds", "cad"},
@@ -55,6 +61,8 @@ const Expectation kRoutes[] = {
     {"GET", "/api/v1/parameter-sets", "cad"},
     {"GET", "/api/v1/parameter-sets/{parameter_set_id}", "cad"},
     {"GET", "/api/v1/parameter-sets/{parameter_set_id}/predictions", "cad"},
+    {"POST", "/api/v1/parameter-sets/{parameter_set_id}/approve", "cd"},
+    {"GET", "/api/v1/subjects/{subject_id}/legs/{leg}/approved-parameter-set", "cad"},
     {"GET", "/api/v1/predictions/{prediction_id}", "cad"},
     {"POST", "/api/v1/identifications", "ad"},
     {"POST", "/api/v1/predictions", "ad"},
@@ -187,6 +195,122 @@ TEST(RolesTest, OpenApiDocumentsExactlyTheServedRoutes) {
   // A path outside the document is not served.
   auto unknown = Call(client, "GET", "/api/v1/not-a-resource", server.admin_token());
   EXPECT_TRUE(IsNoRoute(unknown));
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+// "METHOD /api/v1/a/{}/b": the route with its path parameters unnamed, as
+// docs/API.md names them differently ({id}) from the route table.
+std::string RouteKey(const std::string& method, std::string path) {
+  if (!path.starts_with("/api/v1")) path = "/api/v1" + path;
+  path = path.substr(0, path.find('?'));
+  return method + " " + std::regex_replace(path, std::regex(R"(\{[^}]*\})"), "{}");
+}
+
+// The roles column of docs/API.md ("open", "any", "clinician, admin", …)
+// as this file's letters.
+std::string RoleLetters(const std::string& column) {
+  if (column == "open") return "open";
+  if (column == "any") return "cad";
+  std::string letters;
+  if (column.find("clinician") != std::string::npos) letters += 'c';
+  if (column.find("analyst") != std::string::npos) letters += 'a';
+  if (column.find("admin") != std::string::npos) letters += 'd';
+  return letters;
+}
+
+// docs/API.md's resource table: route key → role letters.
+std::map<std::string, std::string> DocumentedRoles() {
+  std::ifstream in(std::string(FESBENCH_SOURCE_DIR) + "/docs/API.md");
+  EXPECT_TRUE(in.good()) << "docs/API.md not found";
+  std::map<std::string, std::string> roles;
+  const std::regex row(R"(^\| (`[A-Z]+ [^|]*`) \| ([^|]+) \|)");
+  const std::regex route("`([A-Z]+) (/[^`]*)`");
+  std::string line;
+  while (std::getline(in, line)) {
+    std::smatch m;
+    if (!std::regex_search(line, m, row)) continue;
+    const std::string letters =
+        RoleLetters(m[2].str().substr(0, m[2].str().find_last_not_of(' ') + 1));
+    const std::string routes = m[1];
+    for (std::sregex_iterator it(routes.begin(), routes.end(), route), end; it != end; ++it) {
+      roles[RouteKey((*it)[1], (*it)[2])] = letters;
+    }
+  }
+  return roles;
+}
+
+// The role table the docs give is the one the server enforces: every route,
+// with the same roles, and nothing else.
+TEST(RolesTest, DocsRoleTableIsTheRouteTable) {
+  const std::map<std::string, std::string> documented = DocumentedRoles();
+  std::set<std::string> served;
+  for (const auto& route : kRoutes) {
+    const std::string key = RouteKey(route.method, route.path);
+    served.insert(key);
+    const auto it = documented.find(key);
+    if (it == documented.end()) {
+      ADD_FAILURE() << "docs/API.md does not list " << key;
+      continue;
+    }
+    EXPECT_EQ(it->second, route.roles) << key << ": docs/API.md and the route table disagree";
+  }
+  for (const auto& [key, letters] : documented) {
+    EXPECT_TRUE(served.contains(key)) << "docs/API.md lists " << key << ", which is not served";
+  }
+}
+
+// Writing trials into a session is a clinician's: an analyst's import, of
+// a body a clinician may import, is refused, audited, and stores nothing.
+TEST(RolesTest, AnAnalystsImportIsRefusedAndStoresNothing) {
+  ServerProcess server;
+  auto client = server.Client();
+  const std::string admin = server.admin_token();
+  const std::string clinician = CreateUserToken(client, admin, "cli", "clinician");
+  const std::string analyst = CreateUserToken(client, admin, "ana", "analyst");
+  auto subject =
+      Call(client, "POST", "/api/v1/subjects", clinician, {{"code", "IMP-R"}, {"legs", {"right"}}});
+  ASSERT_EQ(subject.status, 201) << subject.text;
+  auto session =
+      Call(client, "POST",
+           "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) + "/sessions",
+           clinician, {{"leg", "right"}, {"date", "2026-11-25"}});
+  ASSERT_EQ(session.status, 201) << session.text;
+  const std::string trials =
+      "/api/v1/sessions/" + std::to_string(session.body["id"].get<int>()) + "/trials";
+  const json recording = {{"spec",
+                           {{"kind", "free_swing_passive"},
+                            {"format", "csv"},
+                            {"time_column", "t_s"},
+                            {"columns", {{{"column", "angle_deg"}, {"channel", "angle_deg"}}}}}},
+                          {"data", "t_s,angle_deg\n0,90\n0.005,89.5\n0.01,89\n"}};
+
+  auto refused = Call(client, "POST", trials, analyst, recording);
+  EXPECT_EQ(refused.status, 403) << refused.text;
+  EXPECT_EQ(refused.body["error"]["code"], "permission_denied");
+  auto archive = client.Post(trials + "?name=s.zip", {{"Authorization", "Bearer " + analyst}},
+                             std::string("PK\x03\x04", 4), "application/zip");
+  ASSERT_TRUE(archive);
+  EXPECT_EQ(archive->status, 403) << archive->body;
+  auto none = Call(client, "GET", trials, analyst);
+  ASSERT_EQ(none.status, 200);
+  EXPECT_TRUE(none.body["items"].empty()) << "a refused import stored something";
+  auto sets = Call(client, "GET", "/api/v1/parameter-sets", analyst);
+  ASSERT_EQ(sets.status, 200);
+  EXPECT_TRUE(sets.body["items"].empty());
+  int denied = 0;
+  const JsonResponse audit = Call(client, "GET", "/api/v1/audit", admin);
+  ASSERT_EQ(audit.status, 200);
+  for (const json& e : audit.body["items"]) {
+    if (e["outcome"] == "403 permission_denied" && e["action"] == "POST " + trials) {
+      EXPECT_EQ(e["actor"], "ana");
+      ++denied;
+    }
+  }
+  EXPECT_EQ(denied, 2);
+
+  auto imported = Call(client, "POST", trials, clinician, recording);
+  EXPECT_EQ(imported.status, 201) << "the same body from a clinician: " << imported.text;
+  EXPECT_EQ(Call(client, "GET", trials, analyst).body["items"].size(), 1u);
   EXPECT_EQ(server.Terminate(), 0);
 }
 

@@ -1,7 +1,7 @@
 // A parameter set as plots (IRC, twitch, passive and active torque–angle
 // and torque–velocity) with its values; two sets compared.
 import { api } from '../api.js';
-import { fmt, h, table } from '../dom.js';
+import { field, fmt, h, say, table } from '../dom.js';
 import { parameterCurves, parameterScalars, SCALAR_LABELS } from '../model.js';
 import { joinCurves, makePlot } from '../plot.js';
 import { legSide } from './subjects.js';
@@ -53,6 +53,39 @@ function breakpointTables(set) {
       table([c.xLabel, c.yLabel], c.x.map((x, i) => [fmt(x, 4), fmt(c.y[i], 4)]))));
 }
 
+// Whether the set is its leg's approved set, the one the model gate,
+// tracking and the daily check use (docs/SAFETY.md), and, for a clinician,
+// a form to approve it.
+function approvalText(set) {
+  const a = set.approval;
+  if (!a) return 'A candidate, never approved: the model gate, tracking and the daily check do not use it.';
+  const who = `${a.approved_by} at ${a.approved_at_utc.slice(0, 19).replace('T', ' ')} UTC (${a.note})`;
+  return set.approved ? `The leg's approved set: approved by ${who}.`
+    : `Approved earlier by ${who}; another set of the leg has been approved since.`;
+}
+
+function approvalSection(ctx, set) {
+  const status = h('p', { class: set.approved ? 'msg msg-ok' : 'msg msg-info', id: 'approval-status' }, approvalText(set));
+  const mayApprove = ctx.user.role === 'clinician' || ctx.user.role === 'admin';
+  if (!mayApprove || set.approved) return h('section', { 'aria-labelledby': 'approval-h' }, h('h2', { id: 'approval-h' }, 'Approval'), status);
+  const slot = h('div', { id: 'approval-message' });
+  const form = h('form', { id: 'approve-form', novalidate: true },
+    field('note', 'Why this set is right for the leg', { required: true, idPrefix: 'approve-' }),
+    h('button', { type: 'submit' }, 'Approve for this leg'), slot);
+  form.addEventListener('submit', async (ev) => {
+    ev.preventDefault();
+    try {
+      const approved = await api('POST', `/parameter-sets/${set.id}/approve`, { note: form.elements.note.value });
+      status.className = 'msg msg-ok';
+      status.textContent = approvalText(approved);
+      form.remove();
+    } catch (e) {
+      say(slot, 'error', e.message);
+    }
+  });
+  return h('section', { 'aria-labelledby': 'approval-h' }, h('h2', { id: 'approval-h' }, 'Approval'), status, form);
+}
+
 export async function parameterSetView(ctx, setId) {
   const set = await api('GET', `/parameter-sets/${setId}`);
   const subject = await api('GET', `/subjects/${set.subject_id}`);
@@ -68,6 +101,7 @@ export async function parameterSetView(ctx, setId) {
       h('a', { href: `#/subjects/${subject.id}/history` }, 'History of this subject'),
       mayPredict ? h('a', { href: `#/predict/${set.id}`, id: 'predict-link' }, 'Run a prediction with this set') : ''),
     warnings.length ? h('p', { class: 'msg msg-info' }, `Fit warnings: ${warnings.join('; ')}`) : '',
+    approvalSection(ctx, set),
     grid,
     h('section', { 'aria-labelledby': 'values-h' }, h('h2', { id: 'values-h' }, 'Values'),
       table(['Quantity', 'Value'], valueRows([set]), { id: 'values-table', class: 'kv' }),

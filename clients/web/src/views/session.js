@@ -373,6 +373,9 @@ export async function sessionView(ctx, sessionId) {
         recorded = h('p', { class: 'msg msg-ok', id: 'run-recorded' }, `Recorded in this session: threshold ${fmt(r.threshold_ma, 4)} mA, ` +
           `max tolerated ${fmt(r.max_tolerated_ma, 4)} mA (revision ${r.session_revision})` +
           (r.subject_signalled_limit ? ', where the subject signalled the limit.' : '.'));
+      } else if (r && r.ended_at_ceiling) {
+        recorded = h('p', { class: 'msg msg-error', id: 'run-not-recorded' },
+          `No max tolerated amplitude was recorded: ${r.message}.`);
       } else if (r && 'max_tolerated_ma' in r) {
         recorded = h('p', { class: 'msg msg-error', id: 'run-not-recorded' }, Number.isFinite(r.threshold_ma)
           ? `Measured threshold ${fmt(r.threshold_ma, 4)} mA and max tolerated ${fmt(r.max_tolerated_ma, 4)} mA, but they were not ` +
