@@ -1,6 +1,6 @@
 // Bounded, strict imports on the real server (docs/SAFETY.md "Uploads",
 // docs/API.md "Import"): zip bombs sent three at once by a signed-in
-// analyst leave the server's peak memory within its import budget, each is
+// clinician leave the server's peak memory within its import budget, each is
 // refused naming the entry or the budget, and the server still answers; a
 // stray entry, a deeply nested or duplicated JSON body and unknown fields
 // are refused naming them, storing nothing.
@@ -79,7 +79,7 @@ constexpr long kBoundKiB = 256 * 1024;  // the requirement: idle + 256 MiB at mo
 TEST(ImportLimitsTest, ThreeZipBombsAtOnceStayWithinTheBudget) {
   ServerProcess server;
   auto client = server.Client();
-  const std::string token = CreateUserToken(client, server.admin_token(), "ana", "analyst");
+  const std::string token = CreateUserToken(client, server.admin_token(), "cora", "clinician");
   const std::string import_path =
       "/api/v1/sessions/" + std::to_string(NewSession(client, server.admin_token())) + "/trials";
   const std::string motion =
