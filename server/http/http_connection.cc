@@ -25,9 +25,10 @@ void HttpServer::Accept() {
     socklen_t local_length = sizeof local;
     ::getsockname(fd, reinterpret_cast<sockaddr*>(&local), &local_length);
     c->local_ip = AddressText(local, c->local_port);
-    // A new connection's first head is due within head_timeout; it is idle
-    // (not request_started) until its first byte.
-    c->deadline = Clock::now() + options_.head_timeout;
+    // Idle (not request_started) until its first byte, as a kept-alive
+    // connection between requests; a crowd of them is made room for, not
+    // waited out (EvictOne).
+    c->deadline = Clock::now() + options_.keep_alive_timeout;
     std::size_t open = 0, from_address = 0;
     {
       std::lock_guard lock(connections_mutex_);

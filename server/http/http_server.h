@@ -25,8 +25,7 @@
 ///   ones first) is closed to make room, so idle or half-sent connections
 ///   can never keep an e-stop out (docs/SAFETY.md, "The e-stop under load").
 /// - Heads first: a request's head must be complete within `head_timeout`
-///   of its first byte (a new connection's within `head_timeout` of its
-///   accept). Before any of a body is read, the route, the bearer token, the
+///   of its first byte. Before any of a body is read, the route, the bearer token, the
 ///   role and the media type are checked on the head alone; a refusal is
 ///   answered at once and the connection closed, and `100 Continue` is sent
 ///   only to an admitted request.
@@ -82,8 +81,8 @@ struct HttpServerOptions {
   std::size_t max_upload_bytes = std::size_t{256} << 20;
   std::size_t max_headers = 64;          ///< more header lines: 431.
   std::size_t max_head_bytes = 16 * 1024;  ///< request line and headers; beyond: 431.
-  /// A request's head must be complete within this of its first byte (and a
-  /// new connection's first head within this of its accept); otherwise 408.
+  /// A request's head must be complete within this of its first byte;
+  /// otherwise 408.
   std::chrono::milliseconds head_timeout{3000};
   /// A body must be complete within this of its head (uploads: may stall at
   /// most this long, see above); otherwise 408 and the connection is closed.
