@@ -23,7 +23,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
 
-double MsSince(Clock::time_point start) {
+double ElapsedMs(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
@@ -103,7 +103,7 @@ TEST(EStopUnderPressureTest, AnsweredEveryTimeWhileIdleConnectionsUploadHeadsAnd
                clinician + "\r\nContent-Length: 0\r\n\r\n");
     const std::string answer = press.ReadUntil(
         [](const std::string& r) { return CountResponses(r) >= 1; }, milliseconds(5000));
-    latencies.push_back(MsSince(start));
+    latencies.push_back(ElapsedMs(start));
     if (RawStatus(answer) == 200) {
       ++answered;
     } else {
@@ -139,7 +139,7 @@ TEST(EStopUnderPressureTest, AnUploadHeadWithoutATokenIsRefusedBeforeItsBody) {
   ASSERT_TRUE(c.Send(kUploadHead));  // 256 MiB declared, none sent
   const std::string answer =
       c.ReadUntil([](const std::string& r) { return CountResponses(r) >= 1; }, milliseconds(3000));
-  const double ms = MsSince(start);
+  const double ms = ElapsedMs(start);
   EXPECT_EQ(RawStatus(answer), 401) << answer;
   EXPECT_NE(answer.find("WWW-Authenticate: Bearer"), std::string::npos) << answer;
   EXPECT_NE(answer.find("Connection: close"), std::string::npos) << answer;
@@ -168,7 +168,7 @@ TEST(EStopUnderPressureTest, AnAdmittedUploadThatNeverSendsItsBodyIsClosedByItsD
   const std::string answer = c.ReadUntil(
       [](const std::string& r) { return r.find("HTTP/1.1 408") != std::string::npos; },
       milliseconds(15000));
-  const double ms = MsSince(start);
+  const double ms = ElapsedMs(start);
   EXPECT_NE(answer.find("HTTP/1.1 100 Continue"), std::string::npos) << answer;
   EXPECT_NE(answer.find("HTTP/1.1 408"), std::string::npos) << answer;
   EXPECT_NE(answer.find("stalled"), std::string::npos) << answer;
