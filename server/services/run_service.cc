@@ -563,12 +563,13 @@ api::Status RunService::EStop(const Actor& actor, std::string_view source) {
   // Act first: nothing may delay the e-stop (DESIGN.md §6).
   owner_.EStop(who);
   try {
+    std::string target = "bench";
     {
-      std::lock_guard lock(mu_);
+      std::lock_guard lock(mu_);  // a run's `final` is written under it
       estop_source_ = who;
+      const auto it = runs_.find(current_run_id_);
+      if (it != runs_.end() && !it->second->final) target = RunTarget(it->second->run_id);
     }
-    const std::shared_ptr<LiveRun> run = Current();
-    const std::string target = run && !run->final ? RunTarget(run->run_id) : std::string("bench");
     // The latch outlives this process: stored with its audit row, before the answer.
     const api::Status stored = db_.Write([&](storage::Connection&) -> api::Status {
       if (api::Status st = storage::EStopLatchRepository(db_).RecordLatched(who, actor.user_name);

@@ -120,7 +120,13 @@ TEST(ImportLimitsTest, ThreeZipBombsAtOnceStayWithinTheBudget) {
   std::cout << "[ figure ] server RSS idle " << idle_kib / 1024 << " MiB, peak " << peak_kib / 1024
             << " MiB (+" << (peak_kib - idle_kib) / 1024 << " MiB) after 3 zip bombs and 3 table "
             << "bombs at once\n";
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  // A sanitizer's shadow memory and quarantine are not the server's: the
+  // bound holds for the real build only (the answers above hold for both).
+  (void)kBoundKiB;
+#else
   EXPECT_LT(peak_kib - idle_kib, kBoundKiB);
+#endif
   auto health = Call(client, "GET", "/api/v1/health", "");
   EXPECT_EQ(health.status, 200);
   EXPECT_EQ(StoredTrials(client, token, import_path), 0u);
