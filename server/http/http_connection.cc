@@ -70,13 +70,18 @@ bool HttpServer::EvictOne(const std::string* address, std::uint64_t except) {
       if (id != except && (address == nullptr || c->remote_ip == *address)) candidates.push_back(c);
     }
   }
-  // Idle and lingering connections first, then one whose request is still
-  // arriving; never one a worker is handling (its mutex is held).
-  for (const bool idle_only : {true, false}) {
+  // First an answered (lingering) connection or an idle one with no bytes
+  // waiting, then one whose bytes stopped coming, then any; never one a
+  // worker is handling (its mutex is held). Bytes waiting in the kernel mean
+  // a request is arriving: a new connection whose head (an e-stop, say) has
+  // not been read yet is not idle, however many came after it.
+  for (const int pass : {0, 1, 2}) {
     for (const auto& c : candidates) {
       std::unique_lock lock(c->mutex, std::try_to_lock);
       if (!lock.owns_lock() || c->closed) continue;
-      if (idle_only && !c->lingering && c->request_started) continue;
+      const bool quiet = pass == 2 || !c->BytesWaiting();
+      if (pass == 0 && !c->lingering && (c->request_started || !quiet)) continue;
+      if (pass == 1 && !c->lingering && !quiet) continue;
       Close(*c, false);
       return true;
     }

@@ -219,6 +219,12 @@ struct HttpServer::Connection {
     return ok;
   }
 
+  // Bytes the client sent are waiting to be read.
+  bool BytesWaiting() const {
+    char byte;
+    return ::recv(fd, &byte, 1, MSG_PEEK | MSG_DONTWAIT) > 0;
+  }
+
   // The client has closed its side (a FIN is waiting to be read).
   bool PeerGone() const {
     char byte;
