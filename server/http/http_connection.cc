@@ -222,8 +222,7 @@ void HttpServer::HandleBytes(Connection& c) {
         c.deadline = now + options_.head_timeout;
       }
       if (!f.head_complete) break;
-      const bool upload = IsUpload(f.method, f.path);
-      if (!c.admitted && (upload || f.state == Framing::State::kIncomplete)) {
+      if (!c.admitted && (f.upload || f.state == Framing::State::kIncomplete)) {
         // Checked on the head alone, before a byte of the body is read.
         std::string extra_headers;
         if (auto refusal = Preadmit(c, f.method, f.path, f.authorization, f.content_type,
@@ -233,7 +232,7 @@ void HttpServer::HandleBytes(Connection& c) {
         }
         c.admitted = true;
       }
-      if (upload) {
+      if (f.upload) {
         if (!StartSpool(c, f.skip + f.head_bytes, f.body_bytes, f.expect_continue)) return;
         continue;
       }

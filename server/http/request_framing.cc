@@ -222,12 +222,12 @@ Framing FrameRequest(std::string_view buffer, const FramingLimits& limits) {
   }
   f.keep_alive = !close_token && (!http10 || keep_alive_token);
   f.body_bytes = length.value_or(0);
-  const bool upload = IsUpload(f.method, f.path);
-  const std::size_t max_body = upload ? limits.max_upload_bytes : limits.max_body_bytes;
+  f.upload = IsUpload(f.method, f.path);
+  const std::size_t max_body = f.upload ? limits.max_upload_bytes : limits.max_body_bytes;
   if (f.body_bytes > max_body) {
     return Fail(f, 413, "payload_too_large",
                 "request body exceeds the server's limit of " + std::to_string(max_body >> 20) +
-                    " MiB" + (upload ? " for uploads" : ""));
+                    " MiB" + (f.upload ? " for uploads" : ""));
   }
   if ((f.method == "GET" || f.method == "HEAD") && f.body_bytes > 0) {
     return Fail(f, 400, "bad_request", "GET requests take no body");

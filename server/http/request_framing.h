@@ -49,6 +49,7 @@ struct Framing {
   std::string_view path;  ///< head_complete: the target's path (origin form, before '?').
   std::string_view authorization;  ///< head_complete: the Authorization header's value, if any.
   std::string_view content_type;   ///< head_complete: the Content-Type header's value, if any.
+  bool upload = false;  ///< head_complete: an upload (IsUpload), held to max_upload_bytes.
 
   /// Bytes of the whole request from the start of the buffer (kComplete).
   std::size_t total() const { return skip + head_bytes + body_bytes; }

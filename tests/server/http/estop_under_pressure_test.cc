@@ -23,10 +23,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
 
-double ElapsedMs(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
 const std::string kUploadHead =
     "POST /api/v1/sessions/1/trials HTTP/1.1\r\nHost: x\r\nContent-Type: application/zip\r\n"
     "Content-Length: 268435456\r\n\r\n";
@@ -103,7 +99,7 @@ TEST(EStopUnderPressureTest, AnsweredEveryTimeWhileIdleConnectionsUploadHeadsAnd
                clinician + "\r\nContent-Length: 0\r\n\r\n");
     const std::string answer = press.ReadUntil(
         [](const std::string& r) { return CountResponses(r) >= 1; }, milliseconds(5000));
-    latencies.push_back(ElapsedMs(start));
+    latencies.push_back(MsSince(start));
     if (RawStatus(answer) == 200) {
       ++answered;
     } else {
@@ -139,7 +135,7 @@ TEST(EStopUnderPressureTest, AnUploadHeadWithoutATokenIsRefusedBeforeItsBody) {
   ASSERT_TRUE(c.Send(kUploadHead));  // 256 MiB declared, none sent
   const std::string answer =
       c.ReadUntil([](const std::string& r) { return CountResponses(r) >= 1; }, milliseconds(3000));
-  const double ms = ElapsedMs(start);
+  const double ms = MsSince(start);
   EXPECT_EQ(RawStatus(answer), 401) << answer;
   EXPECT_NE(answer.find("WWW-Authenticate: Bearer"), std::string::npos) << answer;
   EXPECT_NE(answer.find("Connection: close"), std::string::npos) << answer;
@@ -168,7 +164,7 @@ TEST(EStopUnderPressureTest, AnAdmittedUploadThatNeverSendsItsBodyIsClosedByItsD
   const std::string answer = c.ReadUntil(
       [](const std::string& r) { return r.find("HTTP/1.1 408") != std::string::npos; },
       milliseconds(15000));
-  const double ms = ElapsedMs(start);
+  const double ms = MsSince(start);
   EXPECT_NE(answer.find("HTTP/1.1 100 Continue"), std::string::npos) << answer;
   EXPECT_NE(answer.find("HTTP/1.1 408"), std::string::npos) << answer;
   EXPECT_NE(answer.find("stalled"), std::string::npos) << answer;

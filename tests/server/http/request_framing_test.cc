@@ -58,7 +58,7 @@ TEST(RequestFramingTest, TheHeadersJudgedBeforeTheBody) {
   EXPECT_TRUE(f.head_complete);
   EXPECT_EQ(f.authorization, "Bearer fsb_x");
   EXPECT_EQ(f.content_type, "application/zip");
-  EXPECT_TRUE(IsUpload(f.method, f.path));
+  EXPECT_TRUE(f.upload);
   EXPECT_TRUE(Frame("GET / HTTP/1.1\r\n\r\n").authorization.empty());
 }
 

@@ -108,6 +108,12 @@ std::string RawExchange(int port, const std::string& request,
 /// The status code of a raw HTTP response ("HTTP/1.1 411 ..."), or −1.
 int RawStatus(const std::string& response);
 
+/// Milliseconds since `start` on the steady clock (latencies the tests print).
+inline double MsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
 /// Creates a user with `role` and returns a token for it (admin token used).
 std::string CreateUserToken(httplib::Client& client, const std::string& admin_token,
                             const std::string& name, const std::string& role);

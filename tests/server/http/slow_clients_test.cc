@@ -19,10 +19,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
 
-double MsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
 TEST(SlowClientsTest, HealthAndEStopAnsweredWhileEightySlowClientsAreOpen) {
   ServerProcess server;
   constexpr int kSlow = 80;
