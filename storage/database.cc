@@ -399,6 +399,10 @@ void Database::AfterCommit(std::function<void()> fn) {
   }
 }
 
+void Database::ApprovalsChanged() {
+  AfterCommit([this] { approvals_version_.fetch_add(1); });
+}
+
 void Database::SetParameterSetListener(ParameterSetListener listener) {
   std::lock_guard lock(listener_mutex_);
   parameter_set_listener_ = std::move(listener);
@@ -563,6 +567,7 @@ api::Status Database::RestoreFrom(const std::string& backup_path) {
     auto status = CopyDatabase(**source, static_cast<SqliteConnection&>(*writer_), Clock::now() + options_.retry_budget);
     if (!status.ok()) return status;
     auto mode = writer_->QueryText("PRAGMA journal_mode = WAL");
+    approvals_version_.fetch_add(1);  // whatever was copied, the approvals changed
     if (!mode.ok()) return mode.status();
   }
   return Migrate(std::nullopt);

@@ -29,6 +29,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -163,6 +164,19 @@ class Database {
   /// not held now. An SQLite file's lock cannot be lost: never called there.
   /// When it returns, no thread is inside the listener it replaced.
   void SetBenchLockListener(BenchLockListener listener);
+  /// Approvals of parameter sets as a version number for caches of them: it
+  /// grows after the commit of every approval made through this Database
+  /// (ApprovalsChanged, inside the approving transaction) and after a
+  /// restore. Other servers' approvals (PostgreSQL) do not move it, so a
+  /// cache keyed on it is sound only where this Database is the only writer
+  /// (only_writer()).
+  std::uint64_t approvals_version() const { return approvals_version_.load(); }
+  /// Counts one change of approvals once the current write transaction
+  /// commits (at once outside one); nothing if it rolls back.
+  void ApprovalsChanged();
+  /// True for an SQLite file held under its lock (DatabaseOptions::lock_file):
+  /// nothing but this Database writes to it.
+  bool only_writer() const { return file_lock_ != nullptr; }
   /// What Open changed on its way, for the server to say: the files of the
   /// database that group or others could read, narrowed to 0600.
   const std::vector<std::string>& open_notes() const { return open_notes_; }
@@ -206,6 +220,7 @@ class Database {
   std::minstd_rand jitter_{std::random_device{}()};  // back-off jitter, under writer_mutex_
   std::atomic<std::thread::id> writer_owner_{};      // the thread inside a write transaction
   std::vector<std::function<void()>> after_commit_;  // owned by the writer_owner_ thread
+  std::atomic<std::uint64_t> approvals_version_{0};
   std::mutex listener_mutex_;                        // guards parameter_set_listener_
   ParameterSetListener parameter_set_listener_;
 

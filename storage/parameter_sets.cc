@@ -355,6 +355,7 @@ api::Result<Approval> ParameterSetRepository::Approve(const NewApproval& approva
         approval.parameter_set_id, *leg, approval.approved_by_user_id, approval.approved_by,
         approval.run_id, approval.note, FormatUtc(at));
     if (!id.ok()) return id.status();
+    db_.ApprovalsChanged();
     Approval stored;
     stored.id = *id;
     stored.parameter_set_id = approval.parameter_set_id;

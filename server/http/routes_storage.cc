@@ -58,16 +58,78 @@ std::string WithFields(std::string object, const json& fields) {
   return object + "}";
 }
 
+// The newest approval of each set, by set id, read from the database once
+// per change of approvals (storage::Database::approvals_version): a GET of
+// a set, or of a page of them, reads no approval row while nothing was
+// approved since. Only where this server is the database's one writer; on a
+// PostgreSQL database that other servers share, every request reads.
+class ApprovalCache {
+ public:
+  explicit ApprovalCache(storage::Database& db) : db_(db) {}
+
+  api::Result<std::map<std::int64_t, storage::Approval>> Newest(
+      const std::vector<std::int64_t>& ids) {
+    if (!db_.only_writer()) return Read(ids);
+    // The version before the read: an approval committed meanwhile moves it
+    // on, so what this read found is never kept under the newer version.
+    const std::uint64_t version = db_.approvals_version();
+    std::map<std::int64_t, storage::Approval> out;
+    std::vector<std::int64_t> missing;
+    {
+      std::lock_guard lock(mu_);
+      if (version_ != version) {
+        entries_.clear();
+        version_ = version;
+      }
+      for (std::int64_t id : ids) {
+        auto it = entries_.find(id);
+        if (it == entries_.end()) {
+          missing.push_back(id);
+        } else if (it->second) {
+          out.emplace(id, *it->second);
+        }
+      }
+    }
+    if (missing.empty()) return out;
+    auto read = Read(missing);
+    if (!read.ok()) return read.status();
+    std::lock_guard lock(mu_);
+    const bool current = version_ == version && db_.approvals_version() == version;
+    if (current && entries_.size() + missing.size() > kCapacity) entries_.clear();
+    for (std::int64_t id : missing) {
+      auto it = read->find(id);
+      std::optional<storage::Approval> found;
+      if (it != read->end()) found = it->second;
+      if (current) entries_[id] = found;
+      if (found) out.emplace(id, std::move(*found));
+    }
+    return out;
+  }
+
+ private:
+  api::Result<std::map<std::int64_t, storage::Approval>> Read(
+      const std::vector<std::int64_t>& ids) {
+    auto approvals = storage::ParameterSetRepository(db_).LatestApprovals(ids);
+    if (!approvals.ok()) return approvals.status();
+    std::map<std::int64_t, storage::Approval> out;
+    for (storage::Approval& a : *approvals) out.emplace(a.parameter_set_id, std::move(a));
+    return out;
+  }
+
+  static constexpr std::size_t kCapacity = 4096;
+  storage::Database& db_;
+  std::mutex mu_;
+  std::uint64_t version_ = 0;
+  // Set id → its newest approval, or none (never approved).
+  std::unordered_map<std::int64_t, std::optional<storage::Approval>> entries_;
+};
+
 // The newest approval of each listed set, by set id.
 api::Result<std::map<std::int64_t, storage::Approval>> NewestApprovals(
-    storage::Database& db, const std::vector<storage::ParameterSetSummary>& sets) {
+    ApprovalCache& approvals, const std::vector<storage::ParameterSetSummary>& sets) {
   std::vector<std::int64_t> ids;
   for (const storage::ParameterSetSummary& s : sets) ids.push_back(s.id);
-  auto approvals = storage::ParameterSetRepository(db).LatestApprovals(ids);
-  if (!approvals.ok()) return approvals.status();
-  std::map<std::int64_t, storage::Approval> out;
-  for (storage::Approval& a : *approvals) out.emplace(a.parameter_set_id, std::move(a));
-  return out;
+  return approvals.Newest(ids);
 }
 
 json DetailsSchema() {
@@ -588,6 +650,7 @@ void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
 void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   auto cache = std::make_shared<ParameterSetCache>();
+  auto approval_cache = std::make_shared<ApprovalCache>(db);
   {
     auto q = PageParams();
     q.push_back({"subject_id", "integer", "only this subject's sets"});
@@ -601,7 +664,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                .tag = "parameter-sets",
                .summary = "Parameter-set history (filter by subject, leg, method, date range)",
                .query = q,
-               .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
+               .handler = [&db, approval_cache](RequestContext& ctx) -> api::Result<Reply> {
                  auto page = ParsePage(ctx);
                  if (!page.ok()) return page.status();
                  auto subject_id = QueryId(ctx, "subject_id");
@@ -639,7 +702,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                  }
                  auto found = storage::ParameterSetRepository(db).List(query);
                  if (!found.ok()) return found.status();
-                 auto approvals = NewestApprovals(db, *found);
+                 auto approvals = NewestApprovals(*approval_cache, *found);
                  if (!approvals.ok()) return approvals.status();
                  return JsonReply(MakePage(
                      *found, *page, [](const storage::ParameterSetSummary& s) { return s.id; },
@@ -658,7 +721,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
              .roles = kAnyRole,
              .tag = "parameter-sets",
              .summary = "One parameter set (DESIGN.md §3 JSON) with its provenance",
-             .handler = [&db, cache](RequestContext& ctx) -> api::Result<Reply> {
+             .handler = [&db, cache, approval_cache](RequestContext& ctx) -> api::Result<Reply> {
                const std::int64_t id = ctx.Id("parameter_set_id");
                auto body = cache->Find(id);
                if (!body) {
@@ -667,14 +730,15 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                  body = StoredParameterSetToJson(*set).dump();
                  cache->Put(id, *body);
                }
-               auto approval = storage::ParameterSetRepository(db).LatestApprovals({id});
+               auto approval = approval_cache->Newest({id});
                if (!approval.ok()) return approval.status();
+               const auto it = approval->find(id);
                ctx.res.status = 200;
                ctx.res.set_content(
-                   WithFields(
-                       std::move(*body),
-                       ApprovalFieldsToJson(approval->empty() ? std::nullopt
-                                                              : std::optional(approval->front()))),
+                   WithFields(std::move(*body),
+                              ApprovalFieldsToJson(it == approval->end()
+                                                       ? std::nullopt
+                                                       : std::optional(it->second))),
                    "application/json");
                return Reply{200, nullptr, true};
              }});

@@ -404,6 +404,9 @@ TEST(DataExchangeTest, OnlyAClinicianApprovedSetGatesStimulation) {
   EXPECT_GT(job["result"]["parameter_sets"][0]["id"].get<std::int64_t>(), imported_set);
   EXPECT_EQ(approved_id(), rapid_set) << "a re-identification changed the gating set";
 
+  auto gating = Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(rapid_set), analyst);
+  EXPECT_EQ(gating.body["approved"], true) << gating.text;
+
   // Only a clinician approves, with a printable note.
   const std::string approve = "/api/v1/parameter-sets/" + std::to_string(imported_set) + "/approve";
   EXPECT_EQ(Call(c, "POST", approve, analyst, {{"note", "looks fine"}}).status, 403);
@@ -417,6 +420,23 @@ TEST(DataExchangeTest, OnlyAClinicianApprovedSetGatesStimulation) {
   EXPECT_EQ(approved.body["approval"]["approved_by"], "cora");
   EXPECT_EQ(approved.body["approval"]["note"], "reviewed: rig B's import");
   EXPECT_EQ(approved_id(), imported_set);
+  // Both sets were read before the approval (the server keeps approvals
+  // between changes): read again, each shows the approval as it now is.
+  auto now_approved =
+      Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(imported_set), analyst);
+  EXPECT_EQ(now_approved.body["approved"], true) << now_approved.text;
+  EXPECT_EQ(now_approved.body["approval"]["note"], "reviewed: rig B's import");
+  auto listed = Call(c, "GET", "/api/v1/parameter-sets?subject_id=" + std::to_string(subject_id),
+                     analyst);
+  ASSERT_EQ(listed.status, 200) << listed.text;
+  int approved_listed = 0;
+  for (const json& s : listed.body["items"]) {
+    if (s["approved"] == true) {
+      EXPECT_EQ(s["id"], imported_set);
+      ++approved_listed;
+    }
+  }
+  EXPECT_EQ(approved_listed, 1) << listed.text;
   auto earlier = Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(rapid_set), analyst);
   EXPECT_EQ(earlier.body["approved"], false);
   EXPECT_EQ(earlier.body["approval"]["run_id"], rapid["run_id"]) << "the history stays";
