@@ -1,7 +1,9 @@
 // ScienceMode2 pulse-update latency (issue 21).
-// BM_CommandToWire: one StartChannelListMode packet encoded and written to
-// the serial port (termios, raw) until its last byte is readable at the far
-// end of a pseudo-terminal — the command-to-wire time on this host, without
+// BM_CommandToWire/2 and /4: one StartChannelListMode (ScienceMode2) or
+// Ll_Channel_Config (ScienceMode4) packet encoded and written to the serial
+// port (termios, raw, the device's settings) until its last byte is
+// readable at the far end of a pseudo-terminal, p50 and p99 as counters —
+// the command-to-wire time on this host, without
 // the USB-serial chip (the description §2.1 asks for the FTDI latency timer
 // at 1 ms, which adds up to 1 ms on real hardware).
 // BM_AcknowledgedUpdate: Stimulator::SetAmplitude against the emulator, the
@@ -21,12 +23,15 @@
 #include <termios.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <thread>
+#include <vector>
 
 #include "server/bench/composed_bench.h"
 #include "server/bench/emulator/sciencemode2_emulator.h"
 #include "server/bench/emulator/sciencemode4_emulator.h"
+#include "server/bench/sciencemode4_packet.h"
 #include "server/bench/sciencemode4_stimulator.h"
 #include "server/bench/simulated_bench.h"
 #include "server/bench/virtual_subject.h"
@@ -39,7 +44,11 @@ namespace {
 using namespace fesbench::server;
 using namespace fesbench::server::sciencemode2;
 
+// Arg 2: a ScienceMode2 StartChannelListMode on a port with the RehaStim 2's
+// settings; Arg 4: a ScienceMode4 biphasic Ll_Channel_Config on a port with
+// the P24's. Counters p50_us / p99_us: the distribution of the iterations.
 void BM_CommandToWire(benchmark::State& state) {
+  const bool p24 = state.range(0) == 4;
   const int master = ::posix_openpt(O_RDWR | O_NOCTTY);
   if (master < 0 || ::grantpt(master) != 0 || ::unlockpt(master) != 0) {
     state.SkipWithError("no pty");
@@ -50,17 +59,26 @@ void BM_CommandToWire(benchmark::State& state) {
   ::cfmakeraw(&tio);
   ::tcsetattr(master, TCSANOW, &tio);
   SerialPort port;
-  if (!port.Open(::ptsname(master)).empty()) {
+  if (!port.Open(::ptsname(master), p24 ? ScienceMode4Settings() : ScienceMode2Settings())
+           .empty()) {
     state.SkipWithError("cannot open the pty slave");
     return;
   }
   std::uint8_t number = 0;
-  std::uint8_t buffer[128];
+  std::uint8_t buffer[256];
   int ma = 0;
+  std::vector<double> us;
   for (auto _ : state) {
-    const ChannelPulse pulse{0, 300, ma};
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<std::uint8_t> wire;
+    if (p24) {
+      const sciencemode4::Point points[] = {{300, ma * 0.5}, {100, 0.0}, {300, -ma * 0.5}};
+      wire = sciencemode4::BuildLlChannelConfig(number++ & 0x3F, 1, 0, points);
+    } else {
+      const ChannelPulse pulse{0, 300, ma};
+      wire = BuildStartChannelListMode(number++, std::span(&pulse, 1));
+    }
     ma = (ma + 1) % 100;
-    const auto wire = BuildStartChannelListMode(number++, std::span(&pulse, 1));
     if (!port.Write(wire).empty()) {
       state.SkipWithError("write failed");
       break;
@@ -72,10 +90,17 @@ void BM_CommandToWire(benchmark::State& state) {
       const ssize_t n = ::read(master, buffer, sizeof buffer);
       if (n > 0) got += static_cast<std::size_t>(n);
     }
+    us.push_back(
+        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
   }
   ::close(master);
+  if (!us.empty()) {
+    std::sort(us.begin(), us.end());
+    state.counters["p50_us"] = us[us.size() / 2];
+    state.counters["p99_us"] = us[std::min(us.size() - 1, us.size() * 99 / 100)];
+  }
 }
-BENCHMARK(BM_CommandToWire)->UseRealTime()->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CommandToWire)->Arg(2)->Arg(4)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 void BM_AcknowledgedUpdate(benchmark::State& state) {
   Emulator emulator;

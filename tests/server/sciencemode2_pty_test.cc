@@ -14,6 +14,14 @@
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/serial_port.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/wait.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <csignal>
+
 namespace fesbench::server::sciencemode2 {
 namespace {
 
@@ -21,7 +29,7 @@ using namespace std::chrono_literals;
 
 class Link {
  public:
-  explicit Link(const std::string& path) { error_ = port_.Open(path); }
+  explicit Link(const std::string& path) { error_ = port_.Open(path, ScienceMode2Settings()); }
   const std::string& error() const { return error_; }
   SerialPort& port() { return port_; }
 
@@ -205,9 +213,131 @@ TEST(ScienceMode2Pty, DeviceWatchdogStopsStimulationWithoutTraffic) {
   EXPECT_EQ(d.back().reason, "watchdog");
 }
 
+TEST(ScienceMode2Pty, GetStimulationModeIsAnsweredWithTheMode) {
+  // §4.2: result 0, then 0 start mode, 1 initialised, 2 running.
+  Emulator emulator;
+  Link link(emulator.port_path());
+  ASSERT_EQ(link.error(), "");
+  link.Connect();
+  const auto mode = [&](std::uint8_t number) {
+    EXPECT_EQ(link.port().Write(BuildGetStimulationMode(number)), "");
+    auto reply = link.Expect(Command::kGetStimulationModeAck);
+    EXPECT_TRUE(reply);
+    EXPECT_EQ(reply ? reply->packet_number : 0, number);
+    return reply ? reply->extra : 0xFF;
+  };
+  EXPECT_EQ(mode(1), 0);
+  ASSERT_EQ(link.port().Write(BuildInitChannelListMode(2, TwoChannels())), "");
+  ASSERT_TRUE(link.Expect(Command::kInitChannelListModeAck));
+  EXPECT_EQ(mode(3), 1);
+  const ChannelPulse pulses[] = {{0, 300, 10}, {0, 300, 10}};
+  ASSERT_EQ(link.port().Write(BuildStartChannelListMode(4, pulses)), "");
+  ASSERT_TRUE(link.Expect(Command::kStartChannelListModeAck));
+  EXPECT_EQ(mode(5), 2);
+  EXPECT_EQ(StimulationModeName(2), "channel list running");
+}
+
+// The line settings each device documents, set and read back (tcgetattr)
+// on a real pty: the RehaStim 2's (§2.1 Table 4) and the P24's (the
+// ScienceMode4 library's smpt_serial_port_linux.c).
+TEST(SerialPortOnAPty, EachDevicesSettingsReadBack) {
+  Emulator emulator;
+  SerialPort port;
+  ASSERT_EQ(port.Open(emulator.port_path(), ScienceMode2Settings()), "");
+  const SerialSettings sm2 = port.settings();
+  EXPECT_EQ(sm2.baud, 460800);
+  // Parity (E) is not kept by a pty: Linux's pty driver clears PARENB, so
+  // Open checks it back on real ports only.
+  EXPECT_FALSE(sm2.even_parity);
+  EXPECT_EQ(sm2.stop_bits, 1);
+  EXPECT_FALSE(sm2.rts_cts);
+  EXPECT_EQ(ScienceMode2Settings().Describe(), "460800 8E1, no flow control");
+  port.Close();
+  ASSERT_EQ(port.Open(emulator.port_path(), ScienceMode4Settings()), "");
+  const SerialSettings sm4 = port.settings();
+  EXPECT_EQ(sm4.baud, 3000000);
+  EXPECT_FALSE(sm4.even_parity);
+  EXPECT_EQ(sm4.stop_bits, 2);
+  EXPECT_TRUE(sm4.rts_cts);
+  EXPECT_EQ(sm4.Describe(), "3000000 8N2, RTS/CTS");
+}
+
+TEST(SerialPortOnAPty, APortAnotherProgramLeftConfiguredOpens) {
+  Emulator emulator;
+  {
+    // What another program may leave: canonical mode, echo, XON/XOFF, odd
+    // parity, 7 bits, 9600 baud, no CLOCAL (the open would wait for carrier).
+    const int fd = ::open(emulator.port_path().c_str(), O_RDWR | O_NOCTTY);
+    ASSERT_GE(fd, 0);
+    termios tio{};
+    ASSERT_EQ(::tcgetattr(fd, &tio), 0);
+    tio.c_lflag |= ICANON | ECHO;
+    tio.c_iflag |= IXON | IXOFF | ICRNL;
+    tio.c_cflag = CS7 | PARENB | PARODD | CREAD | HUPCL;
+    ::cfsetspeed(&tio, B9600);
+    ASSERT_EQ(::tcsetattr(fd, TCSANOW, &tio), 0);
+    ::close(fd);
+  }
+  SerialPort port;
+  // Each device's settings over the other's, twice: a second server start
+  // on a port the first one configured.
+  for (int round = 0; round < 2; ++round) {
+    ASSERT_EQ(port.Open(emulator.port_path(), ScienceMode2Settings()), "") << round;
+    EXPECT_EQ(port.settings().baud, 460800);
+    ASSERT_EQ(port.Open(emulator.port_path(), ScienceMode4Settings()), "") << round;
+    EXPECT_EQ(port.settings().baud, 3000000);
+  }
+  port.Close();
+  // And the driver talks through it.
+  Link link(emulator.port_path());
+  ASSERT_EQ(link.error(), "");
+  link.Connect();
+}
+
+TEST(SerialPortOnAPty, APortHeldByAnotherProcessIsRefusedNamingIt) {
+  Emulator emulator;
+  const std::string path = emulator.port_path();
+  // util-linux flock(1) holds the same advisory lock the server takes (-o:
+  // flock itself, not the command it runs, keeps the port open).
+  const pid_t holder = ::fork();
+  ASSERT_GE(holder, 0);
+  if (holder == 0) {
+    ::setpgid(0, 0);  // flock and its command in a group of their own, ended together
+    ::execlp("flock", "flock", "-n", "-o", path.c_str(), "sleep", "10", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  bool held = false;
+  for (int i = 0; i < 300 && !held; ++i) {  // until the child holds it
+    const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
+    held = fd >= 0 && ::flock(fd, LOCK_EX | LOCK_NB) != 0;
+    if (fd >= 0) ::close(fd);
+    if (!held) std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_TRUE(held) << "flock(1) did not take the port";
+  SerialPort port;
+  const std::string why = port.Open(path, ScienceMode2Settings());
+  ::kill(-holder, SIGTERM);
+  ::waitpid(holder, nullptr, 0);
+  EXPECT_NE(why.find(path + ": in use by process " + std::to_string(holder) + " (flock)"),
+            std::string::npos)
+      << why;
+  EXPECT_FALSE(port.is_open());
+  // Once it is gone, the port opens.
+  std::string after;
+  for (int i = 0; i < 200; ++i) {
+    after = port.Open(path, ScienceMode2Settings());
+    if (after.empty()) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(after, "");
+  // And this server holds it against a second one (the same lock).
+  SerialPort second;
+  EXPECT_NE(second.Open(path, ScienceMode4Settings()), "");
+}
+
 TEST(ScienceMode2Pty, OpeningAMissingPortNamesIt) {
   SerialPort port;
-  const std::string why = port.Open("/dev/does-not-exist-sm2");
+  const std::string why = port.Open("/dev/does-not-exist-sm2", ScienceMode2Settings());
   EXPECT_NE(why.find("/dev/does-not-exist-sm2"), std::string::npos) << why;
   EXPECT_FALSE(port.is_open());
 }
