@@ -116,6 +116,10 @@ bool ComposedBench::HardwareEStopped() const {
 }
 
 
-std::string ComposedBench::HardwareFault() const { return stimulator_->fault(); }
+std::string ComposedBench::HardwareFault() const {
+  std::string fault = stimulator_->fault();
+  if (fault.empty()) return fault;
+  return std::string(stimulator_->name()) + " " + fault;  // e.g. "sciencemode2 stimulator timeout: …"
+}
 
 }  // namespace fesbench::server

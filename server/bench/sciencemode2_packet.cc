@@ -187,6 +187,22 @@ std::vector<std::uint8_t> BuildStopChannelListMode(std::uint8_t packet_number) {
   return EncodePacket(packet_number, Command::kStopChannelListMode, {});
 }
 
+std::vector<std::uint8_t> BuildGetStimulationMode(std::uint8_t packet_number) {
+  return EncodePacket(packet_number, Command::kGetStimulationMode, {});
+}
+
+std::string StimulationModeName(std::uint8_t mode) {
+  switch (static_cast<StimulationMode>(mode)) {
+    case StimulationMode::kStart:
+      return "start mode";
+    case StimulationMode::kChannelListInit:
+      return "channel list initialised";
+    case StimulationMode::kChannelListRun:
+      return "channel list running";
+  }
+  return "mode " + std::to_string(mode);
+}
+
 std::vector<std::uint8_t> BuildInitChannelListMode(std::uint8_t packet_number,
                                                    const ChannelListInit& init) {
   if (init.low_frequency_factor > 7) {

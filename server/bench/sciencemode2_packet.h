@@ -127,6 +127,18 @@ std::vector<std::uint8_t> BuildInitAck(std::uint8_t packet_number, std::int8_t r
 std::vector<std::uint8_t> BuildWatchdog(std::uint8_t packet_number);
 /// StopChannelListMode (§4.3).
 std::vector<std::uint8_t> BuildStopChannelListMode(std::uint8_t packet_number);
+/// GetStimulationMode (§4.2): no data; the device answers
+/// GetStimulationModeAck with its result and, if 0, its mode (StimulationMode).
+std::vector<std::uint8_t> BuildGetStimulationMode(std::uint8_t packet_number);
+
+/// The device's mode in GetStimulationModeAck's byte 8 (§4.2).
+enum class StimulationMode : std::uint8_t {
+  kStart = 0,             ///< start mode: no channel list initialised (single pulses only).
+  kChannelListInit = 1,   ///< channel-list mode initialised, not running.
+  kChannelListRun = 2,    ///< channel-list mode running.
+};
+/// "start mode", "channel list initialised", "channel list running", or "mode N".
+std::string StimulationModeName(std::uint8_t mode);
 
 /// InitChannelListMode parameters (§4.3, Table 2).
 struct ChannelListInit {

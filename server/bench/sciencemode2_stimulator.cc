@@ -23,7 +23,7 @@ Stimulator::~Stimulator() {
 
 void Stimulator::KeeperLoop() {
   std::unique_lock lock(keeper_mu_);
-  while (!keeper_cv_.wait_for(lock, std::chrono::milliseconds(100), [&] { return keeper_stop_; })) {
+  while (!keeper_cv_.wait_for(lock, std::chrono::milliseconds(50), [&] { return keeper_stop_; })) {
     lock.unlock();
     const bool alive = KeepAlive();
     lock.lock();
@@ -71,7 +71,6 @@ bool Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
     Fault("stimulator lost: " + why);
     return false;
   }
-  last_send_ = std::chrono::steady_clock::now();
   return true;
 }
 
@@ -80,10 +79,15 @@ bool Stimulator::HandleSpontaneous(const Reply& reply) {
     Fault("stimulator reported: " + StimulationErrorName(reply.result));
     return false;
   }
-  return true;  // Init repeats, UnknownCommand for another packet: ignored
+  if (reply.command == Command::kInit && connected_.load()) {
+    // §3.5: a device sends Init after it starts; once connected, it restarted.
+    Fault("stimulator reset: the device sent Init again (it restarted and stopped stimulating)");
+    return false;
+  }
+  return true;  // UnknownCommand for another packet, acks of an e-stop's stop: ignored
 }
 
-bool Stimulator::AwaitAck(Command command) {
+bool Stimulator::AwaitAck(Command command, Reply* ack) {
   const auto deadline = std::chrono::steady_clock::now() + config_.reply_timeout;
   while (true) {
     while (const auto frame = reader_.Pop()) {
@@ -114,6 +118,7 @@ bool Stimulator::AwaitAck(Command command) {
         Fault("stimulator refused: " + ResultName(reply->result));
         return false;
       }
+      if (ack != nullptr) *ack = *reply;
       return true;
     }
     if (const std::string why = reader_.ReadReply(deadline, config_.reply_timeout); !why.empty()) {
@@ -129,7 +134,7 @@ bool Stimulator::Connect() {
     Fault("channel must be 1–8, got " + std::to_string(config_.channel));
     return false;
   }
-  const std::string why = port_.Open(config_.port_path);
+  const std::string why = port_.Open(config_.port_path, ScienceMode2Settings());
   if (!why.empty()) {
     Fault(why);
     return false;
@@ -159,7 +164,9 @@ bool Stimulator::Connect() {
       }
     }
   }
+  connected_.store(true);
   if (!InitChannelList()) return false;
+  last_status_ = std::chrono::steady_clock::now();
   if (!keeper_.joinable()) keeper_ = std::thread([this] { KeeperLoop(); });
   return true;
 }
@@ -271,8 +278,34 @@ bool Stimulator::KeepAliveLocked() {
     const auto reply = ParseReply(*r.packet);
     if (reply && !HandleSpontaneous(*reply)) return false;
   }
-  if (std::chrono::steady_clock::now() - last_send_ >= config_.watchdog_interval) {
-    return Send(BuildWatchdog(NextPacketNumber()), /*stimulating=*/false);
+  if (std::chrono::steady_clock::now() - last_status_ >= config_.status_interval) {
+    return CheckModeLocked();
+  }
+  return true;
+}
+
+bool Stimulator::CheckModeLocked() {
+  // The mode the driver set, read before asking: a command of this thread
+  // cannot change it meanwhile (io_mu_ is held), an e-stop can.
+  const StimulationMode expected = stimulating_.load()   ? StimulationMode::kChannelListRun
+                                   : mode_ready_.load() ? StimulationMode::kChannelListInit
+                                                        : StimulationMode::kStart;
+  last_status_ = std::chrono::steady_clock::now();
+  last_sent_number_ = NextPacketNumber();
+  if (!Send(BuildGetStimulationMode(last_sent_number_), /*stimulating=*/false)) return false;
+  Reply ack;
+  if (!AwaitAck(Command::kGetStimulationModeAck, &ack)) return false;
+  // An e-stop on another thread stops the device (start mode) at any moment.
+  if (estop_.load()) return true;
+  const StimulationMode now = stimulating_.load()   ? StimulationMode::kChannelListRun
+                              : mode_ready_.load() ? StimulationMode::kChannelListInit
+                                                   : StimulationMode::kStart;
+  if (ack.extra != static_cast<std::uint8_t>(expected) &&
+      ack.extra != static_cast<std::uint8_t>(now)) {
+    Fault("stimulator in " + StimulationModeName(ack.extra) + " where the driver set " +
+          StimulationModeName(static_cast<std::uint8_t>(expected)) +
+          ": the device stopped or reset on its own");
+    return false;
   }
   return true;
 }

@@ -13,9 +13,17 @@
 /// from any thread (writes to the port are serialised, and no stimulating
 /// packet leaves after an e-stop's StopChannelListMode); the rest from one
 /// control thread. After Connect a keeper thread calls KeepAlive every
-/// 100 ms, so the device's watchdog is fed while no run is going on (else
-/// the device drops the connection after 1.2 s, §2.3, §5.2); exchanges with
-/// the device (command and ack, keep-alive) take turns under one lock.
+/// 50 ms, run or no run; exchanges with the device (command and ack,
+/// keep-alive) take turns under one lock.
+///
+/// Faults are seen within one status period: every `status_interval`
+/// KeepAlive asks the device its mode (GetStimulationMode, §4.2) and waits
+/// for the answer, which also feeds the device's watchdog (WatchdogTimeout
+/// 1.2 s, §2.3). No answer within reply_timeout, a mode other than the one
+/// the driver set (a device that stopped or reset on its own), or an Init
+/// from a device already connected (it restarted, §3.5) is a fault.
+/// The port is opened with the description's settings (§2.1 Table 4,
+/// ScienceMode2Settings) and held exclusively.
 
 #include <atomic>
 #include <chrono>
@@ -40,7 +48,10 @@ struct StimulatorConfig {
   double session_max_ma = 100.0;                     ///< refused above this (≤ 130).
   std::chrono::milliseconds reply_timeout{200};      ///< MaxResponseTime is 100 ms.
   std::chrono::milliseconds connect_timeout{1500};   ///< Init every 500 ms.
-  std::chrono::milliseconds watchdog_interval{500};  ///< < WatchdogTimeout 1200 ms.
+  /// How often the device is asked its mode: status_interval + keeper tick
+  /// (50 ms) + reply_timeout bounds the time to notice a silent, stopped or
+  /// reset device (450 ms by default).
+  std::chrono::milliseconds status_interval{200};
 };
 
 class Stimulator final : public StimulatorDevice {
@@ -70,8 +81,9 @@ class Stimulator final : public StimulatorDevice {
   double delivered_ma() const override { return acknowledged_ma_.load(); }
   /// StopChannelListMode and wait for its ack.
   bool Stop();
-  /// Sends a Watchdog if nothing was sent for watchdog_interval; also reads
-  /// any spontaneous packet (StimulationError). Call every control period.
+  /// Reads any spontaneous packet (StimulationError, a repeated Init) and,
+  /// once per status_interval, asks the device its mode and checks the
+  /// answer. Call every control period (the keeper thread calls it too).
   bool KeepAlive();
   bool Service() override { return KeepAlive(); }
   /// Sends StopChannelListMode at once (no wait for its ack) and latches.
@@ -83,6 +95,8 @@ class Stimulator final : public StimulatorDevice {
 
   bool faulted() const { return faulted_.load(); }
   std::string fault() const override;
+  /// The port's line settings as the terminal reports them now (tcgetattr).
+  SerialSettings port_settings() const { return port_.settings(); }
   /// The amplitude the device last acknowledged, mA (0 after a stop).
   double acknowledged_ma() const { return acknowledged_ma_.load(); }
 
@@ -95,8 +109,11 @@ class Stimulator final : public StimulatorDevice {
   void WriteStopLocked();
   /// InitChannelListMode (§4.3) and wait for its ack.
   bool InitChannelList();
-  /// Waits for `command`'s ack with the packet number just sent.
-  bool AwaitAck(Command command);
+  /// Waits for `command`'s ack with the packet number just sent; the ack in
+  /// `ack` if given.
+  bool AwaitAck(Command command, Reply* ack = nullptr);
+  /// GetStimulationMode and its answer against the mode the driver set.
+  bool CheckModeLocked();
   bool HandleSpontaneous(const Reply& reply);
   bool KeepAliveLocked();
   /// The limit check of SetAmplitude and SinglePulse: false (a fault) if
@@ -110,7 +127,8 @@ class Stimulator final : public StimulatorDevice {
   FrameReader reader_{port_};
   std::atomic<std::uint8_t> packet_number_{0};
   std::uint8_t last_sent_number_ = 0;
-  std::chrono::steady_clock::time_point last_send_{};
+  std::chrono::steady_clock::time_point last_status_{};  // last GetStimulationMode sent
+  std::atomic<bool> connected_{false};  // InitAck sent: an Init now is a reset
   std::mutex io_mu_;     // one exchange with the device at a time (reads of port_)
   std::mutex write_mu_;  // serialises writes to port_; orders them after an e-stop
   std::atomic<bool> estop_{false};

@@ -166,6 +166,31 @@ std::vector<std::uint8_t> BuildLlStop(std::uint8_t packet_number) {
   return EncodePacket(packet_number, Command::kLlStop, {});
 }
 
+std::vector<std::uint8_t> BuildGetStimStatus(std::uint8_t packet_number) {
+  return EncodePacket(packet_number, Command::kGetStimStatus, {});
+}
+
+std::string StimStatusName(std::uint8_t status) {
+  switch (static_cast<StimStatus>(status)) {
+    case StimStatus::kUninitialized:
+      return "uninitialised";
+    case StimStatus::kLlInitialized:
+      return "low level initialised";
+    case StimStatus::kMlInitialized:
+      return "mid level initialised";
+    case StimStatus::kMlRunning:
+      return "mid level running";
+  }
+  return "status " + std::to_string(status);
+}
+
+std::vector<std::uint8_t> BuildGetStimStatusAck(std::uint8_t packet_number, Result result,
+                                                StimStatus status, std::uint8_t high_voltage) {
+  const std::uint8_t data[] = {static_cast<std::uint8_t>(result), static_cast<std::uint8_t>(status),
+                               high_voltage};
+  return EncodePacket(packet_number, Command::kGetStimStatusAck, data);
+}
+
 std::vector<std::uint8_t> BuildAck(std::uint8_t packet_number, Command ack, Result result) {
   const std::uint8_t data[] = {static_cast<std::uint8_t>(result)};
   return EncodePacket(packet_number, ack, data);

@@ -36,7 +36,19 @@ enum class Command : std::uint16_t {
   kLlChannelConfigAck = 3,
   kLlStop = 4,
   kLlStopAck = 5,
+  kGetStimStatus = 62,     ///< general level (smpt_definitions_data_types.h, Smpt_Cmd)
+  kGetStimStatusAck = 63,  ///< result, stim status, high-voltage level
 };
+
+/// The stimulation status in Get_Stim_Status_Ack (Smpt_Stim_Status).
+enum class StimStatus : std::uint8_t {
+  kUninitialized = 0,
+  kLlInitialized = 1,
+  kMlInitialized = 2,
+  kMlRunning = 3,
+};
+/// "uninitialised", "low level initialised", …, or "status N".
+std::string StimStatusName(std::uint8_t status);
 
 /// Result codes of the acks (smpt_definitions.h, Smpt_Result).
 enum class Result : std::uint8_t {
@@ -108,12 +120,18 @@ std::vector<std::uint8_t> BuildLlChannelConfig(std::uint8_t packet_number, int c
                                                int connector, std::span<const Point> points);
 /// Ll_Stop: leaves low-level mode.
 std::vector<std::uint8_t> BuildLlStop(std::uint8_t packet_number);
+/// Get_Stim_Status (general level): no data.
+std::vector<std::uint8_t> BuildGetStimStatus(std::uint8_t packet_number);
 
 /// The device's side (for the emulator): an ack with its result; a channel
 /// config ack also names the channel and connector, without measurement.
 std::vector<std::uint8_t> BuildAck(std::uint8_t packet_number, Command ack, Result result);
 std::vector<std::uint8_t> BuildLlChannelConfigAck(std::uint8_t packet_number, Result result,
                                                   int channel, int connector);
+/// Get_Stim_Status_Ack (insert_get_stim_status_ack): result, stim status,
+/// high-voltage level, one byte each.
+std::vector<std::uint8_t> BuildGetStimStatusAck(std::uint8_t packet_number, Result result,
+                                                StimStatus status, std::uint8_t high_voltage);
 
 /// A decoded Ll_Channel_Config (the emulator's view of it).
 struct ChannelConfig {

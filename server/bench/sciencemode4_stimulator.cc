@@ -13,6 +13,14 @@ Stimulator::Stimulator(StimulatorConfig config)
     : config_(std::move(config)), session_max_ma_(config_.session_max_ma) {}
 
 Stimulator::~Stimulator() {
+  if (keeper_.joinable()) {
+    {
+      std::lock_guard lock(keeper_mu_);
+      keeper_stop_ = true;
+    }
+    keeper_cv_.notify_all();
+    keeper_.join();
+  }
   std::lock_guard lock(write_mu_);
   if (initialised_.load() && port_.is_open() && !faulted()) {
     (void)port_.Write(BuildLlStop(NextPacketNumber()));
@@ -59,7 +67,17 @@ bool Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
   return true;
 }
 
-bool Stimulator::AwaitAck(Command ack) {
+void Stimulator::KeeperLoop() {
+  std::unique_lock lock(keeper_mu_);
+  while (!keeper_cv_.wait_for(lock, std::chrono::milliseconds(50), [&] { return keeper_stop_; })) {
+    lock.unlock();
+    const bool alive = Service();
+    lock.lock();
+    if (!alive) return;  // faulted: nothing more to keep
+  }
+}
+
+bool Stimulator::AwaitAck(Command ack, std::vector<std::uint8_t>* data) {
   const auto deadline = std::chrono::steady_clock::now() + config_.reply_timeout;
   while (true) {
     while (const auto frame = reader_.Pop()) {
@@ -75,6 +93,7 @@ bool Stimulator::AwaitAck(Command ack) {
         Fault("stimulator refused: " + ResultName(result));
         return false;
       }
+      if (data != nullptr) *data = r.packet->data;
       return true;
     }
     if (const std::string why = reader_.ReadReply(deadline, config_.reply_timeout); !why.empty()) {
@@ -102,11 +121,15 @@ bool Stimulator::Connect() {
     Fault("pulse width must be 1–4095 µs, got " + std::to_string(config_.pulse_width_us));
     return false;
   }
-  if (const std::string why = port_.Open(config_.port_path); !why.empty()) {
+  if (const std::string why = port_.Open(config_.port_path, ScienceMode4Settings());
+      !why.empty()) {
     Fault(why);
     return false;
   }
-  return InitLowLevel();
+  if (!InitLowLevel()) return false;
+  last_status_ = std::chrono::steady_clock::now();
+  if (!keeper_.joinable()) keeper_ = std::thread([this] { KeeperLoop(); });
+  return true;
 }
 
 bool Stimulator::CheckLimit(double stim_ma) {
@@ -158,6 +181,33 @@ bool Stimulator::Service() {
       Fault("stimulator reply garbled: " + DecodeErrorName(*r.error));
       return false;
     }
+  }
+  if (std::chrono::steady_clock::now() - last_status_ >= config_.status_interval) {
+    return CheckStatusLocked();
+  }
+  return true;
+}
+
+bool Stimulator::CheckStatusLocked() {
+  const bool was_initialised = initialised_.load();
+  last_status_ = std::chrono::steady_clock::now();
+  last_sent_number_ = NextPacketNumber();
+  if (!Send(BuildGetStimStatus(last_sent_number_), /*stimulating=*/false)) return false;
+  std::vector<std::uint8_t> data;
+  if (!AwaitAck(Command::kGetStimStatusAck, &data)) return false;
+  if (data.size() < 2) {
+    Fault("stimulator status garbled: " + std::to_string(data.size()) + " data bytes");
+    return false;
+  }
+  if (estop_.load()) return true;  // an e-stop's Ll_Stop may land at any moment
+  const auto expected = [](bool initialised) {
+    return static_cast<std::uint8_t>(initialised ? StimStatus::kLlInitialized
+                                                 : StimStatus::kUninitialized);
+  };
+  if (data[1] != expected(was_initialised) && data[1] != expected(initialised_.load())) {
+    Fault("stimulator " + StimStatusName(data[1]) + " where the driver set " +
+          StimStatusName(expected(was_initialised)) + ": the device reset or stopped on its own");
+    return false;
   }
   return true;
 }

@@ -11,13 +11,24 @@
 /// (best effort), latches, and names the reason; it refuses any current
 /// above 150 mA or the session maximum. Not verified against a device: the
 /// packet layout is the public C library's, the timing a pty's.
+/// The port is opened with the library's settings (ScienceMode4Settings:
+/// 3 Mbaud, 8N2, RTS/CTS) and held exclusively. Faults are seen within one
+/// status period, run or no run: every status_interval Service asks the
+/// device its stimulation status (Get_Stim_Status) and waits for the
+/// answer; none within reply_timeout, or a status other than the one the
+/// driver set (low level initialised, or uninitialised after a stop: a
+/// device that reset or left low level on its own) is a fault. A keeper
+/// thread calls Service every 50 ms.
 /// Threading as StimulatorDevice; exchanges take turns under one lock.
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <mutex>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/sciencemode4_packet.h"
@@ -33,6 +44,8 @@ struct StimulatorConfig {
   int pulse_width_us = 300;                      ///< each phase, 1–4095 µs.
   double session_max_ma = 100.0;                 ///< refused above this (≤ 150).
   std::chrono::milliseconds reply_timeout{200};
+  /// How often the device is asked its status (see the file comment).
+  std::chrono::milliseconds status_interval{200};
 };
 
 class Stimulator final : public StimulatorDevice {
@@ -54,7 +67,8 @@ class Stimulator final : public StimulatorDevice {
   /// One biphasic pulse now (Ll_Channel_Config) and its ack.
   std::optional<double> SinglePulse(double stim_ma) override;
   double delivered_ma() const override { return amplitude_ma_.load(); }
-  /// Reads what the device sent on its own; false on a fault.
+  /// Reads what the device sent on its own and, once per status_interval,
+  /// checks its status; false on a fault.
   bool Service() override;
   /// Sends Ll_Stop at once (no wait for its ack) and latches: no pulse is
   /// sent until ClearEStop, which initialises low-level mode again.
@@ -62,13 +76,19 @@ class Stimulator final : public StimulatorDevice {
   void ClearEStop() override { estop_.store(false); }
   bool estopped() const override { return estop_.load(); }
   std::string fault() const override;
+  /// The port's line settings as the terminal reports them now (tcgetattr).
+  SerialSettings port_settings() const { return port_.settings(); }
   void Fault(const std::string& reason);
   bool faulted() const { return faulted_.load(); }
 
  private:
   bool Send(const std::vector<std::uint8_t>& wire, bool stimulating);
   /// Waits for `ack` with the packet number just sent; its result must be 0.
-  bool AwaitAck(Command ack);
+  /// The ack's data in `data` if given.
+  bool AwaitAck(Command ack, std::vector<std::uint8_t>* data = nullptr);
+  /// Get_Stim_Status and its answer against the status the driver set.
+  bool CheckStatusLocked();
+  void KeeperLoop();
   bool CheckLimit(double stim_ma);
   bool InitLowLevel();
   std::uint8_t NextPacketNumber() { return packet_number_.fetch_add(1) & 0x3F; }
@@ -87,6 +107,11 @@ class Stimulator final : public StimulatorDevice {
   std::atomic<bool> faulted_{false};
   mutable std::mutex fault_mu_;  // guards fault_
   std::string fault_;
+  std::chrono::steady_clock::time_point last_status_{};  // under io_mu_
+  std::mutex keeper_mu_;  // guards keeper_stop_
+  std::condition_variable keeper_cv_;
+  bool keeper_stop_ = false;
+  std::thread keeper_;
 };
 
 }  // namespace fesbench::server::sciencemode4

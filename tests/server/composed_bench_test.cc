@@ -307,7 +307,9 @@ TEST_P(DeviceFailure, EndsTheRunWithTheDevicesReason) {
   };
   const RunResult r = rig.Run("isometric_ramp_irc");
   EXPECT_EQ(r.state, RunState::kAborted);
-  EXPECT_NE(r.reason.find(std::string("e-stop: ") + GetParam().reason), std::string::npos)
+  // The reason names the device and what it did.
+  EXPECT_NE(r.reason.find(std::string("e-stop: sciencemode2 ") + GetParam().reason),
+            std::string::npos)
       << r.reason;
   EXPECT_LE(rig.device->updates.size(), 7u);  // stopped at the next update or service
   // The driver's StopChannelListMode reaches the device (which still reads

@@ -6,7 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <thread>
 
 #include "server/bench/emulator/sciencemode2_emulator.h"
@@ -154,9 +156,67 @@ TEST(ScienceMode2Stimulator, SilenceIsATimeout) {
   EXPECT_EQ(stim.fault(), "stimulator timeout: no reply within 150 ms");
 }
 
+// A device that goes silent, restarts, or stops on its own while the driver
+// sends nothing (a constant train: only the keeper thread's status queries)
+// is noticed within one status period: status_interval 200 ms + keeper tick
+// 50 ms + reply_timeout 200 ms, the defaults. Measured from the fault to the
+// driver's fault, which writes StopChannelListMode before it latches.
+TEST(ScienceMode2Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASecond) {
+  struct Case {
+    EmulatorFault fault;
+    const char* reason;
+  };
+  const Case cases[] = {{EmulatorFault::kSilent, "stimulator timeout: no reply within 200 ms"},
+                        {EmulatorFault::kReset, "reset"},
+                        {EmulatorFault::kWrongMode,
+                         "stimulator in start mode where the driver set channel list running"}};
+  double worst_ms = 0;
+  for (const Case& c : cases) {
+    for (const auto phase : {0ms, 90ms, 170ms}) {  // where in the status period the fault falls
+      Emulator emulator;
+      StimulatorConfig config;  // the defaults, as the server uses them
+      config.port_path = emulator.port_path();
+      config.session_max_ma = 60.0;
+      Stimulator stim(config);
+      ASSERT_TRUE(stim.Connect()) << stim.fault();
+      ASSERT_TRUE(stim.SetAmplitude(20.0)) << stim.fault();
+      std::this_thread::sleep_for(phase);
+      const auto t0 = std::chrono::steady_clock::now();
+      emulator.set_fault(c.fault);
+      while (!stim.faulted() && std::chrono::steady_clock::now() - t0 < 3s) {
+        std::this_thread::sleep_for(1ms);
+      }
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      ASSERT_TRUE(stim.faulted()) << c.reason;
+      EXPECT_NE(stim.fault().find(c.reason), std::string::npos) << stim.fault();
+      EXPECT_EQ(stim.acknowledged_ma(), 0.0);
+      std::this_thread::sleep_for(20ms);
+      EXPECT_FALSE(emulator.stimulating()) << c.reason;
+      worst_ms = std::max(worst_ms, ms);
+      std::cout << "[ figure ] ScienceMode2 " << c.reason << ", phase " << phase.count()
+                << " ms: noticed in " << ms << " ms\n";
+    }
+  }
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+  EXPECT_LE(worst_ms, 500.0);  // one status period; a sanitizer's slowdown is not the driver's
+#endif
+}
+
+TEST(ScienceMode2Stimulator, ThePortHasTheDescriptionsSettings) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  const SerialSettings s = stim.port_settings();  // tcgetattr on the open port
+  EXPECT_EQ(s.baud, 460800);  // §2.1 Table 4 (its even parity a pty cannot keep)
+  EXPECT_TRUE(ScienceMode2Settings().even_parity);
+  EXPECT_EQ(s.stop_bits, 1);
+  EXPECT_FALSE(s.rts_cts);
+}
+
 TEST(ScienceMode2Stimulator, WatchdogKeepsTheDeviceStimulating) {
-  // §2.3: without traffic the device stops after 1200 ms; KeepAlive every
-  // control period sends Watchdog every 500 ms.
+  // §2.3: without traffic the device stops after 1200 ms; the status query
+  // (GetStimulationMode every 200 ms) is traffic.
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect()) << stim.fault();

@@ -8,6 +8,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <iostream>
+
 #include <chrono>
 #include <cmath>
 #include <string_view>
@@ -164,6 +167,61 @@ TEST(ScienceMode4Stimulator, LostGarbledAndSilentDevicesAreNamedFaults) {
     EXPECT_FALSE(stim.SinglePulse(10.0));
     EXPECT_EQ(stim.fault(), "stimulator timeout: no reply within 150 ms");
   }
+}
+
+// Between pulses (or runs) only the keeper thread's status queries go to
+// the device: a silent, reset or stopped P24 is noticed within one status
+// period (200 ms + 50 ms tick + 200 ms reply timeout, the defaults).
+TEST(ScienceMode4Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASecond) {
+  struct Case {
+    EmulatorFault fault;
+    const char* reason;
+  };
+  const Case cases[] = {
+      {EmulatorFault::kSilent, "stimulator timeout: no reply within 200 ms"},
+      {EmulatorFault::kReset, "stimulator uninitialised where the driver set low level initialised"},
+      {EmulatorFault::kWrongMode,
+       "stimulator uninitialised where the driver set low level initialised"}};
+  double worst_ms = 0;
+  for (const Case& c : cases) {
+    for (const auto phase : {0ms, 90ms, 170ms}) {
+      Emulator emulator;
+      StimulatorConfig config;  // the defaults
+      config.port_path = emulator.port_path();
+      config.session_max_ma = 60.0;
+      Stimulator stim(config);
+      ASSERT_TRUE(stim.Connect()) << stim.fault();
+      ASSERT_EQ(stim.SinglePulse(20.0), std::optional<double>(20.0)) << stim.fault();
+      std::this_thread::sleep_for(phase);
+      const auto t0 = std::chrono::steady_clock::now();
+      emulator.set_fault(c.fault);
+      while (!stim.faulted() && std::chrono::steady_clock::now() - t0 < 3s) {
+        std::this_thread::sleep_for(1ms);
+      }
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      ASSERT_TRUE(stim.faulted()) << c.reason;
+      EXPECT_NE(stim.fault().find(c.reason), std::string::npos) << stim.fault();
+      EXPECT_FALSE(stim.SinglePulse(10.0));
+      worst_ms = std::max(worst_ms, ms);
+      std::cout << "[ figure ] ScienceMode4 " << c.reason << ", phase " << phase.count()
+                << " ms: noticed in " << ms << " ms\n";
+    }
+  }
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+  EXPECT_LE(worst_ms, 500.0);
+#endif
+}
+
+TEST(ScienceMode4Stimulator, ThePortHasTheLibrarysSettings) {
+  Emulator emulator;
+  Stimulator stim(ConfigFor(emulator));
+  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  const SerialSettings s = stim.port_settings();  // tcgetattr on the open port
+  EXPECT_EQ(s.baud, 3000000);  // smpt_serial_port.c: B3000000
+  EXPECT_FALSE(s.even_parity);  // smpt_serial_port_linux.c: PARENB cleared, CSTOPB, CRTSCTS
+  EXPECT_EQ(s.stop_bits, 2);
+  EXPECT_TRUE(s.rts_cts);
 }
 
 TEST(ScienceMode4ComposedBench, EveryPulseTheLegReceivedWasSentToTheDevice) {

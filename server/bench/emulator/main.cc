@@ -30,6 +30,7 @@ void RunSm2(const std::string& fault, const std::string& log_path) {
   Emulator emulator;
   if (fault == "corrupt-replies") emulator.set_fault(EmulatorFault::kCorruptReplies);
   if (fault == "silent") emulator.set_fault(EmulatorFault::kSilent);
+  if (fault == "wrong-mode") emulator.set_fault(EmulatorFault::kWrongMode);
   Wait(emulator.port_path());
   if (log_path.empty()) return;
   std::ofstream out(log_path);
@@ -46,6 +47,7 @@ void RunSm4(const std::string& fault, const std::string& log_path) {
   Emulator emulator;
   if (fault == "corrupt-replies") emulator.set_fault(EmulatorFault::kCorruptReplies);
   if (fault == "silent") emulator.set_fault(EmulatorFault::kSilent);
+  if (fault == "wrong-mode") emulator.set_fault(EmulatorFault::kWrongMode);
   Wait(emulator.port_path());
   if (log_path.empty()) return;
   std::ofstream out(log_path);
@@ -67,8 +69,10 @@ int main(int argc, char** argv) {
   app.add_option("--device", device, "sm2 (RehaStim2, ScienceMode2) or sm4 (P24, low level)")
       ->check(CLI::IsMember({"sm2", "sm4"}));
   app.add_option("--log", log_path, "write deliveries as JSON lines to this file at exit");
-  app.add_option("--fault", fault, "none, corrupt-replies or silent")
-      ->check(CLI::IsMember({"none", "corrupt-replies", "silent"}));
+  app.add_option("--fault", fault,
+                 "none, corrupt-replies, silent, or wrong-mode (stops on its own and says so "
+                 "when asked)")
+      ->check(CLI::IsMember({"none", "corrupt-replies", "silent", "wrong-mode"}));
   CLI11_PARSE(app, argc, argv);
 
   std::signal(SIGINT, OnSignal);

@@ -92,6 +92,19 @@ void Emulator::Loop() {
       Send(own_packet_number_++, static_cast<std::uint8_t>(Command::kInit), {kProtocolVersion});
       last_init_ = now;
     }
+    if (fault_ == EmulatorFault::kReset) {  // a restart: as after power-on (§3.5)
+      if (stimulating_) Record({0, 0, 0, 0, true, "reset"});
+      stimulating_ = false;
+      initialized_ = false;
+      connected_ = false;
+      last_init_ = now - kInitRepetition;
+      fault_ = EmulatorFault::kNone;
+    }
+    if (fault_ == EmulatorFault::kWrongMode && stimulating_) {
+      Record({0, 0, 0, 0, true, "wrong mode"});
+      stimulating_ = false;
+      initialized_ = false;
+    }
     if (connected_ && now - last_valid_ > kWatchdogTimeout) {
       // §5.2 "Data transfer physically broken": stop, reset all modes, send Init.
       if (stimulating_) Record({0, 0, 0, 0, true, "watchdog"});
@@ -142,6 +155,13 @@ void Emulator::HandleFrame(const std::vector<std::uint8_t>& frame) {
       return;
     case Command::kWatchdog:
       return;  // §4.1: no response
+    case Command::kGetStimulationMode: {  // §4.2: result 0, then the mode
+      const StimulationMode mode = stimulating_ ? StimulationMode::kChannelListRun
+                                   : initialized_ ? StimulationMode::kChannelListInit
+                                                  : StimulationMode::kStart;
+      return Send(p.packet_number, static_cast<std::uint8_t>(Command::kGetStimulationModeAck),
+                  {static_cast<std::uint8_t>(Result::kOk), static_cast<std::uint8_t>(mode)});
+    }
     case Command::kInitChannelListMode: {
       if (p.data.size() != 7) return ack(Command::kInitChannelListModeAck, Result::kParameterError);
       if (stimulating_) return ack(Command::kInitChannelListModeAck, Result::kWrongModeError);

@@ -9,8 +9,10 @@
 /// answers a bad checksum or length with the command's ack carrying the
 /// transfer error (§5.2), sends UnknownCommand for unknown numbers (§4.1),
 /// and stops stimulation when no valid packet arrives within
-/// WatchdogTimeout (§2.3, §5.2). It records every delivery it was asked for.
-/// Faults for tests: corrupt replies, silence, a pulled cable.
+/// WatchdogTimeout (§2.3, §5.2); answers GetStimulationMode with its mode
+/// (§4.2: 0 start, 1 channel list initialised, 2 running). It records every
+/// delivery it was asked for. Faults for tests: corrupt replies, silence, a
+/// reset, a wrong mode, a pulled cable.
 
 #include <atomic>
 #include <chrono>
@@ -29,13 +31,16 @@ struct Delivery {
   int current_ma = 0;
   int pulse_width_us = 0;
   bool stop = false;   ///< StopChannelListMode, or the watchdog stopping.
-  std::string reason;  ///< for stops: "command" or "watchdog"; "single" for a SinglePulse.
+  std::string reason;  ///< for stops: "command", "watchdog", "reset" or "wrong mode";
+                       ///< "single" for a SinglePulse.
 };
 
 enum class EmulatorFault {
   kNone,
   kCorruptReplies,  ///< every reply's checksum byte is flipped.
   kSilent,          ///< reads everything, answers nothing (after InitAck).
+  kReset,           ///< restarts once: stops, forgets InitAck, sends Init again (§3.5).
+  kWrongMode,       ///< stops stimulating on its own and says start mode when asked.
 };
 
 class Emulator {

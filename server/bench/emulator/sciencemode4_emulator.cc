@@ -73,6 +73,15 @@ void Emulator::Loop() {
   sciencemode2::FrameSplitter splitter;  // the same delimiters and stuffing
   std::uint8_t buffer[1024];
   while (running_) {
+    if (fault_ == EmulatorFault::kReset) {
+      if (initialised_) Record({0, 0, {}, true});
+      initialised_ = false;
+      fault_ = EmulatorFault::kNone;
+    }
+    if (fault_ == EmulatorFault::kWrongMode && initialised_) {
+      Record({0, 0, {}, true});
+      initialised_ = false;
+    }
     pollfd p{master_fd_, POLLIN, 0};
     if (::poll(&p, 1, 5) <= 0 || !(p.revents & POLLIN)) continue;
     const ssize_t n = ::read(master_fd_, buffer, sizeof buffer);
@@ -131,6 +140,10 @@ void Emulator::HandleFrame(const std::vector<std::uint8_t>& frame) {
       return Send(BuildLlChannelConfigAck(p.packet_number, Result::kSuccessful, config->channel,
                                           config->connector));
     }
+    case Command::kGetStimStatus:
+      return Send(BuildGetStimStatusAck(
+          p.packet_number, Result::kSuccessful,
+          initialised_ ? StimStatus::kLlInitialized : StimStatus::kUninitialized, 0));
     case Command::kLlStop:
       initialised_ = false;
       Record({0, 0, {}, true});

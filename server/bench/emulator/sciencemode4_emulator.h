@@ -5,8 +5,10 @@
 /// acknowledges Ll_Init, Ll_Channel_Config (one pulse, recorded) and Ll_Stop;
 /// a channel config before Ll_Init gets "not initialised"; a frame failing
 /// its checksum or length gets a transfer-error ack of the command it
-/// names; points outside the device's ranges a parameter error. Faults for
-/// tests: corrupt replies, silence, a pulled cable.
+/// names; points outside the device's ranges a parameter error;
+/// Get_Stim_Status is answered with the status (low level initialised or
+/// not). Faults for tests: corrupt replies, silence, a reset, a wrong
+/// status, a pulled cable.
 
 #include <atomic>
 #include <chrono>
@@ -30,7 +32,13 @@ struct Delivery {
   double current_ma() const { return points.empty() ? 0.0 : points.front().current_ma; }
 };
 
-enum class EmulatorFault { kNone, kCorruptReplies, kSilent };
+enum class EmulatorFault {
+  kNone,
+  kCorruptReplies,
+  kSilent,
+  kReset,      ///< restarts once: leaves low level (as after power-on), then answers.
+  kWrongMode,  ///< leaves low level on its own and says "uninitialised" when asked.
+};
 
 class Emulator {
  public:
