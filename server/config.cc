@@ -49,6 +49,15 @@ api::Status ValidateServerConfig(const ServerConfig& c) {
         "--stimulator " + c.stimulator + " needs --stimulator-port (e.g. /dev/ttyUSB0)",
         "stimulator-port");
   }
+  if (c.stimulator != "sim" && c.time_scale != 1.0) {
+    // A device fires in real time whatever the bench's clock does: at another
+    // scale it would be sent a whole run's commands too fast (or too slow)
+    // and deliver something other than the stored trial says.
+    return api::Status::InvalidArgument(
+        "must be 1 with --stimulator " + c.stimulator +
+            " (a real stimulator runs in real time; other scales are for the simulated one)",
+        "time-scale");
+  }
   const int channels = c.stimulator == "sciencemode4" ? 4 : 8;
   if (c.stimulator_channel < 1 || c.stimulator_channel > channels) {
     return api::Status::InvalidArgument("must be in [1, " + std::to_string(channels) + "]",

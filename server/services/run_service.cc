@@ -207,7 +207,13 @@ BenchState RunService::State() const {
                bench_.HardwareEStopped();
   s.busy = owner_.busy();
   std::lock_guard lock(mu_);
-  if (s.estopped) s.estop_source = estop_source_;
+  if (s.estopped) {
+    s.estop_source = estop_source_;
+    // A device that failed latched the e-stop itself: it is the source.
+    if (estop_source_.empty()) {
+      if (std::string fault = bench_.HardwareFault(); !fault.empty()) s.estop_source = fault;
+    }
+  }
   const auto it = runs_.find(current_run_id_);
   if (it == runs_.end()) return s;
   const LiveRun& r = *it->second;

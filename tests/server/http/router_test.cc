@@ -159,6 +159,16 @@ TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
   ASSERT_TRUE(ApplyConfigJson(R"({"stimulator-port": "/dev/ttyUSB0"})", c).ok());
   EXPECT_TRUE(ValidateServerConfig(c).ok());
   EXPECT_EQ(c.stimulator_channel, 2);
+  // A real stimulator runs in real time only.
+  for (double scale : {0.0, 0.5, 10.0}) {
+    c.time_scale = scale;
+    const api::Status refused = ValidateServerConfig(c);
+    EXPECT_EQ(refused.field(), "time-scale") << scale;
+    EXPECT_NE(refused.message().find("--stimulator sciencemode2"), std::string::npos)
+        << refused.message();
+  }
+  c.time_scale = 1.0;
+  EXPECT_TRUE(ValidateServerConfig(c).ok());
   EXPECT_EQ(ApplyConfigJson(R"({"stimulator-channel": 9})", c).field(), "stimulator-channel");
   c.stimulator = "sciencemode4";  // a P24: channels 1–4
   EXPECT_TRUE(ValidateServerConfig(c).ok());
