@@ -194,6 +194,45 @@ void PulseRecord::Append(double t_s_value, double stim_ma_value) {
   stim_ma.push_back(stim_ma_value);
 }
 
+Status ValidateDeviceCommandLog(const DeviceCommandLog& log) {
+  const std::string f = "device_commands.";
+  if (log.device.empty() || log.device.size() > 64) {
+    return Status::InvalidArgument("must be 1–64 characters", f + "device");
+  }
+  if (!std::isfinite(log.pulse_rate_hz) || log.pulse_rate_hz <= 0.0) {
+    return Status::InvalidArgument("must be a finite number > 0", f + "pulse_rate_hz");
+  }
+  if (!std::isfinite(log.current_step_ma) || log.current_step_ma <= 0.0) {
+    return Status::InvalidArgument("must be a finite number > 0", f + "current_step_ma");
+  }
+  const std::size_t n = log.t_s.size();
+  for (const auto& [name, size] : {std::pair{"requested_ma", log.requested_ma.size()},
+                                   std::pair{"commanded_ma", log.commanded_ma.size()},
+                                   std::pair{"single_pulse", log.single_pulse.size()}}) {
+    if (size != n) {
+      return Status::InvalidArgument(
+          "has " + std::to_string(size) + " values, t_s has " + std::to_string(n), f + name);
+    }
+  }
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::string at = "[" + std::to_string(k) + "]";
+    if (!std::isfinite(log.t_s[k])) return Status::InvalidArgument("value is not finite", f + "t_s" + at);
+    if (k > 0 && !(log.t_s[k] >= log.t_s[k - 1])) {
+      return Status::InvalidArgument("command times decrease", f + "t_s" + at);
+    }
+    for (const auto& [name, v] : {std::pair{"requested_ma", log.requested_ma[k]},
+                                  std::pair{"commanded_ma", log.commanded_ma[k]}}) {
+      if (!std::isfinite(v) || v < 0.0) {
+        return Status::InvalidArgument("must be a finite number >= 0", f + name + at);
+      }
+    }
+    if (log.commanded_ma[k] > log.requested_ma[k] + 1e-9) {
+      return Status::InvalidArgument("is above the requested amplitude", f + "commanded_ma" + at);
+    }
+  }
+  return Status::Ok();
+}
+
 Status ValidatePulseRecord(const PulseRecord& pulses) {
   if (!std::isfinite(pulses.pulse_rate_hz) || pulses.pulse_rate_hz <= 0.0) {
     return Status::InvalidArgument("must be a finite number > 0", "pulses.pulse_rate_hz");
@@ -239,6 +278,9 @@ Status ValidateTrial(const Trial& trial) {
   if (Status s = ValidateChannelGroup(trial.MainGroup()); !s.ok()) return s;
   if (trial.emg) {
     if (Status s = ValidateChannelGroup(*trial.emg, "emg."); !s.ok()) return s;
+  }
+  if (trial.device_commands) {
+    if (Status s = ValidateDeviceCommandLog(*trial.device_commands); !s.ok()) return s;
   }
   if (trial.pulses) {
     if (Status s = ValidatePulseRecord(*trial.pulses); !s.ok()) return s;
@@ -469,6 +511,61 @@ Status GroupFromJsonInto(const nlohmann::json& json, const std::string& prefix,
 
 }  // namespace
 
+namespace {
+
+Result<DeviceCommandLog> DeviceCommandLogFromJson(const nlohmann::json& json) {
+  const std::string f = "device_commands.";
+  if (!json.is_object()) return Status::InvalidArgument("must be an object", "device_commands");
+  DeviceCommandLog log;
+  const auto device = json.find("device");
+  if (device == json.end() || !device->is_string()) {
+    return Status::InvalidArgument("must be a string", f + "device");
+  }
+  log.device = device->get<std::string>();
+  for (const auto& [key, target] : {std::pair{"pulse_rate_hz", &log.pulse_rate_hz},
+                                    std::pair{"current_step_ma", &log.current_step_ma}}) {
+    const auto v = json.find(key);
+    if (v == json.end() || !v->is_number()) {
+      return Status::InvalidArgument("must be a number", f + key);
+    }
+    *target = v->get<double>();
+  }
+  const auto start = json.find("start_monotonic_ns");
+  if (start == json.end() || !start->is_number_integer()) {
+    return Status::InvalidArgument("must be an integer", f + "start_monotonic_ns");
+  }
+  log.start_monotonic_ns = start->get<std::int64_t>();
+  for (const auto& [key, target] : {std::pair{"t_s", &log.t_s},
+                                    std::pair{"requested_ma", &log.requested_ma},
+                                    std::pair{"commanded_ma", &log.commanded_ma}}) {
+    const auto v = json.find(key);
+    if (v == json.end() || !v->is_array()) {
+      return Status::InvalidArgument("must be an array", f + key);
+    }
+    for (std::size_t k = 0; k < v->size(); ++k) {
+      if (!(*v)[k].is_number()) {
+        return Status::InvalidArgument("must be a number", f + key + "[" + std::to_string(k) + "]");
+      }
+      target->push_back((*v)[k].get<double>());
+    }
+  }
+  const auto single = json.find("single_pulse");
+  if (single == json.end() || !single->is_array()) {
+    return Status::InvalidArgument("must be an array", f + "single_pulse");
+  }
+  for (std::size_t k = 0; k < single->size(); ++k) {
+    if (!(*single)[k].is_boolean()) {
+      return Status::InvalidArgument("must be true or false",
+                                     f + "single_pulse[" + std::to_string(k) + "]");
+    }
+    log.single_pulse.push_back((*single)[k].get<bool>());
+  }
+  if (Status s = ValidateDeviceCommandLog(log); !s.ok()) return s;
+  return log;
+}
+
+}  // namespace
+
 nlohmann::json GroupToJson(const ChannelGroup& group) {
   return {{"sample_rate_hz", group.sample_rate_hz}, {"channels", ChannelsToJson(group.channels)}};
 }
@@ -487,6 +584,17 @@ nlohmann::json TrialToJson(const Trial& trial) {
                       {"pulse_width_us", trial.pulses->pulse_width_us},
                       {"t_s", trial.pulses->t_s},
                       {"stim_ma", trial.pulses->stim_ma}};
+  }
+  if (trial.device_commands) {
+    const DeviceCommandLog& d = *trial.device_commands;
+    json["device_commands"] = {{"device", d.device},
+                               {"pulse_rate_hz", d.pulse_rate_hz},
+                               {"current_step_ma", d.current_step_ma},
+                               {"start_monotonic_ns", d.start_monotonic_ns},
+                               {"t_s", d.t_s},
+                               {"requested_ma", d.requested_ma},
+                               {"commanded_ma", d.commanded_ma},
+                               {"single_pulse", d.single_pulse}};
   }
   return json;
 }
@@ -556,6 +664,11 @@ Result<Trial> TrialFromJson(const nlohmann::json& json) {
     }
     if (Status s = ValidatePulseRecord(record); !s.ok()) return s;
     trial.pulses = std::move(record);
+  }
+  if (const auto log = json.find("device_commands"); log != json.end() && !log->is_null()) {
+    auto parsed = DeviceCommandLogFromJson(*log);
+    if (!parsed.ok()) return parsed.status();
+    trial.device_commands = std::move(*parsed);
   }
   if (Status s = ValidateKindOfName(trial); !s.ok()) return s;
   return trial;

@@ -86,6 +86,31 @@ struct PulseRecord {
   friend bool operator==(const PulseRecord&, const PulseRecord&) = default;
 };
 
+/// What a hardware stimulator was told during a trial, and when (README,
+/// "A real stimulator"): one entry per command that set what the device
+/// delivers — an amplitude update of a train the device paces itself, a
+/// single pulse, or each pulse of a device the host paces. The simulated
+/// stimulator has none. Times are the host's monotonic clock, from the
+/// trial's start: `start_monotonic_ns` is that clock (CLOCK_MONOTONIC) at
+/// the trial's t_s = 0, the same instant as the trial's start_time_unix_ms.
+struct DeviceCommandLog {
+  std::string device;                 ///< the driver, e.g. "sciencemode2"; not empty.
+  double pulse_rate_hz = 0.0;         ///< the device's own pulse rate (1 / its period), > 0.
+  double current_step_ma = 0.0;       ///< the device's resolution, > 0.
+  std::int64_t start_monotonic_ns = 0;
+  /// When each command was handed to the device's serial port, s from the
+  /// trial's start; finite, non-decreasing.
+  std::vector<double> t_s;
+  std::vector<double> requested_ma;   ///< what the control loop asked for, ≥ 0.
+  /// What the device was told: requested_ma rounded down to the device's
+  /// step (never above the request), ≥ 0.
+  std::vector<double> commanded_ma;
+  std::vector<bool> single_pulse;     ///< a single pulse (else a train's amplitude or a paced pulse).
+
+  std::size_t size() const { return t_s.size(); }
+  friend bool operator==(const DeviceCommandLog&, const DeviceCommandLog&) = default;
+};
+
 /// A recorded (or simulated) trial.
 struct Trial {
   std::optional<std::int64_t> id;                  ///< storage id, once stored.
@@ -99,6 +124,7 @@ struct Trial {
   std::vector<Channel> channels;                   ///< includes `t_s`.
   std::optional<ChannelGroup> emg;                 ///< EMG at its own rate (1 kHz).
   std::optional<PulseRecord> pulses;               ///< delivered pulses, if recorded.
+  std::optional<DeviceCommandLog> device_commands; ///< a hardware stimulator's commands.
 
   /// The main group's channel called `name`, or nullptr.
   const Channel* FindChannel(std::string_view name) const;
@@ -135,6 +161,11 @@ Status ValidateChannelGroup(const ChannelGroup& group, std::string_view field_pr
 /// length, times finite and non-decreasing, amplitudes finite and ≥ 0.
 /// The reported field is "pulses.<name>" (e.g. "pulses.t_s[3]").
 Status ValidatePulseRecord(const PulseRecord& pulses);
+/// Checks a device command log: device named, rate and step finite and
+/// > 0, columns of equal length, times finite and non-decreasing,
+/// amplitudes finite and ≥ 0, commanded ≤ requested. Field
+/// "device_commands.<name>".
+Status ValidateDeviceCommandLog(const DeviceCommandLog& log);
 /// Checks the main group and, if present, the EMG group and the pulses, and
 /// that a set kind is the kind of a set name (field "kind").
 Status ValidateTrial(const Trial& trial);

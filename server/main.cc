@@ -93,6 +93,13 @@ api::Result<OpenedBench> OpenBench(const server::ServerConfig& config) {
     options.time_scale = config.time_scale;
     options.seed = config.seed;
     options.limits.max_stop_impact_deg_s = config.max_stop_impact_deg_s;
+    if (config.stimulator == "sciencemode2") {
+      // The RehaStim 2 fires its channel list at its own period (33 Hz asked,
+      // 30.5 ms fired): the leg's pulse clock runs at that rate, so the leg
+      // and the stored trials get the pulses on the device's grid.
+      options.limits.pulse_rate_hz =
+          server::sciencemode2::DevicePulseRateHz(options.limits.pulse_rate_hz);
+    }
     auto sim = server::services::SwappableSimulatedBench::Create(
         server::DrawVirtualSubject(config.seed), options);
     if (!sim.ok()) return sim.status();

@@ -97,6 +97,35 @@ api::Result<api::Trial> GetTrialIn(Connection& c, std::int64_t id) {
       id);
   if (!pulses.ok()) return pulses.status();
   if (!pulses->empty()) trial.pulses = std::move(pulses->front());
+  auto commands = internal::QueryRows(
+      c,
+      "SELECT device, pulse_rate_hz, current_step_ma, start_monotonic_ns, command_count,"
+      " t_s_f64le, requested_ma_f64le, commanded_ma_f64le, single_pulse_u8"
+      " FROM trial_device_commands WHERE trial_id = ?1",
+      [&](const Statement& s) -> api::Result<api::DeviceCommandLog> {
+        const auto count = static_cast<std::size_t>(s.Int64(4));
+        auto t = UnpackFloat64Le(s.Blob(5));
+        auto requested = UnpackFloat64Le(s.Blob(6));
+        auto commanded = UnpackFloat64Le(s.Blob(7));
+        const auto single = s.Blob(8);
+        if (!t || !requested || !commanded || t->size() != count || requested->size() != count ||
+            commanded->size() != count || single.size() != count) {
+          return internal::BadStoredValue("device commands of trial " + std::to_string(id));
+        }
+        api::DeviceCommandLog log;
+        log.device = s.Text(0);
+        log.pulse_rate_hz = s.Double(1);
+        log.current_step_ma = s.Double(2);
+        log.start_monotonic_ns = s.Int64(3);
+        log.t_s = std::move(*t);
+        log.requested_ma = std::move(*requested);
+        log.commanded_ma = std::move(*commanded);
+        for (std::byte b : single) log.single_pulse.push_back(b != std::byte{0});
+        return log;
+      },
+      id);
+  if (!commands.ok()) return commands.status();
+  if (!commands->empty()) trial.device_commands = std::move(commands->front());
   for (StoredChannel& stored : *channels) {
     if (stored.group == "main") {
       trial.sample_rate_hz = stored.rate_hz;
@@ -154,6 +183,23 @@ api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner, const
               " t_s_f64le, stim_ma_f64le) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
               id, p.pulse_rate_hz, p.pulse_width_us, static_cast<std::int64_t>(p.size()),
               PackFloat64Le(p.t_s), PackFloat64Le(p.stim_ma));
+          !s.ok()) {
+        return s;
+      }
+    }
+    if (trial.device_commands) {
+      const api::DeviceCommandLog& d = *trial.device_commands;
+      std::vector<std::byte> single;
+      for (bool b : d.single_pulse) single.push_back(b ? std::byte{1} : std::byte{0});
+      if (auto s = internal::Execute(
+              c,
+              "INSERT INTO trial_device_commands (trial_id, device, pulse_rate_hz, current_step_ma,"
+              " start_monotonic_ns, command_count, t_s_f64le, requested_ma_f64le,"
+              " commanded_ma_f64le, single_pulse_u8) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9,"
+              " ?10)",
+              id, d.device, d.pulse_rate_hz, d.current_step_ma, d.start_monotonic_ns,
+              static_cast<std::int64_t>(d.size()), PackFloat64Le(d.t_s),
+              PackFloat64Le(d.requested_ma), PackFloat64Le(d.commanded_ma), single);
           !s.ok()) {
         return s;
       }

@@ -11,7 +11,9 @@
 /// and which must act at once (it is the software twin of the red button
 /// that cuts stimulator and motor power, §5.1).
 
+#include <chrono>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -128,6 +130,29 @@ class Bench {
   /// session's limits): a real driver refuses anything above it on its own,
   /// a second line below SafeBench's clamp. Thread-safe.
   virtual void SetStimulationCeiling(double /*max_ma*/) {}
+
+  /// The hardware stimulator behind this bench: its driver, its own pulse
+  /// rate (the period it really fires at) and its current step. nullopt for
+  /// the simulated stimulator.
+  struct StimulatorInfo {
+    std::string device;
+    double pulse_rate_hz = 0.0;
+    double current_step_ma = 0.0;
+    /// The device fires its own train on its own clock (ScienceMode2's
+    /// channel list); else the host sends every pulse.
+    bool paces_own_train = false;
+  };
+  virtual std::optional<StimulatorInfo> HardwareStimulator() const { return std::nullopt; }
+  /// One command written to a hardware stimulator (api::DeviceCommandLog).
+  struct DeviceCommand {
+    std::chrono::steady_clock::time_point written;  ///< handed to the serial port.
+    double requested_ma = 0.0;                      ///< what the caller asked for.
+    double commanded_ma = 0.0;                      ///< what the device was told.
+    bool single_pulse = false;
+  };
+  /// The commands written to the stimulator since the previous call, in
+  /// order; none without a hardware stimulator. Control thread.
+  virtual std::vector<DeviceCommand> DrainDeviceCommands() { return {}; }
 };
 
 }  // namespace fesbench::server

@@ -23,6 +23,7 @@ void ComposedBench::SetStimAmplitude(double stim_ma) {
   }
   if (stimulator_->host_paced()) {
     // Nothing to send: the leg's pulse clock paces the device (AdvanceTo).
+    requested_train_ma_ = stim_ma;
     if (!stimulator_->SetAmplitude(stim_ma)) {
       if (!stimulator_->estopped()) HardwareEStop();
       body_->SetStimAmplitude(0.0);
@@ -43,6 +44,7 @@ void ComposedBench::SetStimAmplitude(double stim_ma) {
       return;
     }
     sent_ma_.store(stimulator_->delivered_ma());
+    LogCommand(stim_ma, stimulator_->delivered_ma(), false);
   }
   body_->SetStimAmplitude(sent_ma_.load());
 }
@@ -52,7 +54,9 @@ void ComposedBench::TriggerPulse(double stim_ma) {
   if (stimulator_->host_paced()) {
     // The leg fires it now; AdvanceTo sends it to the device.
     const double step = stimulator_->current_step_ma();
-    body_->TriggerPulse(std::floor(stim_ma / step + 1e-9) * step);
+    const double rounded = std::floor(stim_ma / step + 1e-9) * step;
+    requested_single_ = std::pair{stim_ma, rounded};
+    body_->TriggerPulse(rounded);
     return;
   }
   const std::optional<double> delivered = stimulator_->SinglePulse(stim_ma);
@@ -61,6 +65,7 @@ void ComposedBench::TriggerPulse(double stim_ma) {
     if (!stimulator_->estopped()) HardwareEStop();  // a fault: latch with its reason
     return;
   }
+  LogCommand(stim_ma, *delivered, true);
   if (*delivered > 0.0) body_->TriggerPulse(*delivered);
 }
 
@@ -70,15 +75,38 @@ void ComposedBench::AdvanceTo(double t_s) {
     std::vector<model::Pulse> pulses = body_->DrainDeliveredPulses();
     for (const model::Pulse& p : pulses) {
       if (HardwareEStopped()) break;
-      if (!stimulator_->SinglePulse(p.stim_ma)) {
+      const std::optional<double> sent = stimulator_->SinglePulse(p.stim_ma);
+      if (!sent) {
         if (!stimulator_->estopped()) HardwareEStop();  // a fault: latch with its reason
         break;
       }
+      // The pulse TriggerPulse asked for, or one of the train's.
+      const bool single = requested_single_ && requested_single_->second == p.stim_ma;
+      LogCommand(single ? requested_single_->first : std::max(requested_train_ma_, *sent), *sent,
+                 single);
+      if (single) requested_single_.reset();
     }
     std::lock_guard lock(paced_mu_);
     paced_.insert(paced_.end(), pulses.begin(), pulses.end());
   }
   if (!stimulator_->Service() && !estop_.load()) HardwareEStop();
+}
+
+void ComposedBench::LogCommand(double requested_ma, double commanded_ma, bool single_pulse) {
+  commands_.push_back(
+      {stimulator_->last_command_written(), requested_ma, commanded_ma, single_pulse});
+}
+
+std::vector<Bench::DeviceCommand> ComposedBench::DrainDeviceCommands() {
+  std::vector<DeviceCommand> out;
+  out.swap(commands_);
+  return out;
+}
+
+std::optional<Bench::StimulatorInfo> ComposedBench::HardwareStimulator() const {
+  return StimulatorInfo{std::string(stimulator_->name()),
+                        stimulator_->own_pulse_rate_hz().value_or(limits_.pulse_rate_hz),
+                        stimulator_->current_step_ma(), !stimulator_->host_paced()};
 }
 
 std::vector<model::Pulse> ComposedBench::DrainDeliveredPulses() {

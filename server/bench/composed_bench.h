@@ -24,7 +24,12 @@
 /// train first. A host-paced device (ScienceMode4 low level) is sent every
 /// pulse of the leg's pulse clock, grid or single, as the leg receives it
 /// (AdvanceTo). Each command waits for its acknowledgement on the control
-/// thread.
+/// thread, and is logged with the time it was written, what was asked and
+/// what the device was told (DrainDeviceCommands, stored with each trial).
+/// A device that paces its own train fires it at its own rate
+/// (HardwareStimulator().pulse_rate_hz): the body's pulse clock must run at that
+/// rate (the server opens it so) for the leg to be stimulated on the
+/// device's grid.
 
 #include <atomic>
 #include <memory>
@@ -60,6 +65,8 @@ class ComposedBench final : public Bench {
   bool HardwareEStopped() const override;
   std::string HardwareFault() const override;
   void SetStimulationCeiling(double max_ma) override { stimulator_->SetSessionLimit(max_ma); }
+  std::optional<StimulatorInfo> HardwareStimulator() const override;
+  std::vector<DeviceCommand> DrainDeviceCommands() override;
 
   Bench& body() { return *body_; }
   StimulatorDevice& stimulator() { return *stimulator_; }
@@ -73,6 +80,12 @@ class ComposedBench final : public Bench {
   std::mutex paced_mu_;               // guards paced_
   std::vector<model::Pulse> paced_;   ///< host-paced: pulses sent, not yet drained.
   std::atomic<bool> estop_{false};
+  // The control thread's log of commands written to the device, and, for a
+  // host-paced device, what was asked for the pulses the leg fires next.
+  void LogCommand(double requested_ma, double commanded_ma, bool single_pulse);
+  std::vector<DeviceCommand> commands_;
+  double requested_train_ma_ = 0.0;
+  std::optional<std::pair<double, double>> requested_single_;  // (requested, rounded)
 };
 
 }  // namespace fesbench::server

@@ -5,6 +5,11 @@
 
 namespace fesbench::server::sciencemode2 {
 
+double DevicePulseRateHz(double requested_hz) {
+  const double code = std::round((1000.0 / requested_hz - 1.0) / 0.5);  // §4.3
+  return 1000.0 / (1.0 + 0.5 * code);
+}
+
 Stimulator::Stimulator(StimulatorConfig config)
     : config_(std::move(config)), session_max_ma_(config_.session_max_ma) {}
 
@@ -65,7 +70,10 @@ bool Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
   {
     std::lock_guard lock(write_mu_);
     if (stimulating && estop_.load()) return false;
+    // Handed to the port now: the device cannot have it earlier.
+    const auto handed = std::chrono::steady_clock::now();
     why = port_.Write(wire);
+    if (stimulating) last_command_written_ = handed;
   }
   if (!why.empty()) {
     Fault("stimulator lost: " + why);

@@ -40,6 +40,11 @@
 
 namespace fesbench::server::sciencemode2 {
 
+/// The rate a RehaStim 2 really fires a channel list at when asked for
+/// `requested_hz`: its main interval is 1 ms + a multiple of 0.5 ms (§4.3),
+/// e.g. 33 Hz → 30.5 ms → 32.787 Hz.
+double DevicePulseRateHz(double requested_hz);
+
 struct StimulatorConfig {
   std::string port_path;                             ///< e.g. /dev/ttyUSB0.
   int channel = 1;                                   ///< 1–8 (Table 3).
@@ -79,6 +84,12 @@ class Stimulator final : public StimulatorDevice {
   /// SinglePulse (§4.4) and waits for its ack. Limits as SetAmplitude.
   std::optional<double> SinglePulse(double stim_ma) override;
   double delivered_ma() const override { return acknowledged_ma_.load(); }
+  std::chrono::steady_clock::time_point last_command_written() const override {
+    return last_command_written_;
+  }
+  std::optional<double> own_pulse_rate_hz() const override {
+    return DevicePulseRateHz(config_.pulse_rate_hz);
+  }
   /// StopChannelListMode and wait for its ack.
   bool Stop();
   /// Reads any spontaneous packet (StimulationError, a repeated Init) and,
@@ -128,6 +139,7 @@ class Stimulator final : public StimulatorDevice {
   std::atomic<std::uint8_t> packet_number_{0};
   std::uint8_t last_sent_number_ = 0;
   std::chrono::steady_clock::time_point last_status_{};  // last GetStimulationMode sent
+  std::chrono::steady_clock::time_point last_command_written_{};  // written by the control thread
   std::atomic<bool> connected_{false};  // InitAck sent: an Init now is a reset
   std::mutex io_mu_;     // one exchange with the device at a time (reads of port_)
   std::mutex write_mu_;  // serialises writes to port_; orders them after an e-stop

@@ -58,7 +58,10 @@ bool Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
   {
     std::lock_guard lock(write_mu_);
     if (stimulating && estop_.load()) return false;
+    // Handed to the port now: the device cannot have it earlier.
+    const auto handed = std::chrono::steady_clock::now();
     why = port_.Write(wire);
+    if (stimulating) last_command_written_ = handed;
   }
   if (!why.empty()) {
     Fault("stimulator lost: " + why);

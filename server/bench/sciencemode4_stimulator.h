@@ -67,6 +67,9 @@ class Stimulator final : public StimulatorDevice {
   /// One biphasic pulse now (Ll_Channel_Config) and its ack.
   std::optional<double> SinglePulse(double stim_ma) override;
   double delivered_ma() const override { return amplitude_ma_.load(); }
+  std::chrono::steady_clock::time_point last_command_written() const override {
+    return last_command_written_;
+  }
   /// Reads what the device sent on its own and, once per status_interval,
   /// checks its status; false on a fault.
   bool Service() override;
@@ -108,6 +111,7 @@ class Stimulator final : public StimulatorDevice {
   mutable std::mutex fault_mu_;  // guards fault_
   std::string fault_;
   std::chrono::steady_clock::time_point last_status_{};  // under io_mu_
+  std::chrono::steady_clock::time_point last_command_written_{};  // written by the control thread
   std::mutex keeper_mu_;  // guards keeper_stop_
   std::condition_variable keeper_cv_;
   bool keeper_stop_ = false;

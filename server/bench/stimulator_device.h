@@ -9,6 +9,7 @@
 /// EmergencyStop, estopped and fault may be called from any thread, and
 /// EmergencyStop acts at once without waiting for the device's reply.
 
+#include <chrono>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -47,6 +48,14 @@ class StimulatorDevice {
   virtual std::optional<double> SinglePulse(double stim_ma) = 0;
   /// The amplitude the device last accepted, mA (0 after a stop).
   virtual double delivered_ma() const = 0;
+  /// When the last command that sets stimulation (an amplitude, a single
+  /// pulse) was handed to the serial port (just before its write: the device
+  /// cannot have read it earlier). Control thread.
+  virtual std::chrono::steady_clock::time_point last_command_written() const = 0;
+  /// The pulse rate the device really fires its own train at (its period
+  /// rounded to the device's resolution), Hz; nullopt for a host-paced
+  /// device, whose pulses fire when the host sends them.
+  virtual std::optional<double> own_pulse_rate_hz() const { return std::nullopt; }
   /// The device's periodic duties (its watchdog, messages it sends on its
   /// own); call every control period. false on a fault.
   virtual bool Service() = 0;

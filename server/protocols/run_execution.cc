@@ -33,6 +33,9 @@ RunExecution::RunExecution(ProtocolRunner& runner, const Plan& plan, const Subje
       stim_scale_(plan.trials.size(), 1.0),
       stim_floor_(plan.trials.size(), 0.0),
       recorder_(runner.bench_, runner.observer_, runner.options_.batch_samples) {
+  if (const auto device = bench_.bench().HardwareStimulator()) {
+    device_paced_train_ = device->paces_own_train;
+  }
   runner_.result_ = &result_;
   result_.protocol = plan.protocol;
   result_.protocol_version = plan.protocol_version;
@@ -235,7 +238,13 @@ void RunExecution::DeliverShortRunAsOnePulse(const Step& step, std::int64_t k, d
   }
   const double from_s = TickSeconds(n_ - clock_tick_);
   const double to_s = from_s + TickSeconds(end - k);
-  if (!model::FirstGridTimeIn(from_s, to_s, hw_.pulse_rate_hz)) {
+  // On the bench's grid a run holding a grid time gets that grid pulse. A
+  // device pacing its own train is not in step with the bench: an amplitude
+  // held shorter than its period may fire no pulse at all, so such a run is
+  // its single pulse.
+  const bool shorter_than_a_period = (to_s - from_s) * hw_.pulse_rate_hz < 1.0;
+  if (device_paced_train_ ? shorter_than_a_period
+                          : !model::FirstGridTimeIn(from_s, to_s, hw_.pulse_rate_hz)) {
     bench_.TriggerPulse(u);
     single_pulse_end_ = n_ + (end - k);
   }

@@ -71,6 +71,9 @@ class RunExecution {
   const Plan& plan_;
   const SubjectContext& subject_;
   const BenchLimits& hw_;
+  // A stimulator that fires its own train on its own clock (not the bench's
+  // grid): a short run of the envelope is always its single pulse.
+  bool device_paced_train_ = false;
   RunResult result_;
   std::size_t first_event_ = 0;
   double wall0_ = 0.0;

@@ -1,5 +1,7 @@
 #include "server/protocols/trial_recorder.h"
 
+#include <algorithm>
+#include <chrono>
 #include <utility>
 
 #include "model/simulate.h"
@@ -17,6 +19,14 @@ void TrialRecorder::Open(int index, std::string name, std::int64_t start_tick,
   bench_.bench().DrainEmg_mv();  // EMG from the trial's first sample on
   bench_.RestartPulseClock();    // the trial's grid: k / f from its t_s = 0
   bench_.DrainDeliveredPulses();
+  bench_.bench().DrainDeviceCommands();
+  // The trial's start on both clocks: UTC for people, monotonic for the
+  // device commands' times (and any other host's log of the same run).
+  start_steady_ = std::chrono::steady_clock::now();
+  recorded_.trial.start_time_unix_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(
+          std::chrono::system_clock::now().time_since_epoch())
+          .count();
 }
 
 void TrialRecorder::SetOffset(double offset_nm) {
@@ -101,6 +111,24 @@ RecordedTrial TrialRecorder::Close(bool complete) {
   t.SetChannel("stim_delivered_ma",
                model::StimulusColumn(pulses_.Train(), hw.pulse_rate_hz, *t.Values("t_s")));
   t.pulses = std::move(pulses_);
+  if (const auto device = bench_.bench().HardwareStimulator()) {
+    // What the device was told, and when (api::DeviceCommandLog).
+    api::DeviceCommandLog log;
+    log.device = device->device;
+    log.pulse_rate_hz = device->pulse_rate_hz;
+    log.current_step_ma = device->current_step_ma;
+    log.start_monotonic_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                 start_steady_.time_since_epoch())
+                                 .count();
+    for (const Bench::DeviceCommand& c : bench_.bench().DrainDeviceCommands()) {
+      log.t_s.push_back(std::max(
+          0.0, std::chrono::duration<double>(c.written - start_steady_).count()));
+      log.requested_ma.push_back(c.requested_ma);
+      log.commanded_ma.push_back(std::min(c.commanded_ma, c.requested_ma));
+      log.single_pulse.push_back(c.single_pulse);
+    }
+    t.device_commands = std::move(log);
+  }
   if (!emg_mv_.empty()) {
     api::ChannelGroup emg;
     emg.sample_rate_hz = hw.emg_rate_hz;

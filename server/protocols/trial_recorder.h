@@ -5,10 +5,12 @@
 /// commanded amplitude, angle, offset-corrected torque and acceleration (and
 /// the set-point of motor trials, the controller's signals of tracking
 /// trials); EMG at the bench's EMG rate; the stimulator's delivered pulses as
-/// read back. Samples go to the observer in batches as they come; Close
+/// read back, and a hardware stimulator's commands with their times.
+/// Samples go to the observer in batches as they come; Close
 /// turns the buffers into a RecordedTrial with its sample rates from the
 /// bench's BenchLimits.
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -68,6 +70,7 @@ class TrialRecorder {
   std::vector<double> t_s_, stim_ma_, angle_deg_, torque_nm_, accel_m_s2_, setpoint_deg_;
   std::vector<double> emg_mv_;
   api::PulseRecord pulses_;  // trial time
+  std::chrono::steady_clock::time_point start_steady_{};  // the trial's t_s = 0
   bool record_setpoint_ = false;
   bool closed_loop_ = false;
   std::vector<double> target_deg_, feedforward_ma_, correction_ma_, tau_scale_nm_;

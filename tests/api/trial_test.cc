@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -236,6 +238,43 @@ TEST(TrialJson, RoundTripsTheDeliveredPulses) {
   ASSERT_TRUE(back.ok()) << back.status().ToString();
   EXPECT_EQ(*back, trial);
   EXPECT_EQ(back->pulses->Train()[2], (model::Pulse{0.25, 40.0}));
+}
+
+// A hardware stimulator's command log: bit-exact both ways, refused
+// naming the field when it does not hold.
+TEST(TrialJson, RoundTripsTheDeviceCommandsAndRefusesBadOnes) {
+  Trial trial = SampleTrial();
+  DeviceCommandLog log;
+  log.device = "sciencemode2";
+  log.pulse_rate_hz = 1000.0 / 30.5;
+  log.current_step_ma = 1.0;
+  log.start_monotonic_ns = 123456789012345;
+  log.t_s = {0.0001234, 0.0305, 0.061};
+  log.requested_ma = {12.75, 13.2, 40.0};
+  log.commanded_ma = {12.0, 13.0, 40.0};
+  log.single_pulse = {false, false, true};
+  trial.device_commands = log;
+  const nlohmann::json json = TrialToJson(trial);
+  EXPECT_EQ(json["device_commands"]["single_pulse"], nlohmann::json::parse("[false,false,true]"));
+  Result<Trial> back = TrialFromJson(nlohmann::json::parse(json.dump()));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(*back, trial);
+  const auto field_of = [&](const std::function<void(nlohmann::json&)>& edit) {
+    nlohmann::json bad = json;
+    edit(bad["device_commands"]);
+    Result<Trial> r = TrialFromJson(bad);
+    return r.ok() ? std::string("<accepted>") : r.status().field();
+  };
+  EXPECT_EQ(field_of([](auto& d) { d["device"] = ""; }), "device_commands.device");
+  EXPECT_EQ(field_of([](auto& d) { d["pulse_rate_hz"] = 0; }), "device_commands.pulse_rate_hz");
+  EXPECT_EQ(field_of([](auto& d) { d.erase("start_monotonic_ns"); }),
+            "device_commands.start_monotonic_ns");
+  EXPECT_EQ(field_of([](auto& d) { d["t_s"][2] = 0.01; }), "device_commands.t_s[2]");
+  EXPECT_EQ(field_of([](auto& d) { d["commanded_ma"][1] = 14.0; }),
+            "device_commands.commanded_ma[1]");  // above what was asked
+  EXPECT_EQ(field_of([](auto& d) { d["requested_ma"].erase(1); }), "device_commands.requested_ma");
+  EXPECT_EQ(field_of([](auto& d) { d["single_pulse"][0] = 1; }),
+            "device_commands.single_pulse[0]");
 }
 
 TEST(TrialJson, RejectsBadPulsesWithTheirPath) {

@@ -10,11 +10,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <thread>
 
+#include "api/trial.h"
 #include "server/bench/emulator/sciencemode2_emulator.h"
 #include "server/bench/sciencemode2_stimulator.h"
 #include "server/bench/simulated_bench.h"
@@ -60,6 +63,10 @@ class RecordingDevice final : public StimulatorDevice {
     return delivered;
   }
   double delivered_ma() const override { return device_->delivered_ma(); }
+  std::chrono::steady_clock::time_point last_command_written() const override {
+    return device_->last_command_written();
+  }
+  std::optional<double> own_pulse_rate_hz() const override { return device_->own_pulse_rate_hz(); }
   bool Service() override { return device_->Service(); }
   void EmergencyStop() override { device_->EmergencyStop(); }
   void ClearEStop() override { device_->ClearEStop(); }
@@ -86,6 +93,8 @@ struct Rig {
     auto recording = std::make_unique<RecordingDevice>(std::move(sm2));
     device = recording.get();
     SimulatedBenchOptions options;  // time scale 0: as fast as the device answers
+    // As the server opens it: the leg's pulse clock at the device's own rate.
+    options.limits.pulse_rate_hz = sciencemode2::DevicePulseRateHz(options.limits.pulse_rate_hz);
     bench = std::make_unique<ComposedBench>(std::make_unique<SimulatedBench>(subject, options),
                                             std::move(recording));
     safe = std::make_unique<SafeBench>(*bench, log.sink());
@@ -296,6 +305,67 @@ struct Failure {
 };
 
 void PrintTo(const Failure& f, std::ostream* os) { *os << f.name; }
+
+// The trials record what the device was told and when: each command of the
+// log is one the emulator read, with the same current, within one device
+// tick (its pulse period) after the time the log gives; commanded is the request
+// rounded down to the 1 mA step; the pulses are on the device's grid
+// (30.5 ms, §4.3: 32.787 Hz for 33 Hz asked).
+TEST(ComposedBench, TrialsRecordWhatTheDeviceWasToldAndWhen) {
+  Rig rig(5);
+  ASSERT_TRUE(rig.connected) << rig.connect_fault;
+  const RunResult r = rig.Run("isometric_ramp_irc");
+  ASSERT_EQ(r.state, RunState::kDone) << r.reason;
+  const auto deliveries = rig.emulator.deliveries();
+  const double device_hz = 1000.0 / 30.5;
+  std::size_t matched = 0, singles = 0;
+  double worst_ms = 0.0;
+  for (const auto& rec : r.trials) {
+    const api::Trial& t = rec.trial;
+    ASSERT_TRUE(t.device_commands) << t.name.value_or("");
+    ASSERT_TRUE(t.start_time_unix_ms);
+    const api::DeviceCommandLog& log = *t.device_commands;
+    EXPECT_EQ(log.device, "sciencemode2");
+    EXPECT_NEAR(log.pulse_rate_hz, device_hz, 1e-9);
+    EXPECT_EQ(log.current_step_ma, 1.0);
+    ASSERT_TRUE(t.pulses);
+    EXPECT_NEAR(t.pulses->pulse_rate_hz, device_hz, 1e-9);
+    EXPECT_TRUE(api::ValidateTrial(t).ok());
+    for (std::size_t k = 0; k < log.size(); ++k) {
+      EXPECT_EQ(log.commanded_ma[k], std::floor(log.requested_ma[k] + 1e-9)) << k;
+      const auto at = log.start_monotonic_ns + static_cast<std::int64_t>(log.t_s[k] * 1e9);
+      const sciencemode2::Delivery* seen = nullptr;
+      for (const auto& d : deliveries) {
+        if (!d.stop && d.current_ma == log.commanded_ma[k] &&
+            (d.reason == "single") == static_cast<bool>(log.single_pulse[k]) &&
+            d.steady_ns >= at - 1000 &&
+            d.steady_ns - at <= static_cast<std::int64_t>(1e9 / log.pulse_rate_hz)) {
+          seen = &d;
+          break;
+        }
+      }
+      if (seen == nullptr) {
+        for (const auto& d : deliveries) {
+          if (std::abs(d.steady_ns - at) < 50'000'000) {
+            std::printf("  delivery %+.3f ms: %d mA %s%s\n", (d.steady_ns - at) / 1e6, d.current_ma,
+                        d.reason.c_str(), d.stop ? " stop" : "");
+          }
+        }
+      }
+      ASSERT_NE(seen, nullptr) << "command " << k << " of " << t.name.value_or("") << " at "
+                               << log.t_s[k] << " s, " << log.commanded_ma[k] << " mA, single "
+                               << log.single_pulse[k];
+      worst_ms = std::max(worst_ms, (seen->steady_ns - at) / 1e6);
+      ++matched;
+      if (log.single_pulse[k]) ++singles;
+    }
+  }
+  std::printf("[ figure ] %zu device commands logged (%zu single pulses), the emulator read each "
+              "at most %.3f ms after its logged time\n",
+              matched, singles, worst_ms);
+  EXPECT_GT(matched, 20u);
+  EXPECT_EQ(singles, 2u);  // the ramp protocol's two impulses
+}
 
 class DeviceFailure : public ::testing::TestWithParam<Failure> {};
 

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <memory>
 #include <optional>
 #include <string>
@@ -44,6 +46,41 @@ TEST_P(StorageTest, TrialRoundTripKeepsItsDeliveredPulsesExactly) {
   // Append-only like every trial row.
   auto update = db_->Write(
       [](Connection& c) { return c.ExecScript("UPDATE trial_pulses SET pulse_count = 0"); });
+  EXPECT_FALSE(update.ok());
+}
+
+TEST_P(StorageTest, TrialRoundTripKeepsItsDeviceCommandsExactly) {
+  const Session session = MakeSession("T1D");
+  api::Trial trial = MakeTrial(100);
+  api::DeviceCommandLog log;
+  log.device = "sciencemode4";
+  log.pulse_rate_hz = 33.0;
+  log.current_step_ma = 0.5;
+  log.start_monotonic_ns = 987654321098765;
+  for (int k = 0; k < 40; ++k) {
+    log.t_s.push_back(k / 33.0 + 1e-4 * k);
+    log.requested_ma.push_back(20.0 + 0.3 * k);
+    log.commanded_ma.push_back(std::floor((20.0 + 0.3 * k) / 0.5) * 0.5);
+    log.single_pulse.push_back(k % 7 == 0);
+  }
+  trial.device_commands = log;
+  TrialRepository trials(*db_);
+  auto id = trials.Insert({session.id, std::nullopt}, trial);
+  ASSERT_TRUE(id.ok()) << id.status().ToString();
+  auto back = trials.Get(*id);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_TRUE(back->device_commands.has_value());
+  EXPECT_EQ(*back->device_commands, log);  // bit-exact
+  auto plain = trials.Insert({session.id, std::nullopt}, MakeTrial(10));
+  ASSERT_TRUE(plain.ok());
+  EXPECT_FALSE(trials.Get(*plain)->device_commands.has_value());
+  trial.device_commands->commanded_ma[5] = 100.0;
+  auto bad = trials.Insert({session.id, std::nullopt}, trial);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().field(), "device_commands.commanded_ma[5]");
+  auto update = db_->Write([](Connection& c) {
+    return c.ExecScript("UPDATE trial_device_commands SET command_count = 0");
+  });
   EXPECT_FALSE(update.ok());
 }
 

@@ -66,6 +66,9 @@ double Emulator::Now() const {
 
 void Emulator::Record(Delivery d) {
   d.t_s = Now();
+  d.steady_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                    std::chrono::steady_clock::now().time_since_epoch())
+                    .count();
   std::lock_guard lock(mutex_);
   deliveries_.push_back(std::move(d));
 }

@@ -33,6 +33,7 @@ struct Delivery {
   bool stop = false;   ///< StopChannelListMode, or the watchdog stopping.
   std::string reason;  ///< for stops: "command", "watchdog", "reset" or "wrong mode";
                        ///< "single" for a SinglePulse.
+  std::int64_t steady_ns = 0;  ///< when it was read, on the host's monotonic clock.
 };
 
 enum class EmulatorFault {

@@ -53,6 +53,9 @@ std::vector<Delivery> Emulator::deliveries() const {
 
 void Emulator::Record(Delivery d) {
   d.t_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  d.steady_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                    std::chrono::steady_clock::now().time_since_epoch())
+                    .count();
   std::lock_guard lock(mutex_);
   deliveries_.push_back(std::move(d));
 }

@@ -28,6 +28,7 @@ struct Delivery {
   int channel = 0;          ///< 1–4; 0 for a stop.
   std::vector<Point> points;
   bool stop = false;        ///< Ll_Stop.
+  std::int64_t steady_ns = 0;  ///< when it was read, on the host's monotonic clock.
   /// The first phase's current, mA (0 for a stop).
   double current_ma() const { return points.empty() ? 0.0 : points.front().current_ma; }
 };
