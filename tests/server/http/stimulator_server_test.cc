@@ -2,8 +2,9 @@
 // processes with a RehaStim 2 emulated on a pseudo-terminal in this test.
 // A hardware stimulator at a time scale other than 1 is refused at start
 // naming the flag; a second server on the same port is refused naming the
-// first server's process; a device that restarts on its own latches the
-// e-stop within one status period and GET /bench names it as the source.
+// first server's process; the leg's pulse clock runs at the device's own
+// rate; a device that restarts on its own latches the e-stop within one
+// status period and GET /bench names it as the source.
 
 #include <gtest/gtest.h>
 
@@ -51,6 +52,8 @@ TEST(StimulatorServer, ASecondServerOnThePortIsRefusedAndADeviceResetIsTheEStops
   auto bench = Call(client, "GET", "/api/v1/bench", admin);
   ASSERT_EQ(bench.status, 200) << bench.text;
   EXPECT_EQ(bench.body["kind"], "sciencemode2+sim");
+  // The leg's pulse clock runs at the device's own rate: 30.5 ms (§4.3).
+  EXPECT_NEAR(bench.body["limits"]["pulse_rate_hz"].get<double>(), 1000.0 / 30.5, 1e-9);
   EXPECT_EQ(bench.body["estopped"], false);
   EXPECT_TRUE(emulator.connected());
 
