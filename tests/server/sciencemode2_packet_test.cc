@@ -45,6 +45,12 @@ TEST(ScienceMode2Encode, WatchdogByteForByte) {
   EXPECT_EQ(BuildWatchdog(5), (Bytes{0xF0, 0x81, 0x08, 0x81, 0x57, 0x05, 0x04, 0x0F}));
 }
 
+TEST(ScienceMode2Encode, GetStimulationModeByteForByte) {
+  // §4.2 GetStimulationMode: packet number, command 10 (§3.1), no data.
+  // CRC8{05,0A} = 0x77.
+  EXPECT_EQ(BuildGetStimulationMode(5), (Bytes{0xF0, 0x81, 0x22, 0x81, 0x57, 0x05, 0x0A, 0x0F}));
+}
+
 TEST(ScienceMode2Encode, InitChannelListModeByteForByte) {
   // §4.3 InitChannelListMode, command 30: LF factor 0, channels 1+2 (0x03),
   // no LF channels, t2 = 8 ms → (8−1.5)/0.5 = 13, t1 = 25 ms → (25−1)/0.5 =

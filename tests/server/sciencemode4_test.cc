@@ -46,6 +46,22 @@ TEST(ScienceMode4Packet, LlStopByteForByte) {
             (Bytes{0xF0, 0x81, 0x55, 0x81, 0x59, 0x81, 0xD9, 0x81, 0x15, 0x04, 0x04, 0x0F}));
 }
 
+TEST(ScienceMode4Packet, GetStimStatusByteForByteAndItsAck) {
+  // Smpt_Cmd_Get_Stim_Status = 62 (smpt_definitions_data_types.h), no data:
+  // bytes 9–10 = 1 << 2 | 62 >> 8, 62 & 0xFF; CRC-16 of {0x04, 0x3E} = 0x1B59.
+  EXPECT_EQ(BuildGetStimStatus(1),
+            (Bytes{0xF0, 0x81, 0x55, 0x81, 0x59, 0x81, 0x4E, 0x81, 0x0C, 0x04, 0x3E, 0x0F}));
+  // The ack (insert_get_stim_status_ack): result, stim status, high voltage.
+  const auto ack = DecodePacket(
+      BuildGetStimStatusAck(5, Result::kSuccessful, StimStatus::kLlInitialized, 0));
+  ASSERT_TRUE(ack.packet);
+  EXPECT_EQ(ack.packet->command, 63);
+  EXPECT_EQ(ack.packet->packet_number, 5);
+  EXPECT_EQ(ack.packet->data, (Bytes{0x00, 0x01, 0x00}));
+  EXPECT_EQ(StimStatusName(0), "uninitialised");
+  EXPECT_EQ(StimStatusName(9), "status 9");
+}
+
 TEST(ScienceMode4Packet, LlChannelConfigByteForByte) {
   // A biphasic pulse on channel 1 (blue), connector 0: +20 mA for 300 µs,
   // 0 mA for 100 µs, −20 mA for 300 µs. First data byte: enable (0x80) |
