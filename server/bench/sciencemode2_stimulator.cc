@@ -14,26 +14,9 @@ Stimulator::Stimulator(StimulatorConfig config)
     : config_(std::move(config)), session_max_ma_(config_.session_max_ma) {}
 
 Stimulator::~Stimulator() {
-  if (keeper_.joinable()) {
-    {
-      std::lock_guard lock(keeper_mu_);
-      keeper_stop_ = true;
-    }
-    keeper_cv_.notify_all();
-    keeper_.join();
-  }
+  keeper_.Stop();  // no duty runs while the device is stopped below
   std::lock_guard lock(write_mu_);
   if (stimulating_.load()) WriteStopLocked();
-}
-
-void Stimulator::KeeperLoop() {
-  std::unique_lock lock(keeper_mu_);
-  while (!keeper_cv_.wait_for(lock, std::chrono::milliseconds(50), [&] { return keeper_stop_; })) {
-    lock.unlock();
-    const bool alive = KeepAlive();
-    lock.lock();
-    if (!alive) return;  // faulted: nothing more to keep
-  }
 }
 
 void Stimulator::WriteStopLocked() {
@@ -175,7 +158,7 @@ bool Stimulator::Connect() {
   connected_.store(true);
   if (!InitChannelList()) return false;
   last_status_ = std::chrono::steady_clock::now();
-  if (!keeper_.joinable()) keeper_ = std::thread([this] { KeeperLoop(); });
+  keeper_.Start(std::chrono::milliseconds(50), [this] { return KeepAlive(); });
   return true;
 }
 

@@ -27,12 +27,11 @@
 
 #include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <cstdint>
 #include <mutex>
 #include <string>
-#include <thread>
 
+#include "server/bench/device_keeper.h"
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/sciencemode_frames.h"
 #include "server/bench/serial_port.h"
@@ -130,7 +129,6 @@ class Stimulator final : public StimulatorDevice {
   /// The limit check of SetAmplitude and SinglePulse: false (a fault) if
   /// stim_ma is outside 0 – min(device, session maximum).
   bool CheckLimit(double stim_ma);
-  void KeeperLoop();
   std::uint8_t NextPacketNumber() { return packet_number_.fetch_add(1); }
 
   StimulatorConfig config_;
@@ -151,10 +149,7 @@ class Stimulator final : public StimulatorDevice {
   std::atomic<bool> faulted_{false};
   mutable std::mutex fault_mu_;  // guards fault_
   std::string fault_;
-  std::mutex keeper_mu_;  // guards keeper_stop_
-  std::condition_variable keeper_cv_;
-  bool keeper_stop_ = false;
-  std::thread keeper_;
+  DeviceKeeper keeper_;  // last: stopped first
 };
 
 }  // namespace fesbench::server::sciencemode2

@@ -13,14 +13,7 @@ Stimulator::Stimulator(StimulatorConfig config)
     : config_(std::move(config)), session_max_ma_(config_.session_max_ma) {}
 
 Stimulator::~Stimulator() {
-  if (keeper_.joinable()) {
-    {
-      std::lock_guard lock(keeper_mu_);
-      keeper_stop_ = true;
-    }
-    keeper_cv_.notify_all();
-    keeper_.join();
-  }
+  keeper_.Stop();  // no duty runs while the device is stopped below
   std::lock_guard lock(write_mu_);
   if (initialised_.load() && port_.is_open() && !faulted()) {
     (void)port_.Write(BuildLlStop(NextPacketNumber()));
@@ -68,16 +61,6 @@ bool Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
     return false;
   }
   return true;
-}
-
-void Stimulator::KeeperLoop() {
-  std::unique_lock lock(keeper_mu_);
-  while (!keeper_cv_.wait_for(lock, std::chrono::milliseconds(50), [&] { return keeper_stop_; })) {
-    lock.unlock();
-    const bool alive = Service();
-    lock.lock();
-    if (!alive) return;  // faulted: nothing more to keep
-  }
 }
 
 bool Stimulator::AwaitAck(Command ack, std::vector<std::uint8_t>* data) {
@@ -131,7 +114,7 @@ bool Stimulator::Connect() {
   }
   if (!InitLowLevel()) return false;
   last_status_ = std::chrono::steady_clock::now();
-  if (!keeper_.joinable()) keeper_ = std::thread([this] { KeeperLoop(); });
+  keeper_.Start(std::chrono::milliseconds(50), [this] { return Service(); });
   return true;
 }
 

@@ -23,13 +23,12 @@
 
 #include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <cstdint>
 #include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
+#include "server/bench/device_keeper.h"
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/sciencemode4_packet.h"
 #include "server/bench/sciencemode_frames.h"
@@ -91,7 +90,6 @@ class Stimulator final : public StimulatorDevice {
   bool AwaitAck(Command ack, std::vector<std::uint8_t>* data = nullptr);
   /// Get_Stim_Status and its answer against the status the driver set.
   bool CheckStatusLocked();
-  void KeeperLoop();
   bool CheckLimit(double stim_ma);
   bool InitLowLevel();
   std::uint8_t NextPacketNumber() { return packet_number_.fetch_add(1) & 0x3F; }
@@ -112,10 +110,7 @@ class Stimulator final : public StimulatorDevice {
   std::string fault_;
   std::chrono::steady_clock::time_point last_status_{};  // under io_mu_
   std::chrono::steady_clock::time_point last_command_written_{};  // written by the control thread
-  std::mutex keeper_mu_;  // guards keeper_stop_
-  std::condition_variable keeper_cv_;
-  bool keeper_stop_ = false;
-  std::thread keeper_;
+  DeviceKeeper keeper_;  // last: stopped first
 };
 
 }  // namespace fesbench::server::sciencemode4

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "server/bench/emulator/sciencemode2_emulator.h"
+#include "tests/server/wait_until.h"
 
 namespace fesbench::server::sciencemode2 {
 namespace {
@@ -181,13 +182,8 @@ TEST(ScienceMode2Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
       ASSERT_TRUE(stim.Connect()) << stim.fault();
       ASSERT_TRUE(stim.SetAmplitude(20.0)) << stim.fault();
       std::this_thread::sleep_for(phase);
-      const auto t0 = std::chrono::steady_clock::now();
       emulator.set_fault(c.fault);
-      while (!stim.faulted() && std::chrono::steady_clock::now() - t0 < 3s) {
-        std::this_thread::sleep_for(1ms);
-      }
-      const double ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double ms = test::MsUntil([&] { return stim.faulted(); });
       ASSERT_TRUE(stim.faulted()) << c.reason;
       EXPECT_NE(stim.fault().find(c.reason), std::string::npos) << stim.fault();
       EXPECT_EQ(stim.acknowledged_ma(), 0.0);

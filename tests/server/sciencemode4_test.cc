@@ -25,6 +25,7 @@
 #include "server/bench/virtual_subject.h"
 #include "server/protocols/plan.h"
 #include "server/protocols/runner.h"
+#include "tests/server/wait_until.h"
 
 namespace fesbench::server::sciencemode4 {
 namespace {
@@ -210,13 +211,8 @@ TEST(ScienceMode4Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
       ASSERT_TRUE(stim.Connect()) << stim.fault();
       ASSERT_EQ(stim.SinglePulse(20.0), std::optional<double>(20.0)) << stim.fault();
       std::this_thread::sleep_for(phase);
-      const auto t0 = std::chrono::steady_clock::now();
       emulator.set_fault(c.fault);
-      while (!stim.faulted() && std::chrono::steady_clock::now() - t0 < 3s) {
-        std::this_thread::sleep_for(1ms);
-      }
-      const double ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double ms = test::MsUntil([&] { return stim.faulted(); });
       ASSERT_TRUE(stim.faulted()) << c.reason;
       EXPECT_NE(stim.fault().find(c.reason), std::string::npos) << stim.fault();
       EXPECT_FALSE(stim.SinglePulse(10.0));
