@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The fast benchmarks against their committed baselines (bench/baseline/):
+# runs model_bench, identify_bench and the DDS block latency with
+# --benchmark_format=json (3 repetitions, medians) into a temporary folder,
+# then bench/compare_baseline.py names every figure more than 25 % slower
+# than its baseline. Report only: exits 0 whatever the figures (a shared
+# machine is too noisy to fail on). --update keeps this run as the new
+# baselines (commit them with the machine they were measured on).
+#
+#   bench/run_baseline.sh [--update]          (about 20 s on 2 cores)
+set -euo pipefail
+
+if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
+  sed -n '2,10p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  exit 0
+fi
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build_dir=${FESBENCH_BUILD_DIR:-"$root/build"}
+update=false
+[[ "${1:-}" == "--update" ]] && update=true
+
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+run() {  # program, then its own flags
+  local program=$1
+  shift
+  if [[ ! -x "$build_dir/bench/$program" ]]; then
+    echo "run_baseline: $build_dir/bench/$program is not built; skipped" >&2
+    return 0
+  fi
+  "$build_dir/bench/$program" --benchmark_repetitions=3 --benchmark_report_aggregates_only=true \
+    --benchmark_format=json --benchmark_out_format=json --benchmark_out="$out/$program.json" \
+    "$@" >/dev/null
+}
+run model_bench --benchmark_min_time=0.2
+run identify_bench --benchmark_min_time=0.2
+run dds_latency_bench --benchmark_filter=BlockLatency
+
+if $update; then
+  cp "$out"/*.json "$root/bench/baseline/"
+  echo "run_baseline: baselines written to bench/baseline/ ($(ls "$out" | tr '\n' ' '))"
+fi
+python3 "$root/bench/compare_baseline.py" "$out"/*.json
