@@ -229,6 +229,8 @@ void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& file
   json fesbench = {{"name", name}};
   if (trial.id) fesbench["id"] = *trial.id;
   if (trial.start_time_unix_ms) fesbench["start_time_unix_ms"] = *trial.start_time_unix_ms;
+  // What a hardware stimulator was told (no BIDS field holds it).
+  if (trial.device_commands) fesbench["device_commands"] = DeviceCommandLogToJson(*trial.device_commands);
   sidecar["FesbenchTrial"] = std::move(fesbench);
   files[motion + "_motion.json"] = sidecar.dump(2) + "\n";
 
@@ -336,6 +338,15 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
     trial.name = name;
     if (fes.contains("start_time_unix_ms") && fes["start_time_unix_ms"].is_number_integer()) {
       trial.start_time_unix_ms = fes["start_time_unix_ms"].get<std::int64_t>();
+    }
+    if (fes.contains("device_commands")) {
+      Result<DeviceCommandLog> log = DeviceCommandLogFromJson(fes["device_commands"]);
+      if (!log.ok()) {
+        return Status::InvalidArgument(prefix + "_motion.json: FesbenchTrial." +
+                                       std::string(log.status().field()) + ": " +
+                                       log.status().message());
+      }
+      trial.device_commands = std::move(*log);
     }
     trial.sample_rate_hz = (*sidecar)["SamplingFrequency"].get<double>();
     for (std::size_t j = 0; j < labels.size(); ++j) {

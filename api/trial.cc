@@ -511,8 +511,6 @@ Status GroupFromJsonInto(const nlohmann::json& json, const std::string& prefix,
 
 }  // namespace
 
-namespace {
-
 Result<DeviceCommandLog> DeviceCommandLogFromJson(const nlohmann::json& json) {
   const std::string f = "device_commands.";
   if (!json.is_object()) return Status::InvalidArgument("must be an object", "device_commands");
@@ -564,7 +562,16 @@ Result<DeviceCommandLog> DeviceCommandLogFromJson(const nlohmann::json& json) {
   return log;
 }
 
-}  // namespace
+nlohmann::json DeviceCommandLogToJson(const DeviceCommandLog& d) {
+  return {{"device", d.device},
+          {"pulse_rate_hz", d.pulse_rate_hz},
+          {"current_step_ma", d.current_step_ma},
+          {"start_monotonic_ns", d.start_monotonic_ns},
+          {"t_s", d.t_s},
+          {"requested_ma", d.requested_ma},
+          {"commanded_ma", d.commanded_ma},
+          {"single_pulse", d.single_pulse}};
+}
 
 nlohmann::json GroupToJson(const ChannelGroup& group) {
   return {{"sample_rate_hz", group.sample_rate_hz}, {"channels", ChannelsToJson(group.channels)}};
@@ -585,17 +592,7 @@ nlohmann::json TrialToJson(const Trial& trial) {
                       {"t_s", trial.pulses->t_s},
                       {"stim_ma", trial.pulses->stim_ma}};
   }
-  if (trial.device_commands) {
-    const DeviceCommandLog& d = *trial.device_commands;
-    json["device_commands"] = {{"device", d.device},
-                               {"pulse_rate_hz", d.pulse_rate_hz},
-                               {"current_step_ma", d.current_step_ma},
-                               {"start_monotonic_ns", d.start_monotonic_ns},
-                               {"t_s", d.t_s},
-                               {"requested_ma", d.requested_ma},
-                               {"commanded_ma", d.commanded_ma},
-                               {"single_pulse", d.single_pulse}};
-  }
+  if (trial.device_commands) json["device_commands"] = DeviceCommandLogToJson(*trial.device_commands);
   return json;
 }
 

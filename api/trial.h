@@ -217,6 +217,11 @@ std::string TrialToSto(const Trial& trial);
 /// absent optionals are omitted. Never fails. (CSV and .sto carry the main
 /// group only.)
 nlohmann::json TrialToJson(const Trial& trial);
+/// A device command log as JSON (the `device_commands` of a trial's JSON,
+/// also kept in a BIDS export's sidecar), and back, checked
+/// (ValidateDeviceCommandLog; fields "device_commands.<name>").
+nlohmann::json DeviceCommandLogToJson(const DeviceCommandLog& log);
+Result<DeviceCommandLog> DeviceCommandLogFromJson(const nlohmann::json& json);
 nlohmann::json GroupToJson(const ChannelGroup& group);
 /// Parses and validates (ValidateTrial) the JSON form; the unit of a channel
 /// is optional and defaults to ChannelUnit(name). Errors name the field path,

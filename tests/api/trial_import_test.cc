@@ -277,6 +277,39 @@ TEST(BidsTest, TrialReadsBackBitForBit) {
   EXPECT_EQ(read->front().original_id, 41);
 }
 
+TEST(BidsTest, AHardwareStimulatorsCommandsReadBackBitForBit) {
+  Trial trial = BenchLikeTrial();
+  DeviceCommandLog log;
+  log.device = "sciencemode2";
+  log.pulse_rate_hz = 1000.0 / 30.5;
+  log.current_step_ma = 1.0;
+  log.start_monotonic_ns = 4242424242424;
+  log.t_s = {0.0, 1.0 / 3.0, 0.7};
+  log.requested_ma = {30.25, 0.0, 17.9};
+  log.commanded_ma = {30.0, 0.0, 17.0};
+  log.single_pulse = {false, false, true};
+  trial.device_commands = log;
+  FileMap files;
+  AddBidsTrial(trial, {"S01", "3", "right", 41}, files);
+  auto read = ReadBidsTrials(files);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  ASSERT_EQ(read->size(), 1u);
+  ASSERT_TRUE(read->front().trial.device_commands);
+  EXPECT_EQ(*read->front().trial.device_commands, log);
+  // A sidecar whose log does not hold is refused naming the field.
+  const std::string sidecar =
+      "sub-S01/ses-3/motion/sub-S01_ses-3_task-activeRandomBinaryRb1_tracksys-kneebench_run-41"
+      "_motion.json";
+  auto json = nlohmann::json::parse(files.at(sidecar));
+  json["FesbenchTrial"]["device_commands"]["commanded_ma"][2] = 18.0;
+  files[sidecar] = json.dump();
+  auto bad = ReadBidsTrials(files);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("FesbenchTrial.device_commands.commanded_ma[2]"),
+            std::string::npos)
+      << bad.status().message();
+}
+
 TEST(BidsTest, LayoutHasTheRequiredFilesAndColumns) {
   FileMap files;
   AddBidsTrial(BenchLikeTrial(), {"S01", "3", "right", 41}, files);
