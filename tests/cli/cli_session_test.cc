@@ -228,6 +228,56 @@ TEST(CliSessionTest, WholeAnalystSession) {
   ASSERT_EQ(identify.exit_code, 0) << identify.err;
   EXPECT_THAT(identify.out, HasSubstr("(version 3, model full)"));
   EXPECT_THAT(identify.out, HasSubstr("fit_rms:"));
+  // Every flag reaches the request: the rapid method refuses a thesis
+  // passive method instead of ignoring it.
+  auto ignored = cli.Run({"identify", "--session", std::to_string(sessions[0]), "--method",
+                          "rapid", "--passive-method", "simultaneous"});
+  EXPECT_EQ(ignored.exit_code, 1) << ignored.out;
+  ExpectOneErrorLine(ignored);
+  EXPECT_THAT(ignored.err, HasSubstr("(field passive_method) [HTTP 400]"));
+  auto irc = cli.Run({"identify", "--session", std::to_string(sessions[0]), "--method", "rapid",
+                      "--irc-method", "step"});
+  EXPECT_EQ(irc.exit_code, 1);
+  EXPECT_THAT(irc.err, HasSubstr("(field irc_method) [HTTP 400]"));
+
+  // Two sets of one leg over the trials neither was fitted on (two fresh
+  // prediction runs): one pair per trial, a paired t-test over them.
+  std::vector<std::int64_t> fresh;
+  for (const std::string protocol : {"prediction_random_binary", "prediction_step"}) {
+    auto run = cli.Run({"run", "start", std::to_string(sessions[0]), protocol, "--json"});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    std::istringstream lines(run.out);
+    for (std::string line; std::getline(lines, line);) {
+      const json event = json::parse(line);
+      if (event["event"] == "trial") fresh.push_back(event["data"]["trial_id"]);
+    }
+  }
+  ASSERT_EQ(fresh.size(), 2u);
+  const std::string set_a = std::to_string(first_sets[0]);
+  const std::string set_b = std::to_string(second_sets[0]);
+  auto two_sets = cli.Run({"compare", "--params-a", set_a, "--params-b", set_b, "--json"});
+  ASSERT_EQ(two_sets.exit_code, 0) << two_sets.err;
+  const json over_trials = json::parse(two_sets.out);
+  ASSERT_EQ(over_trials["pairs"].size(), 2u);
+  std::vector<std::int64_t> compared;
+  for (const auto& pair : over_trials["pairs"]) {
+    EXPECT_EQ(pair["a_parameter_set_id"], first_sets[0]);
+    ASSERT_EQ(pair["trials"].size(), 1u);
+    compared.push_back(pair["trials"][0]["trial_id"]);
+  }
+  EXPECT_EQ(compared, fresh) << "the trials neither set was fitted on, one pair each";
+  EXPECT_EQ(over_trials["t_test"]["n"], 2);
+  EXPECT_TRUE(over_trials["t_test_note"].is_null());
+  auto one_trial = cli.Run({"compare", "--params-a", set_a, "--params-b", set_b, "--trials",
+                            std::to_string(fresh[0])});
+  ASSERT_EQ(one_trial.exit_code, 0) << one_trial.err;
+  EXPECT_THAT(one_trial.out, HasSubstr("metric e_rms (deg)"));
+  EXPECT_THAT(one_trial.out, HasSubstr("no paired t-test: it needs at least 2 pairs, got 1"));
+  EXPECT_THAT(one_trial.out, Not(HasSubstr("paired t-test:\n")));
+  auto training = cli.Run({"compare", "--params-a", set_a, "--params-b", set_b, "--trials",
+                           std::to_string(rb_trials[0])});
+  ASSERT_EQ(training.exit_code, 0) << training.err;
+  EXPECT_THAT(training.err, HasSubstr("is a training trial of parameter set " + set_a));
 
   // Compare the first and second fits of each leg: a paired t-test, n = 2.
   const std::string a = std::to_string(first_sets[0]) + "," + std::to_string(first_sets[1]);
