@@ -370,6 +370,79 @@ TEST(CliSessionTest, ExitCodesAndOneLineErrors) {
   EXPECT_THAT(elsewhere.err, HasSubstr("cannot reach http://127.0.0.1:1:"));
 }
 
+// An admin issues and revokes analysts' tokens from the command line; a
+// token's secret is shown once (or written to a new 0600 file).
+TEST(CliSessionTest, AdminIssuesAndRevokesTokens) {
+  ServerProcess server;
+  auto http = server.Client();
+  Cli cli;
+  ASSERT_EQ(cli.Run({"login", Url(server), "--token", server.admin_token()}).exit_code, 0);
+
+  auto created = cli.Run({"users", "create", "ana", "--role", "analyst", "--token", "--label",
+                          "laptop"});
+  ASSERT_EQ(created.exit_code, 0) << created.err;
+  EXPECT_THAT(created.out, HasSubstr("(analyst)"));
+  EXPECT_THAT(created.out, HasSubstr("shown once"));
+  std::smatch secret;
+  ASSERT_TRUE(std::regex_search(created.out, secret, std::regex("\n(fsb_[A-Za-z0-9_-]+)\n")))
+      << created.out;
+  const std::string token = secret[1];
+  auto me = Call(http, "GET", "/api/v1/me", token);
+  ASSERT_EQ(me.status, 200);
+  EXPECT_EQ(me.body["role"], "analyst");
+
+  const fs::path file = cli.dir() / "ana.token";
+  auto issued = cli.Run({"users", "issue-token", "ana", "--expires-in-s", "3600", "--out",
+                         file.string()});
+  ASSERT_EQ(issued.exit_code, 0) << issued.err;
+  EXPECT_THAT(issued.out, Not(HasSubstr("fsb_"))) << "the secret goes to the file only";
+  struct stat st {};
+  ASSERT_EQ(::stat(file.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  std::string second = ReadAll(file);
+  second.pop_back();  // the newline
+  EXPECT_EQ(Call(http, "GET", "/api/v1/me", second).status, 200);
+  auto again = cli.Run({"users", "issue-token", "ana", "--out", file.string()});
+  EXPECT_EQ(again.exit_code, 1) << "an existing file is never overwritten";
+  EXPECT_THAT(again.err, HasSubstr("never overwritten"));
+  auto no_folder = cli.Run({"users", "issue-token", "ana", "--out",
+                            (cli.dir() / "missing" / "t").string()});
+  EXPECT_EQ(no_folder.exit_code, 1) << "no token is issued that could not be kept";
+
+  auto tokens = cli.Run({"users", "tokens", "--user", "ana", "--json"});
+  ASSERT_EQ(tokens.exit_code, 0) << tokens.err;
+  const json listed = json::parse(tokens.out);
+  ASSERT_EQ(listed.size(), 2u) << "refused --out files issued no token";
+  EXPECT_EQ(listed[0]["label"], "laptop");
+  EXPECT_THAT(tokens.out, Not(HasSubstr("fsb_"))) << "a listed token has no secret";
+  auto revoked = cli.Run({"users", "revoke-token", listed[0]["id"].dump()});
+  ASSERT_EQ(revoked.exit_code, 0) << revoked.err;
+  EXPECT_EQ(Call(http, "GET", "/api/v1/me", token).status, 401);
+  EXPECT_EQ(Call(http, "GET", "/api/v1/me", second).status, 200);
+
+  auto users = cli.Run({"users", "list"});
+  ASSERT_EQ(users.exit_code, 0);
+  EXPECT_TRUE(std::regex_search(users.out, std::regex("\n2 +ana +analyst +yes ")))
+      << users.out;
+  auto usage = cli.Run({"users", "create", "bob", "--role", "analyst", "--label", "x"});
+  EXPECT_EQ(usage.exit_code, 2);
+  EXPECT_THAT(usage.err, HasSubstr("need --token"));
+  auto bad_role = cli.Run({"users", "create", "bob", "--role", "nurse"});
+  EXPECT_EQ(bad_role.exit_code, 2);
+  auto nobody = cli.Run({"users", "issue-token", "nobody"});
+  EXPECT_EQ(nobody.exit_code, 1);
+  EXPECT_THAT(nobody.err, HasSubstr("no user named nobody"));
+  // An analyst may not issue tokens: the server's 403.
+  auto as_analyst = cli.Run({"users", "list"}, second);
+  EXPECT_EQ(as_analyst.exit_code, 1);
+  EXPECT_THAT(as_analyst.err, HasSubstr("[HTTP 403]"));
+
+  auto deactivated = cli.Run({"users", "deactivate", "ana", "--reason", "left the lab"});
+  ASSERT_EQ(deactivated.exit_code, 0) << deactivated.err;
+  EXPECT_EQ(Call(http, "GET", "/api/v1/me", second).status, 401);
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
 // On a terminal --follow draws a redrawn bar with ETA instead of lines
 // (in process: RunFesbenchCli with out_is_terminal = true).
 TEST(CliSessionTest, FollowDrawsAProgressBarOnATerminal) {
