@@ -8,7 +8,6 @@ Run by ctest (tests/python/CMakeLists.txt) with FESBENCH_SERVER_BINARY set.
 from __future__ import annotations
 
 import http.server
-import io
 import math
 import os
 import re
@@ -180,13 +179,28 @@ class RecordsTest(unittest.TestCase):
             for column in ("t_s", "angle_deg", "stim_ma", "torque_nm"):
                 self.assertIn(column, frame.columns)
             self.assertEqual(frame.attrs["units"]["angle_deg"], "deg")
-            self.assertEqual(frame.attrs["sample_rate_hz"], 200.0)
+            self.assertAlmostEqual(frame.attrs["sample_rate_hz"], 200.0, places=6)
             self.assertEqual(frame.attrs["kind"], row["kind"])
-            # The same numbers as the server's CSV of the trial, bit for bit.
-            csv = SERVER_GET_TEXT(f"/trials/{fresh}?format=csv")
-            by_csv = pd.read_csv(io.StringIO(csv), float_precision="round_trip")
-            np.testing.assert_array_equal(by_csv["angle_deg"].to_numpy(),
-                                          frame["angle_deg"].to_numpy())
+            self.assertEqual(frame.attrs["name"], row["name"])
+            # The same numbers as the trial's JSON, bit for bit.
+            stored = fb.trial_json(fresh)
+            self.assertEqual(list(frame.columns), [c["name"] for c in stored["channels"]])
+            for channel in stored["channels"]:
+                np.testing.assert_array_equal(frame[channel["name"]].to_numpy(),
+                                              np.asarray(channel["values"]))
+            if stored.get("emg"):
+                emg = fb.trial(fresh, group="emg")
+                self.assertEqual(len(emg), len(stored["emg"]["channels"][0]["values"]))
+                self.assertEqual(emg.attrs["name"], row["name"])
+                self.assertAlmostEqual(emg.attrs["sample_rate_hz"], 1000.0, places=6)
+            else:
+                with self.assertRaises(ApiError) as e:
+                    fb.trial(fresh, group="emg")
+                self.assertEqual(e.exception.field, "group")
+            many = fb.trial_frames(list(trials["id"]))
+            self.assertEqual(list(many), list(trials["id"]))
+            pd.testing.assert_frame_equal(many[fresh], frame)
+            self.assertEqual([len(f) for f in many.values()], list(trials["num_samples"]))
             pulses = fb.pulses(fresh)
             self.assertGreater(len(pulses), 10)
             self.assertEqual(pulses.attrs["units"]["stim_ma"], "mA")
@@ -212,14 +226,6 @@ class RecordsTest(unittest.TestCase):
             with self.assertRaisesRegex(ValueError, "fmt"):
                 fb.export(LEG["session_id"], fmt="rar")
             self.assertIn("<html", fb.report(LEG["session_id"]).lower())
-
-
-def SERVER_GET_TEXT(path: str) -> str:
-    import urllib.request
-    request = urllib.request.Request(SERVER.url + "/api/v1" + path)
-    request.add_header("Authorization", f"Bearer {ANALYST}")
-    with urllib.request.urlopen(request, timeout=30) as response:
-        return response.read().decode()
 
 
 class ParameterSetsTest(unittest.TestCase):

@@ -12,7 +12,7 @@ import json
 import posixpath
 import tarfile
 import zipfile
-from typing import Any, Dict, Iterable, List, Optional, Sequence
+from typing import Any, Dict, Iterable, Optional, Sequence
 
 import numpy as np
 import pandas as pd
@@ -59,20 +59,6 @@ def revisions_frame(items: Sequence[dict]) -> pd.DataFrame:
             row[f"details.{key}"] = value
         rows.append(row)
     return pd.DataFrame(rows)
-
-
-def trial_frame(trial: dict, group: str = "main") -> pd.DataFrame:
-    source = trial if group == "main" else trial.get("emg")
-    if source is None:
-        raise ValueError(f"trial {trial.get('id')} has no EMG group")
-    data = {c["name"]: np.asarray(c["values"], dtype=float) for c in source["channels"]}
-    frame = pd.DataFrame(data, copy=False)
-    frame.attrs.update({
-        "trial_id": trial.get("id"), "name": trial.get("name"), "kind": trial.get("kind"),
-        "group": group, "sample_rate_hz": source["sample_rate_hz"],
-        "units": {c["name"]: c.get("unit") or unit_of(c["name"]) for c in source["channels"]},
-    })
-    return frame
 
 
 def pulses_frame(trial: dict) -> pd.DataFrame:
