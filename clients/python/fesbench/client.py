@@ -104,12 +104,13 @@ class Client:
     uncompressed: the server gzips a 340 kB trial in about 0.6 s, far longer
     than a lab network takes to carry it whole. ``parallel``: how many
     requests at once fetch many sets or trials (``with_parameters``,
-    :meth:`trial_frames`).
+    :meth:`trial_frames`): on a 2-core server one at a time is fastest
+    (bench/python/fetch_bench.py), a server with more cores may gain.
     """
 
     def __init__(self, url: str, token: Optional[str] = None, token_file: Optional[str] = None,
                  ca_file: Optional[str] = None, timeout_s: float = 30.0, retries: int = 3,
-                 max_retry_wait_s: float = 10.0, compress: bool = False, parallel: int = 4):
+                 max_retry_wait_s: float = 10.0, compress: bool = False, parallel: int = 1):
         if not isinstance(url, str) or not url.startswith(("http://", "https://")):
             raise ValueError(f"url must start with http:// or https://, got {url!r}")
         if (token is None) == (token_file is None):
@@ -138,9 +139,13 @@ class Client:
         self._sessions: List[requests.Session] = []
         self._sessions_lock = threading.Lock()
         self.parallel = max(1, int(parallel))
-        # Given with each request: a session's `verify` loses to the
-        # REQUESTS_CA_BUNDLE / CURL_CA_BUNDLE variables, a CA file must not.
-        self._verify: Union[str, bool] = ca_file if ca_file is not None else True
+        # The environment (proxies, REQUESTS_CA_BUNDLE / CURL_CA_BUNDLE) is
+        # read once here, as requests would read it, and not again for each
+        # request (about 1 ms each); a CA file given here wins over it.
+        self._proxies = requests.utils.get_environ_proxies(url)
+        self._verify: Union[str, bool] = (
+            ca_file if ca_file is not None else
+            os.environ.get("REQUESTS_CA_BUNDLE") or os.environ.get("CURL_CA_BUNDLE") or True)
         self._trial_kinds: Optional[List[dict]] = None  # GET /trial-kinds, read once
 
     # --- transport ---------------------------------------------------------
@@ -149,6 +154,8 @@ class Client:
         session = getattr(self._local, "session", None)
         if session is None:
             session = requests.Session()
+            session.trust_env = False
+            session.proxies.update(self._proxies)
             session.headers.update(self._headers)
             self._local.session = session
             with self._sessions_lock:
