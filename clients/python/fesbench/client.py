@@ -100,9 +100,11 @@ class Client:
     the connect and read timeout of each request; a 503 (overload) or 429
     (too many failed tokens) is retried ``retries`` times after the
     server's ``Retry-After`` (at most ``max_retry_wait_s``; docs/API.md
-    error table). ``compress=False`` (the default) asks for answers
-    uncompressed: the server gzips a 340 kB trial in about 0.6 s, far longer
-    than a lab network takes to carry it whole. ``parallel``: how many
+    error table); a GET whose connection the server had closed (idle
+    keep-alive connections close after 5 s) is sent once more on a new one.
+    ``compress=False`` (the default) asks for answers uncompressed: the
+    server compresses a 340 kB trial in about 0.6 s, far longer than a lab
+    network takes to carry it whole. ``parallel``: how many
     requests at once fetch many sets or trials (``with_parameters``,
     :meth:`trial_frames`): on a 2-core server one at a time is fastest
     (bench/python/fetch_bench.py), a server with more cores may gain.
@@ -196,22 +198,28 @@ class Client:
             data = json.dumps(body)
             headers["Content-Type"] = "application/json"
         timeout = timeout_s if timeout_s is not None else self.timeout_s
-        for attempt in range(self.retries + 1):
+        resent = False
+        attempt = 0
+        while True:
             try:
                 response = self._session().request(method, url, params=params, data=data,
-                                                 headers=headers, stream=stream,
-                                                 verify=self._verify,
-                                                 timeout=(self.timeout_s, timeout))
+                                                   headers=headers, stream=stream,
+                                                   verify=self._verify,
+                                                   timeout=(self.timeout_s, timeout))
             except requests.exceptions.SSLError as e:
                 raise ConnectionFailed(f"TLS with {self.url} failed: {e}") from e
             except requests.exceptions.Timeout as e:
                 raise ConnectionFailed(f"{method} {path}: no answer within {timeout} s") from e
             except requests.exceptions.ConnectionError as e:
+                if method == "GET" and not resent:
+                    resent = True
+                    continue
                 raise ConnectionFailed(f"cannot reach {self.url}: {e}") from e
             if response.status_code < 400:
                 return response
             retry_after = _retry_after_s(response)
             if response.status_code in (429, 503) and attempt < self.retries:
+                attempt += 1
                 response.close()
                 time.sleep(min(retry_after if retry_after is not None else 1.0,
                                self.max_retry_wait_s))
@@ -221,7 +229,6 @@ class Client:
             except ValueError:
                 payload = None
             raise ApiError.from_response(response.status_code, payload, retry_after)
-        raise AssertionError("unreachable")
 
     def _get(self, path: str, **params) -> Any:
         return self._request("GET", path, params=params).json()
