@@ -11,6 +11,8 @@ leg's, a session with its limits, and protocol runs heart-beaten to their end.
 
 from __future__ import annotations
 
+import atexit
+import ctypes
 import json
 import os
 import re
@@ -24,6 +26,12 @@ import urllib.request
 from typing import List, Optional
 
 
+def _die_with_parent() -> None:
+    """In the child: SIGTERM when the test process dies, however it dies
+    (Linux prctl PR_SET_PDEATHSIG), so no server outlives its test."""
+    ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
+
+
 class Server:
     def __init__(self, binary: str, extra_args: Optional[List[str]] = None, timeout_s: float = 20):
         self.dir = tempfile.mkdtemp(prefix="fesbench-py-")
@@ -32,7 +40,9 @@ class Server:
                 "--data-dir", data, "--time-scale", "0", "--dds-transport", "off"]
         self.stderr = open(os.path.join(self.dir, "stderr.log"), "wb")
         self.process = subprocess.Popen(args + (extra_args or []), stdout=subprocess.PIPE,
-                                        stderr=self.stderr, text=True)
+                                        stderr=self.stderr, text=True,
+                                        preexec_fn=_die_with_parent)
+        atexit.register(self._kill_if_running)
         self.port = 0
         deadline = time.monotonic() + timeout_s
         lines = []
@@ -69,6 +79,12 @@ class Server:
         self.stderr.close()
         shutil.rmtree(self.dir, ignore_errors=True)
         return code
+
+    def _kill_if_running(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+            shutil.rmtree(self.dir, ignore_errors=True)
 
     # --- raw API calls (the tests' own, independent of the client) -----------
 

@@ -48,9 +48,13 @@ def setUpModule():
         raise RuntimeError("FESBENCH_SERVER_BINARY must name the fesbench-server binary")
     fesbench.client.Client._request = _recording_request
     SERVER = Server(BINARY)
-    LEG = SERVER.leg_with_recordings("PY-A", rapid_runs=2,
-                                     fresh=("prediction_random_binary", "prediction_step"))
-    ANALYST = SERVER.user_token("ana", "analyst")
+    try:
+        LEG = SERVER.leg_with_recordings("PY-A", rapid_runs=2,
+                                         fresh=("prediction_random_binary", "prediction_step"))
+        ANALYST = SERVER.user_token("ana", "analyst")
+    except BaseException:
+        SERVER.stop()  # tearDownModule does not run after a failed setUpModule
+        raise
 
 
 def tearDownModule():
