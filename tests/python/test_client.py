@@ -134,6 +134,21 @@ class ConnectionTest(unittest.TestCase):
         with self.assertRaises(ConnectionFailed):
             Client("http://127.0.0.1:1", token=ANALYST).health()
 
+    def test_a_job_waited_for_too_briefly_times_out_and_can_be_waited_for_again(self):
+        with analyst() as fb:
+            job = fb.submit_comparison(
+                [{"a_parameter_set_id": LEG["set_ids"][0], "b_parameter_set_id": LEG["set_ids"][1],
+                  "trial_ids": LEG["fresh_trial_ids"]}])
+            self.assertEqual(job.kind, "comparison")
+            # As answered before a worker took it (the answer may already
+            # say running or done): a zero wait gives up at once.
+            queued = fesbench.Job(fb, dict(job.record, state="queued"))
+            with self.assertRaisesRegex(TimeoutError, f"job {job.id} still queued"):
+                queued.wait(timeout_s=0)
+            result = queued.wait()
+            self.assertEqual(len(result["pairs"][0]["trials"]), len(LEG["fresh_trial_ids"]))
+            self.assertIsNone(result["t_test"])
+
     def test_a_failed_job_raises_with_its_error(self):
         with Client(SERVER.url, token=ANALYST) as fb:
             job = fb.submit_prediction(LEG["set_ids"][0], trial_id=987654)
