@@ -426,7 +426,7 @@ class TransportTest(unittest.TestCase):
         self.assertLess(time.monotonic() - start, 0.9)
 
     def test_429_from_the_real_server_is_retried(self):
-        server = Server(BINARY, ["--auth-failure-burst", "1", "--auth-failure-refill-per-s", "2"])
+        server = Server(BINARY, ["--auth-failure-burst", "1", "--auth-failure-refill-per-s", "1"])
         try:
             bad = Client(server.url, token="fsb_wrong", retries=0)
             with self.assertRaises(ApiError) as e:
