@@ -110,6 +110,17 @@ class ConnectionTest(unittest.TestCase):
         with self.assertRaisesRegex(ValueError, "ca_file"):
             Client("https://127.0.0.1:1", token=ANALYST, ca_file="/nonexistent/ca.pem")
 
+    def test_the_readme_calls_only_methods_that_exist(self):
+        root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+        with open(os.path.join(root, "README.md"), encoding="utf-8") as f:
+            block = f.read().split("```python", 1)[1].split("```", 1)[0]
+        names = set(re.findall(r"\bfb\.(\w+)\(", block))
+        self.assertGreater(len(names), 8, block)
+        for name in names:
+            self.assertTrue(callable(getattr(Client, name, None)), f"README calls fb.{name}")
+        for name in re.findall(r"^from fesbench import (.*)$", block, re.M)[0].split(", "):
+            self.assertTrue(hasattr(fesbench, name), name)
+
     def test_errors_carry_the_servers_code_message_and_field(self):
         with analyst() as fb:
             with self.assertRaises(ApiError) as e:
