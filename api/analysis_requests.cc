@@ -109,11 +109,41 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
   r.session_id = fields.Integer("session_id", false, 1);
   r.trial_ids = fields.IdList("trial_ids", false).value_or(std::vector<std::int64_t>{});
   r.method = fields.String("method", false).value_or(r.method);
-  r.irc_method = fields.String("irc_method", false).value_or(r.irc_method);
-  r.passive_method = fields.String("passive_method", false).value_or(r.passive_method);
-  r.contraction_order =
-      static_cast<int>(fields.Integer("contraction_order", false, 0, 3).value_or(3));
-  r.pole_method = fields.String("pole_method", false).value_or(r.pole_method);
+  const std::optional<std::string> irc_method = fields.String("irc_method", false);
+  const std::optional<std::string> passive_method = fields.String("passive_method", false);
+  const std::optional<std::int64_t> contraction_order =
+      fields.Integer("contraction_order", false, 0, 3);
+  const std::optional<std::string> pole_method = fields.String("pole_method", false);
+  // The rapid routine (§7.4.1) fits with its own methods (docs/API.md,
+  // Parameter sets: ramp_correlation, free swing): another method named with
+  // it would be ignored, so it is refused instead.
+  if (r.method == "rapid") {
+    if (irc_method && *irc_method != "ramp_correlation") {
+      return Status::InvalidArgument(
+          "method rapid fits the IRC by ramp_correlation; irc_method " + *irc_method +
+              " needs method thesis",
+          "irc_method");
+    }
+    if (passive_method && *passive_method != "free_swing") {
+      return Status::InvalidArgument(
+          "method rapid fits the passive curves in free swing; passive_method " +
+              *passive_method + " needs method thesis",
+          "passive_method");
+    }
+    if (contraction_order) {
+      return Status::InvalidArgument(
+          "method rapid does not take contraction_order (it is a method thesis option)",
+          "contraction_order");
+    }
+    if (pole_method) {
+      return Status::InvalidArgument(
+          "method rapid does not take pole_method (it is a method thesis option)", "pole_method");
+    }
+  }
+  r.irc_method = irc_method.value_or(r.irc_method);
+  r.passive_method = passive_method.value_or(r.passive_method);
+  r.contraction_order = static_cast<int>(contraction_order.value_or(3));
+  r.pole_method = pole_method.value_or(r.pole_method);
   if (const json* models = fields.Any("models", false)) {
     Result<std::vector<std::string>> names = Names(*models, fields.PathOf("models"));
     if (!names.ok()) return names.status();
@@ -130,12 +160,14 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
 }
 
 json IdentificationRequestToJson(const IdentificationRequest& r) {
-  json j = {{"method", r.method},
-            {"irc_method", r.irc_method},
-            {"passive_method", r.passive_method},
-            {"contraction_order", r.contraction_order},
-            {"pole_method", r.pole_method},
-            {"models", r.models}};
+  json j = {{"method", r.method}, {"models", r.models}};
+  // Method rapid takes none of the thesis methods (its own are fixed).
+  if (r.method != "rapid") {
+    j["irc_method"] = r.irc_method;
+    j["passive_method"] = r.passive_method;
+    j["contraction_order"] = r.contraction_order;
+    j["pole_method"] = r.pole_method;
+  }
   if (r.session_id) j["session_id"] = *r.session_id;
   if (!r.trial_ids.empty()) j["trial_ids"] = r.trial_ids;
   json breakpoints = json::object();

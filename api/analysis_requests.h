@@ -10,7 +10,7 @@
 /// non-integral or non-positive ids and out-of-range counts are
 /// kInvalidArgument with the field path ("breakpoints.active_angle[2]",
 /// "pairs[1].trial_ids[0]"). Whether the values make sense together (known
-/// method names, increasing breakpoints, two pairs for a t-test) is the
+/// method names, increasing breakpoints, at least one pair) is the
 /// services' validation (server/services), which runs on the parsed value.
 ///
 /// Identification request:
@@ -120,7 +120,7 @@ struct ComparisonPair {
 };
 
 struct ComparisonRequest {
-  std::vector<ComparisonPair> pairs;  ///< ≥ 2 (t-test), ≤ 200.
+  std::vector<ComparisonPair> pairs;  ///< 1–200 (the t-test needs ≥ 2).
   /// "e_rms" (Eq. 6.9), "e_abs" (Eq. 6.10), "normalised_rms" (Eq. 6.1),
   /// "e_ave" (Eq. 6.2).
   std::string metric = "e_rms";

@@ -24,8 +24,12 @@ packages=(
   nodejs chromium
   gnuplot-nox
   libarchive-dev python3-pandas
+  python3-requests python3-numpy python3-matplotlib python3-nbconvert python3-ipykernel
+  jupyter-nbconvert
   libpq-dev postgresql
 )
+# python3-*, jupyter-nbconvert: the Python client (clients/python), its tests
+# and its example notebook run headless (tests/python), all with /usr/bin/python3.
 # libpq-dev: the PostgreSQL engine's client library (--db postgresql://…);
 # postgresql: the server the tests start themselves (initdb in a temporary
 # folder, as the postgres user when run as root).

@@ -92,6 +92,29 @@ json ValidationTrials(ApiClient& client, std::int64_t set_id) {
   return kept;
 }
 
+// A pair's trial ids, comma-separated.
+std::string TrialList(const json& trials) {
+  std::string text;
+  for (const auto& t : trials) text += (text.empty() ? "" : ",") + Cell(t["trial_id"]);
+  return text;
+}
+
+// Says on standard error which of `trials` a set of `sets` was fitted on.
+void NoteTrainingTrials(ApiClient& client, CliContext& context,
+                        const std::vector<std::int64_t>& sets,
+                        const std::vector<std::int64_t>& trials) {
+  for (std::int64_t set : sets) {
+    const std::vector<std::int64_t> training =
+        TrainingTrials(client.Get("/parameter-sets/" + std::to_string(set)));
+    for (std::int64_t t : trials) {
+      if (Contains(training, t)) {
+        context.err << "note: trial " << t << " is a training trial of parameter set " << set
+                    << " (it was fitted on it)\n";
+      }
+    }
+  }
+}
+
 struct IdentifyForm {
   std::string session;
   std::string method = "thesis";
@@ -128,9 +151,11 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         ->check(CLI::IsMember({"thesis", "rapid"}));
     identify
         ->add_option("--passive-method", form->passive_method,
-                     "sequential (§4.2.1), simultaneous (Eq. 4.31) or free_swing (Eq. 4.35)")
+                     "sequential (§4.2.1), simultaneous (Eq. 4.31) or free_swing (Eq. 4.35); "
+                     "method rapid fits in free swing and refuses the others")
         ->check(CLI::IsMember({"sequential", "simultaneous", "free_swing"}));
-    identify->add_option("--irc-method", form->irc_method, "IRC method, e.g. ramp_correlation");
+    identify->add_option("--irc-method", form->irc_method,
+                         "IRC method, e.g. ramp_correlation (method rapid: only that one)");
     identify->callback([form, &context] {
       context.action = [form, &context] {
         api::IdentificationRequest request;
@@ -138,8 +163,13 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         request.method = form->method;
         if (!form->passive_method.empty()) request.passive_method = form->passive_method;
         if (!form->irc_method.empty()) request.irc_method = form->irc_method;
+        // Every flag given reaches the request as given, even where the
+        // method has its own (rapid): the server then refuses it by name.
+        json body = api::IdentificationRequestToJson(request);
+        if (!form->passive_method.empty()) body["passive_method"] = form->passive_method;
+        if (!form->irc_method.empty()) body["irc_method"] = form->irc_method;
         auto client = Connect(context);
-        const json job = client->Post("/identifications", api::IdentificationRequestToJson(request));
+        const json job = client->Post("/identifications", body);
         const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
         if (context.options.json) {
           context.out << result.dump(2) << "\n";
@@ -296,7 +326,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     CLI::App* compare = app.add_subcommand(
         "compare",
         "Paired t-test of two groups of parameter sets' prediction errors (pair i = the i-th "
-        "set of each group, one subject/leg).");
+        "set of each group, one subject/leg); one set on each side: one pair per trial.");
     compare->add_option("--params-a", form->a, "parameter set ids of group A (comma-separated)")
         ->required()
         ->delimiter(',');
@@ -327,23 +357,39 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         }
         auto client = Connect(context);
         api::ComparisonRequest request;
-        for (const auto& [a, b] : ids) {
-          api::ComparisonPair pair{a, b, trials};
-          if (trials.empty()) {
-            pair.trial_ids = ValidationTrials(*client, a).get<std::vector<std::int64_t>>();
-          } else {
-            for (std::int64_t set : {a, b}) {
-              const std::vector<std::int64_t> training =
-                  TrainingTrials(client->Get("/parameter-sets/" + std::to_string(set)));
-              for (std::int64_t t : trials) {
-                if (Contains(training, t)) {
-                  context.err << "note: trial " << t << " is a training trial of parameter set "
-                              << set << " (it was fitted on it)\n";
-                }
-              }
+        if (ids.size() == 1) {
+          // Two sets of one leg: one pair per trial, so the paired t-test
+          // runs over the trials (docs/API.md, Jobs); by default the leg's
+          // free-swing trials neither set was fitted on.
+          const auto [a, b] = ids[0];
+          std::vector<std::int64_t> over = trials;
+          if (over.empty()) {
+            const std::vector<std::int64_t> b_training =
+                TrainingTrials(client->Get("/parameter-sets/" + std::to_string(b)));
+            for (const auto& t : ValidationTrials(*client, a)) {
+              const std::int64_t id = t.get<std::int64_t>();
+              if (!Contains(b_training, id)) over.push_back(id);
             }
+            if (over.empty()) {
+              throw CliError::Usage("parameter sets " + std::to_string(a) + " and " +
+                                    std::to_string(b) +
+                                    " have no free-swing trial of their leg that neither was "
+                                    "fitted on: record one or name trials with --trials");
+            }
+          } else {
+            NoteTrainingTrials(*client, context, {a, b}, over);
           }
-          request.pairs.push_back(std::move(pair));
+          for (std::int64_t t : over) request.pairs.push_back({a, b, {t}});
+        } else {
+          for (const auto& [a, b] : ids) {
+            api::ComparisonPair pair{a, b, trials};
+            if (trials.empty()) {
+              pair.trial_ids = ValidationTrials(*client, a).get<std::vector<std::int64_t>>();
+            } else {
+              NoteTrainingTrials(*client, context, {a, b}, trials);
+            }
+            request.pairs.push_back(std::move(pair));
+          }
         }
         if (!form->metric.empty()) request.metric = form->metric;
         if (form->confidence > 0.0) request.confidence = form->confidence;
@@ -358,13 +404,17 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         for (const auto& p : result["pairs"]) {
           const double diff = p["a_error"].get<double>() - p["b_error"].get<double>();
           rows.push_back({Cell(p["a_parameter_set_id"]), Cell(p["b_parameter_set_id"]),
-                          Cell(p["subject_id"]), Cell(p["trials"].size()), Fixed(p["a_error"], 4),
+                          Cell(p["subject_id"]), TrialList(p["trials"]), Fixed(p["a_error"], 4),
                           Fixed(p["b_error"], 4), Fixed(json(diff), 4)});
         }
         context.out << "metric " << Cell(result["metric"]) << " (" << unit << ")\n";
         PrintTable(context.out,
                    {"set_a", "set_b", "subject", "trials", "a_error", "b_error", "a-b"}, rows);
         const json& t = result["t_test"];
+        if (!t.is_object()) {
+          context.out << Cell(result.value("t_test_note", json("no paired t-test"))) << "\n";
+          return;
+        }
         context.out << "paired t-test:\n";
         PrintTable(context.out,
                    {"n", "mean_diff", "sd_diff", "t", "df", "p_value", "t_critical", "confidence",

@@ -19,7 +19,7 @@ namespace {
 constexpr CommandRegistrar kCommands[] = {
     RegisterLoginCommand, RegisterRecordCommands,   RegisterProtocolCommands, RegisterRunCommands,
     RegisterDataCommands, RegisterExchangeCommands, RegisterAnalysisCommands,
-    RegisterStudyCommand,
+    RegisterStudyCommand,   RegisterUserCommands,
 };
 
 int Fail(std::ostream& err, int code, const std::string& message) {

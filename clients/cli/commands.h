@@ -41,6 +41,8 @@ std::string ParameterHistoryCsv(ApiClient& client, std::int64_t subject_id,
 void RegisterAnalysisCommands(CLI::App& app, CliContext& context);
 /// `study` (study_command.cc, clients/cli/study/).
 void RegisterStudyCommand(CLI::App& app, CliContext& context);
+/// `users list|create|deactivate|tokens|issue-token|revoke-token` (users_commands.cc).
+void RegisterUserCommands(CLI::App& app, CliContext& context);
 
 /// A client for the configured server (ResolveConnection).
 std::unique_ptr<ApiClient> Connect(const CliContext& context);

@@ -102,8 +102,9 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
        .roles = kAnalyst | kAdmin,
        .json_body = true,
        .tag = "jobs",
-       .summary = "Paired t-test of two parameter sets' (or models') errors across subjects and "
-                  "trials; a job",
+       .summary = "Each pair's errors under two parameter sets (or models) over its trials, "
+                  "and their paired t-test where it is defined (2 pairs or more; else t_test "
+                  "null and t_test_note says why); a job",
        .success_status = 202,
        .request_schema = ObjectSchema(
            {{"pairs",

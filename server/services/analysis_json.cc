@@ -106,12 +106,10 @@ json ComparisonResultToJson(const ComparisonResult& r) {
                      {"b_error", p.b_error},
                      {"trials", trials}});
   }
-  const model::PairedTTestResult& t = r.test;
-  return {{"metric", r.metric},
-          {"unit", r.unit},
-          {"pairs", pairs},
-          {"t_test",
-           {{"mean_difference", t.mean_difference},
+  json test = nullptr;
+  if (r.test) {
+    const model::PairedTTestResult& t = *r.test;
+    test = {{"mean_difference", t.mean_difference},
             {"sd_difference", t.sd_difference},
             {"n", t.n},
             {"t", t.t},
@@ -119,7 +117,13 @@ json ComparisonResultToJson(const ComparisonResult& r) {
             {"p_value", t.p_value},
             {"confidence", t.confidence},
             {"t_critical", t.t_critical},
-            {"significant", t.significant}}}};
+            {"significant", t.significant}};
+  }
+  return {{"metric", r.metric},
+          {"unit", r.unit},
+          {"pairs", pairs},
+          {"t_test", test},
+          {"t_test_note", r.test_note.empty() ? json(nullptr) : json(r.test_note)}};
 }
 
 }  // namespace fesbench::server::services

@@ -25,10 +25,8 @@ std::optional<double> Metric(const PredictionErrors& e, const std::string& metri
 }  // namespace
 
 api::Status ValidateComparisonRequest(const ComparisonRequest& request) {
-  if (request.pairs.size() < 2) {
-    return api::Status::InvalidArgument(
-        "a paired t-test needs at least 2 pairs, got " + std::to_string(request.pairs.size()),
-        "pairs");
+  if (request.pairs.empty()) {
+    return api::Status::InvalidArgument("at least 1 pair", "pairs");
   }
   if (request.pairs.size() > 200) {
     return api::Status::InvalidArgument("at most 200 pairs", "pairs");
@@ -136,9 +134,20 @@ api::Result<ComparisonResult> ComparisonService::Compare(const ComparisonRequest
       b.push_back(pc.b_error);
       out.pairs.push_back(std::move(pc));
     }
-    out.test = model::PairedTTest(a, b, request.confidence);  // Eq. 6.3
-  } catch (const std::invalid_argument& e) {
-    return api::Status::FailedPrecondition(std::string("paired t-test: ") + e.what());
+    // Eq. 6.3 where it is defined: 2 pairs or more whose differences are
+    // not all equal; otherwise the errors alone and why (docs/API.md, Jobs).
+    if (a.size() < 2) {
+      out.test_note = "no paired t-test: it needs at least 2 pairs, got " +
+                      std::to_string(a.size()) + "; the errors of each set are given";
+    } else {
+      try {
+        out.test = model::PairedTTest(a, b, request.confidence);
+      } catch (const std::invalid_argument&) {
+        out.test_note =
+            "no paired t-test: every pair's difference is the same (S_d = 0, t undefined); the "
+            "errors of each set are given";
+      }
+    }
   } catch (const std::exception& e) {
     return api::Status::Internal(std::string("comparison: ") + e.what());
   }

@@ -10,6 +10,7 @@
 /// stored. Thread-safe.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,11 +47,14 @@ struct ComparisonResult {
   std::string metric;
   std::string unit;  ///< "deg", "N.m", or "1" (dimensionless metrics).
   std::vector<PairComparison> pairs;
-  model::PairedTTestResult test;  ///< of a_error − b_error over the pairs.
+  /// Of a_error − b_error over the pairs; unset where undefined (1 pair, or
+  /// all differences equal), `test_note` then says why.
+  std::optional<model::PairedTTestResult> test;
+  std::string test_note;
 };
 
 /// Checks the request alone: kInvalidArgument naming the field ("pairs"
-/// when fewer than 2, "pairs[1].trial_ids[0]", "metric", "confidence").
+/// when none, "pairs[1].trial_ids[0]", "metric", "confidence").
 api::Status ValidateComparisonRequest(const ComparisonRequest& request);
 
 class ComparisonService {
@@ -61,7 +65,8 @@ class ComparisonService {
   /// kNotFound for an unknown set or trial; kInvalidArgument when a pair's
   /// sets or trials belong to different legs, or a trial's mode differs
   /// between pairs' channels; kFailedPrecondition when a metric is
-  /// undefined on a trial or all differences are equal (t undefined).
+  /// undefined on a trial. One pair, or pairs whose differences are all
+  /// equal, give the errors without a t-test (`test` unset, `test_note`).
   api::Result<ComparisonResult> Compare(const ComparisonRequest& request) const;
 
  private:

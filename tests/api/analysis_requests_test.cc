@@ -66,6 +66,33 @@ TEST(AnalysisRequests, IdentificationErrorsNameTheField) {
             ErrorCode::kInvalidArgument);
 }
 
+// Method rapid fits with its own methods: a thesis method named with it is
+// refused, never silently ignored (docs/API.md, Jobs).
+TEST(AnalysisRequests, RapidRefusesTheThesisMethods) {
+  const auto status = [](const json& body) { return IdentificationRequestFromJson(body).status(); };
+  EXPECT_EQ(status({{"method", "rapid"}, {"passive_method", "simultaneous"}}).field(),
+            "passive_method");
+  EXPECT_NE(status({{"method", "rapid"}, {"passive_method", "simultaneous"}}).message().find(
+                "needs method thesis"),
+            std::string::npos);
+  EXPECT_EQ(status({{"method", "rapid"}, {"irc_method", "step"}}).field(), "irc_method");
+  EXPECT_EQ(status({{"method", "rapid"}, {"contraction_order", 2}}).field(), "contraction_order");
+  EXPECT_EQ(status({{"method", "rapid"}, {"pole_method", "peak"}}).field(), "pole_method");
+  // Its own methods, named, are accepted; the thesis method takes them all.
+  EXPECT_TRUE(status({{"method", "rapid"},
+                      {"passive_method", "free_swing"},
+                      {"irc_method", "ramp_correlation"}})
+                  .ok());
+  EXPECT_TRUE(status({{"method", "thesis"}, {"passive_method", "sequential"}}).ok());
+  // What the clients send for rapid reads back.
+  IdentificationRequest rapid;
+  rapid.session_id = 3;
+  rapid.method = "rapid";
+  const json sent = IdentificationRequestToJson(rapid);
+  EXPECT_FALSE(sent.contains("passive_method"));
+  EXPECT_TRUE(IdentificationRequestFromJson(sent).ok());
+}
+
 TEST(AnalysisRequests, PredictionRoundTripsWithAStimulusOrATrial) {
   PredictionRequest stimulus;
   stimulus.parameter_set_id = 3;

@@ -228,6 +228,56 @@ TEST(CliSessionTest, WholeAnalystSession) {
   ASSERT_EQ(identify.exit_code, 0) << identify.err;
   EXPECT_THAT(identify.out, HasSubstr("(version 3, model full)"));
   EXPECT_THAT(identify.out, HasSubstr("fit_rms:"));
+  // Every flag reaches the request: the rapid method refuses a thesis
+  // passive method instead of ignoring it.
+  auto ignored = cli.Run({"identify", "--session", std::to_string(sessions[0]), "--method",
+                          "rapid", "--passive-method", "simultaneous"});
+  EXPECT_EQ(ignored.exit_code, 1) << ignored.out;
+  ExpectOneErrorLine(ignored);
+  EXPECT_THAT(ignored.err, HasSubstr("(field passive_method) [HTTP 400]"));
+  auto irc = cli.Run({"identify", "--session", std::to_string(sessions[0]), "--method", "rapid",
+                      "--irc-method", "step"});
+  EXPECT_EQ(irc.exit_code, 1);
+  EXPECT_THAT(irc.err, HasSubstr("(field irc_method) [HTTP 400]"));
+
+  // Two sets of one leg over the trials neither was fitted on (two fresh
+  // prediction runs): one pair per trial, a paired t-test over them.
+  std::vector<std::int64_t> fresh;
+  for (const std::string protocol : {"prediction_random_binary", "prediction_step"}) {
+    auto run = cli.Run({"run", "start", std::to_string(sessions[0]), protocol, "--json"});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    std::istringstream lines(run.out);
+    for (std::string line; std::getline(lines, line);) {
+      const json event = json::parse(line);
+      if (event["event"] == "trial") fresh.push_back(event["data"]["trial_id"]);
+    }
+  }
+  ASSERT_EQ(fresh.size(), 2u);
+  const std::string set_a = std::to_string(first_sets[0]);
+  const std::string set_b = std::to_string(second_sets[0]);
+  auto two_sets = cli.Run({"compare", "--params-a", set_a, "--params-b", set_b, "--json"});
+  ASSERT_EQ(two_sets.exit_code, 0) << two_sets.err;
+  const json over_trials = json::parse(two_sets.out);
+  ASSERT_EQ(over_trials["pairs"].size(), 2u);
+  std::vector<std::int64_t> compared;
+  for (const auto& pair : over_trials["pairs"]) {
+    EXPECT_EQ(pair["a_parameter_set_id"], first_sets[0]);
+    ASSERT_EQ(pair["trials"].size(), 1u);
+    compared.push_back(pair["trials"][0]["trial_id"]);
+  }
+  EXPECT_EQ(compared, fresh) << "the trials neither set was fitted on, one pair each";
+  EXPECT_EQ(over_trials["t_test"]["n"], 2);
+  EXPECT_TRUE(over_trials["t_test_note"].is_null());
+  auto one_trial = cli.Run({"compare", "--params-a", set_a, "--params-b", set_b, "--trials",
+                            std::to_string(fresh[0])});
+  ASSERT_EQ(one_trial.exit_code, 0) << one_trial.err;
+  EXPECT_THAT(one_trial.out, HasSubstr("metric e_rms (deg)"));
+  EXPECT_THAT(one_trial.out, HasSubstr("no paired t-test: it needs at least 2 pairs, got 1"));
+  EXPECT_THAT(one_trial.out, Not(HasSubstr("paired t-test:\n")));
+  auto training = cli.Run({"compare", "--params-a", set_a, "--params-b", set_b, "--trials",
+                           std::to_string(rb_trials[0])});
+  ASSERT_EQ(training.exit_code, 0) << training.err;
+  EXPECT_THAT(training.err, HasSubstr("is a training trial of parameter set " + set_a));
 
   // Compare the first and second fits of each leg: a paired t-test, n = 2.
   const std::string a = std::to_string(first_sets[0]) + "," + std::to_string(first_sets[1]);
@@ -318,6 +368,79 @@ TEST(CliSessionTest, ExitCodesAndOneLineErrors) {
   auto elsewhere = cli.Run({"--server", "http://127.0.0.1:1", "params", "get", "1"});
   EXPECT_EQ(elsewhere.exit_code, 3);
   EXPECT_THAT(elsewhere.err, HasSubstr("cannot reach http://127.0.0.1:1:"));
+}
+
+// An admin issues and revokes analysts' tokens from the command line; a
+// token's secret is shown once (or written to a new 0600 file).
+TEST(CliSessionTest, AdminIssuesAndRevokesTokens) {
+  ServerProcess server;
+  auto http = server.Client();
+  Cli cli;
+  ASSERT_EQ(cli.Run({"login", Url(server), "--token", server.admin_token()}).exit_code, 0);
+
+  auto created = cli.Run({"users", "create", "ana", "--role", "analyst", "--token", "--label",
+                          "laptop"});
+  ASSERT_EQ(created.exit_code, 0) << created.err;
+  EXPECT_THAT(created.out, HasSubstr("(analyst)"));
+  EXPECT_THAT(created.out, HasSubstr("shown once"));
+  std::smatch secret;
+  ASSERT_TRUE(std::regex_search(created.out, secret, std::regex("\n(fsb_[A-Za-z0-9_-]+)\n")))
+      << created.out;
+  const std::string token = secret[1];
+  auto me = Call(http, "GET", "/api/v1/me", token);
+  ASSERT_EQ(me.status, 200);
+  EXPECT_EQ(me.body["role"], "analyst");
+
+  const fs::path file = cli.dir() / "ana.token";
+  auto issued = cli.Run({"users", "issue-token", "ana", "--expires-in-s", "3600", "--out",
+                         file.string()});
+  ASSERT_EQ(issued.exit_code, 0) << issued.err;
+  EXPECT_THAT(issued.out, Not(HasSubstr("fsb_"))) << "the secret goes to the file only";
+  struct stat st {};
+  ASSERT_EQ(::stat(file.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  std::string second = ReadAll(file);
+  second.pop_back();  // the newline
+  EXPECT_EQ(Call(http, "GET", "/api/v1/me", second).status, 200);
+  auto again = cli.Run({"users", "issue-token", "ana", "--out", file.string()});
+  EXPECT_EQ(again.exit_code, 1) << "an existing file is never overwritten";
+  EXPECT_THAT(again.err, HasSubstr("never overwritten"));
+  auto no_folder = cli.Run({"users", "issue-token", "ana", "--out",
+                            (cli.dir() / "missing" / "t").string()});
+  EXPECT_EQ(no_folder.exit_code, 1) << "no token is issued that could not be kept";
+
+  auto tokens = cli.Run({"users", "tokens", "--user", "ana", "--json"});
+  ASSERT_EQ(tokens.exit_code, 0) << tokens.err;
+  const json listed = json::parse(tokens.out);
+  ASSERT_EQ(listed.size(), 2u) << "refused --out files issued no token";
+  EXPECT_EQ(listed[0]["label"], "laptop");
+  EXPECT_THAT(tokens.out, Not(HasSubstr("fsb_"))) << "a listed token has no secret";
+  auto revoked = cli.Run({"users", "revoke-token", listed[0]["id"].dump()});
+  ASSERT_EQ(revoked.exit_code, 0) << revoked.err;
+  EXPECT_EQ(Call(http, "GET", "/api/v1/me", token).status, 401);
+  EXPECT_EQ(Call(http, "GET", "/api/v1/me", second).status, 200);
+
+  auto users = cli.Run({"users", "list"});
+  ASSERT_EQ(users.exit_code, 0);
+  EXPECT_TRUE(std::regex_search(users.out, std::regex("\n2 +ana +analyst +yes ")))
+      << users.out;
+  auto usage = cli.Run({"users", "create", "bob", "--role", "analyst", "--label", "x"});
+  EXPECT_EQ(usage.exit_code, 2);
+  EXPECT_THAT(usage.err, HasSubstr("need --token"));
+  auto bad_role = cli.Run({"users", "create", "bob", "--role", "nurse"});
+  EXPECT_EQ(bad_role.exit_code, 2);
+  auto nobody = cli.Run({"users", "issue-token", "nobody"});
+  EXPECT_EQ(nobody.exit_code, 1);
+  EXPECT_THAT(nobody.err, HasSubstr("no user named nobody"));
+  // An analyst may not issue tokens: the server's 403.
+  auto as_analyst = cli.Run({"users", "list"}, second);
+  EXPECT_EQ(as_analyst.exit_code, 1);
+  EXPECT_THAT(as_analyst.err, HasSubstr("[HTTP 403]"));
+
+  auto deactivated = cli.Run({"users", "deactivate", "ana", "--reason", "left the lab"});
+  ASSERT_EQ(deactivated.exit_code, 0) << deactivated.err;
+  EXPECT_EQ(Call(http, "GET", "/api/v1/me", second).status, 401);
+  EXPECT_EQ(server.Terminate(), 0);
 }
 
 // On a terminal --follow draws a redrawn bar with ETA instead of lines

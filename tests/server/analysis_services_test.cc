@@ -2,6 +2,7 @@
 // model-simulated (noise-free) trials, prediction against a stored trial,
 // and the paired t-test of a comparison (DESIGN.md §4, §8).
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -589,7 +590,8 @@ TEST_F(AnalysisServicesTest, ComparisonReproducesHandComputedPairedTTest) {
   EXPECT_NEAR(r->pairs[0].b_error, 0.1, 1e-9);
   EXPECT_NEAR(r->pairs[2].b_error, 0.4, 1e-9);
   EXPECT_EQ(r->unit, "1");
-  const model::PairedTTestResult& t = r->test;
+  ASSERT_TRUE(r->test.has_value()) << r->test_note;
+  const model::PairedTTestResult& t = *r->test;
   EXPECT_EQ(t.n, 3u);
   EXPECT_NEAR(t.mean_difference, -0.7 / 3.0, 1e-9);
   EXPECT_NEAR(t.sd_difference, 0.152752523, 1e-8);
@@ -613,10 +615,29 @@ TEST_F(AnalysisServicesTest, ComparisonReproducesHandComputedPairedTTest) {
   EXPECT_EQ(j["t_test"]["n"], 3);
   EXPECT_EQ(j["pairs"][1]["trials"][0]["trial_id"], req.pairs[1].trial_ids[0]);
 
-  // Fewer than 2 pairs: no t-test.
+  EXPECT_TRUE(j["t_test_note"].is_null());
+
+  // One pair: its errors, no t-test, and the result says why.
   ComparisonRequest one = req;
   one.pairs.resize(1);
-  auto refused = service.Compare(one);
+  auto single = service.Compare(one);
+  ASSERT_TRUE(single.ok()) << single.status().ToString();
+  EXPECT_FALSE(single->test.has_value());
+  EXPECT_NEAR(single->pairs[0].b_error, 0.1, 1e-9);
+  const nlohmann::json single_json = ComparisonResultToJson(*single);
+  EXPECT_TRUE(single_json["t_test"].is_null());
+  EXPECT_THAT(single_json["t_test_note"].get<std::string>(), ::testing::HasSubstr("at least 2 pairs, got 1"));
+  // Equal differences (S_d = 0): t undefined, said so, errors kept.
+  ComparisonRequest same = req;
+  same.pairs = {req.pairs[0], req.pairs[0]};
+  auto flat = service.Compare(same);
+  ASSERT_TRUE(flat.ok()) << flat.status().ToString();
+  EXPECT_FALSE(flat->test.has_value());
+  EXPECT_THAT(flat->test_note, ::testing::HasSubstr("S_d = 0"));
+  // No pair at all: refused, naming the field.
+  ComparisonRequest none = req;
+  none.pairs.clear();
+  auto refused = service.Compare(none);
   EXPECT_EQ(refused.status().code(), api::ErrorCode::kInvalidArgument);
   EXPECT_EQ(refused.status().field(), "pairs");
   ComparisonRequest unknown = req;
