@@ -229,6 +229,11 @@ try {
     assert.ok(Number.isFinite(Number(await page.locator('#live').getAttribute('data-last-error'))));
     const run = (await call(server, 'GET', `/runs/${runId}`)).body;
     assert.equal(run.parameters.controller, 2);
+    // The form keeps what the clinician chose when the run ends (it used to
+    // return to the defaults: Start again would run another experiment).
+    assert.equal((await page.locator('#f-controller option:checked').textContent()).trim(), 'adaptive');
+    assert.equal(await page.locator('#f-duration_s').inputValue(), '10');
+    assert.equal(await page.locator('#f-lo_deg').inputValue(), '62');
     notes.push(`tracking (adaptive, 10 s sine 30–80°): ${text}`);
     await page.locator('#live').scrollIntoViewIfNeeded();
     await shots.both(page, 'tracking-done');
@@ -236,6 +241,7 @@ try {
 
   await step('tracking an uploaded trajectory (CSV t_s, angle_deg)', async () => {
     await page.locator('#protocol').selectOption('tracking');
+    await page.locator('#f-controller').selectOption({ label: 'inverse model' });
     await page.locator('#f-target').selectOption({ label: 'uploaded' });
     const rows = ['t_s,angle_deg'];
     for (let i = 0; i <= 60; i++) rows.push(`${(i * 0.1).toFixed(1)},${(72 + 6 * Math.sin(2 * Math.PI * 0.2 * i * 0.1)).toFixed(2)}`);

@@ -67,7 +67,27 @@ export async function sessionView(ctx, sessionId) {
     protocols = catalog.protocols;
     editForm.refresh();
     await renderDetails();
+    // The form is drawn again with the session's new defaults (a tolerance
+    // test changes them), but what the clinician typed or chose stays: a
+    // form never changes it behind their back.
+    const typed = {};
+    for (const el of paramSlot.querySelectorAll('input[data-prefilled], select[data-prefilled]')) {
+      if (el.value !== el.dataset.prefilled) typed[el.name] = el.value;
+    }
+    const before = {};
+    for (const el of paramSlot.querySelectorAll('[data-prefilled]')) before[el.name] = el.dataset.prefilled;
     renderParameters();
+    const updated = [];
+    for (const el of paramSlot.querySelectorAll('input[data-prefilled], select[data-prefilled]')) {
+      if (el.name in typed) {
+        el.value = typed[el.name];
+      } else if (el.name in before && before[el.name] !== el.dataset.prefilled) {
+        updated.push(el.labels && el.labels[0] ? el.labels[0].textContent : el.name);
+      }
+    }
+    if (updated.length) {
+      say(formStatus, 'info', `Defaults updated from the session: ${updated.join(', ')}.`);
+    }
   }
 
   // --- runs and trials -----------------------------------------------------------------
