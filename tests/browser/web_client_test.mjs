@@ -119,14 +119,18 @@ try {
     await page.getByRole('button', { name: 'Open session' }).click();
     await page.locator('#f-date-error').filter({ hasText: 'YYYY-MM-DD' }).waitFor();
     await page.getByLabel('Date (YYYY-MM-DD)').fill('2026-11-20');
-    await page.getByRole('button', { name: 'Open session' }).click();
-    await page.locator('#session-form-status').filter({ hasText: /Session \d+ opened/ }).waitFor();
-    const link = page.locator('#sessions-table a').first();
-    await link.waitFor();
     await shot(page, 'subject');
-    await link.click();
+    await page.getByRole('button', { name: 'Open session' }).click();
+    // Opening a session opens its page.
     await page.locator('#run-form').waitFor();
+    assert.match(page.url(), /#\/sessions\/\d+$/);
     sessionUrl = page.url();
+    // Back on the subject's page the new session is listed, the form empty of it.
+    await page.goBack();
+    await page.locator('#sessions-table a').first().waitFor();
+    assert.equal(await page.locator('#sessions-table a').count(), 1);
+    await page.goto(sessionUrl);
+    await page.locator('#run-form').waitFor();
   });
 
   let setUrl;

@@ -187,7 +187,9 @@ export async function subjectView(ctx, subjectId) {
     if (f.elements.notes.value.trim()) body.notes = f.elements.notes.value.trim();
     const created = await submitForm(f, status, () => api('POST', `/subjects/${subjectId}/sessions`, body),
       (s) => `Session ${s.id} opened.`);
-    if (created) await loadSessions();
+    // "Open session" opens it: the session's page (a second click on a
+    // still-filled form would make a duplicate).
+    if (created) location.hash = `#/sessions/${created.id}`;
   } },
   field('leg', 'Leg', { options: legOptions }),
   field('date', 'Date (YYYY-MM-DD)', { value: todayIso(), required: true }),
