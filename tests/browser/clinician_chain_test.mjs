@@ -2,7 +2,7 @@
 // the whole chain in the web client on a fresh server — sign in → new
 // subject without body mass / shank length → add them by correction (with a
 // reason) → session without threshold / max tolerated → tolerance test,
-// "Stop here" → the session shows the recorded values → rapid
+// "the subject says stop" → the session shows the recorded values → rapid
 // parameterisation while switching views (the run survives, the run bar
 // shows throughout) → prediction_random_binary and prediction_step runs →
 // the prediction page (an analyst colleague) on those fresh trials with the
@@ -129,7 +129,7 @@ try {
     await shots.both(page, 'session-new');
   });
 
-  await step('tolerance test, "Stop here": the session shows the recorded values at once', async () => {
+  await step('tolerance test, "the subject says stop": the current and torque live, the session shows the recorded values at once', async () => {
     const { runId } = await startProtocol('tolerance_test');
     assert.ok(runId, 'tolerance test refused');
     await page.locator('#live[data-state="running"]').waitFor();
@@ -138,7 +138,18 @@ try {
     // response, above this virtual subject's threshold.
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.torqueSwing || 0) >= 3, null, { timeout: 60000 });
     await shots.both(page, 'tolerance-running');
-    await page.getByRole('button', { name: 'Stop here (max tolerated)' }).click();
+    // The live numbers: the current and the torque, to 0.1, large.
+    assert.match(await page.locator('#live-ma').textContent(), /^\d+\.\d$/);
+    assert.match(await page.locator('#live-nm').textContent(), /^-?\d+\.\d$/);
+    // The subject's stop is the primary action, first; cancelling says it records nothing.
+    const actions = await page.locator('#live .actions button').allTextContents();
+    assert.deepEqual(actions, ['The subject says stop (record max tolerated)', 'Cancel (records nothing)']);
+    assert.equal(await page.locator('#stop-run').getAttribute('class'), 'primary');
+    assert.equal(await page.locator('#runbar-stop').textContent(), 'Subject says stop');
+    assert.equal(await page.locator('#runbar-cancel').textContent(), 'Cancel (records nothing)');
+    // The stimulation plot is drawn first, with the max tolerated line (none recorded yet here).
+    assert.equal(await page.locator('#live figure').first().getAttribute('data-plot'), 'stimulation');
+    await page.getByRole('button', { name: 'The subject says stop (record max tolerated)' }).click();
     await page.locator('#live[data-state="done"]').waitFor();
     await page.locator('#run-recorded').waitFor();
     const session = (await call(server, 'GET', `/sessions/${sessionId}`)).body;

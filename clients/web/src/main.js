@@ -292,7 +292,19 @@ function renderRunBar(run) {
         h('span', { id: 'runbar-text' }),
         h('span', { id: 'runbar-link' }),
         h('span', { id: 'runbar-owner', class: 'help' }),
-        mayCancel ? h('button', { type: 'button', class: 'danger small', id: 'runbar-cancel', onclick: async (e) => {
+        // A tolerance test: the subject's stop (recorded) first, in the bar too.
+        mayCancel && run.protocol === 'tolerance_test'
+          ? h('button', { type: 'button', class: 'primary small', id: 'runbar-stop', onclick: async (e) => {
+            e.target.disabled = true;
+            try {
+              await api('POST', `/runs/${run.run_id}/stop`);
+            } catch (err) {
+              bar.querySelector('#runbar-owner').textContent = `Stop failed: ${err.message}`;
+              e.target.disabled = false;
+            }
+          } }, 'Subject says stop')
+          : '',
+        mayCancel ? h('button', { type: 'button', class: run.protocol === 'tolerance_test' ? 'small' : 'danger small', id: 'runbar-cancel', onclick: async (e) => {
           e.target.disabled = true;
           try {
             await runs.cancel();
@@ -304,7 +316,7 @@ function renderRunBar(run) {
     bar.querySelector('#runbar-owner').textContent = `Cancel failed: ${err.message}`;
             e.target.disabled = false;
           }
-        } }, 'Cancel run') : '');
+        } }, run.protocol === 'tolerance_test' ? 'Cancel (records nothing)' : 'Cancel run') : '');
     }
     bar.dataset.state = run.state || 'running';
     progress.value = fraction;

@@ -13,6 +13,9 @@ import { numberProblem, SESSION_LIMITS } from '../checks.js';
 import { correctionForm, revisionHistory } from './corrections.js';
 import { exchangeSection } from './exchange.js';
 
+// A live number to 0.1 of its unit (mA, N·m), or a dash.
+const fmt1 = (x) => (Number.isFinite(x) ? x.toFixed(1) : '—');
+
 const WINDOW_S = 30; // bench seconds shown in the live plots
 
 export const SESSION_FIELDS = [
@@ -298,22 +301,38 @@ export async function sessionView(ctx, sessionId) {
     const phase = h('span', { id: 'run-phase' }, '');
     const endSlot = h('div', { id: 'run-end', 'aria-live': 'polite' });
     const trialsText = h('span', { id: 'run-trials' }, '');
-    const cancel = h('button', { type: 'button', class: 'danger', id: 'cancel-run', disabled: !mayRun, onclick: async () => {
-      try {
-        await api('POST', `/runs/${runId}/cancel`);
-      } catch (e) {
-        say(endSlot, 'error', `Cancel failed: ${e.message}`);
-      }
-    } }, 'Cancel run');
-    const stop = run.protocol === 'tolerance_test'
-      ? h('button', { type: 'button', id: 'stop-run', disabled: !mayRun, onclick: async () => {
+    const tolerance = run.protocol === 'tolerance_test';
+    // In a tolerance test the primary action is the subject's "stop" (the
+    // amplitude reached is recorded as the max tolerated); cancelling
+    // records nothing, and says so.
+    const cancel = h('button', { type: 'button', class: tolerance ? '' : 'danger', id: 'cancel-run', disabled: !mayRun,
+      onclick: async () => {
+        try {
+          await api('POST', `/runs/${runId}/cancel`);
+        } catch (e) {
+          say(endSlot, 'error', `Cancel failed: ${e.message}`);
+        }
+      } }, tolerance ? 'Cancel (records nothing)' : 'Cancel run');
+    const stop = tolerance
+      ? h('button', { type: 'button', class: 'primary', id: 'stop-run', disabled: !mayRun, onclick: async () => {
         try {
           await api('POST', `/runs/${runId}/stop`);
         } catch (e) {
           say(endSlot, 'error', `Stop failed: ${e.message}`);
         }
-      } }, 'Stop here (max tolerated)')
+      } }, 'The subject says stop (record max tolerated)')
       : '';
+    // The numbers that matter while stimulating, large, beside the plots.
+    const liveMa = h('span', { class: 'live-number', id: 'live-ma' }, '—');
+    const liveNm = h('span', { class: 'live-number', id: 'live-nm' }, '—');
+    const maxTolerated = session.details.max_tolerated_ma;
+    const liveNumbers = h('div', { class: 'live-numbers', id: 'live-numbers', 'aria-live': 'off' },
+      h('div', {}, h('span', { class: 'live-label' }, 'Current'), liveMa, h('span', { class: 'live-unit' }, 'mA')),
+      h('div', {}, h('span', { class: 'live-label' }, 'Torque'), liveNm, h('span', { class: 'live-unit' }, 'N·m')),
+      Number.isFinite(maxTolerated)
+        ? h('div', {}, h('span', { class: 'live-label' }, 'Max tolerated'),
+          h('span', { class: 'live-number', id: 'live-max' }, fmt1(maxTolerated)), h('span', { class: 'live-unit' }, 'mA'))
+        : '');
     const plotsBox = h('div', { class: 'plots' });
     live.hidden = false;
     live.dataset.state = run.state;
@@ -322,7 +341,7 @@ export async function sessionView(ctx, sessionId) {
     live.replaceChildren(h('h2', { id: 'live-h' }, `Run ${runId}: ${run.protocol}`),
       h('div', { class: 'progress-row' }, progress, progressText, eta),
       h('p', {}, 'State: ', stateText, ' ', phase, ' ', trialsText),
-      h('div', { class: 'actions' }, cancel, stop), endSlot, plotsBox);
+      h('div', { class: 'actions' }, stop, cancel), endSlot, liveNumbers, plotsBox);
 
     // A tracking run (issue 19) draws the target with the knee angle, the
     // tracking error and, for the adaptive controller, its τ_scale estimate.
@@ -331,21 +350,35 @@ export async function sessionView(ctx, sessionId) {
     const data = { t: [], angle: [], torque: [], stim: [], target: [], error: [], tau: [] };
     const mk = (title, label, unit, color) => makePlot(plotsBox, [{ label, color }], [[], []],
       { title, xLabel: 'bench time (s)', yLabel: unit, height: 180, id: label });
-    const plots = {
-      angle: tracking
-        ? makePlot(plotsBox, [{ label: 'target', color: '#7f8c8d', dash: [6, 4] }, { label: 'angle', color: '#1f5fbf' }],
-          [[], [], []], { title: 'Knee angle and target', xLabel: 'bench time (s)', yLabel: 'deg', height: 200, id: 'angle' })
-        : mk('Knee angle', 'angle', 'deg', '#1f5fbf'),
-      ...(tracking ? { error: mk('Tracking error (knee − target)', 'error', 'deg', '#8e44ad') } : {}),
-      torque: mk('Torque', 'torque', 'N·m', '#c0392b'),
-      stim: mk('Stimulation', 'stimulation', 'mA', '#1e8449'),
-      ...(adaptive ? { tau: mk('τ_scale estimate (adaptive)', 'tau_scale', 'N·m', '#d35400') } : {}),
-    };
+    // The stimulation with the session's max tolerated as a dashed line.
+    const withMax = Number.isFinite(maxTolerated);
+    const stimPlot = () => (withMax
+      ? makePlot(plotsBox, [{ label: 'stimulation', color: '#1e8449' }, { label: 'max tolerated', color: '#c0392b', dash: [6, 4] }],
+        [[], [], []], { title: 'Stimulation', xLabel: 'bench time (s)', yLabel: 'mA', height: 180, id: 'stimulation' })
+      : mk('Stimulation', 'stimulation', 'mA', '#1e8449'));
+    const anglePlot = () => (tracking
+      ? makePlot(plotsBox, [{ label: 'target', color: '#7f8c8d', dash: [6, 4] }, { label: 'angle', color: '#1f5fbf' }],
+        [[], [], []], { title: 'Knee angle and target', xLabel: 'bench time (s)', yLabel: 'deg', height: 200, id: 'angle' })
+      : mk('Knee angle', 'angle', 'deg', '#1f5fbf'));
+    // A tolerance test holds the knee locked: the current and the torque it
+    // makes come first, the (still) angle last.
+    const plots = tolerance
+      ? { stim: stimPlot(), torque: mk('Torque', 'torque', 'N·m', '#c0392b'), angle: anglePlot() }
+      : {
+        angle: anglePlot(),
+        ...(tracking ? { error: mk('Tracking error (knee − target)', 'error', 'deg', '#8e44ad') } : {}),
+        torque: mk('Torque', 'torque', 'N·m', '#c0392b'),
+        stim: stimPlot(),
+        ...(adaptive ? { tau: mk('τ_scale estimate (adaptive)', 'tau_scale', 'N·m', '#d35400') } : {}),
+      };
     let drawPending = false;
     let samplesSeen = 0;
     const redraw = () => {
       drawPending = false;
-      for (const key of ['torque', 'stim', 'error', 'tau']) if (plots[key]) plots[key].setData([data.t, data[key]]);
+      for (const key of ['torque', 'error', 'tau']) if (plots[key]) plots[key].setData([data.t, data[key]]);
+      plots.stim.setData(withMax ? [data.t, data.stim, data.t.map(() => maxTolerated)] : [data.t, data.stim]);
+      if (data.stim.length) liveMa.textContent = fmt1(data.stim[data.stim.length - 1]);
+      if (data.torque.length) liveNm.textContent = fmt1(data.torque[data.torque.length - 1]);
       plots.angle.setData(tracking ? [data.t, data.target, data.angle] : [data.t, data.angle]);
       if (tracking && data.error.length) live.dataset.lastError = String(data.error[data.error.length - 1]);
       live.dataset.samples = String(samplesSeen);
