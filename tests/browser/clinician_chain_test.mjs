@@ -307,7 +307,17 @@ try {
     // The rapid set records where its curves were identified; the page says how much is extrapolated.
     assert.match(await page.locator('#predict-extrapolated').textContent(), /% of the predicted samples lie outside/);
     await page.locator('figure[data-plot="prediction"] canvas').waitFor();
+    assert.match(await page.locator('#predict-title').textContent(), /Predicted vs measured knee angle/);
     await shots.both(page, 'prediction');
+    // An isometric trial is torque against torque, in N·m (it was plotted on
+    // a knee-angle chart).
+    const iso = page.locator('#predict-trial option', { hasText: /isometric/ }).first();
+    await iso.waitFor({ state: 'attached' });
+    await page.locator('#predict-trial').selectOption(await iso.getAttribute('value'));
+    await page.getByRole('button', { name: 'Run prediction' }).click();
+    await page.locator('#predict-title', { hasText: 'torque' }).waitFor({ timeout: 60000 });
+    assert.match(await page.locator('#error-table thead').textContent(), /Value \(N[.·]m\)/);
+    await shots.both(page, 'prediction-isometric');
     await signIn(clinician.token);
   });
 

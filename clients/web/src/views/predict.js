@@ -99,9 +99,15 @@ export async function predictionView(ctx, presetId) {
 
   function showResult(r, trial) {
     const channel = (name) => (trial.channels.find((c) => c.name === name) || { values: [] }).values;
-    const measured = channel(r.errors.channel || 'angle_deg');
+    // The quantity the errors are about, in its own unit: the knee angle of
+    // a free-swing trial, the torque of an isometric one.
+    const compared = r.errors.channel || 'angle_deg';
+    const torque = compared === 'torque_nm';
+    const what = torque ? 'torque' : 'knee angle';
+    const unit = r.errors.unit || (torque ? 'N·m' : 'deg');
+    const measured = channel(compared);
     const measuredT = channel('t_s');
-    const predicted = r.columns.angle_deg;
+    const predicted = r.columns[compared] || r.columns.angle_deg;
     const t = r.columns.t_s;
     // Align on the prediction's time base (same sample rate, same start).
     const m = t.map((_, i) => (i < measured.length ? measured[i] : null));
@@ -109,7 +115,7 @@ export async function predictionView(ctx, presetId) {
     const plotBox = h('div', { class: 'plot-cell', id: 'predict-plot' });
     const errorBox = h('div', { class: 'plot-cell' });
     result.replaceChildren(
-      h('h2', {}, `Predicted vs measured knee angle — trial ${r.trial_id}${training.has(r.trial_id) ? ' (training)' : ''}`),
+      h('h2', { id: 'predict-title' }, `Predicted vs measured ${what} — trial ${r.trial_id}${training.has(r.trial_id) ? ' (training)' : ''}`),
       table(['Error figure', `Value (${e.unit})`], [
         ['E_RMS', fmt(e.e_rms, 4)], ['E_ABS (mean absolute)', fmt(e.e_abs, 4)], ['E_AVE (mean)', fmt(e.e_ave, 4)],
         ['largest absolute', fmt(e.max_abs, 4)], ['normalised RMS', fmt(e.normalised_rms, 4)], ['samples', fmt(e.samples)]],
@@ -119,15 +125,15 @@ export async function predictionView(ctx, presetId) {
           `${fmt(100 * r.share_outside_identified_ranges, 3)} % of the predicted samples lie outside the ranges the set's curves were identified over (there the model extrapolates).`),
       plotBox, errorBox);
     const c1 = makePlot(plotBox, [{ label: 'measured' }, { label: 'predicted', dash: [6, 3] }], [t, m, predicted],
-      { title: 'Knee angle', xLabel: 'time (s)', yLabel: 'deg', height: 260, id: 'prediction' });
+      { title: what[0].toUpperCase() + what.slice(1), xLabel: 'time (s)', yLabel: unit, height: 260, id: 'prediction' });
     const c2 = makePlot(errorBox, [{ label: 'predicted − measured' }], [t, t.map((_, i) => (m[i] === null ? null : predicted[i] - m[i]))],
-      { title: 'Prediction error', xLabel: 'time (s)', yLabel: 'deg', height: 160, id: 'prediction-error' });
+      { title: 'Prediction error', xLabel: 'time (s)', yLabel: unit, height: 160, id: 'prediction-error' });
     ctx.onLeave(() => { c1.disconnect(); c2.disconnect(); });
     result.dataset.samples = String(measuredT.length);
   }
 
   ctx.main.replaceChildren(h('h1', {}, 'Prediction'),
-    h('p', {}, 'Simulate the model of a parameter set on a stored trial\'s stimulation and compare with the knee angle that was measured.'),
+    h('p', {}, 'Simulate the model of a parameter set on a stored trial\'s stimulation and compare with what was measured: the knee angle of a free-swing trial, the torque of an isometric one.'),
     sets.length ? form : h('p', {}, 'No parameter sets yet.'), status, result);
   if (sets.length) await loadTrials();
 }
