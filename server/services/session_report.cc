@@ -19,6 +19,13 @@ namespace {
 
 using nlohmann::json;
 
+// What a prediction's errors compare, in words.
+std::string QuantityName(const std::string& channel) {
+  if (channel == "angle_deg") return "knee angle";
+  if (channel == "torque_nm") return "torque";
+  return HtmlEscape(channel);
+}
+
 std::string Fixed(double v, int digits) {
   if (!std::isfinite(v)) return "—";
   char buffer[64];
@@ -317,26 +324,30 @@ std::string SetSection(const ReportSet& set) {
         "/predictions, `fesbench predict --params " +
         std::to_string(set.id) + "`).</p>";
   } else {
+    // Each error in the unit of what it compares (the knee angle of a free
+    // swing, the torque of an isometric trial).
     out +=
         "<table class=\"predictions\"><thead><tr><th>Prediction</th><th>Trial</th>"
-        "<th>E_RMS (deg)</th><th>E_ABS (deg)</th><th>Outside identified ranges</th></tr>"
+        "<th>Compared</th><th>E_RMS</th><th>E_ABS</th><th>Outside identified ranges</th></tr>"
         "</thead><tbody>";
     for (const ReportPrediction* r : fresh) {
+      const std::string unit = " " + HtmlEscape(r->unit);
       out += "<tr><td class=\"n\">" + std::to_string(r->prediction_id) + "</td><td>" +
-             std::to_string(r->trial_id) + " " + HtmlEscape(r->trial_name) +
-             "</td><td class=\"n\">" + (r->e_rms_deg ? Fixed(*r->e_rms_deg, 2) : "—") +
-             "</td><td class=\"n\">" + (r->e_abs_deg ? Fixed(*r->e_abs_deg, 2) : "—") +
-             "</td><td class=\"n\">" +
+             std::to_string(r->trial_id) + " " + HtmlEscape(r->trial_name) + "</td><td>" +
+             QuantityName(r->channel) + "</td><td class=\"n\">" +
+             (r->e_rms ? Fixed(*r->e_rms, 2) + unit : "—") + "</td><td class=\"n\">" +
+             (r->e_abs ? Fixed(*r->e_abs, 2) + unit : "—") + "</td><td class=\"n\">" +
              (r->share_outside ? Fixed(100.0 * *r->share_outside, 0) + " %" : "—") + "</td></tr>";
     }
     out += "</tbody></table><div class=\"plots\">";
     for (std::size_t k = 0; k < fresh.size() && k < 4; ++k) {
       const ReportPrediction& r = *fresh[k];
-      out += Svg({"Trial " + std::to_string(r.trial_id) + " (" + r.trial_name + "): knee angle",
+      out += Svg({"Trial " + std::to_string(r.trial_id) + " (" + r.trial_name +
+                      "): " + QuantityName(r.channel),
                   "time (s)",
-                  "deg",
-                  {{"measured", "#1b1f24", r.t_s, r.measured_deg},
-                   {"predicted", "#1f5fbf", r.t_s, r.predicted_deg, true}},
+                  r.unit,
+                  {{"measured", "#1b1f24", r.t_s, r.measured},
+                   {"predicted", "#1f5fbf", r.t_s, r.predicted, true}},
                   {}});
     }
     out += "</div>";
@@ -438,8 +449,10 @@ api::Result<SessionReport> GatherSessionReport(storage::Database& db, std::int64
       r.fresh = !fitted.contains(r.trial_id);
       if (out.contains("errors") && out["errors"].is_object()) {
         const json& e = out["errors"];
-        if (e.contains("e_rms") && e["e_rms"].is_number()) r.e_rms_deg = e["e_rms"].get<double>();
-        if (e.contains("e_abs") && e["e_abs"].is_number()) r.e_abs_deg = e["e_abs"].get<double>();
+        if (e.contains("e_rms") && e["e_rms"].is_number()) r.e_rms = e["e_rms"].get<double>();
+        if (e.contains("e_abs") && e["e_abs"].is_number()) r.e_abs = e["e_abs"].get<double>();
+        if (e.contains("channel") && e["channel"].is_string()) r.channel = e["channel"];
+        if (e.contains("unit") && e["unit"].is_string()) r.unit = e["unit"];
       }
       if (out.contains("share_outside_identified_ranges") &&
           out["share_outside_identified_ranges"].is_number()) {
@@ -449,14 +462,22 @@ api::Result<SessionReport> GatherSessionReport(storage::Database& db, std::int64
       if (!trial.ok()) return trial.status();
       r.trial_name = trial->name.value_or("");
       if (const auto* t = trial->Values("t_s"); t != nullptr) r.t_s = *t;
-      if (const auto* a = trial->Values("angle_deg"); a != nullptr) r.measured_deg = *a;
-      if (out.contains("columns") && out["columns"].contains("angle_deg")) {
-        for (const json& v : out["columns"]["angle_deg"]) {
-          r.predicted_deg.push_back(v.is_number() ? v.get<double>() : NAN);
+      if (const auto* a = trial->Values(r.channel); a != nullptr) r.measured = *a;
+      if (out.contains("columns") && out["columns"].contains(r.channel)) {
+        for (const json& v : out["columns"][r.channel]) {
+          r.predicted.push_back(v.is_number() ? v.get<double>() : NAN);
         }
       }
-      if (r.predicted_deg.size() != r.t_s.size()) r.predicted_deg.resize(r.t_s.size(), NAN);
-      set.predictions.push_back(std::move(r));
+      if (r.predicted.size() != r.t_s.size()) r.predicted.resize(r.t_s.size(), NAN);
+      // Each trial once: its newest prediction by this set (they come in
+      // id order; an earlier one of the same trial is replaced).
+      auto same = std::find_if(set.predictions.begin(), set.predictions.end(),
+                               [&](const ReportPrediction& x) { return x.trial_id == r.trial_id; });
+      if (same != set.predictions.end()) {
+        *same = std::move(r);
+      } else {
+        set.predictions.push_back(std::move(r));
+      }
     }
     report.sets.push_back(std::move(set));
   }

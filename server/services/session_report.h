@@ -31,12 +31,16 @@ struct ReportPrediction {
   std::int64_t trial_id = 0;
   std::string trial_name;
   bool fresh = true;  ///< the trial is not among the set's provenance trials.
-  std::optional<double> e_rms_deg;
-  std::optional<double> e_abs_deg;
+  /// The channel the errors compare (angle_deg of a free swing, torque_nm
+  /// of an isometric trial) and its unit.
+  std::string channel = "angle_deg";
+  std::string unit = "deg";
+  std::optional<double> e_rms;  ///< in `unit`.
+  std::optional<double> e_abs;
   std::optional<double> share_outside;  ///< of samples outside the identified ranges.
-  std::vector<double> t_s;              ///< measured and predicted angle, on the trial's time.
-  std::vector<double> measured_deg;
-  std::vector<double> predicted_deg;
+  std::vector<double> t_s;              ///< measured and predicted `channel`, on the trial's time.
+  std::vector<double> measured;
+  std::vector<double> predicted;
 };
 
 struct ReportSet {

@@ -67,13 +67,24 @@ SessionReport Report() {
   fresh.prediction_id = 3;
   fresh.trial_id = 9;
   fresh.trial_name = "prediction_step";
-  fresh.e_rms_deg = 1.5;
-  fresh.e_abs_deg = 1.1;
+  fresh.e_rms = 1.5;
+  fresh.e_abs = 1.1;
   fresh.share_outside = 0.4;
   fresh.t_s = {0.0, 0.005, 0.01, 0.015};
-  fresh.measured_deg = {90.0, 89.0, 88.0, 87.5};
-  fresh.predicted_deg = {90.0, 89.5, 88.4, 87.0};
+  fresh.measured = {90.0, 89.0, 88.0, 87.5};
+  fresh.predicted = {90.0, 89.5, 88.4, 87.0};
   set.predictions.push_back(fresh);
+  // An isometric trial's prediction: torque, in N·m.
+  ReportPrediction isometric = fresh;
+  isometric.prediction_id = 4;
+  isometric.trial_id = 10;
+  isometric.trial_name = "prediction_isometric";
+  isometric.channel = "torque_nm";
+  isometric.unit = "N.m";
+  isometric.e_rms = 2.25;
+  isometric.measured = {0.0, 5.0, 10.0, 12.0};
+  isometric.predicted = {0.0, 4.0, 11.0, 12.5};
+  set.predictions.push_back(isometric);
   r.sets.push_back(set);
   return r;
 }
@@ -94,17 +105,21 @@ TEST(SessionReportTest, EverySectionEscapedAndSelfContained) {
   const std::regex external(R"((href|src)\s*=\s*"?https?:)");
   EXPECT_FALSE(std::regex_search(html, external));
   EXPECT_EQ(Count(html, "http://"), Count(html, "http://www.w3.org/2000/svg"));
-  // Plots: five curves and the twitch, one prediction; each SVG closed.
-  EXPECT_EQ(Count(html, "<svg"), 7u);
+  // Plots: five curves and the twitch, two predictions; each SVG closed.
+  EXPECT_EQ(Count(html, "<svg"), 8u);
   EXPECT_EQ(Count(html, "<svg"), Count(html, "</svg>"));
-  EXPECT_EQ(Count(html, "<polyline"), 8u);        // 6 curves + measured + predicted
+  EXPECT_EQ(Count(html, "<polyline"), 10u);       // 6 curves + 2 × (measured + predicted)
   EXPECT_EQ(Count(html, "class=\"range\""), 1u);  // τ_pta's identified range only
   // Outcomes: the clamps counted, the e-stop named, the extrapolation warned.
   EXPECT_NE(html.find("amplitude_clamped × 2"), std::string::npos);
   EXPECT_NE(html.find("Run 8 (prediction_step): e-stop: button on the web page"),
             std::string::npos);
   EXPECT_NE(html.find("40 % of the prediction lies outside"), std::string::npos);
-  EXPECT_NE(html.find("<td class=\"n\">1.50</td>"), std::string::npos);  // E_RMS
+  // Errors in the unit of what they compare.
+  EXPECT_NE(html.find("<td>knee angle</td><td class=\"n\">1.50 deg</td>"), std::string::npos);
+  EXPECT_NE(html.find("<td>torque</td><td class=\"n\">2.25 N.m</td>"), std::string::npos);
+  EXPECT_EQ(html.find("E_RMS (deg)"), std::string::npos);
+  EXPECT_NE(html.find("(prediction_isometric): torque"), std::string::npos);
   // A4 print rules.
   EXPECT_NE(html.find("@page{size:A4"), std::string::npos);
 }
@@ -125,7 +140,7 @@ TEST(SessionReportTest, AbsentDataIsSaid) {
   EXPECT_NE(html.find("No parameter set for this leg yet"), std::string::npos);
   // A set predicted only on its own training trial shows no "fresh" figure.
   r = Report();
-  r.sets.front().predictions.front().fresh = false;
+  for (ReportPrediction& p : r.sets.front().predictions) p.fresh = false;
   html = RenderSessionReport(r);
   EXPECT_NE(html.find("No prediction on a trial this set was not fitted on yet"),
             std::string::npos);

@@ -183,6 +183,16 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
     std::cout << "[ note ] python3-pandas not installed: the pandas load was not run\n";
   }
 
+  // The same prediction asked twice: the report shows the trial once (its
+  // newest), in the unit of what it compares.
+  const std::int64_t rb_trial = rb["trial_ids"][0];
+  for (int i = 0; i < 2; ++i) {
+    auto submitted = Call(ca, "POST", "/api/v1/predictions", admin_a,
+                          {{"parameter_set_id", run["parameter_set_id"]}, {"trial_id", rb_trial}});
+    ASSERT_EQ(submitted.status, 202) << submitted.text;
+    ASSERT_EQ(WaitForJob(ca, admin_a, submitted.body["id"])["state"], "done");
+  }
+
   // The session report: one HTML page with every section; 404 for no session.
   auto report = ca.Get("/api/v1/sessions/" + std::to_string(session_a) + "/report",
                        {{"Authorization", "Bearer " + admin_a}});
@@ -195,6 +205,14 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
     EXPECT_NE(report->body.find(part), std::string::npos) << part;
   }
   EXPECT_EQ(report->body.find("<script"), std::string::npos);
+  const std::string row =
+      "<td>" + std::to_string(rb_trial) + " prediction_random_binary</td><td>knee angle</td>";
+  std::size_t rows = 0;
+  for (auto at = report->body.find(row); at != std::string::npos;
+       at = report->body.find(row, at + 1)) {
+    ++rows;
+  }
+  EXPECT_EQ(rows, 1u) << "each trial's prediction once";
   auto no_report = Call(ca, "GET", "/api/v1/sessions/999/report", admin_a);
   EXPECT_EQ(no_report.status, 404);
 
