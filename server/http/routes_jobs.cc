@@ -69,7 +69,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/predictions",
-       .roles = kAnalyst | kAdmin,
+       .roles = kClinician | kAnalyst | kAdmin,  // the clinician's model check
        .json_body = true,
        .tag = "jobs",
        .summary = "Simulate a parameter set on a named stimulus or a stored trial (with errors "
@@ -143,7 +143,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "GET",
              .path = "/api/v1/jobs/{job_id}",
-             .roles = kAnalyst | kAdmin,
+             .roles = kClinician | kAnalyst | kAdmin,  // a clinician follows a prediction
              .tag = "jobs",
              .summary = "A job: state (queued, running, done, failed) and result or error",
              .handler = [jobs](RequestContext& ctx) -> api::Result<Reply> {

@@ -344,9 +344,11 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
 
 api::Result<PredictionResult> PredictionService::Predict(const Actor& actor,
                                                          const PredictionRequest& request) {
-  if (actor.role != Role::kAnalyst && actor.role != Role::kAdmin) {
+  // Clinicians too: the model check of a set on fresh trials (docs/API.md).
+  if (actor.role != Role::kClinician && actor.role != Role::kAnalyst &&
+      actor.role != Role::kAdmin) {
     return api::Status(api::ErrorCode::kPermissionDenied,
-                       "predictions need the analyst or admin role");
+                       "predictions need the clinician, analyst or admin role");
   }
   api::Result<PredictionResult> computed = Compute(request);
   if (!computed.ok()) return computed.status();

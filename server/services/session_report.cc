@@ -320,8 +320,8 @@ std::string SetSection(const ReportSet& set) {
   }
   if (fresh.empty()) {
     out +=
-        "<p class=\"none\">No prediction on a trial this set was not fitted on yet (POST "
-        "/predictions, `fesbench predict --params " +
+        "<p class=\"none\">No prediction on a trial this set was not fitted on yet (the "
+        "web page's Prediction, or `fesbench predict --params " +
         std::to_string(set.id) + "`).</p>";
   } else {
     // Each error in the unit of what it compares (the knee angle of a free

@@ -319,6 +319,11 @@ try {
     assert.match(await page.locator('#error-table thead').textContent(), /Value \(N[.·]m\)/);
     await shots.both(page, 'prediction-isometric');
     await signIn(clinician.token);
+    // The clinician's model check: the Prediction page runs for a clinician too.
+    await page.goto(`${server.url}/#/predict/${setId}`);
+    await page.locator('#predict-trial option[data-training]').first().waitFor({ state: 'attached' });
+    await page.getByRole('button', { name: 'Run prediction' }).click();
+    await page.locator('#error-table').waitFor({ timeout: 60000 });
   });
 
   await step('closing the tab during a run asks first; a reload re-attaches to the run', async () => {

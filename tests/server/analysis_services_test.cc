@@ -328,6 +328,8 @@ TEST_F(AnalysisServicesTest, PredictionOfATrialMadeFromTheSameParametersHasZeroE
   auto r = service.Predict(kAnalyst, req);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->mode, PredictionMode::kFreeSwing);
+  // A clinician's model check runs too.
+  EXPECT_TRUE(service.Predict(Actor{0, "cli", Role::kClinician}, req).ok());
   ASSERT_TRUE(r->errors.has_value());
   EXPECT_EQ(r->errors->channel, "angle_deg");
   EXPECT_EQ(r->errors->samples, env.size());

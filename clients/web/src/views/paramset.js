@@ -92,7 +92,7 @@ export async function parameterSetView(ctx, setId) {
   const { grid, draw } = plotsOf(ctx, [parameterCurves(set.parameters)], [`set ${set.id}`]);
   const fit = (set.parameters.provenance && set.parameters.provenance.fit_rms) || {};
   const warnings = (set.parameters.provenance && set.parameters.provenance.warnings) || [];
-  const mayPredict = ctx.user.role === 'analyst' || ctx.user.role === 'admin';
+  const mayPredict = ['clinician', 'analyst', 'admin'].includes(ctx.user.role);
   ctx.main.replaceChildren(
     h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ',
       h('a', { href: `#/subjects/${subject.id}` }, subject.code), ' › ', `Parameter set ${set.id}`),

@@ -7,7 +7,7 @@ import { makePlot } from '../plot.js';
 import { legSide } from './subjects.js';
 
 export async function predictionView(ctx, presetId) {
-  const mayPredict = ctx.user.role === 'analyst' || ctx.user.role === 'admin';
+  const mayPredict = ['clinician', 'analyst', 'admin'].includes(ctx.user.role);
   const sets = await listAll('/parameter-sets');
   const subjects = new Map();
   await Promise.all([...new Set(sets.map((s) => s.subject_id))].map(async (id) => {
@@ -95,7 +95,7 @@ export async function predictionView(ctx, presetId) {
     h('div', { class: 'field' }, h('label', { for: 'predict-trial' }, 'Measured trial (its stimulation is replayed)'), trialSelect)),
   trainingNote,
   h('div', { class: 'actions' }, h('button', { type: 'submit', class: 'primary', disabled: !mayPredict }, 'Run prediction'),
-    mayPredict ? '' : h('small', {}, ' Predictions need the analyst or admin role.')));
+    mayPredict ? '' : h('small', {}, ' Predictions need the clinician, analyst or admin role.')));
 
   function showResult(r, trial) {
     const channel = (name) => (trial.channels.find((c) => c.name === name) || { values: [] }).values;
