@@ -271,7 +271,7 @@ try {
     assert.equal(focused, 'estop');
   });
 
-  await step('a clinician sees their role; predictions are refused plainly', async () => {
+  await step('a clinician sees their role and may run the model check (a prediction)', async () => {
     const user = await call(server, 'POST', '/users', { name: 'dr_lee', role: 'clinician' });
     const token = await call(server, 'POST', '/tokens', { user_id: user.body.id });
     await page.getByRole('button', { name: 'Sign out' }).click();
@@ -282,7 +282,7 @@ try {
     assert.equal(await page.locator('#who-role').textContent(), 'clinician');
     await page.goto(`${server.url}/#/predict`);
     await page.getByRole('button', { name: 'Run prediction' }).waitFor();
-    assert.equal(await page.getByRole('button', { name: 'Run prediction' }).isDisabled(), true);
+    assert.equal(await page.getByRole('button', { name: 'Run prediction' }).isDisabled(), false);
   });
 
   await step('server unreachable: the page says so', async () => {
