@@ -264,6 +264,23 @@ try {
     notes.push(`tracking an uploaded 6 s trajectory: RMS ${run.values.tracking_rms_deg.toFixed(2)}°`);
   });
 
+  await step('runs are records: each with its outcome and parameters, and "run again" fills the form', async () => {
+    const runs = (await call(server, 'GET', `/sessions/${sessionId}/runs`)).body.items;
+    const tolerance = runs.find((r) => r.protocol === 'tolerance_test' && r.state === 'done');
+    const rapid = runs.find((r) => r.protocol === 'rapid_parameterisation' && r.parameter_set_id);
+    const row = (run) => page.locator('#runs-table tbody tr', { hasText: `Run ${run.run_id}` }).first();
+    assert.match(await row(tolerance).textContent(), /threshold \d+\.\d mA, max tolerated \d+\.\d mA/);
+    assert.match(await row(rapid).textContent(), new RegExp(`Parameter set ${rapid.parameter_set_id}`));
+    assert.match(await row(rapid).textContent(), /\d+ parameters/);
+    await row(tolerance).getByRole('button', { name: 'Run again with these' }).click();
+    assert.equal(await page.locator('#protocol').inputValue(), 'tolerance_test');
+    for (const [name, value] of Object.entries(tolerance.parameters)) {
+      const input = page.locator(`#run-form [name="${name}"]`);
+      if (await input.count()) assert.equal(Number(await input.inputValue()), value, name);
+    }
+    await page.locator('#run-form-status').filter({ hasText: `run ${tolerance.run_id}'s parameters` }).waitFor();
+  });
+
   await step('daily check: today\'s leg against its set, what moved shown', async () => {
     const { runId, refusal } = await startProtocol('daily_check');
     assert.ok(runId, `daily check refused: ${refusal}`);

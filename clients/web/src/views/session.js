@@ -97,11 +97,50 @@ export async function sessionView(ctx, sessionId) {
   const runsSlot = h('div', { id: 'run-list' });
   async function loadRuns() {
     const runs = await listAll(`/sessions/${sessionId}/runs`);
+    // Runs are records: what each ran with and what it gave; running one
+    // again with its parameters is an explicit choice.
+    const outcome = (r) => {
+      const parts = [];
+      const res = r.result || {};
+      if (r.parameter_set_id) {
+        parts.push(h('a', { href: `#/parameter-sets/${r.parameter_set_id}` }, `Parameter set ${r.parameter_set_id}`));
+      }
+      if ('max_tolerated_ma' in res) {
+        parts.push(Number.isFinite(res.max_tolerated_ma)
+          ? `threshold ${fmt1(res.threshold_ma)} mA, max tolerated ${fmt1(res.max_tolerated_ma)} mA`
+          : 'no max tolerated recorded');
+      }
+      if (r.values && Number.isFinite(r.values.tracking_rms_deg)) parts.push(`tracking RMS ${fmt1(r.values.tracking_rms_deg)}°`);
+      if (res.verdict) parts.push(`daily check: ${String(res.verdict).replace(/_/g, ' ')}`);
+      if (r.trial_ids && r.trial_ids.length) parts.push(`${r.trial_ids.length} trial${r.trial_ids.length === 1 ? '' : 's'}`);
+      return parts.length ? h('span', { class: 'run-outcome' }, ...parts.flatMap((x, i) => (i ? ['; ', x] : [x]))) : '—';
+    };
+    const parametersOf = (r) => {
+      const entries = Object.entries(r.parameters || {});
+      if (!entries.length) return '—';
+      return h('details', { class: 'run-parameters' }, h('summary', {}, `${entries.length} parameters`),
+        entries.map(([k, v]) => `${k} = ${typeof v === 'number' ? fmt(v, 4) : v}`).join(', '));
+    };
+    const again = (r) => (mayRun && protocols.some((p) => p.name === r.protocol)
+      ? h('button', { type: 'button', class: 'small', 'data-run-again': String(r.run_id), onclick: () => runAgain(r) }, 'Run again with these')
+      : '');
     runsSlot.replaceChildren(runs.length
-      ? table(['Run', 'Protocol', 'State', 'Created (UTC)', 'Reason'], runs.map((r) => [
-        `Run ${r.run_id}`, r.protocol, r.state, utc(r.created_at_utc), r.reason || '—']),
+      ? table(['Run', 'Protocol', 'State', 'Created (UTC)', 'Outcome', 'Parameters', 'Reason', ''], runs.map((r) => [
+        `Run ${r.run_id}`, r.protocol, r.state, utc(r.created_at_utc), outcome(r), parametersOf(r), r.reason || '—', again(r)]),
       { id: 'runs-table' })
       : h('p', {}, 'No runs yet.'));
+  }
+  // The form filled with a past run's parameters, for the clinician to check
+  // and start (nothing starts by itself).
+  function runAgain(r) {
+    select.value = r.protocol;
+    renderParameters();
+    for (const [name, value] of Object.entries(r.parameters || {})) {
+      const el = form.elements[name];
+      if (el && typeof value !== 'object') el.value = String(value);
+    }
+    say(formStatus, 'info', `The form holds run ${r.run_id}'s parameters: check them, then start.`);
+    form.scrollIntoView({ block: 'start' });
   }
 
   const trialsSlot = h('div', { id: 'trial-list' });
