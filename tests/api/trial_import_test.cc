@@ -279,15 +279,14 @@ TEST(BidsTest, TrialReadsBackBitForBit) {
 
 TEST(BidsTest, AHardwareStimulatorsCommandsReadBackBitForBit) {
   Trial trial = BenchLikeTrial();
-  DeviceCommandLog log;
-  log.device = "sciencemode2";
-  log.pulse_rate_hz = 1000.0 / 30.5;
-  log.current_step_ma = 1.0;
-  log.start_monotonic_ns = 4242424242424;
-  log.t_s = {0.0, 1.0 / 3.0, 0.7};
-  log.requested_ma = {30.25, 0.0, 17.9};
-  log.commanded_ma = {30.0, 0.0, 17.0};
-  log.single_pulse = {false, false, true};
+  const DeviceCommandLog log{.device = "sciencemode2",
+                             .pulse_rate_hz = 1000.0 / 30.5,
+                             .current_step_ma = 1.0,
+                             .start_monotonic_ns = 4242424242424,
+                             .t_s = {0.0, 1.0 / 3.0, 0.7},
+                             .requested_ma = {30.25, 0.0, 17.9},
+                             .commanded_ma = {30.0, 0.0, 17.0},
+                             .single_pulse = {false, false, true}};
   trial.device_commands = log;
   FileMap files;
   AddBidsTrial(trial, {"S01", "3", "right", 41}, files);

@@ -244,15 +244,14 @@ TEST(TrialJson, RoundTripsTheDeliveredPulses) {
 // naming the field when it does not hold.
 TEST(TrialJson, RoundTripsTheDeviceCommandsAndRefusesBadOnes) {
   Trial trial = SampleTrial();
-  DeviceCommandLog log;
-  log.device = "sciencemode2";
-  log.pulse_rate_hz = 1000.0 / 30.5;
-  log.current_step_ma = 1.0;
-  log.start_monotonic_ns = 123456789012345;
-  log.t_s = {0.0001234, 0.0305, 0.061};
-  log.requested_ma = {12.75, 13.2, 40.0};
-  log.commanded_ma = {12.0, 13.0, 40.0};
-  log.single_pulse = {false, false, true};
+  const DeviceCommandLog log{.device = "sciencemode2",
+                             .pulse_rate_hz = 1000.0 / 30.5,
+                             .current_step_ma = 1.0,
+                             .start_monotonic_ns = 123456789012345,
+                             .t_s = {0.0001234, 0.0305, 0.061},
+                             .requested_ma = {12.75, 13.2, 40.0},
+                             .commanded_ma = {12.0, 13.0, 40.0},
+                             .single_pulse = {false, false, true}};
   trial.device_commands = log;
   const nlohmann::json json = TrialToJson(trial);
   EXPECT_EQ(json["device_commands"]["single_pulse"], nlohmann::json::parse("[false,false,true]"));

@@ -74,11 +74,11 @@ export async function sessionView(ctx, sessionId) {
     // test changes them), but what the clinician typed or chose stays: a
     // form never changes it behind their back.
     const typed = {};
+    const before = {};
     for (const el of paramSlot.querySelectorAll('input[data-prefilled], select[data-prefilled]')) {
+      before[el.name] = el.dataset.prefilled;
       if (el.value !== el.dataset.prefilled) typed[el.name] = el.value;
     }
-    const before = {};
-    for (const el of paramSlot.querySelectorAll('[data-prefilled]')) before[el.name] = el.dataset.prefilled;
     renderParameters();
     const updated = [];
     for (const el of paramSlot.querySelectorAll('input[data-prefilled], select[data-prefilled]')) {
