@@ -5,6 +5,7 @@
 
 #include "api/parameter_set_json.h"
 #include "api/json_fields.h"
+#include "server/services/model_check.h"
 #include "storage/time_utc.h"
 
 namespace fesbench::server::http {
@@ -101,6 +102,13 @@ nlohmann::json StoredParameterSetToJson(const storage::StoredParameterSet& set) 
   nlohmann::json j = ParameterSetSummaryToJson(set.summary);
   j["trial_ids"] = set.trial_ids;
   j["parameters"] = api::ParameterSetToJson(set.params);
+  // The fit's warnings in a clinician's words (parameters.provenance.warnings
+  // keeps them as the fitting software wrote them).
+  nlohmann::json notes = nlohmann::json::array();
+  for (const std::string& w : set.params.provenance.warnings) {
+    notes.push_back(services::ClinicalWarning(w));
+  }
+  j["fit_notes"] = std::move(notes);
   return j;
 }
 

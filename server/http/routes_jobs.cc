@@ -8,6 +8,7 @@
 #include "server/services/identification_service.h"
 #include "server/services/job_pool.h"
 #include "server/services/prediction_service.h"
+#include "storage/parameter_sets.h"
 // (separate block: Eigen before httplib.h, see routes_bench.cc)
 #include "server/http/api_routes.h"
 #include "server/http/routes_common.h"
@@ -95,6 +96,29 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
          return Submitted(
              ctx, *jobs,
              services::SubmitPrediction(*jobs, *prediction, ActorOf(*ctx.user), *request));
+       }});
+  storage::Database* db = deps.db;
+  table.Add(
+      {.method = "POST",
+       .path = "/api/v1/parameter-sets/{parameter_set_id}/model-check",
+       .roles = kClinician | kAnalyst | kAdmin,
+       .tag = "jobs",
+       .summary = "The model check: the set predicts its leg's validation trials it was not "
+                  "fitted on (each stored as a prediction); E_RMS in each trial's quantity "
+                  "judged against the thresholds of docs/MODEL.md, a verdict "
+                  "(good_for_control, use_with_care, do_not_use, no_fresh_trials) and the fit "
+                  "warnings in a clinician's words; a job",
+       .success_status = 202,
+       .handler = [jobs, prediction, db](RequestContext& ctx) -> api::Result<Reply> {
+         if (!jobs || !prediction || !db) return NotAvailable("the model check");
+         const std::int64_t id = ctx.Id("parameter_set_id");
+         // An unknown set is a 404 now, not a failed job later.
+         if (auto set = storage::ParameterSetRepository(*db).Get(id); !set.ok()) {
+           return set.status();
+         }
+         return Submitted(ctx, *jobs,
+                          services::SubmitModelCheck(*jobs, *db, *prediction,
+                                                     ActorOf(*ctx.user), id));
        }});
   table.Add(
       {.method = "POST",

@@ -126,6 +126,36 @@ json ComparisonResultToJson(const ComparisonResult& r) {
           {"t_test_note", r.test_note.empty() ? json(nullptr) : json(r.test_note)}};
 }
 
+json ModelCheckToJson(const ModelCheck& c) {
+  json trials = json::array();
+  for (const ModelCheckTrial& t : c.trials) {
+    trials.push_back({{"trial_id", t.trial_id},
+                      {"trial_name", t.trial_name},
+                      {"session_id", t.session_id},
+                      {"prediction_id", api::OrNull(t.prediction_id)},
+                      {"quantity", t.quantity},
+                      {"unit", t.unit},
+                      {"e_rms", api::OrNull(t.e_rms)},
+                      {"measured_range", api::OrNull(t.measured_range)},
+                      {"share_outside_identified_ranges", api::OrNull(t.share_outside)},
+                      {"verdict", ModelVerdictName(t.verdict)},
+                      {"explanation", t.explanation}});
+  }
+  const ModelCheckThresholds& th = c.thresholds;
+  return {{"parameter_set_id", c.parameter_set_id},
+          {"verdict", ModelVerdictName(c.verdict)},
+          {"summary", c.summary},
+          {"thresholds",
+           {{"angle_good_deg", th.angle_good_deg},
+            {"angle_care_deg", th.angle_care_deg},
+            {"torque_good_share", th.torque_good_share},
+            {"torque_care_share", th.torque_care_share},
+            {"outside_care_share", th.outside_care_share}}},
+          {"trials", std::move(trials)},
+          {"warnings", c.warnings},
+          {"technical_warnings", c.technical_warnings}};
+}
+
 }  // namespace fesbench::server::services
 
 namespace fesbench::server::services {
@@ -150,6 +180,18 @@ api::Result<std::int64_t> SubmitPrediction(JobPool& pool, PredictionService& ser
         if (!r.ok()) return r.status();
         return PredictionResultToJson(*r);
       });
+}
+
+api::Result<std::int64_t> SubmitModelCheck(JobPool& pool, storage::Database& db,
+                                           PredictionService& service, const Actor& actor,
+                                           std::int64_t parameter_set_id) {
+  return pool.Submit("model_check", actor,
+                     [&db, &service, actor, parameter_set_id]() -> api::Result<nlohmann::json> {
+                       api::Result<ModelCheck> r =
+                           CheckModel(db, service, actor, parameter_set_id);
+                       if (!r.ok()) return r.status();
+                       return ModelCheckToJson(*r);
+                     });
 }
 
 api::Result<std::int64_t> SubmitComparison(JobPool& pool, const ComparisonService& service,

@@ -11,6 +11,7 @@
 #include "api/status.h"
 #include "server/services/comparison_service.h"
 #include "server/services/identification_service.h"
+#include "server/services/model_check.h"
 #include "server/services/prediction_service.h"
 
 namespace fesbench::server::services {
@@ -41,6 +42,12 @@ api::Result<ComparisonRequest> ReadComparisonRequest(const nlohmann::json& json)
 ///  "n", "t", "df", "p_value", "confidence", "t_critical", "significant"}}.
 nlohmann::json ComparisonResultToJson(const ComparisonResult& result);
 
+/// {"parameter_set_id", "verdict", "summary", "thresholds": {...}, "trials":
+///  [{"trial_id", "trial_name", "session_id", "prediction_id", "quantity",
+///  "unit", "e_rms", "measured_range", "share_outside_identified_ranges",
+///  "verdict", "explanation"}], "warnings", "technical_warnings"}.
+nlohmann::json ModelCheckToJson(const ModelCheck& check);
+
 }  // namespace fesbench::server::services
 
 #include "server/services/job_pool.h"
@@ -55,6 +62,10 @@ api::Result<std::int64_t> SubmitIdentification(JobPool& pool, IdentificationServ
 /// The same for service.Predict ("prediction" job, PredictionResultToJson).
 api::Result<std::int64_t> SubmitPrediction(JobPool& pool, PredictionService& service,
                                            const Actor& actor, PredictionRequest request);
+/// CheckModel(db, service, actor, id) as a "model_check" job (ModelCheckToJson).
+api::Result<std::int64_t> SubmitModelCheck(JobPool& pool, storage::Database& db,
+                                           PredictionService& service, const Actor& actor,
+                                           std::int64_t parameter_set_id);
 /// The same for service.Compare ("comparison" job, ComparisonResultToJson).
 api::Result<std::int64_t> SubmitComparison(JobPool& pool, const ComparisonService& service,
                                            const Actor& actor, ComparisonRequest request);

@@ -23,6 +23,7 @@
 #include "server/services/analysis_json.h"
 #include "server/services/comparison_service.h"
 #include "server/services/identification_service.h"
+#include "server/services/model_check.h"
 #include "server/services/prediction_service.h"
 #include "storage/audit_log.h"
 #include "storage/database.h"
@@ -655,6 +656,102 @@ TEST_F(AnalysisServicesTest, ComparisonReproducesHandComputedPairedTTest) {
         {{{"a_parameter_set_id", 1}, {"b_parameter_set_id", 2}, {"trial_ids", {3}}},
          {{"a_parameter_set_id", 1}, {"b_parameter_set_id", 2}, {"trial_id", {3}}}}}});
   EXPECT_EQ(parsed.status().field(), "pairs[1].trial_ids");
+}
+
+// The model check (docs/MODEL.md): the set predicts its leg's validation
+// trials it was not fitted on; training and identification trials are left
+// out; each trial is judged in its own quantity and the set gets its worst
+// trial's verdict.
+TEST_F(AnalysisServicesTest, ModelCheckJudgesTheFreshValidationTrialsInTheirOwnUnits) {
+  const model::ParameterSet truth = Truth();
+  const storage::Session s = MakeSession("S11");
+  const model::SampledSignal rb =
+      model::MakeStimulus("random_binary_dense", {{"amplitude_ma", 26}, {"seed", 99}});
+  const model::SampledSignal plateau =
+      model::MakeStimulus("plateau_profile", {{"threshold_ma", 20}, {"max_ma", 45}});
+  const auto swing = [&](const std::string& name) {
+    return Store(s, TrialOf(name,
+                            model::SimulateFreeSwing(
+                                truth, model::PulsesFromEnvelope(rb, model::kDefaultPulseRateHz),
+                                Whole(rb)),
+                            &rb, true));
+  };
+  const std::int64_t training = swing("prediction_random_binary_training");
+  swing("active_random_binary_rb1");  // not a validation kind
+  const std::int64_t fresh_swing = swing("prediction_random_binary");
+  const std::int64_t fresh_iso = Store(
+      s, TrialOf("isometric_prediction",
+                 model::SimulateIsometric(
+                     truth, model::PulsesFromEnvelope(plateau, model::kDefaultPulseRateHz), 90.0,
+                     Whole(plateau)),
+                 &plateau, false));
+  model::ParameterSet fitted = truth;
+  fitted.provenance.trial_ids = {training};
+  fitted.provenance.warnings = {
+      "active: 124 stimulated samples with non-positive active torque skipped (passive set "
+      "inconsistent with the trial?)",
+      "something the check does not know"};
+  const std::int64_t set_id = StoreSet(s, fitted);
+  PredictionService predictions(*db_);
+  const Actor clinician{0, "cli", Role::kClinician};
+
+  auto check = CheckModel(*db_, predictions, clinician, set_id);
+  ASSERT_TRUE(check.ok()) << check.status().ToString();
+  EXPECT_EQ(check->verdict, ModelVerdict::kGoodForControl) << check->summary;
+  ASSERT_EQ(check->trials.size(), 2u);
+  EXPECT_EQ(check->trials[0].trial_id, fresh_iso);  // newest first
+  EXPECT_EQ(check->trials[0].unit, "N.m");
+  EXPECT_EQ(check->trials[0].quantity, "torque");
+  ASSERT_TRUE(check->trials[0].measured_range.has_value());
+  EXPECT_GT(*check->trials[0].measured_range, 1.0);
+  EXPECT_EQ(check->trials[1].trial_id, fresh_swing);
+  EXPECT_EQ(check->trials[1].unit, "deg");
+  EXPECT_LT(*check->trials[1].e_rms, 1e-9);
+  for (const ModelCheckTrial& t : check->trials) {
+    ASSERT_TRUE(t.prediction_id.has_value());
+    EXPECT_TRUE(storage::PredictionRepository(*db_).GetPrediction(*t.prediction_id).ok());
+  }
+  ASSERT_EQ(check->warnings.size(), 2u);
+  EXPECT_THAT(check->warnings[0], ::testing::HasSubstr("124 samples"));
+  EXPECT_THAT(check->warnings[0], ::testing::Not(::testing::HasSubstr("non-positive")));
+  EXPECT_EQ(check->warnings[1], "something the check does not know");
+  EXPECT_EQ(check->technical_warnings, fitted.provenance.warnings);
+  const nlohmann::json j = ModelCheckToJson(*check);
+  EXPECT_EQ(j["verdict"], "good_for_control");
+  EXPECT_EQ(j["trials"][0]["unit"], "N.m");
+
+  // τ_scale doubled: the isometric torque is off by the whole plateau
+  // (E_RMS over its range near 1/2 of the plateau's share > 30 %).
+  model::ParameterSet strong = fitted;
+  strong.active.torque_scale_nm *= 2.0;
+  const std::int64_t strong_id = StoreSet(s, strong);
+  auto bad = CheckModel(*db_, predictions, clinician, strong_id);
+  ASSERT_TRUE(bad.ok()) << bad.status().ToString();
+  EXPECT_EQ(bad->verdict, ModelVerdict::kDoNotUse);
+  EXPECT_EQ(bad->trials[0].verdict, ModelVerdict::kDoNotUse);
+  EXPECT_THAT(bad->trials[0].explanation, ::testing::HasSubstr("N·m"));
+  // The thresholds decide: the same free-swing error between good and care.
+  const double e = *bad->trials[1].e_rms;
+  ASSERT_GT(e, 0.1);
+  ModelCheckThresholds th;
+  th.angle_good_deg = 0.5 * e;
+  th.angle_care_deg = 2.0 * e;
+  th.torque_good_share = th.torque_care_share = 10.0;
+  auto care = CheckModel(*db_, predictions, clinician, strong_id, th);
+  ASSERT_TRUE(care.ok());
+  EXPECT_EQ(care->trials[1].verdict, ModelVerdict::kUseWithCare);
+  EXPECT_EQ(care->trials[0].verdict, ModelVerdict::kGoodForControl);
+  EXPECT_EQ(care->verdict, ModelVerdict::kUseWithCare);
+
+  // Nothing fresh on another leg: no verdict but what to do.
+  const storage::Session other = MakeSession("S12");
+  const std::int64_t lonely = StoreSet(other, truth);
+  auto none = CheckModel(*db_, predictions, clinician, lonely);
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(none->verdict, ModelVerdict::kNoFreshTrials);
+  EXPECT_THAT(none->summary, ::testing::HasSubstr("prediction protocol"));
+  EXPECT_EQ(CheckModel(*db_, predictions, clinician, 9999).status().code(),
+            api::ErrorCode::kNotFound);
 }
 
 }  // namespace

@@ -66,6 +66,7 @@ const Expectation kRoutes[] = {
     {"GET", "/api/v1/predictions/{prediction_id}", "cad"},
     {"POST", "/api/v1/identifications", "ad"},
     {"POST", "/api/v1/predictions", "cad"},
+    {"POST", "/api/v1/parameter-sets/{parameter_set_id}/model-check", "cad"},
     {"POST", "/api/v1/comparisons", "ad"},
     {"GET", "/api/v1/jobs", "ad"},
     {"GET", "/api/v1/jobs/{job_id}", "cad"},
