@@ -109,6 +109,45 @@ void RegisterApprove(CLI::App& params, CliContext& context) {
   });
 }
 
+// `params check ID`: the model check (docs/MODEL.md): the set predicts the
+// leg's validation trials it was not fitted on; the verdict, each trial's
+// error in its own unit and the fit's warnings in a clinician's words.
+void RegisterCheck(CLI::App& params, CliContext& context) {
+  auto id = std::make_shared<std::string>();
+  CLI::App* check = params.add_subcommand(
+      "check",
+      "The model check: is the set fit to drive stimulation? It predicts the leg's "
+      "prediction-protocol trials it was not fitted on (clinician, analyst, admin).");
+  check->add_option("id", *id, "parameter set id")->required();
+  check->callback([id, &context] {
+    context.action = [id, &context] {
+      const std::int64_t set_id = ParseId(*id, "parameter set");
+      auto client = Connect(context);
+      const json job =
+          client->Post("/parameter-sets/" + std::to_string(set_id) + "/model-check");
+      const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+      if (context.options.json) {
+        context.out << result.dump(2) << "\n";
+        return;
+      }
+      context.out << "parameter set " << set_id << ": " << result.value("verdict", "") << "\n"
+                  << result.value("summary", "") << "\n";
+      std::vector<std::vector<std::string>> rows;
+      for (const auto& t : result.value("trials", json::array())) {
+        rows.push_back({Cell(t["trial_id"]), t.value("trial_name", ""), t.value("quantity", ""),
+                        Cell(t["e_rms"]) + " " + t.value("unit", ""), t.value("verdict", ""),
+                        t.value("explanation", "")});
+      }
+      if (!rows.empty()) {
+        PrintTable(context.out, {"trial", "name", "compared", "e_rms", "verdict", "why"}, rows);
+      }
+      for (const auto& w : result.value("warnings", json::array())) {
+        context.out << "fit: " << w.get<std::string>() << "\n";
+      }
+    };
+  });
+}
+
 }  // namespace
 
 void RegisterDataCommands(CLI::App& app, CliContext& context) {
@@ -224,6 +263,7 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
   }
 
   RegisterApprove(*params, context);
+  RegisterCheck(*params, context);
 
   CLI::App* trials = app.add_subcommand("trials", "Recorded trials: list, export.");
   trials->require_subcommand(1);

@@ -156,6 +156,14 @@ TEST(CliSessionTest, WholeAnalystSession) {
       cli.Run({"params", "approve", std::to_string(second_sets[0]), "--note", "back"}).exit_code,
       0);
 
+  // The model check: no prediction protocol ran on this leg, so nothing is
+  // left to judge the set on, and the answer says what to run.
+  auto checked = cli.Run({"params", "check", std::to_string(second_sets[0])});
+  ASSERT_EQ(checked.exit_code, 0) << checked.err;
+  EXPECT_THAT(checked.out, HasSubstr(": no_fresh_trials\n"));
+  EXPECT_THAT(checked.out, HasSubstr("run a prediction protocol"));
+  EXPECT_NE(cli.Run({"params", "check", "9999"}).exit_code, 0);
+
   // A parameter set as JSON (reads back as the wire type) and as CSV.
   auto params_json = cli.Run({"params", "get", std::to_string(first_sets[0]), "--format", "json"});
   ASSERT_EQ(params_json.exit_code, 0) << params_json.err;
