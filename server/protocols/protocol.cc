@@ -1,5 +1,6 @@
 #include "server/protocols/protocol.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <map>
@@ -104,8 +105,13 @@ double DefaultFor(const ParameterSpec& spec, const SubjectContext& s) {
       return s.threshold_ma;
     case Scaling::kMaxTolerated:
       return s.max_tolerated_ma;
-    case Scaling::kStimRange:
-      return s.threshold_ma + spec.default_value * (s.max_tolerated_ma - s.threshold_ma);
+    case Scaling::kStimRange: {
+      // To 0.1 mA, the resolution a clinician reads and types (docs/PROTOCOLS.md),
+      // never above the max tolerated.
+      const double exact =
+          s.threshold_ma + spec.default_value * (s.max_tolerated_ma - s.threshold_ma);
+      return std::min(std::round(exact * 10.0) / 10.0, s.max_tolerated_ma);
+    }
     case Scaling::kRangeMin:
       return s.min_angle_deg;
     case Scaling::kRangeMax:

@@ -164,6 +164,18 @@ TEST(ProtocolCatalog, EveryParameterHasAClinicianLabelAUnitAndAnHonestDefault) {
       EXPECT_TRUE(param.at("default_rule").is_null());
     }
   }
+  // Measured limits of any precision resolve to 0.1 mA: 17.19 + 0.6·2.87 =
+  // 18.912 → 18.9; never above the max tolerated.
+  SubjectContext measured = s;
+  measured.threshold_ma = 17.19;
+  measured.max_tolerated_ma = 20.06;
+  for (const auto& param :
+       ProtocolToJson(*FindProtocol("prediction_random_binary"), &measured, true)
+           .at("parameters")) {
+    if (param.at("name") == "amplitude_ma") {
+      EXPECT_DOUBLE_EQ(param.at("default"), 18.9);
+    }
+  }
   // A session without recorded limits resolves no stimulation default.
   const nlohmann::json unmeasured =
       ProtocolToJson(*FindProtocol("prediction_random_binary"), &s, false);
