@@ -12,7 +12,7 @@
 //   node clinician_chain_test.mjs --server BIN --web-root DIR --node-modules DIR
 //                                 --chromium BIN --artefacts DIR
 import assert from 'node:assert/strict';
-import { arg, call, expectEstopVisible, fillParameter, finish, launch, makeUser, shooter, startServer, step } from './harness.mjs';
+import { arg, axeCheck, call, expectEstopVisible, fillParameter, finish, launch, makeUser, saveWalk, shooter, startServer, step } from './harness.mjs';
 
 // Runs last a few seconds of wall time (rapid ≈ 7 s), so switching views
 // really happens while the run goes on.
@@ -26,6 +26,14 @@ let context;
 let page;
 let error;
 const notes = [];
+// axe-core on every page of the walk: its serious and critical violations.
+const axe = [];
+async function snap(name) {
+  await shots.both(page, name);
+  const violations = await axeCheck(page);
+  axe.push({ page: name, url: page.url().replace(/^.*#/, '#'), serious_or_critical: violations.length, violations });
+  if (violations.length) console.log(`axe ${name}: ${JSON.stringify(violations)}`);
+}
 
 async function signIn(token) {
   if (await page.locator('#who-name').count()) {
@@ -59,6 +67,7 @@ try {
   let subjectId;
   let sessionId;
   let setId;
+  let set0;
   const freshRuns = [];
 
   await step('sign in as a clinician', async () => {
@@ -69,7 +78,7 @@ try {
     await page.waitForURL(/#\/subjects$/);
     assert.equal(await page.locator('#who-role').textContent(), 'clinician');
     await page.locator('#estop-state').filter({ hasText: 'Bench: idle' }).waitFor();
-    await shots.both(page, 'signed-in');
+    await snap('signed-in');
   });
 
   await step('a new subject without body mass or shank length', async () => {
@@ -83,7 +92,7 @@ try {
     const details = await page.locator('#subject-details').textContent();
     assert.match(details, /Body mass \(kg\)—/);
     assert.match(details, /Shank length \(cm\)—/);
-    await shots.both(page, 'subject-new');
+    await snap('subject-new');
   });
 
   await step('correction: every invalid field at once, then body mass and shank length with a reason', async () => {
@@ -95,7 +104,7 @@ try {
     await page.locator('#subject-edit-weight_kg-error').filter({ hasText: /must be 1–400 kg, got -72/ }).waitFor();
     await page.locator('#subject-edit-reason-error').filter({ hasText: /why/ }).waitFor();
     assert.equal(await page.locator('#subject-edit [aria-invalid=true]').count(), 2);
-    await shots.both(page, 'subject-correction-invalid');
+    await snap('subject-correction-invalid');
     await page.locator('#subject-edit-weight_kg').fill('72');
     await page.locator('#subject-edit-reason').fill('body mass and shank length measured at the first visit');
     await page.getByRole('button', { name: 'Save correction' }).click();
@@ -109,7 +118,7 @@ try {
     const subject = await call(server, 'GET', `/subjects/${subjectId}`);
     assert.deepEqual([subject.body.revision, subject.body.details.weight_kg, subject.body.details.shank_length_cm], [2, 72, 43]);
     await page.locator('#subject-revisions').scrollIntoViewIfNeeded();
-    await shots.both(page, 'subject-corrected');
+    await snap('subject-corrected');
   });
 
   await step('a session without threshold or max tolerated (nothing prefilled)', async () => {
@@ -126,7 +135,7 @@ try {
     // Labels in the clinician's words, the thesis section behind a help link.
     assert.doesNotMatch(await page.locator('#protocol-parameters').textContent(), /§/);
     assert.match(await page.locator('#protocol-help').getAttribute('title'), /§/);
-    await shots.both(page, 'session-new');
+    await snap('session-new');
   });
 
   await step('tolerance test, "the subject says stop": the current and torque live, the session shows the recorded values at once', async () => {
@@ -137,7 +146,7 @@ try {
     // The clinician stops when the subject has had enough: a clear torque
     // response, above this virtual subject's threshold.
     await page.waitForFunction(() => Number(document.querySelector('#live').dataset.torqueSwing || 0) >= 3, null, { timeout: 60000 });
-    await shots.both(page, 'tolerance-running');
+    await snap('tolerance-running');
     // The live numbers: the current and the torque, to 0.1, large.
     assert.match(await page.locator('#live-ma').textContent(), /^\d+\.\d$/);
     assert.match(await page.locator('#live-nm').textContent(), /^-?\d+\.\d$/);
@@ -160,7 +169,7 @@ try {
     assert.ok(Math.abs((await shown('#session-max-tolerated')) - max) < 0.01 * max, 'max tolerated shown');
     assert.match(await page.locator('#session-revisions-table').textContent(), new RegExp(`tolerance_test run ${runId}`));
     notes.push(`tolerance test: threshold ${thr} mA, max tolerated ${max} mA`);
-    await shots.both(page, 'tolerance-recorded');
+    await snap('tolerance-recorded');
   });
 
   await step('rapid parameterisation while switching views: the run survives, the run bar shows throughout', async () => {
@@ -173,13 +182,13 @@ try {
     const p0 = await page.locator('#runbar-progress').evaluate((e) => e.value);
     await page.waitForFunction((v) => document.querySelector('#runbar-progress').value > v, p0);
     await expectEstopVisible(page);
-    await shots.both(page, 'rapid-on-subjects');
+    await snap('rapid-on-subjects');
     await page.locator('#subjects-table').getByRole('link', { name: 'N01' }).click();
     await page.getByRole('heading', { name: 'Subject N01' }).waitFor();
     await page.locator(`#runbar[data-run-id="${runId}"]`).waitFor();
     await page.getByRole('navigation').getByRole('link', { name: 'Prediction' }).click();
     await page.locator(`#runbar[data-run-id="${runId}"]`).waitFor();
-    await shots.both(page, 'rapid-on-prediction');
+    await snap('rapid-on-prediction');
     // Back through the bar's link: the session follows the same run live.
     await page.locator('#runbar-session').click();
     await page.locator(`#live[data-run-id="${runId}"]`).waitFor();
@@ -188,8 +197,11 @@ try {
     assert.equal(run.state, 'done', `rapid ended ${run.state}: ${run.reason}`);
     setId = run.parameter_set_id;
     assert.ok(setId, 'no parameter set from rapid');
+    set0 = (await call(server, 'GET', `/parameter-sets/${setId}`)).body;
+    // From the run's end to its set and its model check.
+    await page.locator('#run-model-check').waitFor();
     await page.locator('#run-parameter-set').waitFor();
-    await shots.both(page, 'rapid-done');
+    await snap('rapid-done');
   });
 
   let gateRefusal = null;
@@ -201,12 +213,12 @@ try {
         assert.match(refusal, /Cannot start: .{20,}/);
         gateRefusal = refusal;
         notes.push(`${protocol} refused by the model gate: ${refusal}`);
-        await shots.both(page, `${protocol}-refused`);
+        await snap(`${protocol}-refused`);
         continue;
       }
       await page.locator(`#live[data-run-id="${runId}"][data-state="done"]`).waitFor({ timeout: 60000 });
       freshRuns.push(runId);
-      await shots.both(page, `${protocol}-done`);
+      await snap(`${protocol}-done`);
     }
     // The session lists its trials: plot one and download it as CSV.
     await page.locator('#trials-table').waitFor();
@@ -217,7 +229,23 @@ try {
     const [sto] = await Promise.all([page.waitForEvent('download'), page.locator('#trials-table button[data-sto]').last().click()]);
     assert.match(sto.suggestedFilename(), /\.sto$/);
     await page.locator('#trial-plot').scrollIntoViewIfNeeded();
-    await shots.both(page, 'session-trials');
+    await snap('session-trials');
+    // At 820 px the page never scrolls sideways and the trials table's last
+    // column can be reached (the table scrolls inside the page).
+    await page.setViewportSize({ width: 820, height: 1000 });
+    // (plots follow the width once their resize observers ran)
+    await page.waitForFunction(() => document.documentElement.scrollWidth <= window.innerWidth, null, { timeout: 5000 })
+      .catch(async () => {
+        const widest = await page.evaluate(() => [...document.querySelectorAll('main *')]
+          .filter((e) => e.getBoundingClientRect().right > window.innerWidth + 1)
+          .slice(-3).map((e) => `${e.tagName}#${e.id}.${e.className} right ${Math.round(e.getBoundingClientRect().right)}`));
+        assert.fail(`the page scrolls sideways at 820 px: ${widest.join('; ')}`);
+      });
+    const lastCell = page.locator('#trials-table tbody tr').first().locator('td').last();
+    await lastCell.scrollIntoViewIfNeeded();
+    const box = await lastCell.boundingBox();
+    assert.ok(box && box.x >= 0 && box.x + box.width <= 820 + 1, `last trials column out of reach at 820 px: ${JSON.stringify(box)}`);
+    await page.setViewportSize({ width: 1280, height: 800 });
   });
 
   await step('tracking (adaptive): target and knee angle live, the error and τ_scale drawn, the figures at the end', async () => {
@@ -233,7 +261,7 @@ try {
     await page.locator('figure[data-plot="error"] canvas').waitFor();
     await page.locator(`#live[data-run-id="${runId}"][data-state="done"]`).waitFor({ timeout: 60000 });
     const text = await page.locator('#run-tracking').textContent();
-    const rms = Number(text.match(/Tracking RMS ([0-9.]+)°/)[1]);
+    const rms = Number(text.match(/Tracking error ([0-9.]+)° RMS/)[1]);
     assert.ok(rms > 0 && rms < 10, text);
     assert.ok(Number.isFinite(Number(await page.locator('#live').getAttribute('data-last-error'))));
     const run = (await call(server, 'GET', `/runs/${runId}`)).body;
@@ -245,7 +273,7 @@ try {
     assert.equal(await page.locator('#f-lo_deg').inputValue(), '62');
     notes.push(`tracking (adaptive, 10 s sine 30–80°): ${text}`);
     await page.locator('#live').scrollIntoViewIfNeeded();
-    await shots.both(page, 'tracking-done');
+    await snap('tracking-done');
   });
 
   await step('tracking an uploaded trajectory (CSV t_s, angle_deg)', async () => {
@@ -286,12 +314,15 @@ try {
     assert.ok(runId, `daily check refused: ${refusal}`);
     await page.locator(`#live[data-run-id="${runId}"][data-state="done"]`).waitFor({ timeout: 60000 });
     const text = await page.locator('#run-daily-check').textContent();
-    assert.match(text, /Daily check: (no change|refit|rapid due)/);
+    assert.match(text, /Daily check: (no change, the approved set stands|the recruitment moved, the set was re-fitted|a full rapid parameterisation is due)/);
+    // In words and units: no internal names in the table.
+    assert.doesNotMatch(await page.locator('#daily-check-table').textContent(), /irc_threshold_ma|full_scale|irc_slope/);
+    assert.match(await page.locator('#daily-check-table').textContent(), /\d\.\d mA/);
     const run = (await call(server, 'GET', `/runs/${runId}`)).body;
     assert.equal(run.result.drifts.length, 4);
     notes.push(`daily check on the same leg: ${run.result.verdict} (${run.result.summary})`);
     await page.locator('#run-daily-check').scrollIntoViewIfNeeded();
-    await shots.both(page, 'daily-check-done');
+    await snap('daily-check-done');
   });
 
   await step('prediction page (analyst): the new set on trials it was not fitted on, with error figures', async () => {
@@ -325,7 +356,7 @@ try {
     assert.match(await page.locator('#predict-extrapolated').textContent(), /% of the predicted samples lie outside/);
     await page.locator('figure[data-plot="prediction"] canvas').waitFor();
     assert.match(await page.locator('#predict-title').textContent(), /Predicted vs measured knee angle/);
-    await shots.both(page, 'prediction');
+    await snap('prediction');
     // An isometric trial is torque against torque, in N·m (it was plotted on
     // a knee-angle chart).
     const iso = page.locator('#predict-trial option', { hasText: /isometric/ }).first();
@@ -334,13 +365,51 @@ try {
     await page.getByRole('button', { name: 'Run prediction' }).click();
     await page.locator('#predict-title', { hasText: 'torque' }).waitFor({ timeout: 60000 });
     assert.match(await page.locator('#error-table thead').textContent(), /Value \(N[.·]m\)/);
-    await shots.both(page, 'prediction-isometric');
+    await snap('prediction-isometric');
     await signIn(clinician.token);
     // The clinician's model check: the Prediction page runs for a clinician too.
     await page.goto(`${server.url}/#/predict/${setId}`);
     await page.locator('#predict-trial option[data-training]').first().waitFor({ state: 'attached' });
     await page.getByRole('button', { name: 'Run prediction' }).click();
     await page.locator('#error-table').waitFor({ timeout: 60000 });
+  });
+
+  await step('the model check: the new set on the leg\'s fresh trials, a verdict in words, errors in each trial\'s unit', async () => {
+    await page.goto(`${server.url}/#/sessions/${sessionId}`);
+    await page.locator('#runs-table').waitFor();
+    // From the run that made the set to its model check (it runs at once).
+    await page.locator('#runs-table a', { hasText: 'model check' }).first().click();
+    await page.locator('#model-check-result').waitFor({ timeout: 60000 });
+    const verdict = await page.locator('#model-check-result').getAttribute('data-verdict');
+    const text = await page.locator('#model-check-verdict').textContent();
+    assert.match(text, /^(Good for control|Use with care|Do not use to drive stimulation|Not checked yet)/);
+    // The same check through the API: the same trials, verdict and errors.
+    const job = await call(server, 'POST', `/parameter-sets/${setId}/model-check`, undefined, clinician.token);
+    assert.equal(job.status, 202, JSON.stringify(job.body));
+    let done = job.body;
+    while (done.state !== 'done' && done.state !== 'failed') done = (await call(server, 'GET', `/jobs/${done.id}`, undefined, clinician.token)).body;
+    assert.equal(done.state, 'done', JSON.stringify(done.error));
+    const check = done.result;
+    assert.equal(check.verdict, verdict);
+    const rows = page.locator('#model-check-table tbody tr');
+    assert.equal(await rows.count(), check.trials.length);
+    for (let i = 0; i < check.trials.length; i++) {
+      const t = check.trials[i];
+      const cells = await rows.nth(i).locator('th, td').allTextContents();
+      assert.match(cells[0], new RegExp(`^${t.trial_id}:`));
+      const shown = t.unit === 'deg' ? `${t.e_rms.toFixed(1)}°` : `${t.e_rms.toFixed(1)} N·m`;
+      assert.ok(cells[2].startsWith(shown), `${cells[2]} vs ${shown}`);
+      assert.ok(!set0.trial_ids.includes(t.trial_id), `training trial ${t.trial_id} in the check`);
+    }
+    if (freshRuns.length) assert.ok(check.trials.length >= 2, 'the fresh prediction trials are checked');
+    notes.push(`model check of set ${setId}: ${check.verdict}; ` +
+      check.trials.map((t) => `trial ${t.trial_id} ${t.quantity} ${t.e_rms?.toFixed(2)} ${t.unit} → ${t.verdict}`).join('; '));
+    // The fit's warnings in a clinician's words on the set's page.
+    if (set0.parameters.provenance.warnings.length) {
+      assert.doesNotMatch(await page.locator('#fit-notes > ul').textContent(), /non-positive|rank \d+ of/);
+    }
+    await page.locator('#model-check').scrollIntoViewIfNeeded();
+    await snap('model-check');
   });
 
   await step('closing the tab during a run asks first; a reload re-attaches to the run', async () => {
@@ -364,7 +433,7 @@ try {
     const p0 = await page.locator('#runbar-progress').evaluate((e) => e.value);
     await page.waitForFunction((v) => document.querySelector('#runbar-progress').value > v + 0.02, p0);
     assert.equal((await call(server, 'GET', `/runs/${runId}`)).body.state, 'running');
-    await shots.both(page, 'reattached');
+    await snap('reattached');
   });
 
   await step('e-stop during a run: latch banner, every start disabled, confirmed clear', async () => {
@@ -376,17 +445,17 @@ try {
     // The latch is the most visible thing: full width, right under the header.
     const latch = await page.locator('#latch').boundingBox();
     assert.ok(latch.width >= page.viewportSize().width - 20, `latch ${latch.width} px wide`);
-    await shots.both(page, 'estop-latched');
+    await snap('estop-latched');
     await page.locator('#estop-clear').click();
     await page.locator('#estop-dialog').waitFor();
     assert.equal(await page.locator('#estop-confirm').isDisabled(), true);
-    await shots.both(page, 'estop-clear-dialog');
+    await snap('estop-clear-dialog');
     await page.locator('#estop-confirm-check').check();
     await page.locator('#estop-confirm').click();
     await page.locator('#estop-state').filter({ hasText: 'Bench: idle' }).waitFor();
     assert.equal((await call(server, 'GET', '/bench')).body.state.estopped, false);
     await page.locator('#start-run:not([disabled])').waitFor();
-    await shots.both(page, 'estop-cleared');
+    await snap('estop-cleared');
   });
 
   await step('the header never shifts: the E-STOP button keeps its place at 1280 and 820 px', async () => {
@@ -410,7 +479,34 @@ try {
     await page.setViewportSize({ width: 1280, height: 800 });
   });
 
+  await step('admin: a user and a token issued from the page (shown once), then revoked', async () => {
+    await signIn(server.token);
+    await page.getByRole('navigation').getByRole('link', { name: 'Users and tokens' }).click();
+    await page.locator('#users-table').waitFor();
+    await page.locator('#user-name').fill('dr_new');
+    await page.locator('#user-role').selectOption('clinician');
+    await page.getByRole('button', { name: 'Add user' }).click();
+    await page.locator('#admin-status').filter({ hasText: 'User dr_new (clinician) added' }).waitFor();
+    await page.locator('#token-label').fill('ward PC');
+    await page.getByRole('button', { name: 'Issue token' }).click();
+    const secret = await page.locator('#token-secret-value').inputValue();
+    assert.ok(secret.length >= 20, 'no token shown');
+    const me = await call(server, 'GET', '/me', undefined, secret);
+    assert.deepEqual([me.status, me.body.name, me.body.role], [200, 'dr_new', 'clinician']);
+    await snap('admin-token-issued');
+    // Shown once: the list has its metadata, never the secret.
+    assert.doesNotMatch(await page.locator('#tokens-table').textContent(), new RegExp(secret));
+    const row = page.locator('#tokens-table tbody tr', { hasText: 'ward PC' });
+    await row.getByRole('button', { name: /^Revoke token/ }).click();
+    await page.locator('#admin-status').filter({ hasText: /Token \d+ of dr_new is revoked/ }).waitFor();
+    assert.equal((await call(server, 'GET', '/me', undefined, secret)).status, 401);
+  });
+
   assert.deepEqual(external, [], 'the page requested something from elsewhere');
+  const seriousOrCritical = axe.reduce((n, a) => n + a.serious_or_critical, 0);
+  notes.push(`axe-core on ${axe.length} pages: ${seriousOrCritical} serious or critical violations`);
+  saveWalk(artefacts, { axe });
+  assert.equal(seriousOrCritical, 0, `axe: ${JSON.stringify(axe.filter((a) => a.serious_or_critical))}`);
   assert.deepEqual(consoleErrors, [], 'uncaught errors in the page');
   if (gateRefusal) console.log('NOTE: the model gate refused a prediction protocol after a default rapid run');
 } catch (e) {

@@ -4,7 +4,7 @@
 // Playwright, screenshots and timed steps. Waits are on page state
 // (selectors, texts, data attributes), never fixed sleeps.
 import { spawn } from 'node:child_process';
-import { mkdirSync, mkdtempSync, readFileSync, rmSync } from 'node:fs';
+import { mkdirSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { createRequire } from 'node:module';
 import { tmpdir } from 'node:os';
 import { join, resolve } from 'node:path';
@@ -18,6 +18,20 @@ export const arg = (name) => {
 
 export function playwright() {
   return createRequire(join(resolve(arg('--node-modules')), 'index.js'))('playwright-core');
+}
+
+/// @axe-core/playwright's AxeBuilder (the accessibility checks of axe-core).
+export function axeBuilder() {
+  return createRequire(join(resolve(arg('--node-modules')), 'index.js'))('@axe-core/playwright').default;
+}
+
+/// Runs axe-core on the page as it is now (WCAG 2.1 A and AA rules); the
+/// serious and critical violations as [{id, impact, help, targets}].
+export async function axeCheck(page) {
+  const AxeBuilder = axeBuilder();
+  const result = await new AxeBuilder({ page }).withTags(['wcag2a', 'wcag2aa', 'wcag21a', 'wcag21aa']).analyze();
+  return result.violations.filter((v) => v.impact === 'serious' || v.impact === 'critical')
+    .map((v) => ({ id: v.id, impact: v.impact, help: v.help, targets: v.nodes.map((n) => n.target.join(' ')).slice(0, 5) }));
 }
 
 /// Starts fesbench-server; resolves {child, url, token (admin), work}.
@@ -79,6 +93,12 @@ export async function launch(server) {
   const page = context.pages()[0] || (await context.newPage());
   const external = [];
   page.on('request', (r) => { if (!r.url().startsWith(server.url)) external.push(r.url()); });
+  // Every click the user makes (trusted events only), across reloads: the
+  // walk's clicks per step.
+  await context.exposeBinding('__fesbenchClick', () => { clicks.count += 1; });
+  await context.addInitScript(() => {
+    document.addEventListener('click', (e) => { if (e.isTrusted) window.__fesbenchClick(); }, true);
+  });
   const consoleErrors = [];
   page.on('pageerror', (e) => consoleErrors.push(String(e)));
   page.on('console', (m) => { if (m.type() === 'error' && !/Failed to load resource/.test(m.text())) consoleErrors.push(m.text()); });
@@ -113,10 +133,23 @@ export function shooter(dir) {
   };
 }
 
+/// Clicks counted since launch (launch() installs the counter).
+export const clicks = { count: 0 };
+/// Each step's name, wall time and clicks, in order.
+export const walk = [];
+
 export async function step(name, fn) {
   const t0 = Date.now();
+  const c0 = clicks.count;
   await fn();
-  console.log(`ok  ${name} (${Date.now() - t0} ms)`);
+  const entry = { name, ms: Date.now() - t0, clicks: clicks.count - c0 };
+  walk.push(entry);
+  console.log(`ok  ${name} (${entry.ms} ms, ${entry.clicks} clicks)`);
+}
+
+/// The walk (steps, clicks, times) and anything else as JSON under `dir`.
+export function saveWalk(dir, extra = {}) {
+  writeFileSync(join(dir, 'walk.json'), `${JSON.stringify({ steps: walk, ...extra }, null, 2)}\n`);
 }
 
 /// The e-stop button is inside the viewport on this page.

@@ -25,6 +25,16 @@ export function fmt(value, digits = 3) {
   return value.toPrecision(digits);
 }
 
+/// Clinical number formats: a fixed number of decimals (mA, degrees and
+/// N·m to 0.1) and the unit, '—' for a missing value.
+export function fmtFixed(value, decimals, unit = '') {
+  if (value === null || value === undefined || !Number.isFinite(value)) return '—';
+  return `${value.toFixed(decimals)}${unit ? (unit === '°' || unit === '%' ? unit : ` ${unit}`) : ''}`;
+}
+export const fmtMa = (v) => fmtFixed(v, 1, 'mA');
+export const fmtDeg = (v) => fmtFixed(v, 1, '°');
+export const fmtNm = (v) => fmtFixed(v, 1, 'N·m');
+
 export function fmtDuration(seconds) {
   if (!Number.isFinite(seconds)) return '—';
   const s = Math.max(0, Math.round(seconds));

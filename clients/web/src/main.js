@@ -10,6 +10,7 @@ import { sessionView } from './views/session.js';
 import { parameterSetView, compareView } from './views/paramset.js';
 import { historyView } from './views/history.js';
 import { predictionView } from './views/predict.js';
+import { adminView } from './views/admin.js';
 
 const state = { user: null, cleanup: [] };
 
@@ -20,8 +21,10 @@ const routes = [
   [/^#\/subjects\/(\d+)\/history$/, (m) => historyView(ctx, Number(m[1]))],
   [/^#\/sessions\/(\d+)$/, (m) => sessionView(ctx, Number(m[1]))],
   [/^#\/parameter-sets\/(\d+)$/, (m) => parameterSetView(ctx, Number(m[1]))],
+  [/^#\/parameter-sets\/(\d+)\/check$/, (m) => parameterSetView(ctx, Number(m[1]), { check: true })],
   [/^#\/compare\/(\d+)\/(\d+)$/, (m) => compareView(ctx, Number(m[1]), Number(m[2]))],
   [/^#\/predict(?:\/(\d+))?$/, (m) => predictionView(ctx, m[1] ? Number(m[1]) : null)],
+  [/^#\/admin$/, () => adminView(ctx)],
 ];
 
 /// What views get: the main element, the user, and a way to register
@@ -93,7 +96,8 @@ function renderChrome() {
   const link = (href, text) => h('a', { href }, text);
   nav.replaceChildren(h('ul', {},
     h('li', {}, link('#/subjects', 'Subjects')),
-    h('li', {}, link('#/predict', 'Prediction'))));
+    h('li', {}, link('#/predict', 'Prediction')),
+    state.user.role === 'admin' ? h('li', {}, link('#/admin', 'Users and tokens')) : ''));
   who.replaceChildren(
     h('span', { id: 'who-name' }, h('span', { class: 'wide-only' }, 'Signed in as '), state.user.name),
     h('span', { class: `role role-${state.user.role}`, id: 'who-role' }, state.user.role),

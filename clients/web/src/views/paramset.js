@@ -1,7 +1,7 @@
 // A parameter set as plots (IRC, twitch, passive and active torque–angle
 // and torque–velocity) with its values; two sets compared.
-import { api } from '../api.js';
-import { field, fmt, h, say, table } from '../dom.js';
+import { api, waitForJob } from '../api.js';
+import { field, fmt, fmtFixed, h, say, table } from '../dom.js';
 import { parameterCurves, parameterScalars, SCALAR_LABELS } from '../model.js';
 import { joinCurves, makePlot } from '../plot.js';
 import { legSide } from './subjects.js';
@@ -86,7 +86,76 @@ function approvalSection(ctx, set) {
   return h('section', { 'aria-labelledby': 'approval-h' }, h('h2', { id: 'approval-h' }, 'Approval'), status, form);
 }
 
-export async function parameterSetView(ctx, setId) {
+// The model check (docs/MODEL.md, "The model check"): the set predicts the
+// leg's validation trials it was not fitted on; a verdict in words, each
+// trial's error in its own unit, the fit warnings in a clinician's words.
+const VERDICT_TEXT = {
+  good_for_control: 'Good for control',
+  use_with_care: 'Use with care',
+  do_not_use: 'Do not use to drive stimulation',
+  no_fresh_trials: 'Not checked yet: no trial to check on',
+};
+const VERDICT_CLASS = { good_for_control: 'msg-ok', use_with_care: 'msg-info', do_not_use: 'msg-error', no_fresh_trials: 'msg-info' };
+
+function errorText(t) {
+  if (!Number.isFinite(t.e_rms)) return '—';
+  if (t.unit === 'deg') return fmtFixed(t.e_rms, 1, '°');
+  const share = Number.isFinite(t.measured_range) && t.measured_range > 0 ? ` (${fmtFixed(100 * t.e_rms / t.measured_range, 0, '%')} of ${fmtFixed(t.measured_range, 1, 'N·m')})` : '';
+  return `${fmtFixed(t.e_rms, 1, 'N·m')}${share}`;
+}
+
+export function modelCheckResult(check) {
+  const th = check.thresholds;
+  return h('div', { id: 'model-check-result', 'data-verdict': check.verdict },
+    h('p', { class: `msg ${VERDICT_CLASS[check.verdict] || 'msg-info'}`, id: 'model-check-verdict', role: 'status' },
+      h('strong', {}, `${VERDICT_TEXT[check.verdict] || check.verdict}. `), check.summary),
+    check.trials.length ? table(['Trial (not used for fitting)', 'Compared', 'Prediction error (RMS)', 'Outside the measured ranges', 'Verdict', 'Why'],
+      check.trials.map((t) => [
+        h('span', {}, `${t.trial_id}: ${t.trial_name.replace(/_/g, ' ')}`),
+        t.quantity ? `${t.quantity} (${t.unit === 'deg' ? '°' : 'N·m'})` : '—',
+        errorText(t),
+        Number.isFinite(t.share_outside_identified_ranges) ? fmtFixed(100 * t.share_outside_identified_ranges, 0, '%') : '—',
+        VERDICT_TEXT[t.verdict] || t.verdict,
+        t.explanation]), { id: 'model-check-table' }) : '',
+    h('p', { class: 'help' }, `Thresholds: knee angle good ≤ ${fmtFixed(th.angle_good_deg, 1, '°')}, with care ≤ ${fmtFixed(th.angle_care_deg, 1, '°')}; ` +
+      `torque good ≤ ${fmtFixed(100 * th.torque_good_share, 0, '%')} of the torque the muscle produced, with care ≤ ${fmtFixed(100 * th.torque_care_share, 0, '%')}; ` +
+      `more than ${fmtFixed(100 * th.outside_care_share, 0, '%')} of a swing outside the measured angles and speeds is at best "with care". The set's verdict is its worst trial's.`),
+    check.warnings.length ? h('section', { 'aria-labelledby': 'model-check-warnings-h' },
+      h('h3', { id: 'model-check-warnings-h' }, 'What the fit noticed'),
+      h('ul', { id: 'model-check-warnings' }, check.warnings.map((w) => h('li', {}, w))),
+      h('details', {}, h('summary', {}, 'The same, as the fitting software wrote it'),
+        h('ul', {}, check.technical_warnings.map((w) => h('li', {}, w))))) : '');
+}
+
+function modelCheckSection(ctx, set, runNow) {
+  const slot = h('div', { id: 'model-check-slot' });
+  const status = h('div', { id: 'model-check-status' });
+  const mayCheck = ['clinician', 'analyst', 'admin'].includes(ctx.user.role);
+  const button = h('button', { type: 'button', class: 'primary', id: 'model-check-run', disabled: !mayCheck }, 'Check this model on fresh trials');
+  button.addEventListener('click', async () => {
+    button.disabled = true;
+    say(status, 'info', 'Predicting the trials the set was not fitted on…');
+    try {
+      const job = await api('POST', `/parameter-sets/${set.id}/model-check`);
+      const check = await waitForJob(job);
+      say(status, '', '');
+      slot.replaceChildren(modelCheckResult(check));
+    } catch (e) {
+      say(status, 'error', `The model check failed: ${e.message}`);
+    } finally {
+      button.disabled = !mayCheck;
+    }
+  });
+  // Opened as "check this model": the check runs at once.
+  if (runNow && mayCheck) setTimeout(() => button.click(), 0);
+  return h('section', { 'aria-labelledby': 'model-check-h', id: 'model-check' },
+    h('h2', { id: 'model-check-h' }, 'Model check: is this set fit to drive stimulation?'),
+    h('p', {}, 'The set predicts this leg\'s prediction-protocol trials it was not fitted on; each is judged in its own unit (knee angle in degrees, torque in N·m).'),
+    h('div', { class: 'actions' }, button, mayCheck ? '' : h('small', {}, ' The model check needs the clinician, analyst or admin role.')),
+    status, slot);
+}
+
+export async function parameterSetView(ctx, setId, { check = false } = {}) {
   const set = await api('GET', `/parameter-sets/${setId}`);
   const subject = await api('GET', `/subjects/${set.subject_id}`);
   const { grid, draw } = plotsOf(ctx, [parameterCurves(set.parameters)], [`set ${set.id}`]);
@@ -100,7 +169,11 @@ export async function parameterSetView(ctx, setId) {
     h('p', { class: 'row' },
       h('a', { href: `#/subjects/${subject.id}/history` }, 'History of this subject'),
       mayPredict ? h('a', { href: `#/predict/${set.id}`, id: 'predict-link' }, 'Run a prediction with this set') : ''),
-    warnings.length ? h('p', { class: 'msg msg-info' }, `Fit warnings: ${warnings.join('; ')}`) : '',
+    warnings.length ? h('section', { class: 'msg msg-info', id: 'fit-notes', 'aria-label': 'What the fit noticed' },
+      h('strong', {}, 'What the fit noticed: '),
+      h('ul', {}, (set.fit_notes || warnings).map((w) => h('li', {}, w))),
+      h('details', {}, h('summary', {}, 'As the fitting software wrote it'), h('ul', {}, warnings.map((w) => h('li', {}, w))))) : '',
+    modelCheckSection(ctx, set, check),
     approvalSection(ctx, set),
     grid,
     h('section', { 'aria-labelledby': 'values-h' }, h('h2', { id: 'values-h' }, 'Values'),

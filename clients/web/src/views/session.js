@@ -5,7 +5,7 @@
 // runs and its recorded trials (plot, CSV / .sto download).
 // The run's heartbeat belongs to the app (ctx.runs), not to this view.
 import { api, download, listAll } from '../api.js';
-import { clearErrors, field, fmt, fmtDuration, h, message, say, showFieldError, showFieldErrors, table } from '../dom.js';
+import { clearErrors, field, fmt, fmtDeg, fmtDuration, fmtFixed, fmtMa, fmtNm, h, message, say, showFieldError, showFieldErrors, table } from '../dom.js';
 import { makePlot } from '../plot.js';
 import { isFinal, progressOf } from '../runs.js';
 import { streamEvents } from '../sse.js';
@@ -15,6 +15,19 @@ import { exchangeSection } from './exchange.js';
 
 // A live number to 0.1 of its unit (mA, N·m), or a dash.
 const fmt1 = (x) => (Number.isFinite(x) ? x.toFixed(1) : '—');
+
+// The daily check (docs/PROTOCOLS.md) in words and units.
+const DAILY_VERDICT = {
+  no_change: 'no change, the approved set stands',
+  refit: 'the recruitment moved, the set was re-fitted',
+  rapid_due: 'a full rapid parameterisation is due',
+};
+const DAILY_DRIFT = {
+  irc_threshold_ma: { label: 'Recruitment threshold (current where the muscle starts to respond)', value: fmtMa },
+  irc_slope: { label: 'Recruitment slope (torque gained per mA)', value: (x) => fmtFixed(x, 3, 'per mA') },
+  full_scale: { label: 'Torque at full recruitment', value: fmtNm },
+  pole: { label: 'Muscle contraction speed (pole)', value: (x) => fmtFixed(x, 1, '1/s') },
+};
 
 const WINDOW_S = 30; // bench seconds shown in the live plots
 
@@ -104,14 +117,15 @@ export async function sessionView(ctx, sessionId) {
       const res = r.result || {};
       if (r.parameter_set_id) {
         parts.push(h('a', { href: `#/parameter-sets/${r.parameter_set_id}` }, `Parameter set ${r.parameter_set_id}`));
+        parts.push(h('a', { href: `#/parameter-sets/${r.parameter_set_id}/check` }, 'model check'));
       }
       if ('max_tolerated_ma' in res) {
         parts.push(Number.isFinite(res.max_tolerated_ma)
-          ? `threshold ${fmt1(res.threshold_ma)} mA, max tolerated ${fmt1(res.max_tolerated_ma)} mA`
+          ? `threshold ${fmtMa(res.threshold_ma)}, max tolerated ${fmtMa(res.max_tolerated_ma)}`
           : 'no max tolerated recorded');
       }
-      if (r.values && Number.isFinite(r.values.tracking_rms_deg)) parts.push(`tracking RMS ${fmt1(r.values.tracking_rms_deg)}°`);
-      if (res.verdict) parts.push(`daily check: ${String(res.verdict).replace(/_/g, ' ')}`);
+      if (r.values && Number.isFinite(r.values.tracking_rms_deg)) parts.push(`tracking error ${fmtDeg(r.values.tracking_rms_deg)} RMS`);
+      if (res.verdict) parts.push(`daily check: ${DAILY_VERDICT[res.verdict] || res.verdict}`);
       if (r.trial_ids && r.trial_ids.length) parts.push(`${r.trial_ids.length} trial${r.trial_ids.length === 1 ? '' : 's'}`);
       return parts.length ? h('span', { class: 'run-outcome' }, ...parts.flatMap((x, i) => (i ? ['; ', x] : [x]))) : '—';
     };
@@ -462,15 +476,15 @@ export async function sessionView(ctx, sessionId) {
       const r = end.result;
       let recorded = '';
       if (r && r.session_revision) {
-        recorded = h('p', { class: 'msg msg-ok', id: 'run-recorded' }, `Recorded in this session: threshold ${fmt(r.threshold_ma, 4)} mA, ` +
-          `max tolerated ${fmt(r.max_tolerated_ma, 4)} mA (revision ${r.session_revision})` +
+        recorded = h('p', { class: 'msg msg-ok', id: 'run-recorded' }, `Recorded in this session: tolerance-test threshold ${fmtMa(r.threshold_ma)}, ` +
+          `max tolerated ${fmtMa(r.max_tolerated_ma)} (revision ${r.session_revision})` +
           (r.subject_signalled_limit ? ', where the subject signalled the limit.' : '.'));
       } else if (r && r.ended_at_ceiling) {
         recorded = h('p', { class: 'msg msg-error', id: 'run-not-recorded' },
           `No max tolerated amplitude was recorded: ${r.message}.`);
       } else if (r && 'max_tolerated_ma' in r) {
         recorded = h('p', { class: 'msg msg-error', id: 'run-not-recorded' }, Number.isFinite(r.threshold_ma)
-          ? `Measured threshold ${fmt(r.threshold_ma, 4)} mA and max tolerated ${fmt(r.max_tolerated_ma, 4)} mA, but they were not ` +
+          ? `Measured threshold ${fmtMa(r.threshold_ma)} and max tolerated ${fmtMa(r.max_tolerated_ma)}, but they were not ` +
             'stored in the session: correct the session by hand or repeat the test.'
           : 'No threshold was detected (no torque response before the stop): the session\'s values are unchanged. ' +
             'Repeat the test and stop only after a clear response.');
@@ -478,24 +492,30 @@ export async function sessionView(ctx, sessionId) {
       // The end event carries the state; the run's figures are in its view.
       const v = end.values || (tracking ? ((await api('GET', `/runs/${runId}`).catch(() => null)) || {}).values || {} : {});
       const figures = Number.isFinite(v.tracking_rms_deg)
-        ? h('p', { id: 'run-tracking' }, `Tracking RMS ${fmt(v.tracking_rms_deg, 3)}°, largest error ${fmt(v.tracking_max_error_deg, 3)}°` +
-          (Number.isFinite(v.overshoot_deg) ? `, overshoot ${fmt(v.overshoot_deg, 2)}°, settling ${fmt(v.settling_s, 2)} s` : '') +
-          `, charge ${fmt(v.charge_uc / 1000, 3)} mC, saturated ${fmt(v.saturated_s, 2)} s` +
-          (adaptive ? `, final τ_scale estimate ${fmt(v.tau_scale_nm, 3)} N·m` : '') + '.')
+        ? h('p', { id: 'run-tracking' }, `Tracking error ${fmtDeg(v.tracking_rms_deg)} RMS, largest ${fmtDeg(v.tracking_max_error_deg)}` +
+          (Number.isFinite(v.overshoot_deg) ? `, overshoot ${fmtDeg(v.overshoot_deg)}, settling ${fmtFixed(v.settling_s, 1, 's')}` : '') +
+          `, charge delivered ${fmtFixed(v.charge_uc / 1000, 1, 'mC')}, at the stimulation limit for ${fmtFixed(v.saturated_s, 1, 's')}` +
+          (adaptive ? `, muscle strength estimate at the end ${fmtNm(v.tau_scale_nm)}` : '') + '.')
         : '';
       // A daily check says what moved and what it did about it.
       const daily = r && r.verdict
         ? h('div', { id: 'run-daily-check' },
           h('p', { class: `msg ${r.verdict === 'rapid_due' ? 'msg-error' : 'msg-info'}` },
-            `Daily check: ${r.verdict.replace('_', ' ')}. ${r.summary}.`),
-          table(['Parameter', 'Stored', 'Today', 'Change', 'Bound', 'Moved'], (r.drifts || []).map((d) => [
-            d.name, fmt(d.stored, 4), fmt(d.today, 4), d.name === 'irc_threshold_ma' ? `${fmt(d.change, 3)} mA` : `${fmt(100 * d.change, 3)} %`,
-            d.name === 'irc_threshold_ma' ? `${fmt(d.bound, 3)} mA` : `${fmt(100 * d.bound, 3)} %`, d.moved ? 'yes' : 'no'])))
+            `Daily check: ${DAILY_VERDICT[r.verdict] || r.verdict}. ${r.summary}.`),
+          table(['What the check measures', 'In the stored set', 'Today', 'Change', 'Allowed change', 'Moved?'], (r.drifts || []).map((d) => {
+            const row = DAILY_DRIFT[d.name] || { label: d.name, value: (x) => fmt(x, 4) };
+            const absolute = d.name === 'irc_threshold_ma';
+            return [row.label, row.value(d.stored), row.value(d.today),
+              absolute ? fmtMa(d.change) : fmtFixed(100 * d.change, 1, '%'),
+              absolute ? `± ${fmtMa(d.bound)}` : `± ${fmtFixed(100 * d.bound, 1, '%')}`, d.moved ? 'yes' : 'no'];
+          }), { id: 'daily-check-table' }))
         : '';
       endSlot.replaceChildren(h('p', { class: `msg ${end.state === 'done' ? 'msg-ok' : 'msg-error'}`, role: 'status' }, parts.join(' ')),
         recorded, figures, daily,
-        end.parameter_set_id ? h('p', {}, h('a', { href: `#/parameter-sets/${end.parameter_set_id}`, id: 'run-parameter-set' },
-          `Open parameter set ${end.parameter_set_id}`)) : '');
+        end.parameter_set_id ? h('p', { class: 'row' }, h('a', { href: `#/parameter-sets/${end.parameter_set_id}`, id: 'run-parameter-set' },
+          `Open parameter set ${end.parameter_set_id}`),
+        h('a', { href: `#/parameter-sets/${end.parameter_set_id}/check`, id: 'run-model-check' },
+          'Check this model on fresh trials')) : '');
       // A tolerance test writes threshold / max tolerated into the session:
       // show them at once (and the defaults they give the next protocol).
       await Promise.all([refreshSession(), loadRuns(), loadTrials()]).catch((e) => say(endSlot, 'error', e.message));
