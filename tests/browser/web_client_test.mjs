@@ -67,6 +67,24 @@ try {
   let consoleErrors;
   ({ context, page, external, consoleErrors } = await launch(server));
 
+  await step('signed out, E-STOP says at once and plainly that it cannot stop the bench (docs/SAFETY.md)', async () => {
+    await page.goto(`${server.url}/`);
+    await page.waitForURL(/#\/signin$/);
+    await expectEstopVisible(page);
+    // The page does not look signed in.
+    assert.equal(await page.locator('#who').textContent(), 'Not signed in');
+    assert.equal(await page.locator('#estop-state').textContent(), 'Bench: unknown');
+    const sent = [];
+    const listen = (r) => { if (r.url().includes('/bench/estop')) sent.push(r.url()); };
+    page.on('request', listen);
+    await page.locator('#estop').click();
+    await page.locator('#latch').filter({ hasText: 'E-STOP NOT CONFIRMED' }).waitFor({ timeout: 1000 });
+    assert.match(await page.locator('#latch').textContent(), /Sign in to send the e-stop\. Use the bench's hardware stop\./);
+    page.off('request', listen);
+    assert.deepEqual(sent, [], 'a signed-out e-stop sent a request');
+    await shot(page, 'estop-signed-out');
+  });
+
   await step('sign in: a wrong token is refused plainly, the right one shows name and role', async () => {
     await page.goto(`${server.url}/`);
     await page.waitForURL(/#\/signin$/);
