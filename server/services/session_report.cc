@@ -240,11 +240,45 @@ svg .range{fill:#fff3bf}figcaption{font-size:12px;color:#57606a;padding:2px 6px}
 section.break{break-before:page}.plots{grid-template-columns:1fr 1fr}h2{margin-top:12px}}
 )css";
 
+// What a run gave, in a clinician's words and units (as the web page's runs
+// table): the set it made or used, the tolerance test's values, the
+// tracking error, the daily check's verdict.
+std::string Outcome(const json& r) {
+  std::vector<std::string> parts;
+  const auto number = [](const json& j, const char* key) -> std::optional<double> {
+    if (j.is_object() && j.contains(key) && j[key].is_number()) return j[key].get<double>();
+    return std::nullopt;
+  };
+  if (r.contains("parameter_set_id") && r["parameter_set_id"].is_number_integer()) {
+    parts.push_back("parameter set " + std::to_string(r["parameter_set_id"].get<std::int64_t>()));
+  }
+  const json result = r.value("result", json::object());
+  if (result.is_object() && result.contains("max_tolerated_ma")) {
+    const auto thr = number(result, "threshold_ma");
+    const auto max = number(result, "max_tolerated_ma");
+    parts.push_back(max ? "threshold " + (thr ? Fixed(*thr, 1) : std::string("—")) +
+                              " mA, max tolerated " + Fixed(*max, 1) + " mA"
+                        : std::string("no max tolerated recorded"));
+  }
+  if (const auto rms = number(r.value("values", json::object()), "tracking_rms_deg")) {
+    parts.push_back("tracking error " + Fixed(*rms, 1) + "° RMS");
+  }
+  if (result.is_object() && result.contains("verdict") && result["verdict"].is_string()) {
+    std::string verdict = result["verdict"].get<std::string>();
+    std::replace(verdict.begin(), verdict.end(), '_', ' ');
+    parts.push_back("daily check: " + HtmlEscape(verdict));
+  }
+  std::string out;
+  for (const std::string& p : parts) out += (out.empty() ? "" : "; ") + p;
+  return out.empty() ? "—" : out;
+}
+
 std::string RunsTable(const json& runs) {
   if (!runs.is_array() || runs.empty()) return "<p class=\"none\">No runs in this session.</p>";
   std::string out =
       "<table id=\"runs\"><thead><tr><th>Run</th><th>Protocol</th><th>State</th><th>Reason</th>"
-      "<th>Started (UTC)</th><th>Finished (UTC)</th><th>Trials</th><th>Safety events</th>"
+      "<th>Started (UTC)</th><th>Finished (UTC)</th><th>Outcome</th><th>Trials</th>"
+      "<th>Safety events</th>"
       "</tr></thead><tbody>";
   for (const json& r : runs) {
     std::string safety;
@@ -257,8 +291,8 @@ std::string RunsTable(const json& runs) {
     }
     out += "<tr><td class=\"n\">" + Text(r, "run_id") + "</td><td>" + Text(r, "protocol") +
            "</td><td>" + Text(r, "state") + "</td><td>" + Text(r, "reason") + "</td><td>" +
-           Text(r, "started_at_utc") + "</td><td>" + Text(r, "finished_at_utc") +
-           "</td><td class=\"n\">" +
+           Text(r, "started_at_utc") + "</td><td>" + Text(r, "finished_at_utc") + "</td><td>" +
+           Outcome(r) + "</td><td class=\"n\">" +
            std::to_string(r.contains("trial_ids") ? r["trial_ids"].size() : 0) + "</td><td>" +
            (safety.empty() ? "none" : safety) + "</td></tr>";
   }
@@ -375,9 +409,11 @@ std::vector<std::string> Warnings(const SessionReport& r) {
     }
   }
   if (!r.sets_from_session && !r.sets.empty()) {
-    out.push_back(
-        "No parameter set was identified from this session's trials; the leg's latest "
-        "set is shown");
+    out.push_back(r.shown_set_approved
+                      ? "No parameter set was identified from this session's trials; the leg's "
+                        "approved set is shown"
+                      : "No parameter set was identified from this session's trials and none is "
+                        "approved for the leg; the leg's newest set is shown");
   }
   return out;
 }
@@ -421,8 +457,16 @@ api::Result<SessionReport> GatherSessionReport(storage::Database& db, std::int64
   std::vector<std::int64_t> set_ids = *ids;
   if (set_ids.empty()) {
     report.sets_from_session = false;
-    auto latest = sets.Latest(session->subject_id, session->leg_id);
-    if (latest.ok()) set_ids.push_back(latest->summary.id);
+    // The leg's approved set, the one that drives stimulation; the newest
+    // only when none is approved.
+    auto approved = sets.Approved(session->leg_id);
+    if (approved.ok()) {
+      set_ids.push_back(approved->summary.id);
+      report.shown_set_approved = true;
+    } else {
+      auto latest = sets.Latest(session->subject_id, session->leg_id);
+      if (latest.ok()) set_ids.push_back(latest->summary.id);
+    }
   }
   storage::TrialRepository trials(db);
   storage::PredictionRepository predictions(db);

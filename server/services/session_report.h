@@ -59,7 +59,8 @@ struct SessionReport {
   nlohmann::json runs;     ///< array of GET /runs/{id}
   nlohmann::json trials;   ///< array of trial summaries (GET /sessions/{id}/trials items)
   std::vector<ReportSet> sets;
-  bool sets_from_session = true;    ///< false: none was fitted here; the leg's latest is shown.
+  bool sets_from_session = true;  ///< false: none was fitted here; the leg's approved one is shown.
+  bool shown_set_approved = false;  ///< with !sets_from_session: the set shown is approved (else newest).
   std::vector<std::string> estops;  ///< e-stop latches during the session's runs.
 };
 

@@ -91,6 +91,7 @@ try {
     await shots.view(page, 'imported');
   });
 
+  let reported;
   await step('a rapid run and a prediction of the imported recording (for the report)', async () => {
     const run = await call(server, 'POST', `/sessions/${first}/runs`, { protocol: 'rapid_parameterisation' });
     assert.equal(run.status, 201, JSON.stringify(run.body));
@@ -111,6 +112,15 @@ try {
       state = (await call(server, 'GET', `/jobs/${job.body.id}`)).body;
     }
     assert.equal(state.state, 'done', JSON.stringify(state));
+    // The same trial predicted twice: the report lists it once (the newest).
+    const again = await call(server, 'POST', '/predictions', { parameter_set_id: view.parameter_set_id, trial_id: trial.id });
+    state = again.body;
+    while (state.state !== 'done' && state.state !== 'failed') {
+      await new Promise((r) => setTimeout(r, 100));
+      state = (await call(server, 'GET', `/jobs/${again.body.id}`)).body;
+    }
+    assert.equal(state.state, 'done', JSON.stringify(state));
+    reported = { run: view, prediction: state.result };
   });
 
   await step('the session report in a new tab, printable', async () => {
@@ -126,6 +136,17 @@ try {
     assert.match(await report.locator('#trials').textContent(), /prediction_step/);
     assert.ok(await report.locator('figure.plot svg').count() >= 7, 'curves and a prediction figure');
     assert.match(await report.locator('table.predictions').textContent(), /prediction_step/);
+    // The numbers are the API's: the run's outcome, each prediction once, in its unit.
+    const runRow = report.locator('#runs tbody tr', { hasText: 'rapid_parameterisation' });
+    assert.match(await runRow.textContent(), new RegExp(`parameter set ${reported.run.parameter_set_id}`));
+    const predRows = report.locator('table.predictions tbody tr');
+    assert.equal(await predRows.count(), 1, 'a trial predicted twice is listed once');
+    const cells = await predRows.first().locator('td').allTextContents();
+    const e = reported.prediction.errors;
+    assert.equal(Number(cells[0]), reported.prediction.prediction_id, 'the newest prediction');
+    const unit = e.unit === 'deg' ? 'deg' : 'N.m';
+    assert.equal(cells[3], `${e.e_rms.toFixed(2)} ${unit}`);
+    assert.equal(cells[4], `${e.e_abs.toFixed(2)} ${unit}`);
     await report.setViewportSize({ width: 1000, height: 1400 });
     await report.screenshot({ path: `${artefacts}/session-report.png`, fullPage: true });
     await report.emulateMedia({ media: 'print' });
