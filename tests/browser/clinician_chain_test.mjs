@@ -307,6 +307,24 @@ try {
       if (await input.count()) assert.equal(Number(await input.inputValue()), value, name);
     }
     await page.locator('#run-form-status').filter({ hasText: `run ${tolerance.run_id}'s parameters` }).waitFor();
+    // A run opens as a page of its own: its parameters in words and units,
+    // its outcome, its trials, and the way back to run it again.
+    await row(rapid).getByRole('link', { name: `Run ${rapid.run_id}` }).click();
+    await page.locator('#run-summary').waitFor();
+    assert.match(await page.locator('h1').textContent(), new RegExp(`Run ${rapid.run_id}: `));
+    assert.match(await page.locator('#run-summary').textContent(), new RegExp(`Parameter set ${rapid.parameter_set_id}`));
+    const paramText = await page.locator('#run-parameters-table').textContent();
+    assert.doesNotMatch(paramText, /_ma|_deg|_s\b/, 'internal parameter names on the run page');
+    assert.match(paramText, /\(mA\)/);
+    const runTrials = page.locator('#run-trials-table tbody tr');
+    assert.equal(await runTrials.count(), rapid.trial_ids.length);
+    await snap('run-page');
+    await runTrials.first().getByRole('link', { name: /^Plot trial/ }).click();
+    await page.locator(`#trial-plot[data-trial-id="${rapid.trial_ids[0]}"]`).waitFor();
+    await page.goto(`${server.url}/#/runs/${tolerance.run_id}`);
+    await page.locator('#run-again-link').click();
+    await page.locator('#run-form-status').filter({ hasText: `run ${tolerance.run_id}'s parameters` }).waitFor();
+    assert.equal(await page.locator('#protocol').inputValue(), 'tolerance_test');
   });
 
   await step('daily check: today\'s leg against its set, what moved shown', async () => {

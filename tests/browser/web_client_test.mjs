@@ -187,7 +187,7 @@ try {
       await page.locator(`figure[data-plot="${id}"] canvas`).waitFor();
     }
     const table = await page.locator('#values-table').textContent();
-    for (const label of ['τ_scale', 'inertia', 'pole', 'IRC threshold']) assert.ok(table.includes(label), label);
+    for (const label of ['τ_scale', 'inertia', 'pole', 'Recruitment threshold']) assert.ok(table.includes(label), label);
     await shot(page, 'parameter-set');
   });
 

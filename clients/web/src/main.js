@@ -11,6 +11,7 @@ import { parameterSetView, compareView } from './views/paramset.js';
 import { historyView } from './views/history.js';
 import { predictionView } from './views/predict.js';
 import { adminView } from './views/admin.js';
+import { runView } from './views/run.js';
 
 const state = { user: null, cleanup: [] };
 
@@ -20,6 +21,9 @@ const routes = [
   [/^#\/subjects\/(\d+)$/, (m) => subjectView(ctx, Number(m[1]))],
   [/^#\/subjects\/(\d+)\/history$/, (m) => historyView(ctx, Number(m[1]))],
   [/^#\/sessions\/(\d+)$/, (m) => sessionView(ctx, Number(m[1]))],
+  [/^#\/sessions\/(\d+)\/trials\/(\d+)$/, (m) => sessionView(ctx, Number(m[1]), { trialId: Number(m[2]) })],
+  [/^#\/sessions\/(\d+)\/again\/(\d+)$/, (m) => sessionView(ctx, Number(m[1]), { againRunId: Number(m[2]) })],
+  [/^#\/runs\/(\d+)$/, (m) => runView(ctx, Number(m[1]))],
   [/^#\/parameter-sets\/(\d+)$/, (m) => parameterSetView(ctx, Number(m[1]))],
   [/^#\/parameter-sets\/(\d+)\/check$/, (m) => parameterSetView(ctx, Number(m[1]), { check: true })],
   [/^#\/compare\/(\d+)\/(\d+)$/, (m) => compareView(ctx, Number(m[1]), Number(m[2]))],

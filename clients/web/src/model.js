@@ -94,5 +94,5 @@ export const SCALAR_LABELS = {
   pole_per_s: 'pole a (1/s)',
   order: 'order n',
   twitch_peak_s: 'twitch peak (s)',
-  threshold_ma: 'IRC threshold, R = 2 % (mA)',
+  threshold_ma: 'Recruitment threshold of the model, 2 % recruited (mA)',
 };

@@ -2,7 +2,7 @@
 // and threshold of every parameter set over time (and the threshold the
 // clinician recorded per session).
 import { api, listAll } from '../api.js';
-import { fmt, h, table } from '../dom.js';
+import { fmt, fmtFixed, h, table } from '../dom.js';
 import { parameterScalars, SCALAR_LABELS } from '../model.js';
 import { makePlot } from '../plot.js';
 
@@ -28,7 +28,7 @@ export async function historyView(ctx, subjectId) {
     h('section', { 'aria-labelledby': 'hist-h' }, h('h2', { id: 'hist-h' }, 'Values'),
       table(['Set', 'Created (UTC)', ...['torque_scale_nm', 'inertia_kgm2', 'pole_per_s', 'threshold_ma'].map((k) => SCALAR_LABELS[k])],
         sets.map((s, i) => [h('a', { href: `#/parameter-sets/${s.id}` }, `Set ${s.id}`), s.created_at_utc.slice(0, 19).replace('T', ' '),
-          fmt(scalars[i].torque_scale_nm, 4), fmt(scalars[i].inertia_kgm2, 4), fmt(scalars[i].pole_per_s, 4), fmt(scalars[i].threshold_ma, 4)]),
+          fmt(scalars[i].torque_scale_nm, 4), fmt(scalars[i].inertia_kgm2, 4), fmt(scalars[i].pole_per_s, 4), fmtFixed(scalars[i].threshold_ma, 1)]),
         { id: 'history-table' })));
   const plot = (key, extra) => {
     const cell = h('div', { class: 'plot-cell' });

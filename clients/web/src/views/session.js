@@ -12,22 +12,10 @@ import { streamEvents } from '../sse.js';
 import { numberProblem, SESSION_LIMITS } from '../checks.js';
 import { correctionForm, revisionHistory } from './corrections.js';
 import { exchangeSection } from './exchange.js';
+import { DAILY_DRIFT, DAILY_VERDICT, parameterRows, runOutcome } from './outcome.js';
 
 // A live number to 0.1 of its unit (mA, N·m), or a dash.
 const fmt1 = (x) => (Number.isFinite(x) ? x.toFixed(1) : '—');
-
-// The daily check (docs/PROTOCOLS.md) in words and units.
-const DAILY_VERDICT = {
-  no_change: 'no change, the approved set stands',
-  refit: 'the recruitment moved, the set was re-fitted',
-  rapid_due: 'a full rapid parameterisation is due',
-};
-const DAILY_DRIFT = {
-  irc_threshold_ma: { label: 'Recruitment threshold (current where the muscle starts to respond)', value: fmtMa },
-  irc_slope: { label: 'Recruitment slope (torque gained per mA)', value: (x) => fmtFixed(x, 3, 'per mA') },
-  full_scale: { label: 'Torque at full recruitment', value: fmtNm },
-  pole: { label: 'Muscle contraction speed (pole)', value: (x) => fmtFixed(x, 1, '1/s') },
-};
 
 const WINDOW_S = 30; // bench seconds shown in the live plots
 
@@ -54,7 +42,7 @@ export function checkParameters(protocol, valueOf) {
   return problems;
 }
 
-export async function sessionView(ctx, sessionId) {
+export async function sessionView(ctx, sessionId, { trialId = null, againRunId = null } = {}) {
   let [session, catalog, bench] = await Promise.all([
     api('GET', `/sessions/${sessionId}`), api('GET', `/protocols?session_id=${sessionId}`), api('GET', '/bench')]);
   const subject = await api('GET', `/subjects/${session.subject_id}`);
@@ -70,11 +58,15 @@ export async function sessionView(ctx, sessionId) {
   async function renderDetails() {
     const d = session.details;
     detailsSlot.replaceChildren(
-      table(['Field', 'Value'], [['Threshold (mA)', h('span', { id: 'session-threshold' }, fmt(d.threshold_ma))],
-        ['Max tolerated (mA)', h('span', { id: 'session-max-tolerated' }, fmt(d.max_tolerated_ma))],
+      table(['Field', 'Value'], [['Threshold, tolerance test (mA)', h('span', { id: 'session-threshold' }, fmtFixed(d.threshold_ma, 1))],
+        ['Max tolerated (mA)', h('span', { id: 'session-max-tolerated' }, fmtFixed(d.max_tolerated_ma, 1))],
         ['Accelerometer placement', d.accelerometer_placement || '—'], ['Notes', d.notes || '—'],
         ['Revision', String(session.revision ?? 1)]],
       { class: 'kv', id: 'session-details' }),
+      h('p', { class: 'help', id: 'threshold-explained' }, 'Two thresholds describe one leg: the tolerance test\'s is the current at which the ' +
+        'first clear torque response was seen in this session; a parameter set\'s recruitment threshold is where its fitted ' +
+        'recruitment curve reaches 2 % of full recruitment. They measure different things and usually differ by a few mA; ' +
+        'stimulation defaults use this session\'s values.'),
       editForm,
       await revisionHistory(sessionPath, SESSION_LABELS, 'session-revisions').catch((e) => message('error', `Revision history unavailable: ${e.message}`)));
   }
@@ -112,35 +104,18 @@ export async function sessionView(ctx, sessionId) {
     const runs = await listAll(`/sessions/${sessionId}/runs`);
     // Runs are records: what each ran with and what it gave; running one
     // again with its parameters is an explicit choice.
-    const outcome = (r) => {
-      const parts = [];
-      const res = r.result || {};
-      if (r.parameter_set_id) {
-        parts.push(h('a', { href: `#/parameter-sets/${r.parameter_set_id}` }, `Parameter set ${r.parameter_set_id}`));
-        parts.push(h('a', { href: `#/parameter-sets/${r.parameter_set_id}/check` }, 'model check'));
-      }
-      if ('max_tolerated_ma' in res) {
-        parts.push(Number.isFinite(res.max_tolerated_ma)
-          ? `threshold ${fmtMa(res.threshold_ma)}, max tolerated ${fmtMa(res.max_tolerated_ma)}`
-          : 'no max tolerated recorded');
-      }
-      if (r.values && Number.isFinite(r.values.tracking_rms_deg)) parts.push(`tracking error ${fmtDeg(r.values.tracking_rms_deg)} RMS`);
-      if (res.verdict) parts.push(`daily check: ${DAILY_VERDICT[res.verdict] || res.verdict}`);
-      if (r.trial_ids && r.trial_ids.length) parts.push(`${r.trial_ids.length} trial${r.trial_ids.length === 1 ? '' : 's'}`);
-      return parts.length ? h('span', { class: 'run-outcome' }, ...parts.flatMap((x, i) => (i ? ['; ', x] : [x]))) : '—';
-    };
     const parametersOf = (r) => {
-      const entries = Object.entries(r.parameters || {});
-      if (!entries.length) return '—';
-      return h('details', { class: 'run-parameters' }, h('summary', {}, `${entries.length} parameters`),
-        entries.map(([k, v]) => `${k} = ${typeof v === 'number' ? fmt(v, 4) : v}`).join(', '));
+      const rows = parameterRows(protocols.find((p) => p.name === r.protocol), r.parameters);
+      if (!rows.length) return '—';
+      return h('details', { class: 'run-parameters' }, h('summary', {}, `${rows.length} parameters`),
+        rows.map(([label, v]) => `${label}: ${v}`).join('; '));
     };
     const again = (r) => (mayRun && protocols.some((p) => p.name === r.protocol)
       ? h('button', { type: 'button', class: 'small', 'data-run-again': String(r.run_id), onclick: () => runAgain(r) }, 'Run again with these')
       : '');
     runsSlot.replaceChildren(runs.length
       ? table(['Run', 'Protocol', 'State', 'Created (UTC)', 'Outcome', 'Parameters', 'Reason', ''], runs.map((r) => [
-        `Run ${r.run_id}`, r.protocol, r.state, utc(r.created_at_utc), outcome(r), parametersOf(r), r.reason || '—', again(r)]),
+        h('a', { href: `#/runs/${r.run_id}` }, `Run ${r.run_id}`), r.protocol, r.state, utc(r.created_at_utc), runOutcome(r), parametersOf(r), r.reason || '—', again(r)]),
       { id: 'runs-table' })
       : h('p', {}, 'No runs yet.'));
   }
@@ -198,7 +173,7 @@ export async function sessionView(ctx, sessionId) {
     const duration = (t) => (Number.isFinite(t.duration_s) ? t.duration_s : t.num_samples / t.sample_rate_hz);
     trialsSlot.replaceChildren(trials.length
       ? table(['Trial', 'Run', 'Duration (s)', 'Samples', 'Recorded (UTC)', 'Plot / download'], trials.map((t) => [
-        `${t.id}: ${t.name || t.kind || '—'}`, t.run_id ? `Run ${t.run_id}` : '—', fmt(duration(t), 4), String(t.num_samples),
+        `${t.id}: ${t.name || t.kind || '—'}`, t.run_id ? h('a', { href: `#/runs/${t.run_id}` }, `Run ${t.run_id}`) : '—', fmt(duration(t), 4), String(t.num_samples),
         utc(t.created_at_utc),
         h('span', { class: 'trial-actions' },
           h('button', { type: 'button', class: 'small', 'data-trial': t.id, onclick: () => plotTrial(t) }, 'Plot'),
@@ -206,6 +181,7 @@ export async function sessionView(ctx, sessionId) {
           h('button', { type: 'button', class: 'small', 'data-sto': t.id, onclick: () => fetchFile(t, 'sto') }, '.sto'))]),
       { id: 'trials-table' })
       : h('p', {}, 'No trials recorded yet.'));
+    return trials;
   }
 
   // --- protocol form --------------------------------------------------------------------
@@ -581,7 +557,19 @@ export async function sessionView(ctx, sessionId) {
   const first = Number.isFinite(d.threshold_ma) && Number.isFinite(d.max_tolerated_ma) ? 'rapid_parameterisation' : 'tolerance_test';
   if (protocols.some((p) => p.name === first)) select.value = first;
   renderParameters();
-  await Promise.all([renderDetails(), loadRuns(), loadTrials()]);
+  const [, , trials] = await Promise.all([renderDetails(), loadRuns(), loadTrials()]);
+  // Opened from a run's page: a trial to plot, or the run to run again.
+  if (trialId) {
+    const t = trials.find((x) => x.id === trialId);
+    if (t) {
+      await plotTrial(t);
+      trialPlot.scrollIntoView({ block: 'start' });
+    }
+  }
+  if (againRunId && mayRun) {
+    const run = await api('GET', `/runs/${againRunId}`).catch(() => null);
+    if (run && run.session_id === sessionId) runAgain(run);
+  }
   // A run of this session already on the bench (started here before leaving
   // the page, or re-attached after a reload): follow it.
   const st = bench.state && typeof bench.state === 'object' ? bench.state : bench;

@@ -1,7 +1,7 @@
 // Subjects: list, search by code, create; one subject: its sessions (list,
 // create), its parameter sets (open, compare two, history).
 import { api, listAll } from '../api.js';
-import { clearErrors, field, fmt, h, message, say, showFieldError, showFieldErrors, table, todayIso } from '../dom.js';
+import { clearErrors, field, fmt, fmtFixed, h, message, say, showFieldError, showFieldErrors, table, todayIso } from '../dom.js';
 import { codeProblem, dateProblem, numberProblem, sessionProblems, SUBJECT_LIMITS } from '../checks.js';
 import { correctionForm, revisionHistory } from './corrections.js';
 
@@ -134,9 +134,9 @@ export async function subjectView(ctx, subjectId) {
   async function loadSessions() {
     const sessions = await listAll(`/subjects/${subjectId}/sessions`);
     sessionsSlot.replaceChildren(sessions.length
-      ? table(['Session', 'Date', 'Leg', 'Threshold (mA)', 'Max tolerated (mA)', 'Accelerometer'],
+      ? table(['Session', 'Date', 'Leg', 'Threshold, tolerance test (mA)', 'Max tolerated (mA)', 'Accelerometer'],
         sessions.map((s) => [h('a', { href: `#/sessions/${s.id}` }, `Session ${s.id}`), s.date, s.leg,
-          fmt(s.details.threshold_ma), fmt(s.details.max_tolerated_ma), s.details.accelerometer_placement || '—']),
+          fmtFixed(s.details.threshold_ma, 1), fmtFixed(s.details.max_tolerated_ma, 1), s.details.accelerometer_placement || '—']),
         { id: 'sessions-table' })
       : h('p', {}, 'No sessions yet.'));
   }
