@@ -207,7 +207,12 @@ api::Status ShowParameterSet(const MonitorOptions& options, std::int64_t subject
           << s.parameter_set_id() << " version " << s.version() << ", model " << s.model()
           << ", created " << s.created_at() << "\n"
           << "methods: irc " << s.irc_method() << ", passive " << s.passive_method() << ", active "
-          << s.active_method() << "\n";
+          << s.active_method() << "\n"
+          << (s.approved() ? std::string("approved: yes, the leg's approved set\n")
+                           : s.approved_parameter_set_id() != 0
+                               ? "approved: no (the leg's approved set is " +
+                                     std::to_string(s.approved_parameter_set_id()) + ")\n"
+                               : std::string("approved: no set of the leg is approved\n"));
       auto json = nlohmann::json::parse(s.parameters_json(), nullptr, false);
       out << (json.is_discarded() ? s.parameters_json() : json.dump(2)) << "\n";
       return api::Status::Ok();

@@ -275,8 +275,10 @@ void DdsServer::PublishLatestParameterSets() {
     auto legs = subjects.Legs(subject.id);
     if (!legs.ok()) continue;
     for (const storage::Leg& leg : *legs) {
-      auto latest = sets.Latest(subject.id, leg.id);
-      if (latest.ok()) PublishParameterSet(*latest);  // else kNotFound: no set yet
+      // The set that gates stimulation, else the newest (kNotFound: no set yet).
+      auto shown = sets.Approved(leg.id);
+      if (!shown.ok()) shown = sets.Latest(subject.id, leg.id);
+      if (shown.ok()) PublishParameterSet(*shown);
     }
   }
 }
@@ -284,9 +286,22 @@ void DdsServer::PublishLatestParameterSets() {
 void DdsServer::PublishParameterSet(const storage::StoredParameterSet& set) {
   const storage::ParameterSetSummary& sum = set.summary;
   const auto key = std::make_pair(sum.subject_id, sum.leg_id);
+  auto approval = storage::ParameterSetRepository(db_).LegApproval(sum.leg_id);
+  if (!approval.ok()) {
+    std::cerr << "fesbench-server: DDS parameter set " << sum.id << ": "
+              << approval.status().ToString() << std::endl;
+    return;
+  }
+  const std::int64_t approved_id = *approval ? (*approval)->parameter_set_id : 0;
+  // Per leg (the topic is keyed by subject and leg): a newer version, or an
+  // approval; never an older unapproved set over what was published.
   auto it = published_sets_.find(key);
-  // Newest per leg only (the topic is keyed by subject and leg).
-  if (it != published_sets_.end() && it->second >= sum.id) return;
+  if (it != published_sets_.end()) {
+    const auto [last_id, last_approved] = it->second;
+    const bool newer = sum.id > last_id;
+    const bool approval_changed = approved_id != last_approved && approved_id == sum.id;
+    if (!newer && !approval_changed) return;
+  }
   wire::ParameterSet msg;
   msg.subject_id(sum.subject_id);
   msg.leg_id(sum.leg_id);
@@ -298,8 +313,10 @@ void DdsServer::PublishParameterSet(const storage::StoredParameterSet& set) {
   msg.active_method(sum.active_method);
   msg.created_at(storage::FormatUtc(sum.created_at));
   msg.parameters_json(api::ParameterSetToJson(set.params).dump());
+  msg.approved(approved_id == sum.id);
+  msg.approved_parameter_set_id(approved_id);
   if (parameter_sets_->write(&msg)) {
-    published_sets_[key] = sum.id;
+    published_sets_[key] = {sum.id, approved_id};
     std::lock_guard lock(stats_mu_);
     ++stats_.parameter_sets;
   }

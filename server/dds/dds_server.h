@@ -108,7 +108,9 @@ class DdsServer {
   std::uint64_t block_seq_ = 0;
   // Start, then the forwarding thread only: the id of the newest set
   // published per (subject, leg).
-  std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t> published_sets_;
+  /// Per (subject, leg): the set last published and the leg's approved set then.
+  std::map<std::pair<std::int64_t, std::int64_t>, std::pair<std::int64_t, std::int64_t>>
+      published_sets_;
   // Housekeeping thread only.
   std::string last_state_;
 

@@ -78,6 +78,58 @@ TEST(DdsServer, LateJoinerGetsTheLatestParameterSetOfEveryLegAndTheBenchState) {
   EXPECT_FALSE(state.busy());
 }
 
+// Which set gates stimulation is on the topic: an approval is published as
+// the set approved (an older version included), every sample names the
+// leg's approved set, and a late joiner gets the approved set.
+TEST(DdsServer, TheTopicSaysWhichSetOfALegIsApproved) {
+  Rig rig(0.0);
+  const std::int64_t first = rig.StoreSet(rig.right_leg, 20.0);
+  rig.StartServer();
+  const std::int64_t second = rig.StoreSet(rig.right_leg, 27.5);
+  const auto until = std::chrono::steady_clock::now() + kWait;
+  const auto published = [&](std::uint64_t n) {
+    while (rig.server->stats().parameter_sets < n && std::chrono::steady_clock::now() < until) {
+      std::this_thread::sleep_for(20ms);
+    }
+    return rig.server->stats().parameter_sets;
+  };
+  ASSERT_EQ(published(2), 2u);  // the first at start, then the second
+  storage::NewApproval approval;
+  approval.parameter_set_id = first;
+  approval.approved_by = "cora";
+  approval.note = "fits the swing better";
+  ASSERT_TRUE(storage::ParameterSetRepository(*rig.db).Approve(approval).ok());
+  ASSERT_EQ(published(3), 3u);
+
+  auto client = rig.Client();
+  ASSERT_TRUE(client);
+  fdds::DataReader* sets = client->MakeReader(client->parameter_sets());
+  std::vector<wire::ParameterSet> got;
+  while (got.empty() && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(20ms);
+    for (const auto& s : TakeAll<wire::ParameterSet>(sets)) {
+      if (s.leg_id() == rig.right_leg) got.push_back(s);
+    }
+  }
+  ASSERT_EQ(got.size(), 1u);  // keep last per leg: the approval
+  EXPECT_EQ(got[0].parameter_set_id(), first);
+  EXPECT_TRUE(got[0].approved());
+  EXPECT_EQ(got[0].approved_parameter_set_id(), first);
+
+  // A newer version is published as a candidate that names the approved set.
+  const std::int64_t third = rig.StoreSet(rig.right_leg, 30.0);
+  got.clear();
+  while (got.empty() && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(20ms);
+    for (const auto& s : TakeAll<wire::ParameterSet>(sets)) got.push_back(s);
+  }
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].parameter_set_id(), third);
+  EXPECT_FALSE(got[0].approved());
+  EXPECT_EQ(got[0].approved_parameter_set_id(), first);
+  EXPECT_NE(second, third);
+}
+
 TEST(DdsServer, EStopStopsARunningProtocolWithinOneControlPeriodAndBadTokensAreRefused) {
   Rig rig(1.0);
   rig.StartServer();
