@@ -428,6 +428,27 @@ try {
     }
     await page.locator('#model-check').scrollIntoViewIfNeeded();
     await snap('model-check');
+
+    // An analyst's re-identification is a candidate: the clinician checks it
+    // and approves it with the check's verdict beside the approval.
+    const fit = await call(server, 'POST', '/identifications', { session_id: sessionId, method: 'rapid' }, analyst.token);
+    assert.equal(fit.status, 202, JSON.stringify(fit.body));
+    let fitJob = fit.body;
+    while (fitJob.state !== 'done' && fitJob.state !== 'failed') fitJob = (await call(server, 'GET', `/jobs/${fitJob.id}`, undefined, analyst.token)).body;
+    assert.equal(fitJob.state, 'done', JSON.stringify(fitJob.error));
+    const candidate = fitJob.result.parameter_sets[0].id;
+    assert.equal((await call(server, 'GET', `/parameter-sets/${candidate}`)).body.approved, false);
+    await page.goto(`${server.url}/#/parameter-sets/${candidate}/check`);
+    await page.locator('#model-check-result').waitFor({ timeout: 60000 });
+    assert.match(await page.locator('#approval-status').textContent(), /A candidate, never approved/);
+    assert.match(await page.locator('#approve-note').inputValue(), /^Model check: /);
+    await page.getByRole('button', { name: 'Approve for this leg' }).click();
+    await page.locator('#approval-status').filter({ hasText: "The leg's approved set" }).waitFor();
+    const approved = (await call(server, 'GET', `/parameter-sets/${candidate}`)).body;
+    assert.equal(approved.approved, true);
+    assert.match(approved.approval.note, /^Model check: /);
+    assert.equal(approved.approval.approved_by, 'dr_chain');
+    notes.push(`candidate set ${candidate} approved with: ${approved.approval.note}`);
   });
 
   await step('closing the tab during a run asks first; a reload re-attaches to the run', async () => {

@@ -64,6 +64,13 @@ function approvalText(set) {
     : `Approved earlier by ${who}; another set of the leg has been approved since.`;
 }
 
+// The model check's verdict in words, for the approval's note (the record
+// keeps what the clinician saw when approving).
+export function verdictNote(check) {
+  const trials = check.trials.map((t) => `trial ${t.trial_id} ${errorText(t)}`).join(', ');
+  return `Model check: ${(VERDICT_TEXT[check.verdict] || check.verdict).toLowerCase()}${trials ? ` (${trials})` : ''}.`;
+}
+
 function approvalSection(ctx, set) {
   const status = h('p', { class: set.approved ? 'msg msg-ok' : 'msg msg-info', id: 'approval-status' }, approvalText(set));
   const mayApprove = ctx.user.role === 'clinician' || ctx.user.role === 'admin';
@@ -83,7 +90,13 @@ function approvalSection(ctx, set) {
       say(slot, 'error', e.message);
     }
   });
-  return h('section', { 'aria-labelledby': 'approval-h' }, h('h2', { id: 'approval-h' }, 'Approval'), status, form);
+  const section = h('section', { 'aria-labelledby': 'approval-h' }, h('h2', { id: 'approval-h' }, 'Approval'), status, form);
+  // After a model check on this page: its verdict beside the approval.
+  section.noteVerdict = (check) => {
+    const note = form.elements.note;
+    if (!note.value.trim()) note.value = verdictNote(check);
+  };
+  return section;
 }
 
 // The model check (docs/MODEL.md, "The model check"): the set predicts the
@@ -127,7 +140,7 @@ export function modelCheckResult(check) {
         h('ul', {}, check.technical_warnings.map((w) => h('li', {}, w))))) : '');
 }
 
-function modelCheckSection(ctx, set, runNow) {
+function modelCheckSection(ctx, set, runNow, onChecked = () => {}) {
   const slot = h('div', { id: 'model-check-slot' });
   const status = h('div', { id: 'model-check-status' });
   const mayCheck = ['clinician', 'analyst', 'admin'].includes(ctx.user.role);
@@ -140,6 +153,7 @@ function modelCheckSection(ctx, set, runNow) {
       const check = await waitForJob(job);
       say(status, '', '');
       slot.replaceChildren(modelCheckResult(check));
+      onChecked(check);
     } catch (e) {
       say(status, 'error', `The model check failed: ${e.message}`);
     } finally {
@@ -162,6 +176,7 @@ export async function parameterSetView(ctx, setId, { check = false } = {}) {
   const fit = (set.parameters.provenance && set.parameters.provenance.fit_rms) || {};
   const warnings = (set.parameters.provenance && set.parameters.provenance.warnings) || [];
   const mayPredict = ['clinician', 'analyst', 'admin'].includes(ctx.user.role);
+  const approval = approvalSection(ctx, set);
   ctx.main.replaceChildren(
     h('p', { class: 'crumbs' }, h('a', { href: '#/subjects' }, 'Subjects'), ' › ',
       h('a', { href: `#/subjects/${subject.id}` }, subject.code), ' › ', `Parameter set ${set.id}`),
@@ -173,8 +188,8 @@ export async function parameterSetView(ctx, setId, { check = false } = {}) {
       h('strong', {}, 'What the fit noticed: '),
       h('ul', {}, (set.fit_notes || warnings).map((w) => h('li', {}, w))),
       h('details', {}, h('summary', {}, 'As the fitting software wrote it'), h('ul', {}, warnings.map((w) => h('li', {}, w))))) : '',
-    modelCheckSection(ctx, set, check),
-    approvalSection(ctx, set),
+    modelCheckSection(ctx, set, check, (result) => approval.noteVerdict && approval.noteVerdict(result)),
+    approval,
     grid,
     h('section', { 'aria-labelledby': 'values-h' }, h('h2', { id: 'values-h' }, 'Values'),
       table(['Quantity', 'Value'], valueRows([set]), { id: 'values-table', class: 'kv' }),
