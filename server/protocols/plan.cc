@@ -423,7 +423,15 @@ model::KneeTarget TrackingTarget(const ParameterValues& v, const std::vector<dou
       const double cycle[] = {0.5, 0.0, 0.75, 0.25};
       std::vector<double> angles;
       for (std::size_t i = 0; i < count; ++i) angles.push_back(lo + cycle[i % 4] * (hi - lo));
-      return model::HoldsTarget(angles, hold, move);
+      // The last hold lasts until duration_s: the target lasts what was asked.
+      model::KneeTarget target = model::HoldsTarget(angles, hold, move);
+      const auto samples = static_cast<std::size_t>(std::floor(duration * target.rate_hz + 1e-9)) + 1;
+      while (target.angle_deg.size() < samples) {
+        target.angle_deg.push_back(target.angle_deg.back());
+        target.velocity_deg_s.push_back(0.0);
+        target.accel_deg_s2.push_back(0.0);
+      }
+      return target;
     }
     case 2: {
       name = "ramp";
@@ -547,6 +555,10 @@ api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subjec
   s.closed_loop = true;
   b.Push(std::move(s));
   plan.tracking = std::make_shared<const TrackingSettings>(std::move(t));
+  // The run records the set it inverts (0 resolved to the leg's approved set).
+  if (subject.parameter_set_id) {
+    plan.parameters["parameter_set_id"] = static_cast<double>(*subject.parameter_set_id);
+  }
   return api::Status::Ok();
 }
 

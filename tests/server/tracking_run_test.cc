@@ -79,10 +79,24 @@ TEST(Tracking, HoldsReportOvershootAndSettling) {
   const RunResult r = Track(rig, ctx, {{"target", 1}, {"duration_s", 20.0}});
   ASSERT_EQ(r.state, RunState::kDone) << r.reason;
   EXPECT_EQ(r.trials.front().trial.name, "tracking_holds");
+  // The target lasts the duration asked (its last hold is lengthened): the
+  // lead-in (3 s) + 20 s at 200 Hz, not the 19 s of whole hold-and-move cycles.
+  EXPECT_EQ(r.trials.front().trial.Values("t_s")->size(), 4600u);
   ASSERT_TRUE(r.values.contains("overshoot_deg"));
   ASSERT_TRUE(r.values.contains("settling_s"));
   EXPECT_GE(r.values.at("overshoot_deg"), 0.0);
   EXPECT_LE(r.values.at("settling_s"), 4.0 + 1e-9);  // at most the hold
+}
+
+// A tracking run records the set it inverts: parameter_set_id 0 (the
+// default, "the leg's approved set") is resolved to that set's id.
+TEST(Tracking, ThePlanRecordsTheSetItUses) {
+  Rig rig(11);
+  SubjectContext ctx = Context(rig.subject);
+  ctx.parameter_set_id = 42;
+  auto plan = MakePlan("tracking", {{"duration_s", 10.0}}, ctx);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  EXPECT_EQ(plan->parameters.at("parameter_set_id"), 42.0);
 }
 
 TEST(Tracking, AnUploadedTrajectoryIsFollowed) {

@@ -25,6 +25,10 @@ export function runOutcome(r) {
     parts.push(h('a', { href: `#/parameter-sets/${r.parameter_set_id}` }, `Parameter set ${r.parameter_set_id}`));
     parts.push(h('a', { href: `#/parameter-sets/${r.parameter_set_id}/check` }, 'model check'));
   }
+  const used = r.parameters && r.parameters.parameter_set_id;
+  if (!r.parameter_set_id && used >= 1) {
+    parts.push(h('a', { href: `#/parameter-sets/${used}` }, `used parameter set ${used}`));
+  }
   if ('max_tolerated_ma' in res) {
     parts.push(Number.isFinite(res.max_tolerated_ma)
       ? `threshold ${fmtMa(res.threshold_ma)}, max tolerated ${fmtMa(res.max_tolerated_ma)}`
