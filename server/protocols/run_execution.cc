@@ -147,7 +147,8 @@ bool RunExecution::EnterStep(const Step& step) {
 }
 
 void RunExecution::RunTicks(std::size_t index, const Step& step) {
-  for (std::int64_t k = 0; k < step.ticks; ++k, ++n_) {
+  std::int64_t k = 0;
+  for (; k < step.ticks; ++k, ++n_) {
     if ((aborted_ = AbortReason())) break;
     if (step.tolerance_ramp && runner_.stop_.load()) {
       if (tolerance_) tolerance_->MarkStoppedByClinician();
@@ -178,6 +179,9 @@ void RunExecution::RunTicks(std::size_t index, const Step& step) {
     bench_.AdvanceTo(t0_ + TickSeconds(n_ + 1));
     ReportProgress(index, step);
   }
+  // A step ended early (the clinician's stop, the subject's limit, a search
+  // that reached its angle): the bench time left shrinks by what it skipped.
+  skipped_ticks_ += step.ticks - k;
 }
 
 void RunExecution::DriveMotor(const Step& step, std::int64_t k) {
@@ -271,7 +275,7 @@ void RunExecution::RecordSample(const Step& step, double u) {
 void RunExecution::ReportProgress(std::size_t index, const Step& step) {
   RunObserver* observer = runner_.observer_;
   if (observer == nullptr || (n_ + 1) % progress_every_ != 0) return;
-  const std::int64_t total = plan_.total_ticks();
+  const std::int64_t total = std::max<std::int64_t>(plan_.total_ticks() - skipped_ticks_, n_ + 1);
   Progress p;
   p.bench_elapsed_s = TickSeconds(n_ + 1);
   p.bench_total_s = TickSeconds(total);
@@ -388,7 +392,7 @@ RunResult RunExecution::Conclude() {
   if (runner_.observer_ != nullptr) {
     Progress p;
     p.fraction = 1.0;
-    p.bench_elapsed_s = p.bench_total_s = TickSeconds(plan_.total_ticks());
+    p.bench_elapsed_s = p.bench_total_s = TickSeconds(n_);  // the time run, not the plan's
     p.step = plan_.steps.size();
     p.phase = plan_.rapid ? StepPhase::kIdentify : StepPhase::kRest;
     runner_.observer_->OnProgress(p);

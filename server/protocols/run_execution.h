@@ -81,6 +81,7 @@ class RunExecution {
   double max_applied_ma_ = 0.0;
 
   std::int64_t n_ = 0;           // run tick
+  std::int64_t skipped_ticks_ = 0;  // planned ticks of steps that ended early
   std::int64_t clock_tick_ = 0;  // run tick of the last pulse-clock restart
   std::int64_t progress_every_ = 1;
   std::optional<MotorMode> mode_;

@@ -183,6 +183,8 @@ class StopAt : public RunObserver {
   void OnSamples(const SampleBatch& b) override {
     if (!b.stim_ma.empty() && b.stim_ma.back() >= stim_ma_) (*runner_)->Stop();
   }
+  void OnProgress(const Progress& p) override { last = p; }
+  Progress last;
 
  private:
   ProtocolRunner** runner_;
@@ -212,6 +214,10 @@ TEST(Runner, ToleranceTestFindsThresholdAndStopsWhereTheClinicianStops) {
   EXPECT_GT(t.max_torque_nm, 6.0);
   EXPECT_TRUE(t.warnings.empty());
   EXPECT_LT(r.bench_duration_s, plan->duration_s());
+  // The bench time reported at the end is the time run, not the plan's.
+  EXPECT_DOUBLE_EQ(stop.last.fraction, 1.0);
+  EXPECT_NEAR(stop.last.bench_total_s, r.bench_duration_s, 0.01);
+  EXPECT_DOUBLE_EQ(stop.last.bench_elapsed_s, stop.last.bench_total_s);
 }
 
 TEST(RunJson, SummarisesTheRunWithUnitsInKeys) {

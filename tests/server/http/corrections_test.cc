@@ -277,7 +277,9 @@ TEST_F(CorrectionsTest, ToleranceTestWritesTheSessionAndRapidTakesAnExplicitIner
   for (const auto& p : resolved.body["parameters"]) {
     if (p["name"] != "amplitude_ma") continue;
     EXPECT_EQ(p["unit"], "mA");
-    EXPECT_NEAR(p["default"].get<double>(), threshold + 0.6 * (max_tolerated - threshold), 1e-9);
+    // To 0.1 mA (docs/PROTOCOLS.md).
+    EXPECT_NEAR(p["default"].get<double>(),
+                std::round(10.0 * (threshold + 0.6 * (max_tolerated - threshold))) / 10.0, 1e-9);
   }
   for (const auto& protocol : bare.body["protocols"]) {
     EXPECT_TRUE(protocol["thesis_section"].get<std::string>().starts_with("§")) << protocol;
