@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <numbers>
 #include <set>
+#include <tuple>
 
 #include "api/trial_kind.h"
 
@@ -172,11 +173,22 @@ std::optional<std::pair<double, double>> ChannelRange(std::string_view channel) 
   return std::nullopt;
 }
 
+const std::vector<KnownColumn>& KnownColumns() {
+  // OpenSim's gait models (gait2392, Rajagopal): knee flexion is negative.
+  static const std::vector<KnownColumn> kKnown = {
+      {"knee_angle_r", "angle_deg", -1, "OpenSim right knee angle (flexion negative)"},
+      {"knee_angle_l", "angle_deg", -1, "OpenSim left knee angle (flexion negative)"},
+      {"knee_angle_r_speed", "velocity_deg_s", -1, "OpenSim right knee angular speed"},
+      {"knee_angle_l_speed", "velocity_deg_s", -1, "OpenSim left knee angular speed"},
+  };
+  return kKnown;
+}
+
 Result<ImportSpec> ImportSpecFromJson(const json& j) {
   if (!j.is_object()) return Fail("", "the import spec must be a JSON object");
   static const std::set<std::string> kKnown = {
       "kind",    "format", "time_column",        "time_unit", "sample_rate_hz",
-      "columns", "ignore", "start_time_unix_ms", "source"};
+      "columns", "ignore", "start_time_unix_ms", "source",    "unmapped"};
   for (const auto& [key, value] : j.items()) {
     if (!kKnown.contains(key)) return Fail(key, "unknown field");
   }
@@ -205,16 +217,42 @@ Result<ImportSpec> ImportSpecFromJson(const json& j) {
     for (std::size_t i = 0; i < cols.size(); ++i) {
       const std::string f = "columns[" + std::to_string(i) + "]";
       if (!cols[i].is_object()) return Fail(f, "must be an object {column, channel, unit}");
+      static const std::set<std::string> kColumnKeys = {"column", "channel", "unit",
+                                                         "sign",   "scale",   "offset"};
       for (const auto& [key, value] : cols[i].items()) {
-        if (key != "column" && key != "channel" && key != "unit") {
-          return Fail(f + "." + key, "unknown field");
-        }
+        if (!kColumnKeys.contains(key)) return Fail(f + "." + key, "unknown field");
       }
       ImportColumn c;
       if (Status s = GetString(cols[i], "column", c.column, f + ".column"); !s.ok()) return s;
       if (Status s = GetString(cols[i], "channel", c.channel, f + ".channel"); !s.ok()) return s;
       if (Status s = GetString(cols[i], "unit", c.unit, f + ".unit"); !s.ok()) return s;
       if (c.column.empty()) return Fail(f + ".column", "required (the column's label in the file)");
+      const auto known = std::find_if(KnownColumns().begin(), KnownColumns().end(),
+                                      [&](const KnownColumn& k) { return k.column == c.column; });
+      if (known != KnownColumns().end() && !cols[i].contains("channel")) {
+        // A known label alone: its channel and its sign (an explicit sign wins).
+        c.channel = std::string(known->channel);
+        c.sign = known->sign;
+      }
+      if (cols[i].contains("sign")) {
+        const json& v = cols[i].at("sign");
+        if (!v.is_number_integer() || (v.get<int>() != 1 && v.get<int>() != -1)) {
+          return Fail(f + ".sign", "must be 1 or -1");
+        }
+        c.sign = v.get<int>();
+      }
+      for (const auto& [key, target, nonzero] :
+           {std::tuple<const char*, double*, bool>{"scale", &c.scale, true},
+            std::tuple<const char*, double*, bool>{"offset", &c.offset, false}}) {
+        if (!cols[i].contains(key)) continue;
+        const json& v = cols[i].at(key);
+        if (!v.is_number() || !std::isfinite(v.get<double>()) ||
+            (nonzero && !(v.get<double>() > 0.0)) || std::abs(v.get<double>()) > 1e6) {
+          return Fail(f + "." + key, nonzero ? "must be a finite number > 0 (use sign for −1)"
+                                             : "must be a finite number (in the channel's unit)");
+        }
+        *target = v.get<double>();
+      }
       if (!IsValidChannelName(c.channel) || c.channel == kTimeChannel) {
         return Fail(f + ".channel",
                     "must be a channel name such as angle_deg, torque_nm or stim_ma (not t_s)");
@@ -223,6 +261,13 @@ Result<ImportSpec> ImportSpecFromJson(const json& j) {
     }
   }
   if (Status s = GetStrings(j, "ignore", spec.ignore); !s.ok()) return s;
+  if (j.contains("unmapped")) {
+    const json& u = j.at("unmapped");
+    if (!u.is_string() || (u.get<std::string>() != "refuse" && u.get<std::string>() != "ignore")) {
+      return Fail("unmapped", "must be \"refuse\" (the default) or \"ignore\"");
+    }
+    spec.ignore_unmapped = u.get<std::string>() == "ignore";
+  }
   if (j.contains("start_time_unix_ms")) {
     if (!j.at("start_time_unix_ms").is_number_integer()) {
       return Fail("start_time_unix_ms", "must be an integer (ms since 1970 UTC)");
@@ -240,10 +285,15 @@ json ImportSpecToJson(const ImportSpec& spec) {
   if (spec.sample_rate_hz) j["sample_rate_hz"] = *spec.sample_rate_hz;
   json cols = json::array();
   for (const ImportColumn& c : spec.columns) {
-    cols.push_back({{"column", c.column}, {"channel", c.channel}, {"unit", c.unit}});
+    json col = {{"column", c.column}, {"channel", c.channel}, {"unit", c.unit}};
+    if (c.sign != 1) col["sign"] = c.sign;
+    if (c.scale != 1.0) col["scale"] = c.scale;
+    if (c.offset != 0.0) col["offset"] = c.offset;
+    cols.push_back(std::move(col));
   }
   j["columns"] = std::move(cols);
   j["ignore"] = spec.ignore;
+  if (spec.ignore_unmapped) j["unmapped"] = "ignore";
   if (spec.start_time_unix_ms) j["start_time_unix_ms"] = *spec.start_time_unix_ms;
   if (!spec.source.empty()) j["source"] = spec.source;
   return j;
@@ -407,7 +457,8 @@ Result<Trial> TrialFromTable(const TextTable& table, const ImportSpec& spec) {
   struct Take {
     std::size_t column;
     std::string channel;
-    double factor;
+    double factor;        // unit conversion × sign × scale
+    double offset = 0.0;  // in the channel's unit
   };
   std::vector<Take> takes;
   std::set<std::string> channels = {std::string(kTimeChannel)};
@@ -448,7 +499,7 @@ Result<Trial> TrialFromTable(const TextTable& table, const ImportSpec& spec) {
       }
       factor = *k;
     }
-    takes.push_back({*col, m.channel, factor});
+    takes.push_back({*col, m.channel, factor * m.sign * m.scale, m.offset});
   }
   for (std::size_t i = 0; i < spec.ignore.size(); ++i) {
     const std::optional<std::size_t> col = column_of(spec.ignore[i]);
@@ -461,14 +512,22 @@ Result<Trial> TrialFromTable(const TextTable& table, const ImportSpec& spec) {
   for (std::size_t j = 0; j < table.labels.size(); ++j) {
     if (used.contains(j)) continue;
     const std::string& label = table.labels[j];
-    if (!IsValidChannelName(label) || channels.contains(label)) {
+    // Only a channel name with a unit is taken as it is; anything else is
+    // refused or, with "unmapped": "ignore", left out (never stored unit-less).
+    if (channels.contains(label)) {
       return Fail("columns", "column " + std::to_string(j + 1) + " " + Quoted(label) +
-                                 " is not a fesbench channel name: map it (columns: "
-                                 "[{\"column\": ..., \"channel\": ..., \"unit\": ...}]) or "
-                                 "list it in ignore");
+                                 " is channel " + label +
+                                 ", which another column is mapped to: list one in ignore");
+    }
+    if (!IsValidChannelName(label) || ChannelUnit(label).empty()) {
+      if (spec.ignore_unmapped) continue;
+      return Fail("columns", "column " + std::to_string(j + 1) + " " + Quoted(label) +
+                                 " is not a fesbench channel name with a unit: map it (columns: "
+                                 "[{\"column\": ..., \"channel\": ..., \"unit\": ...}]), "
+                                 "list it in ignore, or set \"unmapped\": \"ignore\"");
     }
     channels.insert(label);
-    takes.push_back({j, label, 1.0});
+    takes.push_back({j, label, 1.0, 0.0});
   }
   for (std::string_view need : kind->required_channels) {
     if (!channels.contains(std::string(need))) {
@@ -485,8 +544,8 @@ Result<Trial> TrialFromTable(const TextTable& table, const ImportSpec& spec) {
   trial.SetChannel(std::string(kTimeChannel), std::move(t));
   for (const Take& take : takes) {
     std::vector<double> v = table.columns[take.column];
-    if (take.factor != 1.0) {
-      for (double& x : v) x *= take.factor;
+    if (take.factor != 1.0 || take.offset != 0.0) {
+      for (double& x : v) x = x * take.factor + take.offset;
     }
     if (const auto range = ChannelRange(take.channel)) {
       for (std::size_t i = 0; i < v.size(); ++i) {

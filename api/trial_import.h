@@ -36,8 +36,25 @@ struct ImportColumn {
   /// unit (ChannelUnit(channel)), or "rad" for an angle in a .sto file that
   /// says inDegrees=no.
   std::string unit;
+  /// The lab's convention: the value taken is sign·scale·(value in the
+  /// channel's unit) + offset (offset in the channel's unit), e.g. sign −1
+  /// for OpenSim's knee_angle_r (flexion negative), offset 90 for a
+  /// goniometer whose zero is the knee hanging.
+  int sign = 1;
+  double scale = 1.0;
+  double offset = 0.0;
   friend bool operator==(const ImportColumn&, const ImportColumn&) = default;
 };
+
+/// A column label whose meaning is known (OpenSim's coordinate names): its
+/// channel and sign, so `{"column": "knee_angle_r"}` alone maps it.
+struct KnownColumn {
+  std::string_view column;
+  std::string_view channel;
+  int sign;
+  std::string_view meaning;
+};
+const std::vector<KnownColumn>& KnownColumns();
 
 /// How to read one recording.
 struct ImportSpec {
@@ -51,6 +68,11 @@ struct ImportSpec {
   std::optional<double> sample_rate_hz;
   std::vector<ImportColumn> columns;  ///< explicit mappings.
   std::vector<std::string> ignore;    ///< columns to leave out.
+  /// Columns neither mapped, ignored nor named as a channel with a unit
+  /// (e.g. the 22 other coordinates of an OpenSim .mot): refused naming
+  /// them (false, the default) or left out (true, `"unmapped": "ignore"`).
+  /// Never stored as unit-less channels.
+  bool ignore_unmapped = false;
   std::optional<std::int64_t> start_time_unix_ms;
   std::string source;  ///< where it came from (file, rig, lab): kept as provenance.
   friend bool operator==(const ImportSpec&, const ImportSpec&) = default;
@@ -59,8 +81,9 @@ struct ImportSpec {
 /// Parses the JSON form (the `spec` of POST /sessions/{id}/trials):
 /// `{"kind": "free_swing_passive", "format": "sto", "time_column": "time",
 ///   "time_unit": "s", "sample_rate_hz": 100,
-///   "columns": [{"column": "knee_angle_r", "channel": "angle_deg", "unit": "rad"}],
-///   "ignore": ["pelvis_tx"], "start_time_unix_ms": 1732400000000,
+///   "columns": [{"column": "knee_angle_r", "channel": "angle_deg", "unit": "rad",
+///                "sign": -1, "scale": 1, "offset": 0}],
+///   "ignore": ["pelvis_tx"], "unmapped": "ignore", "start_time_unix_ms": 1732400000000,
 ///   "source": "gait lab, Vicon"}`. Errors name the field, e.g. "columns[1].unit".
 Result<ImportSpec> ImportSpecFromJson(const nlohmann::json& json);
 nlohmann::json ImportSpecToJson(const ImportSpec& spec);

@@ -299,7 +299,12 @@ api::Result<ImportResult> ImportRecording(storage::Database& db, std::int64_t se
                                           std::string_view text, const api::ImportSpec& spec,
                                           std::string_view imported_by) {
   api::Result<api::Trial> trial = api::ImportTrialText(text, spec);
-  if (!trial.ok()) return trial.status();
+  if (!trial.ok()) {
+    // One convention for the whole request: a spec field is "spec.<field>".
+    const api::Status& s = trial.status();
+    if (s.field().empty() || s.field().starts_with("spec")) return s;
+    return api::Status(s.code(), s.message(), "spec." + s.field());
+  }
   storage::TrialImport provenance{spec.format, spec.source, api::ImportSpecToJson(spec).dump(),
                                   std::string(imported_by), std::nullopt};
   auto id = storage::TrialRepository(db).Insert({session_id, std::nullopt}, *trial, provenance);

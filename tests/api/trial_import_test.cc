@@ -116,6 +116,73 @@ TEST(TrialImportTest, OpenSimStorageInRadians) {
   EXPECT_EQ(trial->FindChannel("pelvis_tx"), nullptr);
 }
 
+// A lab's .mot as OpenSim writes it: 24 coordinates in degrees, knee
+// flexion negative. The known label alone maps it with its sign; the other
+// coordinates are refused by name unless the spec says to ignore them, and
+// are never stored.
+TEST(TrialImportTest, AnOpenSimMotionInItsOwnConventions) {
+  std::string mot = "pendulum\nversion=1\nnRows=3\nnColumns=4\ninDegrees=yes\nendheader\n"
+                    "time\tpelvis_tilt\tknee_angle_r\thip_flexion_r\n";
+  for (int i = 0; i < 3; ++i) {
+    mot += std::to_string(0.01 * i) + "\t2\t" + std::to_string(-5.0 - 10.0 * i) + "\t3\n";
+  }
+  auto spec = ImportSpecFromJson({{"kind", "free_swing_passive"},
+                                  {"format", "sto"},
+                                  {"columns", {{{"column", "knee_angle_r"}}}}});
+  ASSERT_TRUE(spec.ok()) << spec.status().ToString();
+  EXPECT_EQ(spec->columns[0].channel, "angle_deg");
+  EXPECT_EQ(spec->columns[0].sign, -1);
+  const Status refused = ImportError(mot, *spec);
+  EXPECT_EQ(refused.field(), "columns");
+  EXPECT_NE(refused.message().find("'pelvis_tilt'"), std::string::npos) << refused.ToString();
+  EXPECT_NE(refused.message().find("unmapped"), std::string::npos) << refused.ToString();
+
+  spec->ignore_unmapped = true;
+  auto trial = ImportTrialText(mot, *spec);
+  ASSERT_TRUE(trial.ok()) << trial.status().ToString();
+  // Flexion negative in the file, positive here:
+  // −(−5) = 5°, −(−25) = 25°.
+  EXPECT_DOUBLE_EQ((*trial->Values("angle_deg"))[0], 5.0);
+  EXPECT_DOUBLE_EQ((*trial->Values("angle_deg"))[2], 25.0);
+  EXPECT_EQ(trial->channels.size(), 2u);  // t_s and angle_deg: nothing unit-less
+  // Written back, the spec keeps the lab's conventions.
+  const nlohmann::json j = ImportSpecToJson(*spec);
+  EXPECT_EQ(j["unmapped"], "ignore");
+  EXPECT_EQ(j["columns"][0]["sign"], -1);
+  EXPECT_EQ(ImportSpecFromJson(j).value(), *spec);
+}
+
+// sign, scale and offset: a goniometer whose zero is the knee hanging at 90°
+// and which reads extension positive, in radians.
+TEST(TrialImportTest, SignScaleAndOffsetPerColumn) {
+  const std::string csv = "t_s,gonio,stim_ma\n0,0,0\n0.005,0.5,0\n0.01,1,0\n";
+  auto spec = ImportSpecFromJson({{"kind", "free_swing_passive"},
+                                  {"columns",
+                                   {{{"column", "gonio"},
+                                     {"channel", "angle_deg"},
+                                     {"unit", "rad"},
+                                     {"sign", -1},
+                                     {"scale", 1.0},
+                                     {"offset", 90.0}}}}});
+  ASSERT_TRUE(spec.ok()) << spec.status().ToString();
+  auto trial = ImportTrialText(csv, *spec);
+  ASSERT_TRUE(trial.ok()) << trial.status().ToString();
+  EXPECT_DOUBLE_EQ((*trial->Values("angle_deg"))[0], 90.0);
+  EXPECT_NEAR((*trial->Values("angle_deg"))[2], 90.0 - 180.0 / std::numbers::pi, 1e-12);
+  for (const auto& [key, value] : std::vector<std::pair<std::string, nlohmann::json>>{
+           {"sign", 2}, {"sign", "-"}, {"scale", 0}, {"scale", -1}, {"offset", "ninety"}}) {
+    auto bad = ImportSpecFromJson(
+        {{"kind", "free_swing_passive"},
+         {"columns", {{{"column", "gonio"}, {"channel", "angle_deg"}, {key, value}}}}});
+    ASSERT_FALSE(bad.ok()) << key;
+    EXPECT_EQ(bad.status().field(), "columns[0]." + key);
+  }
+  EXPECT_EQ(ImportSpecFromJson({{"kind", "free_swing_passive"}, {"unmapped", "keep"}})
+                .status()
+                .field(),
+            "unmapped");
+}
+
 TEST(TrialImportTest, MalformedFilesNameThePlace) {
   const ImportSpec spec = SwingSpec();
   // Wrong header: the time column is missing.

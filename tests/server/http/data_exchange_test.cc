@@ -264,6 +264,21 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
                        {{"spec", {{"kind", "walking"}}}, {"data", "t_s\n0\n"}});
   EXPECT_EQ(bad_spec.status, 400);
   EXPECT_EQ(bad_spec.body["error"]["field"], "spec.kind");
+  // One convention for the spec's fields, whether the spec alone or the spec
+  // against the file is wrong.
+  auto bad_unit = Call(cb, "POST", import_path, admin_b,
+                       {{"spec",
+                         {{"kind", "free_swing_passive"},
+                          {"columns", {{{"column", "knee"}, {"channel", "angle_deg"},
+                                        {"unit", "furlong"}}}}}},
+                        {"data", "t_s,knee\n0,90\n0.005,91\n0.01,92\n"}});
+  EXPECT_EQ(bad_unit.status, 400);
+  EXPECT_EQ(bad_unit.body["error"]["field"], "spec.columns[0].unit") << bad_unit.text;
+  auto bad_time = Call(cb, "POST", import_path, admin_b,
+                       {{"spec", {{"kind", "free_swing_passive"}, {"time_unit", "ms"}}},
+                        {"data", "t_s,angle_deg\n0,90\n0.005,91\n0.01,92\n"}});
+  EXPECT_EQ(bad_time.status, 400);
+  EXPECT_EQ(bad_time.body["error"]["field"], "spec.time_unit") << bad_time.text;
   auto none = Call(cb, "GET", import_path, admin_b);
   ASSERT_EQ(none.status, 200);
   EXPECT_TRUE(none.body["items"].empty()) << "a refused import stored something";
