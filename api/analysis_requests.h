@@ -101,7 +101,7 @@ struct PredictionRequest {
   std::optional<StimulusSpec> stimulus;
   /// Stimulus: default free swing. Trial: default its protocol's mode.
   std::optional<PredictionMode> mode;
-  /// Stimulus only. Free swing θ(0), deg, 0–180 (default: the passive rest
+  /// Stimulus only. Free swing θ(0), deg, −30–180 (default: the passive rest
   /// angle, else 90°); isometric lock angle, deg (default 90°).
   std::optional<double> initial_angle_deg;
   double initial_velocity_deg_s = 0.0;  ///< stimulus free swing θ̇(0), |·| ≤ 2000 deg/s.

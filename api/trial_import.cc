@@ -188,7 +188,7 @@ Result<ImportSpec> ImportSpecFromJson(const json& j) {
   if (!j.is_object()) return Fail("", "the import spec must be a JSON object");
   static const std::set<std::string> kKnown = {
       "kind",    "format", "time_column",        "time_unit", "sample_rate_hz",
-      "columns", "ignore", "start_time_unix_ms", "source",    "unmapped"};
+      "columns", "ignore", "start_time_unix_ms", "source",    "unmapped", "stops_deg"};
   for (const auto& [key, value] : j.items()) {
     if (!kKnown.contains(key)) return Fail(key, "unknown field");
   }
@@ -276,6 +276,18 @@ Result<ImportSpec> ImportSpecFromJson(const json& j) {
   }
   if (Status s = GetString(j, "source", spec.source, "source"); !s.ok()) return s;
   if (spec.source.size() > 500) return Fail("source", "must be at most 500 characters");
+  if (j.contains("stops_deg")) {
+    const json& st = j.at("stops_deg");
+    const auto angle = [](const json& v) {
+      return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() >= -30.0 &&
+             v.get<double>() <= 180.0;
+    };
+    if (!st.is_array() || st.size() != 2 || !angle(st[0]) || !angle(st[1]) ||
+        !(st[0].get<double>() < st[1].get<double>())) {
+      return Fail("stops_deg", "must be [min, max] in deg, −30 ≤ min < max ≤ 180 (the rig's stops)");
+    }
+    spec.stops_deg = {st[0].get<double>(), st[1].get<double>()};
+  }
   return spec;
 }
 
@@ -294,6 +306,7 @@ json ImportSpecToJson(const ImportSpec& spec) {
   j["columns"] = std::move(cols);
   j["ignore"] = spec.ignore;
   if (spec.ignore_unmapped) j["unmapped"] = "ignore";
+  if (spec.stops_deg) j["stops_deg"] = {spec.stops_deg->first, spec.stops_deg->second};
   if (spec.start_time_unix_ms) j["start_time_unix_ms"] = *spec.start_time_unix_ms;
   if (!spec.source.empty()) j["source"] = spec.source;
   return j;

@@ -75,6 +75,10 @@ struct ImportSpec {
   bool ignore_unmapped = false;
   std::optional<std::int64_t> start_time_unix_ms;
   std::string source;  ///< where it came from (file, rig, lab): kept as provenance.
+  /// The mechanical stops of the rig that recorded it, deg (min < max, in
+  /// −30…180): free-swing predictions of the trial stop there. Unset: the
+  /// knee was free (a pendulum test), predictions have no stops.
+  std::optional<std::pair<double, double>> stops_deg;
   friend bool operator==(const ImportSpec&, const ImportSpec&) = default;
 };
 

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "api/trial_import.h"
 #include "api/trial_kind.h"
 #include "model/conditioning.h"
 #include "model/evaluation.h"
@@ -20,6 +21,7 @@
 #include "storage/audit_log.h"
 #include "storage/parameter_sets.h"
 #include "storage/predictions.h"
+#include "storage/trials.h"
 
 namespace fesbench::server::services {
 namespace {
@@ -106,9 +108,9 @@ api::Status ValidatePredictionRequest(const PredictionRequest& r, const Predicti
       }
     }
   }
-  if (r.initial_angle_deg && !InRange(*r.initial_angle_deg, 0.0, 180.0)) {
+  if (r.initial_angle_deg && !InRange(*r.initial_angle_deg, -30.0, 180.0)) {
     return api::Status::InvalidArgument(
-        "initial_angle_deg must be 0–180 deg, got " + std::to_string(*r.initial_angle_deg),
+        "initial_angle_deg must be −30–180 deg, got " + std::to_string(*r.initial_angle_deg),
         "initial_angle_deg");
   }
   if (!InRange(r.initial_velocity_deg_s, -2000.0, 2000.0)) {
@@ -137,7 +139,13 @@ struct PredictionInput {
   model::PulseTrain pulses;
   std::optional<model::TrialColumns> measured;  // with a trial: what it is compared with
   std::string stage = "stimulus";
+  bool imported = false;  // the trial was recorded elsewhere (not on this bench)
+  std::optional<model::JointLimits> imported_stops;  // the stops its spec declared
 };
+
+// The angles a real knee takes, deg: hyperextension to −30°, flexion to 180°.
+constexpr double kMinKneeAngleDeg = -30.0;
+constexpr double kMaxKneeAngleDeg = 180.0;
 
 // A stimulus from a generator (no trial): its pulses, length and start.
 api::Status PrepareFromStimulus(const PredictionRequest& request, const PredictionConfig& config,
@@ -183,9 +191,26 @@ api::Status PrepareFromTrial(storage::Database& db, const PredictionRequest& req
         "\") is a motor trial; predictions replay free-swing or isometric trials");
   }
   model::TrialColumns c = api::ToTrialColumns(trial->trial);
+  // A passive free swing (a pendulum test) has no stimulation to record:
+  // its stimulation is zero throughout.
+  const bool passive = trial->trial.kind == api::TrialKind::kFreeSwingPassive;
+  if (passive && c.stim_ma.empty() && !trial->trial.pulses) c.stim_ma.assign(c.size(), 0.0);
   if (c.size() < 2 || c.angle_deg.size() != c.size() || c.stim_ma.size() != c.size()) {
-    return api::Status::FailedPrecondition("trial " + std::to_string(trial->id) +
-                                           " needs t_s, stim_ma and angle_deg channels");
+    return api::Status::FailedPrecondition(
+        "trial " + std::to_string(trial->id) +
+        " needs t_s, stim_ma and angle_deg channels (an imported recording of a stimulated "
+        "trial maps its stimulation column to stim_ma)");
+  }
+  api::Result<std::optional<storage::TrialImport>> provenance =
+      storage::TrialRepository(db).ImportOf(trial->id);
+  if (!provenance.ok()) return provenance.status();
+  in.imported = provenance->has_value();
+  if (in.imported) {
+    api::Result<api::ImportSpec> spec =
+        api::ImportSpecFromJson(nlohmann::json::parse((*provenance)->spec_json, nullptr, false));
+    if (spec.ok() && spec->stops_deg) {
+      in.imported_stops = model::JointLimits{spec->stops_deg->first, spec->stops_deg->second};
+    }
   }
   const double rate = trial->trial.sample_rate_hz;
   const double span = c.t_s.back() - c.t_s.front();
@@ -234,13 +259,18 @@ api::Status PrepareFromTrial(storage::Database& db, const PredictionRequest& req
 // one outside is refused).
 api::Status ApplyStartAndStops(const PredictionRequest& request, const PredictionConfig& config,
                                PredictionInput& in, PredictionResult& out) {
-  if (!InRange(out.initial_angle_deg, 0.0, 180.0)) {
+  if (!InRange(out.initial_angle_deg, kMinKneeAngleDeg, kMaxKneeAngleDeg)) {
     return api::Status::InvalidArgument(
-        "initial angle " + std::to_string(out.initial_angle_deg) + " deg is outside 0–180",
+        "initial angle " + std::to_string(out.initial_angle_deg) + " deg is outside −30–180",
         request.trial_id ? "trial_id" : "initial_angle_deg");
   }
-  if (out.mode == PredictionMode::kFreeSwing && config.joint_limits) {
-    const model::JointLimits& stops = *config.joint_limits;
+  // The stops of the bench that recorded the trial: this bench's for its own
+  // trials and for stimuli; none for a recording made elsewhere, where the
+  // passive end-range stiffness stops the swing as the knee's own does.
+  const std::optional<model::JointLimits> bench_stops =
+      in.imported ? in.imported_stops : config.joint_limits;
+  if (out.mode == PredictionMode::kFreeSwing && bench_stops) {
+    const model::JointLimits& stops = *bench_stops;
     if (request.trial_id) {
       out.initial_angle_deg =
           std::clamp(out.initial_angle_deg, stops.min_angle_deg, stops.max_angle_deg);

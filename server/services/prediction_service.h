@@ -98,7 +98,7 @@ class PredictionService {
   /// Simulates and evaluates without storing anything. kNotFound for an
   /// unknown parameter set or trial; kInvalidArgument naming the field for
   /// bad input (durations over max_duration_s, unknown generator or
-  /// parameter, angles outside 0–180°); kFailedPrecondition when the trial
+  /// parameter, angles outside −30–180°); kFailedPrecondition when the trial
   /// lacks a needed channel or the simulation fails (e.g. diverges).
   api::Result<PredictionResult> Compute(const PredictionRequest& request) const;
 

@@ -354,7 +354,8 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
               {"time_unit", "ms"},
               {"sample_rate_hz", 200},
               {"columns", {{{"column", "knee_rad"}, {"channel", "angle_deg"}, {"unit", "rad"}}}},
-              {"source", "another rig"}}},
+              {"source", "another rig"},
+              {"stops_deg", {10, 110}}}},
             {"data", converted}});
   ASSERT_EQ(recording.status, 201) << recording.text;
   const std::int64_t recording_id = recording.body["trials"][0]["id"];
@@ -368,6 +369,9 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
   ASSERT_EQ(job["state"], "done") << job.dump().substr(0, 1000);
   const double e_rms = job["result"]["errors"]["e_rms"];
   EXPECT_LT(e_rms, 10.0);
+  // Predicted within the stops the recording's rig declared.
+  EXPECT_EQ(job["result"]["joint_limits"]["min_angle_deg"], 10.0);
+  EXPECT_EQ(job["result"]["joint_limits"]["max_angle_deg"], 110.0);
   std::cout << "[ figure ] imported recording predicted with the imported set: E_RMS " << e_rms
             << " deg\n";
   EXPECT_EQ(a.Terminate(), 0);
