@@ -11,7 +11,6 @@
 #include "model/grid_golden_search.h"
 #include "model/identify_least_squares.h"
 #include "model/integrators.h"
-#include "model/joint_model.h"
 #include "model/quality.h"
 #include "model/simulate.h"
 #include "model/units.h"
@@ -108,21 +107,71 @@ struct SwingCost {
   double curvature = 0.0;
 };
 
+// The segments of a piecewise-linear curve held at its ends (Eq. 4.27),
+// one per interval between breakpoints and one beyond each end (slope 0),
+// so a look-up is two bounds compared and a line: y + s·(x − origin).
+// `base` keeps the curves' own ordinates and slopes; the per-J copies the
+// swing's simulation reads are rewritten from them for each J.
+struct SegmentTable {
+  std::vector<double> lo, hi, origin;  // segment i covers [lo_i, hi_i)
+
+  explicit SegmentTable(const std::vector<double>& x) {
+    const std::size_t m = x.size();
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i <= m; ++i) {
+      lo.push_back(i == 0 ? -kInf : x[i - 1]);
+      hi.push_back(i == m ? kInf : x[i]);
+      origin.push_back(x[i == 0 ? 0 : i - 1]);
+    }
+  }
+  // The segment of x, the scan started at the last one (a trajectory
+  // rarely leaves it). NaN stays where it is and evaluates to NaN.
+  [[gnu::always_inline]] std::size_t Find(double x, std::size_t& hint) const {
+    std::size_t i = hint;
+    while (x < lo[i]) --i;
+    while (x >= hi[i]) ++i;
+    hint = i;
+    return i;
+  }
+  // The ordinates and slopes of `curve` per segment (ends held).
+  static void Lines(const PiecewiseLinear& curve, std::vector<double>& y, std::vector<double>& s) {
+    const std::vector<double>& cx = curve.x();
+    const std::vector<double>& cy = curve.y();
+    const std::size_t m = cx.size();
+    y.assign(m + 1, 0.0);
+    s.assign(m + 1, 0.0);
+    for (std::size_t i = 0; i <= m; ++i) {
+      y[i] = cy[i == 0 ? 0 : i - 1];
+      if (i > 0 && i < m) s[i] = (cy[i] - cy[i - 1]) / (cx[i] - cx[i - 1]);
+    }
+  }
+};
+
 // The free swings of the passive leg through the stretches for J = e^u:
 //   J·θ̈ = −τ_pta(θ) − τ_ptv(θ̇),  τ_ptv = P_b − J·P_a
 // (Eq. 4.35 refitted for each J), integrated as SimulateFreeSwing does
 // (RK4 in equal steps of at most 1 ms between output samples, simulate.h)
-// into no storage: each sample's error goes straight into the sum. With the
-// derivative, the tangent ∂(θ, θ̇)/∂u goes through every RK4 stage with the
-// state: the derivative of the discrete map itself, so the minimum found
-// from it is that of the cost the grid evaluates.
+// into no storage: each sample's error goes straight into the sum. For each
+// J the curves are first scaled into θ̈ terms, A(θ) = −k·τ_pta(θ) and
+// Q(θ̇) = k·(J·P_a − P_b)(θ̇), k = (180/π)/J, so a stage is θ̈ = A + Q (the
+// workspace: rewritten per J, never reallocated). With the derivative, the
+// tangent ∂(θ, θ̇)/∂u goes through every RK4 stage with the state: the
+// derivative of the discrete map itself, so the minimum found from it is
+// that of the cost the grid evaluates.
 class PassiveSwings {
  public:
   PassiveSwings(const PiecewiseLinear& tau_pta, const PiecewiseLinear& p_b,
                 const PiecewiseLinear& p_a, std::vector<SwingStretch> stretches)
-      : angle_(tau_pta, PiecewiseLinear::Constant(0.0)),
-        velocity_(p_b, p_a),
-        stretches_(std::move(stretches)) {
+      : angle_(tau_pta.x()), velocity_(p_b.x()), stretches_(std::move(stretches)) {
+    SegmentTable::Lines(tau_pta, pta_, pta_slope_);
+    SegmentTable::Lines(p_b, pb_, pb_slope_);
+    SegmentTable::Lines(p_a, pa_, pa_slope_);
+    a_ = pta_;
+    a_slope_ = pta_slope_;
+    q_ = pb_;
+    q_slope_ = pb_slope_;
+    g_ = pb_;
+    g_slope_ = pb_slope_;
     for (const SwingStretch& st : stretches_) samples_ += st.measured_deg.size();
   }
 
@@ -131,18 +180,28 @@ class PassiveSwings {
   // Σ (θ_sim − θ_measured)² over every stretch; +∞ for a non-finite
   // simulation or once the partial sum exceeds `bound` (the sum only grows).
   SwingCost Cost(double u, bool derivative,
-                 double bound = std::numeric_limits<double>::infinity()) const {
-    return derivative ? Run<true>(u, bound) : Run<false>(u, bound);
+                 double bound = std::numeric_limits<double>::infinity()) {
+    const double j = std::exp(u);
+    const double k = RadToDeg(1.0 / j);  // N·m → deg/s²
+    for (std::size_t i = 0; i < a_.size(); ++i) {
+      a_[i] = -k * pta_[i];
+      a_slope_[i] = -k * pta_slope_[i];
+    }
+    for (std::size_t i = 0; i < q_.size(); ++i) {
+      q_[i] = k * (j * pa_[i] - pb_[i]);
+      q_slope_[i] = k * (j * pa_slope_[i] - pb_slope_[i]);
+      g_[i] = k * pb_[i];
+      g_slope_[i] = k * pb_slope_[i];
+    }
+    return derivative ? Run<true>(bound) : Run<false>(bound);
   }
 
  private:
   static constexpr double kStepS = 1e-3;  // SimulationOptions::step_s
 
   template <bool kDerivative>
-  SwingCost Run(double u, double bound) const {
-    const double j = std::exp(u);
-    const double k = RadToDeg(1.0 / j);  // N·m → deg/s²
-    std::size_t seg_a = 0, seg_v = 0;
+  SwingCost Run(double bound) const {
+    std::size_t seg_a = 1, seg_v = 1;
     double cost = 0.0, gradient = 0.0, curvature = 0.0;
     for (const SwingStretch& st : stretches_) {
       double th = st.angle_deg, om = st.velocity_deg_s, dth = 0.0, dom = 0.0;
@@ -155,16 +214,16 @@ class PassiveSwings {
           for (long s = 0; s < m; ++s) {
             // Rk4Step (integrators.h) on (θ, θ̇) and its tangent.
             double d1 = 0.0, d2 = 0.0, d3 = 0.0, d4 = 0.0;
-            const double a1 = Accel<kDerivative>(j, k, th, om, dth, dom, d1, seg_a, seg_v);
+            const double a1 = Accel<kDerivative>(th, om, dth, dom, d1, seg_a, seg_v);
             const double om2 = om + (0.5 * h) * a1, dom2 = dom + (0.5 * h) * d1;
-            const double a2 = Accel<kDerivative>(j, k, th + (0.5 * h) * om, om2,
-                                                 dth + (0.5 * h) * dom, dom2, d2, seg_a, seg_v);
+            const double a2 = Accel<kDerivative>(th + (0.5 * h) * om, om2, dth + (0.5 * h) * dom,
+                                                 dom2, d2, seg_a, seg_v);
             const double om3 = om + (0.5 * h) * a2, dom3 = dom + (0.5 * h) * d2;
-            const double a3 = Accel<kDerivative>(j, k, th + (0.5 * h) * om2, om3,
-                                                 dth + (0.5 * h) * dom2, dom3, d3, seg_a, seg_v);
+            const double a3 = Accel<kDerivative>(th + (0.5 * h) * om2, om3, dth + (0.5 * h) * dom2,
+                                                 dom3, d3, seg_a, seg_v);
             const double om4 = om + h * a3, dom4 = dom + h * d3;
             const double a4 =
-                Accel<kDerivative>(j, k, th + h * om3, om4, dth + h * dom3, dom4, d4, seg_a, seg_v);
+                Accel<kDerivative>(th + h * om3, om4, dth + h * dom3, dom4, d4, seg_a, seg_v);
             th = th + (h / 6.0) * (om + 2.0 * om2 + 2.0 * om3 + om4);
             om = om + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
             if constexpr (kDerivative) {
@@ -187,27 +246,30 @@ class PassiveSwings {
     return {cost, 2.0 * gradient, 2.0 * curvature};
   }
 
-  // θ̈ at (θ, θ̇) and, with the derivative, its tangent ∂θ̈/∂u along
-  // (dθ, dθ̇); k = (180/π)/J converts N·m to deg/s².
+  // θ̈ = A(θ) + Q(θ̇) and, with the derivative, its tangent along (dθ, dθ̇)
+  // plus ∂θ̈/∂u = J·∂θ̈/∂J = k·(τ_pta + P_b) = −A + G, G = k·P_b.
   template <bool kDerivative>
-  [[gnu::always_inline]] double Accel(double j, double k, double th, double om, double dth,
-                                      double dom, double& dacc, std::size_t& seg_a,
-                                      std::size_t& seg_v) const {
-    double pta = 0.0, unused = 0.0, dpta = 0.0, dunused = 0.0;
-    angle_.EvaluateWithSlopes(th, pta, unused, dpta, dunused, seg_a);
-    double pb = 0.0, pa = 0.0, dpb = 0.0, dpa = 0.0;
-    velocity_.EvaluateWithSlopes(om, pb, pa, dpb, dpa, seg_v);
+  [[gnu::always_inline]] double Accel(double th, double om, double dth, double dom, double& dacc,
+                                      std::size_t& seg_a, std::size_t& seg_v) const {
+    const std::size_t ia = angle_.Find(th, seg_a);
+    const std::size_t iv = velocity_.Find(om, seg_v);
+    const double dxa = th - angle_.origin[ia], dxv = om - velocity_.origin[iv];
+    const double a = a_[ia] + a_slope_[ia] * dxa;
+    const double q = q_[iv] + q_slope_[iv] * dxv;
     if constexpr (kDerivative) {
-      // ∂/∂u = J·∂/∂J of −(τ_pta + P_b − J·P_a)·k, k ∝ 1/J.
-      dacc = (-dpta * dth - (dpb - j * dpa) * dom + (pta + pb)) * k;
+      const double g = g_[iv] + g_slope_[iv] * dxv;
+      dacc = a_slope_[ia] * dth + q_slope_[iv] * dom + (g - a);
     }
-    return -(pta + (pb - j * pa)) * k;
+    return a + q;
   }
 
-  CurvePairTable angle_;     // τ_pta (and an unused 0)
-  CurvePairTable velocity_;  // P_b, P_a
+  SegmentTable angle_;     // τ_pta's breakpoints
+  SegmentTable velocity_;  // P_b's and P_a's (the same, Eq. 4.35's)
   std::vector<SwingStretch> stretches_;
   std::size_t samples_ = 0;
+  // The curves' own lines, and their per-J θ̈ terms (A, Q, G above).
+  std::vector<double> pta_, pta_slope_, pb_, pb_slope_, pa_, pa_slope_;
+  std::vector<double> a_, a_slope_, q_, q_slope_, g_, g_slope_;
 };
 
 // ln J minimising the stretches' angle error over [lo, hi]: the cost on a
@@ -219,7 +281,7 @@ class PassiveSwings {
 // point stops simulating once its partial sum exceeds the best so far: it
 // cannot be the minimum, and the grid's choice is the one a full
 // evaluation makes.
-ScalarMinimum FitLogInertia(const PassiveSwings& swings, double lo, double hi, double start) {
+ScalarMinimum FitLogInertia(PassiveSwings& swings, double lo, double hi, double start) {
   constexpr int kGridSteps = 24;
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const double step = (hi - lo) / kGridSteps;
@@ -577,10 +639,10 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
         stretches.push_back({tr.angle_deg[sg.begin], tr.velocity_deg_s[sg.begin], tr.SampleRateHz(),
                              std::span(tr.angle_deg).subspan(sg.begin, sg.end - sg.begin)});
       }
-      const PassiveSwings swings(
-          torque_angle, PiecewiseLinear(bp_v, std::vector<double>(c_b.data(), c_b.data() + mv)),
-          PiecewiseLinear(bp_v, std::vector<double>(c_a.data(), c_a.data() + mv)),
-          std::move(stretches));
+      PassiveSwings swings(torque_angle,
+                           PiecewiseLinear(bp_v, std::vector<double>(c_b.data(), c_b.data() + mv)),
+                           PiecewiseLinear(bp_v, std::vector<double>(c_a.data(), c_a.data() + mv)),
+                           std::move(stretches));
       const ScalarMinimum m =
           FitLogInertia(swings, std::log(options.min_inertia_kgm2),
                         std::log(options.max_inertia_kgm2), std::log(p.inertia_kgm2));

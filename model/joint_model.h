@@ -55,22 +55,15 @@ class CurvePairTable {
   /// of breakpoints; 0 at first), which receives the segment of x. The
   /// values are those of the scan from 0: the segment found is the same.
   void Evaluate(double x, double& f_out, double& g_out, std::size_t& segment) const {
-    double df = 0.0, dg = 0.0;
-    EvaluateWithSlopes(x, f_out, g_out, df, dg, segment);
-  }
-
-  /// The same and the slopes df/dx, dg/dx of x's segment (0 beyond the ends,
-  /// where the curves are held), for sensitivities of a simulation.
-  [[gnu::always_inline]] void EvaluateWithSlopes(double x, double& f_out, double& g_out,
-                                                 double& df_out, double& dg_out,
-                                                 std::size_t& segment) const {
     const std::size_t m = x_.size();
-    if (x <= x_[0] || x >= x_[m - 1]) {
-      const std::size_t end = x <= x_[0] ? 0 : m - 1;
-      f_out = f_[end];
-      g_out = g_[end];
-      df_out = 0.0;
-      dg_out = 0.0;
+    if (x <= x_[0]) {
+      f_out = f_[0];
+      g_out = g_[0];
+      return;
+    }
+    if (x >= x_[m - 1]) {
+      f_out = f_[m - 1];
+      g_out = g_[m - 1];
       return;
     }
     // x_[0] < x < x_[m − 1] here: the scans stop inside 0 … m − 2.
@@ -85,8 +78,6 @@ class CurvePairTable {
     const double dx = x - x_[i];
     f_out = f_[i] + f_slope_[i] * dx;
     g_out = g_[i] + g_slope_[i] * dx;
-    df_out = f_slope_[i];
-    dg_out = g_slope_[i];
   }
 
  private:
