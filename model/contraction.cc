@@ -73,17 +73,6 @@ const ContractionPropagator::Factors& ContractionPropagator::FactorsFor(double d
   return f;
 }
 
-ContractionState ContractionPropagator::Propagate(const ContractionState& x, double dt_s) {
-  const auto& c = FactorsFor(dt_s).coeff;
-  // e^(A·dt) of the repeated-pole chain: lower-triangular Toeplitz with
-  // entries e^(−a·dt)·(a·dt)^(i−j)/(i−j)!.
-  ContractionState y{};
-  y[0] = c[0] * x[0];
-  y[1] = c[0] * x[1] + c[1] * x[0];
-  if (order_ == 3) y[2] = c[0] * x[2] + c[1] * x[1] + c[2] * x[0];
-  return y;
-}
-
 double ContractionPropagator::OutputAfter(const ContractionState& x, double dt_s) {
   const auto& c = FactorsFor(dt_s).coeff;
   if (order_ == 2) return c[0] * x[1] + c[1] * x[0];

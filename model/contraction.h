@@ -70,8 +70,27 @@ class ContractionPropagator {
   int order() const { return order_; }
   double pole_per_s() const { return pole_per_s_; }
 
+  /// e^(A·dt) of one dt: the factors e^(−a·dt)·(a·dt)^k / k!, k = 0 … 2.
+  struct Step {
+    std::array<double, kMaxContractionOrder> coeff{};
+  };
+  /// The step of dt ≥ 0 (not checked), through the cache: a loop of equal
+  /// steps (the RK4 loop of an interval, simulate.h) looks it up once.
+  Step StepFor(double dt_s) { return {FactorsFor(dt_s).coeff}; }
+  /// e^(A·dt)·x for a step from StepFor: the lower-triangular Toeplitz
+  /// matrix of the repeated pole applied to x.
+  ContractionState Propagate(const ContractionState& x, const Step& step) const {
+    const auto& c = step.coeff;
+    ContractionState y{};
+    y[0] = c[0] * x[0];
+    y[1] = c[0] * x[1] + c[1] * x[0];
+    if (order_ == 3) y[2] = c[0] * x[2] + c[1] * x[1] + c[2] * x[0];
+    return y;
+  }
   /// e^(A·dt)·x. dt must be ≥ 0 (not checked: internal hot path).
-  ContractionState Propagate(const ContractionState& x, double dt_s);
+  ContractionState Propagate(const ContractionState& x, double dt_s) {
+    return Propagate(x, StepFor(dt_s));
+  }
   /// C·e^(A·dt)·x, the activation dt after the state x (no pulse between).
   double OutputAfter(const ContractionState& x, double dt_s);
   /// f_stim = x_n.

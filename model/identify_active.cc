@@ -61,16 +61,19 @@ ActiveResult IdentifyActive(std::span<const TrialColumns> trials, const PassiveP
   if (total < static_cast<std::size_t>(ma + mv + 1)) {
     throw std::invalid_argument(std::string(what) + ": fewer active samples than parameters");
   }
-  // Eq. 4.40.
-  Eigen::MatrixXd design = AngleVelocityDesign(bp_a, angle, bp_v, vel, 1);
-  design.col(ma + mv).setOnes();
-  // Smoothness rows (ActiveOptions::smoothness) below the Eq. 4.40 rows.
-  const Eigen::Index bends =
-      options.smoothness > 0.0 ? std::max<Eigen::Index>(0, ma - 2) + std::max<Eigen::Index>(0, mv - 2)
-                               : 0;
+  // Eq. 4.40, with the smoothness rows (ActiveOptions::smoothness) below.
+  const Eigen::Index bends = options.smoothness > 0.0 ? std::max<Eigen::Index>(0, ma - 2) +
+                                                            std::max<Eigen::Index>(0, mv - 2)
+                                                      : 0;
   const auto n_rows = static_cast<Eigen::Index>(total);
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n_rows + bends, design.cols());
-  a.topRows(n_rows) = design;
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n_rows + bends, ma + mv + 1);
+  for (Eigen::Index i = 0; i < n_rows; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    SetPwlBasisRow(a, i, 0, bp_a, angle[k]);
+    SetPwlBasisRow(a, i, ma, bp_v, vel[k]);
+  }
+  a.col(ma + mv).head(n_rows).setOnes();
+  const auto design = a.topRows(n_rows);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(n_rows + bends);
   for (std::size_t i = 0; i < total; ++i) {
     b(static_cast<Eigen::Index>(i)) = std::log(tau[i] / act[i]);  // Eq. 4.39

@@ -31,14 +31,15 @@ LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::Ve
     const double n = a.col(j).norm();
     scale(j) = n > 0.0 ? 1.0 / n : 1.0;
   }
-  const Eigen::MatrixXd as = a * scale.asDiagonal();
+  Eigen::MatrixXd as = a * scale.asDiagonal();
 
   // A = Q·R; the singular values of A equal those of R (M×M), so the SVD
-  // of Eq. 4.19 is taken of R and g = U_Rᵀ·(Qᵀ·b) (Eq. 4.23).
+  // of Eq. 4.19 is taken of R and g = U_Rᵀ·(Qᵀ·b) (Eq. 4.23). The QR
+  // overwrites the scaled copy (no second N×M matrix).
   Eigen::MatrixXd r;
   Eigen::VectorXd qtb;
   if (as.rows() >= m) {
-    Eigen::HouseholderQR<Eigen::MatrixXd> qr(as);
+    Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(as);
     r = qr.matrixQR().topRows(m).triangularView<Eigen::Upper>();
     qtb = (qr.householderQ().transpose() * b).head(m);
   } else {

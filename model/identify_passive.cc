@@ -1,13 +1,16 @@
 #include "model/identify_passive.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "model/grid_golden_search.h"
 #include "model/identify_least_squares.h"
+#include "model/integrators.h"
 #include "model/quality.h"
 #include "model/simulate.h"
 #include "model/units.h"
@@ -78,12 +81,250 @@ PassiveParams PassiveCurves(const PassiveSystem& sys, const Eigen::VectorXd& c) 
 void AddSupportWarnings(const PassiveSystem& sys, std::span<const double> angle,
                         std::span<const double> velocity, double min_support,
                         IdentifyReport& report) {
-  for (auto& w : SupportWarnings("tau_pta", "deg", sys.bp_a, BreakpointSupport(sys.bp_a, angle),
-                                 min_support))
+  for (auto& w :
+       SupportWarnings("tau_pta", "deg", sys.bp_a, BreakpointSupport(sys.bp_a, angle), min_support))
     report.warnings.push_back(std::move(w));
   for (auto& w : SupportWarnings("tau_ptv", "deg/s", sys.bp_v,
                                  BreakpointSupport(sys.bp_v, velocity), min_support))
     report.warnings.push_back(std::move(w));
+}
+
+// A passive stretch of a free-swing trial (FreeSwingPassiveOptions::
+// output_error_inertia): its measured first state, the muscle at rest, and
+// the measured angles the simulated swing is to match.
+struct SwingStretch {
+  double angle_deg = 0.0;
+  double velocity_deg_s = 0.0;
+  double rate_hz = 0.0;
+  std::span<const double> measured_deg;
+};
+
+// The cost of one J over the stretches, with its derivative and
+// Gauss–Newton curvature in u = ln J when asked for.
+struct SwingCost {
+  double cost = std::numeric_limits<double>::infinity();
+  double gradient = 0.0;
+  double curvature = 0.0;
+};
+
+// The segments of a piecewise-linear curve held at its ends (Eq. 4.27),
+// one per interval between breakpoints and one beyond each end (slope 0),
+// so a look-up is two bounds compared and a line: y + s·(x − origin).
+// `base` keeps the curves' own ordinates and slopes; the per-J copies the
+// swing's simulation reads are rewritten from them for each J.
+struct SegmentTable {
+  std::vector<double> lo, hi, origin;  // segment i covers [lo_i, hi_i)
+
+  explicit SegmentTable(const std::vector<double>& x) {
+    const std::size_t m = x.size();
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i <= m; ++i) {
+      lo.push_back(i == 0 ? -kInf : x[i - 1]);
+      hi.push_back(i == m ? kInf : x[i]);
+      origin.push_back(x[i == 0 ? 0 : i - 1]);
+    }
+  }
+  // The segment of x, the scan started at the last one (a trajectory
+  // rarely leaves it). NaN stays where it is and evaluates to NaN.
+  [[gnu::always_inline]] std::size_t Find(double x, std::size_t& hint) const {
+    std::size_t i = hint;
+    while (x < lo[i]) --i;
+    while (x >= hi[i]) ++i;
+    hint = i;
+    return i;
+  }
+  // The ordinates and slopes of `curve` per segment (ends held).
+  static void Lines(const PiecewiseLinear& curve, std::vector<double>& y, std::vector<double>& s) {
+    const std::vector<double>& cx = curve.x();
+    const std::vector<double>& cy = curve.y();
+    const std::size_t m = cx.size();
+    y.assign(m + 1, 0.0);
+    s.assign(m + 1, 0.0);
+    for (std::size_t i = 0; i <= m; ++i) {
+      y[i] = cy[i == 0 ? 0 : i - 1];
+      if (i > 0 && i < m) s[i] = (cy[i] - cy[i - 1]) / (cx[i] - cx[i - 1]);
+    }
+  }
+};
+
+// The free swings of the passive leg through the stretches for J = e^u:
+//   J·θ̈ = −τ_pta(θ) − τ_ptv(θ̇),  τ_ptv = P_b − J·P_a
+// (Eq. 4.35 refitted for each J), integrated as SimulateFreeSwing does
+// (RK4 in equal steps of at most 1 ms between output samples, simulate.h)
+// into no storage: each sample's error goes straight into the sum. For each
+// J the curves are first scaled into θ̈ terms, A(θ) = −k·τ_pta(θ) and
+// Q(θ̇) = k·(J·P_a − P_b)(θ̇), k = (180/π)/J, so a stage is θ̈ = A + Q (the
+// workspace: rewritten per J, never reallocated). With the derivative, the
+// tangent ∂(θ, θ̇)/∂u goes through every RK4 stage with the state: the
+// derivative of the discrete map itself, so the minimum found from it is
+// that of the cost the grid evaluates.
+class PassiveSwings {
+ public:
+  PassiveSwings(const PiecewiseLinear& tau_pta, const PiecewiseLinear& p_b,
+                const PiecewiseLinear& p_a, std::vector<SwingStretch> stretches)
+      : angle_(tau_pta.x()), velocity_(p_b.x()), stretches_(std::move(stretches)) {
+    SegmentTable::Lines(tau_pta, pta_, pta_slope_);
+    SegmentTable::Lines(p_b, pb_, pb_slope_);
+    SegmentTable::Lines(p_a, pa_, pa_slope_);
+    a_ = pta_;
+    a_slope_ = pta_slope_;
+    q_ = pb_;
+    q_slope_ = pb_slope_;
+    g_ = pb_;
+    g_slope_ = pb_slope_;
+    for (const SwingStretch& st : stretches_) samples_ += st.measured_deg.size();
+  }
+
+  std::size_t samples() const { return samples_; }
+
+  // Σ (θ_sim − θ_measured)² over every stretch; +∞ for a non-finite
+  // simulation or once the partial sum exceeds `bound` (the sum only grows).
+  SwingCost Cost(double u, bool derivative,
+                 double bound = std::numeric_limits<double>::infinity()) {
+    const double j = std::exp(u);
+    const double k = RadToDeg(1.0 / j);  // N·m → deg/s²
+    for (std::size_t i = 0; i < a_.size(); ++i) {
+      a_[i] = -k * pta_[i];
+      a_slope_[i] = -k * pta_slope_[i];
+    }
+    for (std::size_t i = 0; i < q_.size(); ++i) {
+      q_[i] = k * (j * pa_[i] - pb_[i]);
+      q_slope_[i] = k * (j * pa_slope_[i] - pb_slope_[i]);
+      g_[i] = k * pb_[i];
+      g_slope_[i] = k * pb_slope_[i];
+    }
+    return derivative ? Run<true>(bound) : Run<false>(bound);
+  }
+
+ private:
+  static constexpr double kStepS = 1e-3;  // SimulationOptions::step_s
+
+  template <bool kDerivative>
+  SwingCost Run(double bound) const {
+    std::size_t seg_a = 1, seg_v = 1;
+    double cost = 0.0, gradient = 0.0, curvature = 0.0;
+    for (const SwingStretch& st : stretches_) {
+      double th = st.angle_deg, om = st.velocity_deg_s, dth = 0.0, dom = 0.0;
+      double t = 0.0;
+      for (std::size_t i = 0; i < st.measured_deg.size(); ++i) {
+        const double ti = static_cast<double>(i) / st.rate_hz;
+        if (t < ti) {
+          const long m = EvenStepCount(ti - t, kStepS);
+          const double h = (ti - t) / static_cast<double>(m);
+          for (long s = 0; s < m; ++s) {
+            // Rk4Step (integrators.h) on (θ, θ̇) and its tangent.
+            double d1 = 0.0, d2 = 0.0, d3 = 0.0, d4 = 0.0;
+            const double a1 = Accel<kDerivative>(th, om, dth, dom, d1, seg_a, seg_v);
+            const double om2 = om + (0.5 * h) * a1, dom2 = dom + (0.5 * h) * d1;
+            const double a2 = Accel<kDerivative>(th + (0.5 * h) * om, om2, dth + (0.5 * h) * dom,
+                                                 dom2, d2, seg_a, seg_v);
+            const double om3 = om + (0.5 * h) * a2, dom3 = dom + (0.5 * h) * d2;
+            const double a3 = Accel<kDerivative>(th + (0.5 * h) * om2, om3, dth + (0.5 * h) * dom2,
+                                                 dom3, d3, seg_a, seg_v);
+            const double om4 = om + h * a3, dom4 = dom + h * d3;
+            const double a4 =
+                Accel<kDerivative>(th + h * om3, om4, dth + h * dom3, dom4, d4, seg_a, seg_v);
+            th = th + (h / 6.0) * (om + 2.0 * om2 + 2.0 * om3 + om4);
+            om = om + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+            if constexpr (kDerivative) {
+              dth = dth + (h / 6.0) * (dom + 2.0 * dom2 + 2.0 * dom3 + dom4);
+              dom = dom + (h / 6.0) * (d1 + 2.0 * d2 + 2.0 * d3 + d4);
+            }
+          }
+          t = ti;
+        }
+        const double e = th - st.measured_deg[i];
+        cost += e * e;
+        if constexpr (kDerivative) {
+          gradient += e * dth;
+          curvature += dth * dth;
+        }
+        if (cost > bound) return {};
+      }
+    }
+    if (!std::isfinite(cost)) return {};
+    return {cost, 2.0 * gradient, 2.0 * curvature};
+  }
+
+  // θ̈ = A(θ) + Q(θ̇) and, with the derivative, its tangent along (dθ, dθ̇)
+  // plus ∂θ̈/∂u = J·∂θ̈/∂J = k·(τ_pta + P_b) = −A + G, G = k·P_b.
+  template <bool kDerivative>
+  [[gnu::always_inline]] double Accel(double th, double om, double dth, double dom, double& dacc,
+                                      std::size_t& seg_a, std::size_t& seg_v) const {
+    const std::size_t ia = angle_.Find(th, seg_a);
+    const std::size_t iv = velocity_.Find(om, seg_v);
+    const double dxa = th - angle_.origin[ia], dxv = om - velocity_.origin[iv];
+    const double a = a_[ia] + a_slope_[ia] * dxa;
+    const double q = q_[iv] + q_slope_[iv] * dxv;
+    if constexpr (kDerivative) {
+      const double g = g_[iv] + g_slope_[iv] * dxv;
+      dacc = a_slope_[ia] * dth + q_slope_[iv] * dom + (g - a);
+    }
+    return a + q;
+  }
+
+  SegmentTable angle_;     // τ_pta's breakpoints
+  SegmentTable velocity_;  // P_b's and P_a's (the same, Eq. 4.35's)
+  std::vector<SwingStretch> stretches_;
+  std::size_t samples_ = 0;
+  // The curves' own lines, and their per-J θ̈ terms (A, Q, G above).
+  std::vector<double> pta_, pta_slope_, pb_, pb_slope_, pa_, pa_slope_;
+  std::vector<double> a_, a_slope_, q_, q_slope_, g_, g_slope_;
+};
+
+// ln J minimising the stretches' angle error over [lo, hi]: the cost on a
+// grid of 25 points (a coarse scan against local minima), then refined
+// inside the best point's two grid cells by Gauss–Newton steps on the
+// derivative (a step that does not lower the cost shrinks the bracket and
+// halves toward it) until a step is below 1e-8 in ln J. The grid is
+// evaluated nearest `start` (the equation-error J) first, outwards, and a
+// point stops simulating once its partial sum exceeds the best so far: it
+// cannot be the minimum, and the grid's choice is the one a full
+// evaluation makes.
+ScalarMinimum FitLogInertia(PassiveSwings& swings, double lo, double hi, double start) {
+  constexpr int kGridSteps = 24;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double step = (hi - lo) / kGridSteps;
+  const auto grid_x = [&](long i) { return lo + step * static_cast<double>(i); };
+  std::array<double, kGridSteps + 1> cost;
+  cost.fill(kInf);
+  const long first =
+      std::isfinite(start) ? std::clamp(std::lround((start - lo) / step), 0L, long{kGridSteps}) : 0;
+  // The first point with its derivative: usually the best, where the
+  // refinement starts.
+  const SwingCost at_first = swings.Cost(grid_x(first), true);
+  cost[static_cast<std::size_t>(first)] = at_first.cost;
+  double best = at_first.cost;
+  for (long d = 1; d <= kGridSteps; ++d) {
+    for (const long i : {first - d, first + d}) {
+      if (i < 0 || i > kGridSteps) continue;
+      cost[static_cast<std::size_t>(i)] = swings.Cost(grid_x(i), false, best).cost;
+      best = std::min(best, cost[static_cast<std::size_t>(i)]);
+    }
+  }
+  long best_i = 0;
+  for (long i = 1; i <= kGridSteps; ++i) {
+    if (cost[static_cast<std::size_t>(i)] < cost[static_cast<std::size_t>(best_i)]) best_i = i;
+  }
+  double u = grid_x(best_i);
+  if (!std::isfinite(cost[static_cast<std::size_t>(best_i)])) return {u, kInf};
+  double a = u - step, b = u + step;
+  SwingCost at = best_i == first ? at_first : swings.Cost(u, true);
+  for (int it = 0; it < 60 && at.curvature > 0.0 && at.gradient != 0.0; ++it) {
+    const double delta = -at.gradient / at.curvature;
+    (at.gradient > 0.0 ? b : a) = u;  // the minimum is downhill
+    double next = u + delta;
+    if (!(next > a && next < b)) next = 0.5 * (u + (delta > 0.0 ? b : a));
+    if (std::abs(next - u) < 1e-8) break;
+    const SwingCost c = swings.Cost(next, true);
+    if (c.cost < at.cost) {
+      u = next;
+      at = c;
+    } else {
+      (next > u ? b : a) = next;  // a minimum lies between u and next
+    }
+  }
+  return {u, at.cost};
 }
 
 }  // namespace
@@ -318,11 +559,14 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
   p.inertia_kgm2 = sol.c(mv);
   PassiveResult res;
   if (options.output_error_inertia) {
-    // τ_ptv for a fixed J: Eq. 4.35 with J·θ̈ moved to the left.
+    // τ_ptv for a fixed J: Eq. 4.35 with J·θ̈ moved to the left. The
+    // least-squares solution is linear in the right-hand side b − J·θ̈, so
+    // τ_ptv(J) = P_b − J·P_a with P_b, P_a solved once.
     const Eigen::MatrixXd av = a.leftCols(mv);
+    const Eigen::VectorXd c_b = SolveTruncatedSvd(av, b, options.relative_tolerance).c;
+    const Eigen::VectorXd c_a = SolveTruncatedSvd(av, a.col(mv), options.relative_tolerance).c;
     const auto ptv_for = [&](double j) {
-      const Eigen::VectorXd c =
-          SolveTruncatedSvd(av, b - j * a.col(mv), options.relative_tolerance).c;
+      const Eigen::VectorXd c = c_b - j * c_a;
       return PiecewiseLinear(bp_v, std::vector<double>(c.data(), c.data() + mv));
     };
     // Passive stretches of the trials (first state measured, muscle at rest).
@@ -389,46 +633,25 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
     }
     res.report.values["free_swing_segment_excursion_deg"] = excursion_used;
     if (!segments.empty()) {
-      ParameterSet sim_set = ExampleParameterSet();
-      sim_set.active.torque_scale_nm = 0.0;  // passive stretches only
-      double samples = 0.0;
-      for (const Segment& sg : segments) samples += static_cast<double>(sg.end - sg.begin);
-      const auto angle_cost = [&](double log_j) {
-        const double j = std::exp(log_j);
-        sim_set.passive.inertia_kgm2 = j;
-        sim_set.passive.torque_angle = torque_angle;
-        sim_set.passive.torque_velocity = ptv_for(j);
-        double ss = 0.0;
-        for (const Segment& sg : segments) {
-          const TrialColumns& tr = *sg.trial;
-          SimulationOptions o;
-          o.initial_angle_deg = tr.angle_deg[sg.begin];
-          o.initial_velocity_deg_s = tr.velocity_deg_s[sg.begin];
-          o.output_rate_hz = tr.SampleRateHz();
-          o.duration_s = static_cast<double>(sg.end - sg.begin) / o.output_rate_hz;
-          SimulationResult sim;
-          try {
-            sim = SimulateFreeSwing(sim_set, {}, o);
-          } catch (const std::exception&) {
-            return std::numeric_limits<double>::infinity();
-          }
-          for (std::size_t i = sg.begin; i < sg.end; ++i) {
-            const std::size_t m = i - sg.begin;
-            const double e = m < sim.angle_deg.size() ? sim.angle_deg[m] - tr.angle_deg[i]
-                                                      : std::numeric_limits<double>::infinity();
-            ss += e * e;
-          }
-        }
-        return std::isfinite(ss) ? ss : std::numeric_limits<double>::infinity();
-      };
-      const GridGoldenResult best = GridGoldenSearch(angle_cost, std::log(options.min_inertia_kgm2),
-                                                     std::log(options.max_inertia_kgm2), 24, 30);
-      const ScalarMinimum& m = best.golden.cost <= best.grid.cost ? best.golden : best.grid;
+      std::vector<SwingStretch> stretches;
+      for (const Segment& sg : segments) {
+        const TrialColumns& tr = *sg.trial;
+        stretches.push_back({tr.angle_deg[sg.begin], tr.velocity_deg_s[sg.begin], tr.SampleRateHz(),
+                             std::span(tr.angle_deg).subspan(sg.begin, sg.end - sg.begin)});
+      }
+      PassiveSwings swings(torque_angle,
+                           PiecewiseLinear(bp_v, std::vector<double>(c_b.data(), c_b.data() + mv)),
+                           PiecewiseLinear(bp_v, std::vector<double>(c_a.data(), c_a.data() + mv)),
+                           std::move(stretches));
+      const ScalarMinimum m =
+          FitLogInertia(swings, std::log(options.min_inertia_kgm2),
+                        std::log(options.max_inertia_kgm2), std::log(p.inertia_kgm2));
       if (std::isfinite(m.cost)) {
         res.report.values["free_swing_inertia_equation_error_kgm2"] = p.inertia_kgm2;
         p.inertia_kgm2 = std::exp(m.x);
         p.torque_velocity = ptv_for(p.inertia_kgm2);
-        res.report.fit_rms["free_swing_output_error_deg"] = std::sqrt(m.cost / samples);
+        res.report.fit_rms["free_swing_output_error_deg"] =
+            std::sqrt(m.cost / static_cast<double>(swings.samples()));
       }
     }
     res.report.values["free_swing_inertia_segments"] = static_cast<double>(segments.size());

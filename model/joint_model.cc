@@ -189,7 +189,8 @@ double JointModel::VelocityGain(double velocity_deg_s) const {
 
 double JointModel::ActiveGain(double angle_deg, double velocity_deg_s) const {
   double passive = 0.0, gain = 0.0;
-  PassiveAndGain(angle_deg, velocity_deg_s, passive, gain);
+  Segments segments;
+  PassiveAndGain(angle_deg, velocity_deg_s, passive, gain, segments);
   return gain;
 }
 

@@ -32,11 +32,13 @@ namespace fesbench::model {
 /// breakpoints, so one segment look-up evaluates both (exactly: both are
 /// linear between consecutive union breakpoints, ends held).
 ///
-/// The look-up is a forward scan with ordinary branches rather than
-/// arithmetic indexing: along a simulated trajectory the segment rarely
-/// changes, the branches are predicted, and the segment's coefficients load
-/// before x is known, taking the look-up off the integrator's critical path
-/// (measured ~30 % faster per prediction than a branch-free cell index).
+/// The look-up is a scan with ordinary branches rather than arithmetic
+/// indexing: along a simulated trajectory the segment rarely changes, the
+/// branches are predicted, and the segment's coefficients load before x is
+/// known, taking the look-up off the integrator's critical path (measured
+/// ~30 % faster per prediction than a branch-free cell index). A caller
+/// that evaluates along a trajectory passes the segment of its last
+/// look-up (a hint), where the scan starts: usually no step at all.
 class CurvePairTable {
  public:
   CurvePairTable() = default;
@@ -45,6 +47,14 @@ class CurvePairTable {
 
   /// Sets f_out = f(x), g_out = g(x).
   void Evaluate(double x, double& f_out, double& g_out) const {
+    std::size_t segment = 0;
+    Evaluate(x, f_out, g_out, segment);
+  }
+
+  /// The same, the scan started at `segment` (any value below the number
+  /// of breakpoints; 0 at first), which receives the segment of x. The
+  /// values are those of the scan from 0: the segment found is the same.
+  void Evaluate(double x, double& f_out, double& g_out, std::size_t& segment) const {
     const std::size_t m = x_.size();
     if (x <= x_[0]) {
       f_out = f_[0];
@@ -56,12 +66,15 @@ class CurvePairTable {
       g_out = g_[m - 1];
       return;
     }
-    std::size_t i = 0;
-    if (m > kLinearScanMax) [[unlikely]] {
+    // x_[0] < x < x_[m − 1] here: the scans stop inside 0 … m − 2.
+    std::size_t i = segment < m - 1 ? segment : m - 2;
+    if (m > kLinearScanMax && !(x >= x_[i] && x < x_[i + 1])) [[unlikely]] {
       i = SegmentBySearch(x);
     } else {
-      while (x >= x_[i + 1]) ++i;  // stops before m − 1: x < x_[m − 1]
+      while (x < x_[i]) --i;
+      while (x >= x_[i + 1]) ++i;
     }
+    segment = i;
     const double dx = x - x_[i];
     f_out = f_[i] + f_slope_[i] * dx;
     g_out = g_[i] + g_slope_[i] * dx;
@@ -106,9 +119,24 @@ class JointModel {
   /// J·θ̈ = τ_motor − τ_pta − τ_ptv − f_stim·ActiveGain (θ̈ converted from rad/s²).
   double AccelerationDegS2(double angle_deg, double velocity_deg_s, double activation,
                            double motor_torque_nm = 0.0) const {
+    Segments segments;
+    return AccelerationDegS2(angle_deg, velocity_deg_s, activation, segments, motor_torque_nm);
+  }
+
+  /// The curve segments of the last evaluation (CurvePairTable's hints): a
+  /// simulation keeps one and passes it to every evaluation along its
+  /// trajectory, so the look-ups start where the state last was.
+  struct Segments {
+    std::size_t angle = 0;
+    std::size_t velocity = 0;
+  };
+  /// The same with the look-ups started at `segments`, which receive the
+  /// segments of this state (the value is the same whatever they held).
+  double AccelerationDegS2(double angle_deg, double velocity_deg_s, double activation,
+                           Segments& segments, double motor_torque_nm = 0.0) const {
     // J·θ̈ = τ_motor − τ_pta(θ) − τ_ptv(θ̇) − τ_act, θ̈ in rad/s² (§3.4, Eq. 3.16).
     double passive_nm = 0.0, gain_nm = 0.0;
-    PassiveAndGain(angle_deg, velocity_deg_s, passive_nm, gain_nm);
+    PassiveAndGain(angle_deg, velocity_deg_s, passive_nm, gain_nm, segments);
     return (motor_torque_nm - passive_nm - activation * gain_nm) * accel_deg_per_nm_;
   }
 
@@ -116,11 +144,11 @@ class JointModel {
   JointModel() = default;
   // τ_pta + τ_ptv and the active gain at (θ, θ̇) with two table look-ups
   // (inline: the simulation's hot path).
-  void PassiveAndGain(double angle_deg, double velocity_deg_s, double& passive_nm,
-                      double& gain_nm) const {
+  void PassiveAndGain(double angle_deg, double velocity_deg_s, double& passive_nm, double& gain_nm,
+                      Segments& segments) const {
     double pta = 0.0, ata = 1.0, ptv = 0.0, atv = 1.0;
-    angle_table_.Evaluate(angle_deg, pta, ata);
-    velocity_table_.Evaluate(velocity_deg_s, ptv, atv);
+    angle_table_.Evaluate(angle_deg, pta, ata, segments.angle);
+    velocity_table_.Evaluate(velocity_deg_s, ptv, atv, segments.velocity);
     if (kind_ == ModelKind::kSingleSegment || kind_ == ModelKind::kParametric) {
       passive_nm = PassiveAngleTorque(angle_deg) + ptv;
       gain_nm = torque_scale_nm_ * AngleGain(angle_deg) * VelocityGain(velocity_deg_s);

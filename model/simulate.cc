@@ -124,14 +124,15 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
 
   // State x = (θ in deg, θ̇ in deg/s); ẍ from J·θ̈ = −τ_pta − τ_ptv − τ_act (§3.4).
   using State = Eigen::Vector2d;
-  const auto rhs = [&model](double /*t*/, const State& x, double activation) {
-    return State(x[1], model.AccelerationDegS2(x[0], x[1], activation));
+  JointModel::Segments segments;  // the look-ups follow the trajectory
+  const auto rhs = [&model, &segments](double /*t*/, const State& x, double activation) {
+    return State(x[1], model.AccelerationDegS2(x[0], x[1], activation, segments));
   };
   const std::optional<JointLimits>& limits = options.joint_limits;
   const auto record = [&](std::size_t i, double /*t*/, const State& x, double activation) {
     r.angle_deg[i] = x[0];
     r.velocity_deg_s[i] = x[1];
-    double accel = model.AccelerationDegS2(x[0], x[1], activation);
+    double accel = model.AccelerationDegS2(x[0], x[1], activation, segments);
     // Resting on a stop that the net torque pushes into: the stop holds.
     if (limits && ((x[0] <= limits->min_angle_deg && accel < 0.0) ||
                    (x[0] >= limits->max_angle_deg && accel > 0.0))) {
