@@ -17,19 +17,24 @@ void RequirePositive(double v, const char* field) {
   }
 }
 
+// The angles a real knee takes: hyperextension to −30°, flexion to 180°
+// (docs/ARCHITECTURE.md, units and sign conventions).
+constexpr double kMinAngleDeg = -30.0;
+constexpr double kMaxAngleDeg = 180.0;
+
 void RequireAngle(double angle_deg, const char* field) {
-  if (!std::isfinite(angle_deg) || angle_deg < 0.0 || angle_deg > 180.0) {
+  if (!std::isfinite(angle_deg) || angle_deg < kMinAngleDeg || angle_deg > kMaxAngleDeg) {
     throw std::invalid_argument(std::string("simulation: ") + field +
-                                " must be within 0-180 deg, got " + std::to_string(angle_deg));
+                                " must be within -30-180 deg, got " + std::to_string(angle_deg));
   }
 }
 
 void ValidateLimits(const JointLimits& limits, double initial_angle_deg) {
   if (!std::isfinite(limits.min_angle_deg) || !std::isfinite(limits.max_angle_deg) ||
-      limits.min_angle_deg < 0.0 || limits.max_angle_deg > 180.0 ||
+      limits.min_angle_deg < kMinAngleDeg || limits.max_angle_deg > kMaxAngleDeg ||
       !(limits.min_angle_deg < limits.max_angle_deg)) {
     throw std::invalid_argument(
-        "simulation: joint_limits must satisfy 0 <= min_angle_deg < max_angle_deg <= 180");
+        "simulation: joint_limits must satisfy -30 <= min_angle_deg < max_angle_deg <= 180");
   }
   if (initial_angle_deg < limits.min_angle_deg || initial_angle_deg > limits.max_angle_deg) {
     throw std::invalid_argument(

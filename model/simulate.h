@@ -53,7 +53,7 @@ struct SimulationOptions {
   /// Simulated span, s, > 0. Unset: the trajectory's duration in trajectory
   /// mode, otherwise the last pulse's time + 1 s (1 s without pulses).
   std::optional<double> duration_s;
-  double initial_angle_deg = 90.0;      ///< free swing θ(0), deg, 0–180.
+  double initial_angle_deg = 90.0;      ///< free swing θ(0), deg, −30–180.
   double initial_velocity_deg_s = 0.0;  ///< free swing θ̇(0), deg/s.
   double pulse_rate_hz =
       kDefaultPulseRateHz;  ///< f_pulse of the pulse weight R(u)/f_pulse, Hz, > 0.

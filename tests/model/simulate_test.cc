@@ -339,7 +339,7 @@ TEST(SimulateTest, RejectsBadInput) {
   bad = o;
   bad.pulse_rate_hz = 0.0;
   EXPECT_THROW(SimulateIsometric(p, {}, 90.0, bad), std::invalid_argument);
-  EXPECT_THROW(SimulateIsometric(p, {}, -5.0, o), std::invalid_argument);
+  EXPECT_THROW(SimulateIsometric(p, {}, -31.0, o), std::invalid_argument);
   EXPECT_THROW(SimulateIsometric(p, {}, NAN, o), std::invalid_argument);
   ParameterSet bad_p = p;
   bad_p.contraction.order = 1;

@@ -658,6 +658,47 @@ TEST_F(AnalysisServicesTest, ComparisonReproducesHandComputedPairedTTest) {
   EXPECT_EQ(parsed.status().field(), "pairs[1].trial_ids");
 }
 
+// A pendulum test recorded elsewhere: no stimulation column, a start a few
+// degrees hyperextended, no stops declared — predicted as the knee moved,
+// with the passive end-range stiffness as its only stop; the same swing
+// recorded on this bench is predicted within the bench's stops.
+TEST_F(AnalysisServicesTest, AnImportedPendulumTestIsPredictedWithoutTheBenchsStops) {
+  const model::ParameterSet truth = Truth();
+  const storage::Session s = MakeSession("S13");
+  const std::int64_t set_id = StoreSet(s, truth);
+  model::SimulationOptions o;
+  o.duration_s = 4.0;
+  o.initial_angle_deg = -6.0;
+  const model::SimulationResult swing = model::SimulateFreeSwing(truth, {}, o);
+  api::Trial trial;
+  trial.name = "free_swing_passive";
+  trial.sample_rate_hz = 200.0;
+  trial.SetChannel("t_s", swing.t_s);
+  trial.SetChannel("angle_deg", swing.angle_deg);
+  trial.SetChannel("velocity_deg_s", swing.velocity_deg_s);
+  storage::TrialImport provenance{"sto", "a pendulum test", R"({"kind":"free_swing_passive"})",
+                                  "ana", std::nullopt};
+  auto imported = storage::TrialRepository(*db_).Insert({s.id, {}}, trial, provenance);
+  ASSERT_TRUE(imported.ok()) << imported.status().ToString();
+  PredictionService service(*db_);
+  PredictionRequest req;
+  req.parameter_set_id = set_id;
+  req.trial_id = *imported;
+  auto r = service.Predict(kAnalyst, req);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_FALSE(r->joint_limits.has_value());
+  EXPECT_DOUBLE_EQ(r->initial_angle_deg, -6.0);
+  EXPECT_LT(r->errors->e_rms, 1e-6);
+  // On this bench: the stops, the start clamped to 10°.
+  const std::int64_t bench_trial = Store(s, trial);
+  req.trial_id = bench_trial;
+  auto on_bench = service.Predict(kAnalyst, req);
+  ASSERT_TRUE(on_bench.ok()) << on_bench.status().ToString();
+  ASSERT_TRUE(on_bench->joint_limits.has_value());
+  EXPECT_DOUBLE_EQ(on_bench->initial_angle_deg, 10.0);
+  EXPECT_GT(on_bench->errors->e_rms, 0.1);
+}
+
 // The model check (docs/MODEL.md): the set predicts its leg's validation
 // trials it was not fitted on; training and identification trials are left
 // out; each trial is judged in its own quantity and the set gets its worst
