@@ -310,6 +310,7 @@ json RunEventToJson(const RunEvent& e) {
       j["parameter_set_id"] = OrNull(e.parameter_set_id);
       j["subject_id"] = e.subject_id;
       j["leg_id"] = e.leg_id;
+      if (e.approval) j["approval"] = true;
       break;
   }
   return j;
@@ -334,6 +335,7 @@ Result<RunEvent> RunEventFromJson(const json& j) {
   ReadInto(in, "parameter_set_id", e.parameter_set_id);
   ReadInto(in, "subject_id", e.subject_id);
   ReadInto(in, "leg_id", e.leg_id);
+  ReadInto(in, "approval", e.approval);
   if (const json* result = in.Any("result", false)) e.result = *result;
   return Done(in, std::move(e));
 }

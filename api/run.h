@@ -181,6 +181,9 @@ struct RunEvent {
   std::optional<std::int64_t> parameter_set_id;  ///< kEnd, kParameterSet: a stored set.
   std::int64_t subject_id = 0;                   ///< kParameterSet.
   std::int64_t leg_id = 0;                       ///< kParameterSet.
+  /// kParameterSet: the set was approved (its leg's approved set now), not
+  /// stored; such items feed the DDS topic, not the SSE stream of stored sets.
+  bool approval = false;
   nlohmann::json result;  ///< kEnd: what the run produced (RunView::result), or null.
 };
 /// "state", "progress", "samples", "trial", "end", "parameter_set" (the SSE

@@ -241,6 +241,8 @@ api::Status Database::InitialisePostgres() {
         std::string origin;
         ParameterSetStored event;
         if (!(in >> origin >> event.id >> event.subject_id >> event.leg_id)) return;
+        int approval = 0;  // absent from an older server's payload
+        if (in >> approval) event.approval = approval == 1;
         if (origin != instance_id_) CallParameterSetListener(event);
       });
   if (!listener.ok()) return listener.status();
@@ -421,7 +423,8 @@ api::Status Database::NotifyParameterSetStored(const ParameterSetStored& event) 
     auto notify = writer_->Prepare("SELECT pg_notify('fesbench_parameter_sets', ?1)");
     if (!notify.ok()) return notify.status();
     notify->Bind(1, instance_id_ + " " + std::to_string(event.id) + " " +
-                        std::to_string(event.subject_id) + " " + std::to_string(event.leg_id));
+                        std::to_string(event.subject_id) + " " + std::to_string(event.leg_id) +
+                        (event.approval ? " 1" : " 0"));
     if (auto s = notify->Run(); !s.ok()) return s;
   }
   AfterCommit([this, event] { CallParameterSetListener(event); });

@@ -148,6 +148,7 @@ class Database {
     std::int64_t id = 0;
     std::int64_t subject_id = 0;
     std::int64_t leg_id = 0;
+    bool approval = false;  ///< the set was approved (ParameterSetRepository::Approve), not stored.
   };
   using ParameterSetListener = std::function<void(const ParameterSetStored&)>;
   /// Called after the commit of every stored parameter set, on the writing

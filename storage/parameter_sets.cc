@@ -356,12 +356,12 @@ api::Result<Approval> ParameterSetRepository::Approve(const NewApproval& approva
         approval.run_id, approval.note, FormatUtc(at));
     if (!id.ok()) return id.status();
     db_.ApprovalsChanged();
-    // Subscribers to stored sets (SSE, DDS) learn of the approval as of the
-    // set approved, after the commit.
+    // The DDS topic learns of the approval as of the set approved, after the
+    // commit (the SSE stream of stored sets leaves approvals out).
     auto subject = internal::LookupInt64(c, "SELECT subject_id FROM parameter_sets WHERE id = ?1",
                                          approval.parameter_set_id, "parameter set");
     if (!subject.ok()) return subject.status();
-    if (auto s = db_.NotifyParameterSetStored({approval.parameter_set_id, *subject, *leg});
+    if (auto s = db_.NotifyParameterSetStored({approval.parameter_set_id, *subject, *leg, true});
         !s.ok()) {
       return s;
     }

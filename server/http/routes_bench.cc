@@ -284,6 +284,7 @@ void AddStreamRoutes(RouteTable& table, const ApiDependencies& deps) {
          stream->slot = std::move(slot);
          services::SubscribeOptions options;
          options.kind = services::HubItem::Kind::kParameterSet;
+         options.stored_sets_only = true;
          stream->subscription = hub->Subscribe(options);
          stream->deadline =
              std::chrono::steady_clock::now() + std::chrono::seconds(timeout->value_or(300));

@@ -42,7 +42,8 @@ struct Subscription::Queue {
   }
   bool Accepts(const HubItem& item) const {
     return (!options.run_id || item.run_id == *options.run_id) &&
-           (!options.kind || item.kind == *options.kind);
+           (!options.kind || item.kind == *options.kind) &&
+           !(options.stored_sets_only && item.approval);
   }
 };
 
@@ -181,6 +182,7 @@ ParameterSetEvents::ParameterSetEvents(storage::Database& db, SampleHub& hub) : 
     item.parameter_set_id = stored.id;
     item.subject_id = stored.subject_id;
     item.leg_id = stored.leg_id;
+    item.approval = stored.approval;
     hub.Publish(std::move(item));
   });
 }

@@ -41,6 +41,9 @@ struct SubscribeOptions {
   /// Only items of this kind (the initial state item too only if kState);
   /// nullopt = all.
   std::optional<HubItem::Kind> kind;
+  /// Leave out kParameterSet items that are approvals (the SSE stream of
+  /// stored sets).
+  bool stored_sets_only = false;
 };
 
 class SampleHub;
