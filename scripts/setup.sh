@@ -27,7 +27,13 @@ packages=(
   python3-requests python3-numpy python3-matplotlib python3-nbconvert python3-ipykernel
   jupyter-nbconvert
   libpq-dev postgresql
+  libsystemd-dev
+  help2man lintian systemd
 )
+# libsystemd-dev: fesbench-server's sd_notify readiness (Type=notify service).
+# help2man: the man pages of the Debian package, from each program's --help;
+# lintian, systemd (systemd-analyze, systemd-sysusers): the package tests
+# (tests/packaging: lintian errors, unit verification, the service user).
 # python3-*, jupyter-nbconvert: the Python client (clients/python), its tests
 # and its example notebook run headless (tests/python), all with /usr/bin/python3.
 # libpq-dev: the PostgreSQL engine's client library (--db postgresql://…);
