@@ -3,12 +3,22 @@
 # then configures and builds it. Idempotent and non-interactive; run as root
 # (or with sudo available) on Debian 12.
 #
-#   scripts/setup.sh [BUILD_DIR]      default BUILD_DIR: build
+#   scripts/setup.sh [BUILD_DIR]                  default BUILD_DIR: build
+#   scripts/setup.sh --packages-only [BUILD_DIR]  the packages, no build
+#
+# Once every package was found installed, BUILD_DIR/setup-packages.stamp
+# holds the list's hash, and later runs with the same list skip the check
+# (1.5 s of dpkg-query); delete the stamp to check again.
 set -euo pipefail
 
 if [[ ${1:-} == --help || ${1:-} == -h ]]; then
   sed -n '2,/^set -euo/{/^set -euo/d;s/^# \{0,1\}//;p}' "${BASH_SOURCE[0]}"
   exit 0
+fi
+packages_only=false
+if [[ ${1:-} == --packages-only ]]; then
+  packages_only=true
+  shift
 fi
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -45,18 +55,25 @@ packages=(
 # (e.g. NodeSource's nodejs) needs no Debian npm.
 command -v npm >/dev/null 2>&1 || packages+=(npm)
 
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if ((${#missing[@]})); then
-  echo "setup: installing ${missing[*]}"
-  sudo_cmd=()
-  [[ $(id -u) -eq 0 ]] || sudo_cmd=(sudo)
-  export DEBIAN_FRONTEND=noninteractive
-  "${sudo_cmd[@]}" apt-get update -qq
-  "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+stamp=$build_dir/setup-packages.stamp
+list_hash=$(printf '%s\n' "${packages[@]}" | sha256sum | cut -d' ' -f1)
+if [[ ! -f $stamp || $(<"$stamp") != "$list_hash" ]]; then
+  missing=()
+  for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if ((${#missing[@]})); then
+    echo "setup: installing ${missing[*]}"
+    sudo_cmd=()
+    [[ $(id -u) -eq 0 ]] || sudo_cmd=(sudo)
+    export DEBIAN_FRONTEND=noninteractive
+    "${sudo_cmd[@]}" apt-get update -qq
+    "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  fi
+  mkdir -p "$build_dir"
+  echo "$list_hash" >"$stamp"
 fi
+$packages_only && exit 0
 
 jobs=${FESBENCH_JOBS:-$(nproc)}
 cmake -S "$root" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
