@@ -2,6 +2,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <ostream>
@@ -87,10 +88,20 @@ api::Status ValidateServerConfig(const ServerConfig& c) {
     return api::Status::InvalidArgument("--dds-profile-name needs --dds-profile",
                                         "dds-profile-name");
   }
+  if (c.backup_keep_days < 1 || c.backup_keep_days > 3650) {
+    return api::Status::InvalidArgument("must be in [1, 3650] days", "backup-keep-days");
+  }
   return api::Status::Ok();
 }
 
 std::string DefaultWebRoot() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const std::filesystem::path installed =
+        exe.parent_path().parent_path() / "share" / "fesbench" / "web";
+    if (std::filesystem::is_regular_file(installed / "index.html", ec)) return installed.string();
+  }
 #ifdef FESBENCH_DEFAULT_WEB_ROOT
   return FESBENCH_DEFAULT_WEB_ROOT;
 #else
@@ -143,6 +154,8 @@ api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& c) {
   if (auto v = f.Number("auth-failure-refill-per-s", false, 0.0, 1000.0))
     c.auth_failure_refill_per_s = *v;
   if (auto v = f.String("web-root", false, 4096)) c.web_root = *v;
+  if (auto v = f.Integer("backup-keep-days", false, 1, 3650))
+    c.backup_keep_days = static_cast<int>(*v);
   return f.Finish();
 }
 
@@ -208,6 +221,18 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
                  "failed tokens an address regains per second (default 1)");
   app.add_option("--web-root", flags.web_root,
                  "folder of the built web client served at / (\"\": none)");
+  app.add_option("--backup-keep-days", flags.backup_keep_days,
+                 "days --backup keeps the backups in <data-dir>/backups (default 14)");
+  bool backup = false;
+  bool migrate = false;
+  auto* backup_flag = app.add_flag(
+      "--backup", backup,
+      "make an online backup of the database into <data-dir>/backups (SQLite: the backup API, "
+      "also while a server runs; PostgreSQL: pg_dump), delete the older ones, and exit");
+  app.add_flag("--migrate", migrate,
+               "bring the stopped server's database to this version's schema (backed up first "
+               "when that changes it; a newer schema is refused) and exit")
+      ->excludes(backup_flag);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -263,6 +288,9 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   if (given("--max-connections")) config.max_connections = flags.max_connections;
   if (given("--max-streams")) config.max_streams = flags.max_streams;
   if (given("--web-root")) config.web_root = flags.web_root;
+  if (given("--backup-keep-days")) config.backup_keep_days = flags.backup_keep_days;
+  if (backup) config.task = ServerTask::kBackup;
+  if (migrate) config.task = ServerTask::kMigrate;
   if (given("--auth-failure-burst")) config.auth_failure_burst = flags.auth_failure_burst;
   if (given("--auth-failure-refill-per-s"))
     config.auth_failure_refill_per_s = flags.auth_failure_refill_per_s;

@@ -17,8 +17,25 @@
 
 namespace fesbench::server {
 
-/// Where the build put the bundled web client (clients/web → <build>/clients/web/dist).
+/// The bundled web client: installed, `<prefix>/share/fesbench/web` beside
+/// the executable's `<prefix>/bin` (the Debian package's
+/// /usr/share/fesbench/web) when it holds an index.html; otherwise where the
+/// build put it (clients/web → <build>/clients/web/dist).
 std::string DefaultWebRoot();
+
+/// What the server is started for: to serve, or one maintenance step on its
+/// database that then exits (the Debian package's backup timer and
+/// maintainer scripts, README "Install on a lab PC").
+enum class ServerTask {
+  kServe,
+  /// --backup: an online backup into <data-dir>/backups, also while a server
+  /// runs on the database; backups older than backup-keep-days are deleted.
+  kBackup,
+  /// --migrate: the database brought to this software's schema, backed up
+  /// first when that changes it; a newer schema is refused, naming it. Needs
+  /// the server stopped.
+  kMigrate,
+};
 
 struct ServerConfig {
   std::string bind = "127.0.0.1";         ///< --bind: listen address.
@@ -72,6 +89,9 @@ struct ServerConfig {
   /// build tree's clients/web/dist; "" serves none).
   std::string web_root = DefaultWebRoot();
   std::string config_file;  ///< --config: the JSON file read, if any.
+  ServerTask task = ServerTask::kServe;  ///< --backup, --migrate: a maintenance step.
+  /// --backup-keep-days: how long --backup keeps backups, 1–3650 days.
+  int backup_keep_days = 14;
 };
 
 /// The outcome of parsing: a config to run with, or an exit code (after
@@ -91,7 +111,7 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
 /// "time-scale", "max-stop-impact-deg-s", "dds-domain", "dds-transport", "dds-profile",
 /// "dds-profile-name", "dds-bench-id", "dds-security", "dds-identity", "tls-cert", "tls-key",
 /// "seed", "replay", "stimulator", "stimulator-port", "stimulator-channel", "job-workers", "max-connections", "max-streams", "auth-failure-burst",
-/// "auth-failure-refill-per-s") to `config`. kInvalidArgument naming the key for unknown keys,
+/// "auth-failure-refill-per-s", "web-root", "backup-keep-days") to `config`. kInvalidArgument naming the key for unknown keys,
 /// wrong types and out-of-range values.
 api::Status ApplyConfigJson(const std::string& json_text, ServerConfig& config);
 

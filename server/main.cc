@@ -3,11 +3,15 @@
 // builds the bench (simulated or replay) and the services, and serves the
 // HTTP API until SIGTERM/SIGINT; then stops the server, shuts the services
 // down (a running protocol is stopped with stimulation zero), closes the
-// database and exits 0.
+// database and exits 0. Under systemd (Type=notify, README "Install on a lab
+// PC") it says READY=1 once it listens and STOPPING=1 when it stops;
+// without NOTIFY_SOCKET those calls do nothing. --backup and --migrate run
+// one maintenance step on the database instead (server/database_maintenance.h).
 
 #include <fcntl.h>
 #include <pthread.h>
 #include <sys/stat.h>
+#include <systemd/sd-daemon.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -25,6 +29,7 @@
 #include "server/bench/sciencemode4_stimulator.h"
 #include "server/bench/virtual_subject.h"
 #include "server/config.h"
+#include "server/database_maintenance.h"
 #include "server/dds/dds_server.h"
 #include "server/services/bench_lock_guard.h"
 #include "server/services/bench_service.h"
@@ -279,6 +284,13 @@ int main(int argc, char** argv) {
                                : std::filesystem::absolute(config.db).parent_path());
   if (auto st = MakeFolders(postgres, db_name, data_dir); !st.ok()) return Fail("folders", st);
   const std::string bench_id = config.bench_id.empty() ? HostName() : config.bench_id;
+  const server::DatabaseLocation location{postgres ? config.db : db_name, postgres, data_dir};
+  if (config.task == server::ServerTask::kBackup) {
+    return server::BackupDatabase(location, config.backup_keep_days, std::cout, std::cerr);
+  }
+  if (config.task == server::ServerTask::kMigrate) {
+    return server::MigrateDatabase(location, bench_id, std::cout, std::cerr);
+  }
 
   storage::DatabaseOptions db_options;
   db_options.path = postgres ? config.db : db_name;
@@ -382,6 +394,9 @@ int main(int argc, char** argv) {
       [](std::string_view line) { std::cerr << "fesbench-server: " << line << std::endl; });
 
   PrintBanner(config, bench->kind(), db_name, bench_id, token_path, dds.get(), *port);
+  // systemd's Type=notify: `systemctl start` returns now that the port
+  // answers (the socket listens since Bind; Run accepts what queued).
+  sd_notifyf(0, "READY=1\nSTATUS=listening on port %d", *port);
 
   std::thread waiter([&] {
     int signal = 0;
@@ -389,6 +404,7 @@ int main(int argc, char** argv) {
     http.Stop();
   });
   const bool served = http.Run() && !bench_taken;
+  sd_notify(0, "STOPPING=1\nSTATUS=stopping: a running protocol is stopped with stimulation zero");
   if (!served && !bench_taken) std::cerr << "fesbench-server: the HTTP server failed" << std::endl;
   http.Stop();
   // Wake the waiter if the server ended on its own.

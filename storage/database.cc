@@ -576,4 +576,57 @@ api::Status Database::RestoreFrom(const std::string& backup_path) {
   return Migrate(std::nullopt);
 }
 
+api::Result<int> SqliteFileSchemaVersion(const std::string& path) {
+  if (!std::filesystem::exists(path)) {
+    return api::Status::NotFound("database file '" + path + "' does not exist");
+  }
+  auto source = SqliteConnection::Open(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, 2000);
+  if (!source.ok()) return CheckedOpenStep(source.status(), path);
+  auto version = UserVersion(**source);
+  if (!version.ok()) return CheckedOpenStep(version.status(), path);
+  return *version;
+}
+
+api::Status BackupSqliteFile(const std::string& path, const std::string& destination_path) {
+  namespace fs = std::filesystem;
+  if (!fs::exists(path)) return api::Status::NotFound("database file '" + path + "' does not exist");
+  const std::string temporary = destination_path + ".partial-" + std::to_string(::getpid());
+  std::error_code ignored;
+  fs::remove(temporary, ignored);
+  if (auto made = CreatePrivateFile(temporary); !made.ok()) return made;
+  api::Status status;
+  {
+    auto source = SqliteConnection::Open(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, 2000);
+    auto destination = SqliteConnection::Open(
+        temporary, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, 2000);
+    if (!source.ok()) {
+      status = CheckedOpenStep(source.status(), path);
+    } else if (!destination.ok()) {
+      status = destination.status();
+    } else {
+      status = CopyDatabase(**source, **destination, Clock::now() + std::chrono::seconds(60));
+      if (status.ok()) {
+        auto problems = IntegrityProblems(**destination, 5);
+        if (!problems.ok()) {
+          status = problems.status();
+        } else if (!problems->empty()) {
+          status = CorruptStatus(temporary, "integrity_check: " + problems->front());
+        }
+      }
+    }
+  }
+  if (!status.ok()) {
+    fs::remove(temporary, ignored);
+    return status;
+  }
+  std::error_code error;
+  fs::rename(temporary, destination_path, error);
+  if (error) {
+    fs::remove(temporary, ignored);
+    return api::Status::Unavailable("cannot move the backup to '" + destination_path +
+                                    "': " + error.message());
+  }
+  return api::Status::Ok();
+}
+
 }  // namespace fesbench::storage

@@ -88,6 +88,19 @@ struct DatabaseOptions {
   std::chrono::milliseconds bench_lock_check_interval{250};
 };
 
+/// The schema version of the SQLite file at `path` (PRAGMA user_version),
+/// read on a read-only connection without the file's lock, so also while a
+/// server holds it. kNotFound when the file does not exist.
+api::Result<int> SqliteFileSchemaVersion(const std::string& path);
+
+/// Online backup of the SQLite file at `path` into `destination_path`
+/// through SQLite's backup API, from a read-only connection that does not
+/// take the file's lock: a running server keeps writing meanwhile and the
+/// copy is one consistent snapshot (docs/ARCHITECTURE.md, "Backup"). The
+/// copy is written to a temporary file made 0600, checked with
+/// integrity_check, then renamed. kNotFound when the file does not exist.
+api::Status BackupSqliteFile(const std::string& path, const std::string& destination_path);
+
 class PostgresListener;
 class PostgresBenchLock;
 class DatabaseFileLock;

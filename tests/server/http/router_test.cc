@@ -191,5 +191,34 @@ TEST(ServerConfigTest, FileKeysFlagsAndRanges) {
   EXPECT_NE(out.str().find("--time-scale"), std::string::npos);
 }
 
+// The maintenance steps the Debian package runs (server/database_maintenance.h):
+// --backup with its retention (flag or "backup-keep-days", 1–3650 days), and
+// --migrate; never both at once.
+TEST(ServerConfigTest, BackupAndMigrateTasks) {
+  std::ostringstream out, err;
+  const char* serve[] = {"fesbench-server"};
+  auto parsed = ParseServerConfig(1, serve, out, err);
+  ASSERT_FALSE(parsed.exit_code) << err.str();
+  EXPECT_EQ(parsed.config.task, ServerTask::kServe);
+  EXPECT_EQ(parsed.config.backup_keep_days, 14);
+  const char* backup[] = {"fesbench-server", "--backup", "--backup-keep-days", "30"};
+  parsed = ParseServerConfig(4, backup, out, err);
+  ASSERT_FALSE(parsed.exit_code) << err.str();
+  EXPECT_EQ(parsed.config.task, ServerTask::kBackup);
+  EXPECT_EQ(parsed.config.backup_keep_days, 30);
+  const char* migrate[] = {"fesbench-server", "--migrate"};
+  parsed = ParseServerConfig(2, migrate, out, err);
+  ASSERT_FALSE(parsed.exit_code) << err.str();
+  EXPECT_EQ(parsed.config.task, ServerTask::kMigrate);
+  const char* both[] = {"fesbench-server", "--migrate", "--backup"};
+  EXPECT_EQ(ParseServerConfig(3, both, out, err).exit_code, 2);
+  const char* zero_days[] = {"fesbench-server", "--backup", "--backup-keep-days", "0"};
+  EXPECT_EQ(ParseServerConfig(4, zero_days, out, err).exit_code, 2);
+  ServerConfig c;
+  ASSERT_TRUE(ApplyConfigJson(R"({"backup-keep-days": 7})", c).ok());
+  EXPECT_EQ(c.backup_keep_days, 7);
+  EXPECT_EQ(ApplyConfigJson(R"({"backup-keep-days": 0})", c).field(), "backup-keep-days");
+}
+
 }  // namespace
 }  // namespace fesbench::server::http

@@ -1,0 +1,158 @@
+#include "server/database_maintenance.h"
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <ctime>
+#include <ostream>
+#include <vector>
+
+#include "storage/database.h"
+#include "storage/migrations.h"
+#include "storage/postgres_connection.h"
+#include "storage/private_files.h"
+
+namespace fesbench::server {
+namespace {
+
+namespace fs = std::filesystem;
+
+// "2026-11-27T20-41-07Z": a UTC time usable in a file name, in time order.
+std::string FileStamp() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  ::gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H-%M-%SZ", &utc);
+  return text;
+}
+
+// pg_dump of `url` into `destination` (custom format), through a temporary
+// file made 0600 and renamed once pg_dump succeeded.
+api::Status DumpPostgres(const std::string& url, const fs::path& destination) {
+  const fs::path temporary = destination.string() + ".partial-" + std::to_string(::getpid());
+  if (auto made = storage::CreatePrivateFile(temporary); !made.ok()) return made;
+  const std::string file_arg = "--file=" + temporary.string();
+  const std::string db_arg = "--dbname=" + url;
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const char* argv[] = {"pg_dump", "--format=custom", file_arg.c_str(), db_arg.c_str(), nullptr};
+    ::execvp("pg_dump", const_cast<char* const*>(argv));
+    ::_exit(127);
+  }
+  int status = 0;
+  if (pid < 0 || ::waitpid(pid, &status, 0) != pid) status = -1;
+  std::error_code ec;
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    fs::remove(temporary, ec);
+    const bool missing = WIFEXITED(status) && WEXITSTATUS(status) == 127;
+    return api::Status::Unavailable(
+        missing ? "pg_dump is not installed (Debian: postgresql-client)"
+                : "pg_dump of " + storage::RedactedUrl(url) + " failed (its message above)");
+  }
+  fs::rename(temporary, destination, ec);
+  if (ec) return api::Status::Unavailable("cannot move the dump to " + destination.string());
+  return api::Status::Ok();
+}
+
+// Makes one backup named `name` in <data_dir>/backups; its path.
+api::Result<fs::path> MakeBackup(const DatabaseLocation& location, const std::string& name) {
+  const fs::path folder = location.data_dir / "backups";
+  if (auto made = storage::CreatePrivateFolders(folder); !made.ok()) return made;
+  const fs::path path = folder / (name + (location.postgres ? ".pgdump" : ".db"));
+  api::Status status = location.postgres ? DumpPostgres(location.db, path)
+                                         : storage::BackupSqliteFile(location.db, path.string());
+  if (!status.ok()) return status;
+  return path;
+}
+
+}  // namespace
+
+int BackupDatabase(const DatabaseLocation& location, int keep_days, std::ostream& out,
+                   std::ostream& err) {
+  auto made = MakeBackup(location, "fesbench-" + FileStamp());
+  if (!made.ok()) {
+    err << "fesbench-server: backup failed: " << made.status().ToString() << std::endl;
+    return 1;
+  }
+  std::error_code ec;
+  out << "fesbench-server: backup " << made->string() << " (" << fs::file_size(*made, ec)
+      << " bytes)" << std::endl;
+  // Backups older than keep_days go, the one just made never.
+  const auto cutoff = fs::file_time_type::clock::now() - std::chrono::hours(24) * keep_days;
+  for (const auto& entry : fs::directory_iterator(made->parent_path(), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (!entry.is_regular_file() || !name.starts_with("fesbench-") || entry.path() == *made) {
+      continue;
+    }
+    std::error_code time_ec;
+    if (entry.last_write_time(time_ec) < cutoff && !time_ec && fs::remove(entry.path(), time_ec)) {
+      out << "fesbench-server: deleted backup " << entry.path().string() << " (older than "
+          << keep_days << " days)" << std::endl;
+    }
+  }
+  return 0;
+}
+
+int MigrateDatabase(const DatabaseLocation& location, const std::string& bench_id,
+                    std::ostream& out, std::ostream& err) {
+  const int latest = storage::LatestSchemaVersion();
+  const std::string shown = location.postgres ? storage::RedactedUrl(location.db) : location.db;
+  if (!location.postgres) {
+    auto version = storage::SqliteFileSchemaVersion(location.db);
+    if (!version.ok() && version.status().code() == api::ErrorCode::kNotFound) {
+      out << "fesbench-server: no database at " << shown
+          << " yet; the first start creates it at schema version " << latest << std::endl;
+      return 0;
+    }
+    if (!version.ok()) {
+      err << "fesbench-server: cannot read " << shown << ": " << version.status().ToString()
+          << std::endl;
+      return 1;
+    }
+    if (*version > latest) {
+      err << "fesbench-server: database " << shown << " has schema version " << *version
+          << ", newer than this fesbench-server " << FESBENCH_VERSION << " knows (" << latest
+          << "): refusing to downgrade; install the version that wrote it, or restore a backup "
+             "made at schema version "
+          << latest << " or older" << std::endl;
+      return 1;
+    }
+    if (*version == latest) {
+      out << "fesbench-server: database " << shown << " is at schema version " << latest
+          << "; nothing to migrate" << std::endl;
+      return 0;
+    }
+    auto backup = MakeBackup(location, "fesbench-" + FileStamp() + "-schema-" +
+                                           std::to_string(*version));
+    if (!backup.ok()) {
+      err << "fesbench-server: backup before migrating failed, nothing migrated: "
+          << backup.status().ToString() << std::endl;
+      return 1;
+    }
+    out << "fesbench-server: backup of schema version " << *version << " in "
+        << backup->string() << std::endl;
+  } else {
+    auto backup = MakeBackup(location, "fesbench-" + FileStamp() + "-before-migrate");
+    if (!backup.ok()) {
+      err << "fesbench-server: backup before migrating failed, nothing migrated: "
+          << backup.status().ToString() << std::endl;
+      return 1;
+    }
+    out << "fesbench-server: dump in " << backup->string() << std::endl;
+  }
+  storage::DatabaseOptions options;
+  options.path = location.db;
+  options.bench_id = bench_id;
+  auto db = storage::Database::Open(options);  // migrates; refuses a newer schema
+  if (!db.ok()) {
+    err << "fesbench-server: cannot migrate " << shown << ": " << db.status().ToString()
+        << std::endl;
+    return 1;
+  }
+  out << "fesbench-server: database " << shown << " is at schema version " << latest << std::endl;
+  return 0;
+}
+
+}  // namespace fesbench::server
