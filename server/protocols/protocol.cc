@@ -360,7 +360,16 @@ bool IsStimulationScaling(Scaling s) {
 
 }  // namespace
 
-ParameterPresentation PresentationOf(std::string_view name) {
+ParameterPresentation PresentationOf(std::string_view name, std::string_view protocol) {
+  // (protocol, parameter) → the words that protocol needs.
+  static const std::map<std::pair<std::string_view, std::string_view>, ParameterPresentation>
+      kOwnWords = {
+          {{"tracking", "duration_s"}, {"Length of the target (after the lead-in)", "s", false}},
+          {{"passive_simultaneous", "duration_s"}, {"Length of each trajectory", "s", false}},
+          {{"rapid_parameterisation", "duration_s"},
+           {"Length of the random-binary trial", "s", false}},
+      };
+  if (const auto it = kOwnWords.find({protocol, name}); it != kOwnWords.end()) return it->second;
   const auto& table = PresentationTable();
   if (const auto it = table.find(name); it != table.end()) return it->second;
   return {std::string(name), Unit(name), true};
@@ -393,7 +402,7 @@ api::ProtocolInfo ProtocolInfoOf(const ProtocolDescription& protocol,
                          .bench_mode = std::string(BenchModeName(protocol.bench_mode)),
                          .min_rest_s = protocol.min_rest_s};
   for (const ParameterSpec& p : protocol.parameters) {
-    const ParameterPresentation look = PresentationOf(p.name);
+    const ParameterPresentation look = PresentationOf(p.name, protocol.name);
     api::ProtocolParameterInfo& out = info.parameters.emplace_back(api::ProtocolParameterInfo{
         .name = p.name,
         .label = look.label,

@@ -189,8 +189,10 @@ struct ParameterPresentation {
   bool advanced = true;  ///< collapsed by default in the web form.
 };
 /// The presentation of `name` (every catalog parameter has one; an unknown
-/// name gets its own name as label, Unit-from-suffix and advanced).
-ParameterPresentation PresentationOf(std::string_view name);
+/// name gets its own name as label, Unit-from-suffix and advanced); with
+/// `protocol`, that protocol's own words where a name means something else
+/// there (tracking's duration_s is the target's length, not a train's).
+ParameterPresentation PresentationOf(std::string_view name, std::string_view protocol = {});
 /// The thesis section a protocol implements, e.g. "§7.4.1" (the last
 /// section its description cites), or "".
 std::string ThesisSection(const ProtocolDescription& protocol);

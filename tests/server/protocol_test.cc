@@ -139,6 +139,15 @@ TEST(ProtocolCatalog, EveryParameterHasAClinicianLabelAUnitAndAnHonestDefault) {
       }
     }
   }
+  // A name means what its protocol needs: tracking's duration is the target's.
+  EXPECT_EQ(PresentationOf("duration_s").label, "Length of each stimulation train");
+  EXPECT_EQ(PresentationOf("duration_s", "tracking").label,
+            "Length of the target (after the lead-in)");
+  for (const auto& param : ProtocolToJson(*FindProtocol("tracking")).at("parameters")) {
+    if (param.at("name") == "duration_s") {
+      EXPECT_EQ(param.at("label"), "Length of the target (after the lead-in)");
+    }
+  }
   const nlohmann::json bare = ProtocolToJson(*FindProtocol("prediction_random_binary"));
   EXPECT_EQ(bare.at("thesis_section"), "§5.4.5");
   EXPECT_EQ(bare.at("stimulates"), true);
