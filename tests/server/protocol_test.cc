@@ -143,7 +143,8 @@ TEST(ProtocolCatalog, EveryParameterHasAClinicianLabelAUnitAndAnHonestDefault) {
   EXPECT_EQ(PresentationOf("duration_s").label, "Length of each stimulation train");
   EXPECT_EQ(PresentationOf("duration_s", "tracking").label,
             "Length of the target (after the lead-in)");
-  for (const auto& param : ProtocolToJson(*FindProtocol("tracking")).at("parameters")) {
+  const nlohmann::json tracking = ProtocolToJson(*FindProtocol("tracking"));
+  for (const auto& param : tracking.at("parameters")) {
     if (param.at("name") == "duration_s") {
       EXPECT_EQ(param.at("label"), "Length of the target (after the lead-in)");
     }
@@ -178,9 +179,9 @@ TEST(ProtocolCatalog, EveryParameterHasAClinicianLabelAUnitAndAnHonestDefault) {
   SubjectContext measured = s;
   measured.threshold_ma = 17.19;
   measured.max_tolerated_ma = 20.06;
-  for (const auto& param :
-       ProtocolToJson(*FindProtocol("prediction_random_binary"), &measured, true)
-           .at("parameters")) {
+  const nlohmann::json rounded =
+      ProtocolToJson(*FindProtocol("prediction_random_binary"), &measured, true);
+  for (const auto& param : rounded.at("parameters")) {
     if (param.at("name") == "amplitude_ma") {
       EXPECT_DOUBLE_EQ(param.at("default"), 18.9);
     }
