@@ -118,6 +118,26 @@ api::Status CopyDatabase(SqliteConnection& source, SqliteConnection& destination
   }
 }
 
+// A backup written to `temporary` becomes `destination_path` only when it is
+// complete (`status` ok); otherwise, or if the move fails, the temporary goes.
+api::Status FinishBackup(const api::Status& status, const std::string& temporary,
+                         const std::string& destination_path) {
+  namespace fs = std::filesystem;
+  std::error_code ignored;
+  if (!status.ok()) {
+    fs::remove(temporary, ignored);
+    return status;
+  }
+  std::error_code error;
+  fs::rename(temporary, destination_path, error);
+  if (error) {
+    fs::remove(temporary, ignored);
+    return api::Status::Unavailable("cannot move the backup to '" + destination_path +
+                                    "': " + error.message());
+  }
+  return api::Status::Ok();
+}
+
 }  // namespace
 
 Database::Database(DatabaseOptions options) : options_(std::move(options)) {
@@ -533,18 +553,7 @@ api::Status Database::Backup(const std::string& destination_path) {
     }
     reader_freed_.notify_one();
   }
-  if (!status.ok()) {
-    fs::remove(temporary, ignored);
-    return status;
-  }
-  std::error_code error;
-  fs::rename(temporary, destination_path, error);
-  if (error) {
-    fs::remove(temporary, ignored);
-    return api::Status::Unavailable("cannot move the backup to '" + destination_path +
-                                    "': " + error.message());
-  }
-  return api::Status::Ok();
+  return FinishBackup(status, temporary, destination_path);
 }
 
 api::Status Database::RestoreFrom(const std::string& backup_path) {
@@ -615,18 +624,7 @@ api::Status BackupSqliteFile(const std::string& path, const std::string& destina
       }
     }
   }
-  if (!status.ok()) {
-    fs::remove(temporary, ignored);
-    return status;
-  }
-  std::error_code error;
-  fs::rename(temporary, destination_path, error);
-  if (error) {
-    fs::remove(temporary, ignored);
-    return api::Status::Unavailable("cannot move the backup to '" + destination_path +
-                                    "': " + error.message());
-  }
-  return api::Status::Ok();
+  return FinishBackup(status, temporary, destination_path);
 }
 
 }  // namespace fesbench::storage

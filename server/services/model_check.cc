@@ -132,31 +132,33 @@ std::string ClinicalWarning(const std::string& w) {
   static const std::regex support(R"((\w+): breakpoint ([-0-9.e+]+) (deg|deg/s) has support .*)");
   static const std::regex coverage(R"((.*): phase-plane coverage (\d+)% .*)");
   static const std::regex emg(R"(trial (\d+): EMG differs before and after.*)");
-  if (std::regex_match(w, m, skipped)) {
+  if (w.find(" stimulated samples with non-positive") != std::string::npos &&
+      std::regex_match(w, m, skipped)) {
     return "During stimulation the leg sometimes gave less torque than its passive model "
            "expects (" +
            m[1].str() +
            " samples); those moments were left out of the muscle fit. The subject may have "
            "moved or resisted, or the passive part of the set is off.";
   }
-  if (std::regex_match(w, m, rank)) {
+  if (w.find(": rank ") != std::string::npos && std::regex_match(w, m, rank)) {
     return "Some parts of the " + m[1].str() +
            " model could not be told apart from these recordings; the simplest values that "
            "explain them were used.";
   }
-  if (std::regex_match(w, m, support)) {
+  if (w.find(": breakpoint ") != std::string::npos && std::regex_match(w, m, support)) {
     const bool speed = m[3].str() == "deg/s";
     return "The recordings hardly reach " + std::string(speed ? "the knee speed " : "the angle ") +
            m[2].str() + (speed ? " °/s" : "°") + ": there the " +
            (m[1].str().starts_with("tau_p") ? "passive" : "muscle") +
            " curve is a guess, not a measurement.";
   }
-  if (std::regex_match(w, m, coverage)) {
+  if (w.find("phase-plane coverage") != std::string::npos &&
+      std::regex_match(w, m, coverage)) {
     return "The " + m[1].str() + " recordings cover only " + m[2].str() +
            " % of the angle–speed combinations the model describes; outside them the model "
            "guesses.";
   }
-  if (std::regex_match(w, m, emg)) {
+  if (w.find(": EMG differs") != std::string::npos && std::regex_match(w, m, emg)) {
     return "In trial " + m[1].str() +
            " the muscle's electrical activity differed before and after stimulation: the "
            "subject may have tensed the leg.";
@@ -204,7 +206,6 @@ api::Result<ModelCheck> CheckModel(storage::Database& db, PredictionService& pre
       if (r.status().code() == api::ErrorCode::kPermissionDenied) return r.status();
       t.verdict = ModelVerdict::kDoNotUse;
       t.explanation = "the set could not predict this trial: " + r.status().message();
-      check.verdict = check.trials.empty() ? t.verdict : Worse(check.verdict, t.verdict);
       check.trials.push_back(std::move(t));
       continue;
     }
@@ -226,8 +227,12 @@ api::Result<ModelCheck> CheckModel(storage::Database& db, PredictionService& pre
       t.verdict = ModelVerdict::kDoNotUse;
       t.explanation = "the prediction has no error figures against the trial";
     }
-    check.verdict = check.trials.empty() ? t.verdict : Worse(check.verdict, t.verdict);
     check.trials.push_back(std::move(t));
+  }
+  // The set's verdict is its worst trial's (none: nothing to judge on).
+  if (!check.trials.empty()) {
+    check.verdict = ModelVerdict::kGoodForControl;
+    for (const ModelCheckTrial& t : check.trials) check.verdict = Worse(check.verdict, t.verdict);
   }
   check.summary = Summary(check);
   return check;

@@ -85,7 +85,7 @@ TEST(DdsServer, TheTopicSaysWhichSetOfALegIsApproved) {
   Rig rig(0.0);
   const std::int64_t first = rig.StoreSet(rig.right_leg, 20.0);
   rig.StartServer();
-  const std::int64_t second = rig.StoreSet(rig.right_leg, 27.5);
+  rig.StoreSet(rig.right_leg, 27.5);
   const auto until = std::chrono::steady_clock::now() + kWait;
   const auto published = [&](std::uint64_t n) {
     while (rig.server->stats().parameter_sets < n && std::chrono::steady_clock::now() < until) {
@@ -127,7 +127,6 @@ TEST(DdsServer, TheTopicSaysWhichSetOfALegIsApproved) {
   EXPECT_EQ(got[0].parameter_set_id(), third);
   EXPECT_FALSE(got[0].approved());
   EXPECT_EQ(got[0].approved_parameter_set_id(), first);
-  EXPECT_NE(second, third);
 }
 
 TEST(DdsServer, EStopStopsARunningProtocolWithinOneControlPeriodAndBadTokensAreRefused) {

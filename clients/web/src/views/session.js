@@ -15,7 +15,7 @@ import { exchangeSection } from './exchange.js';
 import { DAILY_DRIFT, DAILY_VERDICT, parameterRows, runOutcome } from './outcome.js';
 
 // A live number to 0.1 of its unit (mA, N·m), or a dash.
-const fmt1 = (x) => (Number.isFinite(x) ? x.toFixed(1) : '—');
+const fmt1 = (x) => fmtFixed(x, 1);
 
 const WINDOW_S = 30; // bench seconds shown in the live plots
 
