@@ -117,6 +117,24 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
   // The rapid routine (§7.4.1) fits with its own methods (docs/API.md,
   // Parameter sets: ramp_correlation, free swing): another method named with
   // it would be ignored, so it is refused instead.
+  // Method passive fits the passive block alone, in free swing (docs/MODEL.md).
+  if (r.method == "passive") {
+    for (const auto& [given, name] : {std::pair{irc_method.has_value(), "irc_method"},
+                                      std::pair{contraction_order.has_value(), "contraction_order"},
+                                      std::pair{pole_method.has_value(), "pole_method"}}) {
+      if (given) {
+        return Status::InvalidArgument(std::string("method passive fits no stimulated trial; ") +
+                                           name + " needs method thesis",
+                                       name);
+      }
+    }
+    if (passive_method && *passive_method != "free_swing") {
+      return Status::InvalidArgument(
+          "method passive fits the passive curves in free swing; passive_method " +
+              *passive_method + " needs method thesis",
+          "passive_method");
+    }
+  }
   if (r.method == "rapid") {
     if (irc_method && *irc_method != "ramp_correlation") {
       return Status::InvalidArgument(
@@ -141,7 +159,7 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
     }
   }
   r.irc_method = irc_method.value_or(r.irc_method);
-  r.passive_method = passive_method.value_or(r.passive_method);
+  r.passive_method = passive_method.value_or(r.method == "passive" ? "free_swing" : r.passive_method);
   r.contraction_order = static_cast<int>(contraction_order.value_or(3));
   r.pole_method = pole_method.value_or(r.pole_method);
   if (const json* models = fields.Any("models", false)) {
@@ -161,8 +179,8 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
 
 json IdentificationRequestToJson(const IdentificationRequest& r) {
   json j = {{"method", r.method}, {"models", r.models}};
-  // Method rapid takes none of the thesis methods (its own are fixed).
-  if (r.method != "rapid") {
+  // Methods rapid and passive take none of the thesis methods (their own are fixed).
+  if (r.method == "thesis") {
     j["irc_method"] = r.irc_method;
     j["passive_method"] = r.passive_method;
     j["contraction_order"] = r.contraction_order;

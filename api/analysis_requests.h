@@ -58,8 +58,9 @@ struct IdentificationRequest {
   /// Exactly one of session_id and trial_ids (all of one subject and leg).
   std::optional<std::int64_t> session_id;
   std::vector<std::int64_t> trial_ids;
-  /// "thesis" (the chapter 4 methods below) or "rapid" (§7.4.1, from the
-  /// rapid_* trials).
+  /// "thesis" (the chapter 4 methods below), "rapid" (§7.4.1, from the
+  /// rapid_* trials) or "passive" (the passive block alone from unstimulated
+  /// free swings, e.g. a pendulum test; docs/MODEL.md).
   std::string method = "thesis";
   /// "step", "impulse", "ramp_correlation", "ramp_deconvolution_ideal",
   /// "ramp_deconvolution_measured".

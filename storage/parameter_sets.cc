@@ -332,6 +332,22 @@ api::Result<Approval> ParameterSetRepository::Approve(const NewApproval& approva
     auto leg = internal::LookupInt64(c, "SELECT leg_id FROM parameter_sets WHERE id = ?1",
                                      approval.parameter_set_id, "parameter set");
     if (!leg.ok()) return leg.status();
+    // A passive-only set (model::IsPassiveOnly: IRC and active methods
+    // "none") has no model of the stimulated muscle; the approved set gates
+    // and drives stimulation (docs/SAFETY.md).
+    auto passive_only = internal::LookupInt64(
+        c,
+        "SELECT CASE WHEN irc_method = 'none' OR active_method = 'none' THEN 1 ELSE 0 END"
+        " FROM parameter_sets WHERE id = ?1",
+        approval.parameter_set_id, "parameter set");
+    if (!passive_only.ok()) return passive_only.status();
+    if (*passive_only == 1) {
+      return api::Status::FailedPrecondition(
+          "parameter set " + std::to_string(approval.parameter_set_id) +
+          " is passive only (identified from unstimulated swings: no IRC or active curves); the "
+          "approved set gates and drives stimulation, so it needs a set identified from "
+          "stimulated trials (method thesis or rapid)");
+    }
     if (approval.run_id) {
       if (auto s =
               internal::RequireRow(c, "SELECT 1 FROM runs WHERE id = ?1", *approval.run_id, "run");

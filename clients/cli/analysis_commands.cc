@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <ostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -120,6 +121,7 @@ struct IdentifyForm {
   std::string method = "thesis";
   std::string passive_method;
   std::string irc_method;
+  std::optional<double> inertia_kgm2;
 };
 
 struct PredictForm {
@@ -147,8 +149,16 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     CLI::App* identify = app.add_subcommand(
         "identify", "Fit a parameter set from a session's stored trials (analyst or admin).");
     identify->add_option("--session", form->session, "session id")->required();
-    identify->add_option("--method", form->method, "thesis (chapter 4) or rapid (§7.4.1)")
-        ->check(CLI::IsMember({"thesis", "rapid"}));
+    identify
+        ->add_option("--method", form->method,
+                     "thesis (chapter 4), rapid (§7.4.1) or passive (the passive curves alone "
+                     "from unstimulated swings, e.g. a pendulum test)")
+        ->check(CLI::IsMember({"thesis", "rapid", "passive"}));
+    identify
+        ->add_option("--inertia-kgm2", form->inertia_kgm2,
+                     "the limb inertia J, kg·m² (default: from the subject's weight and shank "
+                     "length, Eq. 4.13; method rapid: else the leg's approved set)")
+        ->check(CLI::Range(0.01, 10.0));
     identify
         ->add_option("--passive-method", form->passive_method,
                      "sequential (§4.2.1), simultaneous (Eq. 4.31) or free_swing (Eq. 4.35); "
@@ -163,6 +173,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         request.method = form->method;
         if (!form->passive_method.empty()) request.passive_method = form->passive_method;
         if (!form->irc_method.empty()) request.irc_method = form->irc_method;
+        request.inertia_kgm2 = form->inertia_kgm2;
         // Every flag given reaches the request as given, even where the
         // method has its own (rapid): the server then refuses it by name.
         json body = api::IdentificationRequestToJson(request);

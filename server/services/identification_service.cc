@@ -15,6 +15,7 @@
 #include "model/identify_active.h"
 #include "model/identify_isometric.h"
 #include "model/identify_passive.h"
+#include "model/identify_passive_only.h"
 #include "model/identify_rapid.h"
 #include "model/identify_simplified.h"
 #include "model/parameter_set.h"
@@ -45,6 +46,7 @@ struct Selection {
   std::int64_t subject_id = 0;
   std::int64_t leg_id = 0;
   std::map<TrialKind, std::vector<LoadedTrial>> by_kind;
+  std::set<std::int64_t> imported;  // free swings recorded elsewhere (imported)
   std::vector<std::string> warnings;
 
   const std::vector<LoadedTrial>& Of(TrialKind kind) const {
@@ -97,7 +99,9 @@ class Fitter {
 
   api::Result<FitOutcome> Run() {
     try {
-      return req_.method == "rapid" ? Rapid() : Thesis();
+      if (req_.method == "rapid") return Rapid();
+      if (req_.method == "passive") return PassiveOnly();
+      return Thesis();
     } catch (const std::exception& e) {
       return ModelFailure("identification (" + stage_ + ")", e,
                           api::ErrorCode::kFailedPrecondition);
@@ -186,7 +190,16 @@ class Fitter {
     if (missing.empty()) return api::Status::Ok();
     std::string msg = "missing trials: ";
     for (std::size_t i = 0; i < missing.size(); ++i) msg += (i ? "; " : "") + missing[i];
+    msg += PassiveHint();
     return api::Status::FailedPrecondition(msg);
+  }
+
+  // What free swings without stimulation support when a method needs more.
+  std::string PassiveHint() const {
+    return sel_.Of(TrialKind::kFreeSwingPassive).empty()
+               ? ""
+               : " (the free_swing_passive trials alone support method passive: the passive "
+                 "curves without the stimulated muscle)";
   }
 
   std::optional<double> Inertia() const {
@@ -341,6 +354,66 @@ class Fitter {
     return out;
   }
 
+  // Method passive (docs/MODEL.md "Passive-only identification"): τ_pta and
+  // τ_ptv from unstimulated free swings (a pendulum test) with J given or
+  // from the anthropometrics (Eq. 4.13). What it cannot fit is said in the
+  // set's warnings.
+  api::Result<FitOutcome> PassiveOnly() {
+    const std::vector<LoadedTrial>& swings = sel_.Of(TrialKind::kFreeSwingPassive);
+    if (swings.empty()) {
+      return api::Status::FailedPrecondition(
+          "missing trials: method passive needs free_swing_passive trials without stimulation "
+          "(e.g. a pendulum test); the selected trials have none");
+    }
+    const std::optional<double> inertia = Inertia();
+    if (!inertia) {
+      return api::Status::FailedPrecondition(
+          "method passive needs the limb inertia (a free swing fixes the torques only relative "
+          "to J): give inertia_kgm2 or record the subject's weight and shank length (Eq. 4.13)");
+    }
+    std::vector<TrialColumns> trials;
+    bool all_from_this_bench = true;
+    for (const LoadedTrial& t : swings) {
+      TrialColumns c = Columns(t);
+      if (c.stim_ma.empty()) c.stim_ma.assign(c.size(), 0.0);
+      if (std::any_of(c.stim_ma.begin(), c.stim_ma.end(), [](double u) { return u != 0.0; })) {
+        return api::Status::FailedPrecondition(
+            "trial " + std::to_string(t.id) +
+            " is stimulated; method passive uses unstimulated swings only (method thesis or "
+            "rapid fits stimulated trials)");
+      }
+      if (sel_.imported.count(t.id)) all_from_this_bench = false;
+      trials.push_back(std::move(c));
+    }
+    model::PassiveOnlyOptions o;
+    o.inertia_kgm2 = *inertia;
+    if (req_.breakpoints.passive_angle) o.angle = *req_.breakpoints.passive_angle;
+    if (req_.breakpoints.passive_velocity) o.velocity = *req_.breakpoints.passive_velocity;
+    if (ctx_.body_mass_kg && ctx_.leg_length_m) {
+      o.mgl_prior_nm = model::AnthropometricGravityMoment(*ctx_.body_mass_kg, *ctx_.leg_length_m);
+    }
+    // Recordings from elsewhere swing without this bench's stops.
+    if (all_from_this_bench) o.joint_limits = config_.joint_limits;
+    stage_ = "passive only";
+    const model::PassiveOnlyResult r = model::IdentifyPassiveOnly(trials, o);
+    common_.values["inertia_kgm2"] = *inertia;
+    common_.warnings.push_back(
+        "passive only: τ_pta and τ_ptv fitted from " + std::to_string(trials.size()) +
+        " unstimulated swing(s) with J given; not identified: the contraction dynamics, the IRC "
+        "and the active curves (no stimulated trial). This set predicts swings without "
+        "stimulation and cannot be approved to drive stimulation.");
+    FitOutcome out;
+    ModelFit fit;
+    fit.params = r.parameters;
+    fit.params.provenance.inertia_method =
+        req_.inertia_kgm2 ? "given" : "anthropometric";
+    fit.report = r.report;
+    out.fits.push_back(std::move(fit));
+    out.common = common_;
+    out.used.assign(used_.begin(), used_.end());
+    return out;
+  }
+
   api::Result<FitOutcome> Rapid() {
     const LoadedTrial* iso = sel_.Latest(TrialKind::kRapidRamp);
     const LoadedTrial* pas = sel_.Latest(TrialKind::kRapidPassive);
@@ -355,7 +428,7 @@ class Fitter {
       return api::Status::FailedPrecondition(
           "missing trials: method rapid needs the trials of a rapid_parameterisation run; none "
           "named " +
-          names);
+          names + PassiveHint());
     }
     std::optional<double> inertia = Inertia();
     if (!inertia && ctx_.latest) inertia = ctx_.latest->passive.inertia_kgm2;
@@ -514,6 +587,12 @@ api::Result<Selection> Select(storage::Database& db, const IdentificationRequest
       }
       continue;
     }
+    if (*kind == TrialKind::kFreeSwingPassive) {
+      api::Result<std::optional<storage::TrialImport>> import =
+          storage::TrialRepository(db).ImportOf(t->id);
+      if (!import.ok()) return import.status();
+      if (import->has_value()) sel.imported.insert(t->id);
+    }
     sel.by_kind[*kind].push_back(std::move(t).value());
   }
   return sel;
@@ -550,8 +629,15 @@ api::Status ValidateIdentificationRequest(const IdentificationRequest& req) {
   if (req.trial_ids.size() > 100) {
     return api::Status::InvalidArgument("at most 100 trials", "trial_ids");
   }
-  if (req.method != "thesis" && req.method != "rapid") {
-    return api::Status::InvalidArgument("must be \"thesis\" or \"rapid\"", "method");
+  if (req.method != "thesis" && req.method != "rapid" && req.method != "passive") {
+    return api::Status::InvalidArgument("must be \"thesis\", \"rapid\" or \"passive\"",
+                                        "method");
+  }
+  if (req.method == "passive" && req.models != std::vector<std::string>{"full"}) {
+    return api::Status::InvalidArgument(
+        "method passive fits the passive block of the full model only (the variants differ in "
+        "their active curves)",
+        "models");
   }
   if (!model::IrcMethodFromName(req.irc_method)) {
     return api::Status::InvalidArgument(

@@ -12,6 +12,7 @@
 #include "model/conditioning.h"
 #include "model/evaluation.h"
 #include "model/extrapolate.h"
+#include "model/identify_passive_only.h"
 #include "model/identify_rapid.h"
 #include "model/signal.h"
 #include "server/protocols/model_gate.h"
@@ -201,6 +202,20 @@ api::Status PrepareFromTrial(storage::Database& db, const PredictionRequest& req
         " needs t_s, stim_ma and angle_deg channels (an imported recording of a stimulated "
         "trial maps its stimulation column to stim_ma)");
   }
+  // A pendulum test is held until the examiner lets go: it is predicted,
+  // and judged, from the release on (the hold's torque is not the knee's).
+  if (passive && std::all_of(c.stim_ma.begin(), c.stim_ma.end(), [](double u) { return u == 0.0; })) {
+    const std::size_t release = model::PendulumReleaseIndex(c.t_s, c.angle_deg);
+    if (release > 0 && c.size() - release >= 2) {
+      // The velocity at the release from the whole recording (§5.1), not
+      // from the edge of the part kept.
+      if (c.velocity_deg_s.size() != c.size()) {
+        c.velocity_deg_s = model::GcvSmoothingSpline(c.t_s, c.angle_deg).first;
+      }
+      out.released_at_s = c.t_s[release] - c.t_s.front();
+      c = model::TrialFromSample(c, release);
+    }
+  }
   api::Result<std::optional<storage::TrialImport>> provenance =
       storage::TrialRepository(db).ImportOf(trial->id);
   if (!provenance.ok()) return provenance.status();
@@ -343,6 +358,17 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
                                ? PrepareFromStimulus(request, config_, params, in, out)
                                : PrepareFromTrial(db_, request, config_, in, out);
     if (!prepared.ok()) return prepared;
+    // A passive-only set (docs/MODEL.md) has no IRC or active curves: it
+    // would predict a stimulated knee as if nothing stimulated it.
+    if (model::IsPassiveOnly(params) &&
+        std::any_of(in.pulses.begin(), in.pulses.end(),
+                    [](const model::Pulse& p) { return p.stim_ma > 0.0; })) {
+      return api::Status::FailedPrecondition(
+          "parameter set " + std::to_string(request.parameter_set_id) +
+          " is passive only (identified from unstimulated swings: no IRC, contraction dynamics "
+          "or active curves); it predicts swings without stimulation, and this " +
+          std::string(request.stimulus ? "stimulus" : "trial") + " stimulates");
+    }
     if (api::Status st = ApplyStartAndStops(request, config_, in, out); !st.ok()) return st;
     in.stage = "simulation";
     out.predicted =

@@ -84,6 +84,9 @@ struct PredictionResult {
   /// set's curves were identified over (model::ShareOutsideIdentifiedRanges);
   /// unset if the set records none.
   std::optional<double> share_outside_identified_ranges;
+  /// A pendulum test held before its release (model::PendulumReleaseIndex):
+  /// the time into the trial, s, from which it was predicted and compared.
+  std::optional<double> released_at_s;
 };
 
 /// Checks the request alone: kInvalidArgument naming the field.

@@ -93,6 +93,26 @@ TEST(AnalysisRequests, RapidRefusesTheThesisMethods) {
   EXPECT_TRUE(IdentificationRequestFromJson(sent).ok());
 }
 
+// Method passive fits no stimulated trial: the thesis's IRC and contraction
+// options are refused by name; it reads back as sent, in free swing.
+TEST(AnalysisRequests, PassiveRefusesTheStimulatedOptions) {
+  const auto status = [](const json& body) { return IdentificationRequestFromJson(body).status(); };
+  EXPECT_EQ(status({{"method", "passive"}, {"irc_method", "step"}}).field(), "irc_method");
+  EXPECT_EQ(status({{"method", "passive"}, {"contraction_order", 2}}).field(),
+            "contraction_order");
+  EXPECT_EQ(status({{"method", "passive"}, {"pole_method", "peak"}}).field(), "pole_method");
+  EXPECT_EQ(status({{"method", "passive"}, {"passive_method", "sequential"}}).field(),
+            "passive_method");
+  const Result<IdentificationRequest> read =
+      IdentificationRequestFromJson({{"method", "passive"}, {"trial_ids", {4}}, {"inertia_kgm2", 0.055}});
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  EXPECT_EQ(read->passive_method, "free_swing");
+  const json sent = IdentificationRequestToJson(*read);
+  EXPECT_FALSE(sent.contains("irc_method"));
+  EXPECT_EQ(sent["inertia_kgm2"], 0.055);
+  EXPECT_TRUE(IdentificationRequestFromJson(sent).ok());
+}
+
 TEST(AnalysisRequests, PredictionRoundTripsWithAStimulusOrATrial) {
   PredictionRequest stimulus;
   stimulus.parameter_set_id = 3;

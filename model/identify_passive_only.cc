@@ -1,0 +1,143 @@
+#include "model/identify_passive_only.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "model/extrapolate.h"
+#include "model/identify_passive.h"
+#include "model/identify_rapid.h"
+
+namespace fesbench::model {
+
+bool IsPassiveOnly(const ParameterSet& params) {
+  return params.provenance.irc_method == kNotIdentified ||
+         params.provenance.active_method == kNotIdentified;
+}
+
+std::size_t PendulumReleaseIndex(std::span<const double> t_s, std::span<const double> angle_deg,
+                                 double departure_deg) {
+  if (t_s.size() != angle_deg.size()) {
+    throw std::invalid_argument("PendulumReleaseIndex: t_s and angle_deg differ in length");
+  }
+  const std::size_t n = angle_deg.size();
+  std::size_t i = 0;
+  while (i < n && std::abs(angle_deg[i] - angle_deg.front()) <= departure_deg) ++i;
+  if (i == n) return 0;
+  return i;
+}
+
+TrialColumns TrialFromSample(const TrialColumns& tr, std::size_t from) {
+  const std::size_t n = tr.size();
+  TrialColumns out;
+  for (std::vector<double> TrialColumns::*col :
+       {&TrialColumns::t_s, &TrialColumns::stim_ma, &TrialColumns::angle_deg,
+        &TrialColumns::velocity_deg_s, &TrialColumns::accel_deg_s2, &TrialColumns::torque_nm,
+        &TrialColumns::activation, &TrialColumns::emg}) {
+    const std::vector<double>& in = tr.*col;
+    if (in.size() == n) (out.*col).assign(in.begin() + static_cast<std::ptrdiff_t>(from), in.end());
+  }
+  return out;
+}
+
+PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
+                                      const PassiveOnlyOptions& options) {
+  if (trials.empty()) throw std::invalid_argument("IdentifyPassiveOnly: no free-swing trials");
+  if (!(options.inertia_kgm2 > 0.0) || !std::isfinite(options.inertia_kgm2)) {
+    throw std::invalid_argument("IdentifyPassiveOnly: inertia_kgm2 must be finite and > 0");
+  }
+
+  // 0. From the release on; 1. kinematics (§5.1) and a zero activation:
+  //    nothing stimulates.
+  std::vector<TrialColumns> swings;
+  for (const TrialColumns& tr : trials) {
+    RequireColumn("IdentifyPassiveOnly", "angle_deg", tr.angle_deg, tr.size());
+    // θ̇ and θ̈ over the whole recording, so the release's are not edge values.
+    TrialColumns full = tr;
+    if (full.velocity_deg_s.size() != full.size() || full.accel_deg_s2.size() != full.size()) {
+      AddKinematics(full);
+    }
+    swings.push_back(TrialFromSample(full, PendulumReleaseIndex(tr.t_s, tr.angle_deg)));
+  }
+  double lo = INFINITY, hi = -INFINITY, vlo = INFINITY, vhi = -INFINITY;
+  std::size_t samples = 0;
+  for (std::size_t k = 0; k < swings.size(); ++k) {
+    TrialColumns& tr = swings[k];
+    const std::size_t n = tr.size();
+    RequireColumn("IdentifyPassiveOnly", "angle_deg", tr.angle_deg, n);
+    if (tr.stim_ma.empty()) tr.stim_ma.assign(n, 0.0);
+    RequireColumn("IdentifyPassiveOnly", "stim_ma", tr.stim_ma, n);
+    if (std::any_of(tr.stim_ma.begin(), tr.stim_ma.end(), [](double u) { return u != 0.0; })) {
+      throw std::invalid_argument("IdentifyPassiveOnly: trial " + std::to_string(k) +
+                                  " is stimulated; only unstimulated swings are passive");
+    }
+    if (tr.velocity_deg_s.size() != n || tr.accel_deg_s2.size() != n) AddKinematics(tr);
+    tr.activation.assign(n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      lo = std::min(lo, tr.angle_deg[i]);
+      hi = std::max(hi, tr.angle_deg[i]);
+      vlo = std::min(vlo, tr.velocity_deg_s[i]);
+      vhi = std::max(vhi, tr.velocity_deg_s[i]);
+    }
+    samples += n;
+  }
+
+  // 2. Eq. 4.35 with J known (§7.4.1).
+  PassiveOnlyResult out;
+  ParameterSet& ps = out.parameters;
+  ps = ExampleParameterSet();
+  ps.model = ModelKind::kFull;
+  ps.irc = PiecewiseLinear({0.0, 1.0}, {0.0, 0.0});  // no current activates: not identified
+  const PassiveResult pas = IdentifyPassiveKnownInertia(
+      swings, options.inertia_kgm2, options.angle, options.velocity,
+      /*max_activation=*/0.5, options.relative_tolerance);
+  ps.passive = pas.passive;
+  out.report.Merge(pas.report);
+  out.report.values["passive_only_samples"] = static_cast<double>(samples);
+
+  Provenance& prov = ps.provenance;
+  prov = {};
+  prov.identified_range_deg["tau_pta"] = {lo, hi};
+  prov.identified_range_deg_s["tau_ptv"] = {vlo, vhi};
+
+  // 3. Beyond the visited angles and speeds (model/extrapolate.h), §6.5 reference.
+  if (hi - lo >= 5.0) {
+    const PassiveAngleForm form =
+        FitPassiveAngleForm(ps.passive.torque_angle, lo, hi, options.mgl_prior_nm);
+    ps.passive.torque_angle = ExtendPassiveAngle(ps.passive.torque_angle, form,
+                                                 lo - options.extend_angle_deg,
+                                                 hi + options.extend_angle_deg);
+    out.report.fit_rms["tau_pta_form_nm"] = form.rms_nm;
+    out.report.values["tau_pta_form_mgl_nm"] = form.mgl_nm();
+    out.report.values["tau_pta_form_hang_deg"] = form.hang_deg();
+  }
+  const double vmax = options.extend_velocity_deg_s;
+  ps.passive.torque_velocity =
+      ExtendVelocityCurve(ps.passive.torque_velocity, vlo, vhi, -vmax, vmax, true);
+  ps.passive = ReferencePassive(ps.passive);
+
+  // 4. Output error on the knee angle (the active block has nothing to act
+  //    on: with zero activation its ordinates stay at their start).
+  if (options.refine_iterations > 0) {
+    OutputErrorOptions oe;
+    oe.iterations = options.refine_iterations;
+    oe.prior_weight = options.refine_prior_weight;
+    oe.joint_limits = options.joint_limits;
+    const Provenance keep = prov;
+    const OutputErrorResult refined = RefineOutputError(ps, swings, oe);
+    ps = refined.parameters;
+    ps.provenance = keep;
+    out.report.Merge(refined.report);
+  }
+
+  prov.irc_method = kNotIdentified;
+  prov.passive_method = "free_swing_known_inertia";
+  prov.active_method = kNotIdentified;
+  prov.fit_rms = out.report.fit_rms;
+  prov.warnings = out.report.warnings;
+  return out;
+}
+
+}  // namespace fesbench::model

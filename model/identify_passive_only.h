@@ -1,0 +1,103 @@
+#pragma once
+
+/// @file
+/// Passive-only identification (beyond the thesis's routines, built from
+/// its parts): τ_pta and τ_ptv of a knee from free swings without
+/// stimulation, such as the pendulum (Wartenberg) test, where the shank is
+/// released from extension and swings to rest. The thesis identifies the
+/// passive block from free swings with τ_pta known (§4.2.3, Eq. 4.35) or
+/// with J known (§7.4.1); a pendulum recording brings neither a torque
+/// sensor nor an isometric trial, so J comes from outside (given, or from
+/// the subject's anthropometrics, Eq. 4.13) and fixes the torque scale the
+/// kinematics leave free (Eq. 4.35 is homogeneous in J and the torques).
+///
+/// Steps (docs/MODEL.md "Passive-only identification"):
+///   0. each trial from its release on (PendulumReleaseIndex);
+///   1. θ̇ and θ̈ by the GCV smoothing spline (§5.1) where not recorded;
+///   2. Eq. 4.35 rearranged with J known, over every sample
+///      (IdentifyPassiveKnownInertia): −J·θ̈ = τ_pta(θ) + τ_ptv(θ̇);
+///   3. τ_pta continued beyond the angles the swings visited by the Eq. 7.3
+///      form with end-range stiffness (model/extrapolate.h), τ_ptv by its
+///      edge segments; referenced as in §6.5;
+///   4. τ_pta and τ_ptv refined by output error on the knee angle
+///      (RefineOutputError, the rapid routine's refinement): the swing
+///      simulated from each trial's first state matches the recording.
+/// The result is a parameter set whose IRC maps every current to zero
+/// activation and whose provenance says "none" for the IRC and active
+/// methods (IsPassiveOnly): it predicts unstimulated swings and nothing
+/// else.
+
+#include <optional>
+#include <span>
+
+#include "model/identify_common.h"
+#include "model/parameter_set.h"
+#include "model/simulate.h"
+
+namespace fesbench::model {
+
+/// The provenance word of the blocks a passive-only set does not have.
+inline constexpr const char* kNotIdentified = "none";
+
+/// True if `params` was identified without stimulation (provenance
+/// irc_method or active_method "none"): its IRC and active curves are
+/// placeholders and it must not predict or drive stimulation.
+bool IsPassiveOnly(const ParameterSet& params);
+
+/// The sample from which a pendulum test's knee swings freely: the first
+/// more than departure_deg from the first sample. Before it the examiner
+/// holds the shank and then lets go over a few samples, a torque the model
+/// does not have (on a real recording, starting at the first movement
+/// instead left 12–14° of error on a held-out swing, starting here 5–6°,
+/// docs/VALIDATION.md); the swing is taken up there with its measured
+/// velocity. 0 when the knee never departs that far.
+/// @throws std::invalid_argument if the spans differ in length.
+std::size_t PendulumReleaseIndex(std::span<const double> t_s, std::span<const double> angle_deg,
+                                 double departure_deg = 2.0);
+
+/// The trial from sample `from` on (every column with one value per
+/// sample; times kept as they are).
+TrialColumns TrialFromSample(const TrialColumns& trial, std::size_t from);
+
+/// Options of IdentifyPassiveOnly.
+struct PassiveOnlyOptions {
+  double inertia_kgm2 = 0.0;              ///< J, kg·m² (> 0): given or Eq. 4.13.
+  /// τ_pta and τ_ptv breakpoints over the visited angles and speeds. On a
+  /// real recording (docs/VALIDATION.md) 9 and 5 predicted the held-out
+  /// swing best of 9/15 × 5/9; 9 velocity breakpoints made one fit unstable.
+  BreakpointSpec angle{9, {}};
+  BreakpointSpec velocity{5, {}};
+  double relative_tolerance = 1e-8;       ///< SVD truncation (Eq. 4.26).
+  /// m·g·l of the shank, N·m, for the gravity term of the extrapolation
+  /// when the swings span under 60° (0 = fit it; FitPassiveAngleForm).
+  double mgl_prior_nm = 0.0;
+  double extend_angle_deg = 20.0;         ///< τ_pta continued this far beyond the data.
+  double extend_velocity_deg_s = 1000.0;  ///< τ_ptv continued to ± this.
+  int refine_iterations = 6;              ///< output-error iterations (0 = linear fit only).
+  double refine_prior_weight = 0.01;      ///< OutputErrorOptions::prior_weight.
+  /// Stops of the simulations in the refinement (a bench's range of
+  /// motion); unset for recordings from elsewhere.
+  std::optional<JointLimits> joint_limits;
+};
+
+/// What IdentifyPassiveOnly returns: the set (model kFull, IRC zero, default
+/// contraction and active curves, provenance irc_method and active_method
+/// kNotIdentified, passive_method "free_swing_known_inertia") and the
+/// report (fit_rms "tau_pta_tau_ptv_nm", "output_error_start_deg",
+/// "output_error_deg"; values "passive_only_samples").
+struct PassiveOnlyResult {
+  ParameterSet parameters;
+  IdentifyReport report;
+};
+
+/// Identifies the passive block from unstimulated free swings, each from
+/// its release (PendulumReleaseIndex) on. Each trial needs t_s and
+/// angle_deg (velocity_deg_s and accel_deg_s2 are derived when missing);
+/// stim_ma, when present, must be zero throughout.
+/// @throws std::invalid_argument if there are no trials, inertia_kgm2 is
+///   not finite and > 0, a trial is stimulated, a column is missing or
+///   there are fewer samples than parameters.
+PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
+                                      const PassiveOnlyOptions& options);
+
+}  // namespace fesbench::model
