@@ -18,15 +18,17 @@ bool IsPassiveOnly(const ParameterSet& params) {
 }
 
 std::size_t PendulumReleaseIndex(std::span<const double> t_s, std::span<const double> angle_deg,
-                                 double departure_deg) {
+                                 double departure_deg, double hold_deg, double min_hold_s) {
   if (t_s.size() != angle_deg.size()) {
     throw std::invalid_argument("PendulumReleaseIndex: t_s and angle_deg differ in length");
   }
   const std::size_t n = angle_deg.size();
-  std::size_t i = 0;
+  std::size_t held = 0;
+  while (held < n && std::abs(angle_deg[held] - angle_deg.front()) <= hold_deg) ++held;
+  if (held == n || t_s[held] - t_s.front() < min_hold_s) return 0;
+  std::size_t i = held;
   while (i < n && std::abs(angle_deg[i] - angle_deg.front()) <= departure_deg) ++i;
-  if (i == n) return 0;
-  return i;
+  return i == n ? 0 : i;
 }
 
 TrialColumns TrialFromSample(const TrialColumns& tr, std::size_t from) {

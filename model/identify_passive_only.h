@@ -44,16 +44,20 @@ inline constexpr const char* kNotIdentified = "none";
 /// placeholders and it must not predict or drive stimulation.
 bool IsPassiveOnly(const ParameterSet& params);
 
-/// The sample from which a pendulum test's knee swings freely: the first
-/// more than departure_deg from the first sample. Before it the examiner
-/// holds the shank and then lets go over a few samples, a torque the model
-/// does not have (on a real recording, starting at the first movement
-/// instead left 12–14° of error on a held-out swing, starting here 5–6°,
-/// docs/VALIDATION.md); the swing is taken up there with its measured
-/// velocity. 0 when the knee never departs that far.
+/// The sample from which a pendulum test's knee swings freely. A trial
+/// that begins with a hold — the knee within hold_deg of its first angle
+/// for at least min_hold_s, the examiner holding the shank — is taken up at
+/// the first sample more than departure_deg from the first one: the hand
+/// lets go over a few samples, a torque the model does not have (on a real
+/// recording, starting at the first movement instead left 12–14° of error
+/// on a held-out swing, starting here 5–6°, docs/MODEL.md); the swing is
+/// taken up there with its measured velocity. 0 for a trial that moves
+/// from its start (released as it begins, as the bench records) or never
+/// departs.
 /// @throws std::invalid_argument if the spans differ in length.
 std::size_t PendulumReleaseIndex(std::span<const double> t_s, std::span<const double> angle_deg,
-                                 double departure_deg = 2.0);
+                                 double departure_deg = 2.0, double hold_deg = 0.5,
+                                 double min_hold_s = 0.2);
 
 /// The trial from sample `from` on (every column with one value per
 /// sample; times kept as they are).

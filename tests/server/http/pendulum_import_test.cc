@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -42,14 +43,18 @@ std::string PendulumMot(double start_deg, double duration_s) {
   o.output_rate_hz = 100.0;
   const model::SimulationResult sim =
       model::SimulateFreeSwing(model::ExampleParameterSet(), {}, o);
+  // The examiner holds the shank for 0.8 s first (0.1° of marker jitter).
+  std::vector<double> angle(80, start_deg);
+  for (std::size_t i = 0; i < angle.size(); ++i) angle[i] += 0.1 * std::sin(1.3 * i);
+  angle.insert(angle.end(), sim.angle_deg.begin(), sim.angle_deg.end());
   std::string rows;
   char line[128];
-  for (std::size_t i = 0; i < sim.t_s.size(); ++i) {
-    std::snprintf(line, sizeof line, "%16.8f\t%16.8f\t%16.8f\n", sim.t_s[i] + 0.01, 28.0,
-                  -sim.angle_deg[i]);
+  for (std::size_t i = 0; i < angle.size(); ++i) {
+    std::snprintf(line, sizeof line, "%16.8f\t%16.8f\t%16.8f\n", 0.01 * (i + 1), 28.0,
+                  -angle[i]);
     rows += line;
   }
-  return "Coordinates\nversion=1\nnRows=" + std::to_string(sim.t_s.size()) +
+  return "Coordinates\nversion=1\nnRows=" + std::to_string(angle.size()) +
          "\nnColumns=3\ninDegrees=yes\n\nUnits are S.I. units (second, meters, Newtons, ...)\n"
          "Angles are in degrees.\n\nendheader\ntime\thip_flexion_r\tknee_angle_r\n" +
          rows;
@@ -90,7 +95,7 @@ TEST(PendulumImportTest, PassiveCurvesFromOneSwingPredictAnotherAndDriveNoStimul
     for (const json& ch : stored.body["channels"]) {
       names.push_back(ch["name"]);
       if (ch["name"] == "angle_deg") {  // flexion positive, not clipped at a stop
-        EXPECT_NEAR(ch["values"][0].get<double>(), start_deg[k], 1e-6);
+        EXPECT_NEAR(ch["values"][0].get<double>(), start_deg[k], 0.11);
       }
     }
     EXPECT_EQ(names, (std::vector<std::string>{"t_s", "angle_deg"})) << stored.text.substr(0, 300);
@@ -136,9 +141,9 @@ TEST(PendulumImportTest, PassiveCurvesFromOneSwingPredictAnotherAndDriveNoStimul
   ASSERT_EQ(p["state"], "done") << p.dump().substr(0, 1000);
   const double e_rms = p["result"]["errors"]["e_rms"];
   EXPECT_LT(e_rms, 2.0);  // 1.19° when written
-  // Judged from where the knee had left its start by 2° (the hand's release).
-  EXPECT_GT(p["result"]["released_at_s"].get<double>(), 0.0);
-  EXPECT_LT(p["result"]["released_at_s"].get<double>(), 0.5);
+  // Judged from where the knee had left the hold by 2° (the hand's release).
+  EXPECT_GT(p["result"]["released_at_s"].get<double>(), 0.8);
+  EXPECT_LT(p["result"]["released_at_s"].get<double>(), 1.0);
   EXPECT_TRUE(p["result"].value("joint_limits", json()).is_null()) << p["result"].dump(0).substr(0, 300);
   std::cout << "[ figure ] held-out swing predicted by the passive-only set: E_RMS " << e_rms
             << " deg\n";
