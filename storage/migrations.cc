@@ -693,6 +693,14 @@ std::string PostgresAppendOnly(std::initializer_list<const char*> tables) {
 
 }  // namespace
 
+// A subject's range of motion (the knee's, deg), both ends or neither.
+std::string RangeOfMotionMigration(const std::string& real_type) {
+  return "ALTER TABLE subject_revisions ADD COLUMN rom_min_deg " + real_type +
+         " CHECK (rom_min_deg BETWEEN -30 AND 60);\n"
+         "ALTER TABLE subject_revisions ADD COLUMN rom_max_deg " + real_type +
+         " CHECK (rom_max_deg BETWEEN 60 AND 180);\n";
+}
+
 const std::vector<Migration>& AllMigrations() {
   static const std::vector<Migration> kMigrations = {
       {1, "subjects, legs, sessions, runs, users, tokens, audit log",
@@ -727,6 +735,7 @@ const std::vector<Migration>& AllMigrations() {
       {16, "what a hardware stimulator was told in each trial",
        DeviceCommandsMigration("INTEGER", "REAL", "BLOB") +
            AppendOnly({"trial_device_commands"})},
+      {17, "a subject's range of motion", RangeOfMotionMigration("REAL")},
   };
   return kMigrations;
 }
@@ -753,6 +762,7 @@ const std::vector<Migration>& PostgresMigrations() {
       {16, "what a hardware stimulator was told in each trial",
        DeviceCommandsMigration("BIGINT", "DOUBLE PRECISION", "BYTEA") +
            PostgresAppendOnly({"trial_device_commands"})},
+      {17, "a subject's range of motion", RangeOfMotionMigration("DOUBLE PRECISION")},
   };
   return kMigrations;
 }

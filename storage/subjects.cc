@@ -9,7 +9,8 @@ namespace {
 
 constexpr std::string_view kRevisionColumns =
     "r.id, r.revision, r.age_years, r.sex, r.height_cm, r.weight_kg, r.shank_length_cm, "
-    "r.calf_circumference_cm, r.corrects_id, r.reason, r.recorded_at_utc, r.recorded_by";
+    "r.calf_circumference_cm, r.corrects_id, r.reason, r.recorded_at_utc, r.recorded_by, "
+    "r.rom_min_deg, r.rom_max_deg";
 
 // Reads kRevisionColumns starting at column `first`.
 api::Result<SubjectRevision> ReadRevision(const Statement& s, int first) {
@@ -29,6 +30,8 @@ api::Result<SubjectRevision> ReadRevision(const Statement& s, int first) {
   revision.reason = s.Text(first + 9);
   revision.recorded_at = *recorded;
   revision.recorded_by = s.Text(first + 11);
+  revision.details.rom_min_deg = s.OptionalDouble(first + 12);
+  revision.details.rom_max_deg = s.OptionalDouble(first + 13);
   return revision;
 }
 
@@ -76,10 +79,12 @@ api::Status InsertRevision(Connection& c, std::int64_t subject_id, int revision,
   return internal::Execute(
       c,
       "INSERT INTO subject_revisions (subject_id, revision, age_years, sex, height_cm, weight_kg,"
-      " shank_length_cm, calf_circumference_cm, corrects_id, reason, recorded_at_utc, recorded_by)"
-      " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
+      " shank_length_cm, calf_circumference_cm, corrects_id, reason, recorded_at_utc, recorded_by,"
+      " rom_min_deg, rom_max_deg)"
+      " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
       subject_id, revision, age, SexName(d.sex), d.height_cm, d.weight_kg, d.shank_length_cm,
-      d.calf_circumference_cm, corrects_id, reason, FormatUtc(now), recorded_by);
+      d.calf_circumference_cm, corrects_id, reason, FormatUtc(now), recorded_by, d.rom_min_deg,
+      d.rom_max_deg);
 }
 
 api::Status CheckRange(const std::optional<double>& value, double low, double high,
@@ -158,7 +163,28 @@ api::Status ValidateSubjectDetails(const SubjectDetails& d) {
   if (auto s = CheckRange(d.height_cm, 30, 250, "height_cm"); !s.ok()) return s;
   if (auto s = CheckRange(d.weight_kg, 1, 400, "weight_kg"); !s.ok()) return s;
   if (auto s = CheckRange(d.shank_length_cm, 10, 80, "shank_length_cm"); !s.ok()) return s;
-  return CheckRange(d.calf_circumference_cm, 10, 100, "calf_circumference_cm");
+  if (auto s = CheckRange(d.calf_circumference_cm, 10, 100, "calf_circumference_cm"); !s.ok()) {
+    return s;
+  }
+  if (d.rom_min_deg.has_value() != d.rom_max_deg.has_value()) {
+    return api::Status::InvalidArgument(
+        "give both ends of the range of motion (rom_min_deg and rom_max_deg) or neither",
+        d.rom_min_deg ? "rom_max_deg" : "rom_min_deg");
+  }
+  if (!d.rom_min_deg) return api::Status::Ok();
+  if (!std::isfinite(*d.rom_min_deg) || *d.rom_min_deg < -30.0 || *d.rom_min_deg > 60.0) {
+    return api::Status::InvalidArgument(
+        "rom_min_deg must be in [-30, 60] deg (hyperextension negative)", "rom_min_deg");
+  }
+  if (!std::isfinite(*d.rom_max_deg) || *d.rom_max_deg < 60.0 || *d.rom_max_deg > 180.0) {
+    return api::Status::InvalidArgument("rom_max_deg must be in [60, 180] deg", "rom_max_deg");
+  }
+  if (*d.rom_max_deg - *d.rom_min_deg < 30.0) {
+    return api::Status::InvalidArgument(
+        "the range of motion must span at least 30 deg (rom_min_deg to rom_max_deg)",
+        "rom_max_deg");
+  }
+  return api::Status::Ok();
 }
 
 api::Result<Subject> SubjectRepository::Create(std::string_view code,

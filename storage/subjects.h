@@ -34,6 +34,12 @@ struct SubjectDetails {
   std::optional<double> weight_kg;              ///< (1, 400].
   std::optional<double> shank_length_cm;        ///< (10, 80].
   std::optional<double> calf_circumference_cm;  ///< (10, 100].
+  /// The knee's range of motion, deg (flexion positive, 0 = full
+  /// extension): from rom_min_deg (hyperextension negative, −30…60) to
+  /// rom_max_deg (60…180), both or neither, at least 30° apart. On the bench
+  /// it narrows the bench's range (the safety layer's limits, docs/SAFETY.md).
+  std::optional<double> rom_min_deg;
+  std::optional<double> rom_max_deg;
   friend bool operator==(const SubjectDetails&, const SubjectDetails&) = default;
 };
 

@@ -49,6 +49,7 @@ struct SubjectDetailsFlags {
   std::optional<int> age_years;
   std::optional<std::string> sex;
   std::optional<double> height_cm, weight_kg, shank_length_cm, calf_circumference_cm;
+  std::optional<double> rom_min_deg, rom_max_deg;
 
   void Register(CLI::App* app) {
     app->add_option("--age-years", age_years, "age, years (0-130)");
@@ -61,6 +62,9 @@ struct SubjectDetailsFlags {
                     "shank length, cm (10-80; femoral condyle to medial malleolus)");
     app->add_option("--calf-circumference-cm", calf_circumference_cm,
                     "calf circumference, cm (10-100)");
+    app->add_option("--rom-min-deg", rom_min_deg,
+                    "range of motion, extension end, deg (-30 to 60; hyperextension negative)");
+    app->add_option("--rom-max-deg", rom_max_deg, "range of motion, flexion end, deg (60-180)");
   }
 
   // The given flags into `details` (API field names).
@@ -71,6 +75,8 @@ struct SubjectDetailsFlags {
     if (weight_kg) details["weight_kg"] = *weight_kg;
     if (shank_length_cm) details["shank_length_cm"] = *shank_length_cm;
     if (calf_circumference_cm) details["calf_circumference_cm"] = *calf_circumference_cm;
+    if (rom_min_deg) details["rom_min_deg"] = *rom_min_deg;
+    if (rom_max_deg) details["rom_max_deg"] = *rom_max_deg;
   }
 };
 
@@ -197,7 +203,7 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
     form->details.Register(edit);
     edit->add_option("--clear", form->clear, "a field to clear (repeatable), e.g. height_cm")
         ->check(CLI::IsMember({"age_years", "sex", "height_cm", "weight_kg", "shank_length_cm",
-                               "calf_circumference_cm"}));
+                               "calf_circumference_cm", "rom_min_deg", "rom_max_deg"}));
     edit->callback([form, &context] {
       context.action = [form, &context] {
         json details = json::object();

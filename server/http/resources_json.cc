@@ -28,6 +28,8 @@ nlohmann::json SubjectDetailsToJson(const storage::SubjectDetails& d) {
   PutOptional(j, "weight_kg", d.weight_kg);
   PutOptional(j, "shank_length_cm", d.shank_length_cm);
   PutOptional(j, "calf_circumference_cm", d.calf_circumference_cm);
+  PutOptional(j, "rom_min_deg", d.rom_min_deg);
+  PutOptional(j, "rom_max_deg", d.rom_max_deg);
   return j;
 }
 
@@ -148,6 +150,8 @@ api::Result<storage::SubjectDetails> SubjectDetailsFromJson(const nlohmann::json
   d.weight_kg = f.Number("weight_kg", false, 1.0, 400.0);
   d.shank_length_cm = f.Number("shank_length_cm", false, 10.0, 80.0);
   d.calf_circumference_cm = f.Number("calf_circumference_cm", false, 10.0, 100.0);
+  d.rom_min_deg = f.Number("rom_min_deg", false, -30.0, 60.0);
+  d.rom_max_deg = f.Number("rom_max_deg", false, 60.0, 180.0);
   if (auto st = f.Finish(); !st.ok()) return st;
   if (auto st = storage::ValidateSubjectDetails(d); !st.ok()) {
     return api::Status(st.code(), st.message(),
@@ -321,10 +325,14 @@ api::Result<SubjectCorrection> SubjectCorrectionFromJson(const nlohmann::json& b
       st = PatchNumber(value, field, "cm", 10, 80, false, d.shank_length_cm);
     } else if (key == "calf_circumference_cm") {
       st = PatchNumber(value, field, "cm", 10, 100, false, d.calf_circumference_cm);
+    } else if (key == "rom_min_deg") {
+      st = PatchNumber(value, field, "deg", -30, 60, true, d.rom_min_deg);
+    } else if (key == "rom_max_deg") {
+      st = PatchNumber(value, field, "deg", 60, 180, true, d.rom_max_deg);
     } else {
       st = api::Status::InvalidArgument(
           "unknown field (allowed: age_years, sex, height_cm, weight_kg, shank_length_cm, "
-          "calf_circumference_cm)",
+          "calf_circumference_cm, rom_min_deg, rom_max_deg)",
           field);
     }
     if (!st.ok()) return st;

@@ -139,7 +139,9 @@ json DetailsSchema() {
        {"height_cm", {{"type", "number"}, {"minimum", 30}, {"maximum", 250}}},
        {"weight_kg", {{"type", "number"}, {"minimum", 1}, {"maximum", 400}}},
        {"shank_length_cm", {{"type", "number"}, {"minimum", 10}, {"maximum", 80}}},
-       {"calf_circumference_cm", {{"type", "number"}, {"minimum", 10}, {"maximum", 100}}}},
+       {"calf_circumference_cm", {{"type", "number"}, {"minimum", 10}, {"maximum", 100}}},
+       {"rom_min_deg", {{"type", "number"}, {"minimum", -30}, {"maximum", 60}}},
+       {"rom_max_deg", {{"type", "number"}, {"minimum", 60}, {"maximum", 180}}}},
       {});
 }
 

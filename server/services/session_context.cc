@@ -1,5 +1,7 @@
 #include "server/services/run_service.h"
 
+#include <algorithm>
+
 #include "storage/parameter_sets.h"
 #include "storage/sessions.h"
 #include "storage/subjects.h"
@@ -65,12 +67,13 @@ api::Result<SessionContext> LoadSessionContext(storage::Database& db, std::int64
   c.threshold_ma = d.threshold_ma.value_or(0.0);
   c.max_tolerated_recorded = d.max_tolerated_ma.has_value();
   c.max_tolerated_ma = c.max_tolerated_recorded ? *d.max_tolerated_ma : limits.max_stim_ma;
-  // Storage keeps no range of motion: the bench's mechanical range (DESIGN.md §2).
-  c.min_angle_deg = limits.min_angle_deg;
-  c.max_angle_deg = limits.max_angle_deg;
+  // The range of motion: the bench's mechanical range, narrowed by the
+  // subject's recorded one (docs/SAFETY.md); the safety layer enforces it.
+  const storage::SubjectDetails& a = subject->current.details;
+  c.min_angle_deg = std::max(limits.min_angle_deg, a.rom_min_deg.value_or(limits.min_angle_deg));
+  c.max_angle_deg = std::min(limits.max_angle_deg, a.rom_max_deg.value_or(limits.max_angle_deg));
   // Eq. 4.13, §4.2.1: body mass and the femoral condyle–medial malleolus
   // length (the shank length) give the inertia when no prior set does.
-  const storage::SubjectDetails& a = subject->current.details;
   if (a.weight_kg) c.body_mass_kg = *a.weight_kg;
   if (a.shank_length_cm) c.leg_length_m = *a.shank_length_cm / 100.0;
 

@@ -315,6 +315,25 @@ TEST(RunService, LoadSessionContextTakesLimitsAnthropometricsAndTheLatestSet) {
   EXPECT_FALSE(c->parameter_set_id.has_value());
   EXPECT_EQ(LoadSessionContext(*rig.db, 4242, rig.bench->limits()).status().code(),
             api::ErrorCode::kNotFound);
+
+  // The subject's recorded range of motion narrows the bench's (the safety
+  // layer enforces what the context says); a wider one leaves the bench's.
+  storage::SubjectRepository subjects(*rig.db);
+  storage::SubjectDetails d = subjects.Get(rig.subject_id)->current.details;
+  d.rom_min_deg = 20.0;
+  d.rom_max_deg = 90.0;
+  ASSERT_TRUE(subjects.Correct(rig.subject_id, d, "stiff knee").ok());
+  auto narrowed = LoadSessionContext(*rig.db, rig.session_id, rig.bench->limits());
+  ASSERT_TRUE(narrowed.ok());
+  EXPECT_DOUBLE_EQ(narrowed->subject.min_angle_deg, 20.0);
+  EXPECT_DOUBLE_EQ(narrowed->subject.max_angle_deg, 90.0);
+  d.rom_min_deg = -10.0;
+  d.rom_max_deg = 140.0;
+  ASSERT_TRUE(subjects.Correct(rig.subject_id, d, "measured again").ok());
+  auto wider = LoadSessionContext(*rig.db, rig.session_id, rig.bench->limits());
+  ASSERT_TRUE(wider.ok());
+  EXPECT_DOUBLE_EQ(wider->subject.min_angle_deg, 10.0);
+  EXPECT_DOUBLE_EQ(wider->subject.max_angle_deg, 110.0);
 }
 
 }  // namespace

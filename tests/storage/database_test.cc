@@ -42,7 +42,7 @@ TEST_F(SqliteStorageTest, OpensInWalWithForeignKeysAndFullSync) {
   auto version = db_->SchemaVersion();
   ASSERT_TRUE(version.ok());
   EXPECT_EQ(*version, LatestSchemaVersion());
-  EXPECT_EQ(LatestSchemaVersion(), 16);
+  EXPECT_EQ(LatestSchemaVersion(), 17);
   auto recorded = db_->Read([](Connection& c) {
     return c.QueryText("SELECT group_concat(version) FROM schema_migrations");
   });

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "storage_test_util.h"
 
 namespace fesbench::storage {
@@ -89,6 +91,38 @@ TEST_P(StorageTest, SubjectBadInputNamesTheProblem) {
   EXPECT_EQ(subjects.Correct(999, SubjectDetails{}, "x").status().code(),
             api::ErrorCode::kNotFound);
   EXPECT_EQ(subjects.Revisions(999).status().code(), api::ErrorCode::kNotFound);
+}
+
+// A subject's range of motion (docs/SAFETY.md): both ends or neither, in
+// a knee's range, at least 30° wide; kept by every revision.
+TEST_P(StorageTest, SubjectRangeOfMotionIsStoredAndChecked) {
+  SubjectRepository subjects(*db_);
+  SubjectDetails d;
+  d.rom_min_deg = -10.0;
+  d.rom_max_deg = 135.5;
+  auto created = subjects.Create("ROM-1", d);
+  ASSERT_TRUE(created.ok()) << created.status().ToString();
+  auto read = subjects.Get(created->id);
+  ASSERT_TRUE(read.ok());
+  EXPECT_EQ(read->current.details.rom_min_deg, -10.0);
+  EXPECT_EQ(read->current.details.rom_max_deg, 135.5);
+  SubjectDetails narrower = read->current.details;
+  narrower.rom_max_deg = 95.0;
+  ASSERT_TRUE(subjects.Correct(created->id, narrower, "measured again").ok());
+  EXPECT_EQ(subjects.Get(created->id)->current.details.rom_max_deg, 95.0);
+
+  const auto field = [&](std::optional<double> lo, std::optional<double> hi) {
+    SubjectDetails bad;
+    bad.rom_min_deg = lo;
+    bad.rom_max_deg = hi;
+    return subjects.Create("ROM-X", bad).status().field();
+  };
+  EXPECT_EQ(field(-10.0, std::nullopt), "rom_max_deg");  // one end alone
+  EXPECT_EQ(field(std::nullopt, 120.0), "rom_min_deg");
+  EXPECT_EQ(field(-40.0, 120.0), "rom_min_deg");
+  EXPECT_EQ(field(0.0, 190.0), "rom_max_deg");
+  EXPECT_EQ(field(50.0, 70.0), "rom_max_deg");  // 20° wide
+  EXPECT_EQ(field(std::nan(""), 120.0), "rom_min_deg");
 }
 
 TEST_P(StorageTest, LegsPerSubject) {

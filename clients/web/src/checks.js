@@ -11,6 +11,8 @@ export const SUBJECT_LIMITS = {
   weight_kg: { unit: 'kg', min: 1, max: 400 },
   shank_length_cm: { unit: 'cm', min: 10, max: 80 },
   calf_circumference_cm: { unit: 'cm', min: 10, max: 100 },
+  rom_min_deg: { unit: '°', min: -30, max: 60 },
+  rom_max_deg: { unit: '°', min: 60, max: 180 },
 };
 
 /// Session details: stimulation in mA, 0–100 (the stimulator's limit).

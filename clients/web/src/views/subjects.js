@@ -17,6 +17,10 @@ export const SUBJECT_FIELDS = [
   { name: 'shank_length_cm', label: 'Shank length (cm)', type: 'number', ...SUBJECT_LIMITS.shank_length_cm,
     help: 'femoral condyle to medial malleolus' },
   { name: 'calf_circumference_cm', label: 'Calf circumference (cm)', type: 'number', ...SUBJECT_LIMITS.calf_circumference_cm },
+  { name: 'rom_min_deg', label: 'Range of motion, extension (°)', type: 'number', ...SUBJECT_LIMITS.rom_min_deg,
+    help: 'the knee\'s own limit, hyperextension negative; the bench never moves it beyond' },
+  { name: 'rom_max_deg', label: 'Range of motion, flexion (°)', type: 'number', ...SUBJECT_LIMITS.rom_max_deg,
+    help: 'give both ends or neither' },
 ];
 const SUBJECT_LABELS = Object.fromEntries(SUBJECT_FIELDS.map((f) => [f.name, f.label]));
 
@@ -108,6 +112,8 @@ export async function subjectsView(ctx) {
   field('weight_kg', 'Body mass (kg)', { type: 'number' }),
   field('shank_length_cm', 'Shank length (cm)', { type: 'number' }),
   field('calf_circumference_cm', 'Calf circumference (cm)', { type: 'number' }),
+  field('rom_min_deg', 'Range of motion, extension (°)', { type: 'number', help: 'hyperextension negative, e.g. -10' }),
+  field('rom_max_deg', 'Range of motion, flexion (°)', { type: 'number', help: 'e.g. 140; give both ends or neither' }),
   h('fieldset', { class: 'field' }, h('legend', {}, 'Legs'),
     h('label', { class: 'inline' }, h('input', { type: 'checkbox', name: 'leg_left' }), ' left'),
     h('label', { class: 'inline' }, h('input', { type: 'checkbox', name: 'leg_right', checked: true }), ' right')),
@@ -215,7 +221,9 @@ export async function subjectView(ctx, subjectId) {
       table(['Field', 'Value'], [
         ['Legs', subject.legs.map((l) => l.side).join(', ') || '—'], ['Age (years)', fmt(d.age_years)], ['Sex', d.sex || '—'],
         ['Height (cm)', fmt(d.height_cm)], ['Body mass (kg)', fmt(d.weight_kg)], ['Shank length (cm)', fmt(d.shank_length_cm)],
-        ['Calf circumference (cm)', fmt(d.calf_circumference_cm)], ['Revision', String(subject.revision ?? 1)]],
+        ['Calf circumference (cm)', fmt(d.calf_circumference_cm)],
+        ['Range of motion (°)', d.rom_min_deg == null ? '— (the bench\'s)' : `${fmt(d.rom_min_deg)} to ${fmt(d.rom_max_deg)}`],
+        ['Revision', String(subject.revision ?? 1)]],
       { class: 'kv', id: 'subject-details' }),
       editForm,
       await revisionHistory(subjectPath, SUBJECT_LABELS, 'subject-revisions').catch((e) => message('error', `Revision history unavailable: ${e.message}`)));
