@@ -75,6 +75,13 @@ const std::vector<TrialKindInfo>& TrialKinds() {
        "free_swing_passive",
        "decoupled relaxed knee released from flexion: passive curves and inertia (§4.2.3)",
        {"angle_deg"}},
+      {TrialKind::kPendulum,
+       "pendulum",
+       true,
+       "pendulum_test",
+       "relaxed knee held in extension and let go, no stimulation (the pendulum test): the "
+       "passive curves, with J given (MODEL.md, passive-only identification)",
+       {"angle_deg"}},
       {TrialKind::kActive,
        "active_random_binary",
        true,

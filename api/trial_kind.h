@@ -43,6 +43,7 @@ enum class TrialKind {
   kDailyCheckRamp,
   kDailyCheckSwing,
   kTracking,
+  kPendulum,
 };
 
 struct TrialKindInfo {

@@ -63,8 +63,6 @@ PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
     }
     swings.push_back(TrialFromSample(full, PendulumReleaseIndex(tr.t_s, tr.angle_deg)));
   }
-  double lo = INFINITY, hi = -INFINITY, vlo = INFINITY, vhi = -INFINITY;
-  std::size_t samples = 0;
   for (std::size_t k = 0; k < swings.size(); ++k) {
     TrialColumns& tr = swings[k];
     const std::size_t n = tr.size();
@@ -75,25 +73,34 @@ PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
       throw std::invalid_argument("IdentifyPassiveOnly: trial " + std::to_string(k) +
                                   " is stimulated; only unstimulated swings are passive");
     }
-    if (tr.velocity_deg_s.size() != n || tr.accel_deg_s2.size() != n) AddKinematics(tr);
     tr.activation.assign(n, 0.0);
-    for (std::size_t i = 0; i < n; ++i) {
-      lo = std::min(lo, tr.angle_deg[i]);
-      hi = std::max(hi, tr.angle_deg[i]);
-      vlo = std::min(vlo, tr.velocity_deg_s[i]);
-      vhi = std::max(vhi, tr.velocity_deg_s[i]);
-    }
-    samples += n;
   }
 
-  // 2. Eq. 4.35 with J known (§7.4.1).
+  // 2. Eq. 4.35 with J known (§7.4.1), away from a bench's stops.
   PassiveOnlyResult out;
   ParameterSet& ps = out.parameters;
   ps = ExampleParameterSet();
   ps.model = ModelKind::kFull;
   ps.irc = PiecewiseLinear({0.0, 1.0}, {0.0, 0.0});  // no current activates: not identified
+  double lo = INFINITY, hi = -INFINITY, vlo = INFINITY, vhi = -INFINITY;
+  std::size_t samples = 0;
+  std::vector<TrialColumns> free;
+  for (const TrialColumns& tr : swings) {
+    free.push_back(options.joint_limits ? WithoutStopContact(tr, *options.joint_limits,
+                                                             options.stop_margin_deg,
+                                                             options.stop_guard_s)
+                                        : tr);
+    const TrialColumns& f = free.back();
+    for (std::size_t i = 0; i < f.size(); ++i) {
+      lo = std::min(lo, f.angle_deg[i]);
+      hi = std::max(hi, f.angle_deg[i]);
+      vlo = std::min(vlo, f.velocity_deg_s[i]);
+      vhi = std::max(vhi, f.velocity_deg_s[i]);
+    }
+    samples += f.size();
+  }
   const PassiveResult pas = IdentifyPassiveKnownInertia(
-      swings, options.inertia_kgm2, options.angle, options.velocity,
+      free, options.inertia_kgm2, options.angle, options.velocity,
       /*max_activation=*/0.5, options.relative_tolerance);
   ps.passive = pas.passive;
   out.report.Merge(pas.report);

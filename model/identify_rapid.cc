@@ -216,10 +216,6 @@ OutputErrorResult RefineOutputError(const ParameterSet& start, std::span<const T
   return out;
 }
 
-namespace {
-
-// The trial without the samples near a stop (and guard_s either side): the
-// stop's contact torque is not in the model.
 TrialColumns WithoutStopContact(const TrialColumns& tr, const JointLimits& stops, double margin_deg,
                                 double guard_s) {
   const std::size_t n = tr.size();
@@ -245,6 +241,8 @@ TrialColumns WithoutStopContact(const TrialColumns& tr, const JointLimits& stops
   }
   return out;
 }
+
+namespace {
 
 CurveRange RangeOf(const std::vector<double>& v) {
   const auto [lo, hi] = std::minmax_element(v.begin(), v.end());

@@ -124,6 +124,11 @@ ReleaseInertia InertiaFromReleases(std::span<const TrialColumns> swings,
                                    std::span<const RapidTrials::Release> releases,
                                    double window_s = 0.16);
 
+/// The trial without the samples within margin_deg of a stop, and guard_s
+/// either side of them: a stop's contact torque is not in the model.
+TrialColumns WithoutStopContact(const TrialColumns& trial, const JointLimits& stops,
+                                double margin_deg, double guard_s);
+
 /// Every torque of a set times `scale`, J with them: τ_pta, τ_ptv ordinates,
 /// τ_scale and inertia (the free-swing motion is unchanged, Eq. 4.35).
 ParameterSet ScaleTorques(const ParameterSet& p, double scale);

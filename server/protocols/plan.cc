@@ -273,6 +273,20 @@ void BuildFreeSwing(const std::string& name, const ParameterValues& v, double mi
                   MotorMode::kDecoupled, 90.0, 0.0);
 }
 
+// The pendulum test (MODEL.md, passive-only identification): each swing
+// the motor takes the relaxed knee to the release angle and holds it, then
+// lets go; the swing is recorded from the release, with no stimulation.
+void BuildPendulum(const ParameterValues& v, Builder& b) {
+  const double angle = v.at("release_angle_deg");
+  const auto swings = static_cast<int>(v.at("swings"));
+  for (int k = 1; k <= swings; ++k) {
+    b.Prepare("move to the release angle", MotorMode::kPosition, angle, v.at("settle_s"), true);
+    b.Rest("hold", v.at("hold_s"), 0.0, -1, MotorMode::kPosition, angle);
+    const int t = b.AddTrial("pendulum_" + std::to_string(k), MotorMode::kDecoupled);
+    b.Rest("free swing", v.at("swing_s"), 0.0, t, MotorMode::kDecoupled, angle);
+  }
+}
+
 void BuildPrediction(const std::string& name, const ParameterValues& v, Builder& b) {
   b.Prepare("decouple", MotorMode::kDecoupled, 90.0, v.at("settle_s"));
   model::SampledSignal env;
@@ -607,6 +621,8 @@ api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const Parameter
       BuildFreeSwing(name, values, protocol.min_rest_s, b);
     } else if (name.starts_with("prediction_")) {
       BuildPrediction(name, values, b);
+    } else if (name == "pendulum_test") {
+      BuildPendulum(values, b);
     } else if (name == "rapid_parameterisation") {
       BuildRapid(values, protocol.min_rest_s, subject, plan, b);
     } else if (name == "daily_check") {

@@ -46,7 +46,7 @@ struct Selection {
   std::int64_t subject_id = 0;
   std::int64_t leg_id = 0;
   std::map<TrialKind, std::vector<LoadedTrial>> by_kind;
-  std::set<std::int64_t> imported;  // free swings recorded elsewhere (imported)
+  std::set<std::int64_t> imported;  // free swings and pendulum tests recorded elsewhere
   std::vector<std::string> warnings;
 
   const std::vector<LoadedTrial>& Of(TrialKind kind) const {
@@ -196,10 +196,10 @@ class Fitter {
 
   // What free swings without stimulation support when a method needs more.
   std::string PassiveHint() const {
-    return sel_.Of(TrialKind::kFreeSwingPassive).empty()
+    return sel_.Of(TrialKind::kFreeSwingPassive).empty() && sel_.Of(TrialKind::kPendulum).empty()
                ? ""
-               : " (the free_swing_passive trials alone support method passive: the passive "
-                 "curves without the stimulated muscle)";
+               : " (the unstimulated swings alone support method passive: the passive curves "
+                 "without the stimulated muscle)";
   }
 
   std::optional<double> Inertia() const {
@@ -359,11 +359,14 @@ class Fitter {
   // from the anthropometrics (Eq. 4.13). What it cannot fit is said in the
   // set's warnings.
   api::Result<FitOutcome> PassiveOnly() {
-    const std::vector<LoadedTrial>& swings = sel_.Of(TrialKind::kFreeSwingPassive);
+    std::vector<const LoadedTrial*> swings;
+    for (TrialKind kind : {TrialKind::kPendulum, TrialKind::kFreeSwingPassive}) {
+      for (const LoadedTrial& t : sel_.Of(kind)) swings.push_back(&t);
+    }
     if (swings.empty()) {
       return api::Status::FailedPrecondition(
-          "missing trials: method passive needs free_swing_passive trials without stimulation "
-          "(e.g. a pendulum test); the selected trials have none");
+          "missing trials: method passive needs pendulum or free_swing_passive trials without "
+          "stimulation; the selected trials have none");
     }
     const std::optional<double> inertia = Inertia();
     if (!inertia) {
@@ -373,16 +376,16 @@ class Fitter {
     }
     std::vector<TrialColumns> trials;
     bool all_from_this_bench = true;
-    for (const LoadedTrial& t : swings) {
-      TrialColumns c = Columns(t);
+    for (const LoadedTrial* t : swings) {
+      TrialColumns c = Columns(*t);
       if (c.stim_ma.empty()) c.stim_ma.assign(c.size(), 0.0);
       if (std::any_of(c.stim_ma.begin(), c.stim_ma.end(), [](double u) { return u != 0.0; })) {
         return api::Status::FailedPrecondition(
-            "trial " + std::to_string(t.id) +
+            "trial " + std::to_string(t->id) +
             " is stimulated; method passive uses unstimulated swings only (method thesis or "
             "rapid fits stimulated trials)");
       }
-      if (sel_.imported.count(t.id)) all_from_this_bench = false;
+      if (sel_.imported.count(t->id)) all_from_this_bench = false;
       trials.push_back(std::move(c));
     }
     model::PassiveOnlyOptions o;
@@ -587,7 +590,7 @@ api::Result<Selection> Select(storage::Database& db, const IdentificationRequest
       }
       continue;
     }
-    if (*kind == TrialKind::kFreeSwingPassive) {
+    if (*kind == TrialKind::kFreeSwingPassive || *kind == TrialKind::kPendulum) {
       api::Result<std::optional<storage::TrialImport>> import =
           storage::TrialRepository(db).ImportOf(t->id);
       if (!import.ok()) return import.status();

@@ -194,7 +194,8 @@ api::Status PrepareFromTrial(storage::Database& db, const PredictionRequest& req
   model::TrialColumns c = api::ToTrialColumns(trial->trial);
   // A passive free swing (a pendulum test) has no stimulation to record:
   // its stimulation is zero throughout.
-  const bool passive = trial->trial.kind == api::TrialKind::kFreeSwingPassive;
+  const bool passive = trial->trial.kind == api::TrialKind::kFreeSwingPassive ||
+                       trial->trial.kind == api::TrialKind::kPendulum;
   if (passive && c.stim_ma.empty() && !trial->trial.pulses) c.stim_ma.assign(c.size(), 0.0);
   if (c.size() < 2 || c.angle_deg.size() != c.size() || c.stim_ma.size() != c.size()) {
     return api::Status::FailedPrecondition(
