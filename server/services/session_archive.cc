@@ -4,14 +4,17 @@
 #include <archive_entry.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <map>
 #include <memory>
+#include <set>
 
 #include "api/json_fields.h"
 #include "api/parameter_set_json.h"
 #include "api/trial_kind.h"
 #include "storage/parameter_sets.h"
+#include "storage/predictions.h"
 #include "storage/sessions.h"
 #include "storage/subjects.h"
 #include "storage/time_utc.h"
@@ -138,6 +141,76 @@ std::string AcqTime(std::optional<std::int64_t> start_ms) {
   return t;
 }
 
+std::string Number(const json& j) {
+  if (!j.is_number()) return "n/a";
+  char buffer[32];
+  const double v = j.get<double>();
+  const auto [ptr, ec] = std::to_chars(buffer, buffer + sizeof buffer, v);
+  return ec == std::errc() ? std::string(buffer, ptr) : "n/a";
+}
+
+std::string Text(const json& j, const char* key) {
+  return j.is_object() && j.contains(key) && j[key].is_string() ? j[key].get<std::string>()
+                                                                 : "n/a";
+}
+
+// The predictions of the session's parameter sets on its trials, and the
+// evaluations of those sets on them (session_archive.h layout): a table of
+// their errors, and each prediction whole.
+api::Status AddPredictions(storage::Database& db, const std::vector<std::int64_t>& set_ids,
+                           const std::set<std::int64_t>& trial_ids, api::FileMap& files) {
+  const std::string dir = std::string(api::kBidsDerivatives);
+  storage::PredictionRepository repo(db);
+  std::string table =
+      "prediction_id\tparameter_set_id\ttrial_id\tcreated_at\tchannel\tunit\te_rms\te_abs\n";
+  json evaluations = json::array();
+  for (std::int64_t set_id : set_ids) {
+    auto predictions = repo.PredictionsFor(set_id);
+    if (!predictions.ok()) return predictions.status();
+    for (const storage::Prediction& p : *predictions) {
+      if (!p.prediction.trial_id || !trial_ids.contains(*p.prediction.trial_id)) continue;
+      const json input = json::parse(p.prediction.input_json, nullptr, false);
+      const json output = json::parse(p.prediction.output_json, nullptr, false);
+      const json errors = output.is_object() ? output.value("errors", json::object()) : json();
+      table += std::to_string(p.id) + "\t" + std::to_string(set_id) + "\t" +
+               std::to_string(*p.prediction.trial_id) + "\t" + storage::FormatUtc(p.created_at) +
+               "\t" + Text(errors, "channel") + "\t" + Text(errors, "unit") + "\t" +
+               Number(errors.value("e_rms", json())) + "\t" + Number(errors.value("e_abs", json())) +
+               "\n";
+      files[dir + "predictions/prediction-" + std::to_string(p.id) + ".json"] =
+          json{{"id", p.id},
+               {"parameter_set_id", set_id},
+               {"trial_id", *p.prediction.trial_id},
+               {"created_at", storage::FormatUtc(p.created_at)},
+               {"input", input.is_discarded() ? json(nullptr) : input},
+               {"output", output.is_discarded() ? json(nullptr) : output}}
+              .dump(2) +
+          "\n";
+    }
+    auto evaluated = repo.EvaluationsFor(set_id);
+    if (!evaluated.ok()) return evaluated.status();
+    for (const storage::Evaluation& e : *evaluated) {
+      if (!trial_ids.contains(e.evaluation.trial_id)) continue;
+      const json details = json::parse(e.evaluation.details_json, nullptr, false);
+      evaluations.push_back(
+          {{"id", e.id},
+           {"parameter_set_id", set_id},
+           {"trial_id", e.evaluation.trial_id},
+           {"prediction_id",
+            e.evaluation.prediction_id ? json(*e.evaluation.prediction_id) : json(nullptr)},
+           {"channel", e.evaluation.channel},
+           {"unit", e.evaluation.unit},
+           {"rms_error", e.evaluation.rms_error},
+           {"max_abs_error", e.evaluation.max_abs_error},
+           {"details", details.is_discarded() ? json(nullptr) : details},
+           {"created_at", storage::FormatUtc(e.created_at)}});
+    }
+  }
+  files[dir + "predictions.tsv"] = std::move(table);
+  files[dir + "evaluations.json"] = evaluations.dump(2) + "\n";
+  return api::Status::Ok();
+}
+
 }  // namespace
 
 std::optional<ArchiveFormat> ParseArchiveFormat(std::string_view name) {
@@ -236,14 +309,16 @@ api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const Sessio
   if (!summaries.ok()) return summaries.status();
   const std::string session_dir = "sub-" + subject_label + "/ses-" + session_label + "/";
   std::string scans = "filename\tacq_time\n";
+  std::set<std::int64_t> trial_ids;
   for (const storage::TrialSummary& summary : *summaries) {
+    trial_ids.insert(summary.id);
     auto trial = trials.Get(summary.id);
     if (!trial.ok()) return trial.status();
     if (!trial->name) trial->name = "trial";
     api::FileMap trial_files;
     api::AddBidsTrial(*trial, {subject_label, session_label, leg_side, summary.id}, trial_files);
     for (auto& [path, content] : trial_files) {
-      if (path.ends_with("_motion.tsv") || path.ends_with("_emg.tsv")) {
+      if (path.ends_with("_motion.tsv")) {
         scans += path.substr(session_dir.size()) + "\t" + AcqTime(trial->start_time_unix_ms) + "\n";
       }
       files[path] = std::move(content);
@@ -265,6 +340,7 @@ api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const Sessio
   storage::ParameterSetRepository sets(db);
   auto set_ids = sets.IdsForSession(info.session_id);
   if (!set_ids.ok()) return set_ids.status();
+  if (api::Status s = AddPredictions(db, *set_ids, trial_ids, files); !s.ok()) return s;
   for (std::int64_t id : *set_ids) {
     auto set = sets.Get(id);
     if (!set.ok()) return set.status();
