@@ -46,35 +46,41 @@ std::string ArchiveError(archive* a) {
 
 std::string ReadmeText(std::int64_t session_id, const std::string& subject_label) {
   const std::string id = std::to_string(session_id);
+  const std::string ses = "sub-" + subject_label + "/ses-" + id;
   return "# fesbench session " + id +
          "\n\n"
-         "Exported by fesbench: the trials of one session laid out after BIDS v" +
+         "Exported by fesbench: the trials of one session as a BIDS v" +
          std::string(api::kBidsVersion) +
-         " (motion datatype; EMG after BEP042),\nwith the session's parameter sets and run "
-         "log as a fesbench derivative.\n\n"
+         " dataset (motion datatype), with what BIDS\nhas no field for in the derivative "
+         "`derivatives/fesbench/`.\n\n"
          "## Layout\n\n"
          "- `dataset_description.json`, `participants.tsv`: the dataset and its one "
          "participant,\n  `sub-" +
          subject_label +
          "` (the subject's pseudonymous code; no other identifying data).\n"
-         "- `sub-" +
-         subject_label + "/ses-" + id + "/sub-" + subject_label + "_ses-" + id +
+         "- `" + ses + "/sub-" + subject_label + "_ses-" + id +
          "_scans.tsv`: every data file and the UTC time its trial started.\n"
-         "- `.../motion/*_tracksys-kneebench_run-R_motion.tsv`: one trial (R is its fesbench "
-         "id),\n  one column per channel and no header row; `*_channels.tsv` names the "
-         "columns in order\n  with their units; `*_motion.json` gives the sampling frequency "
-         "and the trial's name\n  (and, for a hardware stimulator, under "
-         "`FesbenchTrial.device_commands`, what the device\n  was told and when).\n"
-         "- `.../motion/*_events.tsv`: the stimulation pulses as delivered (onset s, "
-         "amplitude_ma,\n  width_us); `*_events.json` gives the pulse rate.\n"
-         "- `.../emg/*_emg.tsv`: EMG at its own rate, same layout (BIDS stores EMG as "
-         "EDF/BDF;\n  fesbench writes TSV so that nothing is lost).\n"
+         "- `" + ses + "/motion/*_tracksys-kneebench_run-R_motion.tsv`: one trial (R is its "
+         "fesbench id),\n  one column per channel and no header row; `*_channels.tsv` names the "
+         "columns in order\n  with their units; `*_motion.json` gives the sampling frequency.\n"
+         "- `" + ses + "/motion/*_events.tsv`: the stimulation pulses as delivered (onset s, "
+         "amplitude_ma,\n  width_us); `*_events.json` describes the columns.\n"
+         "- `derivatives/fesbench/" + ses + "/motion/*_trial.json`: the trial's name, id, start "
+         "and pulse\n  clock (and, for a hardware stimulator, what the device was told and "
+         "when);\n  `*_motion.mot`: the knee for OpenSim (`knee_angle_r`/`_l`, flexion "
+         "negative, degrees).\n"
+         "- `derivatives/fesbench/" + ses + "/emg/*_emg.edf`: EMG as EDF+ with its BIDS "
+         "(BEP042) sidecars;\n  `*_desc-float64_emg.tsv`: the same samples exactly. (The "
+         "validator of this\n  export's BIDS version does not know the emg datatype yet.)\n"
          "- `derivatives/fesbench/session.json`: subject, leg and session values "
          "(max tolerated amplitude, ...).\n"
          "- `derivatives/fesbench/runs.json`: every run, its protocol, parameters, states "
          "and reason.\n"
          "- `derivatives/fesbench/parameter_sets/paramset-<id>.json`: each parameter set "
-         "identified\n  from these trials (DESIGN.md section 3 JSON under `parameter_set`).\n\n"
+         "identified\n  from these trials (docs/MODEL.md JSON under `parameter_set`).\n"
+         "- `derivatives/fesbench/predictions.tsv`: each prediction of those sets on these "
+         "trials\n  with its errors (e_rms, e_abs); `predictions/prediction-<id>.json` each "
+         "whole;\n  `evaluations.json` the stored evaluations.\n\n"
          "Numbers are written in the shortest form that reads back exactly. Importing this "
          "archive\ninto a session (`fesbench trials import --session ID FILE`) reproduces "
          "the trials bit for bit.\n\n"
