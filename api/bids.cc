@@ -196,42 +196,29 @@ std::string BidsTaskLabel(std::string_view trial_name) {
   return out.empty() ? "x" : out;
 }
 
-std::string TrialToOpenSimMotion(const Trial& trial, std::string_view leg) {
+ChannelGroup ToOpenSimCoordinates(ChannelGroup group, std::string_view leg) {
   // OpenSim's gait models name the knee coordinate knee_angle_r / _l and
   // count flexion negative (api/trial_import.cc reads them back with the
   // sign turned); fesbench's angle_deg counts flexion positive.
-  const std::string side = leg == "left" ? "l" : "r";
-  const std::string coordinate = "knee_angle_" + side;
-  struct Column {
-    std::string label;
-    const std::vector<double>* values;
-    double sign;
-  };
-  std::vector<Column> columns;
-  const std::vector<double>* time = trial.Values(kTimeChannel);
-  if (time == nullptr) return {};
-  columns.push_back({"time", time, 1.0});
-  if (const auto* angle = trial.Values("angle_deg")) columns.push_back({coordinate, angle, -1.0});
-  if (const auto* speed = trial.Values("velocity_deg_s")) {
-    columns.push_back({coordinate + "_speed", speed, -1.0});
+  const std::string coordinate = std::string("knee_angle_") + (leg == "left" ? "l" : "r");
+  for (Channel& c : group.channels) {
+    if (c.name != "angle_deg" && c.name != "velocity_deg_s") continue;
+    c.name = c.name == "angle_deg" ? coordinate : coordinate + "_speed";
+    for (double& v : c.values) v = -v;
   }
-  const std::size_t n = time->size();
-  std::string out = trial.name.value_or("fesbench_trial");
-  out += "\nversion=1\nnRows=" + std::to_string(n) + "\nnColumns=" +
-         std::to_string(columns.size()) + "\ninDegrees=yes\nendheader\n";
-  for (std::size_t j = 0; j < columns.size(); ++j) {
-    if (j) out += '\t';
-    out += columns[j].label;
+  return group;
+}
+
+std::string TrialToOpenSimMotion(const Trial& trial, std::string_view leg) {
+  ChannelGroup knee;
+  knee.sample_rate_hz = trial.sample_rate_hz;
+  for (std::string_view name : {kTimeChannel, std::string_view("angle_deg"),
+                                std::string_view("velocity_deg_s")}) {
+    if (const Channel* c = trial.FindChannel(name)) knee.channels.push_back(*c);
   }
-  out += '\n';
-  for (std::size_t k = 0; k < n; ++k) {
-    for (std::size_t j = 0; j < columns.size(); ++j) {
-      if (j) out += '\t';
-      AppendNumber(out, columns[j].sign * (*columns[j].values)[k]);
-    }
-    out += '\n';
-  }
-  return out;
+  if (knee.Find(kTimeChannel) == nullptr) return {};
+  return GroupToSto(ToOpenSimCoordinates(std::move(knee), leg),
+                    trial.name.value_or("fesbench_trial"));
 }
 
 std::optional<std::string> EmgToEdf(const ChannelGroup& emg,

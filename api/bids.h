@@ -67,6 +67,12 @@ struct BidsTrialPlace {
 /// (ValidateTrial) and named.
 void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& files);
 
+/// The group with its knee channels as OpenSim's gait models name them:
+/// angle_deg becomes knee_angle_r (knee_angle_l for the left leg) and
+/// velocity_deg_s knee_angle_r_speed, both negated (flexion negative);
+/// other channels unchanged.
+ChannelGroup ToOpenSimCoordinates(ChannelGroup group, std::string_view leg);
+
 /// The trial's knee as an OpenSim motion (.mot, Storage version 1):
 /// header `name`, `version=1`, `nRows`, `nColumns` (time included),
 /// `inDegrees=yes`, `endheader`; columns `time`, `knee_angle_r` (or `_l`
