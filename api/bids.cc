@@ -481,7 +481,15 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
       if (!read.ok()) return read.status();
       fes = std::move(*read);
     }
-    std::string name = fes.value("name", sidecar->value("TaskName", std::string()));
+    // Client input: a field of the wrong type is refused, not thrown.
+    const json& task = sidecar->contains("TaskName") ? (*sidecar)["TaskName"] : json("");
+    const json& own = fes.contains("name") ? fes["name"] : task;
+    if (!own.is_string()) {
+      return Status::InvalidArgument(
+          (fes.contains("name") ? trial_path + ": name" : prefix + "_motion.json: TaskName") +
+          " must be a string");
+    }
+    std::string name = own.get<std::string>();
     if (!sidecar->contains("SamplingFrequency") || !(*sidecar)["SamplingFrequency"].is_number()) {
       return Status::InvalidArgument(prefix + "_motion.json: SamplingFrequency is required");
     }

@@ -389,6 +389,21 @@ TEST(BidsTest, AHardwareStimulatorsCommandsReadBackBitForBit) {
   EXPECT_NE(bad.status().message().find(record + ": device_commands.commanded_ma[2]"),
             std::string::npos)
       << bad.status().message();
+  // Fields of the wrong type are refused naming the file, never thrown; a
+  // pulse table needs the pulse clock beside it.
+  for (const auto& [field, value] :
+       std::vector<std::pair<std::string, nlohmann::json>>{{"name", 5}, {"pulses", "33 Hz"}}) {
+    FileMap broken = files;
+    auto j = nlohmann::json::parse(files.at(record));
+    j.erase("device_commands");
+    j[field] = value;
+    broken[record] = j.dump();
+    auto refused = ReadBidsTrials(broken);
+    ASSERT_FALSE(refused.ok()) << field;
+    EXPECT_EQ(refused.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(refused.status().message().find(record + ": " + field), std::string::npos)
+        << refused.status().message();
+  }
 }
 
 // EDF+ as its specification lays it out: a 256-byte header, 256 bytes per
