@@ -647,8 +647,10 @@ Status ValidateBidsLayout(const FileMap& files) {
       "ACCEL", "ANGACCEL", "GYRO", "JNTANG", "LATENCY", "MAGN", "MISC", "ORNT", "POS", "VEL"};
   int motion_files = 0;
   for (const auto& [path, text] : files) {
-    // A derivative's content is its own (BIDS: derivatives).
-    if (path.starts_with(kBidsDerivatives.substr(0, kBidsDerivatives.find('/') + 1))) continue;
+    // BIDS EMG is EDF or BDF (BEP042). A derivative's content is its own,
+    // but for the EMG files laid out for the BIDS of their time.
+    const bool is_emg = EndsWith(path, "_emg.edf") || EndsWith(path, "_emg.bdf");
+    if (path.starts_with("derivatives/") && !is_emg) continue;
     const std::string file = BaseName(path);
     std::string suffix;
     const auto entities = Entities(file, &suffix);
@@ -666,8 +668,6 @@ Status ValidateBidsLayout(const FileMap& files) {
       }
     }
     const bool is_motion = EndsWith(path, "_motion.tsv");
-    const bool is_emg =
-        EndsWith(path, "_emg.tsv") || EndsWith(path, "_emg.edf") || EndsWith(path, "_emg.bdf");
     if (is_motion || is_emg) {
       const std::string data_suffix = is_motion ? "_motion.tsv" : path.substr(path.rfind("_emg"));
       const std::string prefix = path.substr(0, path.size() - data_suffix.size());
@@ -694,7 +694,7 @@ Status ValidateBidsLayout(const FileMap& files) {
                                             "' is not a motion channel type");
         }
       }
-      if (EndsWith(path, ".tsv")) {
+      if (is_motion) {
         // No header row; every row has one value per channel.
         const std::size_t first_newline = text.find('\n');
         const std::string_view first(

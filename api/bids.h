@@ -106,11 +106,12 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files);
 /// per *_motion.tsv a *_channels.tsv whose rows match its columns (columns
 /// name, component, type, tracked_point, units; types from the restricted
 /// list) and a *_motion.json (SamplingFrequency, TrackingSystemName,
-/// TaskName); per *_emg.* a *_emg.json (EMGPlacementScheme, EMGReference,
+/// TaskName); per *_emg.edf or .bdf a *_emg.json (EMGPlacementScheme, EMGReference,
 /// SamplingFrequency, PowerLineFrequency, SoftwareFilters, TaskName) and a
 /// *_channels.tsv (name, type, units); per *_events.tsv the columns onset
 /// and duration first; every entity label alphanumeric. Files under
-/// derivatives/ are the derivative's own and not checked. kInvalidArgument
+/// derivatives/ are the derivative's own and not checked, but for EMG as
+/// EDF/BDF and its sidecars (the BEP042 layout kept there). kInvalidArgument
 /// naming the file and what is missing.
 Status ValidateBidsLayout(const FileMap& files);
 

@@ -582,6 +582,17 @@ TEST(BidsTest, LayoutHasTheRequiredFilesAndColumns) {
     EXPECT_FALSE(s.ok()) << suffix;
     EXPECT_NE(s.message().find(path), std::string::npos) << s.message();
   }
+  // The EMG's sidecar without its reference scheme.
+  const std::string emg_json =
+      "derivatives/fesbench/sub-S01/ses-3/emg/sub-S01_ses-3_task-activeRandomBinaryRb1_run-41"
+      "_emg.json";
+  FileMap broken = files;
+  auto sidecar = nlohmann::json::parse(files.at(emg_json));
+  sidecar.erase("EMGReference");
+  broken[emg_json] = sidecar.dump();
+  const Status s = ValidateBidsLayout(broken);
+  EXPECT_NE(s.message().find(emg_json + ": EMGReference is required"), std::string::npos)
+      << s.ToString();
 }
 
 TEST(TrialUnitsTest, AccelerometerAndDistanceChannelsHaveUnits) {
