@@ -212,8 +212,8 @@ ChannelGroup ToOpenSimCoordinates(ChannelGroup group, std::string_view leg) {
 std::string TrialToOpenSimMotion(const Trial& trial, std::string_view leg) {
   ChannelGroup knee;
   knee.sample_rate_hz = trial.sample_rate_hz;
-  for (std::string_view name : {kTimeChannel, std::string_view("angle_deg"),
-                                std::string_view("velocity_deg_s")}) {
+  for (std::string_view name :
+       {kTimeChannel, std::string_view("angle_deg"), std::string_view("velocity_deg_s")}) {
     if (const Channel* c = trial.FindChannel(name)) knee.channels.push_back(*c);
   }
   if (knee.Find(kTimeChannel) == nullptr) return {};
@@ -247,8 +247,8 @@ std::optional<std::string> EmgToEdf(const ChannelGroup& emg,
     std::string path;
     ~Remove() { std::remove(path.c_str()); }
   } remove{path};
-  const int handle =
-      edfopen_file_writeonly(path.c_str(), EDFLIB_FILETYPE_EDFPLUS, static_cast<int>(signals.size()));
+  const int handle = edfopen_file_writeonly(path.c_str(), EDFLIB_FILETYPE_EDFPLUS,
+                                            static_cast<int>(signals.size()));
   if (handle < 0) return std::nullopt;
   bool ok = true;
   for (std::size_t j = 0; j < signals.size(); ++j) {
@@ -286,14 +286,16 @@ std::optional<std::string> EmgToEdf(const ChannelGroup& emg,
       date[5] = static_cast<int>(hms.seconds().count());
     }
   }
-  ok = ok && edf_set_startdatetime(handle, date[0], date[1], date[2], date[3], date[4], date[5]) == 0;
+  ok = ok &&
+       edf_set_startdatetime(handle, date[0], date[1], date[2], date[3], date[4], date[5]) == 0;
   ok = ok && edf_set_equipment(handle, "fesbench knee bench") == 0;
   std::vector<double> buffer(static_cast<std::size_t>(per_record));
   for (std::size_t r = 0; ok && r < records; ++r) {
     for (const Channel* c : signals) {
       // The last record padded with zeros.
       for (int k = 0; k < per_record; ++k) {
-        const std::size_t i = r * static_cast<std::size_t>(per_record) + static_cast<std::size_t>(k);
+        const std::size_t i =
+            r * static_cast<std::size_t>(per_record) + static_cast<std::size_t>(k);
         buffer[static_cast<std::size_t>(k)] = i < c->values.size() ? c->values[i] : 0.0;
       }
       ok = ok && edfwrite_physical_samples(handle, buffer.data()) == 0;
@@ -363,7 +365,8 @@ void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& file
     fesbench["pulses"] = {{"pulse_rate_hz", trial.pulses->pulse_rate_hz},
                           {"pulse_width_us", trial.pulses->pulse_width_us}};
   }
-  if (trial.device_commands) fesbench["device_commands"] = DeviceCommandLogToJson(*trial.device_commands);
+  if (trial.device_commands)
+    fesbench["device_commands"] = DeviceCommandLogToJson(*trial.device_commands);
   files[derived + motion + "_trial.json"] = fesbench.dump(2) + "\n";
   files[derived + motion + "_motion.mot"] = TrialToOpenSimMotion(trial, place.leg);
 
@@ -389,8 +392,8 @@ void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& file
         {"trial_type",
          {{"Description", "kind of event"},
           {"Levels",
-           {{"stimulation_pulse", "one biphasic stimulation pulse as delivered, on the "
-                                  "stimulator's " + rate + " Hz pulse clock"}}}}},
+           {{"stimulation_pulse",
+             "one biphasic stimulation pulse as delivered, on a " + rate + " Hz pulse clock"}}}}},
         {"amplitude_ma", {{"Description", "delivered pulse amplitude"}, {"Units", "mA"}}},
         {"width_us", {{"Description", "pulse width"}, {"Units", "us"}}},
     };
@@ -415,10 +418,9 @@ void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& file
     int emg_count = 0;
     for (const Channel& c : emg_ordered) {
       const bool time = c.name == kTimeChannel;
-      const std::string row = c.name + "\t" + (time ? "SYSCLOCK" : "EMG") + "\t" + Units(c) + "\t" +
-                              rate + "\t" +
-                              (time ? "time from the trial's start" : "surface EMG, quadriceps") +
-                              "\n";
+      const std::string row =
+          c.name + "\t" + (time ? "SYSCLOCK" : "EMG") + "\t" + Units(c) + "\t" + rate + "\t" +
+          (time ? "time from the trial's start" : "surface EMG, quadriceps") + "\n";
       exact_channels += row;
       if (!time) {
         edf_channels += row;
@@ -508,9 +510,8 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
     if (fes.contains("device_commands")) {
       Result<DeviceCommandLog> log = DeviceCommandLogFromJson(fes["device_commands"]);
       if (!log.ok()) {
-        return Status::InvalidArgument(trial_path + ": " +
-                                       std::string(log.status().field()) + ": " +
-                                       log.status().message());
+        return Status::InvalidArgument(trial_path + ": " + std::string(log.status().field()) +
+                                       ": " + log.status().message());
       }
       trial.device_commands = std::move(*log);
     }
@@ -537,9 +538,8 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
       if (!clock.is_object() || !clock.contains("pulse_rate_hz") ||
           !clock["pulse_rate_hz"].is_number() || !clock.contains("pulse_width_us") ||
           !clock["pulse_width_us"].is_number()) {
-        return Status::InvalidArgument(trial_path +
-                                       ": pulses.pulse_rate_hz and pulses.pulse_width_us are "
-                                       "required beside " + events_it->first);
+        const std::string what = ": pulses.pulse_rate_hz and pulses.pulse_width_us are required";
+        return Status::InvalidArgument(trial_path + what + " beside " + events_it->first);
       }
       PulseRecord pulses;
       pulses.pulse_rate_hz = clock["pulse_rate_hz"].get<double>();
@@ -592,8 +592,8 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
       double emg_rate = 0.0;
       if (rate_col && !ec->rows.empty()) {
         const std::string& text_rate = ec->rows.front()[*rate_col];
-        const auto r = std::from_chars(text_rate.data(), text_rate.data() + text_rate.size(),
-                                       emg_rate);
+        const auto r =
+            std::from_chars(text_rate.data(), text_rate.data() + text_rate.size(), emg_rate);
         if (r.ec != std::errc() || r.ptr != text_rate.data() + text_rate.size()) emg_rate = 0.0;
       }
       if (!(emg_rate > 0.0)) {

@@ -98,7 +98,8 @@ struct BidsTrial {
 
 /// Reads every trial of a dataset (each *_motion.tsv with its sidecars and
 /// its derivative files above), in run order; a trial without a _trial.json
-/// is named by its TaskName and has no original id. Errors name the file and, inside it, the line and column.
+/// is named by its TaskName and has no original id. Errors name the file and, inside it, the line
+/// and column.
 Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files);
 
 /// Checks the files and columns the specification requires, as far as it

@@ -58,18 +58,27 @@ std::string ReadmeText(std::int64_t session_id, const std::string& subject_label
          "participant,\n  `sub-" +
          subject_label +
          "` (the subject's pseudonymous code; no other identifying data).\n"
-         "- `" + ses + "/sub-" + subject_label + "_ses-" + id +
+         "- `" +
+         ses + "/sub-" + subject_label + "_ses-" + id +
          "_scans.tsv`: every data file and the UTC time its trial started.\n"
-         "- `" + ses + "/motion/*_tracksys-kneebench_run-R_motion.tsv`: one trial (R is its "
+         "- `" +
+         ses +
+         "/motion/*_tracksys-kneebench_run-R_motion.tsv`: one trial (R is its "
          "fesbench id),\n  one column per channel and no header row; `*_channels.tsv` names the "
          "columns in order\n  with their units; `*_motion.json` gives the sampling frequency.\n"
-         "- `" + ses + "/motion/*_events.tsv`: the stimulation pulses as delivered (onset s, "
+         "- `" +
+         ses +
+         "/motion/*_events.tsv`: the stimulation pulses as delivered (onset s, "
          "amplitude_ma,\n  width_us); `*_events.json` describes the columns.\n"
-         "- `derivatives/fesbench/" + ses + "/motion/*_trial.json`: the trial's name, id, start "
+         "- `derivatives/fesbench/" +
+         ses +
+         "/motion/*_trial.json`: the trial's name, id, start "
          "and pulse\n  clock (and, for a hardware stimulator, what the device was told and "
          "when);\n  `*_motion.mot`: the knee for OpenSim (`knee_angle_r`/`_l`, flexion "
          "negative, degrees).\n"
-         "- `derivatives/fesbench/" + ses + "/emg/*_emg.edf`: EMG as EDF+ with its BIDS "
+         "- `derivatives/fesbench/" +
+         ses +
+         "/emg/*_emg.edf`: EMG as EDF+ with its BIDS "
          "(BEP042) sidecars;\n  `*_desc-float64_emg.tsv`: the same samples exactly. (The "
          "validator of this\n  export's BIDS version does not know the emg datatype yet.)\n"
          "- `derivatives/fesbench/session.json`: subject, leg and session values "
@@ -156,8 +165,7 @@ std::string Number(const json& j) {
 }
 
 std::string Text(const json& j, const char* key) {
-  return j.is_object() && j.contains(key) && j[key].is_string() ? j[key].get<std::string>()
-                                                                 : "n/a";
+  return j.is_object() && j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : "n/a";
 }
 
 // The predictions of the session's parameter sets on its trials, and the
@@ -181,8 +189,8 @@ api::Status AddPredictions(storage::Database& db, const std::vector<std::int64_t
       table += std::to_string(p.id) + "\t" + std::to_string(set_id) + "\t" +
                std::to_string(*p.prediction.trial_id) + "\t" + storage::FormatUtc(p.created_at) +
                "\t" + Text(errors, "channel") + "\t" + Text(errors, "unit") + "\t" +
-               Number(errors.value("e_rms", json())) + "\t" + Number(errors.value("e_abs", json())) +
-               "\n";
+               Number(errors.value("e_rms", json())) + "\t" +
+               Number(errors.value("e_abs", json())) + "\n";
       files[dir + "predictions/prediction-" + std::to_string(p.id) + ".json"] =
           json{{"id", p.id},
                {"parameter_set_id", set_id},

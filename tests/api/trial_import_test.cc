@@ -447,8 +447,8 @@ EdfRead ReadEdf(const std::string& edf) {
   r.physical.resize(ns);
   for (int rec = 0; rec < r.records; ++rec) {
     for (std::size_t s = 0; s < ns; ++s) {
-      const double gain = (std::stod(pmax[s]) - std::stod(pmin[s])) /
-                          (std::stod(dmax[s]) - std::stod(dmin[s]));
+      const double gain =
+          (std::stod(pmax[s]) - std::stod(pmin[s])) / (std::stod(dmax[s]) - std::stod(dmin[s]));
       for (int k = 0; k < r.per_record[s]; ++k, at += 2) {
         const auto lo = static_cast<unsigned char>(edf.at(at));
         const auto hi = static_cast<unsigned char>(edf.at(at + 1));

@@ -89,8 +89,9 @@ api::FileMap ExportFiles() {
       "9\t5\t41\t2026-11-25T10:00:01.000000Z\tangle_deg\tdeg\t2.5\t6\n";
   files["derivatives/fesbench/predictions/prediction-9.json"] = R"({"id": 9})";
   files["derivatives/fesbench/evaluations.json"] = "[]";
-  files["derivatives/fesbench/sub-S01/ses-7/emg/sub-S01_ses-7_task-freeSwingPassive_run-41_emg.edf"] =
-      std::string(256, ' ');
+  files
+      ["derivatives/fesbench/sub-S01/ses-7/emg/"
+       "sub-S01_ses-7_task-freeSwingPassive_run-41_emg.edf"] = std::string(256, ' ');
   files["derivatives/fesbench/parameter_sets/paramset-5.json"] = json{
       {"id", 5},
       {"version", 1},

@@ -229,7 +229,8 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
   // The knee as OpenSim's coordinate of the right leg, flexion negative.
   {
     const std::size_t labels_at = sto->body.find("endheader\n") + 10;
-    const std::string labels = sto->body.substr(labels_at, sto->body.find('\n', labels_at) - labels_at);
+    const std::string labels =
+        sto->body.substr(labels_at, sto->body.find('\n', labels_at) - labels_at);
     EXPECT_NE(labels.find("\tknee_angle_r"), std::string::npos) << labels;
     EXPECT_EQ(labels.find("angle_deg"), std::string::npos) << labels;
     auto trial = Call(ca, "GET", "/api/v1/trials/" + std::to_string(first_trial), admin_a);
