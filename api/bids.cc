@@ -1,10 +1,21 @@
 #include "api/bids.h"
 
+#include <edflib.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <sstream>
 
 #include "api/json_fields.h"
 #include "api/trial_import.h"
@@ -15,6 +26,8 @@ namespace {
 using nlohmann::json;
 
 constexpr std::string_view kTrackingSystem = "kneebench";
+// The entity of the derivative's exact EMG samples beside their EDF+ copy.
+constexpr std::string_view kExactEmg = "_desc-float64";
 
 void AppendNumber(std::string& out, double value) {
   char buffer[32];
@@ -184,6 +197,120 @@ std::string BidsTaskLabel(std::string_view trial_name) {
   return out.empty() ? "x" : out;
 }
 
+ChannelGroup ToOpenSimCoordinates(ChannelGroup group, std::string_view leg) {
+  // OpenSim's gait models name the knee coordinate knee_angle_r / _l and
+  // count flexion negative (api/trial_import.cc reads them back with the
+  // sign turned); fesbench's angle_deg counts flexion positive.
+  const std::string coordinate = std::string("knee_angle_") + (leg == "left" ? "l" : "r");
+  for (Channel& c : group.channels) {
+    if (c.name != "angle_deg" && c.name != "velocity_deg_s") continue;
+    c.name = c.name == "angle_deg" ? coordinate : coordinate + "_speed";
+    for (double& v : c.values) v = -v;
+  }
+  return group;
+}
+
+std::string TrialToOpenSimMotion(const Trial& trial, std::string_view leg) {
+  ChannelGroup knee;
+  knee.sample_rate_hz = trial.sample_rate_hz;
+  for (std::string_view name :
+       {kTimeChannel, std::string_view("angle_deg"), std::string_view("velocity_deg_s")}) {
+    if (const Channel* c = trial.FindChannel(name)) knee.channels.push_back(*c);
+  }
+  if (knee.Find(kTimeChannel) == nullptr) return {};
+  return GroupToSto(ToOpenSimCoordinates(std::move(knee), leg),
+                    trial.name.value_or("fesbench_trial"));
+}
+
+std::optional<std::string> EmgToEdf(const ChannelGroup& emg,
+                                    std::optional<std::int64_t> start_time_unix_ms) {
+  // EDF+ records hold a whole number of samples: one-second records at an
+  // integer rate.
+  const double rate = emg.sample_rate_hz;
+  if (!(rate >= 1.0) || rate != std::floor(rate) || rate > 1e6) return std::nullopt;
+  const int per_record = static_cast<int>(rate);
+  std::vector<const Channel*> signals;
+  for (const Channel& c : emg.channels) {
+    if (c.name != kTimeChannel) signals.push_back(&c);
+  }
+  if (signals.empty()) return std::nullopt;
+  const std::size_t n = emg.num_samples();
+  const std::size_t records = std::max<std::size_t>(1, (n + per_record - 1) / per_record);
+
+  // EDFlib writes to a path and keeps its open files in a static table.
+  static std::mutex edflib_mutex;
+  const std::lock_guard lock(edflib_mutex);
+  std::string path = (std::filesystem::temp_directory_path() / "fesbench-emg-XXXXXX").string();
+  const int fd = ::mkstemp(path.data());
+  if (fd < 0) return std::nullopt;
+  ::close(fd);
+  struct Remove {
+    std::string path;
+    ~Remove() { std::remove(path.c_str()); }
+  } remove{path};
+  const int handle = edfopen_file_writeonly(path.c_str(), EDFLIB_FILETYPE_EDFPLUS,
+                                            static_cast<int>(signals.size()));
+  if (handle < 0) return std::nullopt;
+  bool ok = true;
+  for (std::size_t j = 0; j < signals.size(); ++j) {
+    const int s = static_cast<int>(j);
+    // A symmetric physical range that holds every sample, in three
+    // significant digits (the header field has 8 characters).
+    double peak = 0.0;
+    for (double v : signals[j]->values) peak = std::max(peak, std::abs(v));
+    if (!(peak > 0.0) || !std::isfinite(peak)) peak = 1.0;
+    const double scale = std::pow(10.0, std::floor(std::log10(peak)) - 2.0);
+    peak = std::ceil(peak / scale) * scale;
+    ok = ok && edf_set_samplefrequency(handle, s, per_record) == 0 &&
+         edf_set_physical_maximum(handle, s, peak) == 0 &&
+         edf_set_physical_minimum(handle, s, -peak) == 0 &&
+         edf_set_digital_maximum(handle, s, 32767) == 0 &&
+         edf_set_digital_minimum(handle, s, -32768) == 0 &&
+         edf_set_label(handle, s, signals[j]->name.c_str()) == 0 &&
+         edf_set_physical_dimension(handle, s, signals[j]->unit.c_str()) == 0;
+  }
+  // The trial's start, where EDF can hold it (1985-2084); else the
+  // anonymised 1985-01-01 00:00:00.
+  int date[6] = {1985, 1, 1, 0, 0, 0};
+  if (start_time_unix_ms) {
+    const auto t = std::chrono::sys_time<std::chrono::milliseconds>(
+        std::chrono::milliseconds(*start_time_unix_ms));
+    const auto day = std::chrono::floor<std::chrono::days>(t);
+    const std::chrono::year_month_day ymd(day);
+    const std::chrono::hh_mm_ss hms(t - day);
+    if (static_cast<int>(ymd.year()) >= 1985 && static_cast<int>(ymd.year()) <= 2084) {
+      date[0] = static_cast<int>(ymd.year());
+      date[1] = static_cast<int>(static_cast<unsigned>(ymd.month()));
+      date[2] = static_cast<int>(static_cast<unsigned>(ymd.day()));
+      date[3] = static_cast<int>(hms.hours().count());
+      date[4] = static_cast<int>(hms.minutes().count());
+      date[5] = static_cast<int>(hms.seconds().count());
+    }
+  }
+  ok = ok &&
+       edf_set_startdatetime(handle, date[0], date[1], date[2], date[3], date[4], date[5]) == 0;
+  ok = ok && edf_set_equipment(handle, "fesbench knee bench") == 0;
+  std::vector<double> buffer(static_cast<std::size_t>(per_record));
+  for (std::size_t r = 0; ok && r < records; ++r) {
+    for (const Channel* c : signals) {
+      // The last record padded with zeros.
+      for (int k = 0; k < per_record; ++k) {
+        const std::size_t i =
+            r * static_cast<std::size_t>(per_record) + static_cast<std::size_t>(k);
+        buffer[static_cast<std::size_t>(k)] = i < c->values.size() ? c->values[i] : 0.0;
+      }
+      ok = ok && edfwrite_physical_samples(handle, buffer.data()) == 0;
+    }
+  }
+  ok = edfclose_file(handle) == 0 && ok;
+  if (!ok) return std::nullopt;
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (!in) return std::nullopt;
+  return std::move(bytes).str();
+}
+
 void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& files) {
   const std::string name = trial.name.value_or("trial");
   const std::string dir = "sub-" + place.subject_label + "/ses-" + place.session_label + "/";
@@ -192,6 +319,7 @@ void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& file
   const std::string run = "_run-" + std::to_string(place.run);
   const std::string motion =
       dir + "motion/" + entities + "_tracksys-" + std::string(kTrackingSystem) + run;
+  const std::string derived = std::string(kBidsDerivatives);
 
   // Channels: t_s first (the LATENCY channel), then the rest in stored order.
   std::vector<Channel> ordered;
@@ -226,13 +354,22 @@ void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& file
       {"MissingValues", "n/a"},
   };
   for (const auto& [type, count] : counts) sidecar[type + "ChannelCount"] = count;
+  files[motion + "_motion.json"] = sidecar.dump(2) + "\n";
+
+  // What no BIDS sidecar field holds, in the derivative (docs/API.md
+  // "Session archives"): the trial's id, name and start, the pulse clock,
+  // and what a hardware stimulator was told.
   json fesbench = {{"name", name}};
   if (trial.id) fesbench["id"] = *trial.id;
   if (trial.start_time_unix_ms) fesbench["start_time_unix_ms"] = *trial.start_time_unix_ms;
-  // What a hardware stimulator was told (no BIDS field holds it).
-  if (trial.device_commands) fesbench["device_commands"] = DeviceCommandLogToJson(*trial.device_commands);
-  sidecar["FesbenchTrial"] = std::move(fesbench);
-  files[motion + "_motion.json"] = sidecar.dump(2) + "\n";
+  if (trial.pulses) {
+    fesbench["pulses"] = {{"pulse_rate_hz", trial.pulses->pulse_rate_hz},
+                          {"pulse_width_us", trial.pulses->pulse_width_us}};
+  }
+  if (trial.device_commands)
+    fesbench["device_commands"] = DeviceCommandLogToJson(*trial.device_commands);
+  files[derived + motion + "_trial.json"] = fesbench.dump(2) + "\n";
+  files[derived + motion + "_motion.mot"] = TrialToOpenSimMotion(trial, place.leg);
 
   if (trial.pulses) {
     const PulseRecord& p = *trial.pulses;
@@ -248,53 +385,69 @@ void AddBidsTrial(const Trial& trial, const BidsTrialPlace& place, FileMap& file
       events += '\n';
     }
     files[motion + "_events.tsv"] = std::move(events);
+    std::string rate;
+    AppendNumber(rate, p.pulse_rate_hz);
     const json events_json = {
         {"onset", {{"Description", "time of the pulse from the trial's start"}, {"Units", "s"}}},
         {"duration", {{"Description", "pulse width"}, {"Units", "s"}}},
         {"trial_type",
          {{"Description", "kind of event"},
-          {"Levels", {{"stimulation_pulse", "one biphasic stimulation pulse as delivered"}}}}},
+          {"Levels",
+           {{"stimulation_pulse",
+             "one biphasic stimulation pulse as delivered, on a " + rate + " Hz pulse clock"}}}}},
         {"amplitude_ma", {{"Description", "delivered pulse amplitude"}, {"Units", "mA"}}},
         {"width_us", {{"Description", "pulse width"}, {"Units", "us"}}},
-        {"PulseRateHz", p.pulse_rate_hz},
-        {"PulseWidthUs", p.pulse_width_us},
     };
     files[motion + "_events.json"] = events_json.dump(2) + "\n";
   }
 
   if (trial.emg) {
-    const std::string emg = dir + "emg/" + entities + run;
+    // BIDS v1.11.0 (BEP042) layout, in the derivative: bids-validator
+    // 1.15.0 predates the emg datatype (docs/API.md "Session archives").
+    const std::string emg = derived + dir + "emg/" + entities + run;
     std::vector<Channel> emg_ordered;
     if (const Channel* t = trial.emg->Find(kTimeChannel)) emg_ordered.push_back(*t);
     for (const Channel& c : trial.emg->channels) {
       if (c.name != kTimeChannel) emg_ordered.push_back(c);
     }
-    files[emg + "_emg.tsv"] = ValuesTsv(emg_ordered);
-    std::string channels_tsv = "name\ttype\tunits\tsampling_frequency\tdescription\n";
     std::string rate;
     AppendNumber(rate, trial.emg->sample_rate_hz);
+    // The exact samples (lossless float64 text), which an import reads.
+    files[emg + std::string(kExactEmg) + "_emg.tsv"] = ValuesTsv(emg_ordered);
+    std::string exact_channels = "name\ttype\tunits\tsampling_frequency\tdescription\n";
+    std::string edf_channels = "name\ttype\tunits\tsampling_frequency\tdescription\n";
     int emg_count = 0;
     for (const Channel& c : emg_ordered) {
       const bool time = c.name == kTimeChannel;
-      emg_count += time ? 0 : 1;
-      channels_tsv += c.name + "\t" + (time ? "SYSCLOCK" : "EMG") + "\t" + Units(c) + "\t" + rate +
-                      "\t" + (time ? "time from the trial's start" : "surface EMG, quadriceps") +
-                      "\n";
+      const std::string row =
+          c.name + "\t" + (time ? "SYSCLOCK" : "EMG") + "\t" + Units(c) + "\t" + rate + "\t" +
+          (time ? "time from the trial's start" : "surface EMG, quadriceps") + "\n";
+      exact_channels += row;
+      if (!time) {
+        edf_channels += row;
+        ++emg_count;
+      }
     }
-    files[emg + "_channels.tsv"] = std::move(channels_tsv);
-    const json emg_json = {
-        {"TaskName", name},
-        {"SamplingFrequency", trial.emg->sample_rate_hz},
-        {"EMGChannelCount", emg_count},
-        {"EMGPlacementScheme", "other"},
-        {"EMGPlacementSchemeDescription", "surface electrodes over the stimulated quadriceps"},
-        {"EMGReference", "bipolar"},
-        {"PowerLineFrequency", "n/a"},
-        {"SoftwareFilters", "n/a"},
-        {"RecordingType", "continuous"},
-        {"RecordingDuration", duration},
-    };
-    files[emg + "_emg.json"] = emg_json.dump(2) + "\n";
+    files[emg + std::string(kExactEmg) + "_channels.tsv"] = std::move(exact_channels);
+    // The BIDS copy: EDF+ (16-bit), the EMG channels without the time base.
+    std::optional<std::string> edf = EmgToEdf(*trial.emg, trial.start_time_unix_ms);
+    if (edf && emg_count > 0) {
+      files[emg + "_emg.edf"] = std::move(*edf);
+      files[emg + "_channels.tsv"] = std::move(edf_channels);
+      const json emg_json = {
+          {"TaskName", name},
+          {"SamplingFrequency", trial.emg->sample_rate_hz},
+          {"EMGChannelCount", emg_count},
+          {"EMGPlacementScheme", "other"},
+          {"EMGPlacementSchemeDescription", "surface electrodes over the stimulated quadriceps"},
+          {"EMGReference", "bipolar"},
+          {"PowerLineFrequency", "n/a"},
+          {"SoftwareFilters", "n/a"},
+          {"RecordingType", "continuous"},
+          {"RecordingDuration", duration},
+      };
+      files[emg + "_emg.json"] = emg_json.dump(2) + "\n";
+    }
   }
 }
 
@@ -322,8 +475,24 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
     }
     Result<json> sidecar = ReadJson(files, prefix + "_motion.json");
     if (!sidecar.ok()) return sidecar.status();
-    const json& fes = sidecar->value("FesbenchTrial", json::object());
-    std::string name = fes.value("name", sidecar->value("TaskName", std::string()));
+    // The trial's own record in the derivative; a dataset from elsewhere
+    // has none, and its trials are named by their TaskName.
+    const std::string trial_path = std::string(kBidsDerivatives) + prefix + "_trial.json";
+    json fes = json::object();
+    if (files.contains(trial_path)) {
+      Result<json> read = ReadJson(files, trial_path);
+      if (!read.ok()) return read.status();
+      fes = std::move(*read);
+    }
+    // Client input: a field of the wrong type is refused, not thrown.
+    const json& task = sidecar->contains("TaskName") ? (*sidecar)["TaskName"] : json("");
+    const json& own = fes.contains("name") ? fes["name"] : task;
+    if (!own.is_string()) {
+      return Status::InvalidArgument(
+          (fes.contains("name") ? trial_path + ": name" : prefix + "_motion.json: TaskName") +
+          " must be a string");
+    }
+    std::string name = own.get<std::string>();
     if (!sidecar->contains("SamplingFrequency") || !(*sidecar)["SamplingFrequency"].is_number()) {
       return Status::InvalidArgument(prefix + "_motion.json: SamplingFrequency is required");
     }
@@ -342,9 +511,8 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
     if (fes.contains("device_commands")) {
       Result<DeviceCommandLog> log = DeviceCommandLogFromJson(fes["device_commands"]);
       if (!log.ok()) {
-        return Status::InvalidArgument(prefix + "_motion.json: FesbenchTrial." +
-                                       std::string(log.status().field()) + ": " +
-                                       log.status().message());
+        return Status::InvalidArgument(trial_path + ": " + std::string(log.status().field()) +
+                                       ": " + log.status().message());
       }
       trial.device_commands = std::move(*log);
     }
@@ -362,16 +530,21 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
     if (events_it != files.end()) {
       Result<StringTable> events = ReadStringTable(events_it->second, events_it->first);
       if (!events.ok()) return events.status();
-      Result<json> events_json = ReadJson(files, prefix + "_events.json");
-      if (!events_json.ok()) return events_json.status();
       const auto onset = events->Column("onset");
       const auto amplitude = events->Column("amplitude_ma");
       if (!onset || !amplitude) {
         return Status::InvalidArgument(events_it->first + ": needs onset and amplitude_ma");
       }
+      const json clock = fes.value("pulses", json::object());
+      if (!clock.is_object() || !clock.contains("pulse_rate_hz") ||
+          !clock["pulse_rate_hz"].is_number() || !clock.contains("pulse_width_us") ||
+          !clock["pulse_width_us"].is_number()) {
+        const std::string what = ": pulses.pulse_rate_hz and pulses.pulse_width_us are required";
+        return Status::InvalidArgument(trial_path + what + " beside " + events_it->first);
+      }
       PulseRecord pulses;
-      pulses.pulse_rate_hz = events_json->value("PulseRateHz", 0.0);
-      pulses.pulse_width_us = events_json->value("PulseWidthUs", 0.0);
+      pulses.pulse_rate_hz = clock["pulse_rate_hz"].get<double>();
+      pulses.pulse_width_us = clock["pulse_width_us"].get<double>();
       for (std::size_t i = 0; i < events->rows.size(); ++i) {
         double t = 0.0;
         double u = 0.0;
@@ -389,8 +562,9 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
       trial.pulses = std::move(pulses);
     }
 
-    // EMG: the same entities without tracksys, under emg/.
-    std::string emg_prefix = prefix;
+    // EMG: the same entities without tracksys, under emg/; the exact
+    // samples in the derivative (the EDF+ copy is 16-bit).
+    std::string emg_prefix = std::string(kBidsDerivatives) + prefix;
     const std::string motion_dir = "/motion/";
     if (const std::size_t at = emg_prefix.rfind(motion_dir); at != std::string::npos) {
       emg_prefix.replace(at, motion_dir.size(), "/emg/");
@@ -399,6 +573,7 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
     if (const std::size_t at = emg_prefix.find(tracksys); at != std::string::npos) {
       emg_prefix.erase(at, tracksys.size());
     }
+    emg_prefix += kExactEmg;
     const auto emg_it = files.find(emg_prefix + "_emg.tsv");
     if (emg_it != files.end()) {
       const auto emg_channels_it = files.find(emg_prefix + "_channels.tsv");
@@ -414,14 +589,24 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
       }
       std::vector<std::string> emg_labels;
       for (const auto& row : ec->rows) emg_labels.push_back(row[*en]);
-      Result<json> emg_json = ReadJson(files, emg_prefix + "_emg.json");
-      if (!emg_json.ok()) return emg_json.status();
+      const auto rate_col = ec->Column("sampling_frequency");
+      double emg_rate = 0.0;
+      if (rate_col && !ec->rows.empty()) {
+        const std::string& text_rate = ec->rows.front()[*rate_col];
+        const auto r =
+            std::from_chars(text_rate.data(), text_rate.data() + text_rate.size(), emg_rate);
+        if (r.ec != std::errc() || r.ptr != text_rate.data() + text_rate.size()) emg_rate = 0.0;
+      }
+      if (!(emg_rate > 0.0)) {
+        return Status::InvalidArgument(emg_channels_it->first +
+                                       ": sampling_frequency must be a number > 0");
+      }
       Result<TextTable> emg_table = ReadTextTable(emg_it->second, "tsv", &emg_labels);
       if (!emg_table.ok()) {
         return Status::InvalidArgument(emg_it->first + ": " + emg_table.status().message());
       }
       ChannelGroup group;
-      group.sample_rate_hz = emg_json->value("SamplingFrequency", 0.0);
+      group.sample_rate_hz = emg_rate;
       for (std::size_t j = 0; j < emg_labels.size(); ++j) {
         group.channels.push_back(
             {emg_labels[j], UnitsBack(ec->rows[j][*eu]), std::move(emg_table->columns[j])});
@@ -463,6 +648,10 @@ Status ValidateBidsLayout(const FileMap& files) {
       "ACCEL", "ANGACCEL", "GYRO", "JNTANG", "LATENCY", "MAGN", "MISC", "ORNT", "POS", "VEL"};
   int motion_files = 0;
   for (const auto& [path, text] : files) {
+    // BIDS EMG is EDF or BDF (BEP042). A derivative's content is its own,
+    // but for the EMG files laid out for the BIDS of their time.
+    const bool is_emg = EndsWith(path, "_emg.edf") || EndsWith(path, "_emg.bdf");
+    if (path.starts_with("derivatives/") && !is_emg) continue;
     const std::string file = BaseName(path);
     std::string suffix;
     const auto entities = Entities(file, &suffix);
@@ -480,8 +669,6 @@ Status ValidateBidsLayout(const FileMap& files) {
       }
     }
     const bool is_motion = EndsWith(path, "_motion.tsv");
-    const bool is_emg =
-        EndsWith(path, "_emg.tsv") || EndsWith(path, "_emg.edf") || EndsWith(path, "_emg.bdf");
     if (is_motion || is_emg) {
       const std::string data_suffix = is_motion ? "_motion.tsv" : path.substr(path.rfind("_emg"));
       const std::string prefix = path.substr(0, path.size() - data_suffix.size());
@@ -508,7 +695,7 @@ Status ValidateBidsLayout(const FileMap& files) {
                                             "' is not a motion channel type");
         }
       }
-      if (EndsWith(path, ".tsv")) {
+      if (is_motion) {
         // No header row; every row has one value per channel.
         const std::size_t first_newline = text.find('\n');
         const std::string_view first(

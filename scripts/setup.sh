@@ -39,6 +39,7 @@ server_packages=(
   libcli11-dev openssl
   nodejs
   libarchive-dev
+  libedf-dev
   libpq-dev
   libsystemd-dev
 )
@@ -53,6 +54,7 @@ packages=(
   postgresql
   help2man lintian systemd
 )
+# libedf-dev: EDFlib, the session archive's EMG as EDF+ (api/bids.h).
 # libsystemd-dev: fesbench-server's sd_notify readiness (Type=notify service).
 # help2man: the man pages of the Debian package, from each program's --help;
 # lintian, systemd (systemd-analyze, systemd-sysusers): the package tests

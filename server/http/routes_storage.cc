@@ -8,6 +8,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "api/bids.h"
 #include "api/trial.h"
 #include "server/http/api_routes.h"
 #include "server/http/resources_json.h"
@@ -560,7 +561,8 @@ void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
            "A recorded trial: JSON, CSV or OpenSim .sto (?format=json|csv|sto, or Accept: "
            "text/csv); a download with a Content-Disposition file name when ?format is given. CSV "
            "and .sto hold one channel group (?group=main, the default, or emg); the .sto header "
-           "names the trial, session, subject (pseudonymous code), leg and start time",
+           "names the trial, session, subject (pseudonymous code), leg and start time; the main "
+           "group's knee is OpenSim's knee_angle_r or knee_angle_l (flexion negative)",
        .query = {{"format", "string", "json (default), csv or sto"},
                  {"group", "string", "csv and sto: main (default) or emg"}},
        .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
@@ -641,8 +643,12 @@ void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
          std::ostringstream rate;
          rate << channels.sample_rate_hz;
          metadata.push_back({"fesbench_sample_rate_hz", rate.str()});
+         // The knee as OpenSim's coordinate (docs/API.md "Session archives").
          ctx.res.set_content(
-             api::GroupToSto(channels, trial->name.value_or("fesbench_trial"), metadata),
+             api::GroupToSto(group == "main"
+                                 ? api::ToOpenSimCoordinates(channels, storage::SideName(leg->side))
+                                 : channels,
+                             trial->name.value_or("fesbench_trial"), metadata),
              "text/plain");
          return Reply{200, nullptr, true};
        }});

@@ -61,18 +61,23 @@ std::vector<std::string_view> SplitSlashes(std::string_view path) {
   }
 }
 
-// A trial file under sub-S/ses-N/<datatype>/ (api/bids.h): named
-// sub-S_ses-N_<entities>_<suffix>, entities of [A-Za-z0-9_-].
+// A trial file under sub-S/ses-N/<datatype>/ (api/bids.h), raw or in the
+// derivative: named sub-S_ses-N_<entities>_<suffix>, entities of
+// [A-Za-z0-9_-].
 std::optional<EntryKind> TrialFileKind(std::string_view subject, std::string_view session,
-                                       std::string_view datatype, std::string_view name) {
+                                       std::string_view datatype, std::string_view name,
+                                       bool derivative) {
   static constexpr std::pair<std::string_view, EntryKind> kMotion[] = {
       {"_motion.tsv", EntryKind::kData},
       {"_events.tsv", EntryKind::kData},
       {"_channels.tsv", EntryKind::kSmall},
       {"_motion.json", EntryKind::kSmall},
       {"_events.json", EntryKind::kSmall}};
-  static constexpr std::pair<std::string_view, EntryKind> kEmg[] = {
+  static constexpr std::pair<std::string_view, EntryKind> kDerivedMotion[] = {
+      {"_trial.json", EntryKind::kSmall}, {"_motion.mot", EntryKind::kData}};
+  static constexpr std::pair<std::string_view, EntryKind> kDerivedEmg[] = {
       {"_emg.tsv", EntryKind::kData},
+      {"_emg.edf", EntryKind::kData},
       {"_emg.json", EntryKind::kSmall},
       {"_channels.tsv", EntryKind::kSmall}};
   const std::string prefix = "sub-" + std::string(subject) + "_ses-" + std::string(session) + "_";
@@ -87,9 +92,36 @@ std::optional<EntryKind> TrialFileKind(std::string_view subject, std::string_vie
     }
     return std::nullopt;
   };
-  if (datatype == "motion") return check(kMotion);
-  if (datatype == "emg") return check(kEmg);
+  if (!derivative) return datatype == "motion" ? check(kMotion) : std::nullopt;
+  if (datatype == "motion") return check(kDerivedMotion);
+  if (datatype == "emg") return check(kDerivedEmg);
   return std::nullopt;
+}
+
+// sub-S/ses-N/... (p from index `at` on): its kind, or nullopt.
+std::optional<EntryKind> SessionFileKind(const std::vector<std::string_view>& p, std::size_t at,
+                                         bool derivative) {
+  if (p.size() < at + 3 || !p[at].starts_with("sub-") || !p[at + 1].starts_with("ses-")) {
+    return std::nullopt;
+  }
+  const std::string_view subject = p[at].substr(4);
+  const std::string_view session = p[at + 1].substr(4);
+  if (!IsLabel(subject) || !IsLabel(session)) return std::nullopt;
+  if (p.size() == at + 3 && !derivative) {
+    const std::string scans =
+        "sub-" + std::string(subject) + "_ses-" + std::string(session) + "_scans.tsv";
+    return p[at + 2] == scans ? std::optional(EntryKind::kSmall) : std::nullopt;
+  }
+  if (p.size() == at + 4) return TrialFileKind(subject, session, p[at + 2], p[at + 3], derivative);
+  return std::nullopt;
+}
+
+// derivatives/fesbench/<directory>/<prefix><digits>.json
+bool IsNumberedJson(const std::vector<std::string_view>& p, std::string_view directory,
+                    std::string_view prefix) {
+  return p.size() == 4 && p[2] == directory && p[3].starts_with(prefix) &&
+         p[3].ends_with(".json") &&
+         IsDigits(p[3].substr(prefix.size(), p[3].size() - prefix.size() - 5));
 }
 
 std::optional<EntryKind> LayoutKind(std::string_view path) {
@@ -102,28 +134,20 @@ std::optional<EntryKind> LayoutKind(std::string_view path) {
     return std::nullopt;
   }
   if (p[0] == "derivatives") {
-    if (p.size() == 3 && p[1] == "fesbench") {
+    if (p.size() < 3 || p[1] != "fesbench") return std::nullopt;
+    if (p.size() == 3) {
       if (p[2] == "dataset_description.json") return EntryKind::kSmall;
-      if (p[2] == "session.json" || p[2] == "runs.json") return EntryKind::kData;
+      if (p[2] == "session.json" || p[2] == "runs.json" || p[2] == "predictions.tsv" ||
+          p[2] == "evaluations.json") {
+        return EntryKind::kData;
+      }
+      return std::nullopt;
     }
-    if (p.size() == 4 && p[1] == "fesbench" && p[2] == "parameter_sets" &&
-        p[3].starts_with("paramset-") && p[3].ends_with(".json") &&
-        IsDigits(p[3].substr(9, p[3].size() - 9 - 5))) {
-      return EntryKind::kParameterSet;
-    }
-    return std::nullopt;
+    if (IsNumberedJson(p, "parameter_sets", "paramset-")) return EntryKind::kParameterSet;
+    if (IsNumberedJson(p, "predictions", "prediction-")) return EntryKind::kData;
+    return SessionFileKind(p, 2, true);
   }
-  if (p.size() < 3 || !p[0].starts_with("sub-") || !p[1].starts_with("ses-")) return std::nullopt;
-  const std::string_view subject = p[0].substr(4);
-  const std::string_view session = p[1].substr(4);
-  if (!IsLabel(subject) || !IsLabel(session)) return std::nullopt;
-  if (p.size() == 3) {
-    const std::string scans =
-        "sub-" + std::string(subject) + "_ses-" + std::string(session) + "_scans.tsv";
-    return p[2] == scans ? std::optional(EntryKind::kSmall) : std::nullopt;
-  }
-  if (p.size() == 4) return TrialFileKind(subject, session, p[2], p[3]);
-  return std::nullopt;
+  return SessionFileKind(p, 0, false);
 }
 
 // A directory of the layout ("sub-S/", "derivatives/fesbench/", ...), with
@@ -133,13 +157,15 @@ bool IsLayoutDirectory(std::string_view dir) {
   if (!dir.ends_with('/')) return false;
   dir.remove_suffix(1);
   if (dir == "derivatives" || dir == "derivatives/fesbench" ||
-      dir == "derivatives/fesbench/parameter_sets") {
+      dir == "derivatives/fesbench/parameter_sets" || dir == "derivatives/fesbench/predictions") {
     return true;
   }
-  const std::vector<std::string_view> p = SplitSlashes(dir);
+  std::vector<std::string_view> p = SplitSlashes(dir);
+  const bool derivative = p.size() > 2 && p[0] == "derivatives" && p[1] == "fesbench";
+  if (derivative) p.erase(p.begin(), p.begin() + 2);
   if (p.size() > 3 || !p[0].starts_with("sub-") || !IsLabel(p[0].substr(4))) return false;
   if (p.size() >= 2 && (!p[1].starts_with("ses-") || !IsLabel(p[1].substr(4)))) return false;
-  return p.size() < 3 || p[2] == "motion" || p[2] == "emg";
+  return p.size() < 3 || p[2] == "motion" || (derivative && p[2] == "emg");
 }
 
 constexpr std::string_view kRootPrefix = "fesbench-session-";

@@ -4,14 +4,17 @@
 #include <archive_entry.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <map>
 #include <memory>
+#include <set>
 
 #include "api/json_fields.h"
 #include "api/parameter_set_json.h"
 #include "api/trial_kind.h"
 #include "storage/parameter_sets.h"
+#include "storage/predictions.h"
 #include "storage/sessions.h"
 #include "storage/subjects.h"
 #include "storage/time_utc.h"
@@ -43,35 +46,50 @@ std::string ArchiveError(archive* a) {
 
 std::string ReadmeText(std::int64_t session_id, const std::string& subject_label) {
   const std::string id = std::to_string(session_id);
+  const std::string ses = "sub-" + subject_label + "/ses-" + id;
   return "# fesbench session " + id +
          "\n\n"
-         "Exported by fesbench: the trials of one session laid out after BIDS v" +
+         "Exported by fesbench: the trials of one session as a BIDS v" +
          std::string(api::kBidsVersion) +
-         " (motion datatype; EMG after BEP042),\nwith the session's parameter sets and run "
-         "log as a fesbench derivative.\n\n"
+         " dataset (motion datatype), with what BIDS\nhas no field for in the derivative "
+         "`derivatives/fesbench/`.\n\n"
          "## Layout\n\n"
          "- `dataset_description.json`, `participants.tsv`: the dataset and its one "
          "participant,\n  `sub-" +
          subject_label +
          "` (the subject's pseudonymous code; no other identifying data).\n"
-         "- `sub-" +
-         subject_label + "/ses-" + id + "/sub-" + subject_label + "_ses-" + id +
+         "- `" +
+         ses + "/sub-" + subject_label + "_ses-" + id +
          "_scans.tsv`: every data file and the UTC time its trial started.\n"
-         "- `.../motion/*_tracksys-kneebench_run-R_motion.tsv`: one trial (R is its fesbench "
-         "id),\n  one column per channel and no header row; `*_channels.tsv` names the "
-         "columns in order\n  with their units; `*_motion.json` gives the sampling frequency "
-         "and the trial's name\n  (and, for a hardware stimulator, under "
-         "`FesbenchTrial.device_commands`, what the device\n  was told and when).\n"
-         "- `.../motion/*_events.tsv`: the stimulation pulses as delivered (onset s, "
-         "amplitude_ma,\n  width_us); `*_events.json` gives the pulse rate.\n"
-         "- `.../emg/*_emg.tsv`: EMG at its own rate, same layout (BIDS stores EMG as "
-         "EDF/BDF;\n  fesbench writes TSV so that nothing is lost).\n"
+         "- `" +
+         ses +
+         "/motion/*_tracksys-kneebench_run-R_motion.tsv`: one trial (R is its "
+         "fesbench id),\n  one column per channel and no header row; `*_channels.tsv` names the "
+         "columns in order\n  with their units; `*_motion.json` gives the sampling frequency.\n"
+         "- `" +
+         ses +
+         "/motion/*_events.tsv`: the stimulation pulses as delivered (onset s, "
+         "amplitude_ma,\n  width_us); `*_events.json` describes the columns.\n"
+         "- `derivatives/fesbench/" +
+         ses +
+         "/motion/*_trial.json`: the trial's name, id, start "
+         "and pulse\n  clock (and, for a hardware stimulator, what the device was told and "
+         "when);\n  `*_motion.mot`: the knee for OpenSim (`knee_angle_r`/`_l`, flexion "
+         "negative, degrees).\n"
+         "- `derivatives/fesbench/" +
+         ses +
+         "/emg/*_emg.edf`: EMG as EDF+ with its BIDS "
+         "(BEP042) sidecars;\n  `*_desc-float64_emg.tsv`: the same samples exactly. (The "
+         "validator of this\n  export's BIDS version does not know the emg datatype yet.)\n"
          "- `derivatives/fesbench/session.json`: subject, leg and session values "
          "(max tolerated amplitude, ...).\n"
          "- `derivatives/fesbench/runs.json`: every run, its protocol, parameters, states "
          "and reason.\n"
          "- `derivatives/fesbench/parameter_sets/paramset-<id>.json`: each parameter set "
-         "identified\n  from these trials (DESIGN.md section 3 JSON under `parameter_set`).\n\n"
+         "identified\n  from these trials (docs/MODEL.md JSON under `parameter_set`).\n"
+         "- `derivatives/fesbench/predictions.tsv`: each prediction of those sets on these "
+         "trials\n  with its errors (e_rms, e_abs); `predictions/prediction-<id>.json` each "
+         "whole;\n  `evaluations.json` the stored evaluations.\n\n"
          "Numbers are written in the shortest form that reads back exactly. Importing this "
          "archive\ninto a session (`fesbench trials import --session ID FILE`) reproduces "
          "the trials bit for bit.\n\n"
@@ -136,6 +154,75 @@ std::string AcqTime(std::optional<std::int64_t> start_ms) {
       storage::FormatUtc(storage::UtcTime(std::chrono::milliseconds(*start_ms)));  // ...ffffffZ
   if (!t.empty() && t.back() == 'Z') t.pop_back();
   return t;
+}
+
+std::string Number(const json& j) {
+  if (!j.is_number()) return "n/a";
+  char buffer[32];
+  const double v = j.get<double>();
+  const auto [ptr, ec] = std::to_chars(buffer, buffer + sizeof buffer, v);
+  return ec == std::errc() ? std::string(buffer, ptr) : "n/a";
+}
+
+std::string Text(const json& j, const char* key) {
+  return j.is_object() && j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : "n/a";
+}
+
+// The predictions of the session's parameter sets on its trials, and the
+// evaluations of those sets on them (session_archive.h layout): a table of
+// their errors, and each prediction whole.
+api::Status AddPredictions(storage::Database& db, const std::vector<std::int64_t>& set_ids,
+                           const std::set<std::int64_t>& trial_ids, api::FileMap& files) {
+  const std::string dir = std::string(api::kBidsDerivatives);
+  storage::PredictionRepository repo(db);
+  std::string table =
+      "prediction_id\tparameter_set_id\ttrial_id\tcreated_at\tchannel\tunit\te_rms\te_abs\n";
+  json evaluations = json::array();
+  for (std::int64_t set_id : set_ids) {
+    auto predictions = repo.PredictionsFor(set_id);
+    if (!predictions.ok()) return predictions.status();
+    for (const storage::Prediction& p : *predictions) {
+      if (!p.prediction.trial_id || !trial_ids.contains(*p.prediction.trial_id)) continue;
+      const json input = json::parse(p.prediction.input_json, nullptr, false);
+      const json output = json::parse(p.prediction.output_json, nullptr, false);
+      const json errors = output.is_object() ? output.value("errors", json::object()) : json();
+      table += std::to_string(p.id) + "\t" + std::to_string(set_id) + "\t" +
+               std::to_string(*p.prediction.trial_id) + "\t" + storage::FormatUtc(p.created_at) +
+               "\t" + Text(errors, "channel") + "\t" + Text(errors, "unit") + "\t" +
+               Number(errors.value("e_rms", json())) + "\t" +
+               Number(errors.value("e_abs", json())) + "\n";
+      files[dir + "predictions/prediction-" + std::to_string(p.id) + ".json"] =
+          json{{"id", p.id},
+               {"parameter_set_id", set_id},
+               {"trial_id", *p.prediction.trial_id},
+               {"created_at", storage::FormatUtc(p.created_at)},
+               {"input", input.is_discarded() ? json(nullptr) : input},
+               {"output", output.is_discarded() ? json(nullptr) : output}}
+              .dump(2) +
+          "\n";
+    }
+    auto evaluated = repo.EvaluationsFor(set_id);
+    if (!evaluated.ok()) return evaluated.status();
+    for (const storage::Evaluation& e : *evaluated) {
+      if (!trial_ids.contains(e.evaluation.trial_id)) continue;
+      const json details = json::parse(e.evaluation.details_json, nullptr, false);
+      evaluations.push_back(
+          {{"id", e.id},
+           {"parameter_set_id", set_id},
+           {"trial_id", e.evaluation.trial_id},
+           {"prediction_id",
+            e.evaluation.prediction_id ? json(*e.evaluation.prediction_id) : json(nullptr)},
+           {"channel", e.evaluation.channel},
+           {"unit", e.evaluation.unit},
+           {"rms_error", e.evaluation.rms_error},
+           {"max_abs_error", e.evaluation.max_abs_error},
+           {"details", details.is_discarded() ? json(nullptr) : details},
+           {"created_at", storage::FormatUtc(e.created_at)}});
+    }
+  }
+  files[dir + "predictions.tsv"] = std::move(table);
+  files[dir + "evaluations.json"] = evaluations.dump(2) + "\n";
+  return api::Status::Ok();
 }
 
 }  // namespace
@@ -236,14 +323,16 @@ api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const Sessio
   if (!summaries.ok()) return summaries.status();
   const std::string session_dir = "sub-" + subject_label + "/ses-" + session_label + "/";
   std::string scans = "filename\tacq_time\n";
+  std::set<std::int64_t> trial_ids;
   for (const storage::TrialSummary& summary : *summaries) {
+    trial_ids.insert(summary.id);
     auto trial = trials.Get(summary.id);
     if (!trial.ok()) return trial.status();
     if (!trial->name) trial->name = "trial";
     api::FileMap trial_files;
     api::AddBidsTrial(*trial, {subject_label, session_label, leg_side, summary.id}, trial_files);
     for (auto& [path, content] : trial_files) {
-      if (path.ends_with("_motion.tsv") || path.ends_with("_emg.tsv")) {
+      if (path.ends_with("_motion.tsv")) {
         scans += path.substr(session_dir.size()) + "\t" + AcqTime(trial->start_time_unix_ms) + "\n";
       }
       files[path] = std::move(content);
@@ -265,6 +354,7 @@ api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const Sessio
   storage::ParameterSetRepository sets(db);
   auto set_ids = sets.IdsForSession(info.session_id);
   if (!set_ids.ok()) return set_ids.status();
+  if (api::Status s = AddPredictions(db, *set_ids, trial_ids, files); !s.ok()) return s;
   for (std::int64_t id : *set_ids) {
     auto set = sets.Get(id);
     if (!set.ok()) return set.status();

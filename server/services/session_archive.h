@@ -7,19 +7,25 @@
 /// recording made elsewhere (api/trial_import.h) — stored as trials of a
 /// session with their provenance, all or nothing.
 ///
-/// Archive layout (root directory fesbench-session-<id>/):
+/// Archive layout (root directory fesbench-session-<id>/; docs/API.md
+/// "Session archives"):
 ///
 ///     README.md                      this layout, for people
 ///     dataset_description.json       BIDS: Name, BIDSVersion, GeneratedBy
 ///     participants.tsv, .json        the subject by pseudonymous code only
-///     sub-S/ses-N/sub-S_ses-N_scans.tsv   each data file and its acq_time
-///     sub-S/ses-N/motion/…, emg/…    the trials (api/bids.h)
+///     sub-S/ses-N/sub-S_ses-N_scans.tsv   each motion file and its acq_time
+///     sub-S/ses-N/motion/…           the trials (api/bids.h)
 ///     derivatives/fesbench/dataset_description.json
+///     derivatives/fesbench/sub-S/ses-N/{motion,emg}/…   the trials' own
+///                                    records, .mot and EMG (api/bids.h)
 ///     derivatives/fesbench/session.json   subject, leg and session values
 ///     derivatives/fesbench/runs.json      every run with its states and reason
 ///     derivatives/fesbench/parameter_sets/paramset-<id>.json
 ///                                    {id, version, created_at, supersedes_id,
 ///                                     parameter_set (docs/MODEL.md)}
+///     derivatives/fesbench/predictions.tsv, predictions/prediction-<id>.json,
+///     evaluations.json               the sets' predictions and evaluations
+///                                    on these trials, with their errors
 ///
 /// An imported archive holds these files and no others, under one root
 /// directory fesbench-session-<id>/ of any id (import_upload.h).

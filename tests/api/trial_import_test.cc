@@ -2,8 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <map>
 #include <numbers>
+#include <sstream>
 #include <string>
 
 #include "api/bids.h"
@@ -333,8 +337,19 @@ TEST(BidsTest, TrialReadsBackBitForBit) {
   ASSERT_TRUE(files.contains(motion + "_motion.tsv"));
   ASSERT_TRUE(files.contains(motion + "_channels.tsv"));
   ASSERT_TRUE(files.contains(motion + "_events.tsv"));
-  ASSERT_TRUE(
-      files.contains("sub-S01/ses-3/emg/sub-S01_ses-3_task-activeRandomBinaryRb1_run-41_emg.tsv"));
+  // The EMG in the derivative: exact samples, and the EDF+ copy beside them.
+  const std::string emg =
+      "derivatives/fesbench/sub-S01/ses-3/emg/sub-S01_ses-3_task-activeRandomBinaryRb1_run-41";
+  ASSERT_TRUE(files.contains(emg + "_desc-float64_emg.tsv"));
+  ASSERT_TRUE(files.contains(emg + "_emg.edf"));
+  ASSERT_TRUE(files.contains(emg + "_emg.json"));
+  // Nothing of fesbench's own in the BIDS sidecars.
+  for (const auto& [path, text] : files) {
+    if (path.starts_with("sub-") && path.ends_with(".json")) {
+      EXPECT_EQ(text.find("Fesbench"), std::string::npos) << path;
+      EXPECT_EQ(text.find("PulseRate"), std::string::npos) << path;
+    }
+  }
   auto read = ReadBidsTrials(files);
   ASSERT_TRUE(read.ok()) << read.status().ToString();
   ASSERT_EQ(read->size(), 1u);
@@ -362,18 +377,183 @@ TEST(BidsTest, AHardwareStimulatorsCommandsReadBackBitForBit) {
   ASSERT_EQ(read->size(), 1u);
   ASSERT_TRUE(read->front().trial.device_commands);
   EXPECT_EQ(*read->front().trial.device_commands, log);
-  // A sidecar whose log does not hold is refused naming the field.
-  const std::string sidecar =
-      "sub-S01/ses-3/motion/sub-S01_ses-3_task-activeRandomBinaryRb1_tracksys-kneebench_run-41"
-      "_motion.json";
-  auto json = nlohmann::json::parse(files.at(sidecar));
-  json["FesbenchTrial"]["device_commands"]["commanded_ma"][2] = 18.0;
-  files[sidecar] = json.dump();
+  // A trial record whose log does not hold is refused naming the file and field.
+  const std::string record =
+      "derivatives/fesbench/sub-S01/ses-3/motion/"
+      "sub-S01_ses-3_task-activeRandomBinaryRb1_tracksys-kneebench_run-41_trial.json";
+  auto json = nlohmann::json::parse(files.at(record));
+  json["device_commands"]["commanded_ma"][2] = 18.0;
+  files[record] = json.dump();
   auto bad = ReadBidsTrials(files);
   ASSERT_FALSE(bad.ok());
-  EXPECT_NE(bad.status().message().find("FesbenchTrial.device_commands.commanded_ma[2]"),
+  EXPECT_NE(bad.status().message().find(record + ": device_commands.commanded_ma[2]"),
             std::string::npos)
       << bad.status().message();
+  // Fields of the wrong type are refused naming the file, never thrown; a
+  // pulse table needs the pulse clock beside it.
+  for (const auto& [field, value] :
+       std::vector<std::pair<std::string, nlohmann::json>>{{"name", 5}, {"pulses", "33 Hz"}}) {
+    FileMap broken = files;
+    auto j = nlohmann::json::parse(files.at(record));
+    j.erase("device_commands");
+    j[field] = value;
+    broken[record] = j.dump();
+    auto refused = ReadBidsTrials(broken);
+    ASSERT_FALSE(refused.ok()) << field;
+    EXPECT_EQ(refused.status().code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(refused.status().message().find(record + ": " + field), std::string::npos)
+        << refused.status().message();
+  }
+}
+
+// EDF+ as its specification lays it out: a 256-byte header, 256 bytes per
+// signal (EMG and the EDF Annotations signal), then records of 16-bit
+// little-endian samples.
+struct EdfRead {
+  int signals = 0;
+  int records = 0;
+  std::vector<std::string> labels;
+  std::vector<std::string> units;
+  std::vector<int> per_record;
+  std::vector<std::vector<double>> physical;  // per signal
+};
+
+std::string Field(const std::string& edf, std::size_t at, std::size_t size) {
+  std::string f = edf.substr(at, size);
+  while (!f.empty() && f.back() == ' ') f.pop_back();
+  return f;
+}
+
+EdfRead ReadEdf(const std::string& edf) {
+  EdfRead r;
+  r.records = std::stoi(Field(edf, 236, 8));
+  r.signals = std::stoi(Field(edf, 252, 4));
+  const std::size_t ns = static_cast<std::size_t>(r.signals);
+  std::size_t at = 256;
+  auto column = [&](std::size_t size) {
+    std::vector<std::string> out;
+    for (std::size_t i = 0; i < ns; ++i) out.push_back(Field(edf, at + i * size, size));
+    at += ns * size;
+    return out;
+  };
+  r.labels = column(16);
+  column(80);
+  r.units = column(8);
+  const auto pmin = column(8), pmax = column(8), dmin = column(8), dmax = column(8);
+  column(80);
+  for (const std::string& n : column(8)) r.per_record.push_back(std::stoi(n));
+  column(32);
+  EXPECT_EQ(at, 256 * (ns + 1));
+  r.physical.resize(ns);
+  for (int rec = 0; rec < r.records; ++rec) {
+    for (std::size_t s = 0; s < ns; ++s) {
+      const double gain =
+          (std::stod(pmax[s]) - std::stod(pmin[s])) / (std::stod(dmax[s]) - std::stod(dmin[s]));
+      for (int k = 0; k < r.per_record[s]; ++k, at += 2) {
+        const auto lo = static_cast<unsigned char>(edf.at(at));
+        const auto hi = static_cast<unsigned char>(edf.at(at + 1));
+        const auto digital = static_cast<std::int16_t>(static_cast<std::uint16_t>(lo | (hi << 8)));
+        r.physical[s].push_back(std::stod(pmin[s]) + (digital - std::stod(dmin[s])) * gain);
+      }
+    }
+  }
+  EXPECT_EQ(at, edf.size());
+  return r;
+}
+
+TEST(BidsTest, EmgAsEdfHoldsTheSamplesToItsResolution) {
+  const Trial trial = BenchLikeTrial();
+  FileMap files;
+  AddBidsTrial(trial, {"S01", "3", "right", 41}, files);
+  const std::string emg =
+      "derivatives/fesbench/sub-S01/ses-3/emg/sub-S01_ses-3_task-activeRandomBinaryRb1_run-41";
+  const EdfRead edf = ReadEdf(files.at(emg + "_emg.edf"));
+  EXPECT_EQ(files.at(emg + "_emg.edf").substr(192, 5), "EDF+C");
+  ASSERT_EQ(edf.signals, 2);  // emg_mv and EDF Annotations
+  EXPECT_EQ(edf.labels[0], "emg_mv");
+  EXPECT_EQ(edf.labels[1], "EDF Annotations");
+  EXPECT_EQ(edf.units[0], "mV");
+  EXPECT_EQ(edf.per_record[0], 1000);
+  EXPECT_EQ(edf.records, 2);  // 2000 samples at 1 kHz
+  // Start date and time of the trial (2024-11-23 22:13:20 UTC).
+  EXPECT_EQ(Field(files.at(emg + "_emg.edf"), 168, 16), "23.11.2422.13.20");
+  const std::vector<double>& exact = *trial.emg->Values("emg_mv");
+  ASSERT_EQ(edf.physical[0].size(), exact.size());
+  double worst = 0.0;
+  for (std::size_t i = 0; i < exact.size(); ++i) {
+    worst = std::max(worst, std::abs(edf.physical[0][i] - exact[i]));
+  }
+  // 16 bits over a range of ±0.01 mV (rounded up to three digits).
+  EXPECT_LE(worst, 0.0201 / 65535.0);
+  // The sidecars BEP042 asks for; the channels file lists what the EDF holds.
+  const auto sidecar = nlohmann::json::parse(files.at(emg + "_emg.json"));
+  EXPECT_EQ(sidecar["SamplingFrequency"], 1000.0);
+  EXPECT_EQ(sidecar["EMGChannelCount"], 1);
+  EXPECT_EQ(files.at(emg + "_channels.tsv"),
+            "name\ttype\tunits\tsampling_frequency\tdescription\n"
+            "emg_mv\tEMG\tmV\t1000\tsurface EMG, quadriceps\n");
+  // No EDF for a rate EDF+ records cannot hold whole.
+  ChannelGroup odd = *trial.emg;
+  odd.sample_rate_hz = 999.5;
+  EXPECT_FALSE(EmgToEdf(odd, std::nullopt));
+}
+
+// The exported .mot read by OpenSim's Storage rules: header lines up to
+// `endheader` (the first the name, then key=value), inDegrees=yes, nRows
+// data rows and nColumns labels, `time` first, the knee as OpenSim's
+// coordinate (flexion negative); imported back, the same angles.
+TEST(BidsTest, MotionForOpenSimInItsConventions) {
+  for (const std::string leg : {"right", "left"}) {
+    const Trial trial = BenchLikeTrial();
+    FileMap files;
+    AddBidsTrial(trial, {"S01", "3", leg, 41}, files);
+    const std::string mot = files.at(
+        "derivatives/fesbench/sub-S01/ses-3/motion/"
+        "sub-S01_ses-3_task-activeRandomBinaryRb1_tracksys-kneebench_run-41_motion.mot");
+    std::vector<std::string> lines;
+    for (std::size_t start = 0; start < mot.size();) {
+      const std::size_t end = mot.find('\n', start);
+      ASSERT_NE(end, std::string::npos) << "every line ends";
+      lines.push_back(mot.substr(start, end - start));
+      start = end + 1;
+    }
+    const auto endheader = std::find(lines.begin(), lines.end(), "endheader");
+    ASSERT_NE(endheader, lines.end());
+    EXPECT_EQ(lines.front(), "active_random_binary_rb1");
+    std::map<std::string, std::string> header;
+    for (auto it = lines.begin() + 1; it != endheader; ++it) {
+      const std::size_t eq = it->find('=');
+      ASSERT_NE(eq, std::string::npos) << *it;
+      header[it->substr(0, eq)] = it->substr(eq + 1);
+    }
+    EXPECT_EQ(header["version"], "1");
+    EXPECT_EQ(header["inDegrees"], "yes");
+    const std::string coordinate = leg == "right" ? "knee_angle_r" : "knee_angle_l";
+    const std::vector<std::string> labels = {"time", coordinate};
+    std::vector<std::string> got;
+    std::stringstream row(*(endheader + 1));
+    for (std::string label; std::getline(row, label, '\t');) got.push_back(label);
+    EXPECT_EQ(got, labels);
+    EXPECT_EQ(header["nColumns"], std::to_string(labels.size()));
+    const auto rows = static_cast<std::size_t>(lines.end() - endheader - 2);
+    EXPECT_EQ(header["nRows"], std::to_string(rows));
+    EXPECT_EQ(rows, trial.num_samples());
+    // A flexed knee (angle_deg 90) is −90 in OpenSim's gait models.
+    std::stringstream first(*(endheader + 2));
+    double t = 1.0, knee = 0.0;
+    first >> t >> knee;
+    EXPECT_EQ(t, 0.0);
+    EXPECT_EQ(knee, -(*trial.Values("angle_deg"))[0]);
+
+    auto spec = ImportSpecFromJson({{"kind", "free_swing_passive"},
+                                    {"format", "sto"},
+                                    {"columns", {{{"column", coordinate}}}}});
+    ASSERT_TRUE(spec.ok()) << spec.status().ToString();
+    auto back = ImportTrialText(mot, *spec);
+    ASSERT_TRUE(back.ok()) << back.status().ToString();
+    EXPECT_EQ(*back->Values("angle_deg"), *trial.Values("angle_deg"));
+    EXPECT_EQ(*back->Values("t_s"), *trial.Values("t_s"));
+  }
 }
 
 TEST(BidsTest, LayoutHasTheRequiredFilesAndColumns) {
@@ -402,6 +582,17 @@ TEST(BidsTest, LayoutHasTheRequiredFilesAndColumns) {
     EXPECT_FALSE(s.ok()) << suffix;
     EXPECT_NE(s.message().find(path), std::string::npos) << s.message();
   }
+  // The EMG's sidecar without its reference scheme.
+  const std::string emg_json =
+      "derivatives/fesbench/sub-S01/ses-3/emg/sub-S01_ses-3_task-activeRandomBinaryRb1_run-41"
+      "_emg.json";
+  FileMap broken = files;
+  auto sidecar = nlohmann::json::parse(files.at(emg_json));
+  sidecar.erase("EMGReference");
+  broken[emg_json] = sidecar.dump();
+  const Status s = ValidateBidsLayout(broken);
+  EXPECT_NE(s.message().find(emg_json + ": EMGReference is required"), std::string::npos)
+      << s.ToString();
 }
 
 TEST(TrialUnitsTest, AccelerometerAndDistanceChannelsHaveUnits) {

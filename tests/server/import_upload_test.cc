@@ -82,6 +82,16 @@ api::FileMap ExportFiles() {
   model::ParameterSet params = model::ExampleParameterSet();
   params.provenance.trial_ids = {41};
   params.provenance.active_trial_id.reset();
+  // The derivative's prediction of set 5 on trial 41, its errors and an
+  // EMG copy for other tools: unpacked with the rest, not imported.
+  files["derivatives/fesbench/predictions.tsv"] =
+      "prediction_id\tparameter_set_id\ttrial_id\tcreated_at\tchannel\tunit\te_rms\te_abs\n"
+      "9\t5\t41\t2026-11-25T10:00:01.000000Z\tangle_deg\tdeg\t2.5\t6\n";
+  files["derivatives/fesbench/predictions/prediction-9.json"] = R"({"id": 9})";
+  files["derivatives/fesbench/evaluations.json"] = "[]";
+  files
+      ["derivatives/fesbench/sub-S01/ses-7/emg/"
+       "sub-S01_ses-7_task-freeSwingPassive_run-41_emg.edf"] = std::string(256, ' ');
   files["derivatives/fesbench/parameter_sets/paramset-5.json"] = json{
       {"id", 5},
       {"version", 1},
@@ -161,6 +171,16 @@ TEST(UnpackArchiveTest, EntriesOutsideTheLayoutAreRefusedByName) {
   entries = Entries(ExportFiles());
   entries.push_back({std::string(kRoot) + "/sub-S01/ses-7/motion/raw.csv", "t_s\n0\n"});
   refused(entries, std::string(kRoot) + "/sub-S01/ses-7/motion/raw.csv");
+  // EMG outside the derivative (the layout keeps it there), a stray file
+  // inside the derivative's trial folders, a prediction not by number.
+  for (const std::string path :
+       {"/sub-S01/ses-7/emg/sub-S01_ses-7_task-freeSwingPassive_run-41_emg.tsv",
+        "/derivatives/fesbench/sub-S01/ses-7/motion/notes.txt",
+        "/derivatives/fesbench/predictions/prediction-latest.json"}) {
+    entries = Entries(ExportFiles());
+    entries.push_back({std::string(kRoot) + path, "x"});
+    refused(entries, std::string(kRoot) + path);
+  }
   // A root that is not an export's, and two roots.
   refused(Entries(ExportFiles(), "my-session"), "my-session/README.md");
   entries = Entries(ExportFiles());

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
+#include <sstream>
 #include <thread>
 
 #include "api/bids.h"
@@ -225,6 +226,29 @@ TEST(DataExchangeTest, ExportImportRoundTripAndRecordingImport) {
       << sto->body.substr(0, 300);
   EXPECT_NE(sto->body.find("\nfesbench_session_id=" + std::to_string(session_a) + "\n"),
             std::string::npos);
+  // The knee as OpenSim's coordinate of the right leg, flexion negative.
+  {
+    const std::size_t labels_at = sto->body.find("endheader\n") + 10;
+    const std::string labels =
+        sto->body.substr(labels_at, sto->body.find('\n', labels_at) - labels_at);
+    EXPECT_NE(labels.find("\tknee_angle_r"), std::string::npos) << labels;
+    EXPECT_EQ(labels.find("angle_deg"), std::string::npos) << labels;
+    auto trial = Call(ca, "GET", "/api/v1/trials/" + std::to_string(first_trial), admin_a);
+    const std::string first_row = sto->body.substr(sto->body.find('\n', labels_at) + 1, 200);
+    std::vector<std::string> values;
+    std::stringstream row(first_row.substr(0, first_row.find('\n')));
+    for (std::string v; std::getline(row, v, '\t');) values.push_back(v);
+    std::vector<std::string> names;
+    std::stringstream header(labels);
+    for (std::string v; std::getline(header, v, '\t');) names.push_back(v);
+    const std::size_t knee = std::find(names.begin(), names.end(), "knee_angle_r") - names.begin();
+    ASSERT_LT(knee, values.size());
+    double angle = 0.0;
+    for (const auto& c : trial.body["channels"]) {
+      if (c["name"] == "angle_deg") angle = c["values"][0];
+    }
+    EXPECT_EQ(std::stod(values[knee]), -angle);
+  }
   auto emg = ca.Get("/api/v1/trials/" + std::to_string(first_trial) + "?format=csv&group=emg",
                     {{"Authorization", "Bearer " + admin_a}});
   ASSERT_TRUE(emg);
