@@ -209,6 +209,15 @@ JointModel JointModel::FromParameters(const ParameterSet& params,
   return m;
 }
 
+double JointModel::ParametricAcceleration(double angle_deg, double velocity_deg_s,
+                                          double activation, Segments& segments,
+                                          double motor_torque_nm) const {
+  // J·θ̈ = τ_motor − τ_pta(θ) − τ_ptv(θ̇) − τ_act, θ̈ in rad/s² (§3.4, Eq. 3.16).
+  double passive_nm = 0.0, gain_nm = 0.0;
+  PassiveAndGain(angle_deg, velocity_deg_s, passive_nm, gain_nm, segments);
+  return (motor_torque_nm - passive_nm - activation * gain_nm) * accel_deg_per_nm_;
+}
+
 double JointModel::PassiveAngleTorque(double angle_deg) const {
   if (kind_ == ModelKind::kParametric) {
     // Eq. 7.3, §7.4.4 (θ in radians) plus the §6.5 referencing constant.

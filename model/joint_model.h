@@ -186,14 +186,16 @@ class JointModel {
       scaled_velocity_.Evaluate(velocity_deg_s, v, h, segments.velocity);
       return (p + motor_torque_nm * accel_deg_per_nm_ + v) - (activation * g) * h;
     }
-    // J·θ̈ = τ_motor − τ_pta(θ) − τ_ptv(θ̇) − τ_act, θ̈ in rad/s² (§3.4, Eq. 3.16).
-    double passive_nm = 0.0, gain_nm = 0.0;
-    PassiveAndGain(angle_deg, velocity_deg_s, passive_nm, gain_nm, segments);
-    return (motor_torque_nm - passive_nm - activation * gain_nm) * accel_deg_per_nm_;
+    return ParametricAcceleration(angle_deg, velocity_deg_s, activation, segments,
+                                  motor_torque_nm);
   }
 
  private:
   JointModel() = default;
+  // AccelerationDegS2 of the parametric variant (out of line: the tables'
+  // path stays small enough to inline into a simulation's loop).
+  double ParametricAcceleration(double angle_deg, double velocity_deg_s, double activation,
+                                Segments& segments, double motor_torque_nm) const;
   // τ_pta + τ_ptv and the active gain at (θ, θ̇) with two table look-ups
   // (inline: the simulation's hot path).
   void PassiveAndGain(double angle_deg, double velocity_deg_s, double& passive_nm, double& gain_nm,
