@@ -175,7 +175,9 @@ class OutputError {
   }
 
   // Trial k simulated as SimulateFreeSwing does (the same RunPulseDriven,
-  // right-hand side and stops) with the sensitivities to the parameters
+  // RK4 stages and stops; SimulateFreeSwing associates each stage's
+  // velocity update differently, the same values up to rounding), with the
+  // sensitivities to the parameters
   // first … first + count − 1: their angle rows, from `row` on, into the
   // columns first … of jac. The equation of motion (JointModel, Eq. 3.16)
   //   θ̈ = −k·(τ_pta(θ) + τ_ptv(θ̇) + f_stim·τ_scale·f_ata⁺(θ)·f_atv⁺(θ̇)),

@@ -104,21 +104,27 @@ class LinePairTable {
   /// Sets f_out = f(x), g_out = g(x); the scan starts at `segment` (0 at
   /// first, then the segment of the last look-up, which it receives).
   void Evaluate(double x, double& f_out, double& g_out, std::size_t& segment) const {
+    const Line& l = LineAt(x, segment);
+    f_out = l.f0 + l.f1 * x;
+    g_out = l.g0 + l.g1 * x;
+  }
+
+  /// The lines of x's segment, f = f0 + f1·x, g = g0 + g1·x (the scan as
+  /// in Evaluate).
+  struct Line {
+    double f0 = 0.0, f1 = 0.0, g0 = 0.0, g1 = 0.0;
+  };
+  const Line& LineAt(double x, std::size_t& segment) const {
     // lower_ is {NaN, b₀, …, b_{m−1}, NaN}: no comparison with the NaN ends
     // holds, so the scans stop at the held segments 0 and m.
     std::size_t i = segment;
     while (x < lower_[i]) --i;
     while (x >= lower_[i + 1]) ++i;
     segment = i;
-    const Line& l = lines_[i];
-    f_out = l.f0 + l.f1 * x;
-    g_out = l.g0 + l.g1 * x;
+    return lines_[i];
   }
 
  private:
-  struct Line {
-    double f0 = 0.0, f1 = 0.0, g0 = 0.0, g1 = 0.0;
-  };
   std::vector<double> lower_;  // segment i is [lower_[i], lower_[i + 1])
   std::vector<Line> lines_;
 };
@@ -159,6 +165,10 @@ class JointModel {
     return AccelerationDegS2(angle_deg, velocity_deg_s, activation, segments, motor_torque_nm);
   }
 
+  /// Whether AccelerationDegS2 reads scaled tables (every variant but
+  /// parametric): then FreeSwingStage applies.
+  bool has_scaled_tables() const { return scaled_tables_; }
+
   /// The curve segments of the last evaluation (CurvePairTable's hints): a
   /// simulation keeps one and passes it to every evaluation along its
   /// trajectory, so the look-ups start where the state last was.
@@ -188,6 +198,29 @@ class JointModel {
     }
     return ParametricAcceleration(angle_deg, velocity_deg_s, activation, segments,
                                   motor_torque_nm);
+  }
+
+  /// One stage of an RK4 step in free swing (τ_motor = 0; has_scaled_tables()
+  /// only): θ̈ at (θ, θ̇), as AccelerationDegS2, and the next stage's
+  /// velocity base + c·θ̈. On θ̇'s segment θ̈ is a line in θ̇,
+  /// θ̈ = D + E·θ̇ with D = P + v₀ − f_stim·G·h₀, E = v₁ − f_stim·G·h₁, so
+  /// base + c·θ̈ = (base + c·D) + (c·E)·θ̇: one multiply-add from θ̇ (the
+  /// state each stage waits for) instead of the whole right-hand side; the
+  /// coefficients wait only for θ, known a stage earlier. The same value
+  /// as base + c·θ̈ up to rounding.
+  struct Stage {
+    double accel_deg_s2;
+    double next_velocity_deg_s;
+  };
+  Stage FreeSwingStage(double angle_deg, double velocity_deg_s, double activation,
+                       double base_deg_s, double c_s, Segments& segments) const {
+    double p = 0.0, g = 0.0;
+    scaled_angle_.Evaluate(angle_deg, p, g, segments.angle);
+    const LinePairTable::Line& l = scaled_velocity_.LineAt(velocity_deg_s, segments.velocity);
+    const double ag = activation * g;
+    const double v = l.f0 + l.f1 * velocity_deg_s, h = l.g0 + l.g1 * velocity_deg_s;
+    const double d = (p + l.f0) - ag * l.g0, e = l.f1 - ag * l.g1;
+    return {(p + v) - ag * h, (base_deg_s + c_s * d) + (c_s * e) * velocity_deg_s};
   }
 
  private:
