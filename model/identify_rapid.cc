@@ -325,7 +325,10 @@ OutputErrorResult RefineOutputError(const ParameterSet& start, std::span<const T
   for (int it = 0; it < options.iterations && std::isfinite(cost); ++it) {
     error.Jacobian(x, jac);
     if (!jac.allFinite()) break;
-    jtj.noalias() = jac.transpose() * jac;
+    // JᵀJ's lower triangle only (a symmetric rank update, half the
+    // product): the LDLT below reads no more.
+    jtj.setZero();
+    jtj.selfadjointView<Eigen::Lower>().rankUpdate(jac.transpose());
     g.noalias() = jac.transpose() * r;
     const double floor = std::max(jtj.diagonal().maxCoeff(), 1e-12);
     bool improved = false;
