@@ -1,7 +1,8 @@
 // Identification benchmarks (DESIGN.md §4): the simultaneous passive fit
 // and the active fit on 2,000 samples, the ramp-correlation IRC, the GCV
-// smoothing spline on 2,000 samples, and the processing chain of the rapid
-// protocol (§7.4.1: IRC + poles + free-swing passive + active). Data are
+// smoothing spline on 2,000 samples, the processing chain of the rapid
+// protocol (§7.4.1: IRC + poles + free-swing passive + active) and the
+// whole rapid identification with its output-error refinement. Data are
 // simulated once, outside the timed loops.
 
 #include <benchmark/benchmark.h>
@@ -13,6 +14,7 @@
 #include "model/identify_active.h"
 #include "model/identify_isometric.h"
 #include "model/identify_passive.h"
+#include "model/identify_rapid.h"
 #include "model/parameter_set.h"
 #include "model/simulate.h"
 #include "model/stimulus_generators.h"
@@ -131,6 +133,29 @@ void BM_RapidChain(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_RapidChain)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
+// What a clinician waits for after a rapid run: IdentifyRapid (§7.4.1) on
+// the ramp and the two swings as the bench records them (no velocity: the
+// GCV splines derive it), with its output-error refinement (6
+// Levenberg–Marquardt iterations, the default).
+void BM_IdentifyRapidRefined(benchmark::State& state) {
+  const Data& d = GetData();
+  TrialColumns iso;
+  iso.t_s = d.ramp.t_s;
+  iso.stim_ma = d.ramp.stim_ma;
+  iso.torque_nm = d.ramp.torque_nm;
+  std::vector<TrialColumns> swings(2);
+  for (std::size_t k = 0; k < 2; ++k) {
+    const TrialColumns& src = k == 0 ? d.sparse : d.dense;
+    swings[k].t_s = src.t_s;
+    swings[k].stim_ma = src.stim_ma;
+    swings[k].angle_deg = src.angle_deg;
+  }
+  RapidOptions o;
+  o.inertia_kgm2 = d.truth.passive.inertia_kgm2;
+  for (auto _ : state) benchmark::DoNotOptimize(IdentifyRapid(iso, swings, o));
+}
+BENCHMARK(BM_IdentifyRapidRefined)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace fesbench::model

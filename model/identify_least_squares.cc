@@ -4,14 +4,20 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "model/piecewise_linear.h"
 
 namespace fesbench::model {
 
-LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
-                                       double relative_tolerance) {
+namespace {
+
+// Checks the arguments of SolveTruncatedSvd and returns the column
+// scaling: basis weights (0–1) and accelerations (~10² rad/s²) share one
+// matrix; equilibrating keeps the truncation scale-free.
+Eigen::VectorXd ColumnScale(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
+                            double relative_tolerance) {
   if (a.rows() == 0 || a.cols() == 0) {
     throw std::invalid_argument("SolveTruncatedSvd: empty design matrix");
   }
@@ -23,27 +29,32 @@ LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::Ve
   if (!(relative_tolerance > 0.0)) {
     throw std::invalid_argument("SolveTruncatedSvd: relative_tolerance must be positive");
   }
-  const Eigen::Index m = a.cols();
-  // Column scaling: basis weights (0–1) and accelerations (~10² rad/s²)
-  // share one matrix; equilibrating keeps the truncation scale-free.
-  Eigen::VectorXd scale(m);
-  for (Eigen::Index j = 0; j < m; ++j) {
+  Eigen::VectorXd scale(a.cols());
+  for (Eigen::Index j = 0; j < a.cols(); ++j) {
     const double n = a.col(j).norm();
     scale(j) = n > 0.0 ? 1.0 / n : 1.0;
   }
-  Eigen::MatrixXd as = a * scale.asDiagonal();
+  return scale;
+}
 
+// SolveTruncatedSvd on the column-scaled matrix `a` (overwritten).
+LeastSquaresSolution SolveScaled(Eigen::MatrixXd& a, const Eigen::VectorXd& scale,
+                                 const Eigen::VectorXd& b, double relative_tolerance) {
+  const Eigen::Index m = a.cols();
   // A = Q·R; the singular values of A equal those of R (M×M), so the SVD
   // of Eq. 4.19 is taken of R and g = U_Rᵀ·(Qᵀ·b) (Eq. 4.23). The QR
-  // overwrites the scaled copy (no second N×M matrix).
+  // overwrites the scaled matrix.
   Eigen::MatrixXd r;
   Eigen::VectorXd qtb;
-  if (as.rows() >= m) {
-    Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(as);
+  double outside_sq = 0.0;  // |b|² outside the column space: the rows of Qᵀ·b below M
+  if (a.rows() >= m) {
+    Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(a);
     r = qr.matrixQR().topRows(m).triangularView<Eigen::Upper>();
-    qtb = (qr.householderQ().transpose() * b).head(m);
+    const Eigen::VectorXd full = qr.householderQ().transpose() * b;
+    qtb = full.head(m);
+    outside_sq = full.tail(a.rows() - m).squaredNorm();
   } else {
-    r = as;
+    r = a;
     qtb = b;
   }
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(r, Eigen::ComputeThinU | Eigen::ComputeThinV);
@@ -58,12 +69,32 @@ LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::Ve
       ++rank;
     }
   }
+  const Eigen::VectorXd c_scaled = svd.matrixV() * p;
   LeastSquaresSolution out;
-  out.c = scale.asDiagonal() * (svd.matrixV() * p);  // Eq. 4.24, unscaled
+  out.c = scale.asDiagonal() * c_scaled;  // Eq. 4.24, unscaled
   out.rank = rank;
-  out.rms = std::sqrt((a * out.c - b).squaredNorm() / static_cast<double>(a.rows()));
+  // |A·c − b|² = |R·c_scaled − (Qᵀ·b)_head|² + |(Qᵀ·b)_tail|² (Q orthogonal):
+  // no pass over the N rows again.
+  out.rms = std::sqrt(((r * c_scaled - qtb).squaredNorm() + outside_sq) /
+                      static_cast<double>(a.rows()));
   out.singular_values = w;
   return out;
+}
+
+}  // namespace
+
+LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
+                                       double relative_tolerance) {
+  const Eigen::VectorXd scale = ColumnScale(a, b, relative_tolerance);
+  Eigen::MatrixXd as = a * scale.asDiagonal();
+  return SolveScaled(as, scale, b, relative_tolerance);
+}
+
+LeastSquaresSolution SolveTruncatedSvd(Eigen::MatrixXd&& a, const Eigen::VectorXd& b,
+                                       double relative_tolerance) {
+  const Eigen::VectorXd scale = ColumnScale(a, b, relative_tolerance);
+  for (Eigen::Index j = 0; j < a.cols(); ++j) a.col(j) *= scale(j);
+  return SolveScaled(a, scale, b, relative_tolerance);
 }
 
 Eigen::VectorXd SolveNonNegative(const Eigen::MatrixXd& a, const Eigen::VectorXd& b) {
@@ -82,7 +113,7 @@ Eigen::VectorXd SolveNonNegative(const Eigen::MatrixXd& a, const Eigen::VectorXd
     Eigen::MatrixXd af(a.rows(), static_cast<Eigen::Index>(cols.size()));
     for (std::size_t k = 0; k < cols.size(); ++k)
       af.col(static_cast<Eigen::Index>(k)) = a.col(cols[k]);
-    const Eigen::VectorXd zf = SolveTruncatedSvd(af, b).c;
+    const Eigen::VectorXd zf = SolveTruncatedSvd(std::move(af), b).c;
     Eigen::VectorXd z = Eigen::VectorXd::Zero(m);
     for (std::size_t k = 0; k < cols.size(); ++k) z(cols[k]) = zf(static_cast<Eigen::Index>(k));
     return z;

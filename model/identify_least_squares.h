@@ -34,6 +34,10 @@ struct LeastSquaresSolution {
 ///   differs from A's rows, or relative_tolerance <= 0.
 LeastSquaresSolution SolveTruncatedSvd(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
                                        double relative_tolerance = 1e-10);
+/// The same, scaling and factorising `a` in place (no copy of the design
+/// matrix): for a caller with no further use for it.
+LeastSquaresSolution SolveTruncatedSvd(Eigen::MatrixXd&& a, const Eigen::VectorXd& b,
+                                       double relative_tolerance = 1e-10);
 
 /// Solves min |A·c − b|² subject to c ≥ 0 by the active-set method of
 /// Lawson and Hanson (Solving Least Squares Problems, 1974, ch. 23): columns

@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "model/grid_golden_search.h"
@@ -494,7 +495,8 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
     sys.a(r, ma + mv) = DegToRad(acc[i]);
     sys.b(r) = tq[i];
   }
-  const LeastSquaresSolution sol = SolveTruncatedSvd(sys.a, sys.b, options.relative_tolerance);
+  const LeastSquaresSolution sol =
+      SolveTruncatedSvd(std::move(sys.a), sys.b, options.relative_tolerance);
   PassiveParams p = PassiveCurves(sys, sol.c);
   p.inertia_kgm2 = sol.c(ma + mv);
   PassiveResult res;

@@ -11,6 +11,7 @@
 #include "model/contraction.h"
 #include "model/extrapolate.h"
 #include "model/identify_least_squares.h"
+#include "model/joint_model.h"
 #include "model/simulate.h"
 #include "model/units.h"
 
@@ -53,6 +54,35 @@ void ClampActiveGains(const ParameterSet& p, Eigen::VectorXd& v) {
   for (Eigen::Index i = begin; i < end; ++i) v(i) = std::max(v(i), 0.0);
 }
 
+// A piecewise-linear curve at x as the simulator's tables evaluate it
+// (JointModel: end values held at and beyond the end breakpoints): the
+// basis weights of Eq. 4.30 (∂y/∂c_j), the value and the slope dy/dx.
+struct CurvePoint {
+  BasisWeights basis;
+  double value = 0.0;
+  double slope = 0.0;
+};
+
+CurvePoint At(const PiecewiseLinear& curve, double x) {
+  const std::vector<double>& xs = curve.x();
+  const std::vector<double>& ys = curve.y();
+  const std::size_t m = xs.size();
+  if (m == 1 || x <= xs.front()) return {{0, 1.0, 0.0}, ys.front(), 0.0};
+  if (x >= xs.back()) return {{m - 2, 0.0, 1.0}, ys.back(), 0.0};
+  const BasisWeights b = curve.Basis(x);
+  const std::size_t lo = b.index_lo;
+  return {b, b.weight_lo * ys[lo] + b.weight_hi * ys[lo + 1],
+          (ys[lo + 1] - ys[lo]) / (xs[lo + 1] - xs[lo])};
+}
+
+// The state (θ, θ̇) of a simulation and its sensitivities to a run of c
+// packed parameters x_j (PackCurves): (θ, θ̇, ∂θ/∂x_1 … ∂θ/∂x_c,
+// ∂θ̇/∂x_1 … ∂θ̇/∂x_c). Fixed capacity: the RK4 stages' temporaries live on
+// the stack; more parameters than fit are taken in several passes.
+constexpr Eigen::Index kTangentParameters = 63;
+using Tangent =
+    Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 2 + 2 * kTangentParameters, 1>;
+
 // Simulated minus measured knee angle of every trial (every stride-th
 // sample), followed by the prior rows w·(x − x0)/scale. A diverging
 // simulation gives non-finite residuals.
@@ -84,19 +114,7 @@ class OutputError {
     Eigen::Index row = 0;
     for (std::size_t k = 0; k < trials_.size(); ++k) {
       const TrialColumns& tr = trials_[k];
-      SimulationOptions o;
-      o.step_s = options_.step_s;
-      o.pulse_rate_hz = options_.pulse_rate_hz;
-      o.initial_angle_deg = tr.angle_deg.front();
-      o.initial_velocity_deg_s = tr.velocity_deg_s.front();
-      o.duration_s = tr.t_s.back() - tr.t_s.front() + 1.0 / tr.SampleRateHz();
-      o.output_rate_hz = tr.SampleRateHz();
-      o.joint_limits = options_.joint_limits;
-      if (o.joint_limits) {
-        o.initial_angle_deg = std::clamp(o.initial_angle_deg, o.joint_limits->min_angle_deg,
-                                         o.joint_limits->max_angle_deg);
-      }
-      const SimulationResult sim = SimulateFreeSwing(p, pulses_[k], o);
+      const SimulationResult sim = SimulateFreeSwing(p, pulses_[k], Options(k));
       for (std::size_t i = 0; i < tr.size(); i += static_cast<std::size_t>(options_.stride)) {
         r(row++) = i < sim.angle_deg.size() ? sim.angle_deg[i] - tr.angle_deg[i]
                                             : std::numeric_limits<double>::quiet_NaN();
@@ -109,11 +127,149 @@ class OutputError {
     return r;
   }
 
+  // The Jacobian of operator() at x into jac (rows × size(), allocated by
+  // the caller): the angle rows from the sensitivity equations carried
+  // through every RK4 stage of the simulation, i.e. the derivative of the
+  // discrete map SimulateFreeSwing computes (as the free-swing J fit does,
+  // identify_passive.cc), not a difference quotient; the prior rows are
+  // diagonal. Rows of samples the simulation does not reach are NaN.
+  void Jacobian(const Eigen::VectorXd& x, Eigen::MatrixXd& jac) const {
+    const ParameterSet p = UnpackCurves(start_, x);
+    const JointModel model = JointModel::FromParameters(p, ModelKind::kFull);
+    jac.setZero();
+    jac.topRows(samples()).setConstant(std::numeric_limits<double>::quiet_NaN());
+    Eigen::Index row = 0;
+    for (std::size_t k = 0; k < trials_.size(); ++k) {
+      for (Eigen::Index first = 0; first < size(); first += kTangentParameters) {
+        const Eigen::Index count = std::min(kTangentParameters, size() - first);
+        Sensitivities(p, model, k, first, count, row, jac);
+      }
+      const auto stride = static_cast<std::size_t>(options_.stride);
+      row += static_cast<Eigen::Index>((trials_[k].size() + stride - 1) / stride);
+    }
+    for (Eigen::Index j = 0; j < size(); ++j) {
+      jac(row + j, j) = prior_ / scale_[static_cast<std::size_t>(j)];
+    }
+  }
+
   double AngleRms(const Eigen::VectorXd& r) const {
     return std::sqrt(r.head(samples()).squaredNorm() / static_cast<double>(n_));
   }
 
  private:
+  SimulationOptions Options(std::size_t k) const {
+    const TrialColumns& tr = trials_[k];
+    SimulationOptions o;
+    o.step_s = options_.step_s;
+    o.pulse_rate_hz = options_.pulse_rate_hz;
+    o.initial_angle_deg = tr.angle_deg.front();
+    o.initial_velocity_deg_s = tr.velocity_deg_s.front();
+    o.duration_s = tr.t_s.back() - tr.t_s.front() + 1.0 / tr.SampleRateHz();
+    o.output_rate_hz = tr.SampleRateHz();
+    o.joint_limits = options_.joint_limits;
+    if (o.joint_limits) {
+      o.initial_angle_deg = std::clamp(o.initial_angle_deg, o.joint_limits->min_angle_deg,
+                                       o.joint_limits->max_angle_deg);
+    }
+    return o;
+  }
+
+  // Trial k simulated as SimulateFreeSwing does (the same RunPulseDriven,
+  // RK4 stages and stops; SimulateFreeSwing associates each stage's
+  // velocity update differently, the same values up to rounding), with the
+  // sensitivities to the parameters
+  // first … first + count − 1: their angle rows, from `row` on, into the
+  // columns first … of jac. The equation of motion (JointModel, Eq. 3.16)
+  //   θ̈ = −k·(τ_pta(θ) + τ_ptv(θ̇) + f_stim·τ_scale·f_ata⁺(θ)·f_atv⁺(θ̇)),
+  // k = (180/π)/J, is linear in each curve's ordinates through the basis
+  // weights of Eq. 4.30 (the gains clamped at 0: no sensitivity where
+  // clamped), and the packed ln τ_scale enters as τ_scale·∂/∂τ_scale.
+  void Sensitivities(const ParameterSet& p, const JointModel& model, std::size_t k,
+                     Eigen::Index first, Eigen::Index count, Eigen::Index row,
+                     Eigen::MatrixXd& jac) const {
+    const TrialColumns& tr = trials_[k];
+    const SimulationOptions o = Options(k);
+    const std::size_t n_out = detail::ValidateOptions(o, detail::DefaultDuration(pulses_[k]));
+    const PiecewiseLinear& pta = p.passive.torque_angle;
+    const PiecewiseLinear& ptv = p.passive.torque_velocity;
+    const PiecewiseLinear& ata = p.active.torque_angle;
+    const PiecewiseLinear& atv = p.active.torque_velocity;
+    const auto off_ptv = static_cast<Eigen::Index>(pta.size());
+    const auto off_ata = off_ptv + static_cast<Eigen::Index>(ptv.size());
+    const auto off_atv = off_ata + static_cast<Eigen::Index>(ata.size());
+    const Eigen::Index log_scale = off_atv + static_cast<Eigen::Index>(atv.size());
+    const double kk = RadToDeg(1.0 / p.passive.inertia_kgm2);
+    const double scale = p.active.torque_scale_nm;
+    JointModel::Segments segments;
+    const auto rhs = [&](double /*t*/, const Tangent& x, double activation) {
+      const double th = x[0], om = x[1];
+      Tangent d(x.size());
+      d[0] = om;
+      d[1] = model.AccelerationDegS2(th, om, activation, segments);
+      const CurvePoint cpta = At(pta, th), cptv = At(ptv, om);
+      const CurvePoint cata = At(ata, th), catv = At(atv, om);
+      const double act = activation * scale;
+      const double ga = cata.value > 0.0 ? cata.value : 0.0;
+      const double gv = catv.value > 0.0 ? catv.value : 0.0;
+      const double on_a = cata.value > 0.0 ? 1.0 : 0.0, on_v = catv.value > 0.0 ? 1.0 : 0.0;
+      // ∂θ̈/∂θ, ∂θ̈/∂θ̇ (the variational equation) …
+      const double d_th = -kk * (cpta.slope + act * on_a * cata.slope * gv);
+      const double d_om = -kk * (cptv.slope + act * ga * on_v * catv.slope);
+      d.segment(2, count) = x.tail(count);
+      d.tail(count) = d_th * x.segment(2, count) + d_om * x.tail(count);
+      // … plus ∂θ̈/∂x_j, non-zero for two ordinates of each curve and ln τ_scale.
+      const auto force = [&](Eigen::Index j, double v) {
+        if (j >= first && j < first + count) d[2 + count + j - first] += v;
+      };
+      const auto curve = [&](Eigen::Index offset, const BasisWeights& b, double v) {
+        const auto lo = offset + static_cast<Eigen::Index>(b.index_lo);
+        if (b.weight_lo != 0.0) force(lo, v * b.weight_lo);
+        if (b.weight_hi != 0.0) force(lo + 1, v * b.weight_hi);
+      };
+      curve(0, cpta.basis, -kk);
+      curve(off_ptv, cptv.basis, -kk);
+      curve(off_ata, cata.basis, -kk * act * on_a * gv);
+      curve(off_atv, catv.basis, -kk * act * ga * on_v);
+      force(log_scale, -kk * act * ga * gv);
+      return d;
+    };
+    const auto record = [&](std::size_t i, double /*t*/, const Tangent& x, double /*a*/) {
+      const auto stride = static_cast<std::size_t>(options_.stride);
+      if (i >= tr.size() || i % stride != 0) return;
+      jac.row(row + static_cast<Eigen::Index>(i / stride)).segment(first, count) =
+          x.segment(2, count).transpose();
+    };
+    // The stops of SimulateFreeSwing: a clamped coordinate no longer
+    // depends on the parameters.
+    const std::optional<JointLimits>& limits = o.joint_limits;
+    const auto stop = [&limits, count](Tangent& x) {
+      if (!limits) return false;
+      const auto hold = [&](double at, bool below) {
+        x[0] = at;
+        x.segment(2, count).setZero();
+        if (below ? x[1] < 0.0 : x[1] > 0.0) {
+          x[1] = 0.0;
+          x.tail(count).setZero();
+        }
+        return true;
+      };
+      if (x[0] < limits->min_angle_deg || (x[0] == limits->min_angle_deg && x[1] < 0.0)) {
+        return hold(limits->min_angle_deg, true);
+      }
+      if (x[0] > limits->max_angle_deg || (x[0] == limits->max_angle_deg && x[1] > 0.0)) {
+        return hold(limits->max_angle_deg, false);
+      }
+      return false;
+    };
+    Tangent x0 = Tangent::Zero(2 + 2 * count);
+    x0[0] = o.initial_angle_deg;
+    x0[1] = o.initial_velocity_deg_s;
+    const IntegratorSettings settings{IntegratorKind::kRk4, o.step_s, o.tolerances};
+    IntegratorWorkspace ws;
+    detail::RunPulseDriven(rhs, record, x0, p.contraction, p.irc, pulses_[k], o.pulse_rate_hz,
+                           o.output_rate_hz, n_out, settings, ws, stop);
+  }
+
   const ParameterSet& start_;
   std::span<const TrialColumns> trials_;
   OutputErrorOptions options_;
@@ -159,34 +315,34 @@ OutputErrorResult RefineOutputError(const ParameterSet& start, std::span<const T
   double cost = Cost(r);
   OutputErrorResult out;
   out.report.fit_rms["output_error_start_deg"] = error.AngleRms(r);
-  // Levenberg–Marquardt (Marquardt's diagonal scaling), forward-difference
-  // Jacobian; a step is kept only if it lowers the cost.
+  // Levenberg–Marquardt (Marquardt's diagonal scaling), the Jacobian from
+  // the sensitivity equations (OutputError::Jacobian); a step is kept only
+  // if it lowers the cost. The matrices are allocated once.
   double lambda = 1e-2;
   int done = 0;
+  Eigen::MatrixXd jac(r.size(), x.size()), jtj(x.size(), x.size()), a(x.size(), x.size());
+  Eigen::VectorXd g(x.size()), xn(x.size());
   for (int it = 0; it < options.iterations && std::isfinite(cost); ++it) {
-    Eigen::MatrixXd jac(r.size(), x.size());
-    for (Eigen::Index j = 0; j < x.size(); ++j) {
-      Eigen::VectorXd xp = x;
-      const double h = 1e-4 * std::max(1.0, std::abs(x(j)));
-      xp(j) += h;
-      jac.col(j) = (error(xp) - r) / h;
-    }
+    error.Jacobian(x, jac);
     if (!jac.allFinite()) break;
-    const Eigen::MatrixXd jtj = jac.transpose() * jac;
-    const Eigen::VectorXd g = jac.transpose() * r;
+    // JᵀJ's lower triangle only (a symmetric rank update, half the
+    // product): the LDLT below reads no more.
+    jtj.setZero();
+    jtj.selfadjointView<Eigen::Lower>().rankUpdate(jac.transpose());
+    g.noalias() = jac.transpose() * r;
     const double floor = std::max(jtj.diagonal().maxCoeff(), 1e-12);
     bool improved = false;
     for (int tries = 0; tries < 6 && !improved; ++tries) {
-      Eigen::MatrixXd a = jtj;
+      a = jtj;
       // The floor keeps ordinates the trials never move (no support) fixed.
       a.diagonal() += lambda * (jtj.diagonal().array() + 1e-6 * floor).matrix();
-      Eigen::VectorXd xn = x + a.ldlt().solve(-g);
+      xn = x + a.ldlt().solve(-g);
       ClampActiveGains(start, xn);  // projected step
-      const Eigen::VectorXd rn = error(xn);
+      Eigen::VectorXd rn = error(xn);
       const double cn = Cost(rn);
       if (cn < cost) {
         x = xn;
-        r = rn;
+        r = std::move(rn);
         cost = cn;
         lambda *= 0.3;
         improved = true;

@@ -2,7 +2,9 @@
 
 /// @file
 /// ODE integrators for ẋ = f(t, x), generic over the state type (Eigen
-/// column vectors, fixed or dynamic size):
+/// column vectors, fixed or dynamic size, or any type with their +, −,
+/// scalar ×, [] and size(), such as the free swing's two scalars,
+/// simulate.cc):
 ///   - fixed-step classical Runge–Kutta 4;
 ///   - adaptive embedded Dormand–Prince 5(4) (Hairer, Nørsett & Wanner,
 ///     "Solving ODEs I", §II.5) with mixed relative/absolute error control,

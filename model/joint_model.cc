@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -54,6 +56,79 @@ CurvePairTable::CurvePairTable(const PiecewiseLinear& f, const PiecewiseLinear& 
 std::size_t CurvePairTable::SegmentBySearch(double x) const {
   return static_cast<std::size_t>(std::upper_bound(x_.begin(), x_.end(), x) - x_.begin()) - 1;
 }
+
+LinePairTable::LinePairTable(std::vector<double> b, const std::vector<double>& f,
+                             const std::vector<double>& g, double g_left_slope,
+                             double g_right_slope) {
+  const std::size_t m = b.size();
+  lines_.resize(m + 1);
+  lines_.front() = {f.front(), 0.0, g.front() - g_left_slope * b.front(), g_left_slope};
+  lines_.back() = {f.back(), 0.0, g.back() - g_right_slope * b.back(), g_right_slope};
+  for (std::size_t i = 0; i + 1 < m; ++i) {
+    const double dx = b[i + 1] - b[i];
+    const double f1 = (f[i + 1] - f[i]) / dx, g1 = (g[i + 1] - g[i]) / dx;
+    lines_[i + 1] = {f[i] - f1 * b[i], f1, g[i] - g1 * b[i], g1};
+  }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  lower_.reserve(m + 2);
+  lower_.push_back(nan);
+  lower_.insert(lower_.end(), b.begin(), b.end());
+  lower_.push_back(nan);
+}
+
+namespace {
+
+// A gain of the model before its clamp at 0: linear between its kinks and
+// beyond them with slopes (left, right): a piecewise-linear curve (held
+// ends) or the line of the single-segment variant (Eqs. 5.1–5.2).
+struct Gain {
+  std::function<double(double)> at;
+  std::vector<double> kinks;  // where the slope of max(gain, 0) may change
+  double left_slope = 0.0, right_slope = 0.0;
+};
+
+Gain CurveGain(const PiecewiseLinear& c) {
+  Gain g{[&c](double x) { return c(x); }, {}, 0.0, 0.0};
+  if (c.size() > 1) g.kinks = c.x();
+  const std::vector<double>& x = c.x();
+  const std::vector<double>& y = c.y();
+  for (std::size_t i = 0; i + 1 < x.size(); ++i) {
+    if ((y[i] > 0.0 && y[i + 1] < 0.0) || (y[i] < 0.0 && y[i + 1] > 0.0)) {
+      g.kinks.push_back(x[i] + y[i] * (x[i + 1] - x[i]) / (y[i] - y[i + 1]));  // 0 crossing
+    }
+  }
+  return g;
+}
+
+Gain LineGain(double slope, double intercept) {
+  Gain g{[slope, intercept](double x) { return slope * x + intercept; }, {}, slope, slope};
+  if (slope != 0.0) g.kinks.push_back(-intercept / slope);  // 0 crossing
+  return g;
+}
+
+// (scale·a(x), gain_scale·max(gain(x), 0)) as a LinePairTable on the
+// breakpoints of a and the kinks of the gain (a constant curve adds none;
+// none at all gives {0}).
+LinePairTable ScaledTable(const PiecewiseLinear& a, double scale, const Gain& gain,
+                          double gain_scale) {
+  std::vector<double> x;
+  if (a.size() > 1) x = a.x();
+  x.insert(x.end(), gain.kinks.begin(), gain.kinks.end());
+  std::sort(x.begin(), x.end());
+  x.erase(std::unique(x.begin(), x.end()), x.end());
+  if (x.empty()) x = {0.0};
+  std::vector<double> f(x.size()), g(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    f[i] = scale * a(x[i]);
+    g[i] = gain_scale * std::max(gain.at(x[i]), 0.0);
+  }
+  // Beyond the ends the gain keeps its sign: clamped there, or its slope.
+  const double left = gain.at(x.front() - 1.0) > 0.0 ? gain_scale * gain.left_slope : 0.0;
+  const double right = gain.at(x.back() + 1.0) > 0.0 ? gain_scale * gain.right_slope : 0.0;
+  return LinePairTable(std::move(x), f, g, left, right);
+}
+
+}  // namespace
 
 JointModel JointModel::FromParameters(const ParameterSet& params,
                                       std::optional<ModelKind> kind_override) {
@@ -121,7 +196,26 @@ JointModel JointModel::FromParameters(const ParameterSet& params,
     m.angle_table_ = CurvePairTable(params.passive.torque_angle, *ata);
   }
   m.velocity_table_ = CurvePairTable(params.passive.torque_velocity, *atv);
+  if (m.kind_ != ModelKind::kParametric) {
+    const double k = m.accel_deg_per_nm_;
+    const SingleSegmentParams& s = m.single_segment_;
+    const bool line = m.kind_ == ModelKind::kSingleSegment;
+    m.scaled_tables_ = true;
+    m.scaled_angle_ = ScaledTable(params.passive.torque_angle, -k,
+                                  line ? LineGain(s.a, s.b) : CurveGain(*ata), k * scale);
+    m.scaled_velocity_ = ScaledTable(params.passive.torque_velocity, -k,
+                                     line ? LineGain(s.c, s.d) : CurveGain(*atv), 1.0);
+  }
   return m;
+}
+
+double JointModel::ParametricAcceleration(double angle_deg, double velocity_deg_s,
+                                          double activation, Segments& segments,
+                                          double motor_torque_nm) const {
+  // J·θ̈ = τ_motor − τ_pta(θ) − τ_ptv(θ̇) − τ_act, θ̈ in rad/s² (§3.4, Eq. 3.16).
+  double passive_nm = 0.0, gain_nm = 0.0;
+  PassiveAndGain(angle_deg, velocity_deg_s, passive_nm, gain_nm, segments);
+  return (motor_torque_nm - passive_nm - activation * gain_nm) * accel_deg_per_nm_;
 }
 
 double JointModel::PassiveAngleTorque(double angle_deg) const {

@@ -87,6 +87,48 @@ class CurvePairTable {
   std::vector<double> x_, f_, f_slope_, g_, g_slope_;
 };
 
+/// Two functions f(x), g(x), linear on every segment of one partition of
+/// the real line, each segment stored as its two lines f = f₀ + f₁·x,
+/// g = g₀ + g₁·x: an evaluation is a segment scan (predicted branches, as
+/// CurvePairTable's) and two multiply-adds, with no subtraction of the
+/// segment's start or division on the way from x to the values.
+class LinePairTable {
+ public:
+  LinePairTable() = default;
+  /// f and g given by their values at breakpoints b (strictly increasing,
+  /// non-empty; not checked), linear between them; beyond the ends f is
+  /// held and g continues with the given slopes (0: held).
+  LinePairTable(std::vector<double> b, const std::vector<double>& f, const std::vector<double>& g,
+                double g_left_slope = 0.0, double g_right_slope = 0.0);
+
+  /// Sets f_out = f(x), g_out = g(x); the scan starts at `segment` (0 at
+  /// first, then the segment of the last look-up, which it receives).
+  void Evaluate(double x, double& f_out, double& g_out, std::size_t& segment) const {
+    const Line& l = LineAt(x, segment);
+    f_out = l.f0 + l.f1 * x;
+    g_out = l.g0 + l.g1 * x;
+  }
+
+  /// The lines of x's segment, f = f0 + f1·x, g = g0 + g1·x (the scan as
+  /// in Evaluate).
+  struct Line {
+    double f0 = 0.0, f1 = 0.0, g0 = 0.0, g1 = 0.0;
+  };
+  const Line& LineAt(double x, std::size_t& segment) const {
+    // lower_ is {NaN, b₀, …, b_{m−1}, NaN}: no comparison with the NaN ends
+    // holds, so the scans stop at the held segments 0 and m.
+    std::size_t i = segment;
+    while (x < lower_[i]) --i;
+    while (x >= lower_[i + 1]) ++i;
+    segment = i;
+    return lines_[i];
+  }
+
+ private:
+  std::vector<double> lower_;  // segment i is [lower_[i], lower_[i + 1])
+  std::vector<Line> lines_;
+};
+
 /// The static part of one model variant, built from a ParameterSet.
 class JointModel {
  public:
@@ -123,6 +165,10 @@ class JointModel {
     return AccelerationDegS2(angle_deg, velocity_deg_s, activation, segments, motor_torque_nm);
   }
 
+  /// Whether AccelerationDegS2 reads scaled tables (every variant but
+  /// parametric): then FreeSwingStage applies.
+  bool has_scaled_tables() const { return scaled_tables_; }
+
   /// The curve segments of the last evaluation (CurvePairTable's hints): a
   /// simulation keeps one and passes it to every evaluation along its
   /// trajectory, so the look-ups start where the state last was.
@@ -132,16 +178,57 @@ class JointModel {
   };
   /// The same with the look-ups started at `segments`, which receive the
   /// segments of this state (the value is the same whatever they held).
+  ///
+  /// For the variants whose curves are all piecewise linear (every variant
+  /// but parametric; single_segment's gains are lines) the terms come scaled
+  /// into θ̈ from two LinePairTables, P(θ) = −k·τ_pta(θ), G(θ) = k·τ_scale·f_ata⁺(θ),
+  /// V(θ̇) = −k·τ_ptv(θ̇), H(θ̇) = f_atv⁺(θ̇), k = (180/π)/J, the clamps at 0
+  /// tabulated (a breakpoint where a gain crosses 0), so that
+  ///   θ̈ = (P(θ) + k·τ_motor + V(θ̇)) − (f_stim·G(θ))·H(θ̇):
+  /// along a simulated trajectory θ̇ is the state that changes last, and
+  /// from it to θ̈ are two multiply-adds, a multiplication and a subtraction.
+  /// The same value as the unscaled form up to rounding (~1e-15 relative).
   double AccelerationDegS2(double angle_deg, double velocity_deg_s, double activation,
                            Segments& segments, double motor_torque_nm = 0.0) const {
-    // J·θ̈ = τ_motor − τ_pta(θ) − τ_ptv(θ̇) − τ_act, θ̈ in rad/s² (§3.4, Eq. 3.16).
-    double passive_nm = 0.0, gain_nm = 0.0;
-    PassiveAndGain(angle_deg, velocity_deg_s, passive_nm, gain_nm, segments);
-    return (motor_torque_nm - passive_nm - activation * gain_nm) * accel_deg_per_nm_;
+    if (scaled_tables_) [[likely]] {
+      double p = 0.0, g = 0.0, v = 0.0, h = 0.0;
+      scaled_angle_.Evaluate(angle_deg, p, g, segments.angle);
+      scaled_velocity_.Evaluate(velocity_deg_s, v, h, segments.velocity);
+      return (p + motor_torque_nm * accel_deg_per_nm_ + v) - (activation * g) * h;
+    }
+    return ParametricAcceleration(angle_deg, velocity_deg_s, activation, segments,
+                                  motor_torque_nm);
+  }
+
+  /// One stage of an RK4 step in free swing (τ_motor = 0; has_scaled_tables()
+  /// only): θ̈ at (θ, θ̇), as AccelerationDegS2, and the next stage's
+  /// velocity base + c·θ̈. On θ̇'s segment θ̈ is a line in θ̇,
+  /// θ̈ = D + E·θ̇ with D = P + v₀ − f_stim·G·h₀, E = v₁ − f_stim·G·h₁, so
+  /// base + c·θ̈ = (base + c·D) + (c·E)·θ̇: one multiply-add from θ̇ (the
+  /// state each stage waits for) instead of the whole right-hand side; the
+  /// coefficients wait only for θ, known a stage earlier. The same value
+  /// as base + c·θ̈ up to rounding.
+  struct Stage {
+    double accel_deg_s2;
+    double next_velocity_deg_s;
+  };
+  Stage FreeSwingStage(double angle_deg, double velocity_deg_s, double activation,
+                       double base_deg_s, double c_s, Segments& segments) const {
+    double p = 0.0, g = 0.0;
+    scaled_angle_.Evaluate(angle_deg, p, g, segments.angle);
+    const LinePairTable::Line& l = scaled_velocity_.LineAt(velocity_deg_s, segments.velocity);
+    const double ag = activation * g;
+    const double v = l.f0 + l.f1 * velocity_deg_s, h = l.g0 + l.g1 * velocity_deg_s;
+    const double d = (p + l.f0) - ag * l.g0, e = l.f1 - ag * l.g1;
+    return {(p + v) - ag * h, (base_deg_s + c_s * d) + (c_s * e) * velocity_deg_s};
   }
 
  private:
   JointModel() = default;
+  // AccelerationDegS2 of the parametric variant (out of line: the tables'
+  // path stays small enough to inline into a simulation's loop).
+  double ParametricAcceleration(double angle_deg, double velocity_deg_s, double activation,
+                                Segments& segments, double motor_torque_nm) const;
   // τ_pta + τ_ptv and the active gain at (θ, θ̇) with two table look-ups
   // (inline: the simulation's hot path).
   void PassiveAndGain(double angle_deg, double velocity_deg_s, double& passive_nm, double& gain_nm,
@@ -168,6 +255,10 @@ class JointModel {
   // without a PWL gain tabulate the constant 1; parametric and
   // single_segment gains (and parametric τ_pta) are computed in closed form.
   CurvePairTable angle_table_, velocity_table_;
+  // θ̈'s terms (P, G) and (V, H) of AccelerationDegS2, for the variants
+  // with piecewise-linear curves only (scaled_tables_).
+  bool scaled_tables_ = false;
+  LinePairTable scaled_angle_, scaled_velocity_;
   SingleSegmentParams single_segment_;
   ParametricParams parametric_;
 };

@@ -1,6 +1,5 @@
 #include "model/simulate.h"
 
-#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -62,6 +61,24 @@ SimulationResult MakeResult(std::size_t n, double rate_hz, ModelKind kind) {
   }
   return r;
 }
+
+// The free swing's state (θ in deg, θ̇ in deg/s) as two scalars, for the
+// integrators (integrators.h, simulate.h): component by component the same
+// arithmetic as Eigen::Vector2d, so the same values, without the pair
+// packed into one register between the RK4 stages (perf: the packing and
+// its spills sat on the stages' dependency chain).
+struct KneeState {
+  double angle = 0.0, velocity = 0.0;
+  double operator[](std::size_t i) const { return i == 0 ? angle : velocity; }
+  static std::size_t size() { return 2; }
+  friend KneeState operator+(const KneeState& a, const KneeState& b) {
+    return {a.angle + b.angle, a.velocity + b.velocity};
+  }
+  friend KneeState operator-(const KneeState& a, const KneeState& b) {
+    return {a.angle - b.angle, a.velocity - b.velocity};
+  }
+  friend KneeState operator*(double k, const KneeState& a) { return {k * a.angle, k * a.velocity}; }
+};
 
 }  // namespace
 
@@ -128,19 +145,19 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
   r.stim_ma = StimulusColumn(pulses, options.pulse_rate_hz, r.t_s);
 
   // State x = (θ in deg, θ̇ in deg/s); ẍ from J·θ̈ = −τ_pta − τ_ptv − τ_act (§3.4).
-  using State = Eigen::Vector2d;
+  using State = KneeState;
   JointModel::Segments segments;  // the look-ups follow the trajectory
   const auto rhs = [&model, &segments](double /*t*/, const State& x, double activation) {
-    return State(x[1], model.AccelerationDegS2(x[0], x[1], activation, segments));
+    return State{x.velocity, model.AccelerationDegS2(x.angle, x.velocity, activation, segments)};
   };
   const std::optional<JointLimits>& limits = options.joint_limits;
   const auto record = [&](std::size_t i, double /*t*/, const State& x, double activation) {
-    r.angle_deg[i] = x[0];
-    r.velocity_deg_s[i] = x[1];
-    double accel = model.AccelerationDegS2(x[0], x[1], activation, segments);
+    r.angle_deg[i] = x.angle;
+    r.velocity_deg_s[i] = x.velocity;
+    double accel = model.AccelerationDegS2(x.angle, x.velocity, activation, segments);
     // Resting on a stop that the net torque pushes into: the stop holds.
-    if (limits && ((x[0] <= limits->min_angle_deg && accel < 0.0) ||
-                   (x[0] >= limits->max_angle_deg && accel > 0.0))) {
+    if (limits && ((x.angle <= limits->min_angle_deg && accel < 0.0) ||
+                   (x.angle >= limits->max_angle_deg && accel > 0.0))) {
       accel = 0.0;
     }
     r.accel_deg_s2[i] = accel;
@@ -152,22 +169,49 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
   // the stop; without limits nothing moves.
   const auto stop = [&limits](State& x) {
     if (!limits) return false;
-    if (x[0] < limits->min_angle_deg || (x[0] == limits->min_angle_deg && x[1] < 0.0)) {
-      x[0] = limits->min_angle_deg;
-      x[1] = std::max(x[1], 0.0);
+    if (x.angle < limits->min_angle_deg ||
+        (x.angle == limits->min_angle_deg && x.velocity < 0.0)) {
+      x.angle = limits->min_angle_deg;
+      x.velocity = std::max(x.velocity, 0.0);
       return true;
     }
-    if (x[0] > limits->max_angle_deg || (x[0] == limits->max_angle_deg && x[1] > 0.0)) {
-      x[0] = limits->max_angle_deg;
-      x[1] = std::min(x[1], 0.0);
+    if (x.angle > limits->max_angle_deg ||
+        (x.angle == limits->max_angle_deg && x.velocity > 0.0)) {
+      x.angle = limits->max_angle_deg;
+      x.velocity = std::min(x.velocity, 0.0);
       return true;
     }
     return false;
   };
-  detail::RunPulseDriven(rhs, record,
-                         State(options.initial_angle_deg, options.initial_velocity_deg_s),
-                         params.contraction, params.irc, pulses, options.pulse_rate_hz,
-                         options.output_rate_hz, n, settings, ws, stop);
+  const State x0{options.initial_angle_deg, options.initial_velocity_deg_s};
+  if (model.has_scaled_tables()) {
+    // Rk4Stages with each stage's next velocity from FreeSwingStage (the
+    // stages' dependency chain through θ̇ one multiply-add long).
+    const auto step = [&model, &segments](const auto& /*rhs*/, const State& x, double /*ts*/,
+                                          double h, double a0, double a_half, double a_end) {
+      const double hh = 0.5 * h;
+      const JointModel::Stage s1 =
+          model.FreeSwingStage(x.angle, x.velocity, a0, x.velocity, hh, segments);
+      const double om2 = s1.next_velocity_deg_s;
+      const JointModel::Stage s2 =
+          model.FreeSwingStage(x.angle + hh * x.velocity, om2, a_half, x.velocity, hh, segments);
+      const double om3 = s2.next_velocity_deg_s;
+      const JointModel::Stage s3 =
+          model.FreeSwingStage(x.angle + hh * om2, om3, a_half, x.velocity, h, segments);
+      const double om4 = s3.next_velocity_deg_s;
+      const double sum = s1.accel_deg_s2 + 2.0 * s2.accel_deg_s2 + 2.0 * s3.accel_deg_s2;
+      const JointModel::Stage s4 = model.FreeSwingStage(
+          x.angle + h * om3, om4, a_end, x.velocity + (h / 6.0) * sum, h / 6.0, segments);
+      return State{x.angle + (h / 6.0) * (x.velocity + 2.0 * om2 + 2.0 * om3 + om4),
+                   s4.next_velocity_deg_s};
+    };
+    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
+                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop,
+                           step);
+  } else {
+    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
+                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop);
+  }
   r.stats = ws.stats;
   return r;
 }

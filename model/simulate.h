@@ -142,17 +142,35 @@ std::size_t ValidateOptions(const SimulationOptions& options, double default_dur
 /// Default duration of free swing / isometric runs (see SimulationOptions).
 double DefaultDuration(const PulseTrain& pulses);
 
+/// RunPulseDriven's RK4 step: Rk4Step (integrators.h) written out with the
+/// exact activation at t, t + h/2 and t + h (the only times RK4 samples the
+/// input), the right-hand side called per stage.
+struct Rk4Stages {
+  template <class State, class Rhs>
+  State operator()(const Rhs& rhs, const State& x, double ts, double h, double a0, double a_half,
+                   double a_end) const {
+    const State k1 = rhs(ts, x, a0);
+    const State k2 = rhs(ts + 0.5 * h, State(x + (0.5 * h) * k1), a_half);
+    const State k3 = rhs(ts + 0.5 * h, State(x + (0.5 * h) * k2), a_half);
+    const State k4 = rhs(ts + h, State(x + h * k3), a_end);
+    return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+  }
+};
+
 /// Integrates a mechanical state driven by the exact activation of a pulse
 /// train (see the file comment): rhs(t, x, f_stim) → ẋ; record(i, t_i, x,
 /// f_stim) at each output time; project(x) after every step may move the
-/// state onto a constraint (see IntegrateDormandPrince45). Inputs are assumed
-/// validated.
-template <class State, class Rhs, class Record, class Project = NoProjection>
+/// state onto a constraint (see IntegrateDormandPrince45); with RK4,
+/// rk4_step(rhs, x, t, h, f_stim(t), f_stim(t + h/2), f_stim(t + h)) takes
+/// one step (Rk4Stages, or the same step arranged for one right-hand side).
+/// Inputs are assumed validated.
+template <class State, class Rhs, class Record, class Project = NoProjection,
+          class Step = Rk4Stages>
 void RunPulseDriven(const Rhs& rhs, const Record& record, State x,
                     const ContractionParams& contraction, const PiecewiseLinear& irc,
                     const PulseTrain& pulses, double pulse_rate_hz, double output_rate_hz,
                     std::size_t n_out, const IntegratorSettings& settings, IntegratorWorkspace& ws,
-                    const Project& project = {}) {
+                    const Project& project = {}, const Step& rk4_step = {}) {
   ContractionPropagator prop(contraction);
   ContractionState chain{};
   double t = 0.0;
@@ -176,15 +194,11 @@ void RunPulseDriven(const Rhs& rhs, const Record& record, State x,
       for (long k = 0; k < m; ++k) {
         const double ts = t0 + static_cast<double>(k) * h;
         // RK4 samples the input at t, t + h/2 and t + h only: the exact
-        // activation there, once per step (Rk4Step written out with it).
+        // activation there, once per step.
         const ContractionState c_end = prop.Propagate(chain, full);
         const double a0 = prop.Output(chain), a_half = prop.Output(prop.Propagate(chain, half)),
                      a_end = prop.Output(c_end);
-        const State k1 = rhs(ts, x, a0);
-        const State k2 = rhs(ts + 0.5 * h, State(x + (0.5 * h) * k1), a_half);
-        const State k3 = rhs(ts + 0.5 * h, State(x + (0.5 * h) * k2), a_half);
-        const State k4 = rhs(ts + h, State(x + h * k3), a_end);
-        x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+        x = rk4_step(rhs, x, ts, h, a0, a_half, a_end);
         project(x);
         chain = c_end;
       }

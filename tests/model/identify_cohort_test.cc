@@ -2,7 +2,10 @@
 // server's seeded draw 1000 + i, odd legs thesis, even legs analytic) held
 // against reference values recorded from the code as it was before the
 // speed work of docs/ARCHITECTURE.md "Performance": a change that makes a
-// fit faster must leave what it identifies where it was.
+// fit faster must leave what it identifies where it was. The rapid figures
+// were recorded again when the output-error refinement's Jacobian became
+// the exact derivative of its simulation (it was a difference quotient;
+// that section says by how much they moved and why).
 //
 // Per leg, trials simulated by the model itself (model/simulate.h, the
 // bench's stops at 10° and 110°) with the bench's sensor noise added
