@@ -278,12 +278,12 @@ void BuildFreeSwing(const std::string& name, const ParameterValues& v, double mi
 // lets go; the swing is recorded from the release, with no stimulation.
 void BuildPendulum(const ParameterValues& v, Builder& b) {
   const double angle = v.at("release_angle_deg");
-  const auto swings = static_cast<int>(v.at("swings"));
-  for (int k = 1; k <= swings; ++k) {
+  const auto releases = static_cast<int>(v.at("release_count"));
+  for (int k = 1; k <= releases; ++k) {
     b.Prepare("move to the release angle", MotorMode::kPosition, angle, v.at("settle_s"), true);
-    b.Rest("hold", v.at("hold_s"), 0.0, -1, MotorMode::kPosition, angle);
+    b.Rest("hold", v.at("release_hold_s"), 0.0, -1, MotorMode::kPosition, angle);
     const int t = b.AddTrial("pendulum_" + std::to_string(k), MotorMode::kDecoupled);
-    b.Rest("free swing", v.at("swing_s"), 0.0, t, MotorMode::kDecoupled, angle);
+    b.Rest("free swing", v.at("release_swing_s"), 0.0, t, MotorMode::kDecoupled, angle);
   }
 }
 

@@ -325,6 +325,9 @@ const std::map<std::string, ParameterPresentation, std::less<>>& PresentationTab
       {"forgetting", {"Adaptive forgetting factor", "1", true}},
       {"parameter_set_id", {"Parameter set (0 = the leg's approved set)", "1", true}},
       {"swing_s", {"Validation free swing", "s", true}},
+      // The pendulum test.
+      {"release_angle_deg", {"Angle the shank is let go at", "deg", false}},
+      {"release_count", {"Number of releases", "1", false}},
       // Anthropometrics.
       {"inertia_kgm2",
        {"Leg inertia (0 = the last parameter set's, else from weight and shank length)", "kg·m²",

@@ -265,20 +265,22 @@ std::vector<ProtocolDescription> MakeCatalog() {
        .version = 1,
        .title = "Pendulum test",
        .description =
-           "Motor, then free: the relaxed knee is taken to release_angle_deg, held hold_s and "
-           "let go; it swings to rest without stimulation for swing_s; swings times (the "
-           "Wartenberg pendulum test, beyond the thesis: τ_pta and τ_ptv by method passive "
-           "with J given or from the anthropometrics, Eq. 4.35).",
+           "Motor, then free: the relaxed knee is taken to release_angle_deg, held "
+           "release_hold_s and let go; it swings to rest without stimulation for "
+           "release_swing_s; release_count times: the Wartenberg pendulum test, beyond the "
+           "thesis (τ_pta and τ_ptv by method passive, Eq. 4.35 with J given or from the "
+           "anthropometrics, §4.2.3).",
        .bench_mode = BenchMode::kMixed,
        .kind = ProtocolKind::kPassive,
        .min_rest_s = 0.0,
        .parameters = {
            Number("release_angle_deg", "knee angle the shank is let go at, deg",
                   {.value = 10.0, .min = 10.0, .max = 110.0}, Scaling::kRangeMin),
-           Number("hold_s", "hold before each release, s", {.value = 1.0, .min = 0.2, .max = 10.0}),
-           Number("swing_s", "free swing recorded after each release, s",
+           Number("release_hold_s", "hold before each release, s",
+                  {.value = 1.0, .min = 0.2, .max = 10.0}),
+           Number("release_swing_s", "free swing recorded after each release, s",
                   {.value = 8.0, .min = 2.0, .max = 60.0}),
-           Count("swings", "number of releases", {.value = 2.0, .min = 1.0, .max = 10.0}),
+           Count("release_count", "number of releases", {.value = 2.0, .min = 1.0, .max = 10.0}),
            SettleS(2.0, "move to the release angle, s")}});
 
   c.push_back(

@@ -45,7 +45,8 @@ TEST(ProtocolCatalog, HoldsEveryProtocolOfDesignTable) {
       "isometric_impulse_irc",    "isometric_prediction",  "passive_sequential",
       "passive_simultaneous",     "free_swing_passive",    "active_random_binary",
       "prediction_step",          "prediction_ramp",       "prediction_sine",
-      "prediction_random_binary", "rapid_parameterisation", "tracking", "daily_check"};
+      "prediction_random_binary", "rapid_parameterisation", "tracking", "daily_check",
+      "pendulum_test"};
   std::set<std::string> have;
   for (const ProtocolDescription& p : ProtocolCatalog()) have.insert(p.name);
   EXPECT_EQ(have, want);
@@ -76,7 +77,8 @@ TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
                                           "controller",
                                           "target",
                                           "forgetting",
-                                          "parameter_set_id"};
+                                          "parameter_set_id",
+                                          "release_count"};
   for (const ProtocolDescription& p : ProtocolCatalog()) {
     std::set<std::string> names;
     for (const ParameterSpec& s : p.parameters) {

@@ -7,6 +7,7 @@
 #include <tuple>
 
 #include "api/parameter_set_json.h"
+#include "storage/row_helpers.h"
 #include "storage/trials.h"
 #include "storage_test_util.h"
 
@@ -187,15 +188,35 @@ TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
   {
     auto db = Database::Open(v14);
     ASSERT_TRUE(db.ok()) << db.status().ToString();
-    SubjectRepository subjects(**db);
-    auto subject = subjects.Create("M15", SubjectDetails{});
-    ASSERT_TRUE(subject.ok());
-    auto leg = subjects.AddLeg(subject->id, Side::kLeft);
-    ASSERT_TRUE(leg.ok());
-    leg_id = leg->id;
+    // The subject and leg as schema 14 has them (the repository reads the
+    // columns of later migrations).
+    std::int64_t subject_id = 0;
+    api::Status made = (*db)->Write([&](Connection& c) -> api::Status {
+      const std::string now = FormatUtc((*db)->Now());
+      auto subject =
+          internal::InsertRow(c, "INSERT INTO subjects (code, created_at_utc) VALUES (?1, ?2)",
+                              std::string("M15"), now);
+      if (!subject.ok()) return subject.status();
+      subject_id = *subject;
+      if (auto st = internal::Execute(
+              c,
+              "INSERT INTO subject_revisions (subject_id, revision, sex, recorded_at_utc)"
+              " VALUES (?1, 1, 'undisclosed', ?2)",
+              subject_id, now);
+          !st.ok()) {
+        return st;
+      }
+      auto leg = internal::InsertRow(
+          c, "INSERT INTO legs (subject_id, side, created_at_utc) VALUES (?1, 'left', ?2)",
+          subject_id, now);
+      if (!leg.ok()) return leg.status();
+      leg_id = *leg;
+      return api::Status::Ok();
+    });
+    ASSERT_TRUE(made.ok()) << made.ToString();
     SessionDetails details;
     details.date = "2026-01-02";
-    auto session = SessionRepository(**db).Create(subject->id, leg_id, details);
+    auto session = SessionRepository(**db).Create(subject_id, leg_id, details);
     ASSERT_TRUE(session.ok());
     auto first =
         SessionRepository(**db).CreateRun(session->id, {"rapid_parameterisation", "1", "{}"});
@@ -204,7 +225,7 @@ TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
     run_id = second->id;
     ParameterSetRepository sets(**db);
     auto insert = [&](std::optional<std::int64_t> run) {
-      NewParameterSet set{subject->id, leg_id, Params("ramp_correlation", "free_swing"),
+      NewParameterSet set{subject_id, leg_id, Params("ramp_correlation", "free_swing"),
                           std::nullopt, std::nullopt};
       set.run_id = run;
       auto stored = sets.Insert(set);
