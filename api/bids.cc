@@ -147,6 +147,13 @@ std::string TrackedPoint(std::string_view leg) {
 std::string Units(const Channel& c) { return c.unit.empty() ? "n/a" : c.unit; }
 std::string UnitsBack(const std::string& u) { return u == "n/a" ? std::string() : u; }
 
+// A number in a message, as a person reads it (at most 6 significant digits).
+std::string FormatNumber(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", v);
+  return buffer;
+}
+
 // The entities of a BIDS file name ("sub-01_ses-3_task-x_run-4_motion.tsv"):
 // key → label, and the suffix.
 std::map<std::string, std::string> Entities(std::string_view file_name, std::string* suffix) {
@@ -503,7 +510,36 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
     if (labels.empty() || labels.front() != kTimeChannel) {
       return Status::InvalidArgument(channels_it->first + ": the first channel must be t_s");
     }
-    Trial trial;
+    for (std::size_t j = 0; j < labels.size(); ++j) {
+      if (!IsValidChannelName(labels[j])) {
+        return Status::InvalidArgument(channels_it->first + ": line " + std::to_string(j + 2) +
+                                       ": '" + labels[j] + "' is not a channel name");
+      }
+      if (units[j] != ChannelUnit(labels[j])) {
+        return Status::InvalidArgument(
+            channels_it->first + ": line " + std::to_string(j + 2) + ": channel " + labels[j] +
+            " is in " + (ChannelUnit(labels[j]).empty() ? "no unit" : ChannelUnit(labels[j])) +
+            ", not " + (units[j].empty() ? "n/a" : units[j]) +
+            " (an archive's values are in their channel's own unit)");
+      }
+    }
+    // Every check of a recording import (api/trial_import.h): uniform
+    // sampling at the declared rate, each value in its channel's physical
+    // range, the channels the trial's kind needs. Identity mapping: the
+    // values are taken exactly as written.
+    ImportSpec spec;
+    spec.kind = name;
+    spec.format = "tsv";
+    spec.sample_rate_hz = (*sidecar)["SamplingFrequency"].get<double>();
+    Result<Trial> checked = TrialFromTable(*table, spec);
+    if (!checked.ok()) {
+      const std::string field(checked.status().field());
+      const std::string where = field == "sample_rate_hz" ? prefix + "_motion.json: SamplingFrequency"
+                                : field == "kind"         ? prefix + "_motion.json: TaskName"
+                                                          : path;
+      return Status::InvalidArgument(where + ": " + checked.status().message());
+    }
+    Trial trial = std::move(*checked);
     trial.name = name;
     if (fes.contains("start_time_unix_ms") && fes["start_time_unix_ms"].is_number_integer()) {
       trial.start_time_unix_ms = fes["start_time_unix_ms"].get<std::int64_t>();
@@ -515,14 +551,6 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
                                        ": " + log.status().message());
       }
       trial.device_commands = std::move(*log);
-    }
-    trial.sample_rate_hz = (*sidecar)["SamplingFrequency"].get<double>();
-    for (std::size_t j = 0; j < labels.size(); ++j) {
-      if (!IsValidChannelName(labels[j])) {
-        return Status::InvalidArgument(channels_it->first + ": row " + std::to_string(j + 2) +
-                                       ": '" + labels[j] + "' is not a channel name");
-      }
-      trial.channels.push_back({labels[j], units[j], std::move(table->columns[j])});
     }
 
     // Pulses.
@@ -556,6 +584,14 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
             r2.ptr != us.data() + us.size()) {
           return Status::InvalidArgument(events_it->first + ": line " + std::to_string(i + 2) +
                                          ": onset and amplitude_ma must be numbers");
+        }
+        // A recording import's range for the stimulation (api/trial_import.h).
+        const auto range = ChannelRange("stim_ma");
+        if (range && (u < range->first || u > range->second)) {
+          return Status::InvalidArgument(events_it->first + ": line " + std::to_string(i + 2) +
+                                         ": amplitude_ma " + us + " mA is outside the range of " +
+                                         "stim_ma (" + FormatNumber(range->first) + " to " +
+                                         FormatNumber(range->second) + " mA)");
         }
         pulses.Append(t, u);
       }
@@ -605,11 +641,39 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
       if (!emg_table.ok()) {
         return Status::InvalidArgument(emg_it->first + ": " + emg_table.status().message());
       }
+      // The EMG spans the motion's time (its rate is what makes it so): a
+      // wrong sampling_frequency stretches it.
+      const double motion_s = static_cast<double>(table->num_rows()) / trial.sample_rate_hz;
+      const double emg_s = static_cast<double>(emg_table->num_rows()) / emg_rate;
+      if (std::abs(emg_s - motion_s) > 2.0 / trial.sample_rate_hz + 2.0 / emg_rate) {
+        return Status::InvalidArgument(
+            emg_channels_it->first + ": sampling_frequency " + FormatNumber(emg_rate) +
+            " Hz makes the EMG's " + std::to_string(emg_table->num_rows()) + " samples last " +
+            FormatNumber(emg_s) + " s; the motion lasts " + FormatNumber(motion_s) + " s");
+      }
       ChannelGroup group;
       group.sample_rate_hz = emg_rate;
       for (std::size_t j = 0; j < emg_labels.size(); ++j) {
-        group.channels.push_back(
-            {emg_labels[j], UnitsBack(ec->rows[j][*eu]), std::move(emg_table->columns[j])});
+        const std::string unit = UnitsBack(ec->rows[j][*eu]);
+        if (unit != ChannelUnit(emg_labels[j])) {
+          return Status::InvalidArgument(emg_channels_it->first + ": line " +
+                                         std::to_string(j + 2) + ": channel " + emg_labels[j] +
+                                         " is in " + ChannelUnit(emg_labels[j]) + ", not " +
+                                         (unit.empty() ? "n/a" : unit));
+        }
+        if (const auto range = ChannelRange(emg_labels[j])) {
+          const std::vector<double>& v = emg_table->columns[j];
+          for (std::size_t i = 0; i < v.size(); ++i) {
+            if (v[i] < range->first || v[i] > range->second) {
+              return Status::InvalidArgument(
+                  emg_it->first + ": line " + std::to_string(i + 1) + ", column " +
+                  std::to_string(j + 1) + " (" + emg_labels[j] + "): " + FormatNumber(v[i]) +
+                  " is outside its range (" + FormatNumber(range->first) + " to " +
+                  FormatNumber(range->second) + ")");
+            }
+          }
+        }
+        group.channels.push_back({emg_labels[j], unit, std::move(emg_table->columns[j])});
       }
       trial.emg = std::move(group);
     }

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -357,6 +359,59 @@ TEST(BidsTest, TrialReadsBackBitForBit) {
   expected.id.reset();
   EXPECT_EQ(read->front().trial, expected);
   EXPECT_EQ(read->front().original_id, 41);
+}
+
+// docs/API.md, "Session archives": every file of an archive goes through a
+// recording import's checks, refused naming the file (and line and column).
+TEST(BidsTest, AnArchiveGetsTheChecksOfARecording) {
+  const std::string motion =
+      "sub-S01/ses-3/motion/sub-S01_ses-3_task-activeRandomBinaryRb1_tracksys-kneebench_run-41";
+  const std::string emg =
+      "derivatives/fesbench/sub-S01/ses-3/emg/sub-S01_ses-3_task-activeRandomBinaryRb1_run-41";
+  const auto refusal = [&](const std::function<void(FileMap&)>& spoil) {
+    FileMap files;
+    AddBidsTrial(BenchLikeTrial(), {"S01", "3", "right", 41}, files);
+    spoil(files);
+    auto read = ReadBidsTrials(files);
+    EXPECT_FALSE(read.ok());
+    return read.ok() ? std::string() : std::string(read.status().message());
+  };
+  const auto replace = [](std::string& text, const std::string& from, const std::string& to) {
+    const std::size_t at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  };
+  // The sidecar says 100 Hz for 200 Hz data.
+  std::string m = refusal([&](FileMap& f) {
+    replace(f[motion + "_motion.json"], "\"SamplingFrequency\": 200", "\"SamplingFrequency\": 100");
+  });
+  EXPECT_NE(m.find("_motion.json: SamplingFrequency"), std::string::npos) << m;
+  EXPECT_NE(m.find("200 Hz"), std::string::npos) << m;
+  // An angle of 5000°: the file, its line and column.
+  m = refusal([&](FileMap& f) {
+    std::string& tsv = f[motion + "_motion.tsv"];
+    const std::size_t line3 = tsv.find('\n', tsv.find('\n') + 1) + 1;
+    const std::size_t tab = tsv.find('\t', line3) + 1;
+    tsv.replace(tab, tsv.find('\t', tab) - tab, "5000");
+  });
+  EXPECT_NE(m.find(motion + "_motion.tsv: line 3, column 2 (angle_deg): 5000 deg"),
+            std::string::npos)
+      << m;
+  // angle_deg relabelled rad without conversion.
+  m = refusal([&](FileMap& f) { replace(f[motion + "_channels.tsv"], "\tdeg\t", "\trad\t"); });
+  EXPECT_NE(m.find("channel angle_deg is in deg, not rad"), std::string::npos) << m;
+  // A 5000 mA pulse.
+  m = refusal([&](FileMap& f) { replace(f[motion + "_events.tsv"], "30.25", "5000"); });
+  EXPECT_NE(m.find("_events.tsv: line"), std::string::npos) << m;
+  EXPECT_NE(m.find("5000 mA is outside the range of stim_ma"), std::string::npos) << m;
+  // A wrong EMG rate.
+  m = refusal([&](FileMap& f) {
+    std::string& channels = f[emg + "_desc-float64_channels.tsv"];
+    replace(channels, "\t1000\t", "\t2000\t");
+  });
+  EXPECT_NE(m.find("sampling_frequency 2000 Hz makes the EMG's 2000 samples last 1 s"),
+            std::string::npos)
+      << m;
 }
 
 TEST(BidsTest, AHardwareStimulatorsCommandsReadBackBitForBit) {
