@@ -54,18 +54,6 @@ std::vector<std::pair<std::string, json>> FollowStream(int port, const std::stri
   return events;
 }
 
-// Polls GET /jobs/{id} until done or failed.
-json WaitForJob(httplib::Client& client, const std::string& token, std::int64_t id) {
-  for (int i = 0; i < 600; ++i) {
-    auto job = Call(client, "GET", "/api/v1/jobs/" + std::to_string(id), token);
-    if (job.status != 200) return job.body;
-    const std::string state = job.body["state"];
-    if (state == "done" || state == "failed") return job.body;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  return nullptr;
-}
-
 TEST(ApiFlowTest, RapidParameterisationEndToEnd) {
   ServerProcess server;
   auto client = server.Client();

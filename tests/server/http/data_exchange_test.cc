@@ -24,17 +24,6 @@ namespace {
 
 using nlohmann::json;
 
-json WaitForJob(httplib::Client& client, const std::string& token, std::int64_t id) {
-  for (int i = 0; i < 1200; ++i) {
-    auto job = Call(client, "GET", "/api/v1/jobs/" + std::to_string(id), token);
-    if (job.status != 200) return job.body;
-    const std::string state = job.body["state"];
-    if (state == "done" || state == "failed") return job.body;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  return nullptr;
-}
-
 // Subject, right leg, session with the virtual subject's values; its id.
 std::int64_t NewSession(httplib::Client& client, const std::string& token,
                         const std::string& code) {
@@ -54,24 +43,6 @@ std::int64_t NewSession(httplib::Client& client, const std::string& token,
       {{"leg", "right"}, {"date", "2026-11-25"}, {"threshold_ma", 14}, {"max_tolerated_ma", 45}});
   EXPECT_EQ(session.status, 201) << session.text;
   return session.body["id"];
-}
-
-// Runs a protocol to its end (heart-beating) and returns the run view.
-json RunToEnd(httplib::Client& client, const std::string& token, std::int64_t session_id,
-              const json& request) {
-  auto run = Call(client, "POST", "/api/v1/sessions/" + std::to_string(session_id) + "/runs", token,
-                  request);
-  EXPECT_EQ(run.status, 201) << run.text;
-  const std::string path = "/api/v1/runs/" + std::to_string(run.body["run_id"].get<int>());
-  for (int i = 0; i < 1200; ++i) {
-    Call(client, "POST", path + "/heartbeat", token);
-    auto view = Call(client, "GET", path, token);
-    const std::string state = view.body.value("state", "");
-    if (state == "done" || state == "aborted" || state == "failed") return view.body;
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  ADD_FAILURE() << "run did not end";
-  return nullptr;
 }
 
 // POST /identifications {session_id, method: rapid}; the stored set's parameters.

@@ -27,17 +27,6 @@ namespace {
 
 using nlohmann::json;
 
-json WaitForJob(httplib::Client& client, const std::string& token, std::int64_t id) {
-  for (int i = 0; i < 1200; ++i) {
-    auto job = Call(client, "GET", "/api/v1/jobs/" + std::to_string(id), token);
-    if (job.status != 200) return job.body;
-    const std::string state = job.body["state"];
-    if (state == "done" || state == "failed") return job.body;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  return nullptr;
-}
-
 // A knee released at rest from `start_deg` (fesbench convention, flexion
 // positive) swinging for `duration_s`, written as OpenSim IK writes it:
 // 100 Hz, degrees, knee_angle_r flexion-negative, beside a hip coordinate.
@@ -166,24 +155,6 @@ TEST(PendulumImportTest, PassiveCurvesFromOneSwingPredictAnotherAndDriveNoStimul
   EXPECT_EQ(approve.status, 409) << approve.text;
   EXPECT_NE(approve.text.find("passive only"), std::string::npos) << approve.text;
   EXPECT_EQ(server.Terminate(), 0);
-}
-
-// Runs a protocol to its end (heart-beating) and returns the run view.
-json RunToEnd(httplib::Client& client, const std::string& token, std::int64_t session_id,
-              const json& request) {
-  auto run = Call(client, "POST", "/api/v1/sessions/" + std::to_string(session_id) + "/runs",
-                  token, request);
-  EXPECT_EQ(run.status, 201) << run.text;
-  const std::string path = "/api/v1/runs/" + std::to_string(run.body["run_id"].get<int>());
-  for (int i = 0; i < 1200; ++i) {
-    Call(client, "POST", path + "/heartbeat", token);
-    auto view = Call(client, "GET", path, token);
-    const std::string state = view.body.value("state", "");
-    if (state == "done" || state == "aborted" || state == "failed") return view.body;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  ADD_FAILURE() << "run did not end";
-  return nullptr;
 }
 
 // τ_pta + τ_ptv(0) (only the sum is identifiable, §6.5) at angle_deg.

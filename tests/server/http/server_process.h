@@ -114,6 +114,16 @@ inline double MsSince(std::chrono::steady_clock::time_point start) {
       .count();
 }
 
+/// Polls GET /jobs/{id} until the job is done or failed and returns it (its
+/// error body if the job cannot be read; null after 60 s).
+nlohmann::json WaitForJob(httplib::Client& client, const std::string& token, std::int64_t id);
+
+/// Starts `request` (POST /sessions/{id}/runs) and runs it to its end,
+/// heart-beating it; returns the run's view (null, with a test failure,
+/// after 60 s).
+nlohmann::json RunToEnd(httplib::Client& client, const std::string& token,
+                        std::int64_t session_id, const nlohmann::json& request);
+
 /// Creates a user with `role` and returns a token for it (admin token used).
 std::string CreateUserToken(httplib::Client& client, const std::string& admin_token,
                             const std::string& name, const std::string& role);
