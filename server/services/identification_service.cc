@@ -150,46 +150,69 @@ class Fitter {
     return out;
   }
 
-  api::Status CheckPresent() const {
+  // What the selected trials lack, by the blocks of the model they fit.
+  struct MissingTrials {
+    std::vector<std::string> stimulated;  // IRC and contraction dynamics
+    std::vector<std::string> passive;
+    std::vector<std::string> active;
+  };
+
+  MissingTrials CheckPresent() const {
     const auto has = [&](TrialKind k) { return !sel_.Of(k).empty(); };
     const model::IrcMethod irc = *model::IrcMethodFromName(req_.irc_method);
-    std::vector<std::string> missing;
+    MissingTrials missing;
     if (irc == model::IrcMethod::kStep && !has(TrialKind::kStepIrc)) {
-      missing.push_back(Missing("irc_method step", "an isometric_step_irc trial"));
+      missing.stimulated.push_back(Missing("irc_method step", "an isometric_step_irc trial"));
     } else if (irc == model::IrcMethod::kImpulse && !has(TrialKind::kImpulseIrc)) {
-      missing.push_back(Missing("irc_method impulse", "an isometric_impulse_irc trial"));
+      missing.stimulated.push_back(
+          Missing("irc_method impulse", "an isometric_impulse_irc trial"));
     } else if (irc != model::IrcMethod::kStep && irc != model::IrcMethod::kImpulse &&
                !has(TrialKind::kRampIrc)) {
-      missing.push_back(Missing("irc_method " + req_.irc_method, "an isometric_ramp_irc trial"));
+      missing.stimulated.push_back(
+          Missing("irc_method " + req_.irc_method, "an isometric_ramp_irc trial"));
     }
     if (!has(TrialKind::kRampIrc) && !has(TrialKind::kImpulseIrc)) {
-      missing.push_back(Missing("the contraction dynamics (single-pulse responses)",
-                                "an isometric_ramp_irc or isometric_impulse_irc trial"));
+      missing.stimulated.push_back(
+          Missing("the contraction dynamics (single-pulse responses)",
+                  "an isometric_ramp_irc or isometric_impulse_irc trial"));
     }
     if (passive_ == model::PassiveMethod::kSequential &&
         (!has(TrialKind::kPassivePositions) || !has(TrialKind::kPassiveVelocities))) {
-      missing.push_back(Missing("passive_method sequential",
-                                "a passive_positions and a passive_velocities trial"));
+      missing.passive.push_back(Missing("passive_method sequential",
+                                        "a passive_positions and a passive_velocities trial"));
     }
     if (passive_ == model::PassiveMethod::kSimultaneous && !has(TrialKind::kPassiveSimultaneous)) {
-      missing.push_back(Missing("passive_method simultaneous", "passive_simultaneous_* trials"));
+      missing.passive.push_back(
+          Missing("passive_method simultaneous", "passive_simultaneous_* trials"));
     }
     if (passive_ == model::PassiveMethod::kFreeSwing) {
       if (!has(TrialKind::kFreeSwingPassive)) {
-        missing.push_back(Missing("passive_method free_swing", "a free_swing_passive trial"));
+        missing.passive.push_back(
+            Missing("passive_method free_swing", "a free_swing_passive trial"));
       }
       if (!has(TrialKind::kPassivePositions) && !ctx_.torque_angle_source) {
-        missing.push_back(
+        missing.passive.push_back(
             "passive_method free_swing needs τ_pta (Eq. 4.35): a passive_positions trial or a "
             "stored parameter set of the leg (torque_angle_parameter_set_id)");
       }
+      // Its swings are stimulated (§5.4.3): their passive samples are known
+      // only through the IRC and the contraction dynamics.
+      for (const std::string& m : missing.stimulated) {
+        missing.passive.push_back("passive_method free_swing (its stimulated swings) needs " + m);
+      }
     }
     if (!has(TrialKind::kActive)) {
-      missing.push_back(Missing("the active fit", "active_random_binary_* trials"));
+      missing.active.push_back(Missing("the active fit", "active_random_binary_* trials"));
     }
-    if (missing.empty()) return api::Status::Ok();
+    return missing;
+  }
+
+  api::Status Refusal(const MissingTrials& missing) const {
+    std::vector<std::string> all = missing.stimulated;
+    all.insert(all.end(), missing.passive.begin(), missing.passive.end());
+    all.insert(all.end(), missing.active.begin(), missing.active.end());
     std::string msg = "missing trials: ";
-    for (std::size_t i = 0; i < missing.size(); ++i) msg += (i ? "; " : "") + missing[i];
+    for (std::size_t i = 0; i < all.size(); ++i) msg += (i ? "; " : "") + all[i];
     msg += PassiveHint();
     return api::Status::FailedPrecondition(msg);
   }
@@ -210,10 +233,24 @@ class Fitter {
     return std::nullopt;
   }
 
+  // The chapter 4 methods. Trials that support the passive block but not
+  // the stimulated ones give a passive-only set (model::IsPassiveOnly) with
+  // what was not fitted named; without the passive block nothing is fitted.
   api::Result<FitOutcome> Thesis() {
-    if (api::Status s = CheckPresent(); !s.ok()) return s;
-    model::ParameterSet est;
+    const MissingTrials missing = CheckPresent();
+    if (!missing.passive.empty()) return Refusal(missing);
+    const bool with_irc = missing.stimulated.empty();
+    const bool with_active = with_irc && missing.active.empty();
+    if (!with_active && req_.models != std::vector<std::string>{"full"}) {
+      return Refusal(missing);  // the variants differ in their active curves
+    }
+    // The blocks not fitted keep the example set's values as placeholders.
+    model::ParameterSet est = with_active ? model::ParameterSet{} : model::ExampleParameterSet();
     est.provenance = {};
+    if (!with_irc) {
+      est.irc = model::PiecewiseLinear({0.0, 1.0}, {0.0, 0.0});  // no current activates
+      return PassiveOnlyThesis(est, missing, /*fit_passive=*/true);
+    }
     const model::IrcMethod irc_method = *model::IrcMethodFromName(req_.irc_method);
 
     // Contraction dynamics from the averaged impulse responses (§4.1, Eqs. 4.2, 4.4).
@@ -246,6 +283,7 @@ class Fitter {
     stage_ = "passive (" + req_.passive_method + ")";
     if (api::Status s = Passive(est); !s.ok()) return s;
     est.provenance.passive_method = req_.passive_method;
+    if (!with_active) return PassiveOnlyThesis(est, missing, /*fit_passive=*/false);
 
     // Active and variants (§4.3, §5.5.1, §7.3, §7.4.4) on the active trials.
     stage_ = "active";
@@ -256,6 +294,35 @@ class Fitter {
     }
     est.provenance.active_trial_id = sel_.Of(TrialKind::kActive).front().id;
     return Variants(est, active);
+  }
+
+  // The set of a thesis fit without active trials (or without the IRC's):
+  // the passive block fitted (and the IRC and contraction dynamics when
+  // their trials are there), the rest named and marked "none".
+  api::Result<FitOutcome> PassiveOnlyThesis(model::ParameterSet& est, const MissingTrials& missing,
+                                            bool fit_passive) {
+    if (fit_passive) {
+      stage_ = "passive (" + req_.passive_method + ")";
+      if (api::Status s = Passive(est); !s.ok()) return s;
+      est.provenance.passive_method = req_.passive_method;
+    }
+    std::string not_fitted;
+    for (const std::string& m : missing.stimulated) not_fitted += "; " + m;
+    for (const std::string& m : missing.active) not_fitted += "; " + m;
+    if (!missing.stimulated.empty()) est.provenance.irc_method = model::kNotIdentified;
+    est.provenance.active_method = model::kNotIdentified;
+    common_.warnings.push_back(
+        "passive only: not identified" + not_fitted.substr(1) +
+        ". This set predicts swings without stimulation and cannot be approved to drive "
+        "stimulation.");
+    FitOutcome out;
+    ModelFit fit;
+    fit.params = est;
+    fit.params.model = model::ModelKind::kFull;
+    out.fits.push_back(std::move(fit));
+    out.common = common_;
+    out.used.assign(used_.begin(), used_.end());
+    return out;
   }
 
   api::Status Passive(model::ParameterSet& est) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "model/identify_passive_only.h"
 #include "storage/parameter_sets.h"
 #include "storage/sessions.h"
 #include "storage/subjects.h"
@@ -20,10 +21,24 @@ api::Status LoadApprovedSet(storage::Database& db, const storage::Session& sessi
   api::Result<storage::StoredParameterSet> approved = sets.Approved(session.leg_id);
   if (!approved.ok()) {
     if (approved.status().code() != api::ErrorCode::kNotFound) return approved.status();
-    api::Result<storage::StoredParameterSet> any = sets.Latest(session.subject_id, session.leg_id);
-    if (!any.ok() && any.status().code() != api::ErrorCode::kNotFound) return any.status();
-    c.sets_await_approval = any.ok();
-    return api::Status::Ok();
+    // A set awaits approval if one could be approved: passive-only sets
+    // (model::IsPassiveOnly) never can, and do not hold back the leg.
+    storage::ParameterSetListQuery query;
+    query.subject_id = session.subject_id;
+    query.leg_id = session.leg_id;
+    query.limit = 200;
+    for (;;) {
+      api::Result<std::vector<storage::ParameterSetSummary>> page = sets.List(query);
+      if (!page.ok()) return page.status();
+      for (const storage::ParameterSetSummary& set : *page) {
+        if (set.irc_method != model::kNotIdentified && set.active_method != model::kNotIdentified) {
+          c.sets_await_approval = true;
+          return api::Status::Ok();
+        }
+      }
+      if (page->size() < query.limit) return api::Status::Ok();
+      query.after_id = page->back().id;
+    }
   }
   c.parameter_set = approved->params;
   c.parameter_set_id = approved->summary.id;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "api/trial.h"
+#include "model/identify_passive_only.h"
 #include "model/parameter_set.h"
 #include "model/signal.h"
 #include "model/simulate.h"
@@ -309,6 +310,56 @@ TEST_F(AnalysisServicesTest, IdentificationRefusesMissingTrialsUnknownIdsAndWron
   auto history = storage::ParameterSetRepository(*db_).History(query);
   ASSERT_TRUE(history.ok());
   EXPECT_TRUE(history->empty());
+}
+
+// docs/MODEL.md: trials that support the passive block but not the
+// stimulated ones give a passive-only set, what was not fitted named;
+// without the passive block nothing is fitted.
+TEST_F(AnalysisServicesTest, IdentificationFitsTheBlocksItsTrialsSupport) {
+  const model::ParameterSet truth = Truth();
+  const storage::Session s = MakeSession("S14");
+  const std::vector<std::int64_t> all = StoreIdentificationTrials(s, truth);
+  IdentificationService service(*db_);
+  IdentificationRequest req = SimultaneousRequest(s.id, truth);
+  req.session_id.reset();
+
+  // The two motor trials alone: the passive block, J fitted with it (Eq. 4.31).
+  req.trial_ids = {all[1], all[2]};
+  auto passive = service.Fit(kAnalyst, req);
+  ASSERT_TRUE(passive.ok()) << passive.status().ToString();
+  auto set = storage::ParameterSetRepository(*db_).Get(passive->stored[0].parameter_set_id);
+  ASSERT_TRUE(set.ok());
+  EXPECT_TRUE(model::IsPassiveOnly(set->params));
+  EXPECT_EQ(set->params.provenance.irc_method, "none");
+  EXPECT_EQ(set->params.provenance.active_method, "none");
+  EXPECT_EQ(set->params.provenance.passive_method, "simultaneous");
+  EXPECT_NEAR(set->params.passive.inertia_kgm2, truth.passive.inertia_kgm2,
+              0.05 * truth.passive.inertia_kgm2);
+  std::string warnings;
+  for (const std::string& w : set->params.provenance.warnings) warnings += w + "\n";
+  EXPECT_NE(warnings.find("not identified"), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find("isometric_ramp_irc"), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find("active_random_binary"), std::string::npos) << warnings;
+
+  // With the ramp too: the IRC and contraction dynamics fitted, the active
+  // curves still named as missing.
+  req.trial_ids = {all[0], all[1], all[2]};
+  auto with_irc = service.Fit(kAnalyst, req);
+  ASSERT_TRUE(with_irc.ok()) << with_irc.status().ToString();
+  set = storage::ParameterSetRepository(*db_).Get(with_irc->stored[0].parameter_set_id);
+  EXPECT_EQ(set->params.provenance.irc_method, "ramp_correlation");
+  EXPECT_EQ(set->params.provenance.active_method, "none");
+  EXPECT_TRUE(model::IsPassiveOnly(set->params));
+  EXPECT_GT(set->params.irc(45.0), 0.5);
+
+  // A variant needs active curves; the active trials alone support nothing.
+  req.models = {"full", "torque_generator"};
+  EXPECT_EQ(service.Fit(kAnalyst, req).status().code(), api::ErrorCode::kFailedPrecondition);
+  req.models = {"full"};
+  req.trial_ids = {all[3], all[4]};
+  auto none = service.Fit(kAnalyst, req);
+  EXPECT_EQ(none.status().code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(none.status().message().find("passive_simultaneous"), std::string::npos);
 }
 
 TEST_F(AnalysisServicesTest, PredictionOfATrialMadeFromTheSameParametersHasZeroError) {

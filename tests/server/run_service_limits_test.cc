@@ -334,6 +334,24 @@ TEST(RunService, LoadSessionContextTakesLimitsAnthropometricsAndTheLatestSet) {
   ASSERT_TRUE(wider.ok());
   EXPECT_DOUBLE_EQ(wider->subject.min_angle_deg, 10.0);
   EXPECT_DOUBLE_EQ(wider->subject.max_angle_deg, 110.0);
+
+  // A passive-only set can never be approved, so it holds nothing back; a
+  // candidate that could be approved does (docs/SAFETY.md).
+  storage::ParameterSetRepository sets(*rig.db);
+  model::ParameterSet passive_only = model::ExampleParameterSet();
+  passive_only.provenance.irc_method = "none";
+  passive_only.provenance.active_method = "none";
+  ASSERT_TRUE(sets.Insert({rig.subject_id, rig.leg_id, passive_only, std::nullopt, std::nullopt})
+                  .ok());
+  auto with_passive = LoadSessionContext(*rig.db, rig.session_id, rig.bench->limits());
+  ASSERT_TRUE(with_passive.ok());
+  EXPECT_FALSE(with_passive->subject.sets_await_approval);
+  ASSERT_TRUE(sets.Insert({rig.subject_id, rig.leg_id, model::ExampleParameterSet(), std::nullopt,
+                           std::nullopt})
+                  .ok());
+  auto with_candidate = LoadSessionContext(*rig.db, rig.session_id, rig.bench->limits());
+  ASSERT_TRUE(with_candidate.ok());
+  EXPECT_TRUE(with_candidate->subject.sets_await_approval);
 }
 
 }  // namespace
