@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <ostream>
 #include <sstream>
+#include <string>
 
 #include "api/json_fields.h"
 
@@ -183,7 +184,8 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
                  "bench seconds per wall second: 1 real time, 0 as fast as possible");
   app.add_option("--max-stop-impact-deg-s", flags.max_stop_impact_deg_s,
                  "model gate: fastest predicted arrival of the knee at a stop of the range of "
-                 "motion, deg/s (default 90)");
+                 "motion, deg/s (default " +
+                     std::to_string(static_cast<int>(kDefaultBenchMaxStopImpactDegS)) + ")");
   app.add_option("--dds-domain", flags.dds_domain, "DDS domain id (default 0)");
   app.add_option("--dds-transport", flags.dds_transport,
                  "DDS transport: auto (shm + UDP), shm, udp, udp-loopback, off (default auto)")
