@@ -12,6 +12,14 @@
 
 namespace fesbench::model {
 
+void MarkPassiveOnly(ParameterSet& params, bool irc_identified) {
+  if (!irc_identified) {
+    params.irc = PiecewiseLinear({0.0, 1.0}, {0.0, 0.0});  // no current activates
+    params.provenance.irc_method = kNotIdentified;
+  }
+  params.provenance.active_method = kNotIdentified;
+}
+
 bool IsPassiveOnly(const ParameterSet& params) {
   return params.provenance.irc_method == kNotIdentified ||
          params.provenance.active_method == kNotIdentified;
@@ -51,29 +59,23 @@ PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
     throw std::invalid_argument("IdentifyPassiveOnly: inertia_kgm2 must be finite and > 0");
   }
 
-  // 0. From the release on; 1. kinematics (§5.1) and a zero activation:
-  //    nothing stimulates.
+  // 0. Unstimulated swings only; 1. θ̇ and θ̈ over the whole recording (§5.1,
+  //    so the release's are not edge values), then each from its release on,
+  //    with a zero activation.
   std::vector<TrialColumns> swings;
-  for (const TrialColumns& tr : trials) {
-    RequireColumn("IdentifyPassiveOnly", "angle_deg", tr.angle_deg, tr.size());
-    // θ̇ and θ̈ over the whole recording, so the release's are not edge values.
-    TrialColumns full = tr;
-    if (full.velocity_deg_s.size() != full.size() || full.accel_deg_s2.size() != full.size()) {
-      AddKinematics(full);
-    }
-    swings.push_back(TrialFromSample(full, PendulumReleaseIndex(tr.t_s, tr.angle_deg)));
-  }
-  for (std::size_t k = 0; k < swings.size(); ++k) {
-    TrialColumns& tr = swings[k];
-    const std::size_t n = tr.size();
-    RequireColumn("IdentifyPassiveOnly", "angle_deg", tr.angle_deg, n);
-    if (tr.stim_ma.empty()) tr.stim_ma.assign(n, 0.0);
-    RequireColumn("IdentifyPassiveOnly", "stim_ma", tr.stim_ma, n);
-    if (std::any_of(tr.stim_ma.begin(), tr.stim_ma.end(), [](double u) { return u != 0.0; })) {
+  for (std::size_t k = 0; k < trials.size(); ++k) {
+    TrialColumns full = trials[k];
+    const std::size_t n = full.size();
+    RequireColumn("IdentifyPassiveOnly", "angle_deg", full.angle_deg, n);
+    if (full.stim_ma.empty()) full.stim_ma.assign(n, 0.0);
+    RequireColumn("IdentifyPassiveOnly", "stim_ma", full.stim_ma, n);
+    if (std::any_of(full.stim_ma.begin(), full.stim_ma.end(), [](double u) { return u != 0.0; })) {
       throw std::invalid_argument("IdentifyPassiveOnly: trial " + std::to_string(k) +
                                   " is stimulated; only unstimulated swings are passive");
     }
-    tr.activation.assign(n, 0.0);
+    if (full.velocity_deg_s.size() != n || full.accel_deg_s2.size() != n) AddKinematics(full);
+    full.activation.assign(n, 0.0);
+    swings.push_back(TrialFromSample(full, PendulumReleaseIndex(full.t_s, full.angle_deg)));
   }
 
   // 2. Eq. 4.35 with J known (§7.4.1), away from a bench's stops.
@@ -81,7 +83,6 @@ PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
   ParameterSet& ps = out.parameters;
   ps = ExampleParameterSet();
   ps.model = ModelKind::kFull;
-  ps.irc = PiecewiseLinear({0.0, 1.0}, {0.0, 0.0});  // no current activates: not identified
   double lo = INFINITY, hi = -INFINITY, vlo = INFINITY, vhi = -INFINITY;
   std::size_t samples = 0;
   std::vector<TrialColumns> free;
@@ -141,9 +142,8 @@ PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
     out.report.Merge(refined.report);
   }
 
-  prov.irc_method = kNotIdentified;
   prov.passive_method = "free_swing_known_inertia";
-  prov.active_method = kNotIdentified;
+  MarkPassiveOnly(ps, /*irc_identified=*/false);
   prov.fit_rms = out.report.fit_rms;
   prov.warnings = out.report.warnings;
   return out;

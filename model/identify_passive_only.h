@@ -63,6 +63,11 @@ std::size_t PendulumReleaseIndex(std::span<const double> t_s, std::span<const do
 /// sample; times kept as they are).
 TrialColumns TrialFromSample(const TrialColumns& trial, std::size_t from);
 
+/// Marks `params` passive-only (IsPassiveOnly): active method kNotIdentified
+/// and, unless the IRC was identified, an IRC that activates nothing with
+/// its method kNotIdentified. The other blocks are left as they are.
+void MarkPassiveOnly(ParameterSet& params, bool irc_identified);
+
 /// Options of IdentifyPassiveOnly.
 struct PassiveOnlyOptions {
   double inertia_kgm2 = 0.0;              ///< J, kg·m² (> 0): given or Eq. 4.13.
@@ -93,8 +98,9 @@ struct PassiveOnlyOptions {
 /// What IdentifyPassiveOnly returns: the set (model kFull, IRC zero, default
 /// contraction and active curves, provenance irc_method and active_method
 /// kNotIdentified, passive_method "free_swing_known_inertia") and the
-/// report (fit_rms "tau_pta_tau_ptv_nm", "output_error_start_deg",
-/// "output_error_deg"; values "passive_only_samples").
+/// report (fit_rms "free_swing_known_inertia_nm", "tau_pta_form_nm",
+/// "output_error_start_deg", "output_error_deg"; values
+/// "passive_only_samples").
 struct PassiveOnlyResult {
   ParameterSet parameters;
   IdentifyReport report;

@@ -247,10 +247,7 @@ class Fitter {
     // The blocks not fitted keep the example set's values as placeholders.
     model::ParameterSet est = with_active ? model::ParameterSet{} : model::ExampleParameterSet();
     est.provenance = {};
-    if (!with_irc) {
-      est.irc = model::PiecewiseLinear({0.0, 1.0}, {0.0, 0.0});  // no current activates
-      return PassiveOnlyThesis(est, missing, /*fit_passive=*/true);
-    }
+    if (!with_irc) return PassiveOnlyThesis(est, missing, /*fit_passive=*/true);
     const model::IrcMethod irc_method = *model::IrcMethodFromName(req_.irc_method);
 
     // Contraction dynamics from the averaged impulse responses (§4.1, Eqs. 4.2, 4.4).
@@ -309,16 +306,18 @@ class Fitter {
     std::string not_fitted;
     for (const std::string& m : missing.stimulated) not_fitted += "; " + m;
     for (const std::string& m : missing.active) not_fitted += "; " + m;
-    if (!missing.stimulated.empty()) est.provenance.irc_method = model::kNotIdentified;
-    est.provenance.active_method = model::kNotIdentified;
+    model::MarkPassiveOnly(est, /*irc_identified=*/missing.stimulated.empty());
     common_.warnings.push_back(
         "passive only: not identified" + not_fitted.substr(1) +
         ". This set predicts swings without stimulation and cannot be approved to drive "
         "stimulation.");
+    est.model = model::ModelKind::kFull;
+    return OneFit({est, {}});
+  }
+
+  // The outcome of a fit that stores one set.
+  FitOutcome OneFit(ModelFit fit) {
     FitOutcome out;
-    ModelFit fit;
-    fit.params = est;
-    fit.params.model = model::ModelKind::kFull;
     out.fits.push_back(std::move(fit));
     out.common = common_;
     out.used.assign(used_.begin(), used_.end());
@@ -472,16 +471,9 @@ class Fitter {
         " unstimulated swing(s) with J given; not identified: the contraction dynamics, the IRC "
         "and the active curves (no stimulated trial). This set predicts swings without "
         "stimulation and cannot be approved to drive stimulation.");
-    FitOutcome out;
-    ModelFit fit;
-    fit.params = r.parameters;
-    fit.params.provenance.inertia_method =
-        req_.inertia_kgm2 ? "given" : "anthropometric";
-    fit.report = r.report;
-    out.fits.push_back(std::move(fit));
-    out.common = common_;
-    out.used.assign(used_.begin(), used_.end());
-    return out;
+    ModelFit fit{r.parameters, r.report};
+    fit.params.provenance.inertia_method = req_.inertia_kgm2 ? "given" : "anthropometric";
+    return OneFit(std::move(fit));
   }
 
   api::Result<FitOutcome> Rapid() {
