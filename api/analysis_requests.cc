@@ -172,6 +172,12 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
     if (!s.ok()) return s;
   }
   r.inertia_kgm2 = fields.Number("inertia_kgm2", false);
+  r.gravity_moment_nm = fields.Number("gravity_moment_nm", false);
+  if (r.gravity_moment_nm && r.method != "passive") {
+    return Status::InvalidArgument(
+        "only method passive takes gravity_moment_nm (the others need no gravity moment)",
+        "gravity_moment_nm");
+  }
   r.torque_angle_parameter_set_id = fields.Integer("torque_angle_parameter_set_id", false, 1);
   if (Status s = fields.Finish(); !s.ok()) return s;
   return r;
@@ -200,6 +206,7 @@ json IdentificationRequestToJson(const IdentificationRequest& r) {
   }
   j["breakpoints"] = breakpoints;
   if (r.inertia_kgm2) j["inertia_kgm2"] = *r.inertia_kgm2;
+  if (r.gravity_moment_nm) j["gravity_moment_nm"] = *r.gravity_moment_nm;
   if (r.torque_angle_parameter_set_id) {
     j["torque_angle_parameter_set_id"] = *r.torque_angle_parameter_set_id;
   }

@@ -77,6 +77,11 @@ struct IdentificationRequest {
   /// anthropometrics (Eq. 4.13: weight, shank length), else (rapid) the
   /// leg's latest parameter set.
   std::optional<double> inertia_kgm2;
+  /// m·g·l of the shank and foot, N·m (method passive, when inertia_kgm2 is
+  /// not given): gravity's moment fixes the torque scale of the swings and
+  /// J is identified from their period. Unset: from the subject's weight
+  /// and shank length (Winter's segment, MODEL.md).
+  std::optional<double> gravity_moment_nm;
   /// free_swing without a passive_positions trial: the stored set whose
   /// τ_pta is used (default: the leg's latest).
   std::optional<std::int64_t> torque_angle_parameter_set_id;

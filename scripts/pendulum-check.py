@@ -5,9 +5,11 @@
 Imports two OpenSim motion files of one leg's pendulum tests into a new
 subject on a running fesbench-server (knee_angle_r mapped by its OpenSim
 name, flexion negative; every other coordinate left out), identifies the
-passive curves from the first with method passive and the given J, predicts
+passive curves from the first with method passive, J identified from the
+swing with the given m·g·l (or J given, with --given-inertia), predicts
 both from the release (the examiner holds the shank before it), and prints
-E_RMS over the whole swing and its first 2 s. Beside it, the
+J against the scaled model's and E_RMS over the whole swing and its first
+2 s. Beside it, the
 2-parameter pendulum of the pendulum-test literature,
     J·θ̈ = m·g·l·sin(θ_rest − θ) − B·θ̇ + T
 (θ_rest the knee angle at which the shank hangs at rest in the recording,
@@ -79,6 +81,8 @@ def main():
     ap.add_argument("--token-file", required=True)
     ap.add_argument("--inertia-kgm2", type=float, required=True)
     ap.add_argument("--mgl-nm", type=float, required=True)
+    ap.add_argument("--given-inertia", action="store_true",
+                    help="identify with --inertia-kgm2 fixed instead of J from the swing")
     ap.add_argument("--source", default="pendulum test, OpenSim IK")
     ap.add_argument("files", nargs=2, metavar="MOT")
     a = ap.parse_args()
@@ -99,10 +103,18 @@ def main():
             imported = call(s, "POST", f"{base}/sessions/{session['id']}/trials",
                             {"spec": spec, "data": f.read()})
         ids.append(imported["trials"][0]["id"])
-    fit = call(s, "POST", f"{base}/identifications",
-               {"trial_ids": [ids[0]], "method": "passive", "inertia_kgm2": a.inertia_kgm2})
+    request = {"trial_ids": [ids[0]], "method": "passive"}
+    if a.given_inertia:
+        request["inertia_kgm2"] = a.inertia_kgm2
+    else:
+        request["gravity_moment_nm"] = a.mgl_nm
+    fit = call(s, "POST", f"{base}/identifications", request)
     set_id = wait(s, base, fit["id"])["parameter_sets"][0]["id"]
     print(f"subject {code}: trials {ids[0]} (fit) and {ids[1]} (held out); parameter set {set_id}")
+    params = call(s, "GET", f"{base}/parameter-sets/{set_id}")["parameters"]
+    j = params["passive"]["inertia_kgm2"]
+    print(f"J {j:.4f} kg·m² ({params['provenance']['inertia_method']}), "
+          f"{100.0 * (j / a.inertia_kgm2 - 1.0):+.1f} % against {a.inertia_kgm2} kg·m²")
 
     # Each trial from its release (the server predicts a held pendulum test
     # from there: released_at_s), times from the release.

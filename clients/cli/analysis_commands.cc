@@ -122,6 +122,7 @@ struct IdentifyForm {
   std::string passive_method;
   std::string irc_method;
   std::optional<double> inertia_kgm2;
+  std::optional<double> gravity_moment_nm;
 };
 
 struct PredictForm {
@@ -157,8 +158,14 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
     identify
         ->add_option("--inertia-kgm2", form->inertia_kgm2,
                      "the limb inertia J, kg·m² (default: from the subject's weight and shank "
-                     "length, Eq. 4.13; method rapid: else the leg's approved set)")
+                     "length, Eq. 4.13; method rapid: else the leg's approved set; method "
+                     "passive: identified from the swings)")
         ->check(CLI::Range(0.01, 10.0));
+    identify
+        ->add_option("--gravity-moment-nm", form->gravity_moment_nm,
+                     "method passive: m·g·l of shank and foot, N·m, from which J is identified "
+                     "(default: from the subject's weight and shank length)")
+        ->check(CLI::Range(0.1, 100.0));
     identify
         ->add_option("--passive-method", form->passive_method,
                      "sequential (§4.2.1), simultaneous (Eq. 4.31) or free_swing (Eq. 4.35); "
@@ -174,6 +181,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         if (!form->passive_method.empty()) request.passive_method = form->passive_method;
         if (!form->irc_method.empty()) request.irc_method = form->irc_method;
         request.inertia_kgm2 = form->inertia_kgm2;
+        request.gravity_moment_nm = form->gravity_moment_nm;
         // Every flag given reaches the request as given, even where the
         // method has its own (rapid): the server then refuses it by name.
         json body = api::IdentificationRequestToJson(request);

@@ -421,9 +421,10 @@ class Fitter {
   }
 
   // Method passive (docs/MODEL.md "Passive-only identification"): τ_pta and
-  // τ_ptv from unstimulated free swings (a pendulum test) with J given or
-  // from the anthropometrics (Eq. 4.13). What it cannot fit is said in the
-  // set's warnings.
+  // τ_ptv from unstimulated free swings (a pendulum test), with J given or
+  // identified from the swings' period with gravity's moment fixed (given,
+  // or from the anthropometrics). What it cannot fit is said in the set's
+  // warnings.
   api::Result<FitOutcome> PassiveOnly() {
     std::vector<const LoadedTrial*> swings;
     for (TrialKind kind : {TrialKind::kPendulum, TrialKind::kFreeSwingPassive}) {
@@ -434,11 +435,15 @@ class Fitter {
           "missing trials: method passive needs pendulum or free_swing_passive trials without "
           "stimulation; the selected trials have none");
     }
-    const std::optional<double> inertia = Inertia();
-    if (!inertia) {
+    std::optional<double> gravity = req_.gravity_moment_nm;
+    if (!gravity && ctx_.body_mass_kg && ctx_.leg_length_m) {
+      gravity = model::AnthropometricGravityMoment(*ctx_.body_mass_kg, *ctx_.leg_length_m);
+    }
+    if (!req_.inertia_kgm2 && !gravity) {
       return api::Status::FailedPrecondition(
-          "method passive needs the limb inertia (a free swing fixes the torques only relative "
-          "to J): give inertia_kgm2 or record the subject's weight and shank length (Eq. 4.13)");
+          "method passive needs a torque scale (a free swing fixes the torques only relative to "
+          "J): give gravity_moment_nm (m·g·l of shank and foot, then J is identified) or "
+          "inertia_kgm2, or record the subject's weight and shank length");
     }
     std::vector<TrialColumns> trials;
     bool all_from_this_bench = true;
@@ -455,24 +460,42 @@ class Fitter {
       trials.push_back(std::move(c));
     }
     model::PassiveOnlyOptions o;
-    o.inertia_kgm2 = *inertia;
+    if (req_.inertia_kgm2) o.inertia_kgm2 = *req_.inertia_kgm2;
+    if (gravity) o.gravity_moment_nm = o.mgl_prior_nm = *gravity;
+    // Swings that do not determine J (the tissue's mid-range stiffness
+    // passing for gravity's) take Eq. 4.13's, when the body measures exist.
+    if (ctx_.body_mass_kg && ctx_.leg_length_m) {
+      o.fallback_inertia_kgm2 =
+          model::AnthropometricInertia(*ctx_.body_mass_kg, *ctx_.leg_length_m);
+    }
     if (req_.breakpoints.passive_angle) o.angle = *req_.breakpoints.passive_angle;
     if (req_.breakpoints.passive_velocity) o.velocity = *req_.breakpoints.passive_velocity;
-    if (ctx_.body_mass_kg && ctx_.leg_length_m) {
-      o.mgl_prior_nm = model::AnthropometricGravityMoment(*ctx_.body_mass_kg, *ctx_.leg_length_m);
-    }
     // Recordings from elsewhere swing without this bench's stops.
     if (all_from_this_bench) o.joint_limits = config_.joint_limits;
     stage_ = "passive only";
     const model::PassiveOnlyResult r = model::IdentifyPassiveOnly(trials, o);
-    common_.values["inertia_kgm2"] = *inertia;
+    common_.values["inertia_kgm2"] = r.parameters.passive.inertia_kgm2;
+    if (gravity) common_.values["gravity_moment_nm"] = *gravity;
+    const auto determined = r.report.values.find("pendulum_inertia_determined");
+    const bool j_identified = !req_.inertia_kgm2 && determined != r.report.values.end() &&
+                              determined->second == 1.0;
+    const std::string scale =
+        req_.inertia_kgm2 ? "J given"
+        : j_identified    ? "J identified from their period with m·g·l " +
+                             std::string(req_.gravity_moment_nm ? "given" : "from the anthropometrics")
+                          : "J from the anthropometrics (Eq. 4.13; the swings did not determine it)";
     common_.warnings.push_back(
         "passive only: τ_pta and τ_ptv fitted from " + std::to_string(trials.size()) +
-        " unstimulated swing(s) with J given; not identified: the contraction dynamics, the IRC "
-        "and the active curves (no stimulated trial). This set predicts swings without "
-        "stimulation and cannot be approved to drive stimulation.");
+        " unstimulated swing(s), " + scale +
+        "; not identified: the contraction dynamics, the IRC and the active curves (no "
+        "stimulated trial). This set predicts swings without stimulation and cannot be approved "
+        "to drive stimulation.");
     ModelFit fit{r.parameters, r.report};
-    fit.params.provenance.inertia_method = req_.inertia_kgm2 ? "given" : "anthropometric";
+    fit.params.provenance.inertia_method =
+        req_.inertia_kgm2        ? "given"
+        : !j_identified          ? "anthropometric"
+        : req_.gravity_moment_nm ? "pendulum_given_gravity"
+                                 : "pendulum_anthropometric_gravity";
     return OneFit(std::move(fit));
   }
 
@@ -743,6 +766,10 @@ api::Status ValidateIdentificationRequest(const IdentificationRequest& req) {
   if (req.inertia_kgm2 && !(std::isfinite(*req.inertia_kgm2) && *req.inertia_kgm2 > 0.01 &&
                             *req.inertia_kgm2 <= 10.0)) {
     return api::Status::InvalidArgument("must be in (0.01, 10] kg·m²", "inertia_kgm2");
+  }
+  if (req.gravity_moment_nm && !(std::isfinite(*req.gravity_moment_nm) &&
+                                 *req.gravity_moment_nm > 0.1 && *req.gravity_moment_nm <= 100.0)) {
+    return api::Status::InvalidArgument("must be in (0.1, 100] N·m", "gravity_moment_nm");
   }
   if (req.torque_angle_parameter_set_id && *req.torque_angle_parameter_set_id <= 0) {
     return api::Status::InvalidArgument("must be a positive id", "torque_angle_parameter_set_id");

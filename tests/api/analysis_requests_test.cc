@@ -111,6 +111,17 @@ TEST(AnalysisRequests, PassiveRefusesTheStimulatedOptions) {
   EXPECT_FALSE(sent.contains("irc_method"));
   EXPECT_EQ(sent["inertia_kgm2"], 0.055);
   EXPECT_TRUE(IdentificationRequestFromJson(sent).ok());
+
+  // m·g·l for J from the swings: method passive only, round-tripped.
+  const Result<IdentificationRequest> gravity = IdentificationRequestFromJson(
+      {{"method", "passive"}, {"trial_ids", {4}}, {"gravity_moment_nm", 1.94}});
+  ASSERT_TRUE(gravity.ok()) << gravity.status().message();
+  EXPECT_EQ(gravity->gravity_moment_nm, 1.94);
+  EXPECT_EQ(IdentificationRequestToJson(*gravity)["gravity_moment_nm"], 1.94);
+  EXPECT_EQ(status({{"method", "thesis"}, {"gravity_moment_nm", 1.94}}).field(),
+            "gravity_moment_nm");
+  EXPECT_EQ(status({{"method", "passive"}, {"gravity_moment_nm", "heavy"}}).field(),
+            "gravity_moment_nm");
 }
 
 TEST(AnalysisRequests, PredictionRoundTripsWithAStimulusOrATrial) {

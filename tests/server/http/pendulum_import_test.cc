@@ -112,6 +112,13 @@ TEST(PendulumImportTest, PassiveCurvesFromOneSwingPredictAnotherAndDriveNoStimul
                     {{"trial_ids", {trial[0]}}, {"method", "passive"}, {"irc_method", "step"}});
   EXPECT_EQ(wrong.status, 400) << wrong.text;
   EXPECT_EQ(wrong.body["error"]["field"], "irc_method");
+  for (const json& bad : {json(0.05), json(-2.0), json(1e9)}) {
+    auto no_gravity = Call(c, "POST", "/api/v1/identifications", analyst,
+                           {{"trial_ids", {trial[0]}}, {"method", "passive"},
+                            {"gravity_moment_nm", bad}});
+    EXPECT_EQ(no_gravity.status, 400) << no_gravity.text;
+    EXPECT_EQ(no_gravity.body["error"]["field"], "gravity_moment_nm") << no_gravity.text;
+  }
 
   auto fit = Call(c, "POST", "/api/v1/identifications", analyst,
                   {{"trial_ids", {trial[0]}}, {"method", "passive"}, {"inertia_kgm2", 0.36}});
@@ -175,16 +182,20 @@ double DampingSlope(const model::ParameterSet& p, double v) {
 }
 
 // docs/MODEL.md, "Passive-only identification" on the bench: each leg's
-// first swing identified with its true J (as a lab's scaled model gives it),
-// its second predicted; the static torque and the damping against the
-// truth the bench's leg is made of (its extras — hysteresis, friction,
-// noise — are not in the model).
+// first swing identified with every default (the subject's weight and
+// shank length recorded, nothing else given), its second predicted; J, the
+// static torque and the damping against the truth the bench's leg is made
+// of (its extras — hysteresis, friction, noise — are not in the model).
+// J is tried from the swing's period with gravity's moment from the body
+// measures; on these legs the swing does not determine it (the tissue's
+// stiffness reaches mid-range and passes for gravity's: J ×0.8 and ×1.25
+// fit as well), so the answer says so and takes Eq. 4.13's.
 TEST(PendulumImportTest, ThePendulumProtocolOnACohortOfBothFamiliesAgainstTheTruth) {
   ServerProcess server;
   auto c = server.Client();
   c.set_read_timeout(60);
   const std::string admin = server.admin_token();
-  std::vector<double> static_err, damping_err, held_out, j_eq413;
+  std::vector<double> static_err, damping_err, held_out, j_err, j_eq413, pendulum_j, profile;
   int leg = 0;
   for (const std::string family : {"thesis", "analytic"}) {
     for (int seed = 1; seed <= 4; ++seed, ++leg) {
@@ -221,15 +232,25 @@ TEST(PendulumImportTest, ThePendulumProtocolOnACohortOfBothFamiliesAgainstTheTru
       ASSERT_TRUE(by_name.count("pendulum_1") && by_name.count("pendulum_2")) << trials.text;
 
       auto fit = Call(c, "POST", "/api/v1/identifications", admin,
-                      {{"trial_ids", {by_name["pendulum_1"]}},
-                       {"method", "passive"},
-                       {"inertia_kgm2", truth.passive.inertia_kgm2}});
+                      {{"trial_ids", {by_name["pendulum_1"]}}, {"method", "passive"}});
       ASSERT_EQ(fit.status, 202) << fit.text;
       const json job = WaitForJob(c, admin, fit.body["id"]);
       ASSERT_EQ(job["state"], "done") << job.dump().substr(0, 1000);
       const std::int64_t set_id = job["result"]["parameter_sets"][0]["id"];
       auto set = Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(set_id), admin);
       const model::ParameterSet est = *api::ParameterSetFromJson(set.body["parameters"]);
+      const json& values = job["result"]["report"]["values"];
+      EXPECT_EQ(values["pendulum_inertia_determined"], 0.0) << values.dump();
+      EXPECT_EQ(est.provenance.inertia_method, "anthropometric");
+      j_err.push_back(100.0 * (est.passive.inertia_kgm2 / truth.passive.inertia_kgm2 - 1.0));
+      pendulum_j.push_back(100.0 * (values["pendulum_inertia_kgm2"].get<double>() /
+                                        truth.passive.inertia_kgm2 -
+                                    1.0));
+      profile.push_back(100.0 * (std::min(values["pendulum_profile_low_deg"].get<double>(),
+                                          values["pendulum_profile_high_deg"].get<double>()) /
+                                     job["result"]["report"]["fit_rms"]["pendulum_inertia_deg"]
+                                         .get<double>() -
+                                 1.0));
 
       // The static torque over the angles the swing visited, against the
       // truth's span there; the damping over 80 % of the speeds it reached.
@@ -259,8 +280,10 @@ TEST(PendulumImportTest, ThePendulumProtocolOnACohortOfBothFamiliesAgainstTheTru
       std::cout << "[ figure ] " << code << ": swing " << seen.lo << "…" << seen.hi
                 << " deg; static torque RMS error " << static_err.back()
                 << " % of its span; damping " << damping_err.back()
-                << " %; held-out swing E_RMS " << held_out.back() << " deg; Eq. 4.13 J "
-                << j_eq413.back() << " %\n";
+                << " %; held-out swing E_RMS " << held_out.back() << " deg; J " << j_err.back()
+                << " % (Eq. 4.13: " << j_eq413.back() << " %; the swing's best J "
+                << pendulum_j.back() << " %, J ×0.8 or ×1.25 fits within " << profile.back()
+                << " % of its output error)\n";
     }
   }
   const auto worst = [](const std::vector<double>& v) {
@@ -273,6 +296,9 @@ TEST(PendulumImportTest, ThePendulumProtocolOnACohortOfBothFamiliesAgainstTheTru
     std::sort(v.begin(), v.end());
     return 0.5 * (v[(v.size() - 1) / 2] + v[v.size() / 2]);
   };
+  std::cout << "[ figure ] J error median " << median(j_err) << " %, worst " << worst(j_err)
+            << " %; the swing's best J median " << median(pendulum_j) << " %, worst "
+            << worst(pendulum_j) << " %\n";
   std::cout << "[ figure ] static torque error median " << median(static_err) << " %, worst "
             << worst(static_err) << " %; damping median " << median(damping_err) << " %, worst "
             << worst(damping_err) << " %; held-out E_RMS median " << median(held_out)
