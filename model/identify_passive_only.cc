@@ -293,19 +293,23 @@ PendulumInertia EstimatePendulumInertia(std::span<const TrialColumns> swings,
         "flexion-positive, 0 = full extension)");
   }
   // J's profile: the fit again with J held kProfileFactor below and above,
-  // every other unknown refitted from the best form scaled with J (a
-  // common scale on J and every torque but gravity's).
+  // every other unknown refitted, from two starts (the best form with J
+  // alone changed, and with every torque but gravity's scaled with J: the
+  // scale the swing cannot see), the better kept — one start can diverge
+  // where the other does not (on a real recording, 883° against 2.6°).
   constexpr std::array<int, 9> kAllButJ = {1, 2, 3, 4, 5, 6, 7, 8, 9};
   std::array<double, 2> profile_rms{};
   for (int side = 0; side < 2; ++side) {
     const double f = side == 0 ? 1.0 / kProfileFactor : kProfileFactor;
-    PendulumForm g = form;
-    g.inertia_kgm2 *= f;
-    for (double* torque :
-         {&g.offset_nm, &g.ext_nm, &g.flex_nm, &g.damping_pos, &g.damping_neg, &g.coulomb_nm}) {
+    PendulumForm held = form;
+    held.inertia_kgm2 *= f;
+    PendulumForm scaled = held;
+    for (double* torque : {&scaled.offset_nm, &scaled.ext_nm, &scaled.flex_nm,
+                           &scaled.damping_pos, &scaled.damping_neg, &scaled.coulomb_nm}) {
       *torque *= f;
     }
-    const double c = FitOutputError(g, stretches, samples, kAllButJ, 60).second;
+    const double c = std::min(FitOutputError(held, stretches, samples, kAllButJ, 60).second,
+                              FitOutputError(scaled, stretches, samples, kAllButJ, 60).second);
     profile_rms[static_cast<std::size_t>(side)] = std::sqrt(c / static_cast<double>(samples));
   }
   PendulumInertia out;
@@ -396,7 +400,7 @@ PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
     } else {
       throw std::invalid_argument(
           std::string("IdentifyPassiveOnly: J is not determined by the swings (") + figures +
-          "); give inertia_kgm2");
+          "); give inertia_kgm2, or the body measures for Eq. 4.13's");
     }
   }
   const PassiveResult pas =
