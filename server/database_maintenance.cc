@@ -6,6 +6,7 @@
 #include <chrono>
 #include <ctime>
 #include <ostream>
+#include <string_view>
 #include <vector>
 
 #include "storage/database.h"
@@ -29,16 +30,32 @@ std::string FileStamp() {
 }
 
 // pg_dump of `url` into `destination` (custom format), through a temporary
-// file made 0600 and renamed once pg_dump succeeded.
+// file made 0600 and renamed once pg_dump succeeded. The URL's password goes
+// to pg_dump in its environment (PGPASSWORD: /proc/<pid>/environ is its
+// user's and root's only), not on its command line, which `ps` shows every
+// user; without one in the URL, pg_dump's environment is this process's
+// (a PGPASSWORD or PGPASSFILE of the caller's applies).
 api::Status DumpPostgres(const std::string& url, const fs::path& destination) {
+  auto client = storage::SplitPassword(url);
+  if (!client.ok()) return client.status();
   const fs::path temporary = destination.string() + ".partial-" + std::to_string(::getpid());
   if (auto made = storage::CreatePrivateFile(temporary); !made.ok()) return made;
   const std::string file_arg = "--file=" + temporary.string();
-  const std::string db_arg = "--dbname=" + url;
+  const std::string db_arg = "--dbname=" + client->conninfo;
+  std::vector<std::string> environment;
+  for (char** variable = environ; *variable != nullptr; ++variable) {
+    if (client->password.empty() || !std::string_view(*variable).starts_with("PGPASSWORD=")) {
+      environment.emplace_back(*variable);
+    }
+  }
+  if (!client->password.empty()) environment.push_back("PGPASSWORD=" + client->password);
+  std::vector<char*> envp;
+  for (std::string& variable : environment) envp.push_back(variable.data());
+  envp.push_back(nullptr);
   const pid_t pid = ::fork();
   if (pid == 0) {
     const char* argv[] = {"pg_dump", "--format=custom", file_arg.c_str(), db_arg.c_str(), nullptr};
-    ::execvp("pg_dump", const_cast<char* const*>(argv));
+    ::execvpe("pg_dump", const_cast<char* const*>(argv), envp.data());
     ::_exit(127);
   }
   int status = 0;

@@ -22,7 +22,8 @@ struct DatabaseLocation {
 
 /// An online backup into `<data_dir>/backups/fesbench-<UTC stamp>.db`
 /// (SQLite, through storage::BackupSqliteFile: also while a server runs on
-/// the file) or `.pgdump` (PostgreSQL: `pg_dump --format=custom`), then
+/// the file) or `.pgdump` (PostgreSQL: `pg_dump --format=custom`, the URL's
+/// password in pg_dump's environment, not on its command line), then
 /// deletes the `fesbench-*` backups there older than `keep_days`. Prints
 /// what it made and deleted; the exit code (0 done, 1 failed).
 int BackupDatabase(const DatabaseLocation& location, int keep_days, std::ostream& out,

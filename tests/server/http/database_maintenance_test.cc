@@ -10,12 +10,16 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
 #include "storage/database.h"
 #include "storage/migrations.h"
+#include "tests/support/postgres_gtest.h"
 
 #ifndef FESBENCH_SERVER_BINARY
 #error "FESBENCH_SERVER_BINARY must name the fesbench-server executable"
@@ -183,6 +187,73 @@ TEST_F(DatabaseMaintenanceTest, BackupWhileTheFileIsHeldAndOldBackupsDeleted) {
   }
   // A server on the file is not disturbed: it still writes.
   EXPECT_TRUE((*held)->CheckIntegrity().ok());
+}
+
+// pg_dump is given the URL's password in its environment, not on its command
+// line (which `ps` shows every user): a pg_dump of the test's own, first on
+// PATH, records what it got and writes the dump.
+TEST_F(DatabaseMaintenanceTest, PgDumpGetsThePasswordInItsEnvironmentNotItsArguments) {
+  const fs::path bin = dir_ / "bin";
+  fs::create_directories(bin);
+  {
+    std::ofstream script(bin / "pg_dump");
+    script << "#!/bin/sh\n"
+              "printf '%s\\n' \"$@\" > \"$(dirname \"$0\")/arguments\"\n"
+              "printf '%s' \"${PGPASSWORD-unset}\" > \"$(dirname \"$0\")/password\"\n"
+              "for a; do case $a in --file=*) echo dump > \"${a#--file=}\" ;; esac; done\n";
+  }
+  fs::permissions(bin / "pg_dump", fs::perms::owner_all);
+  const std::string path = std::getenv("PATH") != nullptr ? std::getenv("PATH") : "/usr/bin:/bin";
+  ::setenv("PATH", (bin.string() + ":" + path).c_str(), 1);
+  const ServerRun run =
+      RunServer({"--db", "postgresql://lab:s3cr%27t%40x@127.0.0.1:5433/fesbench?sslmode=disable",
+                 "--data-dir", dir_.string(), "--backup"});
+  ::setenv("PATH", path.c_str(), 1);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+
+  std::ifstream arguments_file(bin / "arguments");
+  const std::string arguments((std::istreambuf_iterator<char>(arguments_file)),
+                              std::istreambuf_iterator<char>());
+  EXPECT_EQ(arguments.find("s3cr"), std::string::npos) << arguments;
+  EXPECT_NE(arguments.find("--dbname="), std::string::npos) << arguments;
+  for (const char* setting : {"user='lab'", "host='127.0.0.1'", "port='5433'", "dbname='fesbench'",
+                              "sslmode='disable'"}) {
+    EXPECT_NE(arguments.find(setting), std::string::npos) << setting << " in " << arguments;
+  }
+  std::ifstream password_file(bin / "password");
+  const std::string password((std::istreambuf_iterator<char>(password_file)),
+                             std::istreambuf_iterator<char>());
+  EXPECT_EQ(password, "s3cr't@x");  // decoded from the URL
+  const std::vector<fs::path> dumps = Backups(dir_ / "backups");
+  ASSERT_EQ(dumps.size(), 1u) << run.output;
+  EXPECT_TRUE(dumps[0].filename().string().ends_with(".pgdump")) << dumps[0];
+  struct stat info {};
+  ASSERT_EQ(::stat(dumps[0].c_str(), &info), 0);
+  EXPECT_EQ(info.st_mode & 0777, 0600u);
+  EXPECT_EQ(run.output.find("s3cr"), std::string::npos) << run.output;
+}
+
+// The real pg_dump on a PostgreSQL database, the URL with a password (the
+// test server trusts loopback, so only the split is exercised): --migrate
+// dumps before it migrates, --backup dumps, and pg_restore reads both.
+TEST_F(DatabaseMaintenanceTest, PostgresIsDumpedBeforeMigratingAndBackedUpWithPgDump) {
+  fesbench::testing::ScratchDatabase database;
+  FESBENCH_SKIP_WITHOUT_POSTGRES(database);
+  std::string url = database.url();  // postgresql://postgres@…
+  url.insert(url.find('@'), ":not-on-the-command-line");
+  const ServerRun migrated = RunServer({"--db", url, "--data-dir", dir_.string(), "--migrate"});
+  ASSERT_EQ(migrated.exit_code, 0) << migrated.output;
+  const ServerRun backed_up = RunServer({"--db", url, "--data-dir", dir_.string(), "--backup"});
+  ASSERT_EQ(backed_up.exit_code, 0) << backed_up.output;
+  EXPECT_EQ(backed_up.output.find("not-on-the-command-line"), std::string::npos)
+      << backed_up.output;
+  const std::vector<fs::path> dumps = Backups(dir_ / "backups");
+  ASSERT_EQ(dumps.size(), 2u) << migrated.output << backed_up.output;
+  for (const fs::path& dump : dumps) {
+    EXPECT_TRUE(dump.filename().string().ends_with(".pgdump")) << dump;
+    const std::string list = "pg_restore --list '" + dump.string() + "' > /dev/null";
+    EXPECT_EQ(std::system(list.c_str()), 0) << dump;
+  }
 }
 
 }  // namespace
