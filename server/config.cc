@@ -232,8 +232,8 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
       "make an online backup of the database into <data-dir>/backups (SQLite: the backup API, "
       "also while a server runs; PostgreSQL: pg_dump), delete the older ones, and exit");
   app.add_flag("--migrate", migrate,
-               "bring the stopped server's database to this version's schema (backed up first "
-               "when that changes it; a newer schema is refused) and exit")
+               "back up the stopped server's database, bring it to this version's schema (a "
+               "newer schema is refused) and exit")
       ->excludes(backup_flag);
   try {
     app.parse(argc, argv);

@@ -136,11 +136,8 @@ int MigrateDatabase(const DatabaseLocation& location, const std::string& bench_i
           << latest << " or older" << std::endl;
       return 1;
     }
-    if (*version == latest) {
-      out << "fesbench-server: database " << shown << " is at schema version " << latest
-          << "; nothing to migrate" << std::endl;
-      return 0;
-    }
+    // Backed up also when nothing changes: the package runs this at every
+    // upgrade, and a new version may write the same schema differently.
     auto backup = MakeBackup(location, "fesbench-" + FileStamp() + "-schema-" +
                                            std::to_string(*version));
     if (!backup.ok()) {
@@ -150,6 +147,11 @@ int MigrateDatabase(const DatabaseLocation& location, const std::string& bench_i
     }
     out << "fesbench-server: backup of schema version " << *version << " in "
         << backup->string() << std::endl;
+    if (*version == latest) {
+      out << "fesbench-server: database " << shown << " is at schema version " << latest
+          << "; nothing to migrate" << std::endl;
+      return 0;
+    }
   } else {
     auto backup = MakeBackup(location, "fesbench-" + FileStamp() + "-before-migrate");
     if (!backup.ok()) {

@@ -29,11 +29,14 @@ struct DatabaseLocation {
 int BackupDatabase(const DatabaseLocation& location, int keep_days, std::ostream& out,
                    std::ostream& err);
 
-/// Brings a stopped server's database to this software's schema. A database
-/// with a newer schema than this software knows (a downgrade) is refused,
-/// exit 1, naming both versions. An SQLite file at an older schema is backed
-/// up first (`fesbench-<stamp>-schema-<N>.db`) and then migrated; a missing
-/// file is left for the first start. A PostgreSQL database is dumped first,
+/// Brings a stopped server's database to this software's schema, backing it
+/// up first (the Debian package runs it at every install over an existing
+/// database: the backup is the database as the previous version left it). A
+/// database with a newer schema than this software knows (a downgrade) is
+/// refused, exit 1, naming both versions, and left as it is. An SQLite file
+/// is backed up as `fesbench-<stamp>-schema-<N>.db` (N its schema version),
+/// then migrated if N is older; a missing file is left for the first start.
+/// A PostgreSQL database is dumped first (`fesbench-<stamp>-before-migrate.pgdump`),
 /// then migrated (the database refuses a newer schema itself).
 int MigrateDatabase(const DatabaseLocation& location, const std::string& bench_id,
                     std::ostream& out, std::ostream& err);

@@ -118,11 +118,21 @@ TEST_F(DatabaseMaintenanceTest, AnOlderDatabaseIsBackedUpThenMigrated) {
   ASSERT_EQ(::stat(backups[0].c_str(), &info), 0);
   EXPECT_EQ(info.st_mode & 0777, 0600u);
 
-  // Again: nothing to do, no second backup.
+  // Again (a reinstall): nothing to migrate, but the database is backed up
+  // as it is first.
   const ServerRun again = RunServer({"--db", db_, "--migrate"});
   EXPECT_EQ(again.exit_code, 0) << again.output;
   EXPECT_NE(again.output.find("nothing to migrate"), std::string::npos) << again.output;
-  EXPECT_EQ(Backups(dir_ / "backups").size(), 1u);
+  const std::string latest = std::to_string(LatestSchemaVersion());
+  EXPECT_NE(again.output.find("backup of schema version " + latest), std::string::npos)
+      << again.output;
+  const std::vector<fs::path> after = Backups(dir_ / "backups");
+  ASSERT_EQ(after.size(), 2u) << again.output;
+  for (const fs::path& p : after) {
+    if (p == backups[0]) continue;
+    EXPECT_TRUE(p.filename().string().ends_with("-schema-" + latest + ".db")) << p;
+    EXPECT_EQ(*SqliteFileSchemaVersion(p.string()), LatestSchemaVersion());
+  }
 }
 
 TEST_F(DatabaseMaintenanceTest, ANewerDatabaseIsRefusedNamingBothSchemaVersions) {
