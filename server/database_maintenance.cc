@@ -3,8 +3,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <ctime>
+#include <functional>
 #include <ostream>
 #include <string_view>
 #include <vector>
@@ -84,6 +86,14 @@ api::Result<fs::path> MakeBackup(const DatabaseLocation& location, const std::st
   return path;
 }
 
+// A backup --migrate made before changing the database (a package upgrade):
+// fesbench-<stamp>-schema-<N>.db or fesbench-<stamp>-before-migrate.pgdump.
+bool IsPreMigrationBackup(const std::string& name) {
+  return name.starts_with("fesbench-") &&
+         ((name.ends_with(".db") && name.find("-schema-") != std::string::npos) ||
+          name.ends_with("-before-migrate.pgdump"));
+}
+
 }  // namespace
 
 int BackupDatabase(const DatabaseLocation& location, int keep_days, std::ostream& out,
@@ -96,17 +106,33 @@ int BackupDatabase(const DatabaseLocation& location, int keep_days, std::ostream
   std::error_code ec;
   out << "fesbench-server: backup " << made->string() << " (" << fs::file_size(*made, ec)
       << " bytes)" << std::endl;
-  // Backups older than keep_days go, the one just made never.
+  // Backups older than keep_days go, the one just made never. Pre-migration
+  // backups are not counted by age: the newest kKeptPreMigrationBackups stay
+  // whatever their age (the way back from an upgrade), older ones go.
   const auto cutoff = fs::file_time_type::clock::now() - std::chrono::hours(24) * keep_days;
+  std::vector<fs::path> pre_migration;
   for (const auto& entry : fs::directory_iterator(made->parent_path(), ec)) {
     const std::string name = entry.path().filename().string();
     if (!entry.is_regular_file() || !name.starts_with("fesbench-") || entry.path() == *made) {
+      continue;
+    }
+    if (IsPreMigrationBackup(name)) {
+      pre_migration.push_back(entry.path());
       continue;
     }
     std::error_code time_ec;
     if (entry.last_write_time(time_ec) < cutoff && !time_ec && fs::remove(entry.path(), time_ec)) {
       out << "fesbench-server: deleted backup " << entry.path().string() << " (older than "
           << keep_days << " days)" << std::endl;
+    }
+  }
+  // Newest first: the names begin with their UTC stamp.
+  std::sort(pre_migration.begin(), pre_migration.end(), std::greater<>());
+  for (std::size_t i = kKeptPreMigrationBackups; i < pre_migration.size(); ++i) {
+    std::error_code remove_ec;
+    if (fs::remove(pre_migration[i], remove_ec)) {
+      out << "fesbench-server: deleted pre-migration backup " << pre_migration[i].string() << " ("
+          << kKeptPreMigrationBackups << " newer ones kept)" << std::endl;
     }
   }
   return 0;

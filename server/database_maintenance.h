@@ -7,6 +7,7 @@
 /// first that the Debian package's maintainer scripts run on an upgrade
 /// (README, "Install on a lab PC"; docs/ARCHITECTURE.md, "Backup").
 
+#include <cstddef>
 #include <filesystem>
 #include <iosfwd>
 #include <string>
@@ -20,12 +21,17 @@ struct DatabaseLocation {
   std::filesystem::path data_dir;  ///< backups go to data_dir/backups (0700)
 };
 
+/// How many pre-migration backups (MigrateDatabase's) --backup keeps.
+inline constexpr std::size_t kKeptPreMigrationBackups = 5;
+
 /// An online backup into `<data_dir>/backups/fesbench-<UTC stamp>.db`
 /// (SQLite, through storage::BackupSqliteFile: also while a server runs on
 /// the file) or `.pgdump` (PostgreSQL: `pg_dump --format=custom`, the URL's
 /// password in pg_dump's environment, not on its command line), then
-/// deletes the `fesbench-*` backups there older than `keep_days`. Prints
-/// what it made and deleted; the exit code (0 done, 1 failed).
+/// deletes the `fesbench-*` backups there older than `keep_days`, except the
+/// pre-migration backups: of those the newest kKeptPreMigrationBackups stay
+/// whatever their age and older ones go. Prints what it made and deleted;
+/// the exit code (0 done, 1 failed).
 int BackupDatabase(const DatabaseLocation& location, int keep_days, std::ostream& out,
                    std::ostream& err);
 

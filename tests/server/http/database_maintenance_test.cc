@@ -4,6 +4,8 @@
 // schema versions and left as it is, and a backup made while a server holds
 // the file is a consistent copy, 0600, with older backups deleted.
 
+#include "server/database_maintenance.h"
+
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -197,6 +199,41 @@ TEST_F(DatabaseMaintenanceTest, BackupWhileTheFileIsHeldAndOldBackupsDeleted) {
   }
   // A server on the file is not disturbed: it still writes.
   EXPECT_TRUE((*held)->CheckIntegrity().ok());
+}
+
+// The backups --migrate made before an upgrade are the way back from it: the
+// age pruning leaves them, and only those beyond the newest
+// kKeptPreMigrationBackups go.
+TEST_F(DatabaseMaintenanceTest, PreMigrationBackupsAreKeptOutOfTheAgePruning) {
+  MakeDatabaseAt(LatestSchemaVersion());
+  const fs::path folder = dir_ / "backups";
+  fs::create_directories(folder);
+  const fs::path old_daily = folder / "fesbench-2020-01-01T00-00-00Z.db";
+  std::vector<fs::path> pre_migration;  // oldest first
+  for (int day = 1; day <= 6; ++day) {
+    const std::string stamp = "fesbench-2020-02-0" + std::to_string(day) + "T00-00-00Z";
+    pre_migration.push_back(folder /
+                            (stamp + (day == 4 ? "-before-migrate.pgdump"
+                                               : "-schema-" + std::to_string(day + 10) + ".db")));
+  }
+  ASSERT_EQ(fesbench::server::kKeptPreMigrationBackups, pre_migration.size() - 1);
+  for (const fs::path& p : pre_migration) fs::copy_file(db_, p);
+  fs::copy_file(db_, old_daily);
+  for (const fs::path& p : fs::directory_iterator(folder)) {
+    fs::last_write_time(p, fs::file_time_type::clock::now() - std::chrono::hours(24 * 400));
+  }
+
+  const ServerRun run = RunServer({"--db", db_, "--backup", "--backup-keep-days", "14"});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_FALSE(fs::exists(old_daily)) << run.output;
+  EXPECT_FALSE(fs::exists(pre_migration[0])) << run.output;  // beyond the newest five
+  EXPECT_NE(run.output.find("deleted pre-migration backup " + pre_migration[0].string()),
+            std::string::npos)
+      << run.output;
+  for (std::size_t i = 1; i < pre_migration.size(); ++i) {
+    EXPECT_TRUE(fs::exists(pre_migration[i])) << pre_migration[i] << "\n" << run.output;
+  }
+  EXPECT_EQ(Backups(folder).size(), pre_migration.size());  // five kept and today's
 }
 
 // pg_dump is given the URL's password in its environment, not on its command
