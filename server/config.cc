@@ -10,6 +10,7 @@
 #include <string>
 
 #include "api/json_fields.h"
+#include "server/database_maintenance.h"
 
 namespace fesbench::server {
 
@@ -230,10 +231,12 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
   auto* backup_flag = app.add_flag(
       "--backup", backup,
       "make an online backup of the database into <data-dir>/backups (SQLite: the backup API, "
-      "also while a server runs; PostgreSQL: pg_dump), delete the older ones, and exit");
+      "also while a server runs; PostgreSQL: pg_dump), delete those older than "
+      "--backup-keep-days (of the pre-migration ones, all but the newest " +
+          std::to_string(kKeptPreMigrationBackups) + "), and exit");
   app.add_flag("--migrate", migrate,
-               "bring the stopped server's database to this version's schema (backed up first "
-               "when that changes it; a newer schema is refused) and exit")
+               "back up the stopped server's database, bring it to this version's schema (a "
+               "newer schema is refused) and exit")
       ->excludes(backup_flag);
   try {
     app.parse(argc, argv);

@@ -29,11 +29,11 @@ std::string DefaultWebRoot();
 enum class ServerTask {
   kServe,
   /// --backup: an online backup into <data-dir>/backups, also while a server
-  /// runs on the database; backups older than backup-keep-days are deleted.
+  /// runs on the database; backups older than backup-keep-days are deleted,
+  /// of the pre-migration ones all but the newest 5.
   kBackup,
-  /// --migrate: the database brought to this software's schema, backed up
-  /// first when that changes it; a newer schema is refused, naming it. Needs
-  /// the server stopped.
+  /// --migrate: the database backed up, then brought to this software's
+  /// schema; a newer schema is refused, naming it. Needs the server stopped.
   kMigrate,
 };
 

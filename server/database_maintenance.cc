@@ -3,9 +3,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <ctime>
+#include <functional>
 #include <ostream>
+#include <string_view>
 #include <vector>
 
 #include "storage/database.h"
@@ -29,16 +32,32 @@ std::string FileStamp() {
 }
 
 // pg_dump of `url` into `destination` (custom format), through a temporary
-// file made 0600 and renamed once pg_dump succeeded.
+// file made 0600 and renamed once pg_dump succeeded. The URL's password goes
+// to pg_dump in its environment (PGPASSWORD: /proc/<pid>/environ is its
+// user's and root's only), not on its command line, which `ps` shows every
+// user; without one in the URL, pg_dump's environment is this process's
+// (a PGPASSWORD or PGPASSFILE of the caller's applies).
 api::Status DumpPostgres(const std::string& url, const fs::path& destination) {
+  auto client = storage::SplitPassword(url);
+  if (!client.ok()) return client.status();
   const fs::path temporary = destination.string() + ".partial-" + std::to_string(::getpid());
   if (auto made = storage::CreatePrivateFile(temporary); !made.ok()) return made;
   const std::string file_arg = "--file=" + temporary.string();
-  const std::string db_arg = "--dbname=" + url;
+  const std::string db_arg = "--dbname=" + client->conninfo;
+  std::vector<std::string> environment;
+  for (char** variable = environ; *variable != nullptr; ++variable) {
+    if (client->password.empty() || !std::string_view(*variable).starts_with("PGPASSWORD=")) {
+      environment.emplace_back(*variable);
+    }
+  }
+  if (!client->password.empty()) environment.push_back("PGPASSWORD=" + client->password);
+  std::vector<char*> envp;
+  for (std::string& variable : environment) envp.push_back(variable.data());
+  envp.push_back(nullptr);
   const pid_t pid = ::fork();
   if (pid == 0) {
     const char* argv[] = {"pg_dump", "--format=custom", file_arg.c_str(), db_arg.c_str(), nullptr};
-    ::execvp("pg_dump", const_cast<char* const*>(argv));
+    ::execvpe("pg_dump", const_cast<char* const*>(argv), envp.data());
     ::_exit(127);
   }
   int status = 0;
@@ -67,6 +86,14 @@ api::Result<fs::path> MakeBackup(const DatabaseLocation& location, const std::st
   return path;
 }
 
+// A backup --migrate made before changing the database (a package upgrade):
+// fesbench-<stamp>-schema-<N>.db or fesbench-<stamp>-before-migrate.pgdump.
+bool IsPreMigrationBackup(const std::string& name) {
+  return name.starts_with("fesbench-") &&
+         ((name.ends_with(".db") && name.find("-schema-") != std::string::npos) ||
+          name.ends_with("-before-migrate.pgdump"));
+}
+
 }  // namespace
 
 int BackupDatabase(const DatabaseLocation& location, int keep_days, std::ostream& out,
@@ -79,17 +106,33 @@ int BackupDatabase(const DatabaseLocation& location, int keep_days, std::ostream
   std::error_code ec;
   out << "fesbench-server: backup " << made->string() << " (" << fs::file_size(*made, ec)
       << " bytes)" << std::endl;
-  // Backups older than keep_days go, the one just made never.
+  // Backups older than keep_days go, the one just made never. Pre-migration
+  // backups are not counted by age: the newest kKeptPreMigrationBackups stay
+  // whatever their age (the way back from an upgrade), older ones go.
   const auto cutoff = fs::file_time_type::clock::now() - std::chrono::hours(24) * keep_days;
+  std::vector<fs::path> pre_migration;
   for (const auto& entry : fs::directory_iterator(made->parent_path(), ec)) {
     const std::string name = entry.path().filename().string();
     if (!entry.is_regular_file() || !name.starts_with("fesbench-") || entry.path() == *made) {
+      continue;
+    }
+    if (IsPreMigrationBackup(name)) {
+      pre_migration.push_back(entry.path());
       continue;
     }
     std::error_code time_ec;
     if (entry.last_write_time(time_ec) < cutoff && !time_ec && fs::remove(entry.path(), time_ec)) {
       out << "fesbench-server: deleted backup " << entry.path().string() << " (older than "
           << keep_days << " days)" << std::endl;
+    }
+  }
+  // Newest first: the names begin with their UTC stamp.
+  std::sort(pre_migration.begin(), pre_migration.end(), std::greater<>());
+  for (std::size_t i = kKeptPreMigrationBackups; i < pre_migration.size(); ++i) {
+    std::error_code remove_ec;
+    if (fs::remove(pre_migration[i], remove_ec)) {
+      out << "fesbench-server: deleted pre-migration backup " << pre_migration[i].string() << " ("
+          << kKeptPreMigrationBackups << " newer ones kept)" << std::endl;
     }
   }
   return 0;
@@ -119,11 +162,8 @@ int MigrateDatabase(const DatabaseLocation& location, const std::string& bench_i
           << latest << " or older" << std::endl;
       return 1;
     }
-    if (*version == latest) {
-      out << "fesbench-server: database " << shown << " is at schema version " << latest
-          << "; nothing to migrate" << std::endl;
-      return 0;
-    }
+    // Backed up also when nothing changes: the package runs this at every
+    // upgrade, and a new version may write the same schema differently.
     auto backup = MakeBackup(location, "fesbench-" + FileStamp() + "-schema-" +
                                            std::to_string(*version));
     if (!backup.ok()) {
@@ -133,6 +173,11 @@ int MigrateDatabase(const DatabaseLocation& location, const std::string& bench_i
     }
     out << "fesbench-server: backup of schema version " << *version << " in "
         << backup->string() << std::endl;
+    if (*version == latest) {
+      out << "fesbench-server: database " << shown << " is at schema version " << latest
+          << "; nothing to migrate" << std::endl;
+      return 0;
+    }
   } else {
     auto backup = MakeBackup(location, "fesbench-" + FileStamp() + "-before-migrate");
     if (!backup.ok()) {

@@ -16,10 +16,12 @@
 
 #include <atomic>
 #include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <string>
 #include <string_view>
 #include <thread>
 
@@ -68,8 +70,19 @@ api::Status WriteSecretFile(const std::filesystem::path& path, const std::string
   return ok ? api::Status::Ok() : api::Status::Unavailable("cannot write " + path.string());
 }
 
-// At first start on an empty database: an admin user and its token, printed
-// once and written to admin.token (0600) beside the database file.
+// Whether standard output is the systemd journal's stream (JOURNAL_STREAM
+// holds its device and inode, systemd.exec(5)): the journal keeps what is
+// printed, and others than the server's user may read it (group adm).
+bool OutputGoesToTheJournal() {
+  const char* stream = std::getenv("JOURNAL_STREAM");
+  struct stat info {};
+  if (stream == nullptr || ::fstat(STDOUT_FILENO, &info) != 0) return false;
+  return std::string(stream) == std::to_string(info.st_dev) + ":" + std::to_string(info.st_ino);
+}
+
+// At first start on an empty database: an admin user and its token, written
+// to admin.token (0600) beside the database file and printed once, unless
+// the output goes to the journal (the service): then only the file is named.
 api::Status BootstrapAdmin(storage::Database& db, const std::filesystem::path& token_path) {
   storage::UserRepository users(db);
   auto existing = users.ListUsers();
@@ -80,8 +93,13 @@ api::Status BootstrapAdmin(storage::Database& db, const std::filesystem::path& t
   auto token = users.IssueToken(admin->id, "bootstrap admin token");
   if (!token.ok()) return token.status();
   if (auto st = WriteSecretFile(token_path, token->token + "\n"); !st.ok()) return st;
-  std::cout << "fesbench-server: created user admin; its token (shown once): " << token->token
-            << "\n";
+  if (OutputGoesToTheJournal()) {
+    std::cout << "fesbench-server: created user admin; its token is in " << token_path.string()
+              << " (not printed: this output goes to the journal)\n";
+  } else {
+    std::cout << "fesbench-server: created user admin; its token (shown once): " << token->token
+              << "\n";
+  }
   return api::Status::Ok();
 }
 

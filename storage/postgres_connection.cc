@@ -286,6 +286,36 @@ std::string RedactedUrl(std::string_view url) {
   return std::string(url.substr(0, colon + 1)) + "***" + std::string(url.substr(at));
 }
 
+api::Result<ClientConnection> SplitPassword(const std::string& url) {
+  // libpq's reason is left out: it may quote the password.
+  char* error = nullptr;
+  PQconninfoOption* options = PQconninfoParse(url.c_str(), &error);
+  PQfreemem(error);
+  if (options == nullptr) {
+    return api::Status::InvalidArgument("cannot read the PostgreSQL URL " + RedactedUrl(url) +
+                                        " (postgresql://user[:password]@host[:port]/database[?…])");
+  }
+  ClientConnection client;
+  for (const PQconninfoOption* option = options; option->keyword != nullptr; ++option) {
+    if (option->val == nullptr || *option->val == '\0') continue;
+    if (std::strcmp(option->keyword, "password") == 0) {
+      client.password = option->val;
+      continue;
+    }
+    // keyword='value', with ' and \ escaped by a backslash (libpq's rules).
+    if (!client.conninfo.empty()) client.conninfo += ' ';
+    client.conninfo += option->keyword;
+    client.conninfo += "='";
+    for (const char* c = option->val; *c != '\0'; ++c) {
+      if (*c == '\'' || *c == '\\') client.conninfo += '\\';
+      client.conninfo += *c;
+    }
+    client.conninfo += '\'';
+  }
+  PQconninfoFree(options);
+  return client;
+}
+
 api::Result<std::unique_ptr<PostgresConnection>> PostgresConnection::Open(const std::string& url) {
   PGconn* conn = PQconnectdb(url.c_str());
   std::unique_ptr<PostgresConnection> connection(new PostgresConnection(conn, url));

@@ -90,4 +90,16 @@ std::string PostgresParameters(std::string_view sql, std::vector<bool>& used);
 /// A URL with its password hidden, for logs and messages.
 std::string RedactedUrl(std::string_view url);
 
+/// A URL split for a client program such as pg_dump: its settings as a
+/// libpq connection string without the password (keyword='value' pairs, fit
+/// for a command line, which every user sees in `ps`), and the password
+/// apart, decoded ("" when the URL has none), for the program's PGPASSWORD.
+struct ClientConnection {
+  std::string conninfo;
+  std::string password;
+};
+/// kInvalidArgument naming the URL without its password when libpq cannot
+/// read it.
+api::Result<ClientConnection> SplitPassword(const std::string& url);
+
 }  // namespace fesbench::storage

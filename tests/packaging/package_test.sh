@@ -10,7 +10,8 @@
 #                                          server started as that user on the
 #                                          unit's state folder: health, web
 #                                          client, file modes, an online backup,
-#                                          SIGTERM, a newer schema refused
+#                                          SIGTERM, --migrate's backup, a newer
+#                                          schema refused
 #   package_test.sh units BUILD_DIR        systemd-analyze verify of the installed
 #                                          units; security exposure printed
 #
@@ -200,6 +201,11 @@ install)
   "${as_service_user[@]}" "$server" "${args[@]}" --migrate >"$root/migrate.log" 2>&1 || { cat "$root/migrate.log"; fail "--migrate"; }
   grep -q 'is at schema version [0-9]*; nothing to migrate' "$root/migrate.log" || { cat "$root/migrate.log"; fail "--migrate said"; }
   latest=$(sed -n 's/.*at schema version \([0-9]*\);.*/\1/p' "$root/migrate.log")
+  # The postinst's step backs the database up also when nothing is to migrate.
+  grep -q "backup of schema version $latest in $state/backups/fesbench-.*-schema-$latest.db" \
+    "$root/migrate.log" || { cat "$root/migrate.log"; fail "--migrate made no backup first"; }
+  pre_migration=("$state"/backups/fesbench-*-schema-"$latest".db)
+  check_mode "${pre_migration[0]}" 600
   newer=$((latest + 1))
   "${as_service_user[@]}" /usr/bin/python3 -c "import sqlite3,sys; c=sqlite3.connect(sys.argv[1]); c.execute('PRAGMA user_version = $newer'); c.commit()" "$state/fesbench.db"
   status=0
@@ -208,7 +214,7 @@ install)
   ((status == 1)) || fail "--migrate on schema $newer: exit $status, expected 1"
   grep -q "schema version $newer, newer than this fesbench-server .* knows ($latest): refusing to downgrade" \
     "$root/migrate.log" || fail "the refusal does not name the schema versions"
-  say "installed, served as fesbench, backed up, stopped, and a schema-$newer database refused"
+  say "installed, served as fesbench, backed up, stopped, backed up by --migrate, and a schema-$newer database refused"
   ;;
 
 units)

@@ -11,6 +11,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -18,6 +19,8 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <optional>
 #include <string>
 #include <vector>
@@ -95,8 +98,10 @@ class ServiceReadinessTest : public ::testing::Test {
     fs::remove_all(dir_);
   }
 
-  // Starts the server on `port` with NOTIFY_SOCKET set (only in the child).
-  void Start(int port) {
+  // Starts the server on `port` with NOTIFY_SOCKET set (only in the child);
+  // with `journal`, JOURNAL_STREAM names its output as systemd does when the
+  // output is the journal's stream.
+  void Start(int port, bool journal = false) {
     const std::string port_text = std::to_string(port);
     const std::string db = (dir_ / "data" / "fesbench.db").string();
     const std::string log = (dir_ / "server.log").string();
@@ -106,6 +111,11 @@ class ServiceReadinessTest : public ::testing::Test {
       const int out = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
       ::dup2(out, STDOUT_FILENO);
       ::dup2(out, STDERR_FILENO);
+      struct stat info {};
+      if (journal && ::fstat(STDOUT_FILENO, &info) == 0) {
+        const std::string stream = std::to_string(info.st_dev) + ":" + std::to_string(info.st_ino);
+        ::setenv("JOURNAL_STREAM", stream.c_str(), 1);
+      }
       std::vector<const char*> argv = {FESBENCH_SERVER_BINARY, "--port", port_text.c_str(),
                                        "--db", db.c_str(), "--time-scale", "0",
                                        "--dds-transport", "off", nullptr};
@@ -159,6 +169,27 @@ TEST_F(ServiceReadinessTest, NoNotificationWhenTheServerCannotListen) {
   ::close(blocker);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1);
   EXPECT_EQ(Receive(notify_fd_, std::chrono::milliseconds(100)), "");
+}
+
+// Under the service the output is the journal, kept and readable by others
+// than the server's user (group adm): the first admin's token is only in
+// admin.token there, the journal names the file.
+TEST_F(ServiceReadinessTest, TheFirstAdminTokenIsNotPrintedToTheJournal) {
+  const int port = FreePort();
+  Start(port, /*journal=*/true);
+  ASSERT_NE(Receive(notify_fd_, std::chrono::seconds(30)).find("READY=1"), std::string::npos);
+  std::ifstream token_file(dir_ / "data" / "admin.token");
+  std::string token;
+  ASSERT_TRUE(std::getline(token_file, token));
+  EXPECT_TRUE(token.starts_with("fsb_")) << token;
+  std::ifstream log_file(dir_ / "server.log");
+  const std::string log((std::istreambuf_iterator<char>(log_file)),
+                        std::istreambuf_iterator<char>());
+  EXPECT_EQ(log.find(token), std::string::npos) << log;
+  EXPECT_NE(log.find("its token is in " + (dir_ / "data" / "admin.token").string() +
+                     " (not printed: this output goes to the journal)"),
+            std::string::npos)
+      << log;
 }
 
 }  // namespace
