@@ -18,7 +18,7 @@ struct LeastSquaresSolution {
   Eigen::VectorXd c;                ///< parameters (Eq. 4.24).
   int rank = 0;                     ///< singular values kept.
   double rms = 0.0;                 ///< sqrt(mean residual²), in b's unit.
-  Eigen::VectorXd singular_values;  ///< of the column-scaled A, descending.
+  Eigen::VectorXd singular_values;  ///< of the column-scaled A, descending (see below).
 };
 
 /// Solves min |A·c − b|² by SVD with small singular values zeroed
@@ -27,7 +27,12 @@ struct LeastSquaresSolution {
 /// breakpoint the data never visit, or the constant shared by τ_pta and
 /// τ_ptv, §6.5). Columns are scaled to unit norm first; A is reduced by a
 /// Householder QR and the SVD is taken of the small R factor, whose singular
-/// values equal those of A, so the cost is that of the QR.
+/// values equal those of A, so the cost is that of the QR. When R's
+/// spectrum separates clearly (every singular value either ≥ 0.01·w_max or
+/// in a subspace R maps below 1e-2·relative_tolerance·w_max, as a fit's
+/// structural null directions), the SVD is replaced by the
+/// eigendecomposition of RᵀR: the same rank, the solution within ~1e-10
+/// relative, the truncated singular values given as upper bounds.
 /// @param relative_tolerance singular values below this times the largest
 ///   are zeroed (Eq. 4.26); > 0.
 /// @throws std::invalid_argument if A has no rows or columns, b's size
