@@ -167,6 +167,82 @@ TEST(SolveTruncatedSvd, SpreadSpectrumFallsBackToTheSvd) {
   EXPECT_NEAR(sol.rms, ref.rms, 1e-9 * ref.rms);
 }
 
+// The cell-reduced rows against the dense design they stand for: the same
+// solution (1e-10 relative: the QR of the reduced rows is another
+// orthogonal reduction of the same A), rank and rms, and the residual of
+// any c to 1e-10 relative. Two curves with samples beyond both ends (held
+// ends), a dense column and two right-hand sides; one curve; a curve of
+// one breakpoint.
+TEST(PwlLeastSquares, ReducedRowsSolveAsTheDenseDesign) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> angle(-10.0, 120.0), velocity(-350.0, 350.0);
+  std::normal_distribution<double> n01;
+  const std::vector<double> bp_a = {0, 20, 40, 60, 80, 100, 110};
+  const std::vector<double> bp_v = {-300, -150, -50, 0, 50, 150, 300};
+  const std::vector<double> one = {5.0};
+  const int n = 800;
+  for (const auto& [first, second] :
+       {std::pair{&bp_a, &bp_v}, std::pair{&bp_v, (const std::vector<double>*)nullptr},
+        std::pair{&one, &bp_v}}) {
+    const std::span<const double> second_bp =
+        second ? std::span<const double>(*second) : std::span<const double>();
+    PwlLeastSquares pwl(*first, second_bp, 1, 2);
+    const auto m1 = static_cast<Eigen::Index>(first->size());
+    const auto m2 = static_cast<Eigen::Index>(second_bp.size());
+    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, m1 + m2 + 1);
+    Eigen::MatrixXd b(n, 2);
+    for (int i = 0; i < n; ++i) {
+      // A sweep (the hints' case) with jumps.
+      const double x1 = i % 97 == 0 ? angle(rng) : 55.0 + 60.0 * std::sin(0.01 * i);
+      const double x2 = velocity(rng);
+      const double dense = n01(rng);
+      const double rhs[2] = {std::cos(x1 / 40.0) + 1e-3 * x2 + 0.5 * dense + 0.1 * n01(rng),
+                             n01(rng)};
+      pwl.AddRow(x1, x2, std::span(&dense, 1), rhs);
+      SetPwlBasisRow(a, i, 0, *first, x1);
+      if (second) SetPwlBasisRow(a, i, m1, second_bp, x2);
+      a(i, m1 + m2) = dense;
+      b(i, 0) = rhs[0];
+      b(i, 1) = rhs[1];
+    }
+    ASSERT_EQ(pwl.rows(), n);
+    ASSERT_EQ(pwl.cols(), a.cols());
+    for (int q = 0; q < 2; ++q) {
+      const Eigen::VectorXd bq = b.col(q);
+      const LeastSquaresSolution dense_sol = SolveTruncatedSvd(a, bq);
+      ReducedLeastSquares reduced = pwl.Reduced(q);
+      EXPECT_LT(reduced.a.rows(), n / 4);
+      const LeastSquaresSolution sol = SolveTruncatedSvd(std::move(reduced));
+      EXPECT_EQ(sol.rank, dense_sol.rank);
+      EXPECT_LT((sol.c - dense_sol.c).norm(), 1e-10 * dense_sol.c.norm());
+      EXPECT_NEAR(sol.rms, dense_sol.rms, 1e-10 * dense_sol.rms);
+      for (const Eigen::VectorXd& c : {dense_sol.c, Eigen::VectorXd(dense_sol.c.array() + 0.3)}) {
+        const double direct = (a * c - bq).squaredNorm();
+        EXPECT_NEAR(pwl.ResidualSquared(c, q), direct, 1e-10 * direct);
+      }
+    }
+  }
+}
+
+// Rows below the reduced ones (Reduced's extra_rows) count in the rms.
+TEST(PwlLeastSquares, ExtraRowsJoinTheProblem) {
+  const std::vector<double> bp = {0.0, 1.0, 2.0};
+  PwlLeastSquares pwl(bp, {}, 0, 1);
+  const double rhs[3] = {1.0, 2.0, 4.0};
+  for (int i = 0; i < 3; ++i) pwl.AddRow(static_cast<double>(i), 0.0, {}, std::span(&rhs[i], 1));
+  ReducedLeastSquares reduced = pwl.Reduced(0, 1);
+  ASSERT_EQ(reduced.rows, 4);
+  // c₀ − 2c₁ + c₂ = 0 with weight 1: the curve is pulled towards a line.
+  const Eigen::Index last = reduced.a.rows() - 1;
+  reduced.a.row(last) << 1.0, -2.0, 1.0;
+  Eigen::MatrixXd a(4, 3);
+  a << 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, -2, 1;
+  const LeastSquaresSolution dense_sol = SolveTruncatedSvd(a, Eigen::Vector4d(1, 2, 4, 0));
+  const LeastSquaresSolution sol = SolveTruncatedSvd(std::move(reduced));
+  EXPECT_LT((sol.c - dense_sol.c).norm(), 1e-12);
+  EXPECT_NEAR(sol.rms, dense_sol.rms, 1e-12);
+}
+
 TEST(SolveTruncatedSvd, RejectsBrokenPreconditions) {
   EXPECT_THROW(SolveTruncatedSvd(Eigen::MatrixXd(3, 2), Eigen::VectorXd(4)), std::invalid_argument);
   EXPECT_THROW(SolveTruncatedSvd(Eigen::MatrixXd(0, 2), Eigen::VectorXd(0)), std::invalid_argument);
