@@ -369,27 +369,6 @@ void SetPwlBasisRow(Eigen::MatrixXd& a, Eigen::Index row, Eigen::Index col0,
   if (bp.size() > 1) a(row, lo + 1) += scale * bw.weight_hi;
 }
 
-Eigen::MatrixXd AngleVelocityDesign(std::span<const double> bp_angle,
-                                    std::span<const double> angle_deg,
-                                    std::span<const double> bp_velocity,
-                                    std::span<const double> velocity_deg_s,
-                                    Eigen::Index extra_columns) {
-  if (angle_deg.size() != velocity_deg_s.size() || extra_columns < 0) {
-    throw std::invalid_argument(
-        "AngleVelocityDesign: angle and velocity sizes differ or extra_columns < 0");
-  }
-  const auto ma = static_cast<Eigen::Index>(bp_angle.size());
-  const auto mv = static_cast<Eigen::Index>(bp_velocity.size());
-  Eigen::MatrixXd a =
-      Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(angle_deg.size()), ma + mv + extra_columns);
-  for (std::size_t i = 0; i < angle_deg.size(); ++i) {
-    const auto r = static_cast<Eigen::Index>(i);
-    SetPwlBasisRow(a, r, 0, bp_angle, angle_deg[i]);
-    SetPwlBasisRow(a, r, ma, bp_velocity, velocity_deg_s[i]);
-  }
-  return a;
-}
-
 std::vector<double> BreakpointSupport(std::span<const double> bp, std::span<const double> x) {
   std::vector<double> support(bp.size(), 0.0);
   if (bp.empty()) return support;

@@ -128,19 +128,6 @@ Eigen::VectorXd SolveNonNegative(const Eigen::MatrixXd& a, const Eigen::VectorXd
 void SetPwlBasisRow(Eigen::MatrixXd& a, Eigen::Index row, Eigen::Index col0,
                     std::span<const double> bp, double x, double scale = 1.0);
 
-/// The design matrix [X(θ) | X(θ̇) | 0] of an angle curve and a velocity
-/// curve fitted together (Eq. 4.30 basis, as in Eqs. 4.31 and 4.40): row i
-/// holds the basis of `bp_angle` at angle_deg[i] in columns 0 … ma − 1 and
-/// of `bp_velocity` at velocity_deg_s[i] in columns ma … ma + mv − 1,
-/// followed by `extra_columns` zero columns for the caller to fill.
-/// @throws std::invalid_argument if angle_deg and velocity_deg_s differ in
-///   size or extra_columns < 0.
-Eigen::MatrixXd AngleVelocityDesign(std::span<const double> bp_angle,
-                                    std::span<const double> angle_deg,
-                                    std::span<const double> bp_velocity,
-                                    std::span<const double> velocity_deg_s,
-                                    Eigen::Index extra_columns);
-
 /// Sum over samples of each breakpoint's basis weight (Eq. 4.30): how much
 /// data supports each ordinate. A breakpoint with support near 0 is not
 /// determined by the data.

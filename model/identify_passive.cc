@@ -41,15 +41,13 @@ std::vector<double> Gather(std::span<const TrialColumns> trials,
   return out;
 }
 
-// The linear system the passive fits share (Eq. 4.31, Eq. 4.35, §7.4.1):
+// The breakpoints the passive fits share (Eq. 4.31, Eq. 4.35, §7.4.1):
 // [X(θ) | X(θ̇) | extra columns]·c = b over the passive samples, τ_pta and
 // τ_ptv piecewise linear (Eq. 4.30) on breakpoints resolved over the
-// samples. The caller fills the extra columns and b, then solves.
+// samples. The caller adds the rows (PwlLeastSquares) and solves.
 struct PassiveSystem {
   std::vector<double> bp_a, bp_v;
   Eigen::Index ma = 0, mv = 0;
-  Eigen::MatrixXd a;
-  Eigen::VectorXd b;
 };
 
 PassiveSystem MakePassiveSystem(const char* what, std::span<const double> angle,
@@ -63,8 +61,6 @@ PassiveSystem MakePassiveSystem(const char* what, std::span<const double> angle,
   if (angle.size() < static_cast<std::size_t>(sys.ma + sys.mv + extra)) {
     throw std::invalid_argument(std::string(what) + ": fewer passive samples than parameters");
   }
-  sys.a = AngleVelocityDesign(sys.bp_a, angle, sys.bp_v, velocity, extra);
-  sys.b = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(angle.size()));
   return sys;
 }
 
@@ -488,15 +484,14 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
   const auto acc = Gather(trials, rows, &TrialColumns::accel_deg_s2);
   const auto tq = Gather(trials, rows, &TrialColumns::torque_nm);
   // Eq. 4.31: [X(θ) | X(θ̇) | θ̈] · c = τ.
-  PassiveSystem sys = MakePassiveSystem(what, angle, vel, options.angle, options.velocity, 1);
+  const PassiveSystem sys = MakePassiveSystem(what, angle, vel, options.angle, options.velocity, 1);
   const Eigen::Index ma = sys.ma, mv = sys.mv;
+  PwlLeastSquares design(sys.bp_a, sys.bp_v, 1, 1, total);
   for (std::size_t i = 0; i < total; ++i) {
-    const auto r = static_cast<Eigen::Index>(i);
-    sys.a(r, ma + mv) = DegToRad(acc[i]);
-    sys.b(r) = tq[i];
+    const double acc_rad = DegToRad(acc[i]);
+    design.AddRow(angle[i], vel[i], std::span(&acc_rad, 1), std::span(&tq[i], 1));
   }
-  const LeastSquaresSolution sol =
-      SolveTruncatedSvd(std::move(sys.a), sys.b, options.relative_tolerance);
+  const LeastSquaresSolution sol = SolveTruncatedSvd(design.Reduced(0), options.relative_tolerance);
   PassiveParams p = PassiveCurves(sys, sol.c);
   p.inertia_kgm2 = sol.c(ma + mv);
   PassiveResult res;
@@ -545,28 +540,32 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
   if (total < static_cast<std::size_t>(mv + 1)) {
     throw std::invalid_argument(std::string(what) + ": fewer passive samples than parameters");
   }
-  // Eq. 4.35: −τ_pta(θ) = Σ c_k X_k(θ̇) + J·θ̈.
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(total), mv + 1);
-  Eigen::VectorXd b(static_cast<Eigen::Index>(total));
+  // Eq. 4.35: −τ_pta(θ) = Σ c_k X_k(θ̇) + J·θ̈. With J found by output
+  // error, τ_ptv for a fixed J too: Eq. 4.35 with J·θ̈ moved to the right,
+  // X(θ̇)·c = −τ_pta(θ) − J·θ̈; the least-squares solution is linear in the
+  // right-hand side, so τ_ptv(J) = P_b − J·P_a with P_b, P_a the solutions
+  // for −τ_pta(θ) and θ̈.
+  PwlLeastSquares design(bp_v, {}, 1, 1, total);
+  PwlLeastSquares velocity_only(bp_v, {}, 0, options.output_error_inertia ? 2 : 0,
+                                options.output_error_inertia ? total : 0);
+  std::size_t segment = 0;
   for (std::size_t i = 0; i < total; ++i) {
-    const auto r = static_cast<Eigen::Index>(i);
-    SetPwlBasisRow(a, r, 0, bp_v, vel[i]);
-    a(r, mv) = DegToRad(acc[i]);
-    b(r) = -torque_angle(angle[i]);
+    const double acc_rad = DegToRad(acc[i]);
+    const double rhs[2] = {-torque_angle(angle[i], segment), acc_rad};
+    design.AddRow(vel[i], 0.0, std::span(&acc_rad, 1), std::span(rhs, 1));
+    if (options.output_error_inertia) velocity_only.AddRow(vel[i], 0.0, {}, rhs);
   }
-  const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, options.relative_tolerance);
+  const LeastSquaresSolution sol = SolveTruncatedSvd(design.Reduced(0), options.relative_tolerance);
   PassiveParams p;
   p.torque_angle = torque_angle;
   p.torque_velocity = PiecewiseLinear(bp_v, std::vector<double>(sol.c.data(), sol.c.data() + mv));
   p.inertia_kgm2 = sol.c(mv);
   PassiveResult res;
   if (options.output_error_inertia) {
-    // τ_ptv for a fixed J: Eq. 4.35 with J·θ̈ moved to the left. The
-    // least-squares solution is linear in the right-hand side b − J·θ̈, so
-    // τ_ptv(J) = P_b − J·P_a with P_b, P_a solved once.
-    const Eigen::MatrixXd av = a.leftCols(mv);
-    const Eigen::VectorXd c_b = SolveTruncatedSvd(av, b, options.relative_tolerance).c;
-    const Eigen::VectorXd c_a = SolveTruncatedSvd(av, a.col(mv), options.relative_tolerance).c;
+    const Eigen::VectorXd c_b =
+        SolveTruncatedSvd(velocity_only.Reduced(0), options.relative_tolerance).c;
+    const Eigen::VectorXd c_a =
+        SolveTruncatedSvd(velocity_only.Reduced(1), options.relative_tolerance).c;
     const auto ptv_for = [&](double j) {
       const Eigen::VectorXd c = c_b - j * c_a;
       return PiecewiseLinear(bp_v, std::vector<double>(c.data(), c.data() + mv));
@@ -697,11 +696,13 @@ PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, 
     }
   }
   // §7.4.1 with Eq. 4.35: −J·θ̈ = τ_pta(θ) + τ_ptv(θ̇), θ̈ in rad/s².
-  PassiveSystem sys = MakePassiveSystem(what, th, vel, angle, velocity, 0);
+  const PassiveSystem sys = MakePassiveSystem(what, th, vel, angle, velocity, 0);
+  PwlLeastSquares design(sys.bp_a, sys.bp_v, 0, 1, th.size());
   for (std::size_t i = 0; i < th.size(); ++i) {
-    sys.b(static_cast<Eigen::Index>(i)) = -inertia_kgm2 * DegToRad(acc[i]);
+    const double rhs = -inertia_kgm2 * DegToRad(acc[i]);
+    design.AddRow(th[i], vel[i], {}, std::span(&rhs, 1));
   }
-  const LeastSquaresSolution sol = SolveTruncatedSvd(sys.a, sys.b, relative_tolerance);
+  const LeastSquaresSolution sol = SolveTruncatedSvd(design.Reduced(0), relative_tolerance);
   PassiveParams p = PassiveCurves(sys, sol.c);
   p.inertia_kgm2 = inertia_kgm2;
   PassiveResult res;
