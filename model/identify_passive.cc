@@ -105,41 +105,43 @@ struct SwingCost {
 };
 
 // The segments of a piecewise-linear curve held at its ends (Eq. 4.27),
-// one per interval between breakpoints and one beyond each end (slope 0),
-// so a look-up is two bounds compared and a line: y + s·(x − origin).
-// `base` keeps the curves' own ordinates and slopes; the per-J copies the
-// swing's simulation reads are rewritten from them for each J.
-struct SegmentTable {
-  std::vector<double> lo, hi, origin;  // segment i covers [lo_i, hi_i)
+// one per interval between breakpoints and one beyond each end: segment i
+// of m + 1 is [lower[i], lower[i + 1]) with lower = {NaN, x₀, …, x_{m−1},
+// NaN} (no comparison with NaN holds, so a scan stops at the held ends),
+// and its line is stored as y = c₀ + c₁·x: from x to y one multiply-add,
+// no subtraction of the segment's start (as JointModel's LinePairTable).
+struct SegmentScan {
+  std::vector<double> lower;
 
-  explicit SegmentTable(const std::vector<double>& x) {
-    const std::size_t m = x.size();
-    constexpr double kInf = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i <= m; ++i) {
-      lo.push_back(i == 0 ? -kInf : x[i - 1]);
-      hi.push_back(i == m ? kInf : x[i]);
-      origin.push_back(x[i == 0 ? 0 : i - 1]);
-    }
+  explicit SegmentScan(const std::vector<double>& x) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    lower.reserve(x.size() + 2);
+    lower.push_back(nan);
+    lower.insert(lower.end(), x.begin(), x.end());
+    lower.push_back(nan);
   }
   // The segment of x, the scan started at the last one (a trajectory
   // rarely leaves it). NaN stays where it is and evaluates to NaN.
   [[gnu::always_inline]] std::size_t Find(double x, std::size_t& hint) const {
     std::size_t i = hint;
-    while (x < lo[i]) --i;
-    while (x >= hi[i]) ++i;
+    while (x < lower[i]) --i;
+    while (x >= lower[i + 1]) ++i;
     hint = i;
     return i;
   }
-  // The ordinates and slopes of `curve` per segment (ends held).
-  static void Lines(const PiecewiseLinear& curve, std::vector<double>& y, std::vector<double>& s) {
+  // The lines c₀ + c₁·x of `curve` per segment (ends held).
+  static void Lines(const PiecewiseLinear& curve, std::vector<double>& c0,
+                    std::vector<double>& c1) {
     const std::vector<double>& cx = curve.x();
     const std::vector<double>& cy = curve.y();
     const std::size_t m = cx.size();
-    y.assign(m + 1, 0.0);
-    s.assign(m + 1, 0.0);
-    for (std::size_t i = 0; i <= m; ++i) {
-      y[i] = cy[i == 0 ? 0 : i - 1];
-      if (i > 0 && i < m) s[i] = (cy[i] - cy[i - 1]) / (cx[i] - cx[i - 1]);
+    c0.assign(m + 1, 0.0);
+    c1.assign(m + 1, 0.0);
+    c0[0] = cy[0];
+    c0[m] = cy[m - 1];
+    for (std::size_t i = 1; i < m; ++i) {
+      c1[i] = (cy[i] - cy[i - 1]) / (cx[i] - cx[i - 1]);
+      c0[i] = cy[i - 1] - c1[i] * cx[i - 1];
     }
   }
 };
@@ -160,16 +162,23 @@ class PassiveSwings {
   PassiveSwings(const PiecewiseLinear& tau_pta, const PiecewiseLinear& p_b,
                 const PiecewiseLinear& p_a, std::vector<SwingStretch> stretches)
       : angle_(tau_pta.x()), velocity_(p_b.x()), stretches_(std::move(stretches)) {
-    SegmentTable::Lines(tau_pta, pta_, pta_slope_);
-    SegmentTable::Lines(p_b, pb_, pb_slope_);
-    SegmentTable::Lines(p_a, pa_, pa_slope_);
-    a_ = pta_;
-    a_slope_ = pta_slope_;
-    q_ = pb_;
-    q_slope_ = pb_slope_;
-    g_ = pb_;
-    g_slope_ = pb_slope_;
-    for (const SwingStretch& st : stretches_) samples_ += st.measured_deg.size();
+    SegmentScan::Lines(tau_pta, pta0_, pta1_);
+    SegmentScan::Lines(p_b, pb0_, pb1_);
+    SegmentScan::Lines(p_a, pa0_, pa1_);
+    a_.resize(pta0_.size());
+    v_.resize(pb0_.size());
+    // The RK4 steps between output samples, as SimulateFreeSwing takes
+    // them: equal steps of at most 1 ms from t_{i−1} to t_i (the same for
+    // every J; computed once, no division in the passes).
+    for (const SwingStretch& st : stretches_) {
+      samples_ += st.measured_deg.size();
+      for (std::size_t i = 1; i < st.measured_deg.size(); ++i) {
+        const double t = static_cast<double>(i - 1) / st.rate_hz;
+        const double ti = static_cast<double>(i) / st.rate_hz;
+        const long m = EvenStepCount(ti - t, kStepS);
+        intervals_.push_back({m, (ti - t) / static_cast<double>(m)});
+      }
+    }
   }
 
   std::size_t samples() const { return samples_; }
@@ -180,15 +189,9 @@ class PassiveSwings {
                  double bound = std::numeric_limits<double>::infinity()) {
     const double j = std::exp(u);
     const double k = RadToDeg(1.0 / j);  // N·m → deg/s²
-    for (std::size_t i = 0; i < a_.size(); ++i) {
-      a_[i] = -k * pta_[i];
-      a_slope_[i] = -k * pta_slope_[i];
-    }
-    for (std::size_t i = 0; i < q_.size(); ++i) {
-      q_[i] = k * (j * pa_[i] - pb_[i]);
-      q_slope_[i] = k * (j * pa_slope_[i] - pb_slope_[i]);
-      g_[i] = k * pb_[i];
-      g_slope_[i] = k * pb_slope_[i];
+    for (std::size_t i = 0; i < a_.size(); ++i) a_[i] = {-k * pta0_[i], -k * pta1_[i]};
+    for (std::size_t i = 0; i < v_.size(); ++i) {
+      v_[i] = {k * (j * pa0_[i] - pb0_[i]), k * (j * pa1_[i] - pb1_[i]), k * pb0_[i], k * pb1_[i]};
     }
     return derivative ? Run<true>(bound) : Run<false>(bound);
   }
@@ -196,39 +199,26 @@ class PassiveSwings {
  private:
   static constexpr double kStepS = 1e-3;  // SimulationOptions::step_s
 
+  // A(θ) = a₀ + a₁·θ on an angle segment; Q(θ̇) = q₀ + q₁·θ̇ and
+  // G(θ̇) = g₀ + g₁·θ̇ (below) on a velocity segment.
+  struct AngleLine {
+    double a0, a1;
+  };
+  struct VelocityLine {
+    double q0, q1, g0, g1;
+  };
+
   template <bool kDerivative>
   SwingCost Run(double bound) const {
     std::size_t seg_a = 1, seg_v = 1;
     double cost = 0.0, gradient = 0.0, curvature = 0.0;
+    const Interval* interval = intervals_.data();
     for (const SwingStretch& st : stretches_) {
       double th = st.angle_deg, om = st.velocity_deg_s, dth = 0.0, dom = 0.0;
-      double t = 0.0;
       for (std::size_t i = 0; i < st.measured_deg.size(); ++i) {
-        const double ti = static_cast<double>(i) / st.rate_hz;
-        if (t < ti) {
-          const long m = EvenStepCount(ti - t, kStepS);
-          const double h = (ti - t) / static_cast<double>(m);
-          for (long s = 0; s < m; ++s) {
-            // Rk4Step (integrators.h) on (θ, θ̇) and its tangent.
-            double d1 = 0.0, d2 = 0.0, d3 = 0.0, d4 = 0.0;
-            const double a1 = Accel<kDerivative>(th, om, dth, dom, d1, seg_a, seg_v);
-            const double om2 = om + (0.5 * h) * a1, dom2 = dom + (0.5 * h) * d1;
-            const double a2 = Accel<kDerivative>(th + (0.5 * h) * om, om2, dth + (0.5 * h) * dom,
-                                                 dom2, d2, seg_a, seg_v);
-            const double om3 = om + (0.5 * h) * a2, dom3 = dom + (0.5 * h) * d2;
-            const double a3 = Accel<kDerivative>(th + (0.5 * h) * om2, om3, dth + (0.5 * h) * dom2,
-                                                 dom3, d3, seg_a, seg_v);
-            const double om4 = om + h * a3, dom4 = dom + h * d3;
-            const double a4 =
-                Accel<kDerivative>(th + h * om3, om4, dth + h * dom3, dom4, d4, seg_a, seg_v);
-            th = th + (h / 6.0) * (om + 2.0 * om2 + 2.0 * om3 + om4);
-            om = om + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
-            if constexpr (kDerivative) {
-              dth = dth + (h / 6.0) * (dom + 2.0 * dom2 + 2.0 * dom3 + dom4);
-              dom = dom + (h / 6.0) * (d1 + 2.0 * d2 + 2.0 * d3 + d4);
-            }
-          }
-          t = ti;
+        if (i > 0) {
+          const auto [m, h] = *interval++;
+          for (long s = 0; s < m; ++s) Step<kDerivative>(h, th, om, dth, dom, seg_a, seg_v);
         }
         const double e = th - st.measured_deg[i];
         cost += e * e;
@@ -243,30 +233,72 @@ class PassiveSwings {
     return {cost, 2.0 * gradient, 2.0 * curvature};
   }
 
-  // θ̈ = A(θ) + Q(θ̇) and, with the derivative, its tangent along (dθ, dθ̇)
-  // plus ∂θ̈/∂u = J·∂θ̈/∂J = k·(τ_pta + P_b) = −A + G, G = k·P_b.
+  // One step of Rk4Step (integrators.h) on (θ, θ̇), θ̈ = A(θ) + Q(θ̇), and
+  // with the derivative on its tangent (dθ, dθ̇) = ∂(θ, θ̇)/∂u, whose θ̈
+  // is A′(θ)·dθ + Q′(θ̇)·dθ̇ + ∂θ̈/∂u, ∂θ̈/∂u = J·∂θ̈/∂J =
+  // k·(τ_pta + P_b) = G − A with G = k·P_b. The stages are the classical
+  // ones, θ_k = θ + c_k·θ̇_{k−1} and θ̇_{k+1} = θ̇ + c_{k+1}·θ̈_k, arranged so
+  // that from one stage's velocity to the next's is short: on the
+  // segments' lines θ̇ + c·θ̈(θ_k, θ̇_k) = (θ̇ + c·(a₀ + a₁·θ + q₀)) +
+  // (c·a₁·c_k)·θ̇_{k−1} + (c·q₁)·θ̇_k, each velocity one multiply-add
+  // from the last (the segments are found from θ_k and θ̇_k, predicted
+  // branches). The same map up to rounding.
   template <bool kDerivative>
-  [[gnu::always_inline]] double Accel(double th, double om, double dth, double dom, double& dacc,
-                                      std::size_t& seg_a, std::size_t& seg_v) const {
-    const std::size_t ia = angle_.Find(th, seg_a);
-    const std::size_t iv = velocity_.Find(om, seg_v);
-    const double dxa = th - angle_.origin[ia], dxv = om - velocity_.origin[iv];
-    const double a = a_[ia] + a_slope_[ia] * dxa;
-    const double q = q_[iv] + q_slope_[iv] * dxv;
+  [[gnu::always_inline]] void Step(double h, double& th, double& om, double& dth, double& dom,
+                                   std::size_t& seg_a, std::size_t& seg_v) const {
+    const double hh = 0.5 * h, h6 = h / 6.0;
+    const AngleLine& l1 = a_[angle_.Find(th, seg_a)];
+    const VelocityLine& v1 = v_[velocity_.Find(om, seg_v)];
+    const double a1 = l1.a0 + l1.a1 * th;  // A(θ₁), θ₁ = θ
+    const double acc1 = (a1 + v1.q0) + v1.q1 * om;
+    const double om2 = (hh * (a1 + v1.q0)) + (1.0 + hh * v1.q1) * om;
+
+    const AngleLine& l2 = a_[angle_.Find(th + hh * om, seg_a)];
+    const VelocityLine& v2 = v_[velocity_.Find(om2, seg_v)];
+    const double a2 = (l2.a0 + l2.a1 * th) + (l2.a1 * hh) * om;  // A(θ + (h/2)·θ̇)
+    const double acc2 = (a2 + v2.q0) + v2.q1 * om2;
+    const double om3 = (om + hh * (a2 + v2.q0)) + (hh * v2.q1) * om2;
+
+    const AngleLine& l3 = a_[angle_.Find(th + hh * om2, seg_a)];
+    const VelocityLine& v3 = v_[velocity_.Find(om3, seg_v)];
+    const double a3_base = l3.a0 + l3.a1 * th;  // A(θ₃) = a3_base + a₁·(h/2)·θ̇₂
+    const double a3 = a3_base + (l3.a1 * hh) * om2;
+    const double acc3 = (a3 + v3.q0) + v3.q1 * om3;
+    const double om4 = ((om + h * (a3_base + v3.q0)) + (h * hh * l3.a1) * om2) + (h * v3.q1) * om3;
+
+    const AngleLine& l4 = a_[angle_.Find(th + h * om3, seg_a)];
+    const VelocityLine& v4 = v_[velocity_.Find(om4, seg_v)];
+    const double a4_base = l4.a0 + l4.a1 * th;  // A(θ₄) = a4_base + a₁·h·θ̇₃
+    const double a4 = a4_base + (l4.a1 * h) * om3;
+    const double sum3 = acc1 + 2.0 * acc2 + 2.0 * acc3;
     if constexpr (kDerivative) {
-      const double g = g_[iv] + g_slope_[iv] * dxv;
-      dacc = a_slope_[ia] * dth + q_slope_[iv] * dom + (g - a);
+      const double d1 = l1.a1 * dth + v1.q1 * dom + ((v1.g0 + v1.g1 * om) - a1);
+      const double dom2 = dom + hh * d1;
+      const double d2 = l2.a1 * (dth + hh * dom) + v2.q1 * dom2 + ((v2.g0 + v2.g1 * om2) - a2);
+      const double dom3 = dom + hh * d2;
+      const double d3 = l3.a1 * (dth + hh * dom2) + v3.q1 * dom3 + ((v3.g0 + v3.g1 * om3) - a3);
+      const double dom4 = dom + h * d3;
+      const double d4 = l4.a1 * (dth + h * dom3) + v4.q1 * dom4 + ((v4.g0 + v4.g1 * om4) - a4);
+      dth = dth + h6 * (dom + 2.0 * dom2 + 2.0 * dom3 + dom4);
+      dom = dom + h6 * (d1 + 2.0 * d2 + 2.0 * d3 + d4);
     }
-    return a + q;
+    th = th + h6 * (om + 2.0 * om2 + 2.0 * om3 + om4);
+    om = ((om + h6 * (sum3 + (a4_base + v4.q0))) + (h6 * h * l4.a1) * om3) + (h6 * v4.q1) * om4;
   }
 
-  SegmentTable angle_;     // τ_pta's breakpoints
-  SegmentTable velocity_;  // P_b's and P_a's (the same, Eq. 4.35's)
+  SegmentScan angle_;     // τ_pta's breakpoints
+  SegmentScan velocity_;  // P_b's and P_a's (the same, Eq. 4.35's)
   std::vector<SwingStretch> stretches_;
   std::size_t samples_ = 0;
+  struct Interval {
+    long steps;
+    double h;
+  };
+  std::vector<Interval> intervals_;  // per sample after each stretch's first
   // The curves' own lines, and their per-J θ̈ terms (A, Q, G above).
-  std::vector<double> pta_, pta_slope_, pb_, pb_slope_, pa_, pa_slope_;
-  std::vector<double> a_, a_slope_, q_, q_slope_, g_, g_slope_;
+  std::vector<double> pta0_, pta1_, pb0_, pb1_, pa0_, pa1_;
+  std::vector<AngleLine> a_;
+  std::vector<VelocityLine> v_;
 };
 
 // ln J minimising the stretches' angle error over [lo, hi]: the cost on a
