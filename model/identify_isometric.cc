@@ -329,20 +329,18 @@ double CorrelationDelay(std::span<const double> u, std::span<const double> r, do
     throw std::invalid_argument("CorrelationDelay: need equal non-empty signals, rate > 0");
   }
   const std::size_t n = u.size();
-  std::size_t nfft = 1;
-  while (nfft < 2 * n) nfft *= 2;
-  std::vector<double> ub(nfft, 0.0), rb(nfft, 0.0);
-  std::copy(u.begin(), u.end(), ub.begin());
-  std::copy(r.begin(), r.end(), rb.begin());
-  Eigen::FFT<double> fft;
-  std::vector<std::complex<double>> uf, rf;
-  fft.fwd(uf, ub);
-  fft.fwd(rf, rb);
-  for (std::size_t k = 0; k < uf.size(); ++k) uf[k] = std::conj(uf[k]) * rf[k];
-  std::vector<double> corr;
-  fft.inv(corr, uf);  // corr[lag] = Σ u(τ)·r(τ + lag)  (Eq. 4.5)
   const std::size_t max_lag =
       std::min<std::size_t>(n - 1, static_cast<std::size_t>(std::floor(max_lag_s * rate_hz)));
+  // corr[lag] = Σ u(τ)·r(τ + lag) (Eq. 4.5) at the lags searched only,
+  // summed directly: one pass over u with every lag's sum in τ order (a
+  // stimulation is zero over much of the window and adds nothing there).
+  std::vector<double> corr(max_lag + 1, 0.0);
+  for (std::size_t t = 0; t < n; ++t) {
+    const double ut = u[t];
+    if (ut == 0.0) continue;
+    const std::size_t lags = std::min(max_lag, n - 1 - t);
+    for (std::size_t k = 0; k <= lags; ++k) corr[k] += ut * r[t + k];
+  }
   std::size_t best = 0;
   for (std::size_t k = 1; k <= max_lag; ++k) {
     if (corr[k] > corr[best]) best = k;
