@@ -167,17 +167,16 @@ class PassiveSwings {
     SegmentScan::Lines(p_a, pa0_, pa1_);
     a_.resize(pta0_.size());
     v_.resize(pb0_.size());
+    cells_.resize(a_.size() * v_.size());
     // The RK4 steps between output samples, as SimulateFreeSwing takes
-    // them: equal steps of at most 1 ms from t_{i−1} to t_i (the same for
-    // every J; computed once, no division in the passes).
+    // them: equal steps of at most 1 ms over 1/rate (the same for every
+    // sample of a stretch up to the rounding of t_i − t_{i−1}, and for
+    // every J; computed once).
     for (const SwingStretch& st : stretches_) {
       samples_ += st.measured_deg.size();
-      for (std::size_t i = 1; i < st.measured_deg.size(); ++i) {
-        const double t = static_cast<double>(i - 1) / st.rate_hz;
-        const double ti = static_cast<double>(i) / st.rate_hz;
-        const long m = EvenStepCount(ti - t, kStepS);
-        intervals_.push_back({m, (ti - t) / static_cast<double>(m)});
-      }
+      const double span = 1.0 / st.rate_hz;
+      const long m = EvenStepCount(span, kStepS);
+      steps_.push_back({m, span / static_cast<double>(m)});
     }
   }
 
@@ -193,6 +192,7 @@ class PassiveSwings {
     for (std::size_t i = 0; i < v_.size(); ++i) {
       v_[i] = {k * (j * pa0_[i] - pb0_[i]), k * (j * pa1_[i] - pb1_[i]), k * pb0_[i], k * pb1_[i]};
     }
+    ++pass_;
     return derivative ? Run<true>(bound) : Run<false>(bound);
   }
 
@@ -209,16 +209,29 @@ class PassiveSwings {
   };
 
   template <bool kDerivative>
-  SwingCost Run(double bound) const {
+  SwingCost Run(double bound) {
     std::size_t seg_a = 1, seg_v = 1;
     double cost = 0.0, gradient = 0.0, curvature = 0.0;
-    const Interval* interval = intervals_.data();
-    for (const SwingStretch& st : stretches_) {
+    for (std::size_t k = 0; k < stretches_.size(); ++k) {
+      const SwingStretch& st = stretches_[k];
+      const auto [m, h] = steps_[k];
       double th = st.angle_deg, om = st.velocity_deg_s, dth = 0.0, dom = 0.0;
       for (std::size_t i = 0; i < st.measured_deg.size(); ++i) {
-        if (i > 0) {
-          const auto [m, h] = *interval++;
-          for (long s = 0; s < m; ++s) Step<kDerivative>(h, th, om, dth, dom, seg_a, seg_v);
+        for (long s = 0; i > 0 && s < m; ++s) {
+          // Inside its cell by the margins: the cell's affine step.
+          const CellStep& c = CellAt(angle_.Find(th, seg_a), velocity_.Find(om, seg_v), h);
+          if (th >= c.lo_a && th < c.hi_a && om >= c.lo_v && om < c.hi_v) {
+            if constexpr (kDerivative) {
+              const double dth1 = (c.t00 * th + c.t01 * om + c.t02) + (c.s00 * dth + c.s01 * dom);
+              dom = (c.t10 * th + c.t11 * om + c.t12) + (c.s10 * dth + c.s11 * dom);
+              dth = dth1;
+            }
+            const double th1 = c.s00 * th + c.s01 * om + c.s02;
+            om = c.s10 * th + c.s11 * om + c.s12;
+            th = th1;
+          } else {
+            Step<kDerivative>(h, th, om, dth, dom, seg_a, seg_v);
+          }
         }
         const double e = th - st.measured_deg[i];
         cost += e * e;
@@ -288,13 +301,103 @@ class PassiveSwings {
 
   SegmentScan angle_;     // τ_pta's breakpoints
   SegmentScan velocity_;  // P_b's and P_a's (the same, Eq. 4.35's)
+  // Where A and Q are lines — in a cell, a segment of each — the equation
+  // and its tangent are linear, ż = B·z + b with z = (θ, θ̇, dθ, dθ̇):
+  //   θ̈ = a₁·θ + q₁·θ̇ + (a₀ + q₀),
+  //   dθ̈ = −a₁·θ + g₁·θ̇ + a₁·dθ + q₁·dθ̇ + (g₀ − a₀),
+  // and an RK4 step of it is affine: z′ = R·z + p with
+  // R = Σ_{k≤4} (h·B)^k/k!, p = Σ_{k≤3} (h·B)^k/(k+1)!·(h·b). It is the four
+  // stages' map (up to rounding) while every stage stays in the cell,
+  // which holds when the state is inside it by the margins h·max|θ̇| in θ
+  // and h·max|θ̈| in θ̇ (maxima over the cell; each stage moves θ by c·θ̇_k
+  // and θ̇ by c·θ̈_k, c ≤ h). A step there is two (four with the tangent)
+  // dot products instead of four stages; elsewhere (a stage crossing a
+  // breakpoint, the unbounded end segments) the stages. Per cell, computed
+  // when a pass first enters it.
+  struct CellStep {
+    long pass = -1;
+    double h = 0.0;
+    double lo_a = 0.0, hi_a = 0.0, lo_v = 0.0, hi_v = 0.0;  // the state's box
+    // θ′ = s00·θ + s01·θ̇ + s02, θ̇′ likewise (s1·); dθ′ = t00·θ + t01·θ̇ +
+    // s00·dθ + s01·dθ̇ + t02, dθ̇′ likewise (t1·, s1·).
+    double s00, s01, s02, s10, s11, s12, t00, t01, t02, t10, t11, t12;
+  };
+
+  // 2 × 2 blocks of h·B: B = [M 0; N M], M = [0 1; a₁ q₁], N = [0 0; −a₁ g₁].
+  struct Block {
+    double m00, m01, m10, m11;
+    Block operator*(const Block& o) const {
+      return {m00 * o.m00 + m01 * o.m10, m00 * o.m01 + m01 * o.m11, m10 * o.m00 + m11 * o.m10,
+              m10 * o.m01 + m11 * o.m11};
+    }
+    Block operator+(const Block& o) const {
+      return {m00 + o.m00, m01 + o.m01, m10 + o.m10, m11 + o.m11};
+    }
+    Block operator*(double k) const { return {k * m00, k * m01, k * m10, k * m11}; }
+  };
+
+  const CellStep& CellAt(std::size_t ia, std::size_t iv, double h) {
+    CellStep& c = cells_[ia * v_.size() + iv];
+    if (c.pass == pass_ && c.h == h) return c;
+    c.pass = pass_;
+    c.h = h;
+    const AngleLine& a = a_[ia];
+    const VelocityLine& v = v_[iv];
+    // (h·B)^k = [H^k 0; L_k H^k], L₁ = K, L_{k+1} = K·H^k + H·L_k.
+    const Block hm{0.0, h, h * a.a1, h * v.q1}, hn{0.0, 0.0, -h * a.a1, h * v.g1};
+    const Block h2 = hm * hm, h3 = h2 * hm, h4 = h3 * hm;
+    const Block l2 = hn * hm + hm * hn, l3 = hn * h2 + hm * l2, l4 = hn * h3 + hm * l3;
+    const Block id{1.0, 0.0, 0.0, 1.0};
+    const Block r = id + hm + h2 * 0.5 + h3 * (1.0 / 6.0) + h4 * (1.0 / 24.0);
+    const Block q = hn + l2 * 0.5 + l3 * (1.0 / 6.0) + l4 * (1.0 / 24.0);
+    const Block sp = id + hm * 0.5 + h2 * (1.0 / 6.0) + h3 * (1.0 / 24.0);
+    const Block tp = hn * 0.5 + l2 * (1.0 / 6.0) + l3 * (1.0 / 24.0);
+    // p = [sp 0; tp sp]·h·b, h·b = (0, h·(a₀ + q₀), 0, h·(g₀ − a₀)).
+    const double b1 = h * (a.a0 + v.q0), b3 = h * (v.g0 - a.a0);
+    c.s00 = r.m00, c.s01 = r.m01, c.s02 = sp.m01 * b1;
+    c.s10 = r.m10, c.s11 = r.m11, c.s12 = sp.m11 * b1;
+    c.t00 = q.m00, c.t01 = q.m01, c.t02 = tp.m01 * b1 + sp.m01 * b3;
+    c.t10 = q.m10, c.t11 = q.m11, c.t12 = tp.m11 * b1 + sp.m11 * b3;
+    // The cell [θ_lo, θ_hi) × [θ̇_lo, θ̇_hi) (±∞ at the held ends) and
+    // the margins; an unbounded maximum leaves no box.
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    const auto lower = [](double x) { return std::isnan(x) ? -kInf : x; };
+    const auto upper = [](double x) { return std::isnan(x) ? kInf : x; };
+    const double th_lo = lower(angle_.lower[ia]), th_hi = upper(angle_.lower[ia + 1]);
+    const double om_lo = lower(velocity_.lower[iv]), om_hi = upper(velocity_.lower[iv + 1]);
+    const double om_max = std::max(std::abs(om_lo), std::abs(om_hi));
+    // max |θ̈| over the cell: at a corner (|affine| is convex); a
+    // variable without a term in θ̈ (a held end's slope 0) is left out.
+    double acc_max = 0.0;
+    for (const double th : {th_lo, th_hi}) {
+      for (const double om : {om_lo, om_hi}) {
+        const double acc =
+            (a.a0 + v.q0) + (a.a1 != 0.0 ? a.a1 * th : 0.0) + (v.q1 != 0.0 ? v.q1 * om : 0.0);
+        acc_max = std::max(acc_max, std::isnan(acc) ? kInf : std::abs(acc));
+      }
+    }
+    const double m_th = h * om_max, m_om = h * acc_max;
+    if (!std::isfinite(m_th) || !std::isfinite(m_om)) {
+      c.lo_a = c.lo_v = kInf;
+      c.hi_a = c.hi_v = -kInf;
+    } else {
+      c.lo_a = th_lo + m_th;
+      c.hi_a = th_hi - m_th;
+      c.lo_v = om_lo + m_om;
+      c.hi_v = om_hi - m_om;
+    }
+    return c;
+  }
+
   std::vector<SwingStretch> stretches_;
   std::size_t samples_ = 0;
-  struct Interval {
-    long steps;
+  struct Steps {
+    long count;
     double h;
   };
-  std::vector<Interval> intervals_;  // per sample after each stretch's first
+  std::vector<Steps> steps_;     // per stretch: between two samples
+  std::vector<CellStep> cells_;  // angle segment × velocity segment
+  long pass_ = 0;
   // The curves' own lines, and their per-J θ̈ terms (A, Q, G above).
   std::vector<double> pta0_, pta1_, pb0_, pb1_, pa0_, pa1_;
   std::vector<AngleLine> a_;
