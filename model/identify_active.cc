@@ -23,11 +23,12 @@ std::vector<double> ActiveTorque(const TrialColumns& trial, const PassiveParams&
     throw std::invalid_argument("ActiveTorque: passive curves are empty");
   }
   std::vector<double> out(n);
+  std::size_t segment_v = 0, segment_a = 0;  // the curves' segments along the trial
   for (std::size_t i = 0; i < n; ++i) {
     // Eq. 4.36 (τ_passive) and Eq. 4.38.
     const double passive_nm = passive.inertia_kgm2 * DegToRad(trial.accel_deg_s2[i]) +
-                              passive.torque_velocity(trial.velocity_deg_s[i]) +
-                              passive.torque_angle(trial.angle_deg[i]);
+                              passive.torque_velocity(trial.velocity_deg_s[i], segment_v) +
+                              passive.torque_angle(trial.angle_deg[i], segment_a);
     out[i] = (use_measured_torque ? trial.torque_nm[i] : 0.0) - passive_nm;
   }
   return out;
@@ -97,9 +98,11 @@ ActiveResult IdentifyActive(std::span<const TrialColumns> trials, const PassiveP
   ActiveResult res;
   res.active = NormaliseActive(raw);  // §6.7
   double ss = 0.0;
+  std::size_t segment_a = 0, segment_v = 0;
   for (std::size_t i = 0; i < total; ++i) {
-    const double pred = res.active.torque_scale_nm * act[i] * res.active.torque_angle(angle[i]) *
-                        res.active.torque_velocity(vel[i]);
+    const double pred = res.active.torque_scale_nm * act[i] *
+                        res.active.torque_angle(angle[i], segment_a) *
+                        res.active.torque_velocity(vel[i], segment_v);
     ss += (pred - tau[i]) * (pred - tau[i]);
   }
   res.report.fit_rms["active_log"] =

@@ -372,8 +372,9 @@ void SetPwlBasisRow(Eigen::MatrixXd& a, Eigen::Index row, Eigen::Index col0,
 std::vector<double> BreakpointSupport(std::span<const double> bp, std::span<const double> x) {
   std::vector<double> support(bp.size(), 0.0);
   if (bp.empty()) return support;
+  std::size_t segment = 0;  // the samples' sweep: the scan from the last segment
   for (double xi : x) {
-    const BasisWeights bw = PiecewiseLinear::Basis(bp, xi);
+    const BasisWeights bw = PiecewiseLinear::Basis(bp, xi, segment);
     support[bw.index_lo] += bw.weight_lo;
     if (bp.size() > 1) support[bw.index_lo + 1] += bw.weight_hi;
   }
