@@ -38,31 +38,31 @@ Eigen::VectorXd ColumnScale(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
   return scale;
 }
 
-// Eqs. 4.19–4.26 through the eigendecomposition RᵀR = V·diag(λ)·Vᵀ instead
-// of the SVD of R (a sixth of the Jacobi SVD's time at M = 23): R's
-// singular values are w_j = √λ_j, its right singular vectors V's columns,
-// and g_j/w_j = u_jᵀ·(Qᵀb)/w_j = v_jᵀ·Rᵀ·(Qᵀb)/λ_j, so the truncated
-// solution is c = Σ_kept v_j·(v_jᵀ·Rᵀ·(Qᵀb))/λ_j. Forming RᵀR squares the
-// conditioning: λ_j is resolved only to ~M·ε·λ_max, which cannot tell a
-// singular value of 1e-9·w_max (kept) from a structural zero. So this
-// answers only when the spectrum separates clearly (else returns false
-// and the SVD decides):
+// Eqs. 4.19–4.26 through the eigendecomposition AᵀA = V·diag(λ)·Vᵀ instead
+// of the SVD (a sixth of the Jacobi SVD's time at M = 23, and no QR: with
+// A = Q·R, AᵀA = RᵀR, |A·v| = |R·v| and Aᵀb = Rᵀ·(Qᵀb)): A's singular
+// values are w_j = √λ_j, its right singular vectors V's columns, and
+// g_j/w_j = u_jᵀ·b/w_j = v_jᵀ·Aᵀb/λ_j, so the truncated solution is
+// c = Σ_kept v_j·(v_jᵀ·Aᵀb)/λ_j. Forming AᵀA squares the conditioning: λ_j
+// is resolved only to ~M·ε·λ_max, which cannot tell a singular value of
+// 1e-9·w_max (kept) from a structural zero. So this answers only when the
+// spectrum separates clearly (else returns false and the SVD decides):
 //   - every λ_j ≥ kKeptShare·λ_max, each then relative to ~M·ε/kKeptShare
 //     (≈ 5e-11 at M = 23), kept, well above the truncation;
-//   - the rest span a subspace S on which |R·V_S|_F is below the
+//   - the rest span a subspace S on which |A·V_S|_F is below the
 //     truncation w_j ≤ tolerance·w_max by the factor kMargin: by
 //     Courant–Fischer the SVD's |S| smallest singular values are at most
-//     |R·V_S|₂ ≤ |R·V_S|_F, so the SVD zeroes the same directions.
+//     |A·V_S|₂ ≤ |A·V_S|_F, so the SVD zeroes the same directions.
 // The computed V_S is off the true subspace by ~ε·λ_max/gap; a gap too
-// small to make |R·V_S| that small falls back too.
-bool SolveByGram(const Eigen::MatrixXd& r, const Eigen::VectorXd& qtb, double relative_tolerance,
+// small to make |A·V_S| that small falls back too.
+bool SolveByGram(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, double relative_tolerance,
                  Eigen::VectorXd& c_scaled, int& rank, Eigen::VectorXd& w) {
   constexpr double kKeptShare = 1e-4;  // λ_j/λ_max, i.e. w_j ≥ 0.01·w_max
   constexpr double kMargin = 1e-2;
-  const Eigen::Index m = r.cols();
-  if (r.rows() < m || !(relative_tolerance < kMargin * std::sqrt(kKeptShare))) return false;
+  const Eigen::Index m = a.cols();
+  if (a.rows() < m || !(relative_tolerance < kMargin * std::sqrt(kKeptShare))) return false;
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(m, m);
-  gram.selfadjointView<Eigen::Lower>().rankUpdate(r.transpose());
+  gram.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);  // λ ascending
   if (eig.info() != Eigen::Success) return false;
   const Eigen::VectorXd& lambda = eig.eigenvalues();
@@ -72,16 +72,16 @@ bool SolveByGram(const Eigen::MatrixXd& r, const Eigen::VectorXd& qtb, double re
   while (small < m && lambda(small) < kKeptShare * lambda_max) ++small;
   const double w_max = std::sqrt(lambda_max);
   const auto v_small = eig.eigenvectors().leftCols(small);
-  const Eigen::MatrixXd r_small = r * v_small;
-  if (!(r_small.norm() <= kMargin * relative_tolerance * w_max)) return false;
+  const Eigen::MatrixXd a_small = a * v_small;
+  if (!(a_small.norm() <= kMargin * relative_tolerance * w_max)) return false;
   const auto v_kept = eig.eigenvectors().rightCols(m - small);
-  const Eigen::VectorXd proj = v_kept.transpose() * (r.transpose() * qtb);
+  const Eigen::VectorXd proj = v_kept.transpose() * (a.transpose() * b);
   c_scaled = v_kept * proj.cwiseQuotient(lambda.tail(m - small));
   rank = static_cast<int>(m - small);
-  // Descending, as JacobiSVD's: the kept √λ, then the bounds |R·v_j|.
+  // Descending, as JacobiSVD's: the kept √λ, then the bounds |A·v_j|.
   w.resize(m);
   for (Eigen::Index j = 0; j < m - small; ++j) w(j) = std::sqrt(lambda(m - 1 - j));
-  for (Eigen::Index j = 0; j < small; ++j) w(m - 1 - j) = r_small.col(j).norm();
+  for (Eigen::Index j = 0; j < small; ++j) w(m - 1 - j) = a_small.col(j).norm();
   std::sort(w.data() + (m - small), w.data() + m, std::greater<>());
   return true;
 }
@@ -92,26 +92,28 @@ bool SolveByGram(const Eigen::MatrixXd& r, const Eigen::VectorXd& qtb, double re
 LeastSquaresSolution SolveScaled(Eigen::MatrixXd& a, const Eigen::VectorXd& scale,
                                  const Eigen::VectorXd& b, double relative_tolerance,
                                  double outside_sq, Eigen::Index rows) {
-  const Eigen::Index m = a.cols();
-  // A = Q·R; the singular values of A equal those of R (M×M), so the SVD
-  // of Eq. 4.19 is taken of R and g = U_Rᵀ·(Qᵀ·b) (Eq. 4.23). The QR
-  // overwrites the scaled matrix.
-  Eigen::MatrixXd r;
-  Eigen::VectorXd qtb;
-  if (a.rows() >= m) {
-    Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(a);
-    r = qr.matrixQR().topRows(m).triangularView<Eigen::Upper>();
-    const Eigen::VectorXd full = qr.householderQ().transpose() * b;
-    qtb = full.head(m);
-    // |b|² outside the column space: the rows of Qᵀ·b below M.
-    outside_sq += full.tail(a.rows() - m).squaredNorm();
-  } else {
-    r = a;
-    qtb = b;
-  }
+  LeastSquaresSolution out;
   Eigen::VectorXd c_scaled, w;
-  int rank = 0;
-  if (!SolveByGram(r, qtb, relative_tolerance, c_scaled, rank, w)) {
+  if (SolveByGram(a, b, relative_tolerance, c_scaled, out.rank, w)) {
+    outside_sq += (a * c_scaled - b).squaredNorm();
+  } else {
+    // A = Q·R; the singular values of A equal those of R (M×M), so the
+    // SVD of Eq. 4.19 is taken of R and g = U_Rᵀ·(Qᵀ·b) (Eq. 4.23). The
+    // QR overwrites the scaled matrix.
+    const Eigen::Index m = a.cols();
+    Eigen::MatrixXd r;
+    Eigen::VectorXd qtb;
+    if (a.rows() >= m) {
+      Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(a);
+      r = qr.matrixQR().topRows(m).triangularView<Eigen::Upper>();
+      const Eigen::VectorXd full = qr.householderQ().transpose() * b;
+      qtb = full.head(m);
+      // |b|² outside the column space: the rows of Qᵀ·b below M.
+      outside_sq += full.tail(a.rows() - m).squaredNorm();
+    } else {
+      r = a;
+      qtb = b;
+    }
     Eigen::JacobiSVD<Eigen::MatrixXd> svd(r, Eigen::ComputeThinU | Eigen::ComputeThinV);
     w = svd.singularValues();
     const Eigen::VectorXd g = svd.matrixU().transpose() * qtb;
@@ -120,18 +122,16 @@ LeastSquaresSolution SolveScaled(Eigen::MatrixXd& a, const Eigen::VectorXd& scal
     for (Eigen::Index j = 0; j < w.size(); ++j) {
       if (w(j) > relative_tolerance * w_max) {  // Eqs. 4.25–4.26
         p(j) = g(j) / w(j);
-        ++rank;
+        ++out.rank;
       }
     }
     c_scaled = svd.matrixV() * p;
+    // |A·c − b|² = |R·c_scaled − (Qᵀ·b)_head|² + |(Qᵀ·b)_tail|² (Q
+    // orthogonal): no pass over the N rows again.
+    outside_sq += (r * c_scaled - qtb).squaredNorm();
   }
-  LeastSquaresSolution out;
   out.c = scale.asDiagonal() * c_scaled;  // Eq. 4.24, unscaled
-  out.rank = rank;
-  // |A·c − b|² = |R·c_scaled − (Qᵀ·b)_head|² + |(Qᵀ·b)_tail|² (Q orthogonal):
-  // no pass over the N rows again.
-  out.rms =
-      std::sqrt(((r * c_scaled - qtb).squaredNorm() + outside_sq) / static_cast<double>(rows));
+  out.rms = std::sqrt(outside_sq / static_cast<double>(rows));
   out.singular_values = w;
   return out;
 }

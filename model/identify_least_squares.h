@@ -27,11 +27,11 @@ struct LeastSquaresSolution {
 /// breakpoint the data never visit, or the constant shared by τ_pta and
 /// τ_ptv, §6.5). Columns are scaled to unit norm first; A is reduced by a
 /// Householder QR and the SVD is taken of the small R factor, whose singular
-/// values equal those of A, so the cost is that of the QR. When R's
+/// values equal those of A, so the cost is that of the QR. When A's
 /// spectrum separates clearly (every singular value either ≥ 0.01·w_max or
-/// in a subspace R maps below 1e-2·relative_tolerance·w_max, as a fit's
-/// structural null directions), the SVD is replaced by the
-/// eigendecomposition of RᵀR: the same rank, the solution within ~1e-10
+/// in a subspace A maps below 1e-2·relative_tolerance·w_max, as a fit's
+/// structural null directions), the QR and the SVD are replaced by the
+/// eigendecomposition of AᵀA: the same rank, the solution within ~1e-10
 /// relative, the truncated singular values given as upper bounds.
 /// @param relative_tolerance singular values below this times the largest
 ///   are zeroed (Eq. 4.26); > 0.

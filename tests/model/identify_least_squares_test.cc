@@ -105,7 +105,7 @@ LeastSquaresSolution ReferenceTruncatedSvd(const Eigen::MatrixXd& a, const Eigen
 // The active fit's design (Eq. 4.40): two piecewise-linear bases and a
 // constant, rank deficient by two (each basis sums to the constant), the
 // other singular values within a factor of 4 of each other: the spectrum
-// separates, and the solver takes it through RᵀR's eigendecomposition.
+// separates, and the solver takes it through AᵀA's eigendecomposition.
 // It must give the SVD's rank and, with the null directions zeroed, its
 // solution to 1e-10 (kept λ_j ≥ 1e-4·λ_max: ~5e-11 from the squaring).
 TEST(SolveTruncatedSvd, SeparatedSpectrumMatchesTheSvd) {
@@ -139,9 +139,9 @@ TEST(SolveTruncatedSvd, SeparatedSpectrumMatchesTheSvd) {
 
 // Singular values spread over 1 … 1e-7 (all kept at 1e-10; the columns
 // mixed by a random rotation so that scaling them to unit norm keeps the
-// spread) and one exact null direction: RᵀR cannot resolve the small ones
+// spread) and one exact null direction: AᵀA cannot resolve the small ones
 // (λ ~ 1e-14·λ_max), so the solver must take the SVD; a solution through
-// RᵀR would be off by ~1e-2 here. The SVD of R against the SVD of A:
+// AᵀA would be off by ~1e-2 here. The SVD of R against the SVD of A:
 // ~ε·κ ≈ 1e-9.
 TEST(SolveTruncatedSvd, SpreadSpectrumFallsBackToTheSvd) {
   std::mt19937 rng(5);
