@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "model/identify_least_squares.h"
 #include "model/quality.h"
@@ -22,11 +23,12 @@ std::vector<double> ActiveTorque(const TrialColumns& trial, const PassiveParams&
     throw std::invalid_argument("ActiveTorque: passive curves are empty");
   }
   std::vector<double> out(n);
+  std::size_t segment_v = 0, segment_a = 0;  // the curves' segments along the trial
   for (std::size_t i = 0; i < n; ++i) {
     // Eq. 4.36 (τ_passive) and Eq. 4.38.
     const double passive_nm = passive.inertia_kgm2 * DegToRad(trial.accel_deg_s2[i]) +
-                              passive.torque_velocity(trial.velocity_deg_s[i]) +
-                              passive.torque_angle(trial.angle_deg[i]);
+                              passive.torque_velocity(trial.velocity_deg_s[i], segment_v) +
+                              passive.torque_angle(trial.angle_deg[i], segment_a);
     out[i] = (use_measured_torque ? trial.torque_nm[i] : 0.0) - passive_nm;
   }
   return out;
@@ -61,35 +63,31 @@ ActiveResult IdentifyActive(std::span<const TrialColumns> trials, const PassiveP
   if (total < static_cast<std::size_t>(ma + mv + 1)) {
     throw std::invalid_argument(std::string(what) + ": fewer active samples than parameters");
   }
-  // Eq. 4.40, with the smoothness rows (ActiveOptions::smoothness) below.
+  // Eq. 4.40 (its rows reduced per cell of the two bases as they come,
+  // PwlLeastSquares), with the smoothness rows (ActiveOptions::smoothness)
+  // below.
   const Eigen::Index bends = options.smoothness > 0.0 ? std::max<Eigen::Index>(0, ma - 2) +
                                                             std::max<Eigen::Index>(0, mv - 2)
                                                       : 0;
-  const auto n_rows = static_cast<Eigen::Index>(total);
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n_rows + bends, ma + mv + 1);
-  for (Eigen::Index i = 0; i < n_rows; ++i) {
-    const auto k = static_cast<std::size_t>(i);
-    SetPwlBasisRow(a, i, 0, bp_a, angle[k]);
-    SetPwlBasisRow(a, i, ma, bp_v, vel[k]);
-  }
-  a.col(ma + mv).head(n_rows).setOnes();
-  const auto design = a.topRows(n_rows);
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(n_rows + bends);
+  PwlLeastSquares design(bp_a, bp_v, 1, 1, total);
+  const double one = 1.0;
   for (std::size_t i = 0; i < total; ++i) {
-    b(static_cast<Eigen::Index>(i)) = std::log(tau[i] / act[i]);  // Eq. 4.39
+    const double log_gain = std::log(tau[i] / act[i]);  // Eq. 4.39
+    design.AddRow(angle[i], vel[i], std::span(&one, 1), std::span(&log_gain, 1));
   }
+  ReducedLeastSquares system = design.Reduced(0, bends);
   if (bends > 0) {
     const double w = std::sqrt(options.smoothness * static_cast<double>(total));
-    Eigen::Index row = n_rows;
+    Eigen::Index row = system.a.rows() - bends;
     for (const auto& [first, count] : {std::pair{Eigen::Index{0}, ma}, std::pair{ma, mv}}) {
       for (Eigen::Index j = 1; j + 1 < count; ++j, ++row) {
-        a(row, first + j - 1) = w;
-        a(row, first + j) = -2.0 * w;
-        a(row, first + j + 1) = w;
+        system.a(row, first + j - 1) = w;
+        system.a(row, first + j) = -2.0 * w;
+        system.a(row, first + j + 1) = w;
       }
     }
   }
-  const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, options.relative_tolerance);
+  const LeastSquaresSolution sol = SolveTruncatedSvd(std::move(system), options.relative_tolerance);
   std::vector<double> fata(static_cast<std::size_t>(ma)), fatv(static_cast<std::size_t>(mv));
   for (Eigen::Index j = 0; j < ma; ++j) fata[static_cast<std::size_t>(j)] = std::exp(sol.c(j));
   for (Eigen::Index j = 0; j < mv; ++j) fatv[static_cast<std::size_t>(j)] = std::exp(sol.c(ma + j));
@@ -100,13 +98,15 @@ ActiveResult IdentifyActive(std::span<const TrialColumns> trials, const PassiveP
   ActiveResult res;
   res.active = NormaliseActive(raw);  // §6.7
   double ss = 0.0;
+  std::size_t segment_a = 0, segment_v = 0;
   for (std::size_t i = 0; i < total; ++i) {
-    const double pred = res.active.torque_scale_nm * act[i] * res.active.torque_angle(angle[i]) *
-                        res.active.torque_velocity(vel[i]);
+    const double pred = res.active.torque_scale_nm * act[i] *
+                        res.active.torque_angle(angle[i], segment_a) *
+                        res.active.torque_velocity(vel[i], segment_v);
     ss += (pred - tau[i]) * (pred - tau[i]);
   }
   res.report.fit_rms["active_log"] =
-      std::sqrt((design * sol.c - b.head(n_rows)).squaredNorm() / static_cast<double>(total));
+      std::sqrt(design.ResidualSquared(sol.c, 0) / static_cast<double>(total));
   res.report.fit_rms["active_nm"] = std::sqrt(ss / static_cast<double>(total));
   res.report.values["active_rank"] = sol.rank;
   res.report.values["active_parameters"] = static_cast<double>(ma + mv + 1);

@@ -165,7 +165,8 @@ struct IrcResult {
 IrcResult IdentifyIrc(IrcMethod method, const TrialColumns& trial, const IrcOptions& options = {});
 
 /// The delay s at which Corr(u, r)(lag) = Σ u(τ)·r(τ + lag) is largest over
-/// lags 0..max_lag (Eq. 4.5), computed by FFT and refined by a parabola.
+/// lags 0..max_lag (Eq. 4.5), summed directly at those lags and refined by a
+/// parabola.
 /// @throws std::invalid_argument on empty or unequal inputs or rate <= 0.
 double CorrelationDelay(std::span<const double> u, std::span<const double> r, double rate_hz,
                         double max_lag_s);

@@ -41,15 +41,13 @@ std::vector<double> Gather(std::span<const TrialColumns> trials,
   return out;
 }
 
-// The linear system the passive fits share (Eq. 4.31, Eq. 4.35, §7.4.1):
+// The breakpoints the passive fits share (Eq. 4.31, Eq. 4.35, §7.4.1):
 // [X(θ) | X(θ̇) | extra columns]·c = b over the passive samples, τ_pta and
 // τ_ptv piecewise linear (Eq. 4.30) on breakpoints resolved over the
-// samples. The caller fills the extra columns and b, then solves.
+// samples. The caller adds the rows (PwlLeastSquares) and solves.
 struct PassiveSystem {
   std::vector<double> bp_a, bp_v;
   Eigen::Index ma = 0, mv = 0;
-  Eigen::MatrixXd a;
-  Eigen::VectorXd b;
 };
 
 PassiveSystem MakePassiveSystem(const char* what, std::span<const double> angle,
@@ -63,8 +61,6 @@ PassiveSystem MakePassiveSystem(const char* what, std::span<const double> angle,
   if (angle.size() < static_cast<std::size_t>(sys.ma + sys.mv + extra)) {
     throw std::invalid_argument(std::string(what) + ": fewer passive samples than parameters");
   }
-  sys.a = AngleVelocityDesign(sys.bp_a, angle, sys.bp_v, velocity, extra);
-  sys.b = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(angle.size()));
   return sys;
 }
 
@@ -109,41 +105,43 @@ struct SwingCost {
 };
 
 // The segments of a piecewise-linear curve held at its ends (Eq. 4.27),
-// one per interval between breakpoints and one beyond each end (slope 0),
-// so a look-up is two bounds compared and a line: y + s·(x − origin).
-// `base` keeps the curves' own ordinates and slopes; the per-J copies the
-// swing's simulation reads are rewritten from them for each J.
-struct SegmentTable {
-  std::vector<double> lo, hi, origin;  // segment i covers [lo_i, hi_i)
+// one per interval between breakpoints and one beyond each end: segment i
+// of m + 1 is [lower[i], lower[i + 1]) with lower = {NaN, x₀, …, x_{m−1},
+// NaN} (no comparison with NaN holds, so a scan stops at the held ends),
+// and its line is stored as y = c₀ + c₁·x: from x to y one multiply-add,
+// no subtraction of the segment's start (as JointModel's LinePairTable).
+struct SegmentScan {
+  std::vector<double> lower;
 
-  explicit SegmentTable(const std::vector<double>& x) {
-    const std::size_t m = x.size();
-    constexpr double kInf = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i <= m; ++i) {
-      lo.push_back(i == 0 ? -kInf : x[i - 1]);
-      hi.push_back(i == m ? kInf : x[i]);
-      origin.push_back(x[i == 0 ? 0 : i - 1]);
-    }
+  explicit SegmentScan(const std::vector<double>& x) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    lower.reserve(x.size() + 2);
+    lower.push_back(nan);
+    lower.insert(lower.end(), x.begin(), x.end());
+    lower.push_back(nan);
   }
   // The segment of x, the scan started at the last one (a trajectory
   // rarely leaves it). NaN stays where it is and evaluates to NaN.
   [[gnu::always_inline]] std::size_t Find(double x, std::size_t& hint) const {
     std::size_t i = hint;
-    while (x < lo[i]) --i;
-    while (x >= hi[i]) ++i;
+    while (x < lower[i]) --i;
+    while (x >= lower[i + 1]) ++i;
     hint = i;
     return i;
   }
-  // The ordinates and slopes of `curve` per segment (ends held).
-  static void Lines(const PiecewiseLinear& curve, std::vector<double>& y, std::vector<double>& s) {
+  // The lines c₀ + c₁·x of `curve` per segment (ends held).
+  static void Lines(const PiecewiseLinear& curve, std::vector<double>& c0,
+                    std::vector<double>& c1) {
     const std::vector<double>& cx = curve.x();
     const std::vector<double>& cy = curve.y();
     const std::size_t m = cx.size();
-    y.assign(m + 1, 0.0);
-    s.assign(m + 1, 0.0);
-    for (std::size_t i = 0; i <= m; ++i) {
-      y[i] = cy[i == 0 ? 0 : i - 1];
-      if (i > 0 && i < m) s[i] = (cy[i] - cy[i - 1]) / (cx[i] - cx[i - 1]);
+    c0.assign(m + 1, 0.0);
+    c1.assign(m + 1, 0.0);
+    c0[0] = cy[0];
+    c0[m] = cy[m - 1];
+    for (std::size_t i = 1; i < m; ++i) {
+      c1[i] = (cy[i] - cy[i - 1]) / (cx[i] - cx[i - 1]);
+      c0[i] = cy[i - 1] - c1[i] * cx[i - 1];
     }
   }
 };
@@ -164,16 +162,22 @@ class PassiveSwings {
   PassiveSwings(const PiecewiseLinear& tau_pta, const PiecewiseLinear& p_b,
                 const PiecewiseLinear& p_a, std::vector<SwingStretch> stretches)
       : angle_(tau_pta.x()), velocity_(p_b.x()), stretches_(std::move(stretches)) {
-    SegmentTable::Lines(tau_pta, pta_, pta_slope_);
-    SegmentTable::Lines(p_b, pb_, pb_slope_);
-    SegmentTable::Lines(p_a, pa_, pa_slope_);
-    a_ = pta_;
-    a_slope_ = pta_slope_;
-    q_ = pb_;
-    q_slope_ = pb_slope_;
-    g_ = pb_;
-    g_slope_ = pb_slope_;
-    for (const SwingStretch& st : stretches_) samples_ += st.measured_deg.size();
+    SegmentScan::Lines(tau_pta, pta0_, pta1_);
+    SegmentScan::Lines(p_b, pb0_, pb1_);
+    SegmentScan::Lines(p_a, pa0_, pa1_);
+    a_.resize(pta0_.size());
+    v_.resize(pb0_.size());
+    cells_.resize(a_.size() * v_.size());
+    // The RK4 steps between output samples, as SimulateFreeSwing takes
+    // them: equal steps of at most 1 ms over 1/rate (the same for every
+    // sample of a stretch up to the rounding of t_i − t_{i−1}, and for
+    // every J; computed once).
+    for (const SwingStretch& st : stretches_) {
+      samples_ += st.measured_deg.size();
+      const double span = 1.0 / st.rate_hz;
+      const long m = EvenStepCount(span, kStepS);
+      steps_.push_back({m, span / static_cast<double>(m)});
+    }
   }
 
   std::size_t samples() const { return samples_; }
@@ -184,55 +188,50 @@ class PassiveSwings {
                  double bound = std::numeric_limits<double>::infinity()) {
     const double j = std::exp(u);
     const double k = RadToDeg(1.0 / j);  // N·m → deg/s²
-    for (std::size_t i = 0; i < a_.size(); ++i) {
-      a_[i] = -k * pta_[i];
-      a_slope_[i] = -k * pta_slope_[i];
+    for (std::size_t i = 0; i < a_.size(); ++i) a_[i] = {-k * pta0_[i], -k * pta1_[i]};
+    for (std::size_t i = 0; i < v_.size(); ++i) {
+      v_[i] = {k * (j * pa0_[i] - pb0_[i]), k * (j * pa1_[i] - pb1_[i]), k * pb0_[i], k * pb1_[i]};
     }
-    for (std::size_t i = 0; i < q_.size(); ++i) {
-      q_[i] = k * (j * pa_[i] - pb_[i]);
-      q_slope_[i] = k * (j * pa_slope_[i] - pb_slope_[i]);
-      g_[i] = k * pb_[i];
-      g_slope_[i] = k * pb_slope_[i];
-    }
+    ++pass_;
     return derivative ? Run<true>(bound) : Run<false>(bound);
   }
 
  private:
   static constexpr double kStepS = 1e-3;  // SimulationOptions::step_s
 
+  // A(θ) = a₀ + a₁·θ on an angle segment; Q(θ̇) = q₀ + q₁·θ̇ and
+  // G(θ̇) = g₀ + g₁·θ̇ (below) on a velocity segment.
+  struct AngleLine {
+    double a0, a1;
+  };
+  struct VelocityLine {
+    double q0, q1, g0, g1;
+  };
+
   template <bool kDerivative>
-  SwingCost Run(double bound) const {
+  SwingCost Run(double bound) {
     std::size_t seg_a = 1, seg_v = 1;
     double cost = 0.0, gradient = 0.0, curvature = 0.0;
-    for (const SwingStretch& st : stretches_) {
+    for (std::size_t k = 0; k < stretches_.size(); ++k) {
+      const SwingStretch& st = stretches_[k];
+      const auto [m, h] = steps_[k];
       double th = st.angle_deg, om = st.velocity_deg_s, dth = 0.0, dom = 0.0;
-      double t = 0.0;
       for (std::size_t i = 0; i < st.measured_deg.size(); ++i) {
-        const double ti = static_cast<double>(i) / st.rate_hz;
-        if (t < ti) {
-          const long m = EvenStepCount(ti - t, kStepS);
-          const double h = (ti - t) / static_cast<double>(m);
-          for (long s = 0; s < m; ++s) {
-            // Rk4Step (integrators.h) on (θ, θ̇) and its tangent.
-            double d1 = 0.0, d2 = 0.0, d3 = 0.0, d4 = 0.0;
-            const double a1 = Accel<kDerivative>(th, om, dth, dom, d1, seg_a, seg_v);
-            const double om2 = om + (0.5 * h) * a1, dom2 = dom + (0.5 * h) * d1;
-            const double a2 = Accel<kDerivative>(th + (0.5 * h) * om, om2, dth + (0.5 * h) * dom,
-                                                 dom2, d2, seg_a, seg_v);
-            const double om3 = om + (0.5 * h) * a2, dom3 = dom + (0.5 * h) * d2;
-            const double a3 = Accel<kDerivative>(th + (0.5 * h) * om2, om3, dth + (0.5 * h) * dom2,
-                                                 dom3, d3, seg_a, seg_v);
-            const double om4 = om + h * a3, dom4 = dom + h * d3;
-            const double a4 =
-                Accel<kDerivative>(th + h * om3, om4, dth + h * dom3, dom4, d4, seg_a, seg_v);
-            th = th + (h / 6.0) * (om + 2.0 * om2 + 2.0 * om3 + om4);
-            om = om + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+        for (long s = 0; i > 0 && s < m; ++s) {
+          // Inside its cell by the margins: the cell's affine step.
+          const CellStep& c = CellAt(angle_.Find(th, seg_a), velocity_.Find(om, seg_v), h);
+          if (th >= c.lo_a && th < c.hi_a && om >= c.lo_v && om < c.hi_v) {
             if constexpr (kDerivative) {
-              dth = dth + (h / 6.0) * (dom + 2.0 * dom2 + 2.0 * dom3 + dom4);
-              dom = dom + (h / 6.0) * (d1 + 2.0 * d2 + 2.0 * d3 + d4);
+              const double dth1 = (c.t00 * th + c.t01 * om + c.t02) + (c.s00 * dth + c.s01 * dom);
+              dom = (c.t10 * th + c.t11 * om + c.t12) + (c.s10 * dth + c.s11 * dom);
+              dth = dth1;
             }
+            const double th1 = c.s00 * th + c.s01 * om + c.s02;
+            om = c.s10 * th + c.s11 * om + c.s12;
+            th = th1;
+          } else {
+            Step<kDerivative>(h, th, om, dth, dom, seg_a, seg_v);
           }
-          t = ti;
         }
         const double e = th - st.measured_deg[i];
         cost += e * e;
@@ -247,30 +246,162 @@ class PassiveSwings {
     return {cost, 2.0 * gradient, 2.0 * curvature};
   }
 
-  // θ̈ = A(θ) + Q(θ̇) and, with the derivative, its tangent along (dθ, dθ̇)
-  // plus ∂θ̈/∂u = J·∂θ̈/∂J = k·(τ_pta + P_b) = −A + G, G = k·P_b.
+  // One step of Rk4Step (integrators.h) on (θ, θ̇), θ̈ = A(θ) + Q(θ̇), and
+  // with the derivative on its tangent (dθ, dθ̇) = ∂(θ, θ̇)/∂u, whose θ̈
+  // is A′(θ)·dθ + Q′(θ̇)·dθ̇ + ∂θ̈/∂u, ∂θ̈/∂u = J·∂θ̈/∂J =
+  // k·(τ_pta + P_b) = G − A with G = k·P_b. The stages are the classical
+  // ones, θ_k = θ + c_k·θ̇_{k−1} and θ̇_{k+1} = θ̇ + c_{k+1}·θ̈_k, arranged so
+  // that from one stage's velocity to the next's is short: on the
+  // segments' lines θ̇ + c·θ̈(θ_k, θ̇_k) = (θ̇ + c·(a₀ + a₁·θ + q₀)) +
+  // (c·a₁·c_k)·θ̇_{k−1} + (c·q₁)·θ̇_k, each velocity one multiply-add
+  // from the last (the segments are found from θ_k and θ̇_k, predicted
+  // branches). The same map up to rounding.
   template <bool kDerivative>
-  [[gnu::always_inline]] double Accel(double th, double om, double dth, double dom, double& dacc,
-                                      std::size_t& seg_a, std::size_t& seg_v) const {
-    const std::size_t ia = angle_.Find(th, seg_a);
-    const std::size_t iv = velocity_.Find(om, seg_v);
-    const double dxa = th - angle_.origin[ia], dxv = om - velocity_.origin[iv];
-    const double a = a_[ia] + a_slope_[ia] * dxa;
-    const double q = q_[iv] + q_slope_[iv] * dxv;
+  [[gnu::always_inline]] void Step(double h, double& th, double& om, double& dth, double& dom,
+                                   std::size_t& seg_a, std::size_t& seg_v) const {
+    const double hh = 0.5 * h, h6 = h / 6.0;
+    const AngleLine& l1 = a_[angle_.Find(th, seg_a)];
+    const VelocityLine& v1 = v_[velocity_.Find(om, seg_v)];
+    const double a1 = l1.a0 + l1.a1 * th;  // A(θ₁), θ₁ = θ
+    const double acc1 = (a1 + v1.q0) + v1.q1 * om;
+    const double om2 = (hh * (a1 + v1.q0)) + (1.0 + hh * v1.q1) * om;
+
+    const AngleLine& l2 = a_[angle_.Find(th + hh * om, seg_a)];
+    const VelocityLine& v2 = v_[velocity_.Find(om2, seg_v)];
+    const double a2 = (l2.a0 + l2.a1 * th) + (l2.a1 * hh) * om;  // A(θ + (h/2)·θ̇)
+    const double acc2 = (a2 + v2.q0) + v2.q1 * om2;
+    const double om3 = (om + hh * (a2 + v2.q0)) + (hh * v2.q1) * om2;
+
+    const AngleLine& l3 = a_[angle_.Find(th + hh * om2, seg_a)];
+    const VelocityLine& v3 = v_[velocity_.Find(om3, seg_v)];
+    const double a3_base = l3.a0 + l3.a1 * th;  // A(θ₃) = a3_base + a₁·(h/2)·θ̇₂
+    const double a3 = a3_base + (l3.a1 * hh) * om2;
+    const double acc3 = (a3 + v3.q0) + v3.q1 * om3;
+    const double om4 = ((om + h * (a3_base + v3.q0)) + (h * hh * l3.a1) * om2) + (h * v3.q1) * om3;
+
+    const AngleLine& l4 = a_[angle_.Find(th + h * om3, seg_a)];
+    const VelocityLine& v4 = v_[velocity_.Find(om4, seg_v)];
+    const double a4_base = l4.a0 + l4.a1 * th;  // A(θ₄) = a4_base + a₁·h·θ̇₃
+    const double a4 = a4_base + (l4.a1 * h) * om3;
+    const double sum3 = acc1 + 2.0 * acc2 + 2.0 * acc3;
     if constexpr (kDerivative) {
-      const double g = g_[iv] + g_slope_[iv] * dxv;
-      dacc = a_slope_[ia] * dth + q_slope_[iv] * dom + (g - a);
+      const double d1 = l1.a1 * dth + v1.q1 * dom + ((v1.g0 + v1.g1 * om) - a1);
+      const double dom2 = dom + hh * d1;
+      const double d2 = l2.a1 * (dth + hh * dom) + v2.q1 * dom2 + ((v2.g0 + v2.g1 * om2) - a2);
+      const double dom3 = dom + hh * d2;
+      const double d3 = l3.a1 * (dth + hh * dom2) + v3.q1 * dom3 + ((v3.g0 + v3.g1 * om3) - a3);
+      const double dom4 = dom + h * d3;
+      const double d4 = l4.a1 * (dth + h * dom3) + v4.q1 * dom4 + ((v4.g0 + v4.g1 * om4) - a4);
+      dth = dth + h6 * (dom + 2.0 * dom2 + 2.0 * dom3 + dom4);
+      dom = dom + h6 * (d1 + 2.0 * d2 + 2.0 * d3 + d4);
     }
-    return a + q;
+    th = th + h6 * (om + 2.0 * om2 + 2.0 * om3 + om4);
+    om = ((om + h6 * (sum3 + (a4_base + v4.q0))) + (h6 * h * l4.a1) * om3) + (h6 * v4.q1) * om4;
   }
 
-  SegmentTable angle_;     // τ_pta's breakpoints
-  SegmentTable velocity_;  // P_b's and P_a's (the same, Eq. 4.35's)
+  SegmentScan angle_;     // τ_pta's breakpoints
+  SegmentScan velocity_;  // P_b's and P_a's (the same, Eq. 4.35's)
+  // Where A and Q are lines — in a cell, a segment of each — the equation
+  // and its tangent are linear, ż = B·z + b with z = (θ, θ̇, dθ, dθ̇):
+  //   θ̈ = a₁·θ + q₁·θ̇ + (a₀ + q₀),
+  //   dθ̈ = −a₁·θ + g₁·θ̇ + a₁·dθ + q₁·dθ̇ + (g₀ − a₀),
+  // and an RK4 step of it is affine: z′ = R·z + p with
+  // R = Σ_{k≤4} (h·B)^k/k!, p = Σ_{k≤3} (h·B)^k/(k+1)!·(h·b). It is the four
+  // stages' map (up to rounding) while every stage stays in the cell,
+  // which holds when the state is inside it by the margins h·max|θ̇| in θ
+  // and h·max|θ̈| in θ̇ (maxima over the cell; each stage moves θ by c·θ̇_k
+  // and θ̇ by c·θ̈_k, c ≤ h). A step there is two (four with the tangent)
+  // dot products instead of four stages; elsewhere (a stage crossing a
+  // breakpoint, the unbounded end segments) the stages. Per cell, computed
+  // when a pass first enters it.
+  struct CellStep {
+    long pass = -1;
+    double h = 0.0;
+    double lo_a = 0.0, hi_a = 0.0, lo_v = 0.0, hi_v = 0.0;  // the state's box
+    // θ′ = s00·θ + s01·θ̇ + s02, θ̇′ likewise (s1·); dθ′ = t00·θ + t01·θ̇ +
+    // s00·dθ + s01·dθ̇ + t02, dθ̇′ likewise (t1·, s1·).
+    double s00, s01, s02, s10, s11, s12, t00, t01, t02, t10, t11, t12;
+  };
+
+  // 2 × 2 blocks of h·B: B = [M 0; N M], M = [0 1; a₁ q₁], N = [0 0; −a₁ g₁].
+  struct Block {
+    double m00, m01, m10, m11;
+    Block operator*(const Block& o) const {
+      return {m00 * o.m00 + m01 * o.m10, m00 * o.m01 + m01 * o.m11, m10 * o.m00 + m11 * o.m10,
+              m10 * o.m01 + m11 * o.m11};
+    }
+    Block operator+(const Block& o) const {
+      return {m00 + o.m00, m01 + o.m01, m10 + o.m10, m11 + o.m11};
+    }
+    Block operator*(double k) const { return {k * m00, k * m01, k * m10, k * m11}; }
+  };
+
+  const CellStep& CellAt(std::size_t ia, std::size_t iv, double h) {
+    CellStep& c = cells_[ia * v_.size() + iv];
+    if (c.pass == pass_ && c.h == h) return c;
+    c.pass = pass_;
+    c.h = h;
+    const AngleLine& a = a_[ia];
+    const VelocityLine& v = v_[iv];
+    // (h·B)^k = [H^k 0; L_k H^k], L₁ = K, L_{k+1} = K·H^k + H·L_k.
+    const Block hm{0.0, h, h * a.a1, h * v.q1}, hn{0.0, 0.0, -h * a.a1, h * v.g1};
+    const Block h2 = hm * hm, h3 = h2 * hm, h4 = h3 * hm;
+    const Block l2 = hn * hm + hm * hn, l3 = hn * h2 + hm * l2, l4 = hn * h3 + hm * l3;
+    const Block id{1.0, 0.0, 0.0, 1.0};
+    const Block r = id + hm + h2 * 0.5 + h3 * (1.0 / 6.0) + h4 * (1.0 / 24.0);
+    const Block q = hn + l2 * 0.5 + l3 * (1.0 / 6.0) + l4 * (1.0 / 24.0);
+    const Block sp = id + hm * 0.5 + h2 * (1.0 / 6.0) + h3 * (1.0 / 24.0);
+    const Block tp = hn * 0.5 + l2 * (1.0 / 6.0) + l3 * (1.0 / 24.0);
+    // p = [sp 0; tp sp]·h·b, h·b = (0, h·(a₀ + q₀), 0, h·(g₀ − a₀)).
+    const double b1 = h * (a.a0 + v.q0), b3 = h * (v.g0 - a.a0);
+    c.s00 = r.m00, c.s01 = r.m01, c.s02 = sp.m01 * b1;
+    c.s10 = r.m10, c.s11 = r.m11, c.s12 = sp.m11 * b1;
+    c.t00 = q.m00, c.t01 = q.m01, c.t02 = tp.m01 * b1 + sp.m01 * b3;
+    c.t10 = q.m10, c.t11 = q.m11, c.t12 = tp.m11 * b1 + sp.m11 * b3;
+    // The cell [θ_lo, θ_hi) × [θ̇_lo, θ̇_hi) (±∞ at the held ends) and
+    // the margins; an unbounded maximum leaves no box.
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    const auto lower = [](double x) { return std::isnan(x) ? -kInf : x; };
+    const auto upper = [](double x) { return std::isnan(x) ? kInf : x; };
+    const double th_lo = lower(angle_.lower[ia]), th_hi = upper(angle_.lower[ia + 1]);
+    const double om_lo = lower(velocity_.lower[iv]), om_hi = upper(velocity_.lower[iv + 1]);
+    const double om_max = std::max(std::abs(om_lo), std::abs(om_hi));
+    // max |θ̈| over the cell: at a corner (|affine| is convex); a
+    // variable without a term in θ̈ (a held end's slope 0) is left out.
+    double acc_max = 0.0;
+    for (const double th : {th_lo, th_hi}) {
+      for (const double om : {om_lo, om_hi}) {
+        const double acc =
+            (a.a0 + v.q0) + (a.a1 != 0.0 ? a.a1 * th : 0.0) + (v.q1 != 0.0 ? v.q1 * om : 0.0);
+        acc_max = std::max(acc_max, std::isnan(acc) ? kInf : std::abs(acc));
+      }
+    }
+    const double m_th = h * om_max, m_om = h * acc_max;
+    if (!std::isfinite(m_th) || !std::isfinite(m_om)) {
+      c.lo_a = c.lo_v = kInf;
+      c.hi_a = c.hi_v = -kInf;
+    } else {
+      c.lo_a = th_lo + m_th;
+      c.hi_a = th_hi - m_th;
+      c.lo_v = om_lo + m_om;
+      c.hi_v = om_hi - m_om;
+    }
+    return c;
+  }
+
   std::vector<SwingStretch> stretches_;
   std::size_t samples_ = 0;
+  struct Steps {
+    long count;
+    double h;
+  };
+  std::vector<Steps> steps_;     // per stretch: between two samples
+  std::vector<CellStep> cells_;  // angle segment × velocity segment
+  long pass_ = 0;
   // The curves' own lines, and their per-J θ̈ terms (A, Q, G above).
-  std::vector<double> pta_, pta_slope_, pb_, pb_slope_, pa_, pa_slope_;
-  std::vector<double> a_, a_slope_, q_, q_slope_, g_, g_slope_;
+  std::vector<double> pta0_, pta1_, pb0_, pb1_, pa0_, pa1_;
+  std::vector<AngleLine> a_;
+  std::vector<VelocityLine> v_;
 };
 
 // ln J minimising the stretches' angle error over [lo, hi]: the cost on a
@@ -488,15 +619,14 @@ PassiveResult IdentifyPassiveSimultaneous(std::span<const TrialColumns> trials,
   const auto acc = Gather(trials, rows, &TrialColumns::accel_deg_s2);
   const auto tq = Gather(trials, rows, &TrialColumns::torque_nm);
   // Eq. 4.31: [X(θ) | X(θ̇) | θ̈] · c = τ.
-  PassiveSystem sys = MakePassiveSystem(what, angle, vel, options.angle, options.velocity, 1);
+  const PassiveSystem sys = MakePassiveSystem(what, angle, vel, options.angle, options.velocity, 1);
   const Eigen::Index ma = sys.ma, mv = sys.mv;
+  PwlLeastSquares design(sys.bp_a, sys.bp_v, 1, 1, total);
   for (std::size_t i = 0; i < total; ++i) {
-    const auto r = static_cast<Eigen::Index>(i);
-    sys.a(r, ma + mv) = DegToRad(acc[i]);
-    sys.b(r) = tq[i];
+    const double acc_rad = DegToRad(acc[i]);
+    design.AddRow(angle[i], vel[i], std::span(&acc_rad, 1), std::span(&tq[i], 1));
   }
-  const LeastSquaresSolution sol =
-      SolveTruncatedSvd(std::move(sys.a), sys.b, options.relative_tolerance);
+  const LeastSquaresSolution sol = SolveTruncatedSvd(design.Reduced(0), options.relative_tolerance);
   PassiveParams p = PassiveCurves(sys, sol.c);
   p.inertia_kgm2 = sol.c(ma + mv);
   PassiveResult res;
@@ -545,28 +675,32 @@ PassiveResult IdentifyPassiveFreeSwing(std::span<const TrialColumns> trials,
   if (total < static_cast<std::size_t>(mv + 1)) {
     throw std::invalid_argument(std::string(what) + ": fewer passive samples than parameters");
   }
-  // Eq. 4.35: −τ_pta(θ) = Σ c_k X_k(θ̇) + J·θ̈.
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(total), mv + 1);
-  Eigen::VectorXd b(static_cast<Eigen::Index>(total));
+  // Eq. 4.35: −τ_pta(θ) = Σ c_k X_k(θ̇) + J·θ̈. With J found by output
+  // error, τ_ptv for a fixed J too: Eq. 4.35 with J·θ̈ moved to the right,
+  // X(θ̇)·c = −τ_pta(θ) − J·θ̈; the least-squares solution is linear in the
+  // right-hand side, so τ_ptv(J) = P_b − J·P_a with P_b, P_a the solutions
+  // for −τ_pta(θ) and θ̈.
+  PwlLeastSquares design(bp_v, {}, 1, 1, total);
+  PwlLeastSquares velocity_only(bp_v, {}, 0, options.output_error_inertia ? 2 : 0,
+                                options.output_error_inertia ? total : 0);
+  std::size_t segment = 0;
   for (std::size_t i = 0; i < total; ++i) {
-    const auto r = static_cast<Eigen::Index>(i);
-    SetPwlBasisRow(a, r, 0, bp_v, vel[i]);
-    a(r, mv) = DegToRad(acc[i]);
-    b(r) = -torque_angle(angle[i]);
+    const double acc_rad = DegToRad(acc[i]);
+    const double rhs[2] = {-torque_angle(angle[i], segment), acc_rad};
+    design.AddRow(vel[i], 0.0, std::span(&acc_rad, 1), std::span(rhs, 1));
+    if (options.output_error_inertia) velocity_only.AddRow(vel[i], 0.0, {}, rhs);
   }
-  const LeastSquaresSolution sol = SolveTruncatedSvd(a, b, options.relative_tolerance);
+  const LeastSquaresSolution sol = SolveTruncatedSvd(design.Reduced(0), options.relative_tolerance);
   PassiveParams p;
   p.torque_angle = torque_angle;
   p.torque_velocity = PiecewiseLinear(bp_v, std::vector<double>(sol.c.data(), sol.c.data() + mv));
   p.inertia_kgm2 = sol.c(mv);
   PassiveResult res;
   if (options.output_error_inertia) {
-    // τ_ptv for a fixed J: Eq. 4.35 with J·θ̈ moved to the left. The
-    // least-squares solution is linear in the right-hand side b − J·θ̈, so
-    // τ_ptv(J) = P_b − J·P_a with P_b, P_a solved once.
-    const Eigen::MatrixXd av = a.leftCols(mv);
-    const Eigen::VectorXd c_b = SolveTruncatedSvd(av, b, options.relative_tolerance).c;
-    const Eigen::VectorXd c_a = SolveTruncatedSvd(av, a.col(mv), options.relative_tolerance).c;
+    const Eigen::VectorXd c_b =
+        SolveTruncatedSvd(velocity_only.Reduced(0), options.relative_tolerance).c;
+    const Eigen::VectorXd c_a =
+        SolveTruncatedSvd(velocity_only.Reduced(1), options.relative_tolerance).c;
     const auto ptv_for = [&](double j) {
       const Eigen::VectorXd c = c_b - j * c_a;
       return PiecewiseLinear(bp_v, std::vector<double>(c.data(), c.data() + mv));
@@ -697,11 +831,13 @@ PassiveResult IdentifyPassiveKnownInertia(std::span<const TrialColumns> trials, 
     }
   }
   // §7.4.1 with Eq. 4.35: −J·θ̈ = τ_pta(θ) + τ_ptv(θ̇), θ̈ in rad/s².
-  PassiveSystem sys = MakePassiveSystem(what, th, vel, angle, velocity, 0);
+  const PassiveSystem sys = MakePassiveSystem(what, th, vel, angle, velocity, 0);
+  PwlLeastSquares design(sys.bp_a, sys.bp_v, 0, 1, th.size());
   for (std::size_t i = 0; i < th.size(); ++i) {
-    sys.b(static_cast<Eigen::Index>(i)) = -inertia_kgm2 * DegToRad(acc[i]);
+    const double rhs = -inertia_kgm2 * DegToRad(acc[i]);
+    design.AddRow(th[i], vel[i], {}, std::span(&rhs, 1));
   }
-  const LeastSquaresSolution sol = SolveTruncatedSvd(sys.a, sys.b, relative_tolerance);
+  const LeastSquaresSolution sol = SolveTruncatedSvd(design.Reduced(0), relative_tolerance);
   PassiveParams p = PassiveCurves(sys, sol.c);
   p.inertia_kgm2 = inertia_kgm2;
   PassiveResult res;

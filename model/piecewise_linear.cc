@@ -54,8 +54,27 @@ BasisWeights PiecewiseLinear::Basis(std::span<const double> bp, double x) {
   return {lo, 1.0 - w_hi, w_hi};
 }
 
+BasisWeights PiecewiseLinear::Basis(std::span<const double> bp, double x, std::size_t& segment) {
+  const std::size_t m = bp.size();
+  if (m == 1 || x <= bp.front()) return {0, 1.0, 0.0};
+  if (x >= bp.back()) return {m - 2, 0.0, 1.0};
+  // bp[lo] <= x < bp[lo + 1], the segment the binary search finds.
+  std::size_t lo = std::min(segment, m - 2);
+  while (x < bp[lo]) --lo;
+  while (x >= bp[lo + 1]) ++lo;
+  segment = lo;
+  const double w_hi = (x - bp[lo]) / (bp[lo + 1] - bp[lo]);  // Eq. 4.30
+  return {lo, 1.0 - w_hi, w_hi};
+}
+
 double PiecewiseLinear::operator()(double x) const {
   const BasisWeights b = Basis(x_, x);
+  if (b.weight_hi == 0.0) return y_[b.index_lo];
+  return b.weight_lo * y_[b.index_lo] + b.weight_hi * y_[b.index_lo + 1];
+}
+
+double PiecewiseLinear::operator()(double x, std::size_t& segment) const {
+  const BasisWeights b = Basis(x_, x, segment);
   if (b.weight_hi == 0.0) return y_[b.index_lo];
   return b.weight_lo * y_[b.index_lo] + b.weight_hi * y_[b.index_lo + 1];
 }

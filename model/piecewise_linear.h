@@ -57,6 +57,15 @@ class PiecewiseLinear {
   /// increasing, non-empty; not checked).
   static BasisWeights Basis(std::span<const double> breakpoints, double x);
 
+  /// The same weights, the segment found by a scan from `segment` (0 at
+  /// first, then the index_lo of the last look-up, which it receives)
+  /// instead of a binary search: along a sweep through nearby abscissae
+  /// (a trial's samples) the scan rarely takes a step.
+  static BasisWeights Basis(std::span<const double> breakpoints, double x, std::size_t& segment);
+
+  /// y(x) as operator(), the segment scanned from `segment` as in Basis.
+  double operator()(double x, std::size_t& segment) const;
+
   /// The same breakpoints with every ordinate plus dy.
   PiecewiseLinear Shifted(double dy) const;
   /// The same breakpoints with every ordinate times k.

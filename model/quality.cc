@@ -6,6 +6,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "model/piecewise_linear.h"
+
 namespace fesbench::model {
 namespace {
 
@@ -34,11 +36,12 @@ void CheckEdges(std::span<const double> e, const char* what) {
   }
 }
 
-int Bin(std::span<const double> edges, double x) {
+// The bin of x, edges[b] <= x < edges[b + 1] (the last bin closed), −1
+// outside; found by a scan from `segment`, the last sample's bin
+// (PiecewiseLinear::Basis's segment).
+int Bin(std::span<const double> edges, double x, std::size_t& segment) {
   if (!(x >= edges.front()) || !(x <= edges.back())) return -1;
-  const auto it = std::upper_bound(edges.begin(), edges.end(), x);
-  const int hi = static_cast<int>(it - edges.begin());
-  return std::min(hi - 1, static_cast<int>(edges.size()) - 2);
+  return static_cast<int>(PiecewiseLinear::Basis(edges, x, segment).index_lo);
 }
 
 }  // namespace
@@ -85,9 +88,10 @@ Coverage PhasePlaneCoverage(std::span<const double> angle_deg,
   Coverage c;
   c.cells_total = na * nv;
   c.counts.assign(static_cast<std::size_t>(c.cells_total), 0);
+  std::size_t angle_bin = 0, velocity_bin = 0;
   for (std::size_t i = 0; i < angle_deg.size(); ++i) {
-    const int a = Bin(angle_edges_deg, angle_deg[i]);
-    const int v = Bin(velocity_edges_deg_s, velocity_deg_s[i]);
+    const int a = Bin(angle_edges_deg, angle_deg[i], angle_bin);
+    const int v = Bin(velocity_edges_deg_s, velocity_deg_s[i], velocity_bin);
     if (a >= 0 && v >= 0) ++c.counts[static_cast<std::size_t>(a * nv + v)];
   }
   for (int k : c.counts) c.cells_visited += k >= min_samples ? 1 : 0;

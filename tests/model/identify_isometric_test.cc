@@ -1,5 +1,4 @@
 #include "model/identify_isometric.h"
-#include "model/identify_passive.h"
 
 #include <gtest/gtest.h>
 
@@ -9,6 +8,8 @@
 #include <vector>
 
 #include "model/contraction.h"
+#include "model/grid_golden_search.h"
+#include "model/identify_passive.h"
 #include "model/parameter_set.h"
 #include "model/series_elastic.h"
 #include "model/signal.h"
@@ -51,6 +52,44 @@ TEST(FitTwitchPole, RecoversPoleAndOrderOfExactTwitch) {
   const TwitchFit f2 = FitTwitchPole(t, y, 2, 11.0);
   EXPECT_GT(f2.rms_nm, 100.0 * f3.rms_nm + 1e-6);
   EXPECT_NEAR(PoleFromPeak(3, PeakTime(t, y)), 22.0, 0.02 * 22.0);
+}
+
+// FitTwitchPole's search computes the rms of FitTwitchGain with
+// e^(−a·t) carried from sample to sample (exp every 16th sample and where
+// the step is off the mean): it must find the pole the same search finds
+// with FitTwitchGain itself (GridGoldenSearch, 24 cells, 40 steps over
+// [a₀/4, 4·a₀]), within 1e-7 relative — the cost agrees to ~5e-15, and the
+// golden section resolves a minimum to ~1e-8 at most. Times as the twitch
+// average makes them (differences of a 200 Hz clock 12.3 s in: uniform up
+// to rounding), with noise on the torque, and with a jittered clock (exp
+// at every sample).
+TEST(FitTwitchPole, FindsTheSearchOverFitTwitchGainsRms) {
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  std::uniform_real_distribution<double> jitter(-2e-4, 2e-4);
+  for (const bool jittered : {false, true}) {
+    std::vector<double> t, y;
+    for (int i = 0; i < 180; ++i) {
+      const double t0 = 12.3, ti = (2460.0 + i) / kRate + (jittered && i > 0 ? jitter(rng) : 0.0);
+      t.push_back(ti - t0);
+      y.push_back(30.0 * t.back() * t.back() * std::exp(-22.0 * t.back()) + noise(rng));
+    }
+    for (const int order : {2, 3}) {
+      const double a0 = order == 2 ? 11.0 : 15.0;
+      const auto rms = [&](double log_a) {
+        return FitTwitchGain(t, y, order, std::exp(log_a)).rms_nm;
+      };
+      const GridGoldenResult search =
+          GridGoldenSearch(rms, std::log(a0 / 4.0), std::log(a0 * 4.0), 24, 40);
+      const double x = search.golden.cost < search.grid.cost ? search.golden.x : search.grid.x;
+      const TwitchFit fit = FitTwitchPole(t, y, order, a0);
+      EXPECT_NEAR(fit.pole_per_s, std::exp(x), 1e-7 * std::exp(x))
+          << "order " << order << (jittered ? ", jittered" : "");
+      const TwitchFit at = FitTwitchGain(t, y, order, fit.pole_per_s);
+      EXPECT_EQ(fit.gain, at.gain);
+      EXPECT_EQ(fit.rms_nm, at.rms_nm);
+    }
+  }
 }
 
 TEST(CorrelationDelay, FindsTheShiftOfADelayedSignal) {

@@ -1,10 +1,10 @@
 #include "model/piecewise_linear.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 namespace fesbench::model {
 namespace {
@@ -35,6 +35,29 @@ TEST(PiecewiseLinear, BasisReproducesTheCurveAndSumsToOne) {
                      (b.weight_hi != 0.0 ? b.weight_hi * f.y()[b.index_lo + 1] : 0.0);
     EXPECT_NEAR(y, f(x), 1e-12) << "x = " << x;
   }
+}
+
+// The segment-hinted look-ups give exactly the binary search's weights and
+// values, whatever segment the scan starts from.
+TEST(PiecewiseLinear, HintedLookUpEqualsTheBinarySearch) {
+  const PiecewiseLinear f({-2.0, 0.5, 1.0, 4.0, 4.5}, {3.0, -1.0, 2.0, 5.0, 0.25});
+  std::size_t sweep = 0;
+  for (double x = -3.0; x <= 5.0; x += 0.0137) {
+    for (std::size_t start = 0; start < 6; ++start) {
+      std::size_t segment = start;
+      const BasisWeights h = PiecewiseLinear::Basis(f.x(), x, segment);
+      const BasisWeights b = f.Basis(x);
+      EXPECT_EQ(h.index_lo, b.index_lo) << "x = " << x;
+      EXPECT_EQ(h.weight_lo, b.weight_lo) << "x = " << x;
+      EXPECT_EQ(h.weight_hi, b.weight_hi) << "x = " << x;
+      segment = start;
+      EXPECT_EQ(f(x, segment), f(x)) << "x = " << x;
+    }
+    EXPECT_EQ(f(x, sweep), f(x)) << "x = " << x;
+    EXPECT_EQ(f(-x, sweep), f(-x)) << "x = " << -x;
+  }
+  std::size_t segment = 3;
+  EXPECT_EQ(PiecewiseLinear::Constant(2.0)(7.0, segment), 2.0);
 }
 
 TEST(PiecewiseLinear, ConstantAndUniform) {
