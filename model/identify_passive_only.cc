@@ -13,6 +13,7 @@
 #include "model/extrapolate.h"
 #include "model/identify_passive.h"
 #include "model/identify_rapid.h"
+#include "model/integrators.h"
 #include "model/units.h"
 
 namespace fesbench::model {
@@ -126,11 +127,12 @@ struct Stretch {
 std::vector<Stretch> Stretches(std::span<const TrialColumns> swings, double min_s) {
   std::vector<Stretch> out;
   for (const TrialColumns& tr : swings) {
+    if (tr.size() < 2) continue;
+    const double max_step_s =
+        1.5 * (tr.t_s.back() - tr.t_s.front()) / static_cast<double>(tr.size() - 1);
     std::size_t begin = 0;
     for (std::size_t i = 1; i <= tr.size(); ++i) {
-      const bool gap =
-          i == tr.size() || tr.t_s[i] - tr.t_s[i - 1] > 1.5 * (tr.t_s.back() - tr.t_s.front()) /
-                                                            static_cast<double>(tr.size() - 1);
+      const bool gap = i == tr.size() || tr.t_s[i] - tr.t_s[i - 1] > max_step_s;
       if (!gap) continue;
       if (tr.t_s[i - 1] - tr.t_s[begin] >= min_s) {
         Stretch st;
@@ -149,28 +151,21 @@ std::vector<Stretch> Stretches(std::span<const TrialColumns> swings, double min_
 }
 
 // Simulated minus recorded angle at every sample of every stretch (RK4,
-// steps of at most 2.5 ms between samples); a diverging simulation gives
-// large finite residuals.
+// model/integrators.h, steps of at most 2.5 ms between samples); a
+// diverging simulation gives large finite residuals.
 void OutputResiduals(const PendulumForm& f, std::span<const Stretch> stretches,
                      Eigen::VectorXd& r) {
+  const auto rhs = [&f](double, const Eigen::Vector2d& x) {
+    return Eigen::Vector2d(x(1), f.AccelDegS2(x(0), x(1)));
+  };
   Eigen::Index k = 0;
   for (const Stretch& st : stretches) {
-    double th = st.angle_deg.front(), om = st.velocity_deg_s.front();
+    Eigen::Vector2d x(st.angle_deg.front(), st.velocity_deg_s.front());
     r(k++) = 0.0;
     for (std::size_t i = 1; i < st.t_s.size(); ++i) {
-      const double dt = st.t_s[i] - st.t_s[i - 1];
-      const int steps = std::max(1, static_cast<int>(std::ceil(dt / 2.5e-3)));
-      const double h = dt / steps;
-      for (int s = 0; s < steps; ++s) {
-        const double a1 = f.AccelDegS2(th, om);
-        const double a2 = f.AccelDegS2(th + 0.5 * h * om, om + 0.5 * h * a1);
-        const double a3 = f.AccelDegS2(th + 0.5 * h * (om + 0.5 * h * a1), om + 0.5 * h * a2);
-        const double a4 = f.AccelDegS2(th + h * (om + 0.5 * h * a2), om + h * a3);
-        th += h * (om + h * (a1 + a2 + a3) / 6.0);
-        om += h * (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0;
-      }
-      if (!std::isfinite(th) || std::abs(th) > 1e3) th = 1e3;
-      r(k++) = th - st.angle_deg[i];
+      x = IntegrateRk4(rhs, st.t_s[i - 1], st.t_s[i], x, 2.5e-3);
+      if (!std::isfinite(x(0)) || std::abs(x(0)) > 1e3) x(0) = 1e3;
+      r(k++) = x(0) - st.angle_deg[i];
     }
   }
 }
@@ -304,8 +299,8 @@ PendulumInertia EstimatePendulumInertia(std::span<const TrialColumns> swings,
     PendulumForm held = form;
     held.inertia_kgm2 *= f;
     PendulumForm scaled = held;
-    for (double* torque : {&scaled.offset_nm, &scaled.ext_nm, &scaled.flex_nm,
-                           &scaled.damping_pos, &scaled.damping_neg, &scaled.coulomb_nm}) {
+    for (double* torque : {&scaled.offset_nm, &scaled.ext_nm, &scaled.flex_nm, &scaled.damping_pos,
+                           &scaled.damping_neg, &scaled.coulomb_nm}) {
       *torque *= f;
     }
     const double c = std::min(FitOutputError(held, stretches, samples, kAllButJ, 60).second,
@@ -392,8 +387,10 @@ PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
                   est.profile_rms_low_deg, est.profile_rms_high_deg);
     if (est.determined) {
       inertia = est.inertia_kgm2;
+      out.inertia_source = InertiaSource::kSwings;
     } else if (options.fallback_inertia_kgm2 > 0.0) {
       inertia = options.fallback_inertia_kgm2;
+      out.inertia_source = InertiaSource::kFallback;
       out.report.warnings.push_back(
           std::string("J not determined by the swings (") + figures +
           "): the tissue's stiffness mid-range passes for gravity's; J taken from the fallback");
@@ -417,9 +414,8 @@ PassiveOnlyResult IdentifyPassiveOnly(std::span<const TrialColumns> trials,
 
   // 3. Beyond the visited angles and speeds (model/extrapolate.h), §6.5 reference.
   if (hi - lo >= 5.0) {
-    const PassiveAngleForm form = FitPassiveAngleForm(
-        ps.passive.torque_angle, lo, hi,
-        options.mgl_prior_nm > 0.0 ? options.mgl_prior_nm : options.gravity_moment_nm);
+    const PassiveAngleForm form =
+        FitPassiveAngleForm(ps.passive.torque_angle, lo, hi, options.gravity_moment_nm);
     ps.passive.torque_angle =
         ExtendPassiveAngle(ps.passive.torque_angle, form, lo - options.extend_angle_deg,
                            hi + options.extend_angle_deg);

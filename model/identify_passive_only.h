@@ -129,7 +129,9 @@ struct PassiveOnlyOptions {
   /// J, kg·m² (> 0), given; 0 = estimated from the swings with
   /// gravity_moment_nm (EstimatePendulumInertia).
   double inertia_kgm2 = 0.0;
-  /// m·g·l of the shank, N·m (> 0): the scale of J when it is not given.
+  /// m·g·l of the shank, N·m (> 0; 0 = unknown): the scale of J when it is
+  /// not given, and the gravity term of the extrapolation when the swings
+  /// span under 60° (FitPassiveAngleForm).
   double gravity_moment_nm = 0.0;
   /// J, kg·m², taken when the swings do not determine it
   /// (PendulumInertia::determined; e.g. Eq. 4.13's); 0 = refuse then.
@@ -139,10 +141,7 @@ struct PassiveOnlyOptions {
   /// swing best of 9/15 × 5/9; 9 velocity breakpoints made one fit unstable.
   BreakpointSpec angle{9, {}};
   BreakpointSpec velocity{5, {}};
-  double relative_tolerance = 1e-8;  ///< SVD truncation (Eq. 4.26).
-  /// m·g·l of the shank, N·m, for the gravity term of the extrapolation
-  /// when the swings span under 60° (0 = fit it; FitPassiveAngleForm).
-  double mgl_prior_nm = 0.0;
+  double relative_tolerance = 1e-8;       ///< SVD truncation (Eq. 4.26).
   double extend_angle_deg = 20.0;         ///< τ_pta continued this far beyond the data.
   double extend_velocity_deg_s = 1000.0;  ///< τ_ptv continued to ± this.
   int refine_iterations = 6;              ///< output-error iterations (0 = linear fit only).
@@ -168,9 +167,17 @@ struct PassiveOnlyOptions {
 /// "pendulum_hang_deg", "pendulum_profile_low_deg",
 /// "pendulum_profile_high_deg" and "pendulum_inertia_determined" (1 or 0),
 /// and a warning when the fallback J was taken).
+/// Where IdentifyPassiveOnly's J came from.
+enum class InertiaSource {
+  kGiven,     ///< options.inertia_kgm2.
+  kSwings,    ///< EstimatePendulumInertia, determined.
+  kFallback,  ///< options.fallback_inertia_kgm2 (the swings did not determine J).
+};
+
 struct PassiveOnlyResult {
   ParameterSet parameters;
   IdentifyReport report;
+  InertiaSource inertia_source = InertiaSource::kGiven;
 };
 
 /// Identifies the passive block from unstimulated free swings, each from

@@ -461,7 +461,7 @@ class Fitter {
     }
     model::PassiveOnlyOptions o;
     if (req_.inertia_kgm2) o.inertia_kgm2 = *req_.inertia_kgm2;
-    if (gravity) o.gravity_moment_nm = o.mgl_prior_nm = *gravity;
+    if (gravity) o.gravity_moment_nm = *gravity;
     // Swings that do not determine J (the tissue's mid-range stiffness
     // passing for gravity's) take Eq. 4.13's, when the body measures exist.
     if (ctx_.body_mass_kg && ctx_.leg_length_m) {
@@ -476,9 +476,7 @@ class Fitter {
     const model::PassiveOnlyResult r = model::IdentifyPassiveOnly(trials, o);
     common_.values["inertia_kgm2"] = r.parameters.passive.inertia_kgm2;
     if (gravity) common_.values["gravity_moment_nm"] = *gravity;
-    const auto determined = r.report.values.find("pendulum_inertia_determined");
-    const bool j_identified = !req_.inertia_kgm2 && determined != r.report.values.end() &&
-                              determined->second == 1.0;
+    const bool j_identified = r.inertia_source == model::InertiaSource::kSwings;
     const std::string scale =
         req_.inertia_kgm2 ? "J given"
         : j_identified    ? "J identified from their period with m·g·l " +
