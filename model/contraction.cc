@@ -74,9 +74,7 @@ const ContractionPropagator::Factors& ContractionPropagator::FactorsFor(double d
 }
 
 double ContractionPropagator::OutputAfter(const ContractionState& x, double dt_s) {
-  const auto& c = FactorsFor(dt_s).coeff;
-  if (order_ == 2) return c[0] * x[1] + c[1] * x[0];
-  return c[0] * x[2] + c[1] * x[1] + c[2] * x[0];
+  return OutputAfter(x, StepFor(dt_s));
 }
 
 double PulseWeight(const PiecewiseLinear& irc, double stim_ma, double pulse_rate_hz) {

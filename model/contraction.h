@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <span>
 #include <vector>
 
@@ -86,6 +87,25 @@ class ContractionPropagator {
     y[1] = c[0] * x[1] + c[1] * x[0];
     if (order_ == 3) y[2] = c[0] * x[2] + c[1] * x[1] + c[2] * x[0];
     return y;
+  }
+  /// The steps of h/2 and h (h ≥ 0, not checked) from one exp(), outside
+  /// the cache: e^(−a·h) = (e^(−a·h/2))², the same up to rounding. For a
+  /// step that is not repeated (an interval split by a pulse).
+  struct HalfAndFull {
+    Step half, full;
+  };
+  HalfAndFull StepsFor(double h_s) const {
+    const double ah = pole_per_s_ * h_s, decay_half = std::exp(-0.5 * ah);
+    const double decay = decay_half * decay_half;
+    return {{{decay_half, decay_half * (0.5 * ah), decay_half * (0.125 * ah * ah)}},
+            {{decay, decay * ah, decay * ah * ah / 2.0}}};
+  }
+  /// C·e^(A·dt)·x for a step from StepFor: the output row of Propagate
+  /// alone (the RK4 loop's activation at the half step).
+  double OutputAfter(const ContractionState& x, const Step& step) const {
+    const auto& c = step.coeff;
+    if (order_ == 2) return c[0] * x[1] + c[1] * x[0];
+    return c[0] * x[2] + c[1] * x[1] + c[2] * x[0];
   }
   /// e^(A·dt)·x. dt must be ≥ 0 (not checked: internal hot path).
   ContractionState Propagate(const ContractionState& x, double dt_s) {

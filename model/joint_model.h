@@ -114,15 +114,24 @@ class LinePairTable {
   struct Line {
     double f0 = 0.0, f1 = 0.0, g0 = 0.0, g1 = 0.0;
   };
-  const Line& LineAt(double x, std::size_t& segment) const {
-    // lower_ is {NaN, b₀, …, b_{m−1}, NaN}: no comparison with the NaN ends
-    // holds, so the scans stop at the held segments 0 and m.
-    std::size_t i = segment;
-    while (x < lower_[i]) --i;
-    while (x >= lower_[i + 1]) ++i;
-    segment = i;
-    return lines_[i];
-  }
+  const Line& LineAt(double x, std::size_t& segment) const { return view().LineAt(x, segment); }
+
+  /// The table's arrays, for a loop of look-ups that holds them in
+  /// registers (LineAt through the vectors reloads their data pointers).
+  struct View {
+    const double* lower;
+    const Line* lines;
+    const Line& LineAt(double x, std::size_t& segment) const {
+      // lower is {NaN, b₀, …, b_{m−1}, NaN}: no comparison with the NaN
+      // ends holds, so the scans stop at the held segments 0 and m.
+      std::size_t i = segment;
+      while (x < lower[i]) --i;
+      while (x >= lower[i + 1]) ++i;
+      segment = i;
+      return lines[i];
+    }
+  };
+  View view() const { return {lower_.data(), lines_.data()}; }
 
  private:
   std::vector<double> lower_;  // segment i is [lower_[i], lower_[i + 1])
@@ -196,31 +205,59 @@ class JointModel {
       scaled_velocity_.Evaluate(velocity_deg_s, v, h, segments.velocity);
       return (p + motor_torque_nm * accel_deg_per_nm_ + v) - (activation * g) * h;
     }
-    return ParametricAcceleration(angle_deg, velocity_deg_s, activation, segments,
-                                  motor_torque_nm);
+    return ParametricAcceleration(angle_deg, velocity_deg_s, activation, segments, motor_torque_nm);
   }
 
-  /// One stage of an RK4 step in free swing (τ_motor = 0; has_scaled_tables()
-  /// only): θ̈ at (θ, θ̇), as AccelerationDegS2, and the next stage's
-  /// velocity base + c·θ̈. On θ̇'s segment θ̈ is a line in θ̇,
-  /// θ̈ = D + E·θ̇ with D = P + v₀ − f_stim·G·h₀, E = v₁ − f_stim·G·h₁, so
-  /// base + c·θ̈ = (base + c·D) + (c·E)·θ̇: one multiply-add from θ̇ (the
-  /// state each stage waits for) instead of the whole right-hand side; the
-  /// coefficients wait only for θ, known a stage earlier. The same value
-  /// as base + c·θ̈ up to rounding.
-  struct Stage {
-    double accel_deg_s2;
-    double next_velocity_deg_s;
-  };
-  Stage FreeSwingStage(double angle_deg, double velocity_deg_s, double activation,
-                       double base_deg_s, double c_s, Segments& segments) const {
-    double p = 0.0, g = 0.0;
-    scaled_angle_.Evaluate(angle_deg, p, g, segments.angle);
-    const LinePairTable::Line& l = scaled_velocity_.LineAt(velocity_deg_s, segments.velocity);
-    const double ag = activation * g;
-    const double v = l.f0 + l.f1 * velocity_deg_s, h = l.g0 + l.g1 * velocity_deg_s;
-    const double d = (p + l.f0) - ag * l.g0, e = l.f1 - ag * l.g1;
-    return {(p + v) - ag * h, (base_deg_s + c_s * d) + (c_s * e) * velocity_deg_s};
+  /// One RK4 step of free swing (τ_motor = 0; has_scaled_tables() only)
+  /// from (θ, θ̇) over h, with f_stim a0, a_half, a_end at its start,
+  /// middle and end: Rk4Stages over AccelerationDegS2, arranged for the
+  /// dependency chain a simulation waits on (the same value up to
+  /// rounding). On a stage's cells θ̈ = P(θ) + V(θ̇) − f_stim·G(θ)·H(θ̇) is
+  /// a line in θ̇, D + E·θ̇, so the stage's next velocity base + c·θ̈ is one
+  /// multiply-add from the stage's θ̇; the stage's θ = θ₀ + c'·ω (ω the
+  /// previous stage's velocity) enters G and P as θ₀'s part, known early,
+  /// plus c'·ω times the slope, so D and E wait for ω by two operations
+  /// instead of θ's sum, its line and the product with f_stim. The step's
+  /// θ̇ is ω₄ plus the stage differences, θ̇₀ + (h/6)(k₁ + 2k₂ + 2k₃ + k₄)
+  /// with h·k₁/2 = ω₂ − θ̇₀, h·k₂/2 = ω₃ − θ̇₀, h·k₃ = ω₄ − θ̇₀. Inlined
+  /// into the simulation's loop, with the tables' arrays and the segment
+  /// hints held in registers for the step.
+  [[gnu::always_inline]] void FreeSwingRk4Step(double& angle_deg, double& velocity_deg_s, double h,
+                                               double a0, double a_half, double a_end,
+                                               Segments& segments) const {
+    const double th = angle_deg, om = velocity_deg_s, hh = 0.5 * h;
+    std::size_t sa = segments.angle, sv = segments.velocity;
+    const LinePairTable::View angle = scaled_angle_.view(), velocity = scaled_velocity_.view();
+    // Stage 1 at (θ, θ̇).
+    const LinePairTable::Line& a1 = angle.LineAt(th, sa);
+    const double p1 = a1.f0 + a1.f1 * th;
+    const double x1 = a0 * (a1.g0 + a1.g1 * th);
+    const LinePairTable::Line& v1 = velocity.LineAt(om, sv);
+    const double d1 = (p1 + v1.f0) - x1 * v1.g0, e1 = v1.f1 - x1 * v1.g1;
+    const double om2 = (om + hh * d1) + (hh * e1) * om;
+    // Stage 2 at (θ + h/2·θ̇, ω₂).
+    const double th2 = th + hh * om;
+    const LinePairTable::Line& a2 = angle.LineAt(th2, sa);
+    const LinePairTable::Line& v2 = velocity.LineAt(om2, sv);
+    const double x2 = a_half * (a2.g0 + a2.g1 * th2);
+    const double d2 = (a2.f0 + a2.f1 * th2 + v2.f0) - x2 * v2.g0, e2 = v2.f1 - x2 * v2.g1;
+    const double om3 = (om + hh * d2) + (hh * e2) * om2;
+    // Stage 3 at (θ + h/2·ω₂, ω₃): θ's part and ω₂'s part apart.
+    const LinePairTable::Line& a3 = angle.LineAt(th + hh * om2, sa);
+    const LinePairTable::Line& v3 = velocity.LineAt(om3, sv);
+    const double x3 = a_half * (a3.g0 + a3.g1 * th) + (a_half * a3.g1 * hh) * om2;
+    const double p3 = (a3.f0 + a3.f1 * th + v3.f0) + (a3.f1 * hh) * om2;
+    const double om4 = ((om + h * p3) - (h * v3.g0) * x3) + (h * v3.f1 - (h * v3.g1) * x3) * om3;
+    // Stage 4 at (θ + h·ω₃, ω₄).
+    const LinePairTable::Line& a4 = angle.LineAt(th + h * om3, sa);
+    const LinePairTable::Line& v4 = velocity.LineAt(om4, sv);
+    const double x4 = a_end * (a4.g0 + a4.g1 * th) + (a_end * a4.g1 * h) * om3;
+    const double p4 = (a4.f0 + a4.f1 * th + v4.f0) + (a4.f1 * h) * om3;
+    const double h6 = h / 6.0;
+    const double base = (om2 + 2.0 * om3 - om) * (1.0 / 3.0) + h6 * (p4 - v4.g0 * x4);
+    angle_deg = th + h6 * ((om + 2.0 * om2) + (2.0 * om3 + om4));
+    velocity_deg_s = base + ((1.0 / 3.0) + h6 * (v4.f1 - v4.g1 * x4)) * om4;
+    segments = {sa, sv};
   }
 
  private:

@@ -169,14 +169,12 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
   // the stop; without limits nothing moves.
   const auto stop = [&limits](State& x) {
     if (!limits) return false;
-    if (x.angle < limits->min_angle_deg ||
-        (x.angle == limits->min_angle_deg && x.velocity < 0.0)) {
+    if (x.angle < limits->min_angle_deg || (x.angle == limits->min_angle_deg && x.velocity < 0.0)) {
       x.angle = limits->min_angle_deg;
       x.velocity = std::max(x.velocity, 0.0);
       return true;
     }
-    if (x.angle > limits->max_angle_deg ||
-        (x.angle == limits->max_angle_deg && x.velocity > 0.0)) {
+    if (x.angle > limits->max_angle_deg || (x.angle == limits->max_angle_deg && x.velocity > 0.0)) {
       x.angle = limits->max_angle_deg;
       x.velocity = std::min(x.velocity, 0.0);
       return true;
@@ -185,25 +183,12 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
   };
   const State x0{options.initial_angle_deg, options.initial_velocity_deg_s};
   if (model.has_scaled_tables()) {
-    // Rk4Stages with each stage's next velocity from FreeSwingStage (the
-    // stages' dependency chain through θ̇ one multiply-add long).
+    // Rk4Stages arranged for the stages' dependency chain (FreeSwingRk4Step).
     const auto step = [&model, &segments](const auto& /*rhs*/, const State& x, double /*ts*/,
                                           double h, double a0, double a_half, double a_end) {
-      const double hh = 0.5 * h;
-      const JointModel::Stage s1 =
-          model.FreeSwingStage(x.angle, x.velocity, a0, x.velocity, hh, segments);
-      const double om2 = s1.next_velocity_deg_s;
-      const JointModel::Stage s2 =
-          model.FreeSwingStage(x.angle + hh * x.velocity, om2, a_half, x.velocity, hh, segments);
-      const double om3 = s2.next_velocity_deg_s;
-      const JointModel::Stage s3 =
-          model.FreeSwingStage(x.angle + hh * om2, om3, a_half, x.velocity, h, segments);
-      const double om4 = s3.next_velocity_deg_s;
-      const double sum = s1.accel_deg_s2 + 2.0 * s2.accel_deg_s2 + 2.0 * s3.accel_deg_s2;
-      const JointModel::Stage s4 = model.FreeSwingStage(
-          x.angle + h * om3, om4, a_end, x.velocity + (h / 6.0) * sum, h / 6.0, segments);
-      return State{x.angle + (h / 6.0) * (x.velocity + 2.0 * om2 + 2.0 * om3 + om4),
-                   s4.next_velocity_deg_s};
+      State y = x;
+      model.FreeSwingRk4Step(y.angle, y.velocity, h, a0, a_half, a_end, segments);
+      return y;
     };
     detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
                            options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop,

@@ -182,25 +182,45 @@ void RunPulseDriven(const Rhs& rhs, const Record& record, State x,
     }
   };
   // Advances from t to t_end with no pulse strictly inside.
+  // The chain's factors for the full step and its half, kept apart from
+  // the propagator's two-entry cache, which the shorter steps of the
+  // intervals split by a pulse would otherwise evict at every pulse.
+  const double step_s = settings.step_s;
+  const ContractionPropagator::Step step_half = prop.StepFor(0.5 * step_s);
+  const ContractionPropagator::Step step_full = prop.StepFor(step_s);
+  // An output interval without a pulse (the most of them) is split the
+  // same way every time: its step count and step computed once, so that no
+  // division sits between one interval's last step and the next's first.
+  const double out_span_s = 1.0 / output_rate_hz;
+  const long out_m = EvenStepCount(out_span_s, step_s);
+  const double out_h = out_span_s / static_cast<double>(out_m);
   const auto advance = [&](double t_end) {
     if (settings.kind == IntegratorKind::kRk4) {
-      const long m = EvenStepCount(t_end - t, settings.step_s);
-      const double h = (t_end - t) / static_cast<double>(m);
+      const double span = t_end - t;
+      // Spans within 1e-12 relative of the output period (t_end − t of two
+      // output times differs from it in the last bits) take its steps.
+      const bool out_interval = std::abs(span - out_span_s) <= 1e-12 * out_span_s;
+      const long m = out_interval ? out_m : EvenStepCount(span, step_s);
+      const double h = out_interval ? out_h : span / static_cast<double>(m);
       const double t0 = t;
       // Every step of the interval has the same h: the chain's factors for
-      // h/2 and h are looked up once.
-      const ContractionPropagator::Step half = prop.StepFor(0.5 * h);
-      const ContractionPropagator::Step full = prop.StepFor(h);
+      // h/2 and h are looked up once (within 1e-12 relative, as the cache).
+      const bool regular = std::abs(h - step_s) <= 1e-12 * step_s;
+      const ContractionPropagator::HalfAndFull steps =
+          regular ? ContractionPropagator::HalfAndFull{step_half, step_full} : prop.StepsFor(h);
+      const ContractionPropagator::Step& half = steps.half;
+      const ContractionPropagator::Step& full = steps.full;
+      double a0 = prop.Output(chain);
       for (long k = 0; k < m; ++k) {
         const double ts = t0 + static_cast<double>(k) * h;
         // RK4 samples the input at t, t + h/2 and t + h only: the exact
-        // activation there, once per step.
+        // activation there, once per step (the step's end is the next start).
         const ContractionState c_end = prop.Propagate(chain, full);
-        const double a0 = prop.Output(chain), a_half = prop.Output(prop.Propagate(chain, half)),
-                     a_end = prop.Output(c_end);
+        const double a_half = prop.OutputAfter(chain, half), a_end = prop.Output(c_end);
         x = rk4_step(rhs, x, ts, h, a0, a_half, a_end);
         project(x);
         chain = c_end;
+        a0 = a_end;
       }
       ws.stats.accepted_steps += m;
       ws.stats.rhs_evaluations += 4 * m;

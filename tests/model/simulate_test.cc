@@ -2,12 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
 #include <vector>
 
+#include "model/joint_model.h"
 #include "model/units.h"
 
 namespace fesbench::model {
@@ -135,6 +137,51 @@ TEST(SimulateTest, Rk4AndAdaptiveAgreeOnRandomBinaryFreeSwing) {
   EXPECT_LT(max_diff, 0.01);
   EXPECT_GT(range_hi - range_lo, 20.0);        // the test exercises real motion
   EXPECT_GE(rk4.stats.accepted_steps, 10000);  // 1 kHz plus pulse splits
+}
+
+// SimulateFreeSwing's RK4 (JointModel::FreeSwingRk4Step, the stages
+// arranged for their dependency chain) against Rk4Stages over
+// AccelerationDegS2 through the same RunPulseDriven: the same discrete map
+// up to rounding, over a swing that crosses every table's segments.
+TEST(SimulateTest, ArrangedRk4StepIsRk4Stages) {
+  ParameterSet p = ExampleParameterSet();
+  const PulseTrain pulses = RandomBinaryPulses(10.0, 40.0, 20261128u);
+  SimulationOptions o;
+  o.duration_s = 10.0;
+  o.output_rate_hz = 1000.0;
+  const SimulationResult fast = SimulateFreeSwing(p, pulses, o);
+
+  using Xy = Eigen::Vector2d;  // (θ, θ̇)
+  const JointModel model = JointModel::FromParameters(p);
+  ASSERT_TRUE(model.has_scaled_tables());
+  const auto rhs = [&model](double /*t*/, const Xy& x, double a) {
+    return Xy(x[1], model.AccelerationDegS2(x[0], x[1], a));
+  };
+  std::vector<double> angle(fast.size()), velocity(fast.size());
+  const auto record = [&](std::size_t i, double /*t*/, const Xy& x, double /*a*/) {
+    angle[i] = x[0];
+    velocity[i] = x[1];
+  };
+  IntegratorWorkspace ws;
+  detail::RunPulseDriven(rhs, record, Xy(o.initial_angle_deg, o.initial_velocity_deg_s),
+                         p.contraction, p.irc, pulses, o.pulse_rate_hz, o.output_rate_hz,
+                         fast.size(), {IntegratorKind::kRk4, o.step_s, o.tolerances}, ws);
+  double max_angle = 0.0, max_velocity = 0.0, lo = 1e9, hi = -1e9, v_lo = 1e9, v_hi = -1e9;
+  for (std::size_t i = 0; i < fast.size(); ++i) {
+    max_angle = std::max(max_angle, std::abs(fast.angle_deg[i] - angle[i]));
+    max_velocity = std::max(max_velocity, std::abs(fast.velocity_deg_s[i] - velocity[i]));
+    lo = std::min(lo, angle[i]);
+    hi = std::max(hi, angle[i]);
+    v_lo = std::min(v_lo, velocity[i]);
+    v_hi = std::max(v_hi, velocity[i]);
+  }
+  EXPECT_LT(max_angle, 1e-9);
+  EXPECT_LT(max_velocity, 1e-8);
+  // The swing crosses the angle tables' 10°-spaced breakpoints and the
+  // velocity tables' ±50…±400 deg/s ones.
+  EXPECT_GT(hi - lo, 100.0);
+  EXPECT_LT(v_lo, -400.0);
+  EXPECT_GT(v_hi, 400.0);
 }
 
 TEST(SimulateTest, FreeSwingColumnsSatisfyTheEquationOfMotion) {
@@ -271,8 +318,8 @@ TEST(SimulateTest, StimulusColumnRule) {
 // isolated impulses are not doubled (issue 15), trains stay on their grid.
 TEST(SimulateTest, StimulusColumnRoundTripsThroughPulsesFromEnvelope) {
   SampledSignal env{200.0, 0.0, std::vector<double>(2400, 0.0)};
-  env.values[50] = 40.0;  // impulse off the grid (0.25 s)
-  env.values[800] = 45.0;  // impulse on the grid (4 s)
+  env.values[50] = 40.0;                                            // impulse off the grid (0.25 s)
+  env.values[800] = 45.0;                                           // impulse on the grid (4 s)
   for (int i = 230; i < 530; ++i) env.values[i] = 20.0 + 0.05 * i;  // a ramp burst
   for (int i = 1203; i < 1260; ++i) env.values[i] = 30.0;
   env.values[1500] = 33.0;  // impulse (7.5 s)
