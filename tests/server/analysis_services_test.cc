@@ -205,7 +205,7 @@ TEST_F(AnalysisServicesTest, IdentificationRecoversKnownParametersAndStoresVersi
   auto stored = sets.Get(fit->stored[0].parameter_set_id);
   ASSERT_TRUE(stored.ok()) << stored.status().ToString();
   const model::ParameterSet& est = stored->params;
-  // Issue-3 tolerances (tests/model): pole 2 %, IRC 0.02 away from threshold,
+  // The tolerances of tests/model: pole 2 %, IRC 0.02 away from threshold,
   // passive 0.05 N·m, inertia 1 %.
   EXPECT_NEAR(est.contraction.pole_per_s, 25.0, 0.02 * 25.0);
   double irc_err = 0.0;
