@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The analysis requests as they travel (DESIGN.md §8 `identifications`,
+/// The analysis requests as they travel (docs/API.md, "Jobs": `identifications`,
 /// `predictions`, `comparisons`): one definition for the server that reads
 /// them and the clients (CLI, study) that send them. Every physical
 /// quantity names its unit in its key.

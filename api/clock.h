@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The one clock interface (issue 17; LevelDB's `Env` idea): everything that
+/// The one clock interface (LevelDB's `Env` idea): everything that
 /// reads the time or waits takes an api::Clock*, so a test runs a watchdog,
 /// a pacer, a rate limit or a time stamp on time it controls, and the
 /// server runs them all on Clock::Real().

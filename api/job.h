@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The jobs of the analysis services as they travel (DESIGN.md §8 `jobs`):
+/// The jobs of the analysis services as they travel (docs/API.md, "Jobs"):
 /// their states, the error object every failure carries (HTTP error bodies
 /// and failed jobs alike), and what a client reads of GET /jobs/{id}.
 

@@ -118,7 +118,7 @@ class PathTracker {
   std::size_t values_ = 0;
   std::vector<Frame> frames_;
 };
-// The unit a field name carries as its suffix (STYLE.md: `weight_kg`,
+// The unit a field name carries as its suffix (docs/ARCHITECTURE.md, units: `weight_kg`,
 // `threshold_ma`, `max_stop_impact_deg_s`), "" if none.
 std::string UnitOf(std::string_view key) {
   static constexpr std::pair<std::string_view, std::string_view> kSuffixes[] = {

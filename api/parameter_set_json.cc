@@ -15,7 +15,7 @@ using model::ModelKind;
 using model::PiecewiseLinear;
 using nlohmann::json;
 
-// Which optional parts each model variant evaluates (DESIGN.md §3): a part a
+// Which optional parts each model variant evaluates (docs/MODEL.md, "Model variants"): a part a
 // variant uses is required on input; one it ignores may be omitted.
 struct VariantNeeds {
   bool passive_torque_angle = true;    // PWL τ_pta (parametric uses Eq. 7.3).

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// JSON wire form of the parameter set (DESIGN.md §3). Every key names its
+/// JSON wire form of the parameter set (docs/MODEL.md, "The parameter set"). Every key names its
 /// unit. Reading validates everything and reports the first bad field by its
 /// dotted path (e.g. "passive.torque_angle.angle_deg").
 

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// A protocol as the server lists it (DESIGN.md §5, §8 `protocols`; GET
+/// A protocol as the server lists it (docs/PROTOCOLS.md; docs/API.md; GET
 /// /protocols, GET /protocols/{name}): its identity, what it does with the
 /// bench, and each parameter with its unit, default (resolved for a session
 /// when one is given), limits and how the default follows the subject. One

@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// What a run says about itself on the wire (DESIGN.md §5, §8 `runs`,
-/// `bench`, `runs/{id}/stream`; issue 14 §4): its progress, the safety
+/// What a run says about itself on the wire (docs/PROTOCOLS.md, "Runs";
+/// docs/API.md: `runs`, `bench`, `runs/{id}/stream`): its progress, the safety
 /// events of the bench, live sample batches, the tolerance test's outcome,
 /// the run resource, the bench state and the events of a run's stream. One
 /// definition for the server that writes them (HTTP, SSE, DDS) and the
@@ -75,7 +75,7 @@ struct SampleBatch {
   int trial = -1;  ///< index of the trial within the run.
   std::string trial_name;
   std::vector<double> t_s, stim_ma, angle_deg, torque_nm, accel_m_s2;
-  /// Tracking runs (issue 19): the target and the controller's τ̂_scale.
+  /// Tracking runs (docs/PROTOCOLS.md, `tracking`): the target and the controller's τ̂_scale.
   std::vector<double> target_deg, tau_scale_nm;
 };
 /// {"trial", "trial_name", "t_s", "stim_ma", "angle_deg", "torque_nm",

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The request that starts a run (DESIGN.md §8, POST /sessions/{id}/runs),
+/// The request that starts a run (docs/API.md, "Runs": POST /sessions/{id}/runs),
 /// for the server that reads it and the clients that send it:
 ///   {"protocol": "<name>", "parameters"?: {"<name>": number | "<choice>"},
 ///    "ceiling_reason"?: "<why a tolerance test goes above the recorded max>",

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The one run vocabulary (DESIGN.md §5, issue 14 §4): the states a run
+/// The one run vocabulary (docs/PROTOCOLS.md, "Runs"): the states a run
 /// passes through, used by storage, protocols, services, HTTP, SSE, DDS and
 /// the clients alike.
 ///

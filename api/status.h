@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Expected run-time failures as values (STYLE.md "Errors"): a Status names
+/// Expected run-time failures as values (docs/API.md, "HTTP conventions"): a Status names
 /// what went wrong, with a machine-readable code, a human message and, for
 /// bad input, the offending field. Each boundary translates it exactly once
 /// (e.g. to an HTTP status and `{"error": {...}}` in the server).

@@ -1,15 +1,15 @@
 #pragma once
 
 /// @file
-/// A recorded trial as a wire type (DESIGN.md §5, §7, §8): named channels of
-/// samples with their units, in CSV, OpenSim Storage (.sto) and JSON form.
+/// A recorded trial as a wire type (docs/ARCHITECTURE.md, data path; docs/API.md): named channels
+/// of samples with their units, in CSV, OpenSim Storage (.sto) and JSON form.
 ///
 /// Layout. A trial holds one channel group sampled together at
 /// `sample_rate_hz` (200 Hz on the bench: position, torque, acceleration,
 /// stimulation, activation). Its time base is the channel `t_s`, required,
 /// finite and strictly increasing; every channel of a group has the same
 /// number of samples. Signals recorded at another rate — EMG at 1 kHz
-/// (DESIGN.md §2) — go in the optional second group `emg`, which has its own
+/// (docs/ARCHITECTURE.md, units) — go in the optional second group `emg`, which has its own
 /// `sample_rate_hz` and its own `t_s` channel on the same clock. Nothing is
 /// resampled: identification resamples if and when it needs to. (A 200 Hz
 /// EMG envelope may also live in the main group as `emg_mv`.)
@@ -64,8 +64,8 @@ struct ChannelGroup {
   friend bool operator==(const ChannelGroup&, const ChannelGroup&) = default;
 };
 
-/// The stimulation pulses delivered during a trial (DESIGN.md §3), as the
-/// stimulator read them back: what reached the leg, not what was commanded.
+/// The stimulation pulses delivered during a trial (docs/MODEL.md, "Pulse timing: one rule"), as
+/// the stimulator read them back: what reached the leg, not what was commanded.
 /// Times on the trial's `t_s` axis (the bench's pulse clock restarts at the
 /// trial's t_s = 0, so grid pulses fall on k / pulse_rate_hz). Predictions on
 /// a stored trial replay these pulses. Two parallel columns, like a channel.

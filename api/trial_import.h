@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Recordings made elsewhere, brought in as trials (DESIGN.md §7): a CSV,
+/// Recordings made elsewhere, brought in as trials (docs/API.md, "Importing a recording"): a CSV,
 /// TSV or OpenSim Storage (.sto) table, a declared trial kind (api/trial_kind.h)
 /// and a mapping of its columns onto fesbench channels with the units the
 /// file uses. The result is an ordinary api::Trial, which identification and

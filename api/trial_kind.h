@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The kinds of trial the server knows (DESIGN.md §4, §7): each protocol
+/// The kinds of trial the server knows (docs/MODEL.md, "Identification methods"): each protocol
 /// names the trials it records, identification and prediction select trials
 /// by these names, and an imported recording declares one. A kind is either
 /// an exact name ("free_swing_passive") or a family whose members carry a

@@ -1,4 +1,4 @@
-// Speed of the simulated bench (DESIGN.md §6): bench time per wall time for
+// Speed of the simulated bench (docs/ARCHITECTURE.md, "The benches"): bench time per wall time for
 // the rapid protocol's control loop — 30 s of bench time at 1 kHz control
 // (a set-point and AdvanceTo every 1 ms, sensors read at 200 Hz) must take
 // well under 1 s. The counter `bench_s_per_wall_s` is the speed-up over

@@ -1,5 +1,5 @@
 // DDS sample-block latency and sustained rate between two processes on one
-// host (DESIGN.md §9; issue 7 targets: p99 < 1 ms, 1 kHz with no loss).
+// host (docs/API.md, "DDS"; targets: p99 < 1 ms, 1 kHz with no loss).
 //
 // The program re-executes itself as an echo process (--dds-echo DOMAIN
 // TRANSPORT) that reads fesbench/bench/samples with the server's QoS and

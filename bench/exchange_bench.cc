@@ -1,4 +1,4 @@
-// Data in and out (issue 20): reading a 30 s recording from CSV with unit
+// Data in and out (docs/API.md, "Session archives"): reading a 30 s recording from CSV with unit
 // conversions, laying a bench-like trial out as BIDS files and reading it
 // back, and packing those files as zip and tar.gz.
 

@@ -1,4 +1,4 @@
-// Identification benchmarks (DESIGN.md §4): the simultaneous passive fit
+// Identification benchmarks (docs/MODEL.md, "Identification methods"): the simultaneous passive fit
 // and the active fit on 2,000 samples, the ramp-correlation IRC, the GCV
 // smoothing spline on 2,000 samples, the processing chain of the rapid
 // protocol (§7.4.1: IRC + poles + free-swing passive + active) and the

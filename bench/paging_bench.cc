@@ -1,4 +1,4 @@
-// Paging at scale on both engines (issue 18): the first page and a deep page
+// Paging at scale on both engines (docs/ARCHITECTURE.md, storage): the first page and a deep page
 // (the last full one) of GET /parameter-sets?limit=50 and GET
 // /subjects?limit=50, as the routes ask the repositories (one row more than
 // the page, to know a next page exists), over 1k, 10k, 100k and — with

@@ -1,4 +1,4 @@
-// ScienceMode2 pulse-update latency (issue 21).
+// ScienceMode2 pulse-update latency (README, "A real stimulator").
 // BM_CommandToWire/2 and /4: one StartChannelListMode (ScienceMode2) or
 // Ll_Channel_Config (ScienceMode4) packet encoded and written to the serial
 // port (termios, raw, the device's settings) until its last byte is

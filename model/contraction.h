@@ -2,7 +2,7 @@
 
 /// @file
 /// Linear contraction dynamics of the Hammerstein activation (thesis §3.2,
-/// Fig. 3-6; Eqs. 3.21, 4.1–4.4; DESIGN.md §3):
+/// Fig. 3-6; Eqs. 3.21, 4.1–4.4; docs/MODEL.md):
 ///   H_n(s) = aⁿ / (s + a)ⁿ,  n = 2 or 3, unit DC gain,
 /// realised as a chain of n identical first-order lags
 ///   ẋ₁ = −a·x₁ + a·v,  ẋ_k = −a·x_k + a·x_{k−1} (k = 2..n),  f_stim = x_n,

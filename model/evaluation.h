@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Evaluation statistics of thesis chapter 6 (DESIGN.md §4 "Evaluation"):
+/// Evaluation statistics of thesis chapter 6 (docs/MODEL.md, "Evaluation"):
 /// prediction errors (Eqs. 6.1, 6.2, 6.9, 6.10), the paired t-test that
 /// compares methods across subjects (Eq. 6.3, §6.1.2) and the linearised
 /// passive dynamics of Table 6.4 (§6.9).

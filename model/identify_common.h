@@ -2,7 +2,7 @@
 
 /// @file
 /// Shared types of the identification methods (thesis ch. 4, §5.3–5.4;
-/// DESIGN.md §4): the columns of one recorded trial, breakpoint choices for
+/// docs/MODEL.md): the columns of one recorded trial, breakpoint choices for
 /// piecewise-linear fits, and the report every method returns.
 
 #include <cstddef>
@@ -16,7 +16,7 @@
 namespace fesbench::model {
 
 /// The channels of one trial as plain columns, all sampled at the same
-/// instants t_s (DESIGN.md §2). A column the trial did not record is empty;
+/// instants t_s (docs/ARCHITECTURE.md, units). A column the trial did not record is empty;
 /// each method documents which columns it needs and throws
 /// std::invalid_argument if one is missing or of the wrong length.
 struct TrialColumns {

@@ -117,7 +117,7 @@ struct ContractionResult {
 ContractionResult IdentifyContraction(std::span<const TrialColumns> trials,
                                       const ContractionOptions& options = {});
 
-/// The five IRC methods of §4.1 (DESIGN.md §4).
+/// The five IRC methods of §4.1 (docs/MODEL.md).
 enum class IrcMethod {
   kStep,                       ///< §4.1.1, §5.3.1.
   kImpulse,                    ///< §4.1.2, §5.3.2.

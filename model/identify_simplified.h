@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Fits of the model variants (DESIGN.md §3; thesis §5.5.1, §6.10, §7.3,
+/// Fits of the model variants (docs/MODEL.md, "Model variants"; thesis §5.5.1, §6.10, §7.3,
 /// §7.4.4) from the same free-swing active trial as the full model, with
 /// the passive set (and IRC, contraction) of a base parameter set.
 ///

@@ -23,7 +23,7 @@
 ///     smallest amplitude that recruits f (§4.1), capped at the session's
 ///     maximum;
 ///  5. one pulse per tick of the stimulator's continuous pulse clock
-///     (DESIGN.md §3) with the amplitude at its time.
+///     (docs/MODEL.md, pulse timing) with the amplitude at its time.
 
 #include <cstddef>
 #include <vector>

@@ -2,7 +2,7 @@
 
 /// @file
 /// The muscle–tendon–joint model's static functions (thesis Fig. 3-9,
-/// Eq. 3.16; DESIGN.md §3) for every model variant behind one interface:
+/// Eq. 3.16; docs/MODEL.md) for every model variant behind one interface:
 /// τ_pta(θ), τ_ptv(θ̇), the active gain τ_scale·f_ata(θ)·f_atv(θ̇) and J.
 /// With f_stim from the contraction dynamics the equation of motion is
 ///   J·θ̈ = τ_motor − τ_pta(θ) − τ_ptv(θ̇) − f_stim·ActiveGain(θ, θ̇)

@@ -2,11 +2,11 @@
 
 /// @file
 /// The parameter set of the muscle–tendon–joint model (thesis ch. 3,
-/// Fig. 3-9; DESIGN.md §3): the unit every identification produces and every
+/// Fig. 3-9; docs/MODEL.md): the unit every identification produces and every
 /// prediction consumes. A plain value type: algorithms take it by const
 /// reference and never modify it.
 ///
-/// Conventions (DESIGN.md §2): angle θ in degrees of knee flexion (0 = full
+/// Conventions (docs/ARCHITECTURE.md, units): angle θ in degrees of knee flexion (0 = full
 /// extension), velocity in deg/s, torque in N·m positive in the flexion
 /// direction, stimulation in mA. The quadriceps torque τ_act is an extensor
 /// torque: it enters the equation of motion with a minus sign,
@@ -23,7 +23,7 @@
 
 namespace fesbench::model {
 
-/// Model variants selectable by name (DESIGN.md §3, thesis §5.5.1, §7.3,
+/// Model variants selectable by name (docs/MODEL.md, thesis §5.5.1, §7.3,
 /// §7.4.4).
 enum class ModelKind {
   kFull,                   ///< PWL f_ata(θ), PWL f_atv(θ̇) (Fig. 3-9).
@@ -101,7 +101,7 @@ struct CurveRange {
   friend bool operator==(const CurveRange&, const CurveRange&) = default;
 };
 
-/// Where a parameter set came from (DESIGN.md §3 "provenance").
+/// Where a parameter set came from (docs/MODEL.md, "The parameter set": provenance).
 struct Provenance {
   std::string irc_method;      ///< e.g. "ramp_correlation".
   std::string passive_method;  ///< "sequential", "simultaneous", "free_swing".

@@ -8,7 +8,7 @@
 /// compliance delays and reshapes the isometric twitch (§6.4.1, Figs.
 /// 6-13, 6-14); identification always assumes the rigid model.
 ///
-/// Sign conventions adapted to fesbench's (DESIGN.md §2): angles in degrees
+/// Sign conventions adapted to fesbench's (docs/ARCHITECTURE.md, units): angles in degrees
 /// of flexion, torques positive in flexion, τ_pta and τ_ptv resisting torques
 /// as in Eq. 4.9 (the thesis's Eq. 3.14 adds them, with its own signs), and
 /// the CE an extensor. With θ_ce the CE's angle coordinate (deg), the SE

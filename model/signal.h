@@ -4,7 +4,7 @@
 /// Time signals shared by generators, simulation and identification:
 /// uniformly sampled signals (the 200 Hz stimulation envelope the
 /// clinician sees), the stimulator's pulse train (what the muscle receives,
-/// DESIGN.md §3) and prescribed knee trajectories (motor mode, §4.2.2).
+/// docs/MODEL.md) and prescribed knee trajectories (motor mode, §4.2.2).
 
 #include <cstddef>
 #include <cstdint>
@@ -45,7 +45,7 @@ using PulseTrain = std::vector<Pulse>;
 /// (absorbs the round-off of origin + k / f on a bench clock).
 inline constexpr double kPulseTimeToleranceS = 1e-9;
 
-/// The stimulator's pulse clock (DESIGN.md §3, one rule for bench, model,
+/// The stimulator's pulse clock (docs/MODEL.md, one rule for bench, model,
 /// CLI, predictions and the model gate): it runs continuously from its
 /// origin — the start of a trial — and offers a pulse at every grid time
 /// t_k = origin_s + k / rate_hz, k = 0, 1, …; the amplitude envelope decides

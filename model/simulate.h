@@ -2,7 +2,7 @@
 
 /// @file
 /// Forward simulation of the muscle–tendon–joint model (thesis ch. 3,
-/// Fig. 3-9; DESIGN.md §3) under a stimulation pulse train, in the bench's
+/// Fig. 3-9; docs/MODEL.md) under a stimulation pulse train, in the bench's
 /// three modes: free swing (motor off), isometric (angle held) and
 /// trajectory (motor imposes θ(t), §4.2.2).
 ///
@@ -128,7 +128,7 @@ SimulationResult SimulateTrajectory(const ParameterSet& params, const PulseTrain
 /// envelope from the sample of its first pulse to that of its last, and a
 /// single pulse as one sample, so PulsesFromEnvelope of the column at a
 /// sample rate above the pulse rate returns the pulses of the continuous
-/// grid (DESIGN.md §3) and single pulses at sample times unchanged.
+/// grid (docs/MODEL.md) and single pulses at sample times unchanged.
 /// Sample times non-decreasing; pulses validated by the caller.
 std::vector<double> StimulusColumn(const PulseTrain& pulses, double pulse_rate_hz,
                                    const std::vector<double>& t_s);

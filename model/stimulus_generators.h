@@ -2,12 +2,12 @@
 
 /// @file
 /// Stimulation envelope generators for the protocols of thesis §5.3–§5.4 and
-/// Appendix F (DESIGN.md §5), with a name-based registry used by the command
+/// Appendix F (docs/PROTOCOLS.md), with a name-based registry used by the command
 /// line and the protocol runner.
 ///
 /// Every generator returns a model::SampledSignal of stimulation amplitude
 /// (stim_ma) at kStimulusRateHz, starting at t = 0. The stimulator turns it
-/// into pulses with PulsesFromEnvelope (DESIGN.md §3): its pulse clock runs
+/// into pulses with PulsesFromEnvelope (docs/MODEL.md): its pulse clock runs
 /// continuously from t = 0 at the pulse rate (33 Hz), a run of non-zero
 /// samples fires at the grid times inside it, and a run too short to hold
 /// one (a single non-zero sample: an impulse) is exactly one pulse at its
@@ -74,7 +74,7 @@
 
 namespace fesbench::model {
 
-/// Sample rate of every generated envelope, Hz (DESIGN.md §2).
+/// Sample rate of every generated envelope, Hz (docs/ARCHITECTURE.md, units).
 inline constexpr double kStimulusRateHz = 200.0;
 
 /// One numeric parameter of a generator. The name carries the unit suffix

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Knee-angle tracking by stimulation (thesis §7.6.3, issue 19): the three
+/// Knee-angle tracking by stimulation (thesis §7.6.3; docs/MODEL.md): the three
 /// controllers a `tracking` run chooses from, one sample at a time, pure
 /// (the loop that reads the bench and applies the amplitude through the
 /// interlocks is server/protocols/runner.cc).

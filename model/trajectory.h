@@ -2,7 +2,7 @@
 
 /// @file
 /// Prescribed knee trajectories for motor mode (thesis §4.2.2, §5.4.1–5.4.2;
-/// DESIGN.md §5 passive_sequential and passive_simultaneous), with a
+/// docs/PROTOCOLS.md passive_sequential and passive_simultaneous), with a
 /// name-based registry like the stimulus one (model/stimulus_generators.h).
 ///
 /// Registry names:

@@ -2,7 +2,7 @@
 
 /// @file
 /// Unit conversions. Every public quantity in fesbench carries its unit in its
-/// name (DESIGN.md §2); angles cross between degrees (the public unit) and
+/// name (docs/ARCHITECTURE.md, units); angles cross between degrees (the public unit) and
 /// radians (used inside the equation of motion) only through these helpers.
 
 #include <numbers>

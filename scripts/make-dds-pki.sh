@@ -6,7 +6,7 @@
 #   scripts/make-dds-pki.sh DIR                     a CA + identities server, operator, viewer
 #   scripts/make-dds-pki.sh DIR --add NAME --role R  one more identity, signed by DIR's CA
 #
-# Roles (what the signed permissions allow on the fesbench topics, DESIGN.md §9):
+# Roles (what the signed permissions allow on the fesbench topics, docs/API.md, "DDS"):
 #   server    publishes samples, bench state, run events, parameter sets and
 #             command replies; reads commands.
 #   operator  reads everything the server publishes; publishes commands (e-stop).

@@ -14,7 +14,7 @@ output_error`):
            can give for that input), then its E_RMS on this trial.
 
 The sibling column bounds what any identification of this model can reach
-on these trials (docs/STUDY.md, issue 15). Needs python3 only.
+on these trials (docs/STUDY.md). Needs python3 only.
 
   scripts/rb-floor.py --server http://127.0.0.1:8080 --token-file admin.token \\
       --sessions 1-16 --out /tmp/rb-floor

@@ -165,7 +165,7 @@ ParsedConfig ParseServerConfig(int argc, const char* const* argv, std::ostream& 
                                std::ostream& err) {
   ParsedConfig parsed;
   ServerConfig flags;
-  CLI::App app{"fesbench-server: the FES bench service (HTTP/JSON API, DESIGN.md §8)",
+  CLI::App app{"fesbench-server: the FES bench service (HTTP/JSON API, docs/API.md)",
                "fesbench-server"};
   app.add_option("--config", flags.config_file, "JSON file with the same keys as the flags")
       ->check(CLI::ExistingFile);

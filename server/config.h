@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// fesbench-server's settings (DESIGN.md §10): command-line flags and, with
+/// fesbench-server's settings (README, "Running the server"): command-line flags and, with
 /// the same keys, an optional JSON config file (--config FILE). Flags
 /// override the file; the file overrides the defaults. Only the executable
 /// reads these; the libraries take the plain structs built from them.
@@ -54,7 +54,7 @@ struct ServerConfig {
   /// --max-stop-impact-deg-s: the model gate's limit on the predicted speed
   /// of the knee at a stop of the range of motion (BenchLimits), (0, 2000].
   double max_stop_impact_deg_s = kDefaultBenchMaxStopImpactDegS;
-  int dds_domain = 0;  ///< --dds-domain: 0–232 (DDS front end, DESIGN.md §9).
+  int dds_domain = 0;  ///< --dds-domain: 0–232 (DDS front end, docs/API.md).
   /// --dds-transport: auto (Fast DDS default: shm + UDP), shm, udp,
   /// udp-loopback, or off (no DDS front end).
   std::string dds_transport = "auto";

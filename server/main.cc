@@ -1,4 +1,4 @@
-// fesbench-server: wiring only (STYLE.md). Reads flags and the optional JSON
+// fesbench-server: wiring only (docs/ARCHITECTURE.md). Reads flags and the optional JSON
 // config (server/config.h), opens the database, bootstraps the first admin,
 // builds the bench (simulated or replay) and the services, and serves the
 // HTTP API until SIGTERM/SIGINT; then stops the server, shuts the services
@@ -150,7 +150,7 @@ api::Status Compose(Config device_config, std::unique_ptr<server::Bench>& bench)
   return api::Status::Ok();
 }
 
-// A real stimulator in place of the bench's own (issue 21): the device
+// A real stimulator in place of the bench's own (README, "A real stimulator"): the device
 // delivers; the sensors and the motor stay the bench's.
 api::Status AttachStimulator(const server::ServerConfig& config,
                              std::unique_ptr<server::Bench>& bench) {
@@ -175,7 +175,7 @@ api::Status AttachStimulator(const server::ServerConfig& config,
   return api::Status::Ok();
 }
 
-// The DDS front end (DESIGN.md §9): the same services, commands through the
+// The DDS front end (docs/API.md, "DDS"): the same services, commands through the
 // same RunService calls and audit log as HTTP.
 api::Result<std::unique_ptr<server::dds::DdsServer>> StartDds(
     const server::ServerConfig& config, const std::string& bench_id, storage::Database& db,
@@ -359,7 +359,7 @@ int main(int argc, char** argv) {
   server::services::PredictionService prediction(**db, prediction_config);
   server::services::ComparisonService comparison(**db, prediction_config);
 
-  // The DDS front end (DESIGN.md §9): the same services, commands through
+  // The DDS front end (docs/API.md, "DDS"): the same services, commands through
   // the same RunService calls and audit log as HTTP.
   server::services::CommandService dds_commands(**db, runs, "dds");
   std::unique_ptr<server::dds::DdsServer> dds;

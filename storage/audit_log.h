@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The append-only audit log of state-changing requests (DESIGN.md §7):
+/// The append-only audit log of state-changing requests (docs/ARCHITECTURE.md, storage):
 /// who, what, when (UTC) and a summary of the request. Triggers refuse any
 /// UPDATE or DELETE of its rows.
 

@@ -15,7 +15,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The lock's key: one bigint per bench id (the same key since issue 18).
+// The lock's key: one bigint per bench id (unchanged since benches first shared a database).
 constexpr const char* kTryLock = "SELECT pg_try_advisory_lock(hashtext('fesbench bench ' || $1))";
 // Still held by this session? The lock connection holds no other lock.
 constexpr const char* kCheck =

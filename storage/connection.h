@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// One database connection, whichever engine is behind it (DESIGN.md §7):
+/// One database connection, whichever engine is behind it (docs/ARCHITECTURE.md, storage):
 /// the repositories write their SQL once, with `?1, ?2, …` parameters, and
 /// read rows through Statement. Two engines implement it:
 ///   storage/sqlite_connection.h    the embedded file (the default);

@@ -252,7 +252,7 @@ api::Status Database::InitialisePostgres() {
   api::Status unlocked = writer_->ExecScript(kMigrationUnlock);
   if (!migrated.ok()) return migrated;
   if (!unlocked.ok()) return unlocked;
-  // Sets stored by the other servers, as events (issue 18).
+  // Sets stored by the other servers, as events, so nobody polls.
   instance_id_ = options_.bench_id + "/" + std::to_string(::getpid()) + "/" +
                  std::to_string(std::random_device{}());
   auto listener = PostgresListener::Start(

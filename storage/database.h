@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The database (DESIGN.md §7), on either engine: an SQLite file (the
+/// The database (docs/ARCHITECTURE.md, storage), on either engine: an SQLite file (the
 /// default) or a PostgreSQL server, chosen by DatabaseOptions::path. One
 /// writer connection serialised by a mutex and a small pool of reader
 /// connections. WAL lets readers proceed
@@ -70,8 +70,8 @@ struct DatabaseOptions {
   /// Apply migrations up to this version only (tests of upgrades); nullopt
   /// applies all of them.
   std::optional<int> target_schema_version;
-  /// The bench this process owns (issue 18): the runs and e-stop presses it
-  /// records carry it, and it sees only its own when it looks for runs left
+  /// The bench this process owns (one server per bench, docs/SAFETY.md): the runs and e-stop
+  /// presses it records carry it, and it sees only its own when it looks for runs left
   /// unfinished or for a set latch. Rows from before benches had ids (the
   /// bench '') belong to every bench. On PostgreSQL a second process that
   /// opens the database for the same bench is refused.
@@ -156,7 +156,7 @@ class Database {
   /// after the writer is released, so they may read or write themselves.
   void AfterCommit(std::function<void()> fn);
 
-  /// A stored parameter set (issue 18: new sets as events, no polling).
+  /// A stored parameter set (new sets as events, no polling).
   struct ParameterSetStored {
     std::int64_t id = 0;
     std::int64_t subject_id = 0;

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The e-stop latch as stored state (DESIGN.md §6, issue 16 §2): every
+/// The e-stop latch as stored state (docs/SAFETY.md, "SafeBench"): every
 /// press and every clearing is an append-only row of `estop_events`, so a
 /// latch set before a crash or a stop is set again when the server starts,
 /// until a person clears it. Each bench has its own latch

@@ -18,7 +18,7 @@ namespace fesbench::storage {
 api::Result<std::string> ExportTrialCsv(Database& db, std::int64_t trial_id);
 /// The trial's main channel group as OpenSim .sto (version 1, `time` first).
 api::Result<std::string> ExportTrialSto(Database& db, std::int64_t trial_id);
-/// The parameter set's JSON (DESIGN.md §3), pretty-printed.
+/// The parameter set's JSON (docs/MODEL.md), pretty-printed.
 api::Result<std::string> ExportParameterSetJson(Database& db, std::int64_t parameter_set_id);
 
 }  // namespace fesbench::storage

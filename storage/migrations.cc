@@ -254,7 +254,7 @@ ALTER TABLE subject_revisions ADD COLUMN recorded_by TEXT NOT NULL DEFAULT '';
 ALTER TABLE session_revisions ADD COLUMN recorded_by TEXT NOT NULL DEFAULT '';
 )sql";
 
-// One run vocabulary (DESIGN.md §5, issue 14): run_events used
+// One run vocabulary (docs/PROTOCOLS.md, "Runs"): run_events used
 // 'completed' and 'cancelled' for done and aborted. The table is rebuilt
 // with the new names (the append-only triggers are recreated with it).
 const char* const kMigration6 = R"sql(
@@ -278,7 +278,7 @@ ALTER TABLE run_events_v6 RENAME TO run_events;
 CREATE INDEX run_events_run ON run_events(run_id, id);
 )sql";
 
-// The e-stop latch outlives the process (issue 16 §2): each press and each
+// The e-stop latch outlives the process (docs/SAFETY.md): each press and each
 // clearing is a row; the latch is set when the last row says so. A restart
 // re-latches it until a person clears it.
 const char* const kMigration7 = R"sql(
@@ -291,7 +291,7 @@ CREATE TABLE estop_events (
 );
 )sql";
 
-// The pulses a stimulator delivered during a trial (DESIGN.md §3, api::PulseRecord),
+// The pulses a stimulator delivered during a trial (docs/MODEL.md, api::PulseRecord),
 // as read back: one row per trial that has them, times and amplitudes as
 // little-endian float64 BLOBs like trial_channels. (Number 8: 7 is taken by
 // a change developed beside this one.)
@@ -331,7 +331,7 @@ CREATE TABLE trial_imports (
 );
 )sql";
 
-// Several benches on one database (issue 18): every run and every e-stop
+// Several benches on one database: every run and every e-stop
 // press belongs to the bench whose server made it. Rows from before are
 // the bench '' (one server had the file), which any server adopts.
 const char* const kMigration12 = R"sql(
@@ -341,7 +341,7 @@ ALTER TABLE estop_events ADD COLUMN bench_id TEXT NOT NULL DEFAULT '';
 CREATE INDEX estop_events_bench ON estop_events(bench_id, id);
 )sql";
 
-// A parameter set names the run that identified it (issue 17): a run's set
+// A parameter set names the run that identified it: a run's set
 // is an index lookup, not a search of the leg's history. Sets stored before
 // have none (append-only: they are not rewritten).
 const char* const kMigration13 = R"sql(
@@ -349,7 +349,7 @@ ALTER TABLE parameter_sets ADD COLUMN run_id BIGINT REFERENCES runs(id);
 CREATE INDEX parameter_sets_run ON parameter_sets(run_id) WHERE run_id IS NOT NULL;
 )sql";
 
-// Every trial names its kind (issue 17, api/trial_kind.h): identification,
+// Every trial names its kind (api/trial_kind.h): identification,
 // prediction and the clients read the column instead of decoding names.
 // Trials stored before get the kind their name belongs to (exact names
 // first, then the longest family stem followed by "_" and a suffix, as

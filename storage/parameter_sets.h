@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Parameter sets (DESIGN.md §3, §7): immutable versions with provenance.
+/// Parameter sets (docs/MODEL.md; docs/ARCHITECTURE.md): immutable versions with provenance.
 /// Each is stored as its JSON text (api/parameter_set_json.h) plus indexed
 /// columns (subject, leg, model, methods, software version, created_at UTC),
 /// so a subject's history is an index range scan on (subject_id,

@@ -3,7 +3,7 @@
 /// @file
 /// Predictions (a parameter set simulated on a stimulus or a stored trial)
 /// and evaluations (errors of a prediction against a measured trial),
-/// DESIGN.md §7–§8. Both are immutable records.
+/// docs/ARCHITECTURE.md, storage; docs/API.md. Both are immutable records.
 
 #include <cstdint>
 #include <optional>

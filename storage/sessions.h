@@ -2,7 +2,7 @@
 
 /// @file
 /// Sessions (one visit of a subject at the bench, for one leg) and runs (one
-/// execution of a protocol within a session), DESIGN.md §7. Session details
+/// execution of a protocol within a session), docs/ARCHITECTURE.md. Session details
 /// are revisions (a correction points at what it corrects); a run's state is
 /// the last of its append-only state events.
 

@@ -2,7 +2,7 @@
 
 /// @file
 /// Subjects (pseudonymous code and anthropometrics) and their legs
-/// (DESIGN.md §7). Anthropometrics are kept as revisions: a correction adds
+/// (docs/ARCHITECTURE.md). Anthropometrics are kept as revisions: a correction adds
 /// a revision that points at the one it corrects; nothing is overwritten.
 
 #include <cstdint>

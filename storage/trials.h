@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Recorded trials (DESIGN.md §7): every channel with its name, unit and
+/// Recorded trials (docs/ARCHITECTURE.md, storage): every channel with its name, unit and
 /// sample rate; samples as one BLOB per channel of little-endian IEEE-754
 /// float64 values; the delivered pulses (api::PulseRecord), if any, as two
 /// such BLOBs in trial_pulses. Trials are immutable once stored.

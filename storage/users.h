@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Users, roles and bearer tokens (DESIGN.md §8). A token is 32 bytes from
+/// Users, roles and bearer tokens (docs/API.md, "HTTP conventions"). A token is 32 bytes from
 /// OpenSSL's CSPRNG (RAND_bytes), handed out once as "fsb_" + 64 hex digits;
 /// only its SHA-256 digest is stored. Deactivation and revocation are new
 /// rows, never updates.

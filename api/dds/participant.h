@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The fesbench DDS participant (DESIGN.md §9), shared by the server, the
+/// The fesbench DDS participant (docs/API.md, "DDS"), shared by the server, the
 /// DDS monitor, tests and benchmarks: domain id, transport (shared memory,
 /// UDP, UDP on loopback only, or Fast DDS's built-in shm+UDP), an optional
 /// Fast DDS XML profile, the six topics with their registered types, and

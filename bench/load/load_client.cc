@@ -1,4 +1,4 @@
-// fesbench load client (issue 6, performance): N concurrent analysts fetch
+// fesbench load client (performance, README "Benchmarks"): N concurrent analysts fetch
 // parameter sets over keep-alive connections for a fixed time while a
 // rapid_parameterisation run streams at real time. Reports requests/s,
 // p50/p99 latency, requests per connection (every connection must be
@@ -301,7 +301,7 @@ json WaitJob(httplib::Client& c, const std::string& token, std::int64_t id) {
   }
 }
 
-// The soak (issue 16 §14): `runs` rapid_parameterisation runs one after
+// The memory soak: `runs` rapid_parameterisation runs one after
 // another on a server at --time-scale 0, each followed by what an analyst
 // does with it — a prediction of one of its trials with the new set, and
 // the list pages of parameter sets, the session's runs and trials, and

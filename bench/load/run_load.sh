@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# HTTP load measurement (issue 6): 32 concurrent analysts fetch a parameter
+# HTTP load measurement (README, "Benchmarks"): 32 concurrent analysts fetch a parameter
 # set over keep-alive loopback connections for 30 s while a
 # rapid_parameterisation run streams at real time. Prints requests/s,
 # p50/p99 latency, requests per connection and whether the stream lost a

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Memory soak (issue 16 §14): rapid_parameterisation runs one after another
+# Memory soak (README, "Benchmarks"): rapid_parameterisation runs one after another
 # on a server at --time-scale 0, each followed by a prediction with the new
 # set and the list pages an analyst reads; prints the server's resident
 # memory (VmRSS) and its peak every N runs. Talks to 127.0.0.1 only; uses a

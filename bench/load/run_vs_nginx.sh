@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# HTTP throughput against nginx (issue 16 §15): the same JSON (a stored
+# HTTP throughput against nginx (README, "Benchmarks"): the same JSON (a stored
 # parameter set) fetched by wrk over 32 keep-alive loopback connections,
 # from fesbench-server (GET /api/v1/parameter-sets/{id} with a bearer token:
 # routing, authentication, a database read and JSON) and from nginx serving

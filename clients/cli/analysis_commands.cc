@@ -1,5 +1,5 @@
 // `fesbench identify`, `predict` and `compare`: the analysis jobs of the
-// server (DESIGN.md §4, §8; thesis ch. 4, §5.4.5, §7.4). Each submits a job,
+// server (docs/MODEL.md; docs/API.md, "Jobs"; thesis ch. 4, §5.4.5, §7.4). Each submits a job,
 // waits for it, and prints its result.
 
 #include <algorithm>
@@ -63,7 +63,7 @@ bool Contains(const std::vector<std::int64_t>& ids, std::int64_t id) {
   return std::find(ids.begin(), ids.end(), id) != ids.end();
 }
 
-// Honest validation by default (issue 14): the free-swing trials of the
+// Honest validation by default: the free-swing trials of the
 // set's leg (every session of its subject) that the set was NOT fitted on.
 json ValidationTrials(ApiClient& client, std::int64_t set_id) {
   const json set = client.Get("/parameter-sets/" + std::to_string(set_id));

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// A small client of the fesbench HTTP/JSON API (DESIGN.md §8) over HTTP or
+/// A small client of the fesbench HTTP/JSON API (docs/API.md) over HTTP or
 /// HTTPS (cpp-httplib with OpenSSL). Every call either returns the parsed
 /// JSON body or throws CliError: kExitServer with the server's error message
 /// for a 4xx/5xx answer, kExitUnreachable when no answer came.

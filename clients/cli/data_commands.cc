@@ -1,6 +1,6 @@
 // `fesbench params list|get` and `fesbench trials get`: parameter-set
-// history and export of parameter sets and recorded trials (DESIGN.md §3,
-// §7, §8) with the api/ wire types.
+// history and export of parameter sets and recorded trials (docs/MODEL.md,
+// docs/API.md) with the api/ wire types.
 
 #include <charconv>
 #include <map>

@@ -1,4 +1,4 @@
-// Data in and out for analysts (DESIGN.md §7, §8): `trials import`,
+// Data in and out for analysts (docs/API.md, "Session archives"): `trials import`,
 // `sessions export`, `params curves` (long tidy CSV) and the wide parameter
 // history of `params list --format csv`. Numbers in CSV are the shortest form that reads back
 // exactly (std::to_chars).

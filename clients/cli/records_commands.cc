@@ -1,7 +1,7 @@
 // `fesbench subjects list|show|create|edit` and `sessions
 // list|show|create|edit`: the records a clinician keeps (docs/ARCHITECTURE.md,
 // "Storage"; docs/API.md).
-// `edit` records a correction as a new revision with a reason (issue 14).
+// `edit` records a correction as a new revision with a reason (docs/API.md, "Corrections").
 
 #include <memory>
 #include <optional>

@@ -1,6 +1,6 @@
 // `fesbench run start|show|stop|cancel` and `fesbench estop`: protocol runs on the
-// bench (DESIGN.md §5, §6, §8). `run start` follows the run's event stream to
-// its end while heart-beating it (issue 14), because the server's watchdog
+// bench (docs/PROTOCOLS.md, docs/SAFETY.md, docs/API.md). `run start` follows the run's event
+// stream to its end while heart-beating it, because the server's watchdog
 // stops a run whose controlling user goes silent for more than a second;
 // Ctrl-C cancels the run and exits 130 once the server confirms. `--detach`
 // is refused for any protocol the watchdog would abort a second later.

@@ -1,4 +1,4 @@
-// fesbench-dds-monitor: a DDS client of fesbench-server (DESIGN.md §9).
+// fesbench-dds-monitor: a DDS client of fesbench-server (docs/API.md, "DDS").
 //   fesbench-dds-monitor [--domain N] [--transport T] [--profile F]
 //                        [--security DIR [--identity NAME]] [--timeout S] <command>
 //   benches                          live benches and their state

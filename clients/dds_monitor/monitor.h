@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// fesbench-dds-monitor's functions (DESIGN.md §9), usable from tests: list
+/// fesbench-dds-monitor's functions (docs/API.md, "DDS"), usable from tests: list
 /// live benches and their state, print or record a run's samples, show the
 /// latest parameter set of a subject and leg, send an e-stop. Each waits at
 /// most `timeout_s` for a server and fails with kUnavailable ("no fesbench

@@ -16,7 +16,7 @@ namespace fesbench::cli {
 void RegisterExampleCommand(CLI::App& app, CliContext& context) {
   auto out_path = std::make_shared<std::string>("-");
   CLI::App* sub = app.add_subcommand(
-      "example", "Write the example parameter set (DESIGN.md §3 JSON) to start from.");
+      "example", "Write the example parameter set (docs/MODEL.md JSON) to start from.");
   sub->add_option("--out", *out_path, "output file ('-' for standard output, the default)");
   sub->callback([out_path, &context] {
     const std::string text =

@@ -176,7 +176,7 @@ void RegisterSimulateCommand(CLI::App& app, CliContext& context) {
   for (model::ModelKind k : model::AllModelKinds()) {
     model_names.emplace_back(model::ModelKindName(k));
   }
-  sub->add_option("--params", args->params_path, "parameter set JSON (DESIGN.md §3)")->required();
+  sub->add_option("--params", args->params_path, "parameter set JSON (docs/MODEL.md)")->required();
   sub->add_option("--stimulus", args->stimulus_path,
                   "stimulus CSV with columns t_s, stim_ma (uniformly sampled envelope, mA)")
       ->required();

@@ -15,7 +15,7 @@
 
 namespace fesbench::cli {
 
-/// The bench mode simulated (DESIGN.md §3).
+/// The bench mode simulated (docs/MODEL.md, "Simulation").
 enum class SimulateMode { kFreeSwing, kIsometric, kTrajectory };
 
 /// "free_swing", "isometric", "trajectory".
@@ -28,7 +28,7 @@ inline constexpr std::string_view kSimulationColumns[] = {
 
 /// Simulates `params` driven by the pulses the stimulator makes of
 /// `envelope_ma` (model::PulsesFromEnvelope at options.pulse_rate_hz: the
-/// pulse clock runs continuously from the envelope's t = 0, DESIGN.md §3).
+/// pulse clock runs continuously from the envelope's t = 0, docs/MODEL.md).
 /// `angle_deg` is the held angle (isometric) or θ(0) (free swing; it
 /// overrides options.initial_angle_deg). When options.duration_s is unset
 /// the run covers the envelope, [0, envelope.EndTime()), or in trajectory

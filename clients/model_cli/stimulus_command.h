@@ -18,7 +18,7 @@ namespace fesbench::cli {
 /// @throws CliError (usage) naming the malformed entry.
 model::GeneratorParams ParseGeneratorParams(const std::vector<std::string>& entries);
 
-/// Sample rate of the trajectory tables `stimulus` writes, Hz (DESIGN.md §2).
+/// Sample rate of the trajectory tables `stimulus` writes, Hz (docs/ARCHITECTURE.md, units).
 inline constexpr double kTrajectoryRateHz = 200.0;
 
 /// The output of generator `name` with `params`: for a stimulus generator the

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The bench hardware abstraction (DESIGN.md §6): what a knee bench can do
+/// The bench hardware abstraction (docs/ARCHITECTURE.md, "The benches"): what a knee bench can do
 /// and sense. Three kinds implement it: the simulated bench (a virtual leg),
 /// a replay bench that plays recorded trials, and a real-hardware driver.
 /// Nothing above this interface knows which one it drives.
@@ -26,14 +26,14 @@ namespace fesbench::server {
 /// stop of the range of motion, deg/s (BenchLimits::max_stop_impact_deg_s).
 inline constexpr double kDefaultBenchMaxStopImpactDegS = 500.0;
 
-/// Fixed properties of a bench (DESIGN.md §2, §6; thesis §5.1).
+/// Fixed properties of a bench (docs/ARCHITECTURE.md, units; thesis §5.1).
 struct BenchLimits {
   double max_stim_ma = 100.0;     ///< stimulator hardware range 0–100 mA.
   double pulse_rate_hz = 33.0;    ///< stimulation pulse rate.
   double pulse_width_us = 300.0;  ///< stimulation pulse width.
   double min_angle_deg = 10.0;    ///< mechanical range of motion.
   double max_angle_deg = 110.0;
-  /// Model gate (DESIGN.md §6): the fastest a predicted knee may reach a
+  /// Model gate (docs/SAFETY.md, "Model gate"): the fastest a predicted knee may reach a
   /// stop of the range of motion, deg/s. The thesis's own prediction inputs
   /// (§5.4.5) take the knee to full extension at up to about 400 deg/s on the
   /// simulated cohort (the amplitudes reach full extension by design,
@@ -81,7 +81,7 @@ class Bench {
   virtual std::string_view kind() const = 0;
   virtual const BenchLimits& limits() const = 0;
 
-  /// Stimulation envelope (DESIGN.md §3): the stimulator's pulse clock
+  /// Stimulation envelope (docs/MODEL.md, pulse timing): the stimulator's pulse clock
   /// fires at every grid time t_k = origin + k / pulse_rate_hz (origin: the
   /// last RestartPulseClock) while the amplitude is > 0, each pulse with the
   /// amplitude set at its time. Setting an amplitude fires nothing by itself;

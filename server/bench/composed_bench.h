@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// A bench made of parts (issue 21): stimulation goes to a real stimulator
+/// A bench made of parts (README, "A real stimulator"): stimulation goes to a real stimulator
 /// (a StimulatorDevice, e.g. a RehaStim2 over ScienceMode2) and the sensors
 /// and the motor are another bench's — today the simulated leg or a replay,
 /// later a sensor driver. With the simulated leg this is a dry run of the

@@ -1,10 +1,10 @@
 #pragma once
 
 /// @file
-/// Paces bench time against the wall clock (DESIGN.md §6: real time, a
+/// Paces bench time against the wall clock (docs/ARCHITECTURE.md, "The benches": real time, a
 /// factor of it, or as fast as possible). The clock and the sleep are
-/// injected so tests run without real sleeping (STYLE.md: hardware and time
-/// come through interfaces).
+/// injected so tests run without real sleeping (hardware and time come through
+/// interfaces, docs/ARCHITECTURE.md).
 
 #include "api/clock.h"
 

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The replay bench (DESIGN.md §6): plays recorded trials back through the
+/// The replay bench (docs/ARCHITECTURE.md, "The benches"): plays recorded trials back through the
 /// Bench interface, for re-running protocol and identification code on real
 /// data, demos and tests. Commands are recorded (inspectable) but change
 /// nothing.
@@ -35,7 +35,7 @@
 
 namespace fesbench::server {
 
-/// Channel names the benches record and replay (DESIGN.md §2 units).
+/// Channel names the benches record and replay (docs/ARCHITECTURE.md, units).
 namespace bench_channels {
 inline constexpr std::string_view kAngle = "angle_deg";
 inline constexpr std::string_view kTorque = "torque_nm";

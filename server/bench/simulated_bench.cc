@@ -156,7 +156,7 @@ void SimulatedBench::RestartPulseClock() {
 }
 
 void SimulatedBench::FireDuePulses() {
-  // DESIGN.md §3: every grid time reached fires if the amplitude is > 0
+  // docs/MODEL.md, pulse timing: every grid time reached fires if the amplitude is > 0
   // (and the e-stop is not latched); the grid runs on either way.
   while (pulse_clock_.TimeOf(next_grid_k_) <= t_ + model::kPulseTimeToleranceS) {
     if (commanded_ma_ > 0.0 && !HardwareEStopped()) FirePulse(commanded_ma_);
@@ -165,7 +165,7 @@ void SimulatedBench::FireDuePulses() {
 }
 
 void SimulatedBench::FirePulse(double stim_ma) {
-  // DESIGN.md §3: an impulse of weight R(u)/f_pulse into H_n. With twitch
+  // docs/MODEL.md: an impulse of weight R(u)/f_pulse into H_n. With twitch
   // variation (Fig. 3-8) a level-dependent share drives the alternate chain.
   const double r = std::max(0.0, subject_.truth.irc(stim_ma));
   const double weight = r / options_.limits.pulse_rate_hz;
@@ -303,7 +303,7 @@ SimulatedBench::Forces SimulatedBench::CalcForces(double t_s, const State& x, do
   f.vol = fid.cocontraction_torque_nm * VoluntaryEnvelope(t_s);
   f.motor = MotorTorque(th, om);
   f.stop = StopTorque(th, om);
-  // J·θ̈ = τ_brace − τ_pta − τ_ptv − τ_hyst − τ_fric − τ_muscle − τ_vol (DESIGN.md §3).
+  // J·θ̈ = τ_brace − τ_pta − τ_ptv − τ_hyst − τ_fric − τ_muscle − τ_vol (docs/MODEL.md).
   const double net = f.motor + f.stop - f.pta - f.ptv - hyst - f.fric - f.muscle - f.vol;
   f.accel_deg_s2 = RadToDeg(net / joint_.inertia_kgm2());
   return f;

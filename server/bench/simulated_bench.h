@@ -1,18 +1,18 @@
 #pragma once
 
 /// @file
-/// The simulated bench (DESIGN.md §6): a virtual leg on a virtual knee bench,
-/// deliberately richer than the identification model (virtual_subject.h).
+/// The simulated bench (docs/ARCHITECTURE.md, "The benches"): a virtual leg on a virtual knee
+/// bench, deliberately richer than the identification model (virtual_subject.h).
 ///
-/// Physics (θ in degrees of flexion, torques + flexion, DESIGN.md §2):
+/// Physics (θ in degrees of flexion, torques + flexion, docs/ARCHITECTURE.md):
 ///   J·θ̈ = τ_brace − τ_pta(θ) − τ_ptv(θ̇) − τ_hyst − τ_fric − τ_muscle − τ_vol
 /// with τ_brace = τ_motor + τ_stop, θ̈ in rad/s².
-/// - Stimulator: a continuous pulse clock (model::PulseClock, DESIGN.md §3)
+/// - Stimulator: a continuous pulse clock (model::PulseClock, docs/MODEL.md)
 ///   restarted by RestartPulseClock (at bench start and by the runner at each
 ///   trial's start); every grid time at which the amplitude is > 0 fires a
 ///   pulse of that amplitude (model::PulsesFromEnvelope's rule); TriggerPulse
 ///   fires one now, off the grid. Each pulse is an impulse of weight
-///   R(u)/f_pulse into H_n (DESIGN.md §3), propagated exactly between events;
+///   R(u)/f_pulse into H_n (docs/MODEL.md), propagated exactly between events;
 ///   with twitch variation a fraction goes to a chain of the other order
 ///   peaking at the same time (Fig. 3-8).
 /// - Muscle: τ_muscle = (1 − F)·f·τ_scale·f_ata·f_atv (Eq. 3.16), f the

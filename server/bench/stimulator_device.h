@@ -41,7 +41,7 @@ class StimulatorDevice {
   /// waits for the device to accept it. false on a fault (fault() says why;
   /// the device has been told to stop) or while e-stopped (nothing is sent).
   virtual bool SetAmplitude(double stim_ma) = 0;
-  /// One pulse now, off the pulse grid (DESIGN.md §3's single pulse), at
+  /// One pulse now, off the pulse grid (docs/MODEL.md's single pulse), at
   /// stim_ma rounded down to the step; leaves any running pulse train
   /// stopped (the next SetAmplitude starts it again). Returns the amplitude
   /// delivered, or nullopt on a fault or while e-stopped.

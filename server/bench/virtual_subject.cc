@@ -83,7 +83,7 @@ double HangingAngleDeg(const Anthropometrics& anthropometrics) {
 double SteadyIsometricActiveTorqueNm(const model::ParameterSet& truth, double stim_ma,
                                      double angle_deg) {
   // Eqs. 3.18–3.19: C0·f_stim with C0 = f_ata(θ)·f_atv(0)·τ_scale; a steady
-  // train settles at f_stim = R(u) (unit DC gain, DESIGN.md §3).
+  // train settles at f_stim = R(u) (unit DC gain, docs/MODEL.md).
   const double r = std::max(0.0, truth.irc(stim_ma));
   return truth.active.torque_scale_nm * std::max(0.0, truth.active.torque_angle(angle_deg)) *
          std::max(0.0, truth.active.torque_velocity(0.0)) * r;

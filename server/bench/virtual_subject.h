@@ -1,14 +1,14 @@
 #pragma once
 
 /// @file
-/// The virtual subject behind the simulated bench (DESIGN.md §6): a truth
-/// parameter set of the identification model (DESIGN.md §3) plus the
+/// The virtual subject behind the simulated bench (docs/ARCHITECTURE.md): a truth
+/// parameter set of the identification model (docs/MODEL.md) plus the
 /// "fidelity" effects the identification model leaves out (thesis §3.3,
 /// §6.4, §6.6), the subject's anthropometrics and stimulation levels.
 ///
 /// Every fidelity effect has an on/off switch or a magnitude whose zero turns
 /// it off; with `Fidelity::Off()` the virtual leg is exactly the model of
-/// DESIGN.md §3 (the anchor test against model/simulate.h).
+/// docs/MODEL.md (the anchor test against model/simulate.h).
 
 #include <cstdint>
 #include <optional>
@@ -74,7 +74,7 @@ struct Fidelity {
   friend bool operator==(const Fidelity&, const Fidelity&) = default;
 };
 
-/// Body measures (DESIGN.md §7) and bench placement (§5.1).
+/// Body measures (docs/ARCHITECTURE.md, storage) and bench placement (§5.1).
 struct Anthropometrics {
   double body_mass_kg = 70.0;
   double height_m = 1.75;
@@ -92,7 +92,7 @@ struct VirtualSubject {
   /// Seed of the subject's own random effects (sensor noise, voluntary
   /// bursts). The bench combines it with its own seed.
   std::uint64_t seed = 1;
-  model::ParameterSet truth;       ///< the DESIGN.md §3 model part.
+  model::ParameterSet truth;       ///< the docs/MODEL.md model part.
   double threshold_ma = 20.0;      ///< lowest amplitude giving torque.
   double max_tolerated_ma = 45.0;  ///< highest amplitude the subject accepts.
   Anthropometrics anthropometrics;
@@ -104,7 +104,7 @@ struct VirtualSubject {
 double HangingAngleDeg(const Anthropometrics& anthropometrics);
 
 /// Ranges of the seeded generator (thesis §5.2.1, §6.5, Table 6.3–6.4,
-/// DESIGN.md §6).
+/// docs/ARCHITECTURE.md, "The benches").
 struct SubjectRanges {
   double min_inertia_kgm2 = 0.17, max_inertia_kgm2 = 0.70;
   double min_max_tolerated_ma = 30.0, max_max_tolerated_ma = 60.0;

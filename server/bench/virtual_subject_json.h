@@ -1,10 +1,10 @@
 #pragma once
 
 /// @file
-/// JSON form of a virtual subject (DESIGN.md §6):
+/// JSON form of a virtual subject (docs/ARCHITECTURE.md, "The benches"):
 /// ```json
 /// {"name": "virtual-7", "seed": 7,
-///  "truth": {<parameter set, DESIGN.md §3>},
+///  "truth": {<parameter set, docs/MODEL.md>},
 ///  "threshold_ma": 18.2, "max_tolerated_ma": 41.0,
 ///  "anthropometrics": {"body_mass_kg": 70, "height_m": 1.75, "shank_length_m": 0.43,
 ///                      "accel_distance_m": 0.28, "thigh_elevation_deg": 9},

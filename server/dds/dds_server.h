@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The server's DDS front end (DESIGN.md §9): a second transport over the
+/// The server's DDS front end (docs/API.md, "DDS"): a second transport over the
 /// same services as HTTP. It publishes, from a SampleHub subscription and
 /// the RunService's state, every run's sample blocks, run events and the
 /// bench state, and from storage each new parameter set keyed by subject and

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The API's routes (DESIGN.md §8) over storage and the application
+/// The API's routes (docs/API.md, "Resources") over storage and the application
 /// services. Roles per route (admin may do everything):
 ///   open:               health, openapi.json
 ///   any role:           read subjects, sessions, runs, trials, parameter

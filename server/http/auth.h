@@ -1,14 +1,14 @@
 #pragma once
 
 /// @file
-/// Bearer-token authentication and role checks (DESIGN.md §8). Tokens are
+/// Bearer-token authentication and role checks (docs/API.md, "HTTP conventions"). Tokens are
 /// checked against storage (SHA-256 digests, storage/users.h); recent
 /// answers are cached for `cache_ttl` so a busy client does not cost a
 /// database read per request. Revoking a token or deactivating a user
 /// through the server calls Invalidate(), so the change is effective at
 /// once; a change made behind the server's back takes up to cache_ttl.
 ///
-/// Admit() is the front end's one gate (issue 16 §9): it audits every
+/// Admit() is the front end's one gate (docs/SAFETY.md, "Sign-in failures"): it audits every
 /// failed sign-in (a presented token that is not valid: 401) and every
 /// request refused for its role (403, any method), and slows down a burst
 /// of failed tokens from one client address with a token bucket: while the

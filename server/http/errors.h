@@ -2,7 +2,7 @@
 
 /// @file
 /// The one place where an api::Status becomes an HTTP status and a JSON
-/// error body (STYLE.md "Errors"):
+/// error body (docs/API.md, "HTTP conventions"):
 ///   {"error": {"code": "not_found", "message": "subject 7 not found",
 ///              "field": "subject_id"}}     ("field" only when one is at fault)
 ///

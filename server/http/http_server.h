@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The HTTP front end (DESIGN.md §8). cpp-httplib 0.11 (Debian's) parses
+/// The HTTP front end (docs/API.md). cpp-httplib 0.11 (Debian's) parses
 /// each request and writes each response, but the connections are ours
 /// (httplib's own loop gives every connection a thread for its whole life,
 /// so slow clients lock everyone out, and it binds with SO_REUSEPORT):

@@ -116,7 +116,7 @@ json BuildOpenApi(const RouteTable& routes, const std::string& version) {
             {"description",
              "Functional electrical stimulation bench: subjects, sessions, protocol runs, "
              "trials, parameter sets, identification, prediction and comparison jobs "
-             "(DESIGN.md §8). Errors are {\"error\": {\"code\", \"message\", \"field\"}}."}}},
+             "(docs/API.md). Errors are {\"error\": {\"code\", \"message\", \"field\"}}."}}},
           {"servers", json::array({{{"url", "/"}}})},
           {"paths", std::move(paths)},
           {"components",

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// JSON wire form of the stored resources (DESIGN.md §8) and strict readers
+/// JSON wire form of the stored resources (docs/API.md) and strict readers
 /// of their request bodies. Keys carry units; times are UTC ISO 8601
 /// ("2026-11-21T10:36:43.123456Z"). Readers refuse unknown fields, wrong
 /// types and out-of-range values with kInvalidArgument naming the field.
@@ -70,7 +70,7 @@ struct NewSessionRequest {
 };
 api::Result<NewSessionRequest> NewSessionFromJson(const nlohmann::json& body);
 
-/// PATCH /subjects/{id} and /sessions/{id} (issue 14 §1): {"reason",
+/// PATCH /subjects/{id} and /sessions/{id} (docs/API.md, "Corrections"): {"reason",
 /// "details": {...}}. The given fields replace the current ones, null
 /// clears one, the others are kept. `changed` lists the given fields.
 struct SubjectCorrection {

@@ -1,4 +1,4 @@
-// Admin routes: users, tokens, audit log, backup (DESIGN.md §8).
+// Admin routes: users, tokens, audit log, backup (docs/API.md).
 
 #include <chrono>
 #include <filesystem>

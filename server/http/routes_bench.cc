@@ -1,5 +1,5 @@
 // Bench and run routes: start / read / cancel / heartbeat runs, the live
-// event stream, bench state, e-stop, the virtual subject (DESIGN.md §6, §8).
+// event stream, bench state, e-stop, the virtual subject (docs/API.md; docs/SAFETY.md).
 
 // Eigen (via the bench headers) must come before httplib.h: <resolv.h>
 // defines `_res`, a name Eigen uses for parameters.
@@ -117,7 +117,7 @@ json VirtualSubjectPutSchema() {
            "stiffness, asymmetric damping, other Gaussian f_ata, tanh f_atv"}}}}}};
   const json full = {{"type", "object"},
                      {"required", {"truth", "threshold_ma", "max_tolerated_ma"}},
-                     {"description", "a full virtual subject (DESIGN.md §6)"}};
+                     {"description", "a full virtual subject (docs/ARCHITECTURE.md, The benches)"}};
   return {{"oneOf", {draw, full}}};
 }
 

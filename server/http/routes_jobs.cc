@@ -1,5 +1,5 @@
 // Job routes: identifications, predictions and comparisons run in the
-// bounded job pool, never on the bench's control path (DESIGN.md §4, §8).
+// bounded job pool, never on the bench's control path (docs/API.md, "Jobs").
 // A submission answers 202 with the job record (Location: /api/v1/jobs/{id});
 // GET /jobs/{id} follows it to "done" (result) or "failed" (error).
 

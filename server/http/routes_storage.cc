@@ -1,5 +1,5 @@
 // Storage-backed routes: health, subjects, sessions, trials, parameter sets,
-// protocols, stored predictions (DESIGN.md §8).
+// protocols, stored predictions (docs/API.md).
 
 #include <cctype>
 #include <functional>
@@ -27,7 +27,7 @@ namespace {
 
 using nlohmann::json;
 
-// Parameter sets are immutable (DESIGN.md §3): their rendered JSON can be
+// Parameter sets are immutable (docs/ARCHITECTURE.md, data path): their rendered JSON can be
 // kept without ever being stale. Their approval is not part of it.
 class ParameterSetCache {
  public:
@@ -728,7 +728,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
              .path = "/api/v1/parameter-sets/{parameter_set_id}",
              .roles = kAnyRole,
              .tag = "parameter-sets",
-             .summary = "One parameter set (DESIGN.md §3 JSON) with its provenance",
+             .summary = "One parameter set (docs/MODEL.md JSON) with its provenance",
              .handler = [&db, cache, approval_cache](RequestContext& ctx) -> api::Result<Reply> {
                const std::int64_t id = ctx.Id("parameter_set_id");
                auto body = cache->Find(id);
@@ -820,7 +820,7 @@ void AddProtocolRoutes(RouteTable& table, const ApiDependencies& deps) {
              .roles = kAnyRole,
              .tag = "protocols",
              .summary =
-                 "The protocol catalog (DESIGN.md §5): labels, units, defaults (resolved with "
+                 "The protocol catalog (docs/PROTOCOLS.md): labels, units, defaults (resolved with "
                  "?session_id), thesis sections",
              .query = protocol_query,
              .handler = [session_context](RequestContext& ctx) -> api::Result<Reply> {

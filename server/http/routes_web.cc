@@ -1,4 +1,4 @@
-// Routes the web client needs beside the resources (DESIGN.md §8): who is
+// Routes the web client needs beside the resources (docs/API.md): who is
 // signed in, so the page can show the user's name and role.
 
 #include "server/http/api_routes.h"

@@ -2,7 +2,7 @@
 
 /// @file
 /// The web client's built files (clients/web, bundled at build time) served
-/// at `/` without a token (DESIGN.md §8: only health, openapi.json and these
+/// at `/` without a token (docs/API.md, "HTTP conventions": only health, openapi.json and these
 /// are open). Only GET and HEAD of paths outside /api/ are served; "/" is
 /// index.html. A request path maps to a file only if every segment is
 /// 1–128 characters of [A-Za-z0-9._-] not starting with '.', and the file,

@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// The one object that holds the bench (DESIGN.md §6: "one controller holds
-/// the bench at a time"): wraps the Bench in the SafeBench interlocks,
+/// The one object that holds the bench (docs/SAFETY.md, "Admission of a
+/// run": one controller holds the bench at a time): wraps the Bench in the SafeBench interlocks,
 /// validates and plans start requests, applies model-gated stimulation, and
 /// runs one protocol at a time on its own thread. A second Start while a
 /// run holds the bench is refused with kConflict. Thread-safe.
@@ -70,7 +70,7 @@ class BenchOwner {
   /// The controlling client of the current run, empty if none.
   std::string owner() const;
 
-  /// Heartbeat of the controlling client (DESIGN.md §6 watchdog).
+  /// Heartbeat of the controlling client (docs/SAFETY.md, "Heartbeat watchdog").
   void Heartbeat() { safe_.Heartbeat(); }
   /// E-stop from any source (HTTP, DDS, the bench button): at once, from
   /// any thread; latches until ClearEStop.

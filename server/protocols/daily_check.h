@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// What a daily_check run concludes (issue 19; model/daily_check.h): today's
+/// What a daily_check run concludes (docs/PROTOCOLS.md; model/daily_check.h): today's
 /// ramp trial against the leg's stored set, and the validation swing
 /// predicted by the stored set and by the re-fitted one.
 

@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// Model-gated stimulation (DESIGN.md §6, issue 14 "the model gate speaks
-/// the truth"): when a parameter set exists for the leg, every free-swing
+/// Model-gated stimulation (docs/SAFETY.md, "Model gate": the gate
+/// predicts as predictions do): when a parameter set exists for the leg, every free-swing
 /// trial of a prediction protocol is simulated first with the SAME free-swing
 /// simulation as POST /predictions (SimulateStimulatedSwing: start at the
 /// model's passive rest angle, pulses from the envelope at the bench's pulse
@@ -42,7 +42,7 @@ model::SimulationResult SimulateStimulatedSwing(const model::ParameterSet& param
 /// The pulses of a stimulation envelope (mA) at the stimulator's pulse rate:
 /// model::PulsesFromEnvelope, the pulse clock running continuously from the
 /// envelope's t = 0 (a trial's start), as the bench delivers a plan's trial
-/// (the runner restarts the clock at each trial, DESIGN.md §3).
+/// (the runner restarts the clock at each trial, docs/MODEL.md).
 model::PulseTrain EnvelopePulses(const model::SampledSignal& envelope_ma, double pulse_rate_hz);
 
 /// The knee arriving at a stop in a simulated trial.

@@ -418,7 +418,7 @@ std::int64_t Plan::total_ticks() const {
   return n;
 }
 
-// The tracking target of the resolved values (issue 19): a sine starting at
+// The tracking target of the resolved values (docs/PROTOCOLS.md, `tracking`): a sine starting at
 // its middle, holds cycling through lo + (½, 0, ¾, ¼)·(hi − lo), or a ramp
 // lo → hi → lo.
 model::KneeTarget TrackingTarget(const ParameterValues& v, const std::vector<double>& uploaded,

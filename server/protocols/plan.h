@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// A protocol's bench steps (DESIGN.md §5): what BuildPlan makes of a
+/// A protocol's bench steps (docs/PROTOCOLS.md): what BuildPlan makes of a
 /// description, resolved parameter values and the subject, and what the
 /// engine (runner.h) executes tick by tick at the control rate (1 kHz).
 ///
@@ -24,7 +24,7 @@
 
 namespace fesbench::server::protocols {
 
-/// Control ticks per second (DESIGN.md §2: set-points at 1 kHz).
+/// Control ticks per second (docs/ARCHITECTURE.md, units: set-points at 1 kHz).
 inline constexpr std::int64_t kTicksPerSecond = 1000;
 /// Ticks per 200 Hz sample.
 inline constexpr std::int64_t kTicksPerSample = 5;
@@ -79,7 +79,7 @@ struct TrialPlan {
   bool record_setpoint = false;  ///< motor trials add a setpoint_deg channel.
 };
 
-/// The tolerance test's detection settings (DESIGN.md §5 tolerance_test).
+/// The tolerance test's detection settings (docs/PROTOCOLS.md, `tolerance_test`).
 struct ToleranceSettings {
   double threshold_torque_nm = 0.5;   ///< torque above the offset taken as response.
   double min_torque_at_max_nm = 6.0;  ///< Appendix F part II.K.3.

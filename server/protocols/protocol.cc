@@ -132,7 +132,7 @@ std::string NoApprovedSetMessage(std::string_view what) {
 
 namespace {
 
-// DESIGN.md §6: stimulation never above the session's max tolerated
+// docs/SAFETY.md, "Stimulation limit": stimulation never above the session's max tolerated
 // amplitude. The tolerance test measures that maximum, so on a session with
 // a recorded one it may go above it only by a clinician's explicit, audited
 // decision; its ramp starts below its ceiling.

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Protocols as data (DESIGN.md §5; thesis §5.3–§5.4, §7.4.1, Appendix F):
+/// Protocols as data (docs/PROTOCOLS.md; thesis §5.3–§5.4, §7.4.1, Appendix F):
 /// a named, versioned description with typed parameters (units in their
 /// names, thesis defaults, limits) that the server lists
 /// (GET /api/v1/protocols) and validates client values against. How a
@@ -61,7 +61,7 @@ struct ParameterSpec {
   bool integer = false;
   Scaling scaling = Scaling::kNone;
   /// A rest period: values below the protocol's min_rest_s are refused
-  /// (DESIGN.md §6: rest periods cannot be shortened below the minimum).
+  /// (docs/SAFETY.md: rest periods cannot be shortened below the minimum).
   bool is_rest = false;
   /// A choice among names: the value is the index of the chosen name
   /// (clients may send the name; GET /protocols lists them).
@@ -85,8 +85,8 @@ enum class ProtocolKind {
   kFreeSwing,
   kPrediction,
   kRapid,
-  kTracking,  ///< closed-loop stimulation to follow a target angle (issue 19).
-  kDailyCheck,  ///< today's leg against its stored set (issue 19).
+  kTracking,  ///< closed-loop stimulation to follow a target angle (`tracking`).
+  kDailyCheck,  ///< today's leg against its stored set (`daily_check`).
 };
 
 /// A protocol description: pure data.
@@ -103,12 +103,12 @@ struct ProtocolDescription {
   const ParameterSpec* FindParameter(std::string_view name) const;
 };
 
-/// Every protocol of DESIGN.md §5, in table order.
+/// Every protocol of docs/PROTOCOLS.md, in catalogue order.
 const std::vector<ProtocolDescription>& ProtocolCatalog();
 /// The protocol called name, or nullptr.
 const ProtocolDescription* FindProtocol(std::string_view name);
 
-/// The session and subject a run is scaled to (DESIGN.md §7 sessions).
+/// The session and subject a run is scaled to (docs/ARCHITECTURE.md, storage: sessions).
 struct SubjectContext {
   double threshold_ma = 20.0;      ///< lowest amplitude giving torque.
   double max_tolerated_ma = 45.0;  ///< highest amplitude the subject accepts.
@@ -181,7 +181,7 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
                                                const ParameterValues& values,
                                                const SubjectContext& subject);
 
-/// How a parameter reads to a clinician (issue 14 §5): label, unit and
+/// How a parameter reads to a clinician (docs/PROTOCOLS.md, "Parameters"): label, unit and
 /// whether the web form folds it away, by parameter name.
 struct ParameterPresentation {
   std::string label;     ///< clinician words, e.g. "Random-binary amplitude".
@@ -199,8 +199,8 @@ std::string ThesisSection(const ProtocolDescription& protocol);
 /// True if the protocol delivers stimulation (every kind but kPassive).
 bool Stimulates(const ProtocolDescription& protocol);
 
-/// A description as it is listed (GET /api/v1/protocols/{name}, issue 14
-/// §5; api::ProtocolInfo). A default derived from the session (threshold,
+/// A description as it is listed (GET /api/v1/protocols/{name},
+/// api::ProtocolInfo). A default derived from the session (threshold,
 /// max tolerated, range-scaled amplitudes, range of motion) is resolved for
 /// `session` in the parameter's own unit; without a session (or, for
 /// stimulation values, a session without recorded limits) it is unset and

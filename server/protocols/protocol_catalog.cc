@@ -1,6 +1,6 @@
 #include "server/protocols/protocol.h"
 
-// The protocol catalog (DESIGN.md §5): every protocol the engine runs, its
+// The protocol catalog (docs/PROTOCOLS.md): every protocol the engine runs, its
 // parameters with their units, defaults, limits and scaling, and the thesis
 // section behind it.
 

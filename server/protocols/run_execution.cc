@@ -53,7 +53,7 @@ RunResult RunExecution::Execute() {
   runner_.Transition(RunTransition::kStart, "");
   ConfigureSafety();
   t0_ = bench_.Now_s();
-  // DESIGN.md §3: the pulse clock restarts with the run and with each trial
+  // docs/MODEL.md, pulse timing: the pulse clock restarts with the run and with each trial
   // and then runs on; pulses read back outside a trial belong to none.
   bench_.RestartPulseClock();
   bench_.DrainDeliveredPulses();
@@ -88,7 +88,7 @@ bool RunExecution::CheckBeforeStart() {
 }
 
 void RunExecution::ConfigureSafety() {
-  // Interlock limits of this run (DESIGN.md §6): the session's max tolerated
+  // Interlock limits of this run (docs/SAFETY.md): the session's max tolerated
   // amplitude, whatever the plan says. The tolerance test measures it: its
   // ceiling stands alone on a session without a recorded max, or above the
   // recorded max by a clinician's explicit, audited decision.

@@ -34,7 +34,7 @@ class RunExecution {
   /// Refusals before anything moves: e-stop latched, a bad subject, a range
   /// of motion outside the bench's. False with the run failed.
   bool CheckBeforeStart();
-  /// The interlock limits of this run (DESIGN.md §6) and the watchdog.
+  /// The interlock limits of this run (docs/SAFETY.md) and the watchdog.
   void ConfigureSafety();
   /// Opens the step's trial, sets the motor mode, starts tracking. False
   /// when the run must end (aborted_ set).

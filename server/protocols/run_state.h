@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// The run life cycle (DESIGN.md §5; STYLE.md: explicit state machines with
-/// an error state and named transitions, as rclcpp_lifecycle):
+/// The run life cycle (docs/PROTOCOLS.md, "Runs"; an explicit state machine
+/// with an error state and named transitions, as rclcpp_lifecycle):
 ///
 ///   queued ──start──▶ running ──complete──▶ done
 ///                       │ ├──cancel / estop / watchdog──▶ aborted

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The protocol engine (DESIGN.md §5–§6): runs a Plan on a SafeBench — never
+/// The protocol engine (docs/PROTOCOLS.md; docs/SAFETY.md): runs a Plan on a SafeBench — never
 /// on a Bench directly — tick by tick at the control rate (1 kHz):
 /// stimulation amplitude and motor set-points through the interlocks, then
 /// AdvanceTo the next tick; sensors read at 200 Hz into the trial being
@@ -10,7 +10,7 @@
 /// torque offset-corrected by the 50-sample offset measured before each
 /// stimulation segment (§5.3).
 ///
-/// Stimulation (DESIGN.md §3): `stim_ma` is the plan's amplitude after the
+/// Stimulation (docs/MODEL.md, pulse timing): `stim_ma` is the plan's amplitude after the
 /// interlock's clamp (what was commanded); the stimulator's pulse clock is
 /// restarted at the run's and at each trial's start, so a trial's pulses fall
 /// on k / f_pulse from its t_s = 0; a run of the envelope too short to hold a

@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// The engine's side of a tracking run (issue 19): the controller of
-/// model/tracking.h held to the limits the engine keeps below it — the slew
+/// The engine's side of a tracking run (docs/SAFETY.md, "Closed-loop stimulation"): the controller
+/// of model/tracking.h held to the limits the engine keeps below it — the slew
 /// limit and the saturation stop (SafeBench clamps the maximum) — and the
 /// run's figures afterwards. Used by the runner at every 200 Hz sample of
 /// the closed-loop step.

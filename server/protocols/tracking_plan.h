@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The settings of a `tracking` run (issue 19; plan.h's Plan::tracking).
+/// The settings of a `tracking` run (docs/PROTOCOLS.md; plan.h's Plan::tracking).
 
 #include <string>
 

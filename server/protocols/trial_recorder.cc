@@ -104,7 +104,7 @@ RecordedTrial TrialRecorder::Close(bool complete) {
     t.SetChannel("correction_ma", std::move(correction_ma_));
     t.SetChannel("tau_scale_nm", std::move(tau_scale_nm_));
   }
-  // What the stimulator delivered, from its read-back (issue 16): the
+  // What the stimulator delivered, from its read-back (docs/SAFETY.md, "Stimulator read-back"): the
   // pulses, and the same as an envelope channel (model::StimulusColumn).
   pulses_.pulse_rate_hz = hw.pulse_rate_hz;
   pulses_.pulse_width_us = hw.pulse_width_us;

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The trial a run is recording (DESIGN.md §3, §5.3): per 200 Hz sample the
+/// The trial a run is recording (docs/MODEL.md; thesis §5.3): per 200 Hz sample the
 /// commanded amplitude, angle, offset-corrected torque and acceleration (and
 /// the set-point of motor trials, the controller's signals of tracking
 /// trials); EMG at the bench's EMG rate; the stimulator's delivered pulses as

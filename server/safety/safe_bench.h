@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Safety interlocks (DESIGN.md §6), the only way anything above reaches a
+/// Safety interlocks (docs/SAFETY.md), the only way anything above reaches a
 /// Bench. They hold whatever a client, a protocol or a bug asks for:
 /// - stimulation never exceeds the session's max tolerated amplitude nor the
 ///   bench limit (each clamp is reported as a SafetyEvent);

@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// The acting principal of every state-changing service call (server plan,
-/// issue 6): who did it and with which role. Services write it into the audit
+/// The acting principal of every state-changing service call (docs/ARCHITECTURE.md,
+/// "Audit log"): who did it and with which role. Services write it into the audit
 /// log (storage::AuditLog) in the same transaction as the change.
 
 #include <cstdint>
@@ -12,7 +12,7 @@
 
 namespace fesbench::server::services {
 
-/// What a user may do (DESIGN.md §8): clinicians run protocols on the bench,
+/// What a user may do (docs/API.md, roles): clinicians run protocols on the bench,
 /// analysts fit and compare models, admins do everything incl. users and the
 /// simulated subject. The stored role of the user (storage/users.h), with its
 /// wire names "clinician", "analyst", "admin".

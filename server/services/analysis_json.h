@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// JSON of the analysis services' results (DESIGN.md §8 `identifications`,
+/// JSON of the analysis services' results (docs/API.md, "Jobs": `identifications`,
 /// `predictions`, `comparisons`), and the requests read as the services
 /// take them: the wire form (api/analysis_requests.h) followed by the
 /// service's own validation, both kInvalidArgument naming the field.

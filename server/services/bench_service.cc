@@ -29,7 +29,7 @@ nlohmann::json BenchInfoToJson(const BenchInfo& info) {
         {"sample_rate_hz", l.sample_rate_hz},
         {"emg_rate_hz", l.emg_rate_hz},
         {"max_stop_impact_deg_s", l.max_stop_impact_deg_s}}},
-      // Issue 14 §7 at the top level (the whole picture stays in "state").
+      // The e-stop, owner and run at the top level (the whole picture stays in "state").
       {"estopped", info.state.estopped},
       {"owner",
        info.state.owner.empty() ? nlohmann::json(nullptr) : nlohmann::json(info.state.owner)},

@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// The bench resource (DESIGN.md §8 `bench`): what the bench is and what it
-/// is doing, and in simulation the virtual subject (DESIGN.md §6), which an
+/// The bench resource (docs/API.md, "The bench"): what the bench is and what it
+/// is doing, and in simulation the virtual subject (docs/ARCHITECTURE.md), which an
 /// admin may read and replace between runs. Thread-safe.
 
 #include <cstdint>

@@ -2,7 +2,7 @@
 
 /// @file
 /// Bench commands from a token-carrying transport other than HTTP (DDS,
-/// DESIGN.md §9): authenticate the bearer token against storage, check the
+/// docs/API.md, "DDS"): authenticate the bearer token against storage, check the
 /// role exactly as the HTTP routes do (e-stop: any signed-in user; start,
 /// cancel, heartbeat: clinician or admin), then call the same RunService
 /// methods HTTP calls, so the safety interlocks, the run/e-stop audit

@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// Comparison of parameter sets or models across subjects (DESIGN.md §4
-/// "Evaluation", §8 `comparisons`; thesis §6.1.2, Eq. 6.3, Tables 6.5–6.8):
+/// Comparison of parameter sets or models across subjects (docs/MODEL.md,
+/// "Evaluation"; docs/API.md `comparisons`; thesis §6.1.2, Eq. 6.3, Tables 6.5–6.8):
 /// each pair is one subject's leg with two parameter sets (e.g. fitted by
 /// two methods, or two model variants) evaluated on the same stored trials
 /// of that leg; the per-pair errors (mean over its trials of the chosen

@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Identification from stored trials (DESIGN.md §4; thesis ch. 4, §5.3–5.4,
+/// Identification from stored trials (docs/MODEL.md; thesis ch. 4, §5.3–5.4,
 /// §7.4.1). Loads a session's trials (or explicit trial ids), recognises each
 /// by the name the protocol runner gives it (server/protocols/plan.cc), runs
 /// conditioning and the thesis's methods, and stores the new parameter-set

@@ -3,12 +3,12 @@
 /// @file
 /// A bounded pool of worker threads for long computations (identification,
 /// prediction, comparison), separate from the bench's control thread so a
-/// fit never delays a control tick (server plan, issue 6). A job is a
+/// fit never delays a control tick (docs/ARCHITECTURE.md, "Inside the server"). A job is a
 /// function returning JSON or a Status; its record (state, times, result or
 /// error) stays queryable after it finishes, for the most recent
 /// `history` jobs whose results together stay within `history_bytes`
 /// (a prediction's result holds its columns: a few hundred KiB each, so a
-/// count alone would let the pool hold hundreds of MiB; issue 16 §14).
+/// count alone would let the pool hold hundreds of MiB over a long soak).
 ///
 /// Thread-safe. Submit never blocks: a full queue is kUnavailable ("job queue
 /// full"), which a client retries later.

@@ -176,7 +176,7 @@ api::Status PrepareFromStimulus(const PredictionRequest& request, const Predicti
   return api::Status::Ok();
 }
 
-// A stored trial: its stored pulses replayed (DESIGN.md §3), its length, its
+// A stored trial: its stored pulses replayed (docs/MODEL.md, pulse timing), its length, its
 // measured start, and the columns the prediction is judged against. A trial
 // whose knee is locked (by its kind, or an angle that does not move) is
 // predicted isometrically.
@@ -377,7 +377,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
             ? model::SimulateIsometric(params, in.pulses, out.initial_angle_deg, in.options)
             : protocols::SimulateStimulatedSwing(params, in.pulses, in.options);
     if (out.mode == PredictionMode::kFreeSwing) {
-      // Where the prediction leans on extrapolated curves (issue 15).
+      // Where the prediction leans on extrapolated curves (docs/MODEL.md, "Extrapolation").
       out.share_outside_identified_ranges = model::ShareOutsideIdentifiedRanges(
           params.provenance, out.predicted.angle_deg, out.predicted.velocity_deg_s);
     }

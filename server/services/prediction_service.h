@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Prediction (DESIGN.md §4 "Evaluation", §8 `predictions`; thesis §5.4.5,
+/// Prediction (docs/MODEL.md, "Evaluation"; docs/API.md; thesis §5.4.5,
 /// ch. 6): simulates a stored parameter set on a named stimulus generator
 /// or on a stored trial's stimulation and initial state, and — against a
 /// measured trial — reports E_RMS and E_ABS (Eqs. 6.9, 6.10), the

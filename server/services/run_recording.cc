@@ -192,8 +192,8 @@ std::string CeilingMessage(const RunView& view) {
 
 void RunService::PrepareMeasuredLimits(const LiveRun& run, const protocols::RunResult& result,
                                        FinishRecord& f) {
-  // tolerance_test writes what it measured into the session (issue 14):
-  // a session revision by the run's user, so that the protocols that need
+  // tolerance_test writes what it measured into the session (docs/PROTOCOLS.md,
+  // `tolerance_test`): a session revision by the run's user, so that the protocols that need
   // threshold and max tolerated may run at once.
   if (f.state != RunState::kDone || !result.tolerance) return;
   const protocols::ToleranceResult& t = *result.tolerance;

@@ -566,7 +566,7 @@ api::Status RunService::EStop(const Actor& actor, std::string_view source) {
   const std::string who =
       (source.empty() ? std::string("unknown source") : std::string(source)) + " (" +
       (actor.user_name.empty() ? std::string("unknown") : actor.user_name) + ")";
-  // Act first: nothing may delay the e-stop (DESIGN.md §6).
+  // Act first: nothing may delay the e-stop (docs/SAFETY.md).
   owner_.EStop(who);
   try {
     std::string target = "bench";

@@ -1,8 +1,8 @@
 #pragma once
 
 /// @file
-/// Protocol runs on the bench for stored sessions (DESIGN.md §5–§8; server
-/// plan, issue 6), transport-agnostic: HTTP today, DDS tomorrow call the
+/// Protocol runs on the bench for stored sessions (docs/PROTOCOLS.md, "Runs";
+/// docs/ARCHITECTURE.md), transport-agnostic: HTTP today, DDS tomorrow call the
 /// same methods.
 ///
 /// Start loads the session and subject from storage and builds the
@@ -56,7 +56,7 @@ struct RunServiceConfig {
   /// possible): only for the ETA.
   double time_scale = 1.0;
   /// The controlling user must heartbeat within this many wall seconds
-  /// during a run (DESIGN.md §6).
+  /// during a run (docs/SAFETY.md, "Heartbeat watchdog").
   double heartbeat_timeout_s = 1.0;
   bool arm_watchdog = true;                ///< false only in tests and offline replays.
   double progress_interval_s = 0.1;        ///< bench seconds between progress events.

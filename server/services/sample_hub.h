@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// Fan-out of the server's live events (DESIGN.md §8 runs/{id}/stream, §9
+/// Fan-out of the server's live events (docs/API.md: runs/{id}/stream,
 /// fesbench/bench/samples): state changes, progress, sample batches, stored
 /// trials and the end of each run, and every stored parameter set, go to any
 /// number of subscribers (SSE viewers, the DDS front end).

@@ -32,7 +32,7 @@ struct LoadedTrial {
 api::Result<LoadedTrial> LoadTrial(storage::Database& db, std::int64_t trial_id);
 
 /// The pulses that drove a stored trial, on a time axis starting at its first
-/// sample (t_s[0] = 0), as predictions replay them (DESIGN.md §3): the
+/// sample (t_s[0] = 0), as predictions replay them (docs/MODEL.md): the
 /// delivered pulses it stores (trial.pulses), else those the pulse clock
 /// makes of its `stim_ma` channel (model::PulsesFromEnvelope at
 /// `default_rate_hz`, the continuous grid from the first sample).

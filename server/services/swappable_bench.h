@@ -2,7 +2,7 @@
 
 /// @file
 /// The simulated bench behind the RunService, with a virtual subject an
-/// admin may replace between runs (BenchService, DESIGN.md §6).
+/// admin may replace between runs (BenchService, docs/ARCHITECTURE.md).
 
 #include <memory>
 #include <mutex>

@@ -1,4 +1,4 @@
-// The one clock interface (api/clock.h, issue 17): the process's clock.
+// The one clock interface (api/clock.h): the process's clock.
 
 #include "api/clock.h"
 

@@ -1,4 +1,4 @@
-// The one run vocabulary (api/run_state.h, issue 14 §4).
+// The one run vocabulary (api/run_state.h; docs/PROTOCOLS.md, "Runs").
 
 #include "api/run_state.h"
 

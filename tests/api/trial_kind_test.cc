@@ -1,4 +1,4 @@
-// The typed trial kind (api/trial_kind.h, issue 17): names, families, the
+// The typed trial kind (api/trial_kind.h): names, families, the
 // properties clients select trials by, and the kind on the trial's JSON.
 
 #include "api/trial_kind.h"

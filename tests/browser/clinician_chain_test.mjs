@@ -1,5 +1,5 @@
-// Browser test of issue 14: a clinician's first session with a new subject,
-// the whole chain in the web client on a fresh server — sign in → new
+// Browser test of README's "First session with a new subject": a clinician's first session with a
+// new subject, the whole chain in the web client on a fresh server — sign in → new
 // subject without body mass / shank length → add them by correction (with a
 // reason) → session without threshold / max tolerated → tolerance test,
 // "the subject says stop" → the session shows the recorded values → rapid

@@ -1,4 +1,4 @@
-// Browser test of issue 20 on the session page: a recording made on another
+// Browser test of data in and out (docs/API.md) on the session page: a recording made on another
 // rig (ms, radians, amperes) uploaded with its kind and column mapping; a
 // bad file refused with the line and column named and nothing stored; the
 // session report opened in a new tab and captured (screenshot and, where

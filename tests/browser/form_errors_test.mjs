@@ -1,4 +1,4 @@
-// Browser test of issue 22: a form submitted with three invalid fields shows
+// Browser test of form errors: a form submitted with three invalid fields shows
 // all three messages at once — each beside its field, with the unit and the
 // allowed range the server applies ("must be 1–400 kg, got -5") — and sends
 // nothing to the server; the same for the new-session form. The server's own

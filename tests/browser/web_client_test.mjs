@@ -1,4 +1,4 @@
-// Browser test of the fesbench web client (issue 8): starts fesbench-server on
+// Browser test of the fesbench web client (README, "Web client"): starts fesbench-server on
 // loopback (temporary database, simulated bench in accelerated time), drives
 // Debian's chromium headless with Playwright through the clinician's whole
 // flow, and saves a screenshot of each page. Waits are on page state

@@ -1,4 +1,4 @@
-// Integration (issue 16): HTTPS end to end. At test time the `openssl`
+// Integration: HTTPS end to end. At test time the `openssl`
 // command-line tool makes a throwaway CA and a server certificate for
 // 127.0.0.1 (subjectAltName IP) in a temporary folder; the real
 // fesbench-server runs with --tls-cert/--tls-key and the real `fesbench`

@@ -1,4 +1,4 @@
-// Integration (issue 22): the CLI an analyst expects, against a real
+// Integration (docs/CLI.md): the CLI an analyst expects, against a real
 // fesbench-server — `protocols list|show` with units, defaults and limits
 // as the server states them; `--json` on every command, parsed with a JSON
 // parser, including `run start` while following (one JSON object per event
@@ -225,7 +225,7 @@ TEST(CliJsonTest, EveryCommandAnswersJson) {
                                    "identify");
   EXPECT_FALSE(identified["parameter_sets"].empty());
 
-  // Data in and out (issue 20): the wide history, the tidy curves, the
+  // Data in and out (docs/API.md, "Session archives"): the wide history, the tidy curves, the
   // session archive and its import into another session, a recording.
   auto wide = cli.Run({"params", "list", "--subject", "JS01", "--format", "csv"});
   ASSERT_EQ(wide.exit_code, 0) << wide.err;

@@ -553,8 +553,8 @@ TEST(CliSessionTest, FollowHeartBeatsARealTimeRun) {
   EXPECT_EQ(server.Terminate(), 0);
 }
 
-// Issue 14: a new leg from the tolerance test to a validated model, by
-// default, as a clinician walks it on a fresh server: new subject without
+// README, "First session with a new subject": a new leg from the tolerance test to a validated
+// model, by default, as a clinician walks it on a fresh server: new subject without
 // inertia inputs → corrected → session without values → tolerance test
 // (stopped with `run stop` at a chosen amplitude) → the session shows the
 // recorded values → rapid parameterisation (followed by default) →
@@ -729,8 +729,8 @@ TEST(CliSessionTest, NewLegFromToleranceTestToAValidatedModel) { WalkANewLeg("",
 // speed. Fresh trials then come from active_random_binary.
 TEST(CliSessionTest, NewLegWithAStricterModelGate) { WalkANewLeg("90", true); }
 
-// Issue 16 §1 from the command line: a tolerance test above the session's
-// recorded max is refused without a reason, and started with
+// The tolerance test ceiling (docs/SAFETY.md) from the command line: a tolerance test above the
+// session's recorded max is refused without a reason, and started with
 // --ceiling-reason, which is audited with the run.
 TEST(CliSessionTest, AToleranceTestAboveTheRecordedMaxNeedsACeilingReason) {
   ServerProcess server({"--time-scale", "0"});

@@ -1,4 +1,4 @@
-// Integration: `fesbench study` (issues 10, 15) with 2 virtual legs, one of
+// Integration: `fesbench study` (docs/STUDY.md) with 2 virtual legs, one of
 // each shape family, against a real fesbench-server on loopback
 // (--time-scale 0, no DDS): the tables' files and structure, the inertia
 // truth column against the seeded generators, t-test df = n − 1, the

@@ -1,4 +1,4 @@
-// The DDS front end (DESIGN.md §9) against real services on a temporary
+// The DDS front end (docs/API.md, "DDS") against real services on a temporary
 // database, with a second participant as the client, on UDP loopback and a
 // domain id unique to the test process (parallel ctest runs do not meet):
 // a late joiner gets the latest parameter set of every leg and the bench

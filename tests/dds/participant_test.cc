@@ -1,4 +1,4 @@
-// The participant's XML profile (issue 16 §10): --dds-profile is applied —
+// The participant's XML profile (docs/API.md, "DDS"): --dds-profile is applied —
 // the participant is created from the file's default participant profile,
 // or from a named one — so a QoS and a property written in the XML are the
 // participant's. And the IDL's structs are explicitly @final (§12).
@@ -112,7 +112,7 @@ TEST(Participant, TheFilesDefaultProfileIsAppliedWithoutAName) {
   std::filesystem::remove_all(dir);
 }
 
-// Issue 16 §12: every struct says @final, so no vendor's default
+// Every struct says @final, so no vendor's default
 // extensibility (appendable in XTypes) can silently stop matching.
 TEST(Idl, EveryStructIsExplicitlyFinal) {
   std::ifstream in(FESBENCH_IDL_FILE);

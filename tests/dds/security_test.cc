@@ -1,4 +1,4 @@
-// Secured DDS (issue 16 §11): a lab PKI made at test time by
+// Secured DDS (README, "Secured DDS"): a lab PKI made at test time by
 // scripts/make-dds-pki.sh; a secured server and monitor work (bench state,
 // parameter sets, e-stop), a participant without security or with an
 // identity of another CA sees nothing and cannot command, a viewer may

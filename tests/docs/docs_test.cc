@@ -1,4 +1,4 @@
-// The project stands on its own (issue 22): README.md and every docs/**/*.md
+// The project stands on its own: README.md and every docs/**/*.md
 // point only inside the repository (links resolve to files in it, no path
 // leaves it, no absolute path into a developer's machine, every *.md named
 // exists), and every command shown in the README's code blocks exists — each
@@ -100,12 +100,6 @@ TEST(DocsTest, ReferencesStayInsideTheRepository) {
           << Where(file, n) << ": absolute path of a developer's machine: " << machine[0];
       for (std::sregex_iterator it(line.begin(), line.end(), md_name), end; it != end; ++it) {
         const std::string name = (*it)[0];
-        // "DESIGN.md §N" is the section numbering code comments cite;
-        // docs/ARCHITECTURE.md maps it onto these documents.
-        if (name == "DESIGN.md" &&
-            line.compare(static_cast<std::size_t>(it->position()) + name.size(), 3, " §") == 0) {
-          continue;
-        }
         // Relative to the document, the root or docs/; a bare file name
         // (e.g. an output of the study, "study.md") anywhere under docs/.
         bool found =

@@ -51,7 +51,7 @@ TEST(Extrapolate, GravityPlusExponentialLegFromASubRange) {
 }
 
 TEST(Extrapolate, ShortRangeUsesTheAnthropometricGravityMoment) {
-  // Pure gravity seen over 76–90° only (the narrow band of issue 15): with
+  // Pure gravity seen over 76–90° only (a narrow band, docs/MODEL.md "Extrapolation"): with
   // m·g·l known the phase is found and the extrapolation is the sine.
   Leg leg;
   leg.ke = leg.kf = 0.0;

@@ -1,4 +1,4 @@
-// End to end (DESIGN.md §4): identify a full parameter set from simulated
+// End to end (docs/MODEL.md): identify a full parameter set from simulated
 // trials of a known leg with the thesis's protocol (§5.3–5.4), then predict
 // that leg's response to a random-binary train it was not identified on.
 

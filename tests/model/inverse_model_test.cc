@@ -1,4 +1,4 @@
-// The model inverted for control (issue 19, thesis §7.6.3): targets with
+// The model inverted for control (docs/MODEL.md, thesis §7.6.3): targets with
 // exact derivatives, the inverse recruitment curve, the static inverse in
 // closed form, the inverse of a known leg's forward model reproducing the
 // trajectory, and the PID's closed-form behaviour.
@@ -74,7 +74,7 @@ TEST(InverseModelTest, AHoldNeedsTheStaticActivation) {
 TEST(InverseModelTest, TheInverseOfAKnownLegReproducesItsTrajectory) {
   const ParameterSet params = ExampleParameterSet();
   // Start at the sine's first angle and hold 1 s (the contraction chain
-  // fills), then a 0.2 Hz sine 40–70° for 10 s: the shape of issue 19.
+  // fills), then a 0.2 Hz sine 40–70° for 10 s: the shape of the tracking target (docs/STUDY.md).
   KneeTarget target = HoldsTarget({55.0}, 1.0, 1.0);
   const KneeTarget sine = SineTarget(40.0, 70.0, 0.2, 10.0);
   for (std::size_t i = 1; i < sine.size(); ++i) {

@@ -315,7 +315,7 @@ TEST(SimulateTest, StimulusColumnRule) {
 }
 
 // The simulator's stim_ma column read as an envelope gives the pulses back:
-// isolated impulses are not doubled (issue 15), trains stay on their grid.
+// isolated impulses are not doubled, trains stay on their grid.
 TEST(SimulateTest, StimulusColumnRoundTripsThroughPulsesFromEnvelope) {
   SampledSignal env{200.0, 0.0, std::vector<double>(2400, 0.0)};
   env.values[50] = 40.0;                                            // impulse off the grid (0.25 s)

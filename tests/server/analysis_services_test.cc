@@ -1,6 +1,6 @@
 // The analysis services on a temporary database: identification from
 // model-simulated (noise-free) trials, prediction against a stored trial,
-// and the paired t-test of a comparison (DESIGN.md §4, §8).
+// and the paired t-test of a comparison (docs/MODEL.md; docs/API.md).
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -205,7 +205,7 @@ TEST_F(AnalysisServicesTest, IdentificationRecoversKnownParametersAndStoresVersi
   auto stored = sets.Get(fit->stored[0].parameter_set_id);
   ASSERT_TRUE(stored.ok()) << stored.status().ToString();
   const model::ParameterSet& est = stored->params;
-  // Issue-3 tolerances (tests/model): pole 2 %, IRC 0.02 away from threshold,
+  // The tolerances of tests/model: pole 2 %, IRC 0.02 away from threshold,
   // passive 0.05 N·m, inertia 1 %.
   EXPECT_NEAR(est.contraction.pole_per_s, 25.0, 0.02 * 25.0);
   double irc_err = 0.0;
@@ -418,7 +418,7 @@ TEST_F(AnalysisServicesTest, PredictionOfATrialMadeFromTheSameParametersHasZeroE
               0.01 * truth.active.torque_scale_nm);
 }
 
-// DESIGN.md §3: a prediction on a stored trial replays the pulses the trial
+// docs/MODEL.md, pulse timing: a prediction on a stored trial replays the pulses the trial
 // stores (what the stimulator delivered), not pulses rebuilt from stim_ma.
 TEST_F(AnalysisServicesTest, PredictionOfAStoredTrialReplaysItsStoredPulses) {
   const model::ParameterSet truth = Truth();

@@ -1,4 +1,4 @@
-// A bench made of parts (issue 21): the RehaStim2 emulator behind a real
+// A bench made of parts (README, "A real stimulator"): the RehaStim2 emulator behind a real
 // pseudo-terminal as the stimulator, the simulated leg as sensors and motor,
 // the protocol runner and the safety layer above, as the server composes
 // them for --stimulator sciencemode2. What the device was asked to deliver

@@ -1,4 +1,4 @@
-// daily_check (issue 19, thesis §7.4.3, §7.6.4): today's leg against its
+// daily_check (docs/PROTOCOLS.md, thesis §7.4.3, §7.6.4): today's leg against its
 // stored rapid set. An unchanged leg reports no change; a leg whose
 // electrode moved (recruitment 3 mA later) gets only its IRC re-fitted, and
 // the re-fitted set predicts a fresh trial as well as a new full rapid run.

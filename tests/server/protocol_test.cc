@@ -1,4 +1,4 @@
-// Protocol descriptions, parameter validation and plans (DESIGN.md §5).
+// Protocol descriptions, parameter validation and plans (docs/PROTOCOLS.md).
 #include "server/protocols/protocol.h"
 
 #include <gtest/gtest.h>
@@ -125,7 +125,7 @@ TEST(ProtocolCatalog, JsonListsNameVersionAndParameters) {
   EXPECT_TRUE(found);
 }
 
-// Issue 14 §5: parameters say what they are.
+// docs/PROTOCOLS.md, "Parameters": parameters say what they are.
 TEST(ProtocolCatalog, EveryParameterHasAClinicianLabelAUnitAndAnHonestDefault) {
   for (const ProtocolDescription& p : ProtocolCatalog()) {
     for (const ParameterSpec& spec : p.parameters) {
@@ -216,8 +216,8 @@ TEST(ResolveParameters, ScalesDefaultsToTheSubject) {
   EXPECT_DOUBLE_EQ(sim->at("max_angle_deg"), 105.0);
 }
 
-// Issue 16 §1: the tolerance test's ceiling is the recorded max by default
-// (60 mA, stated, without one); above a recorded max only with a reason.
+// docs/SAFETY.md, "Tolerance test ceiling": the tolerance test's ceiling is the recorded max by
+// default (60 mA, stated, without one); above a recorded max only with a reason.
 TEST(ResolveParameters, ToleranceCeilingFollowsTheRecordedMax) {
   const ProtocolDescription& d = *FindProtocol("tolerance_test");
   SubjectContext recorded = Subject();

@@ -1,4 +1,4 @@
-// The whole-range rapid routine (§7.4.1, issue 15) on seeded legs of the
+// The whole-range rapid routine (§7.4.1, docs/PROTOCOLS.md) on seeded legs of the
 // simulated bench, every parameter at its default: the plan's bench time,
 // the extension search, the released swings over the range of motion, the
 // identified ranges recorded in provenance, and predictions of fresh trials.
@@ -131,7 +131,7 @@ TEST_P(RapidRoutine, IdentifiesTheWholeRangeAndPredictsFreshTrials) {
   for (double g : p.active.torque_angle.y()) EXPECT_GE(g, 0.0);
   for (double g : p.active.torque_velocity.y()) EXPECT_GE(g, 0.0);
   // J measured by the releases (inertia_method releases), not Eq. 4.13's
-  // average body: within 10 % (issue 15).
+  // average body: within 10 % (docs/MODEL.md).
   EXPECT_EQ(p.provenance.inertia_method, "releases");
   EXPECT_NEAR(p.passive.inertia_kgm2, leg.subject.truth.passive.inertia_kgm2,
               0.10 * leg.subject.truth.passive.inertia_kgm2);
@@ -146,7 +146,7 @@ TEST_P(RapidRoutine, IdentifiesTheWholeRangeAndPredictsFreshTrials) {
 // Knee-angle E_RMS of the fresh default trials (RB, step, ramp, sine) and
 // J error at this commit: thesis 1: 1.49 1.51 1.50 1.18°, +2.8 %; thesis 6:
 // 1.41 1.60 1.50 1.82°, −2.7 %; analytic 2: 1.84 1.81 2.07 0.80°, +0.2 %;
-// analytic 9: 7.12 2.92 1.57 1.61°, +1.2 % (issue 15's RB target of 3° is
+// analytic 9: 7.12 2.92 1.57 1.61°, +1.2 % (the study's RB target of 3° is
 // not met on analytic 9, hence 8° for RB and 3.5° for the others here).
 INSTANTIATE_TEST_SUITE_P(Legs, RapidRoutine,
                          ::testing::Values(std::pair{SubjectFamily::kThesis, std::uint64_t{1}},

@@ -1,4 +1,4 @@
-// The parts ProtocolRunner::Run is made of (issue 17): the tolerance test's
+// The parts ProtocolRunner::Run is made of: the tolerance test's
 // detector against hand-computed windows, and the trial recorder on the
 // simulated bench (channels, offsets, batches, rates from BenchLimits).
 

@@ -96,8 +96,8 @@ double MaxStoredStim(storage::Database& db, const RunView& view) {
   return max_ma;
 }
 
-// Issue 16 §1: a tolerance test on a session with a recorded max tolerated
-// amplitude ramps at most to it unless a clinician gives an explicit,
+// docs/SAFETY.md, "Tolerance test ceiling": a tolerance test on a session with a recorded max
+// tolerated amplitude ramps at most to it unless a clinician gives an explicit,
 // audited ceiling above it. The subject now tolerates more than the
 // recorded max (it signals its own limit only at 100 mA), so only the
 // ceiling ends the ramp.
@@ -229,8 +229,8 @@ TEST(RunService, ToleranceTestLeftRunningRecordsWhereTheSubjectSignalledTheLimit
   EXPECT_DOUBLE_EQ(*session->current.details.max_tolerated_ma, recorded);
 }
 
-// Issue 16 §2–§3 in process: a new RunService on the same database (a
-// restart) closes the runs left open and latches a stored e-stop again.
+// Restart (docs/SAFETY.md, "Shutdown and restart") in process: a new RunService on the same
+// database (a restart) closes the runs left open and latches a stored e-stop again.
 TEST(RunService, RecoveryClosesRunsLeftOpenAndLatchesAStoredEStopAgain) {
   Rig rig;
   storage::SessionRepository sessions(*rig.db);

@@ -30,7 +30,7 @@ struct RapidOutcome {
 RapidOutcome RunRapidAndPredictUncached(std::uint64_t seed) {
   Rig rig(seed);
   SubjectContext ctx = test::WithKnownInertia(rig.subject);
-  ctx.min_angle_deg = 10.0;  // the bench's stops: the whole range (issue 15)
+  ctx.min_angle_deg = 10.0;  // the bench's stops: the whole range
   ctx.max_angle_deg = 110.0;
   auto plan = MakePlan("rapid_parameterisation", {}, ctx);
   EXPECT_TRUE(plan.ok());
@@ -80,7 +80,7 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   const model::ParameterSet& p = *out.run.parameter_set;
   EXPECT_EQ(p.provenance.irc_method, "ramp_correlation");
   EXPECT_EQ(p.provenance.passive_method, "free_swing_known_inertia");
-  // A valid wire parameter set (DESIGN.md §3 JSON), as the run summary carries it.
+  // A valid wire parameter set (docs/MODEL.md JSON), as the run summary carries it.
   const auto wire = api::ParameterSetFromJson(RunResultToJson(out.run).at("parameter_set"));
   EXPECT_TRUE(wire.ok()) << wire.status().ToString();
   // Contraction pole (3rd order): series elasticity delays the twitch peak
@@ -102,7 +102,7 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   // Passive torque (τ_pta + τ_ptv(0), both referenced) over the middle of
   // the angles the free swing visited: within 0.75 N·m (measured over seeds
   // 1–16: ≤ 0.71 since the pulse clock runs continuously through each trial
-  // (DESIGN.md §3), ≤ 0.52 before; the output-error refinement trades some
+  // (docs/MODEL.md), ≤ 0.52 before; the output-error refinement trades some
   // of the torque fit for the angle fit, as hysteresis and friction bias
   // either).
   const std::vector<double> angles = *out.run.trials.at(1).trial.Values("angle_deg");
@@ -121,7 +121,7 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   EXPECT_LT(p.provenance.fit_rms.at("output_error_deg"),
             p.provenance.fit_rms.at("output_error_start_deg"));
   // Knee-angle RMS of a fresh default random-binary prediction (see the
-  // cohort test below: 3° is issue 15's target, met on 15 of 16 legs).
+  // cohort test below: 3° is the study's target, met on 15 of 16 legs).
   EXPECT_LT(out.prediction_rms_deg, 3.5);
 }
 
@@ -133,8 +133,8 @@ INSTANTIATE_TEST_SUITE_P(Seeds, Rapid, ::testing::Range<std::uint64_t>(1, 17));
 // potentiation, twitch variation, pot non-linearity, noise, stops). The
 // prediction is the default prediction_random_binary train (60 % of
 // threshold→max, seed 11), which swings further than the old rapid trains
-// (issue 15): with the whole-range routine the median over seeds 1–16 is
-// 1.62°, the worst leg 3.28° (seed 11; issue 15's target of 3° is not met on
+// (docs/STUDY.md): with the whole-range routine the median over seeds 1–16 is
+// 1.62°, the worst leg 3.28° (seed 11; the study's target of 3° is not met on
 // that leg, hence 3.5° here, and the per-leg test above keeps 3.5°).
 TEST(Rapid, CohortPredictsRandomBinaryUnderThreeDegrees) {
   std::vector<double> rms;
@@ -143,7 +143,7 @@ TEST(Rapid, CohortPredictsRandomBinaryUnderThreeDegrees) {
   }
   std::sort(rms.begin(), rms.end());
   EXPECT_LT(rms.back(), 3.5);               // every leg
-  EXPECT_LT(0.5 * (rms[7] + rms[8]), 2.0);  // median (issue 15: ≤ 2°)
+  EXPECT_LT(0.5 * (rms[7] + rms[8]), 2.0);  // median (the study's ≤ 2°)
 }
 
 TEST(Runner, RapidWithoutInertiaFailsWithTheReason) {

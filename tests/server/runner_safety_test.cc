@@ -1,4 +1,4 @@
-// Safety fuzz (issue "Safety interlocks", DESIGN.md §6): 10,000 seeded
+// Safety fuzz (docs/SAFETY.md): 10,000 seeded
 // random plans, protocol parameter sets and command sequences on a fast
 // fake bench that records what reached the hardware. Stimulation never
 // exceeds the session maximum (nor 100 mA), set-points never leave the
@@ -103,8 +103,8 @@ SubjectContext RandomSubject(std::mt19937_64& rng) {
   s.max_tolerated_ma = std::min(100.0, s.threshold_ma + 1.0 + 70.0 * u(rng));
   s.min_angle_deg = 100.0 * u(rng);
   s.max_angle_deg = std::min(180.0, s.min_angle_deg + 1.0 + 120.0 * u(rng));
-  // Issue 16 §1: some sessions have no recorded max yet, and now and then a
-  // clinician explicitly lets a tolerance test go above a recorded one.
+  // Tolerance test ceiling (docs/SAFETY.md): some sessions have no recorded max yet, and now and
+  // then a clinician explicitly lets a tolerance test go above a recorded one.
   s.max_tolerated_recorded = u(rng) < 0.8;
   if (s.max_tolerated_recorded && u(rng) < 0.1) s.ceiling_above_max = "fuzz";
   return s;

@@ -1,4 +1,4 @@
-// The protocol engine on the simulated bench (DESIGN.md §5–§6): every
+// The protocol engine on the simulated bench (docs/PROTOCOLS.md; docs/SAFETY.md): every
 // protocol runs to completion on a seeded virtual subject in accelerated
 // time and records the thesis's trials; tolerance test; rapid
 // parameterisation recovers the subject; e-stop, watchdog, cancel, one run
@@ -289,7 +289,7 @@ TEST(Runner, ToleranceTestLeftRunningEndsWhereTheSubjectSignalsTheLimit) {
 
 // --- e-stop, watchdog, cancel, one run at a time, model gate -----------------------------
 
-// --- one pulse-timing rule and the stimulator read-back (issues 15, 16) --------
+// --- one pulse-timing rule and the stimulator read-back -----------------------
 
 // Every pulse of a trial is on the trial's grid k/f or a single pulse at an
 // envelope sample; the pulses the runner stores are those PulsesFromEnvelope
@@ -339,7 +339,7 @@ TEST(Runner, TrialsStoreTheDeliveredPulsesOnTheTrialsGrid) {
   }
 }
 
-// Issue 16 item 4: a command above the limit injected below the runner — a
+// Stimulator read-back (docs/SAFETY.md): a command above the limit injected below the runner — a
 // faulty caller of the safety layer, in the middle of a run — never reaches
 // the leg, and the trial's read-back shows the clamp (the runner's own
 // stim_ma channel does not see the injection at all).

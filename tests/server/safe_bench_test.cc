@@ -230,7 +230,7 @@ TEST(SafeBench, RandomCommandSequencesNeverBreachLimits) {
   }
 }
 
-// --- stimulator read-back (issue 16 item 4) -------------------------------------
+// --- stimulator read-back (docs/SAFETY.md) ---------------------------------------
 
 TEST(SafeBench, ReadBackShowsTheClampOfAnOverLimitCommand) {
   Fixture f;

@@ -1,4 +1,4 @@
-// The session report's renderer (issue 20): every section, stored text
+// The session report's renderer (docs/API.md): every section, stored text
 // escaped, self-contained (no script, no external resource), well-formed
 // SVG plots, e-stops and clamps and warnings shown, absent data said.
 

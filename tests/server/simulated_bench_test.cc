@@ -41,7 +41,7 @@ SimulatedBenchOptions Options(double angle_deg, MotorMode mode, std::uint64_t se
 }
 
 // Drives the bench with a 200 Hz envelope the way the protocol runner does
-// (DESIGN.md §3): set the amplitude at sample i, read, advance to sample
+// (docs/MODEL.md, pulse timing): set the amplitude at sample i, read, advance to sample
 // i + 1; a run too short to hold a grid time of the pulse clock (which runs
 // from the bench's start here) goes out as one TriggerPulse at its start.
 std::vector<SensorFrame> Drive(SimulatedBench& bench, const model::SampledSignal& env) {
@@ -119,7 +119,7 @@ TEST(SimulatedBench, FreeSwingWithFidelityOffMatchesModelSimulator) {
   EXPECT_LT(max_err, 0.05);
 }
 
-// Issue 15: one pulse-timing rule. A 10 s random-binary free swing on the
+// One pulse-timing rule (docs/MODEL.md). A 10 s random-binary free swing on the
 // bench (physics = the model's with fidelity off) against the model fed the
 // same pulses: the closed loop agrees to ~1e-4°. The pulses restarted at
 // each rise of the stimulation (the old rule) miss by degrees.
@@ -540,7 +540,7 @@ TEST(SimulatedBench, EStopFromAnotherThreadZeroesStimulationWithinOneControlPeri
   bench.ClearHardwareEStop();
   bench.SetStimAmplitude(0.0);
   bench.SetStimAmplitude(40.0);
-  // The pulse clock runs on (DESIGN.md §3): the next pulse at the next grid
+  // The pulse clock runs on (docs/MODEL.md): the next pulse at the next grid
   // time, 40/33 s, not at the command.
   EXPECT_EQ(bench.DeliveredPulses().size(), pulses.size());
   bench.AdvanceTo(1.22);

@@ -1,4 +1,4 @@
-// The `tracking` protocol on the simulated leg (issue 19): the controllers
+// The `tracking` protocol on the simulated leg (docs/PROTOCOLS.md): the controllers
 // follow a target through the engine, the engine holds them to the session's
 // maximum and a slew limit, a controller saturated too long ends the run,
 // and e-stop and watchdog act as in every run.

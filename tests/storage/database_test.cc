@@ -407,7 +407,7 @@ TEST_P(StorageTest, ConcurrentReadersAndWritersNeverSeeLocked) {
   EXPECT_EQ(list->size(), 1u + kWriters * kWritesPerWriter + kWritesPerWriter);
 }
 
-// Two servers on one database (issue 18): each sees only its own bench's
+// Two servers on one database: each sees only its own bench's
 // unfinished runs and e-stop latch, moves only its own runs, and reads the
 // other's like any analyst.
 TEST_P(StorageTest, RunsAndLatchesBelongToTheirBench) {
@@ -496,7 +496,7 @@ TEST_F(PostgresStorageTest, UnreachableServerIsUnavailableWithoutThePassword) {
   EXPECT_NE(db.status().message().find("127.0.0.1"), std::string::npos);
 }
 
-// Two servers writing at once (issue 18): both append versions of the same
+// Two servers writing at once: both append versions of the same
 // leg's parameter set and audit rows from two threads each. Serializable
 // transactions refuse the loser of each race, which is retried: no version
 // is lost or given twice, every id is unique, and each server reads all.
@@ -548,7 +548,7 @@ TEST_F(PostgresStorageTest, TwoServersWritingAtOnceLoseAndRepeatNothing) {
   }
 }
 
-// New sets as events across servers (issue 18): a set stored through one
+// New sets as events across servers: a set stored through one
 // Database reaches the other's listener once it commits (NOTIFY), and a
 // server's own sets reach its listener once, from its own commit.
 TEST_F(PostgresStorageTest, SetsStoredByAnotherServerArriveAsEvents) {

@@ -1,5 +1,5 @@
-// The stored e-stop latch (issue 16 §2) and the runs a stopped process left
-// unfinished (§3): rows only ever appended; the latch is the last row; it
+// The stored e-stop latch (docs/SAFETY.md) and the runs a stopped process left
+// unfinished: rows only ever appended; the latch is the last row; it
 // survives closing and reopening the database.
 #include "storage/estop_latch.h"
 

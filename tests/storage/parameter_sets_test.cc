@@ -253,7 +253,7 @@ TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
   EXPECT_TRUE(sets.Approvals(candidate)->empty());
 }
 
-// Issue 18: a stored set is an event, raised after its transaction commits
+// A stored set is an event, raised after its transaction commits
 // (also when the insert is nested in a caller's transaction), never for a
 // transaction that rolls back.
 TEST_P(StorageTest, StoredSetsNotifyTheListenerAfterCommitOnly) {

@@ -1,4 +1,4 @@
-// The ctest fixture around the tests that use PostgreSQL (issue 18): one
+// The ctest fixture around the tests that use PostgreSQL: one
 // server for the whole ctest run, in DIR.
 //
 //   fesbench_test_postgres_fixture start DIR   starts it, writes DIR/url

@@ -1,6 +1,6 @@
 #pragma once
 
-// A real PostgreSQL server for tests and benchmarks (issue 18): initdb into
+// A real PostgreSQL server for tests and benchmarks: initdb into
 // a temporary folder, started on a free loopback port, stopped at the end.
 // initdb and postgres refuse to run as root; as root they run as the
 // `postgres` system user (the Debian package creates it).

@@ -21,7 +21,7 @@ namespace fesbench::cli::study {
 
 inline constexpr const char* kRapid = "rapid_parameterisation";
 
-// The clinician chain (issue 15): the rapid set predicting each default
+// The clinician chain (docs/STUDY.md): the rapid set predicting each default
 // prediction protocol's fresh trial. Label and trial name.
 struct Input {
   std::string label;

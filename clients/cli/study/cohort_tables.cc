@@ -72,7 +72,7 @@ double RelativeErrorPct(double identified, double truth) {
   return std::isfinite(identified) && truth != 0.0 ? 100.0 * (identified - truth) / truth : kNaN;
 }
 
-// The clinician chain (issue 15): per leg, the default rapid set predicting
+// The clinician chain (docs/STUDY.md): per leg, the default rapid set predicting
 // the default prediction protocols' fresh trials, its J, pole and τ_scale
 // errors against the truth, its identified ranges and the routine's bench
 // time; then medians and worst values, over all legs and per family.

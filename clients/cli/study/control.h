@@ -1,7 +1,7 @@
 #pragma once
 
 /// @file
-/// The study's control chapter (issue 19, thesis §7.6.3): each leg's rapid
+/// The study's control chapter (docs/STUDY.md, thesis §7.6.3): each leg's rapid
 /// set drives the `tracking` protocol with the three controllers on a
 /// 0.2 Hz sine 30–80° and on a sequence of holds (30 s each), and, with the
 /// leg's fatigue rate turned up five-fold, on the sine for 2 minutes. Every

@@ -357,7 +357,7 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
       Predict(client, leg, "irc_" + variant.key, "isometric", iso->second, false);
     }
   }
-  // Control with the rapid set (issue 19).
+  // Control with the rapid set (docs/STUDY.md, "Control").
   if (const auto rapid = leg.sets.find("rapid"); rapid != leg.sets.end()) {
     leg.control = RunLegControl(client, index, family, leg.session_id, rapid->second,
                                 vs.as_put, log);

@@ -4,7 +4,7 @@
 /// The virtual-cohort study (`fesbench study`, thesis ch. 6 and §7.4.1):
 /// drives a running fesbench-server with a simulated bench through its
 /// public HTTP API for N seeded virtual legs of one or more shape families,
-/// then writes the clinician-chain table (issue 15: the default rapid set
+/// then writes the clinician-chain table (docs/STUDY.md: the default rapid set
 /// predicting the default prediction protocols, its errors against the
 /// truth), the equivalents of Tables 6.1–6.9, per-leg error tables
 /// (Appendices J, K) and bench times as Markdown and CSV, and gnuplot PNGs

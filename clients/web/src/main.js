@@ -160,7 +160,7 @@ async function checkHealth() {
 
 // --- bench state, e-stop, run bar (every page) ----------------------------------
 // The bench as last read: null = unknown (not signed in, or the server does
-// not answer). GET /bench carries its state under "state" (contract §7).
+// not answer). GET /bench carries its state under "state" (docs/API.md, "The bench").
 let bench = null;
 const benchStateOf = (b) => (b && b.state && typeof b.state === 'object' ? b.state : b);
 

@@ -1,4 +1,4 @@
-// Curves of a parameter set (DESIGN.md §3), for plotting only: the server
+// Curves of a parameter set (docs/MODEL.md), for plotting only: the server
 // owns the model; this reads its JSON.
 
 /// Impulse response of the contraction dynamics H_n(s) = a^n/(s+a)^n

@@ -1,7 +1,7 @@
 // Runs as the whole app sees them (not one view): the run this page
 // controls keeps heart-beating on every view, a "run in progress" bar
 // shows on every view, and closing or reloading the tab asks first.
-// One run vocabulary (DESIGN.md §5, contract §4): states queued, running,
+// One run vocabulary (docs/PROTOCOLS.md, "Runs"): states queued, running,
 // done, failed, aborted; fields run_id, reason, created_at_utc.
 import { api } from './api.js';
 

@@ -1,4 +1,4 @@
-// Integration: the real fesbench-server over HTTP, end to end (issue 6):
+// Integration: the real fesbench-server over HTTP, end to end:
 // subject and session, virtual subject, rapid_parameterisation with its
 // event stream followed to the end, the stored parameter set against the
 // virtual subject's truth, a prediction job, the history; then SIGTERM
@@ -100,7 +100,7 @@ TEST(ApiFlowTest, RapidParameterisationEndToEnd) {
   ASSERT_EQ(session.status, 201) << session.text;
   const std::int64_t session_id = session.body["id"];
 
-  // An analyst waits for new parameter sets (issue 18: sets as events). The
+  // An analyst waits for new parameter sets (sets as events). The
   // stream's one parameter is checked first.
   for (const char* bad : {"0", "3601", "abc"}) {
     auto refused = Call(client, "GET", std::string("/api/v1/events/parameter-sets?timeout_s=") + bad,

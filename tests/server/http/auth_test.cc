@@ -1,4 +1,4 @@
-// The Authenticator's gate (issue 16 §9) on a temporary database with a
+// The Authenticator's gate (docs/SAFETY.md, "Sign-in failures") on a temporary database with a
 // hand-driven clock: failed sign-ins (401) and role refusals (403, any
 // method) are audited without the token; a burst of failed tokens from one
 // address is slowed down (429 with Retry-After, audited once per burst)

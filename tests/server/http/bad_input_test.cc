@@ -1,4 +1,4 @@
-// Integration: the bad-input battery (issue 6). Each hostile or broken
+// Integration: the bad-input battery (docs/API.md, "HTTP conventions"). Each hostile or broken
 // request gets the right 4xx with a JSON error naming the problem, never a
 // 5xx, and the server stays healthy afterwards.
 

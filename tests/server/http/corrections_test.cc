@@ -1,4 +1,4 @@
-// Integration (issue 14): corrections of subjects and sessions as revisions
+// Integration (docs/API.md, "Corrections"): corrections of subjects and sessions as revisions
 // (PATCH, revision history, roles, audit), the tolerance test writing its
 // result into the session, and rapid parameterisation with an explicit
 // inertia — on the real fesbench-server.

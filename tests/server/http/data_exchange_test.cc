@@ -1,4 +1,4 @@
-// Data in and out (issue 20): a session exported from one server and
+// Data in and out (docs/API.md, "Session archives"): a session exported from one server and
 // imported into a fresh one gives the same trials bit for bit, the same
 // parameter sets and the same identification results; the archive follows
 // the BIDS layout; a recording imported as CSV predicts like a bench trial;

@@ -1,5 +1,5 @@
 // Integration: a seeded fuzzer over every route of the OpenAPI document
-// (issue 16). Wrong shapes, huge and non-finite numbers, deep nesting, bad
+// (docs/API.md, "HTTP conventions"). Wrong shapes, huge and non-finite numbers, deep nesting, bad
 // encodings, bad query and path values, bad headers, and bad framing on raw
 // connections. The server must answer every one without a 5xx, never
 // crash, and answer health afterwards. Bounded: stops after kBudget.

@@ -1,5 +1,5 @@
 // Integration: the HTTP front end's protocol edges against the real server
-// on loopback (issue 16 items 5, 7, 8): numbers beyond double range, a
+// on loopback (docs/ARCHITECTURE.md, "Inside the server"): numbers beyond double range, a
 // second server on a port in use, half-closed requests, pipelining, invalid
 // Content-Length, Range on API answers, one Connection header, absolute-form
 // request lines.

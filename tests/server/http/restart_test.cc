@@ -1,5 +1,5 @@
-// Issue 16 §2–§3 against the real fesbench-server process: the e-stop latch
-// survives SIGTERM and SIGKILL until a person clears it (audited), and a run
+// Restarts (docs/SAFETY.md, "Shutdown and restart") against the real fesbench-server process: the
+// e-stop latch survives SIGTERM and SIGKILL until a person clears it (audited), and a run
 // cut by SIGKILL is closed at the next start (failed, "server stopped during
 // the run", audited) with the trials it stored still readable.
 

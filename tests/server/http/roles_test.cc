@@ -1,4 +1,4 @@
-// Integration: access control over every route (issue 6). Each route is
+// Integration: access control over every route (docs/API.md, roles). Each route is
 // tried with no token, a revoked token and each role: 401 without a valid
 // token, 403 for a role not allowed, anything else (the handler ran) for an
 // allowed role. The table below is this test's own inventory of the API;
@@ -315,7 +315,7 @@ TEST(RolesTest, AnAnalystsImportIsRefusedAndStoresNothing) {
   EXPECT_EQ(server.Terminate(), 0);
 }
 
-// Issue 16 §9 over HTTP: failed sign-ins and role refusals (also of a GET)
+// Sign-in failures (docs/SAFETY.md) over HTTP: failed sign-ins and role refusals (also of a GET)
 // are audited; a burst of failed tokens from one address gets 429 with
 // Retry-After (audited once) and no token lookup.
 TEST(RolesTest, FailedTokensAreAuditedAndABurstIsSlowedDown) {

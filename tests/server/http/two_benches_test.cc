@@ -1,5 +1,5 @@
-// Integration (issue 18): two fesbench-servers, each with its own simulated
-// bench, on one PostgreSQL database. Both run rapid_parameterisation at the
+// Integration (docs/SAFETY.md, "One server per bench"): two fesbench-servers, each with its own
+// simulated bench, on one PostgreSQL database. Both run rapid_parameterisation at the
 // same time while analysts list and fetch through either server, and an
 // analyst on one server receives both benches' new sets as events. Each run
 // is its own bench's: the other server sees it and its parameter set but

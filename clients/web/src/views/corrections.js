@@ -1,4 +1,4 @@
-// Corrections as revisions (contract §1): an edit form for a subject's or
+// Corrections as revisions (docs/API.md, "Corrections"): an edit form for a subject's or
 // a session's details that PATCHes only what changed (an emptied field is
 // cleared with null) with a required reason, and the revision history.
 import { api } from '../api.js';

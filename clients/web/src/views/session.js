@@ -372,7 +372,7 @@ export async function sessionView(ctx, sessionId, { trialId = null, againRunId =
       h('p', {}, 'State: ', stateText, ' ', phase, ' ', trialsText),
       h('div', { class: 'actions' }, stop, cancel), endSlot, liveNumbers, plotsBox);
 
-    // A tracking run (issue 19) draws the target with the knee angle, the
+    // A tracking run (docs/PROTOCOLS.md, `tracking`) draws the target with the knee angle, the
     // tracking error and, for the adaptive controller, its τ_scale estimate.
     const tracking = run.protocol === 'tracking';
     const adaptive = tracking && run.parameters && run.parameters.controller === 2;
