@@ -128,7 +128,8 @@ MotionChannelInfo MotionInfo(std::string_view name) {
   if (name == "angle_deg") return {"JNTANG", "n/a", "knee angle, 0 = full extension"};
   if (name == "setpoint_deg") return {"JNTANG", "n/a", "the motor's commanded knee angle"};
   if (name == "accel_m_s2") {
-    return {"ACCEL", "x", "shank accelerometer, tangential axis (DESIGN.md §2)"};
+    return {"ACCEL", "x",
+            "shank accelerometer, tangential axis, positive toward flexion, gravity included"};
   }
   if (name == "velocity_deg_s") return {"MISC", "n/a", "knee angular velocity"};
   if (name == "accel_deg_s2") return {"MISC", "n/a", "knee angular acceleration"};
@@ -534,9 +535,10 @@ Result<std::vector<BidsTrial>> ReadBidsTrials(const FileMap& files) {
     Result<Trial> checked = TrialFromTable(*table, spec);
     if (!checked.ok()) {
       const std::string field(checked.status().field());
-      const std::string where = field == "sample_rate_hz" ? prefix + "_motion.json: SamplingFrequency"
-                                : field == "kind"         ? prefix + "_motion.json: TaskName"
-                                                          : path;
+      const std::string where = field == "sample_rate_hz"
+                                    ? prefix + "_motion.json: SamplingFrequency"
+                                : field == "kind" ? prefix + "_motion.json: TaskName"
+                                                  : path;
       return Status::InvalidArgument(where + ": " + checked.status().message());
     }
     Trial trial = std::move(*checked);
