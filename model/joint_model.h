@@ -175,7 +175,7 @@ class JointModel {
   }
 
   /// Whether AccelerationDegS2 reads scaled tables (every variant but
-  /// parametric): then FreeSwingStage applies.
+  /// parametric): then FreeSwingRk4Step applies.
   bool has_scaled_tables() const { return scaled_tables_; }
 
   /// The curve segments of the last evaluation (CurvePairTable's hints): a
