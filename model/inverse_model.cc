@@ -177,10 +177,8 @@ Feedforward InvertModel(const ParameterSet& params, const KneeTarget& target,
 
 Pid::Pid(Gains gains, double dt_s, double min_out, double max_out)
     : gains_(gains), dt_s_(dt_s), min_out_(min_out), max_out_(max_out) {
-  Require(Finite({gains.kp, gains.ki, gains.kd,
-                  gains.derivative_filter_s}) &&
-              gains.kp >= 0.0 && gains.ki >= 0.0 &&
-              gains.kd >= 0.0 && gains.derivative_filter_s >= 0.0,
+  Require(Finite({gains.kp, gains.ki, gains.kd, gains.derivative_filter_s}) && gains.kp >= 0.0 &&
+              gains.ki >= 0.0 && gains.kd >= 0.0 && gains.derivative_filter_s >= 0.0,
           "pid: gains and filter time must be finite and ≥ 0");
   Require(std::isfinite(dt_s) && dt_s > 0.0, "pid: dt must be > 0");
   Require(Finite({min_out, max_out}) && min_out <= max_out, "pid: need min_out ≤ max_out");
@@ -190,6 +188,14 @@ void Pid::Reset() {
   integral_ = derivative_ = 0.0;
   first_ = true;
   saturated_ = saturated_high_ = false;
+}
+
+void Pid::ScaleGains(double k) {
+  Require(std::isfinite(k) && k > 0.0 && k <= 1.0, "pid: a gain factor must be in (0, 1]");
+  gains_.kp *= k;
+  gains_.ki *= k;
+  gains_.kd *= k;
+  integral_ /= k;
 }
 
 void Pid::SetLimits(double min_out, double max_out) {
@@ -211,8 +217,7 @@ double Pid::Update(double target_deg, double measured_deg, double feedforward) {
   last_measured_ = measured_deg;
   const double candidate_integral = integral_ + error * dt_s_;
   auto output = [&](double integral) {
-    return feedforward + gains_.kp * error + gains_.ki * integral +
-           gains_.kd * derivative_;
+    return feedforward + gains_.kp * error + gains_.ki * integral + gains_.kd * derivative_;
   };
   const double unclamped = output(candidate_integral);
   saturated_ = unclamped > max_out_ || unclamped < min_out_;

@@ -106,9 +106,9 @@ Feedforward InvertModel(const ParameterSet& params, const KneeTarget& target,
 class Pid {
  public:
   struct Gains {
-    double kp = 0.0;  ///< output per deg.
-    double ki = 0.0;  ///< output per deg·s.
-    double kd = 0.0;  ///< output·s per deg.
+    double kp = 0.0;                    ///< output per deg.
+    double ki = 0.0;                    ///< output per deg·s.
+    double kd = 0.0;                    ///< output·s per deg.
     double derivative_filter_s = 0.02;  ///< time constant, s, ≥ 0.
   };
   /// @throws std::invalid_argument for a non-finite or negative gain, a
@@ -122,6 +122,11 @@ class Pid {
   /// @throws std::invalid_argument unless finite and min ≤ max.
   void SetLimits(double min_out, double max_out);
   void Reset();
+  /// Multiplies kp, ki and kd by k (0 < k ≤ 1: a back-off), bumplessly:
+  /// the integral's share of the output, ki·∫e, stays what it was.
+  /// @throws std::invalid_argument unless 0 < k ≤ 1.
+  void ScaleGains(double k);
+  const Gains& gains() const { return gains_; }
   double integral() const { return integral_; }
   bool saturated() const { return saturated_; }
   /// The last output wanted more than max_out (its integral held just

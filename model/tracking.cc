@@ -6,6 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <unsupported/Eigen/FFT>
 #include <utility>
 
 #include "model/units.h"
@@ -64,8 +65,8 @@ LoopShape LoopShapeOf(const ParameterSet& params, const KneeTarget& target,
   for (double a : target.angle_deg) mid += a;
   mid /= static_cast<double>(target.size());
   const double gain = joint.ActiveGain(mid, 0.0);
-  const double hold = gain > 1e-9 ? std::clamp(-joint.PassiveAngleTorque(mid) / gain, 0.0, 1.0)
-                                  : 0.0;
+  const double hold =
+      gain > 1e-9 ? std::clamp(-joint.PassiveAngleTorque(mid) / gain, 0.0, 1.0) : 0.0;
   // Linearised about the hold at θ_m: stiffness and damping of the leg
   // with the holding activation, both per degree.
   const auto angle_torque = [&](double th) {
@@ -134,8 +135,8 @@ Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
   const LoopShape l = LoopShapeOf(params, target, options);
   // The cap: a static loop gain kp·plant_gain/K_θ of 1 (amplitude) or 2
   // (torque: the loop at most triples the leg's stiffness).
-  const double cap = (options.kind == ControllerKind::kPid ? 1.0 : 2.0) * l.stiffness /
-                     l.plant_gain;
+  const double cap =
+      (options.kind == ControllerKind::kPid ? 1.0 : 2.0) * l.stiffness / l.plant_gain;
   double kp = cap;
   if (const std::optional<double> w = PhaseCrossover(l)) {
     kp = std::min(cap, 1.0 / (kGainMargin * std::abs(UnitLoop(l, *w))));
@@ -242,8 +243,67 @@ TrackingMetrics MeasureTracking(const KneeTarget& target, const std::vector<doub
   if (!overshoots.empty()) {
     m.overshoot_deg = median(overshoots);
     m.settling_s = median(settlings);
+    m.worst_overshoot_deg = *std::max_element(overshoots.begin(), overshoots.end());
+    m.worst_settling_s = *std::max_element(settlings.begin(), settlings.end());
+  }
+  // The error above 1 Hz: Parseval, Σ_n e² = (1/N)·Σ_k |E_k|², over the
+  // bins whose frequency k·rate/N (or (N − k)·rate/N) exceeds 1 Hz.
+  if (static_cast<double>(n) >= 2.0 * target.rate_hz) {
+    std::vector<double> e(n);
+    for (std::size_t i = 0; i < n; ++i) e[i] = angle_deg[i] - target.angle_deg[i];
+    std::vector<std::complex<double>> spectrum;
+    Eigen::FFT<double> fft;
+    fft.fwd(spectrum, e);
+    double high = 0.0;
+    for (std::size_t k = 1; k < n; ++k) {
+      const double f_hz =
+          static_cast<double>(std::min(k, n - k)) * target.rate_hz / static_cast<double>(n);
+      if (f_hz > 1.0) high += std::norm(spectrum[k]);
+    }
+    m.rms_above_1hz_deg = std::sqrt(high / static_cast<double>(n) / static_cast<double>(n));
   }
   return m;
+}
+
+OscillationDetector::OscillationDetector(double rate_hz, Options options)
+    : options_(options), dt_s_(rate_hz > 0.0 ? 1.0 / rate_hz : 1.0) {
+  Require(std::isfinite(rate_hz) && rate_hz > 0.0, "oscillation detector: rate must be > 0");
+  Require(std::isfinite(options.peak_deg) && std::isfinite(options.max_half_period_s) &&
+              std::isfinite(options.hysteresis_deg) && options.hysteresis_deg > 0.0 &&
+              options.peak_deg > options.hysteresis_deg && options.max_half_period_s > 0.0 &&
+              options.half_cycles >= 2 && std::isfinite(options.sustain) &&
+              options.sustain >= 0.0 && options.sustain <= 1.0,
+          "oscillation detector: need 0 < hysteresis < peak, a half-period > 0, at least "
+          "2 half-cycles and a sustain ratio in [0, 1]");
+}
+
+bool OscillationDetector::Update(double error_deg) {
+  length_s_ += dt_s_;
+  const int sign = error_deg > options_.hysteresis_deg    ? 1
+                   : error_deg < -options_.hysteresis_deg ? -1
+                                                          : sign_;
+  if (sign != sign_) {
+    // A half-cycle ended (the first sign change only starts the count).
+    if (sign_ != 0) {
+      const bool swing = peak_deg_ >= options_.peak_deg &&
+                         length_s_ - dt_s_ <= options_.max_half_period_s &&
+                         peak_deg_ >= options_.sustain * before_previous_peak_deg_;
+      count_ = swing ? count_ + 1 : 0;
+      before_previous_peak_deg_ = previous_peak_deg_;
+      previous_peak_deg_ = peak_deg_;
+    }
+    sign_ = sign;
+    peak_deg_ = 0.0;
+    length_s_ = dt_s_;
+  }
+  peak_deg_ = std::max(peak_deg_, std::abs(error_deg));
+  // A half-cycle that has outlasted the period breaks the run of swings.
+  if (length_s_ > options_.max_half_period_s) count_ = 0;
+  if (count_ < options_.half_cycles) return false;
+  // What follows (a back-off) is judged on its own swings.
+  count_ = 0;
+  previous_peak_deg_ = before_previous_peak_deg_ = 0.0;
+  return true;
 }
 
 TrackingController::TrackingController(const ParameterSet& params, KneeTarget target,
@@ -257,19 +317,20 @@ TrackingController::TrackingController(const ParameterSet& params, KneeTarget ta
            std::max(options_.max_amplitude_ma, 0.0)),
       dt_s_(1.0 / target_.rate_hz),
       tau_scale_(params.active.torque_scale_nm),
-      estimator_(std::max(params.active.torque_scale_nm, 1e-6),
-                 options_.forgetting > 0.0 && options_.forgetting <= 1.0 ? options_.forgetting
-                                                                         : 1.0,
-                 kEstimatorVariance),
-      chain_(params.contraction) {
+      estimator_(
+          std::max(params.active.torque_scale_nm, 1e-6),
+          options_.forgetting > 0.0 && options_.forgetting <= 1.0 ? options_.forgetting : 1.0,
+          kEstimatorVariance),
+      chain_(params.contraction),
+      oscillation_(target_.rate_hz > 0.0 ? target_.rate_hz : 1.0, {}) {
   Require(std::isfinite(options_.threshold_ma) && options_.threshold_ma >= 0.0,
           "tracking: threshold_ma must be ≥ 0");
   Require(std::isfinite(options_.max_amplitude_ma) &&
               options_.max_amplitude_ma >= options_.threshold_ma,
           "tracking: max_amplitude_ma must be ≥ threshold_ma");
-  Require(std::isfinite(options_.forgetting) && options_.forgetting > 0.0 &&
-              options_.forgetting <= 1.0,
-          "tracking: forgetting must be in (0, 1]");
+  Require(
+      std::isfinite(options_.forgetting) && options_.forgetting > 0.0 && options_.forgetting <= 1.0,
+      "tracking: forgetting must be in (0, 1]");
   Require(std::isfinite(options_.velocity_filter_hz) && options_.velocity_filter_hz > 0.0 &&
               2.0 * std::numbers::pi * options_.velocity_filter_hz / target_.rate_hz < 1.0,
           "tracking: velocity_filter_hz must be > 0 and well below the sample rate");
@@ -302,11 +363,10 @@ double TrackingController::AmplitudeFor(double activation) const {
 
 void TrackingController::Observe(double measured_deg) {
   const double omega = 2.0 * std::numbers::pi * options_.velocity_filter_hz;
-  const double phi_raw =
-      chain_.Output(activation_) *
-      joint_.ActiveGain(filters_started_ ? angle_filter_[0] : measured_deg,
-                        filters_started_ ? angle_filter_[1] : 0.0) /
-      params_.active.torque_scale_nm;
+  const double phi_raw = chain_.Output(activation_) *
+                         joint_.ActiveGain(filters_started_ ? angle_filter_[0] : measured_deg,
+                                           filters_started_ ? angle_filter_[1] : 0.0) /
+                         params_.active.torque_scale_nm;
   const double passive_raw = joint_.PassiveAngleTorque(measured_deg);
   if (!filters_started_) {
     angle_filter_ = {measured_deg, 0.0};
@@ -321,12 +381,12 @@ void TrackingController::Observe(double measured_deg) {
   if (options_.kind != ControllerKind::kAdaptive) return;
   if (static_cast<double>(index_) * dt_s_ < kEstimatorWarmupS) return;
   // τ_act = −J·θ̈ − τ_pta(θ) − τ_ptv(θ̇) (Eq. 3.16 solved for the active torque).
-  const double active_nm = -joint_.inertia_kgm2() * accel_deg_s2 * kRadPerDeg -
-                           passive_filter_[0] - joint_.PassiveVelocityTorque(angle_filter_[1]);
+  const double active_nm = -joint_.inertia_kgm2() * accel_deg_s2 * kRadPerDeg - passive_filter_[0] -
+                           joint_.PassiveVelocityTorque(angle_filter_[1]);
   const double estimate = estimator_.Update(regressor_filter_[0], active_nm);
   const double base = params_.active.torque_scale_nm;
-  tau_scale_ = std::clamp(estimate, options_.min_scale_fraction * base,
-                          options_.max_scale_fraction * base);
+  tau_scale_ =
+      std::clamp(estimate, options_.min_scale_fraction * base, options_.max_scale_fraction * base);
 }
 
 TrackingSample TrackingController::Update(double measured_deg) {
@@ -366,6 +426,18 @@ TrackingSample TrackingController::Update(double measured_deg) {
   }
   s.correction_ma = s.amplitude_ma - s.feedforward_ma;
   s.tau_scale_nm = tau_scale_;
+  // A limit cycle: the loop has more gain than its delay allows here. Halve
+  // the gains (the next samples already use them); after
+  // kMaxOscillationBackoffs halvings the run must end.
+  if (oscillation_.Update(s.error_deg)) {
+    if (backoffs_ < kMaxOscillationBackoffs) {
+      pid_.ScaleGains(0.5);
+      ++backoffs_;
+      s.backed_off = true;
+    } else {
+      s.oscillating = true;
+    }
+  }
   // The PID wanting more than its limit counts too: its integral is held
   // just below the limit, so the output may sit a hair under it.
   s.saturated = (s.amplitude_ma >= options_.max_amplitude_ma - 1e-9 || top_activation ||

@@ -31,9 +31,9 @@
 #include <complex>
 #include <cstddef>
 #include <cstdint>
-#include <vector>
 #include <optional>
 #include <string_view>
+#include <vector>
 
 #include "model/contraction.h"
 #include "model/inverse_model.h"
@@ -144,11 +144,60 @@ struct TrackingMetrics {
   /// ... and of the time from the move's end until |θ − θ*| stays within
   /// settle_band_deg for the rest of the hold (the hold's length if never).
   std::optional<double> settling_s;
+  /// The same two figures of the worst hold (a median hides one hold that
+  /// oscillates).
+  std::optional<double> worst_overshoot_deg;
+  std::optional<double> worst_settling_s;
+  /// RMS of the part of θ − θ* above 1 Hz, deg (Parseval over the error's
+  /// DFT, Eigen's FFT): what oscillates faster than any target the
+  /// protocol draws (0 when fewer than 2 s of samples).
+  double rms_above_1hz_deg = 0.0;
 };
 
 /// @throws std::invalid_argument for an empty overlap or settle_band ≤ 0.
 TrackingMetrics MeasureTracking(const KneeTarget& target, const std::vector<double>& angle_deg,
                                 double settle_band_deg = 2.0);
+
+/// A limit cycle of the tracking loop, seen online in the error θ − θ*
+/// (beyond the thesis; docs/MODEL.md, "Tracking: oscillation back-off"): a
+/// half-cycle is the stretch between two sign changes of the error (with
+/// a hysteresis of hysteresis_deg); `half_cycles` half-cycles in a row that
+/// each reach peak_deg, last at most max_half_period_s and reach at least
+/// `sustain` times the peak of the half-cycle before the last (the same
+/// sign: an oscillation about an offset counts) are an oscillation. A
+/// swing that dies out faster (ζ above about 0.06) is a loop settling. The targets the protocol
+/// draws move at 0.2 Hz or slower (a half-period of 2.5 s), so a tracking lag swings too slowly to
+/// count, while a loop with too much gain for its delay swings at 0.5–3 Hz.
+class OscillationDetector {
+ public:
+  struct Options {
+    double peak_deg = 4.0;
+    double max_half_period_s = 1.5;
+    int half_cycles = 4;
+    double hysteresis_deg = 0.5;
+    double sustain = 0.7;
+  };
+  /// @throws std::invalid_argument for rate_hz ≤ 0 or options that are not
+  ///   finite and > 0 (hysteresis < peak, half_cycles ≥ 2, sustain ≤ 1).
+  OscillationDetector(double rate_hz, Options options);
+  /// One sample of the error; true at the sample that completes an
+  /// oscillation (the count then starts again).
+  bool Update(double error_deg);
+
+ private:
+  Options options_;
+  double dt_s_;
+  int sign_ = 0;           // the current half-cycle's sign (0: none yet)
+  double peak_deg_ = 0.0;  // its largest |error|
+  double length_s_ = 0.0;  // its length so far
+  int count_ = 0;          // qualifying half-cycles in a row
+  // The peaks of the last two half-cycles (0: none since the last start).
+  double previous_peak_deg_ = 0.0, before_previous_peak_deg_ = 0.0;
+};
+
+/// Back-offs of the loop gain a tracking controller takes before it gives
+/// up: each halves kp, ki and kd (OscillationDetector).
+inline constexpr int kMaxOscillationBackoffs = 3;
 
 /// What one control sample decided.
 struct TrackingSample {
@@ -162,6 +211,12 @@ struct TrackingSample {
   /// the set's full recruitment) while the knee is too flexed: the
   /// controller asks for more than it may give.
   bool saturated = false;
+  /// This sample completed an oscillation (OscillationDetector) and the
+  /// controller halved its gains ...
+  bool backed_off = false;
+  /// ... or it had done so kMaxOscillationBackoffs times already: the run
+  /// must end.
+  bool oscillating = false;
 };
 
 /// One tracking run's controller, sampled at the target's rate.
@@ -179,7 +234,11 @@ class TrackingController {
 
   std::size_t index() const { return index_; }
   const KneeTarget& target() const { return target_; }
+  /// The gains the run started with (before any back-off).
   const Pid::Gains& gains() const { return gains_; }
+  /// The gains now: gains() halved once per back-off.
+  const Pid::Gains& current_gains() const { return pid_.gains(); }
+  int backoffs() const { return backoffs_; }
   double tau_scale_nm() const { return tau_scale_; }
 
  private:
@@ -210,6 +269,8 @@ class TrackingController {
   ContractionPropagator chain_;
   ContractionState activation_{};
   std::int64_t next_pulse_ = 0;  // index of the next pulse-clock tick
+  OscillationDetector oscillation_;
+  int backoffs_ = 0;
 };
 
 }  // namespace fesbench::model

@@ -22,14 +22,25 @@ std::optional<std::string> TrackingLoop::Sample(double measured_deg) {
   last_ = controller_.Update(measured_deg);
   // Below the controller: the slew limit (SafeBench then clamps the maximum).
   const double step_ma = settings_.max_rate_ma_per_s / kSampleRateHz;
-  amplitude_ma_ =
-      std::clamp(last_.amplitude_ma, amplitude_ma_ - step_ma, amplitude_ma_ + step_ma);
+  amplitude_ma_ = std::clamp(last_.amplitude_ma, amplitude_ma_ - step_ma, amplitude_ma_ + step_ma);
   saturated_samples_ = last_.saturated ? saturated_samples_ + 1 : 0;
   if (last_.saturated) saturated_total_s_ += 1.0 / kSampleRateHz;
+  if (static_cast<double>(controller_.index()) > settings_.lead_in_s * kSampleRateHz) {
+    if (amplitude_ma_ <= 0.0) zero_s_ += 1.0 / kSampleRateHz;
+    if (amplitude_ma_ >= settings_.options.max_amplitude_ma - 1e-9)
+      at_max_s_ += 1.0 / kSampleRateHz;
+  }
+  std::ostringstream why;
+  if (last_.oscillating) {
+    const model::Pid::Gains& g = controller_.current_gains();
+    why << "tracking: the knee still oscillates (swings of at least 4° faster than every 3 s) "
+        << "after the loop gains were halved " << controller_.backoffs() << " times (kp now "
+        << g.kp << "); the run is stopped";
+    return why.str();
+  }
   if (static_cast<double>(saturated_samples_) / kSampleRateHz <= settings_.max_saturation_s) {
     return std::nullopt;
   }
-  std::ostringstream why;
   why << "tracking: the controller asked for more than the maximum "
       << settings_.options.max_amplitude_ma << " mA for " << settings_.max_saturation_s
       << " s (target " << last_.target_deg << "°, knee at " << last_.target_deg + last_.error_deg
@@ -48,7 +59,13 @@ void TrackingLoop::Summarise(const api::Trial& trial, std::map<std::string, doub
     values["tracking_max_error_deg"] = m.max_error_deg;
     if (m.overshoot_deg) values["overshoot_deg"] = *m.overshoot_deg;
     if (m.settling_s) values["settling_s"] = *m.settling_s;
+    if (m.worst_overshoot_deg) values["worst_overshoot_deg"] = *m.worst_overshoot_deg;
+    if (m.worst_settling_s) values["worst_settling_s"] = *m.worst_settling_s;
+    values["error_rms_above_1hz_deg"] = m.rms_above_1hz_deg;
   }
+  values["zero_ma_s"] = zero_s_;
+  values["max_ma_s"] = at_max_s_;
+  values["oscillation_backoffs"] = controller_.backoffs();
   // Charge: Σ amplitude × pulse width of what the stimulator delivered.
   double charge_nc = 0.0;
   if (trial.pulses) {

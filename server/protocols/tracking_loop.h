@@ -26,7 +26,10 @@ class TrackingLoop {
 
   /// One 200 Hz sample: the controller's decision for the knee angle
   /// measured now, slew-limited. Returns the reason the run must end when
-  /// the controller has stayed saturated longer than max_saturation_s.
+  /// the controller has stayed saturated longer than max_saturation_s, or
+  /// when the knee still oscillates after the controller halved its gains
+  /// model::kMaxOscillationBackoffs times (docs/SAFETY.md, "Closed-loop
+  /// stimulation").
   std::optional<std::string> Sample(double measured_deg);
 
   /// The amplitude to apply until the next sample, mA.
@@ -36,9 +39,12 @@ class TrackingLoop {
   double saturated_s() const { return saturated_total_s_; }
 
   /// The run's figures (PROTOCOLS.md, tracking): tracking_rms_deg,
-  /// tracking_max_error_deg, overshoot_deg and settling_s (holds) over the
-  /// target after the lead-in, charge_uc from the delivered pulses,
-  /// saturated_s, the final tau_scale_nm and the gains used.
+  /// tracking_max_error_deg, overshoot_deg and settling_s (holds: median
+  /// and worst) and the error's RMS above 1 Hz over the target after the
+  /// lead-in, the seconds it commanded 0 mA and the maximum there,
+  /// charge_uc from the delivered pulses, saturated_s, the final
+  /// tau_scale_nm, the gains it started with and the oscillation
+  /// back-offs taken.
   void Summarise(const api::Trial& trial, std::map<std::string, double>& values) const;
 
  private:
@@ -48,6 +54,8 @@ class TrackingLoop {
   double amplitude_ma_ = 0.0;
   int saturated_samples_ = 0;
   double saturated_total_s_ = 0.0;
+  double zero_s_ = 0.0;    // commanded 0 mA, after the lead-in
+  double at_max_s_ = 0.0;  // commanded the maximum, after the lead-in
 };
 
 }  // namespace fesbench::server::protocols

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <iostream>
 #include <numbers>
+#include <random>
 #include <stdexcept>
 
 #include "model/contraction.h"
@@ -21,8 +22,11 @@ namespace {
 class ModelPlant {
  public:
   ModelPlant(const ParameterSet& params, double strength, double angle_deg)
-      : params_(params), joint_(JointModel::FromParameters(params)), chain_(params.contraction),
-        strength_(strength), angle_(angle_deg) {}
+      : params_(params),
+        joint_(JointModel::FromParameters(params)),
+        chain_(params.contraction),
+        strength_(strength),
+        angle_(angle_deg) {}
 
   // Holds `amplitude_ma` for dt_s.
   void Advance(double amplitude_ma, double dt_s) {
@@ -95,6 +99,8 @@ Tracked Track(const ParameterSet& params, const KneeTarget& target, TrackingOpti
   }
   out.rms_deg = std::sqrt(sum / static_cast<double>(count));
   out.final_tau_scale_nm = controller.tau_scale_nm();
+  // A loop that tracks is not a limit cycle (OscillationDetector).
+  EXPECT_EQ(controller.backoffs(), 0) << ControllerKindName(options.kind);
   return out;
 }
 
@@ -245,9 +251,8 @@ TEST(TrackingControllerTest, AdaptiveFollowsAWeakerLeg) {
   const Tracked inverse = Track(params, sine, Options(ControllerKind::kInverseModel), 0.6, 10.0);
   const Tracked adaptive = Track(params, sine, Options(ControllerKind::kAdaptive), 0.6, 10.0);
   std::cout << "[ figure ] leg at 60 % strength: RMS inverse_model " << inverse.rms_deg
-            << "°, adaptive " << adaptive.rms_deg << "°; τ̂_scale "
-            << adaptive.final_tau_scale_nm << " N·m (true "
-            << 0.6 * params.active.torque_scale_nm << ")\n";
+            << "°, adaptive " << adaptive.rms_deg << "°; τ̂_scale " << adaptive.final_tau_scale_nm
+            << " N·m (true " << 0.6 * params.active.torque_scale_nm << ")\n";
   EXPECT_NEAR(adaptive.final_tau_scale_nm, 0.6 * params.active.torque_scale_nm,
               0.1 * params.active.torque_scale_nm);
   EXPECT_LT(adaptive.rms_deg, inverse.rms_deg);
@@ -269,10 +274,98 @@ TEST(TrackingControllerTest, HoldsSettleAndTheOutputStaysWithinItsBounds) {
       last_error = s.error_deg;
       plant.Advance(s.amplitude_ma, 1.0 / holds.rate_hz);
     }
+    EXPECT_EQ(c.backoffs(), 0) << ControllerKindName(k);
     // The clinic's PID settles slowly (no model inside its loop).
     EXPECT_LT(std::abs(last_error), k == ControllerKind::kPid ? 2.0 : 1.0)
         << ControllerKindName(k) << ": settled at the last hold";
   }
+}
+
+TEST(OscillationDetectorTest, FastLargeSwingsOnly) {
+  // Fires at the sample that completes the 4th qualifying half-cycle.
+  const auto first_fire = [](double freq_hz, double amp_deg, double seconds) -> double {
+    OscillationDetector d(200.0, {});
+    for (int i = 0; i < static_cast<int>(seconds * 200.0); ++i) {
+      const double t = i / 200.0;
+      if (d.Update(amp_deg * std::sin(2.0 * std::numbers::pi * freq_hz * t))) return t;
+    }
+    return -1.0;
+  };
+  // 1 Hz, ±10°: the first half-cycle starts when the error leaves the
+  // hysteresis band (0.5/(2π·10) s after 0); the 4th ends at 2 s.
+  EXPECT_NEAR(first_fire(1.0, 10.0, 10.0), 2.0, 0.02);
+  EXPECT_NEAR(first_fire(2.0, 6.0, 10.0), 1.0, 0.02);
+  EXPECT_LT(first_fire(1.0, 3.5, 20.0), 0.0);   // below the 4° peak
+  EXPECT_LT(first_fire(0.2, 15.0, 60.0), 0.0);  // a target's pace: too slow
+  EXPECT_LT(first_fire(0.3, 15.0, 60.0), 0.0);  // half-period 1.67 s > 1.5 s
+  // Seeded noise of ±1° about 0 never reaches the peak.
+  OscillationDetector d(200.0, {});
+  std::mt19937 rng(20261128u);
+  std::uniform_real_distribution<double> noise(-1.0, 1.0);
+  for (int i = 0; i < 20000; ++i) ASSERT_FALSE(d.Update(noise(rng)));
+  EXPECT_THROW(OscillationDetector(0.0, {}), std::invalid_argument);
+  EXPECT_THROW(OscillationDetector(200.0, {.peak_deg = 0.4}), std::invalid_argument);
+}
+
+TEST(PidTest, ScaleGainsKeepsTheIntegralShare) {
+  Pid pid({2.0, 1.0, 0.1, 0.0}, 0.005, -100.0, 100.0);
+  for (int i = 0; i < 200; ++i) pid.Update(50.0, 53.0);  // 1 s at +3°: ∫e = 3
+  const double share = pid.gains().ki * pid.integral();
+  pid.ScaleGains(0.5);
+  EXPECT_DOUBLE_EQ(pid.gains().kp, 1.0);
+  EXPECT_DOUBLE_EQ(pid.gains().kd, 0.05);
+  EXPECT_NEAR(pid.gains().ki * pid.integral(), share, 1e-12);
+  EXPECT_THROW(pid.ScaleGains(0.0), std::invalid_argument);
+  EXPECT_THROW(pid.ScaleGains(1.5), std::invalid_argument);
+}
+
+TEST(TrackingControllerTest, ALimitCycleIsSeenAndBackedOffUntilItStops) {
+  // The clinic's PID with eight times its tuned gain on the example leg
+  // (the model as plant) swings the knee about a 55° hold; the controller
+  // halves its gains until the swinging stops, and the hold then settles.
+  const ParameterSet params = ExampleParameterSet();
+  const KneeTarget hold = HoldsTarget({55.0}, 30.0, 1.0);
+  TrackingOptions o = Options(ControllerKind::kPid);
+  Pid::Gains g = TuneGains(params, hold, o);
+  g.kp *= 8.0;
+  g.ki *= 8.0;
+  g.kd *= 8.0;
+  o.gains = g;
+  const auto run = [&] {
+    TrackingController c(params, hold, o);
+    ModelPlant plant(params, 1.0, 55.0);
+    std::vector<double> angle;
+    int backoffs = 0;
+    for (std::size_t i = 0; i < hold.size(); ++i) {
+      TrackingSample s = c.Update(plant.angle_deg());
+      angle.push_back(plant.angle_deg());
+      if (s.backed_off) ++backoffs;
+      EXPECT_FALSE(s.oscillating);
+      plant.Advance(s.amplitude_ma, 1.0 / hold.rate_hz);
+    }
+    EXPECT_EQ(backoffs, c.backoffs());
+    return std::pair(c.backoffs(), angle);
+  };
+  const auto [backoffs, angle] = run();
+  // The first 5 s swing (that is what the detector saw), the last 20 s not.
+  const auto part = [&](double from_s, double to_s) {
+    EXPECT_LE(to_s * hold.rate_hz, static_cast<double>(hold.size()));
+    const auto a = static_cast<std::ptrdiff_t>(from_s * hold.rate_hz);
+    const auto b = static_cast<std::ptrdiff_t>(to_s * hold.rate_hz);
+    KneeTarget t = hold;
+    t.angle_deg.assign(hold.angle_deg.begin() + a, hold.angle_deg.begin() + b);
+    t.velocity_deg_s.assign(hold.velocity_deg_s.begin() + a, hold.velocity_deg_s.begin() + b);
+    t.accel_deg_s2.assign(hold.accel_deg_s2.begin() + a, hold.accel_deg_s2.begin() + b);
+    return MeasureTracking(t, std::vector<double>(angle.begin() + a, angle.begin() + b));
+  };
+  const TrackingMetrics early = part(0.0, 5.0), late = part(15.0, 30.0);
+  std::cout << "[ figure ] pid at 8x its tuned gains on a 55° hold: " << backoffs
+            << " back-offs; error RMS above 1 Hz " << early.rms_above_1hz_deg << "° over 0–5 s, "
+            << late.rms_above_1hz_deg << "° over 15–30 s; RMS " << late.rms_deg << "° there\n";
+  EXPECT_EQ(backoffs, 3);
+  EXPECT_GT(early.rms_above_1hz_deg, 5.0);
+  EXPECT_LT(late.rms_above_1hz_deg, 0.1);
+  EXPECT_LT(late.rms_deg, 1.0);
 }
 
 TEST(TrackingControllerTest, RefusesImpossibleOptions) {
