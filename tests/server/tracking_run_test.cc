@@ -32,6 +32,13 @@ SubjectContext Context(const VirtualSubject& vs) {
   return s;
 }
 
+// The last progress a run reported.
+class LastProgress : public RunObserver {
+ public:
+  void OnProgress(const Progress& p) override { last = p; }
+  Progress last;
+};
+
 RunResult Track(Rig& rig, const SubjectContext& ctx, ParameterValues values) {
   auto plan = MakePlan("tracking", values, ctx);
   EXPECT_TRUE(plan.ok()) << plan.status().ToString();
@@ -173,10 +180,21 @@ TEST(Tracking, TheGateRefusesTheModelBasedControllersButNotPid) {
   v["controller"] = 0;
   auto plan = MakePlan("tracking", v, ctx);
   ASSERT_TRUE(plan.ok()) << plan.status().ToString();
-  ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+  LastProgress progress;
+  ProtocolRunner runner(rig.safe, &rig.log, &progress, NoWatchdog());
   const RunResult r = runner.Run(*plan, ctx);
   EXPECT_EQ(r.state, RunState::kFailed);
   EXPECT_NE(r.reason.find("more than the maximum"), std::string::npos) << r.reason;
+  // It ended early: its bench time is the time it ran, less than the plan's
+  // (docs/API.md, Runs), which stays as bench_planned_s.
+  EXPECT_LT(r.bench_duration_s, plan->duration_s() - 1.0);
+  EXPECT_NEAR(progress.last.bench_total_s, r.bench_duration_s, 0.002);
+  EXPECT_DOUBLE_EQ(progress.last.bench_elapsed_s, progress.last.bench_total_s);
+  EXPECT_DOUBLE_EQ(progress.last.bench_planned_s, plan->duration_s());
+  EXPECT_LT(progress.last.fraction, 1.0);
+  std::cout << "[ figure ] pid on a hold it cannot reach: failed after " << r.bench_duration_s
+            << " s of bench time, bench_total_s " << progress.last.bench_total_s << " s (plan "
+            << plan->duration_s() << " s)\n";
   for (const model::Pulse& p : rig.bench.DeliveredPulses()) ASSERT_LE(p.stim_ma, max_ma + 1e-9);
   ASSERT_EQ(r.trials.size(), 1u);
   for (double u : *r.trials.front().trial.Values("stim_ma")) ASSERT_LE(u, max_ma + 1e-9);
