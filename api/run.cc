@@ -83,6 +83,7 @@ json ProgressToJson(const Progress& p) {
           {"eta_s", Finite(p.eta_s)},
           {"bench_elapsed_s", p.bench_elapsed_s},
           {"bench_total_s", p.bench_total_s},
+          {"bench_planned_s", Finite(p.bench_planned_s)},
           {"step", p.step},
           {"phase", std::string(StepPhaseName(p.phase))}};
 }
@@ -95,6 +96,7 @@ Result<Progress> ProgressFromJson(const json& j) {
   ReadInto(in, "eta_s", p.eta_s);
   ReadInto(in, "bench_elapsed_s", p.bench_elapsed_s);
   ReadInto(in, "bench_total_s", p.bench_total_s);
+  ReadInto(in, "bench_planned_s", p.bench_planned_s);  // null or absent: unknown
   ReadInto(in, "step", p.step);
   ReadNamed(in, "phase", false, p.phase, &ParseStepPhase);
   return Done(in, p);
@@ -185,13 +187,24 @@ json RunViewToJson(const RunView& v) {
             {"controller", v.owner.empty() ? json(nullptr) : json(v.owner)},
             {"bench_elapsed_s", v.progress.bench_elapsed_s},
             {"bench_total_s", v.progress.bench_total_s},
+            {"bench_planned_s", Finite(v.progress.bench_planned_s)},
             {"trial_ids", v.trial_ids},
             {"parameter_set_id", OrNull(v.parameter_set_id)},
+            {"used_parameter_set_id", OrNull(v.used_parameter_set_id)},
             {"values", std::move(values)},
             {"safety_events", std::move(events)},
             {"live", v.live}};
   if (v.tolerance) j["tolerance"] = ToleranceResultToJson(*v.tolerance);
   return j;
+}
+
+std::optional<std::int64_t> UsedParameterSetOf(const ParameterValues& parameters) {
+  const auto it = parameters.find("parameter_set_id");
+  if (it == parameters.end() || !std::isfinite(it->second) || !(it->second >= 1.0) ||
+      it->second > 9007199254740992.0) {
+    return std::nullopt;
+  }
+  return static_cast<std::int64_t>(it->second);
 }
 
 Result<RunView> RunViewFromJson(const json& j) {
@@ -220,8 +233,10 @@ Result<RunView> RunViewFromJson(const json& j) {
   ReadInto(in, "controller", v.owner);
   ReadInto(in, "bench_elapsed_s", v.progress.bench_elapsed_s);
   ReadInto(in, "bench_total_s", v.progress.bench_total_s);
+  ReadInto(in, "bench_planned_s", v.progress.bench_planned_s);
   ReadInto(in, "trial_ids", v.trial_ids);
   ReadInto(in, "parameter_set_id", v.parameter_set_id);
+  ReadInto(in, "used_parameter_set_id", v.used_parameter_set_id);
   if (const json* values = in.Object("values", false)) {
     for (const auto& [name, value] : values->items()) {
       v.values[name] = value.is_number() ? value.get<double>() : kNaN;

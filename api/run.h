@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -41,15 +42,19 @@ std::optional<StepPhase> ParseStepPhase(std::string_view name);
 
 /// Progress of a run: bench-time fraction and an ETA in wall seconds.
 struct Progress {
-  double fraction = 0.0;  ///< 0–1.
+  double fraction = 0.0;  ///< 0–1 of the plan's bench time.
   double eta_s = 0.0;     ///< wall seconds left (bench s / time scale, or measured).
-  double bench_elapsed_s = 0.0;
+  double bench_elapsed_s = 0.0;  ///< bench time run so far.
+  /// The run's bench time: while it runs, the plan's less what steps that
+  /// ended early skipped; once it ended (done, failed, aborted), the time
+  /// it ran (docs/API.md, Runs).
   double bench_total_s = 0.0;
+  double bench_planned_s = std::numeric_limits<double>::quiet_NaN();  ///< the plan's; NaN: unknown.
   std::size_t step = 0;
   StepPhase phase = StepPhase::kPrepare;
 };
 /// {"fraction", "eta_s" (null when unknown), "bench_elapsed_s",
-///  "bench_total_s", "step", "phase"}.
+///  "bench_total_s", "bench_planned_s" (null when unknown), "step", "phase"}.
 nlohmann::json ProgressToJson(const Progress& progress);
 /// An unknown ETA (null) reads as NaN.
 Result<Progress> ProgressFromJson(const nlohmann::json& json);
@@ -113,6 +118,9 @@ struct RunView {
   Progress progress;                             ///< fraction 0–1 and ETA (wall s).
   std::vector<std::int64_t> trial_ids;           ///< stored trials, in recording order.
   std::optional<std::int64_t> parameter_set_id;  ///< rapid_parameterisation's stored set.
+  /// The set the run used (tracking: the set it inverts, "0: the approved
+  /// set" resolved to its id when the run was started), or none.
+  std::optional<std::int64_t> used_parameter_set_id;
   std::vector<SafetyEvent> safety_events;        ///< of this run (live/in-memory views only).
   std::optional<ToleranceResult> tolerance;      ///< tolerance_test.
   std::map<std::string, double> values;          ///< figures decided during the run.
@@ -128,12 +136,16 @@ struct RunView {
 ///  "progress" (0–1), "eta_s" (wall s, null when unknown), "created_at_utc",
 ///  "started_at_utc", "finished_at_utc" (ISO-8601 UTC or null), "result",
 ///  "controller" (user name or null)}, plus the details "bench_elapsed_s",
-///  "bench_total_s" (bench time of the plan), "trial_ids",
-///  "parameter_set_id", "values", "safety_events", "live" and, for
+///  "bench_total_s" (the time run once it ended), "bench_planned_s",
+///  "trial_ids", "parameter_set_id", "used_parameter_set_id", "values",
+///  "safety_events", "live" and, for
 ///  tolerance_test runs of this process, "tolerance".
 nlohmann::json RunViewToJson(const RunView& view);
 /// The fields above except "tolerance" and "owner_user_id" (not sent).
 Result<RunView> RunViewFromJson(const nlohmann::json& json);
+/// The set a run's resolved parameters name as the one it uses
+/// (`parameter_set_id` ≥ 1: tracking's, docs/PROTOCOLS.md), or none.
+std::optional<std::int64_t> UsedParameterSetOf(const ParameterValues& parameters);
 
 /// What the bench is doing (GET /bench, DDS fesbench/bench/state).
 struct BenchState {

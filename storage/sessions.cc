@@ -145,6 +145,7 @@ api::RunView RunViewOf(const Run& run) {
       if (x.is_number()) v.parameters[k] = x.get<double>();
     }
   }
+  v.used_parameter_set_id = api::UsedParameterSetOf(v.parameters);
   v.state = run.state;
   if (v.state == RunState::kFailed || v.state == RunState::kAborted) v.reason = run.message;
   v.created_at = run.created_at;

@@ -493,8 +493,17 @@ std::pair<std::size_t, std::size_t> LongestUnreachable(const model::Feedforward&
 
 api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subject,
                           const std::vector<double>& uploaded, Plan& plan, Builder& b) {
-  if (!subject.parameter_set) {
-    return api::Status::FailedPrecondition(NoApprovedSetMessage("tracking"));
+  // Only the model-based controllers need the leg's set; pid uses none when
+  // its gains are given (docs/PROTOCOLS.md, tracking).
+  const auto kind = static_cast<model::ControllerKind>(static_cast<int>(v.at("controller")));
+  const bool model_based = kind != model::ControllerKind::kPid;
+  const bool pid_gains_given =
+      v.at("kp_ma_per_deg") > 0.0 || v.at("ki_ma_per_deg_s") > 0.0 || v.at("kd_ma_s_per_deg") > 0.0;
+  if (!subject.parameter_set && (model_based || !pid_gains_given)) {
+    if (model_based) return api::Status::FailedPrecondition(NoApprovedSetMessage("tracking"));
+    return api::Status::FailedPrecondition(
+        NoApprovedSetMessage("tracking with pid's gains tuned from the set") +
+        "; or give pid's gains (kp_ma_per_deg, ki_ma_per_deg_s, kd_ma_s_per_deg)");
   }
   const bool upload = static_cast<int>(v.at("target")) == 3;
   if (!upload && !(v.at("lo_deg") < v.at("hi_deg"))) {
@@ -518,12 +527,12 @@ api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subjec
     }
   }
   TrackingSettings t;
-  t.params = *subject.parameter_set;
+  t.params = subject.parameter_set;
   t.target = TrackingTarget(v, uploaded, t.target_name);
   t.lead_in_s = v.at("lead_in_s");
   t.max_rate_ma_per_s = v.at("max_rate_ma_per_s");
   t.max_saturation_s = v.at("max_saturation_s");
-  t.options.kind = static_cast<model::ControllerKind>(static_cast<int>(v.at("controller")));
+  t.options.kind = kind;
   t.options.threshold_ma = std::min(v.at("threshold_ma"), v.at("max_ma"));
   t.options.max_amplitude_ma = v.at("max_ma");
   t.options.forgetting = v.at("forgetting");
@@ -533,30 +542,37 @@ api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subjec
   const double ki = v.at(amplitude ? "ki_ma_per_deg_s" : "ki_nm_per_deg_s");
   const double kd = v.at(amplitude ? "kd_ma_s_per_deg" : "kd_nm_s_per_deg");
   if (kp > 0.0 || ki > 0.0 || kd > 0.0) t.options.gains = model::Pid::Gains{kp, ki, kd, 0.02};
-  // The model gate of tracking: the set's inverse along the target must not
-  // stay saturated longer than the controller would be allowed to.
-  model::InverseOptions inverse;
-  inverse.max_amplitude_ma = t.options.max_amplitude_ma;
-  const model::Feedforward ff = model::InvertModel(t.params, t.target, inverse);
-  const double rest_deg = FreeSwingStartAngleDeg(t.params);
-  const auto [from, to] = LongestUnreachable(ff, t.target, inverse.max_amplitude_ma, rest_deg);
-  const double span_s = static_cast<double>(to - from) / t.target.rate_hz;
-  if (span_s > t.max_saturation_s) {
-    const bool too_much =
-        ff.activation[from] >= 1.0 || ff.amplitude_ma[from] >= inverse.max_amplitude_ma;
-    std::ostringstream why;
-    why << "the parameter set";
-    if (subject.parameter_set_id) why << " #" << *subject.parameter_set_id;
-    why << " predicts the target cannot be followed: from t = " << ff.t_s[from] << " s (target "
-        << t.target.angle_deg[from] << "°) for " << span_s << " s it needs ";
-    if (too_much) {
-      why << "more than the maximum " << inverse.max_amplitude_ma << " mA gives";
-    } else {
-      why << "the knee held beyond its rest angle " << rest_deg
-          << "° (flexion, which the quadriceps cannot give)";
+  // The model gate of tracking, for the controllers that invert the set: its
+  // inverse along the target must not stay saturated longer than the
+  // controller would be allowed to. pid uses no model, so the set's limits
+  // do not refuse it: below it the interlock holds the amplitude to the
+  // session's max tolerated and the saturation stop ends the run
+  // (docs/PROTOCOLS.md, tracking; docs/SAFETY.md).
+  if (model_based) {
+    model::InverseOptions inverse;
+    inverse.max_amplitude_ma = t.options.max_amplitude_ma;
+    const model::Feedforward ff = model::InvertModel(*t.params, t.target, inverse);
+    const double rest_deg = FreeSwingStartAngleDeg(*t.params);
+    const auto [from, to] = LongestUnreachable(ff, t.target, inverse.max_amplitude_ma, rest_deg);
+    const double span_s = static_cast<double>(to - from) / t.target.rate_hz;
+    if (span_s > t.max_saturation_s) {
+      const bool too_much =
+          ff.activation[from] >= 1.0 || ff.amplitude_ma[from] >= inverse.max_amplitude_ma;
+      std::ostringstream why;
+      why << "the parameter set";
+      if (subject.parameter_set_id) why << " #" << *subject.parameter_set_id;
+      why << " predicts the target cannot be followed: from t = " << ff.t_s[from] << " s (target "
+          << t.target.angle_deg[from] << "°) for " << span_s << " s it needs ";
+      if (too_much) {
+        why << "more than the maximum " << inverse.max_amplitude_ma << " mA gives";
+      } else {
+        why << "the knee held beyond its rest angle " << rest_deg
+            << "° (flexion, which the quadriceps cannot give)";
+      }
+      why << " (longer than max_saturation_s = " << t.max_saturation_s << " s); pid, which "
+             "uses no model, is not refused";
+      return api::Status::FailedPrecondition(why.str());
     }
-    why << " (longer than max_saturation_s = " << t.max_saturation_s << " s)";
-    return api::Status::FailedPrecondition(why.str());
   }
   b.Prepare("decouple", MotorMode::kDecoupled, 90.0, v.at("settle_s"));
   const int trial = b.AddTrial("tracking_" + t.target_name, MotorMode::kDecoupled);

@@ -279,6 +279,7 @@ void RunExecution::ReportProgress(std::size_t index, const Step& step) {
   Progress p;
   p.bench_elapsed_s = TickSeconds(n_ + 1);
   p.bench_total_s = TickSeconds(total);
+  p.bench_planned_s = TickSeconds(plan_.total_ticks());
   p.fraction = std::min(1.0, static_cast<double>(n_ + 1) / static_cast<double>(total));
   const double left = p.bench_total_s - p.bench_elapsed_s;
   const double wall_rate = (runner_.options_.clock->MonotonicSeconds() - wall0_) / p.bench_elapsed_s;
@@ -286,6 +287,7 @@ void RunExecution::ReportProgress(std::size_t index, const Step& step) {
                                               : left * wall_rate;
   p.step = index;
   p.phase = step.phase;
+  last_progress_ = p;
   observer->OnProgress(p);
 }
 
@@ -389,21 +391,34 @@ RunResult RunExecution::Conclude() {
     result_.daily_check = std::move(check->report);
     if (check->updated) result_.parameter_set = std::move(check->updated);
   }
-  if (runner_.observer_ != nullptr) {
-    Progress p;
-    p.fraction = 1.0;
-    p.bench_elapsed_s = p.bench_total_s = TickSeconds(n_);  // the time run, not the plan's
-    p.step = plan_.steps.size();
-    p.phase = plan_.rapid ? StepPhase::kIdentify : StepPhase::kRest;
-    runner_.observer_->OnProgress(p);
-  }
   runner_.Transition(RunTransition::kComplete, "");
   return Finish();
+}
+
+void RunExecution::ReportFinalProgress() {
+  if (runner_.observer_ == nullptr) return;
+  Progress p = last_progress_;
+  const std::int64_t planned = plan_.total_ticks();
+  // The time run, not the plan's, however the run ended; the fraction stays
+  // that of the plan's bench time (1 when done).
+  p.bench_elapsed_s = p.bench_total_s = TickSeconds(n_);
+  p.bench_planned_s = TickSeconds(planned);
+  p.eta_s = 0.0;
+  if (result_.state == RunState::kDone) {
+    p.fraction = 1.0;
+    p.step = plan_.steps.size();
+    p.phase = plan_.rapid ? StepPhase::kIdentify : StepPhase::kRest;
+  } else {
+    p.fraction = planned > 0 ? std::min(1.0, static_cast<double>(n_) / static_cast<double>(planned))
+                             : 0.0;
+  }
+  runner_.observer_->OnProgress(p);
 }
 
 RunResult RunExecution::Finish() {
   bench_.SetStimAmplitude(0.0);
   bench_.DisarmWatchdog();
+  ReportFinalProgress();
   if (runner_.log_ != nullptr) result_.safety_events = runner_.log_->Since(first_event_);
   result_.wall_duration_s = runner_.options_.clock->MonotonicSeconds() - wall0_;
   if (runner_.observer_ != nullptr) runner_.observer_->OnFinished(result_);

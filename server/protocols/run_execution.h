@@ -65,6 +65,9 @@ class RunExecution {
   RunResult Conclude();
   /// Stops the bench's outputs and hands the result out.
   RunResult Finish();
+  /// The last progress of a run that ended, whichever way: the bench time
+  /// it ran as its total (docs/API.md, Runs).
+  void ReportFinalProgress();
 
   ProtocolRunner& runner_;
   SafeBench& bench_;
@@ -84,6 +87,7 @@ class RunExecution {
   std::int64_t skipped_ticks_ = 0;  // planned ticks of steps that ended early
   std::int64_t clock_tick_ = 0;  // run tick of the last pulse-clock restart
   std::int64_t progress_every_ = 1;
+  Progress last_progress_;  // the last reported, for the final one
   std::optional<MotorMode> mode_;
   double last_setpoint_;
   double last_stim_ = -1.0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
 namespace fesbench::server::protocols {
@@ -13,13 +14,49 @@ constexpr double kSampleRateHz = 200.0;  // the controller's rate (the trials')
 }  // namespace
 
 TrackingLoop::TrackingLoop(const TrackingSettings& settings, double start_angle_deg)
-    : settings_(settings),
-      controller_(settings.params,
-                  model::WithLeadIn(settings.target, start_angle_deg, settings.lead_in_s),
-                  settings.options) {}
+    : settings_(settings) {
+  model::KneeTarget target =
+      model::WithLeadIn(settings.target, start_angle_deg, settings.lead_in_s);
+  if (settings.params) {
+    controller_.emplace(*settings.params, std::move(target), settings.options);
+    return;
+  }
+  const model::TrackingOptions& o = settings.options;
+  if (o.kind != model::ControllerKind::kPid || !o.gains) {
+    throw std::invalid_argument("only pid with its gains given runs without a parameter set");
+  }
+  if (!(std::isfinite(o.threshold_ma) && o.threshold_ma >= 0.0 &&
+        std::isfinite(o.max_amplitude_ma) && o.max_amplitude_ma >= o.threshold_ma)) {
+    throw std::invalid_argument("need 0 ≤ threshold_ma ≤ max_amplitude_ma");
+  }
+  if (target.angle_deg.empty() || !(target.rate_hz > 0.0)) {
+    throw std::invalid_argument("the target is empty");
+  }
+  target_ = std::move(target);
+  pid_.emplace(*o.gains, 1.0 / target_.rate_hz, 0.0, o.max_amplitude_ma);
+}
+
+model::TrackingSample TrackingLoop::UpdateModelFreePid(double measured_deg) {
+  if (!std::isfinite(measured_deg)) {
+    throw std::invalid_argument("tracking: the measured angle is not finite");
+  }
+  const std::size_t i = std::min(index_, target_.angle_deg.size() - 1);
+  model::TrackingSample s;
+  s.target_deg = target_.angle_deg[i];
+  s.error_deg = measured_deg - s.target_deg;
+  s.feedforward_ma = settings_.options.threshold_ma;
+  s.amplitude_ma = pid_->Update(s.target_deg, measured_deg, s.feedforward_ma);
+  s.correction_ma = s.amplitude_ma - s.feedforward_ma;
+  s.tau_scale_nm = 0.0;  // no set
+  s.saturated = (s.amplitude_ma >= settings_.options.max_amplitude_ma - 1e-9 ||
+                 pid_->saturated_high()) &&
+                s.error_deg > 0.0;
+  ++index_;
+  return s;
+}
 
 std::optional<std::string> TrackingLoop::Sample(double measured_deg) {
-  last_ = controller_.Update(measured_deg);
+  last_ = controller_ ? controller_->Update(measured_deg) : UpdateModelFreePid(measured_deg);
   // Below the controller: the slew limit (SafeBench then clamps the maximum).
   const double step_ma = settings_.max_rate_ma_per_s / kSampleRateHz;
   amplitude_ma_ = std::clamp(last_.amplitude_ma, amplitude_ma_ - step_ma, amplitude_ma_ + step_ma);
@@ -73,8 +110,8 @@ void TrackingLoop::Summarise(const api::Trial& trial, std::map<std::string, doub
   }
   values["charge_uc"] = charge_nc / 1000.0;
   values["saturated_s"] = saturated_total_s_;
-  values["tau_scale_nm"] = controller_.tau_scale_nm();
-  const model::Pid::Gains& g = controller_.gains();
+  if (controller_) values["tau_scale_nm"] = controller_->tau_scale_nm();
+  const model::Pid::Gains& g = controller_ ? controller_->gains() : *settings_.options.gains;
   const bool amplitude = settings_.options.kind == model::ControllerKind::kPid;
   values[amplitude ? "kp_ma_per_deg" : "kp_nm_per_deg"] = g.kp;
   values[amplitude ? "ki_ma_per_deg_s" : "ki_nm_per_deg_s"] = g.ki;

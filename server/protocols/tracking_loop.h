@@ -20,8 +20,11 @@ namespace fesbench::server::protocols {
 class TrackingLoop {
  public:
   /// Builds the controller for `settings`' target after a lead-in from
-  /// `start_angle_deg`, the knee's angle when the step starts.
-  /// @throws std::invalid_argument as model::TrackingController.
+  /// `start_angle_deg`, the knee's angle when the step starts. Without a
+  /// set, pid with its gains given runs as the amplitude PID alone (it uses
+  /// no model; docs/PROTOCOLS.md, tracking).
+  /// @throws std::invalid_argument as model::TrackingController, and for a
+  ///   model-based controller or pid without gains when there is no set.
   TrackingLoop(const TrackingSettings& settings, double start_angle_deg);
 
   /// One 200 Hz sample: the controller's decision for the knee angle
@@ -48,8 +51,15 @@ class TrackingLoop {
   void Summarise(const api::Trial& trial, std::map<std::string, double>& values) const;
 
  private:
+  // pid without a set: the threshold plus the amplitude PID, as
+  // model::TrackingController's pid does (model/tracking.h).
+  model::TrackingSample UpdateModelFreePid(double measured_deg);
+
   const TrackingSettings& settings_;
-  model::TrackingController controller_;
+  std::optional<model::TrackingController> controller_;  // with a set
+  model::KneeTarget target_;                             // without: the lead-in and target
+  std::optional<model::Pid> pid_;                        // without: pid's gains
+  std::size_t index_ = 0;
   model::TrackingSample last_;
   double amplitude_ma_ = 0.0;
   int saturated_samples_ = 0;

@@ -3,6 +3,7 @@
 /// @file
 /// The settings of a `tracking` run (docs/PROTOCOLS.md; plan.h's Plan::tracking).
 
+#include <optional>
 #include <string>
 
 #include "model/tracking.h"
@@ -14,7 +15,9 @@ namespace fesbench::server::protocols {
 /// the closed-loop step follows it with (model/tracking.h), and the limits
 /// the engine holds the controller to, below it.
 struct TrackingSettings {
-  model::ParameterSet params;  ///< the leg's set the controller inverts.
+  /// The leg's set the controller inverts (pid: tunes its gains from); none
+  /// for pid with its gains given (docs/PROTOCOLS.md, tracking).
+  std::optional<model::ParameterSet> params;
   std::string target_name;     ///< "sine", "holds", "ramp".
   model::KneeTarget target;    ///< from the end of the lead-in on.
   /// The lead-in: a raised-cosine move from the angle measured when the

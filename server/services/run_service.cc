@@ -403,11 +403,12 @@ std::shared_ptr<RunService::LiveRun> RunService::RegisterLiveRun(
   v.protocol = protocol;
   v.protocol_version = plan.protocol_version;
   v.parameters = plan.parameters;
+  v.used_parameter_set_id = api::UsedParameterSetOf(plan.parameters);
   v.state = RunState::kQueued;
   v.owner = actor.user_name;
   v.owner_user_id = actor.user_id;
   v.created_at = created.created_at;
-  v.progress.bench_total_s = plan.duration_s();
+  v.progress.bench_total_s = v.progress.bench_planned_s = plan.duration_s();
   v.progress.eta_s = config_.time_scale > 0.0 ? plan.duration_s() / config_.time_scale : 0.0;
   v.live = true;
   {

@@ -218,6 +218,7 @@ TEST(Runner, ToleranceTestFindsThresholdAndStopsWhereTheClinicianStops) {
   EXPECT_DOUBLE_EQ(stop.last.fraction, 1.0);
   EXPECT_NEAR(stop.last.bench_total_s, r.bench_duration_s, 0.01);
   EXPECT_DOUBLE_EQ(stop.last.bench_elapsed_s, stop.last.bench_total_s);
+  EXPECT_DOUBLE_EQ(stop.last.bench_planned_s, plan->duration_s());  // kept, by its own name
 }
 
 TEST(RunJson, SummarisesTheRunWithUnitsInKeys) {

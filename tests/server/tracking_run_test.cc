@@ -32,6 +32,13 @@ SubjectContext Context(const VirtualSubject& vs) {
   return s;
 }
 
+// The last progress a run reported.
+class LastProgress : public RunObserver {
+ public:
+  void OnProgress(const Progress& p) override { last = p; }
+  Progress last;
+};
+
 RunResult Track(Rig& rig, const SubjectContext& ctx, ParameterValues values) {
   auto plan = MakePlan("tracking", values, ctx);
   EXPECT_TRUE(plan.ok()) << plan.status().ToString();
@@ -148,6 +155,90 @@ TEST(Tracking, RefusesWithoutASetAndTargetsTheSetCannotReach) {
   EXPECT_EQ(weak.status().code(), api::ErrorCode::kFailedPrecondition);
   EXPECT_NE(weak.status().message().find("cannot be followed"), std::string::npos)
       << weak.status().message();
+}
+
+// The gate refuses only what the controller needs (docs/PROTOCOLS.md,
+// tracking): a hold the set says the maximum cannot give refuses the
+// model-based controllers, not pid, which uses no model. pid then runs with
+// the amplitude held to the session's max tolerated by the interlock, and
+// the saturation stop ends the run.
+TEST(Tracking, TheGateRefusesTheModelBasedControllersButNotPid) {
+  Rig rig(11);
+  const SubjectContext ctx = Context(rig.subject);
+  const double max_ma = ctx.threshold_ma + 1.0;
+  const ParameterValues weak = {{"target", 1},     {"lo_deg", 16.0},  {"hi_deg", 20.0},
+                                {"max_ma", max_ma}, {"duration_s", 10.0}};
+  for (int c : {1, 2}) {
+    ParameterValues v = weak;
+    v["controller"] = c;
+    auto refused = MakePlan("tracking", v, ctx);
+    ASSERT_FALSE(refused.ok()) << c;
+    EXPECT_EQ(refused.status().code(), api::ErrorCode::kFailedPrecondition);
+    EXPECT_NE(refused.status().message().find("cannot be followed"), std::string::npos);
+  }
+  ParameterValues v = weak;
+  v["controller"] = 0;
+  auto plan = MakePlan("tracking", v, ctx);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  LastProgress progress;
+  ProtocolRunner runner(rig.safe, &rig.log, &progress, NoWatchdog());
+  const RunResult r = runner.Run(*plan, ctx);
+  EXPECT_EQ(r.state, RunState::kFailed);
+  EXPECT_NE(r.reason.find("more than the maximum"), std::string::npos) << r.reason;
+  // It ended early: its bench time is the time it ran, less than the plan's
+  // (docs/API.md, Runs), which stays as bench_planned_s.
+  EXPECT_LT(r.bench_duration_s, plan->duration_s() - 1.0);
+  EXPECT_NEAR(progress.last.bench_total_s, r.bench_duration_s, 0.002);
+  EXPECT_DOUBLE_EQ(progress.last.bench_elapsed_s, progress.last.bench_total_s);
+  EXPECT_DOUBLE_EQ(progress.last.bench_planned_s, plan->duration_s());
+  EXPECT_LT(progress.last.fraction, 1.0);
+  std::cout << "[ figure ] pid on a hold it cannot reach: failed after " << r.bench_duration_s
+            << " s of bench time, bench_total_s " << progress.last.bench_total_s << " s (plan "
+            << plan->duration_s() << " s)\n";
+  for (const model::Pulse& p : rig.bench.DeliveredPulses()) ASSERT_LE(p.stim_ma, max_ma + 1e-9);
+  ASSERT_EQ(r.trials.size(), 1u);
+  for (double u : *r.trials.front().trial.Values("stim_ma")) ASSERT_LE(u, max_ma + 1e-9);
+}
+
+// pid needs no set when its gains are given; without either it is refused
+// (409), as the model-based controllers are without a set.
+TEST(Tracking, PidWithItsGainsRunsWithoutASet) {
+  Rig rig(11);
+  SubjectContext ctx = Context(rig.subject);
+  ctx.parameter_set.reset();
+  ctx.parameter_set_id.reset();
+  for (int c : {0, 1, 2}) {
+    auto refused = MakePlan("tracking", {{"controller", c}}, ctx);
+    ASSERT_FALSE(refused.ok()) << c;
+    EXPECT_EQ(refused.status().code(), api::ErrorCode::kFailedPrecondition);
+  }
+  // The gains pid tunes from the set, given: without the set pid commands
+  // what it commands with it (its amplitude PID uses no model).
+  Rig with_set(11);
+  const SubjectContext full = Context(with_set.subject);
+  const RunResult tuned = Track(with_set, full, {{"controller", 0}, {"duration_s", 10.0}});
+  ASSERT_EQ(tuned.state, RunState::kDone) << tuned.reason;
+  const ParameterValues gains = {{"controller", 0},
+                                 {"duration_s", 10.0},
+                                 {"kp_ma_per_deg", tuned.values.at("kp_ma_per_deg")},
+                                 {"ki_ma_per_deg_s", tuned.values.at("ki_ma_per_deg_s")},
+                                 {"kd_ma_s_per_deg", tuned.values.at("kd_ma_s_per_deg")}};
+  auto plan = MakePlan("tracking", gains, ctx);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  EXPECT_EQ(plan->parameters.at("parameter_set_id"), 0.0);  // none used
+  ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+  const RunResult r = runner.Run(*plan, ctx);
+  ASSERT_EQ(r.state, RunState::kDone) << r.reason;
+  const api::Trial& t = r.trials.front().trial;
+  EXPECT_EQ(t.Values("t_s")->size(), 2600u);  // lead-in 3 s + 10 s at 200 Hz
+  EXPECT_TRUE(api::ValidateTrial(t).ok()) << api::ValidateTrial(t).ToString();
+  EXPECT_FALSE(r.values.contains("tau_scale_nm"));
+  EXPECT_EQ(*t.Values("stim_ma"), *tuned.trials.front().trial.Values("stim_ma"));
+  EXPECT_DOUBLE_EQ(r.values.at("tracking_rms_deg"), tuned.values.at("tracking_rms_deg"));
+  std::cout << "[ figure ] simulated leg 11, pid without a set (the set's tuned gains kp "
+            << gains.at("kp_ma_per_deg") << ", ki " << gains.at("ki_ma_per_deg_s") << ", kd "
+            << gains.at("kd_ma_s_per_deg") << "), 0.2 Hz sine 30–80° for 10 s: RMS "
+            << r.values.at("tracking_rms_deg") << "°\n";
 }
 
 TEST(Tracking, ALegWeakerThanItsSetSaturatesAndTheRunStopsWithTheReason) {
