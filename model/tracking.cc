@@ -306,6 +306,19 @@ bool OscillationDetector::Update(double error_deg) {
   return true;
 }
 
+void BackOffOnOscillation(OscillationDetector& detector, Pid& pid, int& backoffs,
+                          TrackingSample& sample) {
+  // A limit cycle: the loop has more gain than its delay allows here.
+  if (!detector.Update(sample.error_deg)) return;
+  if (backoffs < kMaxOscillationBackoffs) {
+    pid.ScaleGains(0.5);
+    ++backoffs;
+    sample.backed_off = true;
+  } else {
+    sample.oscillating = true;
+  }
+}
+
 TrackingController::TrackingController(const ParameterSet& params, KneeTarget target,
                                        TrackingOptions options)
     : params_(params),
@@ -426,18 +439,7 @@ TrackingSample TrackingController::Update(double measured_deg) {
   }
   s.correction_ma = s.amplitude_ma - s.feedforward_ma;
   s.tau_scale_nm = tau_scale_;
-  // A limit cycle: the loop has more gain than its delay allows here. Halve
-  // the gains (the next samples already use them); after
-  // kMaxOscillationBackoffs halvings the run must end.
-  if (oscillation_.Update(s.error_deg)) {
-    if (backoffs_ < kMaxOscillationBackoffs) {
-      pid_.ScaleGains(0.5);
-      ++backoffs_;
-      s.backed_off = true;
-    } else {
-      s.oscillating = true;
-    }
-  }
+  BackOffOnOscillation(oscillation_, pid_, backoffs_, s);
   // The PID wanting more than its limit counts too: its integral is held
   // just below the limit, so the output may sit a hair under it.
   s.saturated = (s.amplitude_ma >= options_.max_amplitude_ma - 1e-9 || top_activation ||

@@ -199,6 +199,16 @@ class OscillationDetector {
 /// up: each halves kp, ki and kd (OscillationDetector).
 inline constexpr int kMaxOscillationBackoffs = 3;
 
+struct TrackingSample;
+
+/// The back-off every controller takes (TrackingController, and the
+/// engine's model-free PID): the sample's error goes to `detector`; when it
+/// completes an oscillation, `pid`'s gains are halved (backoffs + 1,
+/// sample.backed_off) or, after kMaxOscillationBackoffs, sample.oscillating
+/// is set. The next samples use the halved gains.
+void BackOffOnOscillation(OscillationDetector& detector, Pid& pid, int& backoffs,
+                          TrackingSample& sample);
+
 /// What one control sample decided.
 struct TrackingSample {
   double amplitude_ma = 0.0;    ///< commanded, in [0, max_amplitude_ma].

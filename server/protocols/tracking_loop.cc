@@ -34,6 +34,7 @@ TrackingLoop::TrackingLoop(const TrackingSettings& settings, double start_angle_
   }
   target_ = std::move(target);
   pid_.emplace(*o.gains, 1.0 / target_.rate_hz, 0.0, o.max_amplitude_ma);
+  oscillation_.emplace(target_.rate_hz, model::OscillationDetector::Options{});
 }
 
 model::TrackingSample TrackingLoop::UpdateModelFreePid(double measured_deg) {
@@ -48,31 +49,32 @@ model::TrackingSample TrackingLoop::UpdateModelFreePid(double measured_deg) {
   s.amplitude_ma = pid_->Update(s.target_deg, measured_deg, s.feedforward_ma);
   s.correction_ma = s.amplitude_ma - s.feedforward_ma;
   s.tau_scale_nm = 0.0;  // no set
-  s.saturated = (s.amplitude_ma >= settings_.options.max_amplitude_ma - 1e-9 ||
-                 pid_->saturated_high()) &&
-                s.error_deg > 0.0;
-  ++index_;
+  s.saturated =
+      (s.amplitude_ma >= settings_.options.max_amplitude_ma - 1e-9 || pid_->saturated_high()) &&
+      s.error_deg > 0.0;
+  model::BackOffOnOscillation(*oscillation_, *pid_, backoffs_, s);
   return s;
 }
 
 std::optional<std::string> TrackingLoop::Sample(double measured_deg) {
   last_ = controller_ ? controller_->Update(measured_deg) : UpdateModelFreePid(measured_deg);
+  ++index_;
   // Below the controller: the slew limit (SafeBench then clamps the maximum).
   const double step_ma = settings_.max_rate_ma_per_s / kSampleRateHz;
   amplitude_ma_ = std::clamp(last_.amplitude_ma, amplitude_ma_ - step_ma, amplitude_ma_ + step_ma);
   saturated_samples_ = last_.saturated ? saturated_samples_ + 1 : 0;
   if (last_.saturated) saturated_total_s_ += 1.0 / kSampleRateHz;
-  if (static_cast<double>(controller_.index()) > settings_.lead_in_s * kSampleRateHz) {
+  if (static_cast<double>(index_) > settings_.lead_in_s * kSampleRateHz) {
     if (amplitude_ma_ <= 0.0) zero_s_ += 1.0 / kSampleRateHz;
     if (amplitude_ma_ >= settings_.options.max_amplitude_ma - 1e-9)
       at_max_s_ += 1.0 / kSampleRateHz;
   }
   std::ostringstream why;
   if (last_.oscillating) {
-    const model::Pid::Gains& g = controller_.current_gains();
+    const model::Pid::Gains& g = controller_ ? controller_->current_gains() : pid_->gains();
     why << "tracking: the knee still oscillates (swings of at least 4° faster than every 3 s) "
-        << "after the loop gains were halved " << controller_.backoffs() << " times (kp now "
-        << g.kp << "); the run is stopped";
+        << "after the loop gains were halved " << model::kMaxOscillationBackoffs
+        << " times (kp now " << g.kp << "); the run is stopped";
     return why.str();
   }
   if (static_cast<double>(saturated_samples_) / kSampleRateHz <= settings_.max_saturation_s) {
@@ -102,7 +104,7 @@ void TrackingLoop::Summarise(const api::Trial& trial, std::map<std::string, doub
   }
   values["zero_ma_s"] = zero_s_;
   values["max_ma_s"] = at_max_s_;
-  values["oscillation_backoffs"] = controller_.backoffs();
+  values["oscillation_backoffs"] = controller_ ? controller_->backoffs() : backoffs_;
   // Charge: Σ amplitude × pulse width of what the stimulator delivered.
   double charge_nc = 0.0;
   if (trial.pulses) {

@@ -56,10 +56,12 @@ class TrackingLoop {
   model::TrackingSample UpdateModelFreePid(double measured_deg);
 
   const TrackingSettings& settings_;
-  std::optional<model::TrackingController> controller_;  // with a set
-  model::KneeTarget target_;                             // without: the lead-in and target
-  std::optional<model::Pid> pid_;                        // without: pid's gains
-  std::size_t index_ = 0;
+  std::optional<model::TrackingController> controller_;    // with a set
+  model::KneeTarget target_;                               // without: the lead-in and target
+  std::optional<model::Pid> pid_;                          // without: pid's gains
+  std::optional<model::OscillationDetector> oscillation_;  // without: its back-off
+  int backoffs_ = 0;
+  std::size_t index_ = 0;  // samples taken
   model::TrackingSample last_;
   double amplitude_ma_ = 0.0;
   int saturated_samples_ = 0;

@@ -70,6 +70,11 @@ TEST(Tracking, TheControllersFollowASineAndRecordWhatTheyDid) {
     rms[c] = r.values.at("tracking_rms_deg");
     EXPECT_GT(r.values.at("charge_uc"), 0.0);
     EXPECT_EQ(r.values.at("saturated_s"), 0.0);
+    // Tracking, not a limit cycle: no back-off.
+    EXPECT_EQ(r.values.at("oscillation_backoffs"), 0.0);
+    for (const char* v : {"error_rms_above_1hz_deg", "zero_ma_s", "max_ma_s"}) {
+      EXPECT_TRUE(r.values.contains(v)) << v;
+    }
   }
   std::cout << "[ figure ] simulated leg 11, its model part as the set, 0.2 Hz sine 30–80° for "
                "15 s: RMS pid "
@@ -239,6 +244,48 @@ TEST(Tracking, PidWithItsGainsRunsWithoutASet) {
             << gains.at("kp_ma_per_deg") << ", ki " << gains.at("ki_ma_per_deg_s") << ", kd "
             << gains.at("kd_ma_s_per_deg") << "), 0.2 Hz sine 30–80° for 10 s: RMS "
             << r.values.at("tracking_rms_deg") << "°\n";
+}
+
+// pid with eight times the gains it tunes from the set swings the knee on
+// holds; the loop halves its gains until the swinging stops (or ends the
+// run naming it), with the set and without one.
+TEST(Tracking, ALimitCycleIsBackedOffWithAndWithoutASet) {
+  Rig tuned_rig(11);
+  const SubjectContext full = Context(tuned_rig.subject);
+  const RunResult tuned =
+      Track(tuned_rig, full, {{"controller", 0}, {"target", 1}, {"duration_s", 20.0}});
+  ASSERT_EQ(tuned.state, RunState::kDone) << tuned.reason;
+  EXPECT_EQ(tuned.values.at("oscillation_backoffs"), 0.0);
+  const ParameterValues hot = {{"controller", 0},
+                               {"target", 1},
+                               {"duration_s", 20.0},
+                               {"kp_ma_per_deg", 8.0 * tuned.values.at("kp_ma_per_deg")},
+                               {"ki_ma_per_deg_s", 8.0 * tuned.values.at("ki_ma_per_deg_s")},
+                               {"kd_ma_s_per_deg", 8.0 * tuned.values.at("kd_ma_s_per_deg")}};
+  for (bool with_set : {true, false}) {
+    Rig rig(11);
+    SubjectContext ctx = Context(rig.subject);
+    if (!with_set) {
+      ctx.parameter_set.reset();
+      ctx.parameter_set_id.reset();
+    }
+    auto plan = MakePlan("tracking", hot, ctx);
+    ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+    ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
+    const RunResult r = runner.Run(*plan, ctx);
+    std::cout << "[ figure ] simulated leg 11, pid at 8x its tuned gains on holds"
+              << (with_set ? "" : " (no set)") << ": " << RunStateName(r.state) << " "
+              << r.reason << "; back-offs " << r.values.at("oscillation_backoffs")
+              << ", error RMS above 1 Hz " << r.values.at("error_rms_above_1hz_deg")
+              << "° (tuned gains " << tuned.values.at("error_rms_above_1hz_deg")
+              << "°), worst settling " << r.values.at("worst_settling_s") << " s, at 0 mA "
+              << r.values.at("zero_ma_s") << " s, at the maximum " << r.values.at("max_ma_s")
+              << " s\n";
+    EXPECT_GE(r.values.at("oscillation_backoffs"), 1.0) << with_set;
+    if (r.state != RunState::kDone) {
+      EXPECT_NE(r.reason.find("still oscillates"), std::string::npos) << r.reason;
+    }
+  }
 }
 
 TEST(Tracking, ALegWeakerThanItsSetSaturatesAndTheRunStopsWithTheReason) {

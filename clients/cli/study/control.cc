@@ -110,6 +110,17 @@ LegControl RunLegControl(ApiClient& client, int index, const std::string& family
         f.charge_mc = ValueOr(v, "charge_uc") / 1000.0;
         f.saturated_s = ValueOr(v, "saturated_s");
         f.tau_scale_nm = ValueOr(v, "tau_scale_nm");
+        f.worst_overshoot_deg = ValueOr(v, "worst_overshoot_deg");
+        f.worst_settling_s = ValueOr(v, "worst_settling_s");
+        f.above_1hz_deg = ValueOr(v, "error_rms_above_1hz_deg");
+        f.zero_ma_s = ValueOr(v, "zero_ma_s");
+        f.max_ma_s = ValueOr(v, "max_ma_s");
+        f.backoffs = ValueOr(v, "oscillation_backoffs");
+        if (f.backoffs > 0.0) {
+          log << "  leg " << index << ": tracking " << condition.name << " " << controller
+              << ": " << f.backoffs << " oscillation back-off(s), RMS " << f.rms_deg
+              << "°, above 1 Hz " << f.above_1hz_deg << "°\n";
+        }
       } catch (const CliError& e) {
         if (e.exit_code() != kExitServer) throw;
         f.failure = e.what();
@@ -137,14 +148,22 @@ void WriteControlChapter(const std::vector<LegControl>& legs, const std::filesys
                 "charge in mC)",
                 {"condition", "controller", "legs run", "median RMS", "mean RMS", "worst RMS",
                  "median max error", "median overshoot", "median settling (s)", "mean charge",
-                 "median saturated (s)", "refused or failed"},
+                 "median saturated (s)", "refused or failed", "worst overshoot",
+                 "worst settling (s)", "median RMS above 1 Hz", "worst RMS above 1 Hz",
+                 "worst at 0 mA (s)", "worst at max (s)", "back-offs"},
                 {},
                 "Overshoot: the largest excursion past a hold in the direction of the move "
                 "into it; settling: from the move's end until the knee stays within 2° of the "
-                "hold (the hold's 4 s if never). Holds only."};
+                "hold (the hold's 4 s if never). Holds only; the worst columns are the worst "
+                "hold of the worst leg. RMS above 1 Hz: the part of the tracking error faster "
+                "than any target (a limit cycle's signature); at 0 mA / at max: seconds the "
+                "controller commanded no stimulation / the maximum after the lead-in; "
+                "back-offs: the loop's gain halvings on an oscillation, summed over the legs."};
   for (const Condition& c : Conditions()) {
     for (const std::string& controller : kControllers) {
-      std::vector<double> rms, max_error, overshoot, settling, charge, saturated;
+      std::vector<double> rms, max_error, overshoot, settling, charge, saturated, worst_overshoot,
+          worst_settling, above, zero, at_max;
+      double backoffs = 0.0;
       int failed = 0;
       for (const LegControl& leg : legs) {
         const auto cond = leg.runs.find(c.name);
@@ -162,12 +181,20 @@ void WriteControlChapter(const std::vector<LegControl>& legs, const std::filesys
         settling.push_back(f.settling_s);
         charge.push_back(f.charge_mc);
         saturated.push_back(f.saturated_s);
+        worst_overshoot.push_back(f.worst_overshoot_deg);
+        worst_settling.push_back(f.worst_settling_s);
+        above.push_back(f.above_1hz_deg);
+        zero.push_back(f.zero_ma_s);
+        at_max.push_back(f.max_ma_s);
+        if (std::isfinite(f.backoffs)) backoffs += f.backoffs;
       }
-      summary.rows.push_back({c.name, controller, std::to_string(rms.size()), Num(Median(rms), 2),
-                              Num(Mean(rms), 2), Num(Worst(rms), 2), Num(Median(max_error), 2),
-                              Num(Median(overshoot), 2), Num(Median(settling), 2),
-                              Num(Mean(charge), 1), Num(Median(saturated), 2),
-                              std::to_string(failed)});
+      summary.rows.push_back(
+          {c.name, controller, std::to_string(rms.size()), Num(Median(rms), 2), Num(Mean(rms), 2),
+           Num(Worst(rms), 2), Num(Median(max_error), 2), Num(Median(overshoot), 2),
+           Num(Median(settling), 2), Num(Mean(charge), 1), Num(Median(saturated), 2),
+           std::to_string(failed), Num(Worst(worst_overshoot), 2), Num(Worst(worst_settling), 2),
+           Num(Median(above), 2), Num(Worst(above), 2), Num(Worst(zero), 2), Num(Worst(at_max), 2),
+           Num(backoffs, 0)});
     }
   }
   WriteTable(dir, summary, markdown);
@@ -180,7 +207,7 @@ void WriteControlChapter(const std::vector<LegControl>& legs, const std::filesys
               {},
               "Over the legs where both controllers ran."};
   const std::vector<std::tuple<std::string, std::string, std::string>> pairs = {
-      {"sine", "pid", "inverse_model"},     {"sine", "pid", "adaptive"},
+      {"sine", "pid", "inverse_model"},      {"sine", "pid", "adaptive"},
       {"sine", "inverse_model", "adaptive"}, {"holds", "pid", "inverse_model"},
       {"holds", "pid", "adaptive"},          {"holds", "inverse_model", "adaptive"},
       {"fatigue", "pid", "inverse_model"},   {"fatigue", "inverse_model", "adaptive"}};
@@ -201,7 +228,8 @@ void WriteControlChapter(const std::vector<LegControl>& legs, const std::filesys
   }
   WriteTable(dir, tests, markdown);
 
-  Table per_leg{"control_per_leg", "Control: tracking RMS per leg (deg)", {"leg", "family"}, {}, ""};
+  Table per_leg{
+      "control_per_leg", "Control: tracking RMS per leg (deg)", {"leg", "family"}, {}, ""};
   for (const Condition& c : Conditions())
     for (const std::string& controller : kControllers)
       per_leg.header.push_back(c.name + " " + controller);

@@ -36,8 +36,14 @@ struct TrackingFigures {
   double settling_s = 0.0;     ///< holds only (NaN otherwise).
   double charge_mc = 0.0;
   double saturated_s = 0.0;
-  double tau_scale_nm = 0.0;  ///< the controller's τ̂ at the end.
-  std::string failure;        ///< non-empty: refused or failed, the server's words.
+  double tau_scale_nm = 0.0;         ///< the controller's τ̂ at the end.
+  double worst_overshoot_deg = 0.0;  ///< the run's worst hold (NaN without holds).
+  double worst_settling_s = 0.0;     ///< the run's worst hold (NaN without holds).
+  double above_1hz_deg = 0.0;        ///< the error's RMS above 1 Hz.
+  double zero_ma_s = 0.0;            ///< seconds commanded 0 mA.
+  double max_ma_s = 0.0;             ///< seconds commanded the maximum.
+  double backoffs = 0.0;             ///< the loop's oscillation back-offs.
+  std::string failure;               ///< non-empty: refused or failed, the server's words.
 };
 
 /// A leg's tracking runs: condition ("sine", "holds", "fatigue") →
