@@ -13,7 +13,7 @@
 // 0.05 N·m on the torque, 0.05 m/s² on an accelerometer 0.28 m from the
 // knee), seeded per leg; velocity and acceleration of the free swings from
 // the angle by the GCV spline (§5.1), as the rapid protocol takes them:
-//   - the rapid chain of bench/identify_bench.cc BM_RapidChain (pole and IRC
+//   - the rapid chain of benchmarks/identify_bench.cc BM_RapidChain (pole and IRC
 //     from the isometric ramp, free-swing passive with τ_pta known and J by
 //     output error, active fit on that passive set);
 //   - the active fit on the true passive set;

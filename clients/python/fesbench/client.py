@@ -107,7 +107,7 @@ class Client:
     network takes to carry it whole. ``parallel``: how many
     requests at once fetch many sets or trials (``with_parameters``,
     :meth:`trial_frames`): on a 2-core server one at a time is fastest
-    (bench/python/fetch_bench.py), a server with more cores may gain.
+    (benchmarks/python/fetch_bench.py), a server with more cores may gain.
     """
 
     def __init__(self, url: str, token: Optional[str] = None, token_file: Optional[str] = None,

@@ -2,7 +2,7 @@
 // subject's parameter-set history among 10,000 stored sets under 2 ms).
 // Databases live in the system temp directory on the local disk.
 //
-//   build/bench/storage_bench --benchmark_repetitions=5
+//   build/benchmarks/storage_bench --benchmark_repetitions=5
 
 #include <benchmark/benchmark.h>
 #include <unistd.h>

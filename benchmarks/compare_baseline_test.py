@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""bench/compare_baseline.py against made-up runs: a figure 30 % slower is
+"""benchmarks/compare_baseline.py against made-up runs: a figure 30 % slower is
 named (and fails --strict), 20 % slower is not, units are converted, only
 medians of aggregates count, manual-time benchmarks compare wall time."""
 

@@ -7,7 +7,7 @@
 # each round's requests/s and the median ratio. Needs the Debian packages
 # nginx-light (or nginx) and wrk; talks to 127.0.0.1 only; temporary files.
 #
-#   bench/load/run_vs_nginx.sh [SECONDS] [CONNECTIONS] [ROUNDS]   defaults 10 32 3
+#   benchmarks/load/run_vs_nginx.sh [SECONDS] [CONNECTIONS] [ROUNDS]   defaults 10 32 3
 set -euo pipefail
 
 if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
@@ -29,7 +29,7 @@ nginx_bin=$(command -v nginx || echo /usr/sbin/nginx)
 cmake -S "$root" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build "$build_dir" -j "${FESBENCH_JOBS:-$(nproc)}" --target fesbench-server load_client
 server="$build_dir/server/fesbench-server"
-client="$build_dir/bench/load/load_client"
+client="$build_dir/benchmarks/load/load_client"
 
 work=$(mktemp -d)
 chmod 755 "$work"

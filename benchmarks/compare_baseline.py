@@ -3,13 +3,13 @@
 
 Each RUN is the JSON a benchmark program writes with
 --benchmark_format=json (aggregates of repetitions: the medians are
-compared); its baseline is bench/baseline/<program>.json, a run of the same
+compared); its baseline is benchmarks/baseline/<program>.json, a run of the same
 program kept in the repository with the machine it was measured on (its
 "context"). Prints one row per figure in both, and names every figure more
 than --threshold (default 25 %) slower than its baseline. A shared machine
 is too noisy to fail on: exit 0 unless --strict.
 
-    bench/compare_baseline.py RUN.json... [--threshold 0.25] [--strict]
+    benchmarks/compare_baseline.py RUN.json... [--threshold 0.25] [--strict]
 """
 
 import argparse

@@ -8,7 +8,7 @@ temporary data folder, --time-scale 0), records --runs rapid
 parameterisations on one leg (about 7 trials each; the first --trials are
 fetched) and identifies from them until the leg has --sets parameter sets.
 
-    bench/python/fetch_bench.py --server build/server/fesbench-server
+    benchmarks/python/fetch_bench.py --server build/server/fesbench-server
 """
 
 from __future__ import annotations

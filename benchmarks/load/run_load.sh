@@ -6,7 +6,7 @@
 # sample. Stops by itself; talks to 127.0.0.1 only; uses a temporary
 # database.
 #
-#   bench/load/run_load.sh [SECONDS] [CONNECTIONS]     defaults 30 32
+#   benchmarks/load/run_load.sh [SECONDS] [CONNECTIONS]     defaults 30 32
 #
 # FESBENCH_LOAD_DB=postgresql://user@host:port/db runs it on that (empty)
 # PostgreSQL database instead of a temporary SQLite file.
@@ -20,7 +20,7 @@ connections=${2:-32}
 cmake -S "$root" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build "$build_dir" -j "${FESBENCH_JOBS:-$(nproc)}" --target fesbench-server load_client
 server="$build_dir/server/fesbench-server"
-client="$build_dir/bench/load/load_client"
+client="$build_dir/benchmarks/load/load_client"
 
 work=$(mktemp -d)
 pid=""

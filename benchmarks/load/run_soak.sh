@@ -5,7 +5,7 @@
 # memory (VmRSS) and its peak every N runs. Talks to 127.0.0.1 only; uses a
 # temporary database; stops by itself.
 #
-#   bench/load/run_soak.sh [RUNS] [EVERY]     defaults 1000 100
+#   benchmarks/load/run_soak.sh [RUNS] [EVERY]     defaults 1000 100
 set -euo pipefail
 
 if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
@@ -20,7 +20,7 @@ every=${2:-100}
 cmake -S "$root" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build "$build_dir" -j "${FESBENCH_JOBS:-$(nproc)}" --target fesbench-server load_client
 server="$build_dir/server/fesbench-server"
-client="$build_dir/bench/load/load_client"
+client="$build_dir/benchmarks/load/load_client"
 
 work=$(mktemp -d)
 pid=""

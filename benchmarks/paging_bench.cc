@@ -11,7 +11,7 @@
 // params_json is a real set's JSON), then ANALYZE as a live database would
 // have had.
 //
-//   build/bench/paging_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+//   build/benchmarks/paging_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 
 #include <benchmark/benchmark.h>
 #include <unistd.h>

@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
-# The fast benchmarks against their committed baselines (bench/baseline/):
+# The fast benchmarks against their committed baselines (benchmarks/baseline/):
 # runs model_bench, identify_bench and the DDS block latency with
 # --benchmark_format=json (3 repetitions, medians) into a temporary folder,
-# then bench/compare_baseline.py names every figure more than 25 % slower
+# then benchmarks/compare_baseline.py names every figure more than 25 % slower
 # than its baseline. Report only: exits 0 whatever the figures (a shared
 # machine is too noisy to fail on). --update keeps this run as the new
 # baselines (commit them with the machine they were measured on).
 #
-#   bench/run_baseline.sh [--update]          (about 20 s on 2 cores)
+#   benchmarks/run_baseline.sh [--update]          (about 20 s on 2 cores)
 set -euo pipefail
 
 if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
@@ -24,11 +24,11 @@ trap 'rm -rf "$out"' EXIT
 run() {  # program, then its own flags
   local program=$1
   shift
-  if [[ ! -x "$build_dir/bench/$program" ]]; then
-    echo "run_baseline: $build_dir/bench/$program is not built; skipped" >&2
+  if [[ ! -x "$build_dir/benchmarks/$program" ]]; then
+    echo "run_baseline: $build_dir/benchmarks/$program is not built; skipped" >&2
     return 0
   fi
-  "$build_dir/bench/$program" --benchmark_repetitions=3 --benchmark_report_aggregates_only=true \
+  "$build_dir/benchmarks/$program" --benchmark_repetitions=3 --benchmark_report_aggregates_only=true \
     --benchmark_format=json --benchmark_out_format=json --benchmark_out="$out/$program.json" \
     "$@" >/dev/null
 }
@@ -37,7 +37,7 @@ run identify_bench --benchmark_min_time=0.2
 run dds_latency_bench --benchmark_filter=BlockLatency
 
 if $update; then
-  cp "$out"/*.json "$root/bench/baseline/"
-  echo "run_baseline: baselines written to bench/baseline/ ($(ls "$out" | tr '\n' ' '))"
+  cp "$out"/*.json "$root/benchmarks/baseline/"
+  echo "run_baseline: baselines written to benchmarks/baseline/ ($(ls "$out" | tr '\n' ' '))"
 fi
-python3 "$root/bench/compare_baseline.py" "$out"/*.json
+python3 "$root/benchmarks/compare_baseline.py" "$out"/*.json

@@ -9,7 +9,7 @@
 // publisher paces 1-sample blocks (the worst case: one message per sample)
 // for 1 s at a given rate, then asks the echo how many arrived.
 //
-//   build-dds/bench/dds_latency_bench [--benchmark_filter=...]
+//   build-dds/benchmarks/dds_latency_bench [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
 #include <signal.h>
 #include <spawn.h>
