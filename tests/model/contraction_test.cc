@@ -66,6 +66,16 @@ TEST(ContractionTest, PropagatorMatchesMatrixExponential) {
       const ContractionState got = prop.Propagate(x0, dt);
       for (int i = 0; i < n; ++i) EXPECT_NEAR(got[i], expected(i), 1e-14) << "dt=" << dt;
       EXPECT_NEAR(prop.OutputAfter(x0, dt), expected(n - 1), 1e-14);
+      // A split interval's steps from one exp: h/2 and h both.
+      const ContractionPropagator::HalfAndFull both = prop.StepsFor(dt);
+      const Eigen::VectorXd half = (ss.a * (0.5 * dt)).exp() * v;
+      const ContractionState got_full = prop.Propagate(x0, both.full);
+      const ContractionState got_half = prop.Propagate(x0, both.half);
+      for (int i = 0; i < n; ++i) {
+        EXPECT_NEAR(got_full[i], expected(i), 1e-14) << "dt=" << dt;
+        EXPECT_NEAR(got_half[i], half(i), 1e-14) << "dt=" << dt;
+      }
+      EXPECT_NEAR(prop.OutputAfter(x0, both.half), half(n - 1), 1e-14);
     }
   }
 }
