@@ -1,17 +1,18 @@
 #!/usr/bin/env bash
 # The fast benchmarks against their committed baselines (benchmarks/baseline/):
 # runs model_bench, identify_bench and the DDS block latency with
-# --benchmark_format=json (3 repetitions, medians) into a temporary folder,
+# --benchmark_format=json (3 repetitions, medians), and with nginx and wrk
+# the HTTP figure of benchmarks/load/run_vs_nginx.sh, into a temporary folder,
 # then benchmarks/compare_baseline.py names every figure more than 25 % slower
 # than its baseline. Report only: exits 0 whatever the figures (a shared
 # machine is too noisy to fail on). --update keeps this run as the new
 # baselines (commit them with the machine they were measured on).
 #
-#   benchmarks/run_baseline.sh [--update]          (about 20 s on 2 cores)
+#   benchmarks/run_baseline.sh [--update]          (about 40 s on 2 cores)
 set -euo pipefail
 
 if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
-  sed -n '2,10p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
   exit 0
 fi
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -35,6 +36,14 @@ run() {  # program, then its own flags
 run model_bench --benchmark_min_time=0.2
 run identify_bench --benchmark_min_time=0.2
 run dds_latency_bench --benchmark_filter=BlockLatency
+# The HTTP figure against nginx (3 rounds of 3 s; needs nginx and wrk).
+if command -v wrk >/dev/null && { command -v nginx >/dev/null || [[ -x /usr/sbin/nginx ]]; }; then
+  FESBENCH_LOAD_JSON="$out/http_vs_nginx.json" FESBENCH_BUILD_DIR="$build_dir" \
+    timeout 180 "$root/benchmarks/load/run_vs_nginx.sh" 3 32 3 ||
+    echo "run_baseline: benchmarks/load/run_vs_nginx.sh failed; skipped" >&2
+else
+  echo "run_baseline: no nginx or wrk (apt-get install nginx-light wrk); the HTTP figure skipped" >&2
+fi
 
 if $update; then
   cp "$out"/*.json "$root/benchmarks/baseline/"

@@ -6,12 +6,15 @@
 # those bytes as a static file. Rounds alternate between the two; prints
 # each round's requests/s and the median ratio. Needs the Debian packages
 # nginx-light (or nginx) and wrk; talks to 127.0.0.1 only; temporary files.
+# With FESBENCH_LOAD_JSON=FILE it also writes the medians as Google
+# Benchmark JSON for benchmarks/compare_baseline.py: the time per request
+# (1/throughput) of each server, and the ratio as "fesbench_ratio".
 #
 #   benchmarks/load/run_vs_nginx.sh [SECONDS] [CONNECTIONS] [ROUNDS]   defaults 10 32 3
 set -euo pipefail
 
 if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
-  sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
   exit 0
 fi
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -106,12 +109,27 @@ rate() {  # URL [header]: requests/s of one wrk round (fails on any non-2xx)
 
 echo "body: $(wc -c <"$work/www/set.json") bytes; $connections keep-alive connections, wrk $threads threads, ${seconds} s per round, $(nproc) cores shared by client and server"
 printf "%6s %14s %14s %8s\n" round "fesbench r/s" "nginx r/s" ratio
-ratios=()
+ratios=() f_us=() n_us=()
 for r in $(seq 1 "$rounds"); do
   f=$(rate "$url$path" "Authorization: Bearer $analyst")
   n=$(rate "http://127.0.0.1:$nginx_port$path")
   ratio=$(awk -v f="$f" -v n="$n" 'BEGIN {printf "%.2f", f / n}')
   ratios+=("$ratio")
+  # For the JSON: µs per request (1/throughput) of each.
+  f_us+=("$(awk -v f="$f" 'BEGIN {printf "%.4f", 1e6 / f}')")
+  n_us+=("$(awk -v n="$n" 'BEGIN {printf "%.4f", 1e6 / n}')")
   printf "%6d %14s %14s %8s\n" "$r" "$f" "$n" "$ratio"
 done
 printf "median ratio fesbench / nginx: %s\n" "$(printf '%s\n' "${ratios[@]}" | sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')"
+if [[ -n ${FESBENCH_LOAD_JSON:-} ]]; then
+  median() { printf '%s\n' "$@" | sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
+  printf '{"context": {"host_name": "%s", "num_cpus": %s, "mhz_per_cpu": %s, "date": "%s",
+  "fesbench_note": "benchmarks/load/run_vs_nginx.sh %s %s %s: medians over the rounds"},
+ "benchmarks": [
+  {"name": "BM_HttpParameterSet/fesbench_us_per_request", "run_type": "iteration", "cpu_time": %s, "time_unit": "us"},
+  {"name": "BM_HttpParameterSet/nginx_us_per_request", "run_type": "iteration", "cpu_time": %s, "time_unit": "us"}],
+ "fesbench_ratio": %s}\n' \
+    "$(hostname)" "$(nproc)" "$(awk '/^cpu MHz/ {printf "%.0f", $4; exit}' /proc/cpuinfo)" \
+    "$(date -u +%Y-%m-%dT%H:%M:%S+00:00)" "$seconds" "$connections" "$rounds" \
+    "$(median "${f_us[@]}")" "$(median "${n_us[@]}")" "$(median "${ratios[@]}")" >"$FESBENCH_LOAD_JSON"
+fi
