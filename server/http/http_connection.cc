@@ -6,7 +6,7 @@
 namespace fesbench::server::http {
 
 void HttpServer::Accept() {
-  for (;;) {
+  for (std::size_t k = 0; k < kAcceptBatch; ++k) {
     sockaddr_storage peer{};
     socklen_t peer_length = sizeof peer;
     const int fd = ::accept4(listen_fd_, reinterpret_cast<sockaddr*>(&peer), &peer_length,
@@ -14,7 +14,7 @@ void HttpServer::Accept() {
     if (fd < 0) {
       if (errno == EINTR || errno == ECONNABORTED) continue;
       if ((errno == EMFILE || errno == ENFILE) && EvictOne(nullptr, 0)) continue;
-      return;  // EAGAIN: all taken
+      break;  // EAGAIN: all taken
     }
     const int yes = 1;
     ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof yes);
@@ -59,6 +59,14 @@ void HttpServer::Accept() {
     event.data.u64 = c->id;
     if (::epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, fd, &event) != 0) Close(*c, false);
   }
+  // One worker accepts at a time (the listening socket is one-shot) and
+  // gives the socket back after a batch: a flood of connections then queues
+  // behind the requests already waiting instead of holding every worker in
+  // accept (docs/SAFETY.md, "The e-stop under load").
+  epoll_event listen_event{};
+  listen_event.events = EPOLLIN | EPOLLONESHOT;
+  listen_event.data.u64 = 0;
+  ::epoll_ctl(epoll_fd_, EPOLL_CTL_MOD, listen_fd_, &listen_event);
 }
 
 bool HttpServer::EvictOne(const std::string* address, std::uint64_t except) {
@@ -79,7 +87,10 @@ bool HttpServer::EvictOne(const std::string* address, std::uint64_t except) {
     for (const auto& c : candidates) {
       std::unique_lock lock(c->mutex, std::try_to_lock);
       if (!lock.owns_lock() || c->closed) continue;
-      const bool quiet = pass == 2 || !c->BytesWaiting();
+      // A connection seen with bytes waiting stays "arriving" until a worker
+      // reads them, so a crowd costs one look each, not one per accept.
+      if (pass < 2 && !c->arriving && !c->lingering) c->arriving = c->BytesWaiting();
+      const bool quiet = pass == 2 || !c->arriving;
       if (pass == 0 && !c->lingering && (c->request_started || !quiet)) continue;
       if (pass == 1 && !c->lingering && !quiet) continue;
       Close(*c, false);
@@ -99,6 +110,7 @@ void HttpServer::Serve(std::uint64_t id) {
   }
   std::lock_guard lock(c->mutex);
   if (c->closed) return;
+  c->arriving = false;  // what was waiting is read now
   if (c->lingering) {
     // Discard what the client still sends; close at its FIN or the deadline.
     if (c->Discard()) {

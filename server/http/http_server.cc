@@ -220,7 +220,7 @@ api::Result<int> HttpServer::Bind() {
   wake_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   if (epoll_fd_ < 0 || wake_fd_ < 0) return api::Status::Unavailable("cannot create epoll");
   epoll_event listen_event{};
-  listen_event.events = EPOLLIN;
+  listen_event.events = EPOLLIN | EPOLLONESHOT;  // re-armed by Accept
   listen_event.data.u64 = 0;  // connection ids start at 1
   epoll_event wake_event{};
   wake_event.events = EPOLLIN;

@@ -8,7 +8,8 @@
 ///
 /// - We bind the listening socket ourselves (SO_REUSEADDR, never
 ///   SO_REUSEPORT): a second server on a port in use fails "address in use".
-/// - Worker threads share one epoll set. A worker reads what a connection
+/// - Worker threads share one epoll set; the listening socket is one-shot,
+///   so one worker at a time accepts a batch of connections. A worker reads what a connection
 ///   has sent (non-blocking) and frames it (request_framing.h); only a whole
 ///   request (head and body) is handed to httplib, from memory (an upload:
 ///   its head, the body being in a file). Deadlines (below) hold whatever

@@ -40,6 +40,8 @@ using Clock = std::chrono::steady_clock;
 
 // Two workers beyond max_connections + max_streams, for urgent routes.
 inline constexpr std::size_t kUrgentReserve = 2;
+// Connections one worker accepts before it gives the listening socket back.
+inline constexpr std::size_t kAcceptBatch = 32;
 // How long a closed connection keeps reading (and discarding) what the
 // client still sends, so that the client reads our last answer instead of
 // a reset.
@@ -131,6 +133,7 @@ struct HttpServer::Connection {
   Clock::time_point spool_deadline;  ///< the whole body by then.
   bool peer_closed = false;  ///< the client half-closed (FIN read).
   bool lingering = false;    ///< answered and shut down; discarding input.
+  bool arriving = false;     ///< EvictOne saw bytes waiting that no worker has read yet.
   bool closed = false;
   std::size_t served = 0;
 
