@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -31,6 +32,78 @@ double Spread(const std::vector<double>& v) {
 }
 
 }  // namespace
+
+PiecewiseLinear MovedRecruitment(const PiecewiseLinear& irc, double threshold_ma, double shift_ma,
+                                 double stretch) {
+  std::vector<double> x = irc.x();
+  for (double& u : x) u = threshold_ma + shift_ma + (u - threshold_ma) * stretch;
+  return PiecewiseLinear(std::move(x), irc.y());
+}
+
+RecruitmentMove FitRecruitmentMove(const PiecewiseLinear& before, double before_scale_nm,
+                                   double before_threshold_ma, const PiecewiseLinear& today,
+                                   double today_scale_nm) {
+  constexpr int kSamples = 100;
+  const double u_hi = today.x().back();
+  const double before_hi = before.x().back();
+  const bool before_saturated = before.y().back() >= 0.99;
+  std::vector<double> u(kSamples), t1(kSamples), t0(kSamples);
+  double peak = 0.0;
+  for (int i = 0; i < kSamples; ++i) {
+    u[i] = u_hi * (i + 0.5) / kSamples;
+    t1[i] = today_scale_nm * today(u[i]);
+    peak = std::max(peak, std::abs(t1[i]));
+  }
+  if (!(peak > 0.0)) throw std::invalid_argument("today's ramp gives no torque");
+  struct Fit {
+    double cost = std::numeric_limits<double>::infinity(), gain = 1.0;
+  };
+  const auto fit = [&](double shift, double stretch) {
+    double st0 = 0.0, s00 = 0.0, s11 = 0.0;
+    int n = 0;
+    for (int i = 0; i < kSamples; ++i) {
+      const double v = before_threshold_ma + (u[i] - before_threshold_ma - shift) / stretch;
+      if (v > before_hi && !before_saturated) continue;
+      const double b = before_scale_nm * before(std::max(v, 0.0));
+      st0 += t1[i] * b;
+      s00 += b * b;
+      s11 += t1[i] * t1[i];
+      ++n;
+    }
+    Fit f;
+    if (n < 10 || !(s00 > 0.0)) return f;
+    f.gain = st0 / s00;
+    f.cost = std::max(0.0, s11 - f.gain * st0) / n;  // Σ(t1 − g·t0)² at the optimal g
+    return f;
+  };
+  RecruitmentMove out;
+  double best = std::numeric_limits<double>::infinity(), best_shift_only =
+      std::numeric_limits<double>::infinity();
+  for (int j = 0; j <= 50; ++j) {
+    const double stretch = 0.6 + 0.02 * j;
+    for (int i = -320; i <= 320; ++i) {
+      const double shift = 0.025 * i;
+      const Fit f = fit(shift, stretch);
+      if (f.cost < best) {
+        best = f.cost;
+        out.shift_ma = shift;
+        out.stretch = stretch;
+        out.gain = f.gain;
+      }
+      if (j == 20 && f.cost < best_shift_only) {  // stretch 1
+        best_shift_only = f.cost;
+        out.shift_only_ma = shift;
+        out.shift_only_gain = f.gain;
+      }
+    }
+  }
+  if (!std::isfinite(best)) {
+    throw std::invalid_argument("too few of today's amplitudes were tested before");
+  }
+  out.misfit = std::sqrt(best) / peak;
+  out.shift_only_misfit = std::sqrt(best_shift_only) / peak;
+  return out;
+}
 
 std::string_view DailyVerdictName(DailyVerdict verdict) {
   switch (verdict) {
@@ -71,10 +144,16 @@ DailyCheck CompareDaily(const ParameterSet& stored, const TrialColumns& ramp_tri
                         double lock_angle_deg, std::span<const ParameterSet> history,
                         const TrialColumns* base_ramp, const DriftFloors& floors) {
   const LegSignature own = SignatureOfSet(stored, lock_angle_deg);
+  PiecewiseLinear base_irc = stored.irc;
   const LegSignature was =
-      base_ramp != nullptr ? SignatureOfTrial(*base_ramp, stored.contraction.order, nullptr) : own;
+      base_ramp != nullptr ? SignatureOfTrial(*base_ramp, stored.contraction.order, &base_irc) : own;
   PiecewiseLinear today_irc;
-  const LegSignature now = SignatureOfTrial(ramp_trial, stored.contraction.order, &today_irc);
+  const LegSignature measured = SignatureOfTrial(ramp_trial, stored.contraction.order, &today_irc);
+  // Threshold, slope and full scale from one fit of today's torque curve to
+  // the earlier one, where both were measured.
+  const RecruitmentMove move = FitRecruitmentMove(base_irc, was.full_scale_nm, was.threshold_ma,
+                                                  today_irc, measured.full_scale_nm);
+  LegSignature now = measured;
   // §7.6.4: the leg's own spread from set to set sets the bounds.
   std::vector<double> thresholds, slopes, scales, poles;
   for (const ParameterSet& h : history) {
@@ -106,25 +185,40 @@ DailyCheck CompareDaily(const ParameterSet& stored, const TrialColumns& ramp_tri
     out.drifts.push_back(d);
     return d.moved;
   };
+  // The stretch counts only beyond the slope's bound; within it today's
+  // curve is the earlier one shifted and scaled.
+  const double slope_bound = bound(floors.slope_fraction, slopes);
+  const bool stretched = !(std::abs(1.0 / move.stretch - 1.0) <= slope_bound);
+  const double shift = stretched ? move.shift_ma : move.shift_only_ma;
+  const double stretch = stretched ? move.stretch : 1.0;
+  const double misfit = stretched ? move.misfit : move.shift_only_misfit;
+  now.threshold_ma = was.threshold_ma + shift;
+  now.slope_per_ma = was.slope_per_ma / move.stretch;
+  now.full_scale_nm = was.full_scale_nm * (stretched ? move.gain : move.shift_only_gain);
   const bool threshold = add("irc_threshold_ma", was.threshold_ma, now.threshold_ma, true,
                              bound(floors.threshold_ma, thresholds));
-  const bool slope = add("irc_slope", was.slope_per_ma, now.slope_per_ma, false,
-                         bound(floors.slope_fraction, slopes));
+  const bool slope = add("irc_slope", was.slope_per_ma, now.slope_per_ma, false, slope_bound);
   const bool scale = add("full_scale", was.full_scale_nm, now.full_scale_nm, false,
                          bound(floors.full_scale_fraction, scales));
   const bool pole =
       add("pole", was.pole_per_s, now.pole_per_s, false, bound(floors.pole_fraction, poles));
 
+  out.recruitment_misfit = misfit;
   std::ostringstream why;
   if (pole) {
     out.verdict = DailyVerdict::kRapidDue;
     why << "the contraction pole moved " << 100.0 * out.drifts[3].change
         << " %: every active curve depends on it, a full rapid_parameterisation run is due";
+  } else if (!(misfit <= floors.recruitment_misfit)) {
+    out.verdict = DailyVerdict::kRapidDue;
+    why << "today's recruitment is not the stored one moved (what a shift, stretch and gain "
+           "leave unexplained is "
+        << 100.0 * misfit << " % of the torque): a full rapid_parameterisation run is due";
   } else if (threshold || slope || scale) {
     out.verdict = DailyVerdict::kRefit;
     ParameterSet updated = stored;
     if (threshold || slope) {
-      updated.irc = today_irc;
+      updated.irc = MovedRecruitment(stored.irc, own.threshold_ma, shift, stretch);
       out.refitted.push_back("irc");
     }
     if (scale) {

@@ -44,6 +44,42 @@ LegSignature SignatureOfSet(const ParameterSet& set, double lock_angle_deg);
 /// @throws std::invalid_argument as IdentifyContraction / IdentifyIrc.
 LegSignature SignatureOfTrial(const TrialColumns& ramp_trial, int order, PiecewiseLinear* irc);
 
+/// The recruitment curve of a moved electrode: `irc` shifted by shift_ma
+/// and stretched by `stretch` about its threshold_ma, so
+/// R'(threshold + shift + (u − threshold)·stretch) = R(u). The stored
+/// curve's shape, refined on the swings of its rapid run, is kept; only
+/// where and how steeply it rises follow today's ramp.
+PiecewiseLinear MovedRecruitment(const PiecewiseLinear& irc, double threshold_ma, double shift_ma,
+                                 double stretch);
+
+/// How today's isometric recruitment torque T₁(u) = g·T₀(u₀ + (u − u₀ −
+/// shift)/stretch) follows an earlier one T₀ (u₀ the earlier threshold):
+/// the electrode moved (shift), the recruitment steepened or flattened
+/// (stretch) and the muscle got stronger or weaker (gain).
+struct RecruitmentMove {
+  double shift_ma = 0.0;
+  double stretch = 1.0;
+  double gain = 1.0;
+  /// RMS of T₁ − g·T₀(…) over today's tested amplitudes, as a fraction of
+  /// today's largest torque: what a move does not explain.
+  double misfit = 0.0;
+  /// The same with the stretch held at 1 (a pure shift and gain).
+  double shift_only_ma = 0.0, shift_only_gain = 1.0, shift_only_misfit = 0.0;
+};
+
+/// Fits RecruitmentMove by least squares over today's tested amplitudes
+/// (0 to the last breakpoint of `today`), torque against torque, so a ramp
+/// that no longer reaches saturation (the electrode moved and the
+/// amplitude is capped at the max tolerated) is compared where it was
+/// measured instead of normalised to a lower peak. T(u) = scale·irc(u);
+/// the earlier curve is used only where it was tested (below its last
+/// breakpoint) or saturated. Grid search: shift ±8 mA by 0.025 mA,
+/// stretch 0.6–1.6 by 0.02, the gain in closed form at each.
+/// @throws std::invalid_argument if fewer than 10 amplitudes compare.
+RecruitmentMove FitRecruitmentMove(const PiecewiseLinear& before, double before_scale_nm,
+                                   double before_threshold_ma, const PiecewiseLinear& today,
+                                   double today_scale_nm);
+
 /// Floors of the drift bounds; each bound is max(floor, sigmas·SD of the
 /// leg's history).
 struct DriftFloors {
@@ -51,6 +87,11 @@ struct DriftFloors {
   double slope_fraction = 0.2;
   double full_scale_fraction = 0.15;
   double pole_fraction = 0.25;
+  /// Largest recruitment misfit (RecruitmentMove::misfit) a re-fit may
+  /// leave; beyond it the curve changed shape and a rapid run is due
+  /// (measured: 0.001–0.004 on moved electrodes, 0.04 for a plateau of
+  /// 8 mA in the curve, tests/server/daily_check_test.cc).
+  double recruitment_misfit = 0.025;
   double sigmas = 3.0;
 };
 
@@ -72,6 +113,7 @@ struct DailyCheck {
   DailyVerdict verdict = DailyVerdict::kNoChange;
   std::vector<std::string> refitted;    ///< "irc", "torque_scale".
   std::optional<ParameterSet> updated;  ///< kRefit: the set with what moved re-fitted.
+  double recruitment_misfit = 0.0;      ///< RecruitmentMove::misfit of the move used.
   std::string summary;                  ///< for people.
 };
 

@@ -90,6 +90,7 @@ api::Result<DailyCheckOutcome> EvaluateDailyCheck(const DailyCheckSettings& sett
                 {"summary", check.summary},
                 {"drifts", std::move(drifts)},
                 {"refitted", check.updated ? check.refitted : std::vector<std::string>{}},
+                {"recruitment_misfit", Finite(check.recruitment_misfit)},
                 {"history_sets", subject.history.size()},
                 {"compared_with", subject.base_ramp_trial ? "the set's own ramp trial"
                                                            : "the set's model"},

@@ -4,9 +4,13 @@
 // the re-fitted set predicts a fresh trial as well as a new full rapid run.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 
+#include "model/daily_check.h"
+#include "model/inverse_model.h"
 #include "model/simulate.h"
 #include "server/bench/simulated_bench.h"
 #include "server/protocols/model_gate.h"
@@ -131,6 +135,119 @@ TEST(DailyCheck, UnchangedLegNoChangeMovedElectrodeRefitsOnlyTheIrc) {
     EXPECT_LT(e_refit, e_rapid + 1.5);
     EXPECT_LT(e_refit, e_stale);
   }
+}
+
+
+// FitRecruitmentMove against a known move: today's curve is the earlier
+// one shifted 2.5 mA, stretched 1.3 about its threshold and 20 % weaker,
+// tested only up to 45 mA (the max tolerated: the ramp no longer reaches
+// saturation). The grid's resolution bounds the error.
+TEST(DailyCheck, RecruitmentMoveOfAKnownCurve) {
+  std::vector<double> x, y;
+  for (int i = 0; i <= 40; ++i) {
+    const double u = 15.0 + i;
+    x.push_back(u);
+    y.push_back(i == 0 ? 0.0 : (1.0 - std::exp(-3.0 * std::pow(i / 40.0, 2))) / (1.0 - std::exp(-3.0)));
+  }
+  const model::PiecewiseLinear before(x, y);
+  const double threshold = model::InverseRecruitment(before, 0.1);
+  std::vector<double> xt, yt;
+  for (double u = 0.0; u <= 45.0; u += 0.5) {
+    xt.push_back(u);
+    yt.push_back(0.8 * before(threshold + (u - threshold - 2.5) / 1.3));
+  }
+  const model::RecruitmentMove m =
+      model::FitRecruitmentMove(before, 30.0, threshold, model::PiecewiseLinear(xt, yt), 30.0);
+  EXPECT_NEAR(m.shift_ma, 2.5, 0.05);
+  EXPECT_NEAR(m.stretch, 1.3, 0.02);
+  EXPECT_NEAR(m.gain, 0.8, 0.01);
+  EXPECT_LT(m.misfit, 0.01);
+  EXPECT_GT(m.shift_only_misfit, 5.0 * m.misfit);  // a pure shift cannot explain a stretch
+  const model::RecruitmentMove same =
+      model::FitRecruitmentMove(before, 30.0, threshold, before, 30.0);
+  EXPECT_NEAR(same.shift_ma, 0.0, 1e-9);
+  EXPECT_NEAR(same.stretch, 1.0, 1e-9);
+  EXPECT_NEAR(same.gain, 1.0, 1e-9);
+}
+
+// Three legs of each family on the default path (J from the anthropometrics
+// and the releases), electrode moved +3 mA: the unchanged leg reports no
+// change, the moved one a re-fitted IRC alone, and that set predicts a fresh
+// random-binary trial within 0.3° of a new rapid run's set (median).
+TEST(DailyCheck, ACohortAfterTheElectrodeMovedPredictsLikeAFreshRapidRun) {
+  std::vector<double> gaps;
+  for (const SubjectFamily family : {SubjectFamily::kThesis, SubjectFamily::kAnalytic}) {
+    for (std::uint64_t seed = 100; seed < 103; ++seed) {
+      SCOPED_TRACE(std::string(SubjectFamilyName(family)) + " " + std::to_string(seed));
+      const VirtualSubject vs = DrawSubject(seed, family);
+      SubjectContext ctx = test::SessionValues(vs);
+      ctx.body_mass_kg = vs.anthropometrics.body_mass_kg;
+      ctx.leg_length_m = vs.anthropometrics.shank_length_m;
+      const RunResult rapid = RunOn(vs, "rapid_parameterisation", ctx);
+      ASSERT_TRUE(rapid.parameter_set.has_value()) << rapid.reason;
+      ctx.parameter_set = rapid.parameter_set;
+      ctx.parameter_set_id = 1;
+      ctx.history = {*rapid.parameter_set};
+      ctx.base_ramp_trial = api::ToTrialColumns(rapid.trials.front().trial);
+      VirtualSubject another_day = vs;
+      another_day.seed += 1000;
+      const RunResult same = RunOn(another_day, "daily_check", ctx);
+      ASSERT_TRUE(same.daily_check.has_value()) << same.reason;
+      EXPECT_EQ(same.daily_check->at("verdict"), "no_change") << same.daily_check->dump(2);
+
+      const VirtualSubject moved = ElectrodeMoved(another_day, 3.0);
+      SubjectContext moved_ctx = ctx;
+      moved_ctx.threshold_ma = moved.threshold_ma;
+      const RunResult check = RunOn(moved, "daily_check", moved_ctx);
+      ASSERT_TRUE(check.parameter_set.has_value()) << check.daily_check->dump(2);
+      EXPECT_EQ(check.daily_check->at("refitted"), nlohmann::json({"irc"}));
+      const RunResult fresh = RunOn(moved, "prediction_random_binary", moved_ctx);
+      SubjectContext rapid_ctx = moved_ctx;
+      rapid_ctx.parameter_set.reset();
+      const RunResult again = RunOn(moved, "rapid_parameterisation", rapid_ctx);
+      ASSERT_TRUE(again.parameter_set.has_value()) << again.reason;
+      const api::Trial& t = fresh.trials.front().trial;
+      const double e_refit = SwingErms(*check.parameter_set, t);
+      const double e_rapid = SwingErms(*again.parameter_set, t);
+      gaps.push_back(e_refit - e_rapid);
+      std::cout << "[ figure ] " << SubjectFamilyName(family) << " leg " << seed
+                << ", electrode +3 mA: re-fitted " << e_refit << "°, fresh rapid " << e_rapid
+                << "°, stale " << SwingErms(*rapid.parameter_set, t) << "°; misfit "
+                << check.daily_check->at("recruitment_misfit") << "\n";
+    }
+  }
+  std::sort(gaps.begin(), gaps.end());
+  const double median = 0.5 * (gaps[2] + gaps[3]);
+  std::cout << "[ figure ] re-fitted minus fresh rapid: median " << median << "°, worst "
+            << gaps.back() << "°\n";
+  EXPECT_LE(median, 0.3);
+}
+
+// A leg whose recruitment changed shape (a plateau of 8 mA where it
+// reaches 30 %, as if a second pool of fibres were recruited later) is not
+// re-fitted: a rapid run is due.
+TEST(DailyCheck, ARecruitmentOfAnotherShapeAsksForARapidRun) {
+  const VirtualSubject vs = DrawVirtualSubject(3);
+  SubjectContext ctx = Context(vs);
+  const RunResult rapid = RunOn(vs, "rapid_parameterisation", ctx);
+  ASSERT_TRUE(rapid.parameter_set.has_value()) << rapid.reason;
+  ctx.parameter_set = rapid.parameter_set;
+  ctx.parameter_set_id = 1;
+  ctx.history = {*rapid.parameter_set};
+  ctx.base_ramp_trial = api::ToTrialColumns(rapid.trials.front().trial);
+  VirtualSubject changed = vs;
+  changed.seed += 1000;
+  const double knee = model::InverseRecruitment(vs.truth.irc, 0.3);
+  std::vector<double> x, y;
+  for (double u = 0.0; u <= 120.0; u += 0.25) {
+    x.push_back(u);
+    y.push_back(u < knee ? vs.truth.irc(u) : u < knee + 8.0 ? 0.3 : vs.truth.irc(u - 8.0));
+  }
+  changed.truth.irc = model::PiecewiseLinear(x, y);
+  const RunResult check = RunOn(changed, "daily_check", ctx);
+  ASSERT_TRUE(check.daily_check.has_value()) << check.reason;
+  EXPECT_EQ(check.daily_check->at("verdict"), "rapid_due") << check.daily_check->dump(2);
+  EXPECT_FALSE(check.parameter_set.has_value());
 }
 
 }  // namespace
