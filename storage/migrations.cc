@@ -693,6 +693,13 @@ std::string PostgresAppendOnly(std::initializer_list<const char*> tables) {
 
 }  // namespace
 
+// A run's bench time as it ran and as planned, s, on its final event.
+std::string RunBenchTimeMigration(const std::string& real_type) {
+  return "ALTER TABLE run_events ADD COLUMN bench_s " + real_type + " CHECK (bench_s >= 0);\n"
+         "ALTER TABLE run_events ADD COLUMN bench_planned_s " + real_type +
+         " CHECK (bench_planned_s >= 0);\n";
+}
+
 // A subject's range of motion (the knee's, deg), both ends or neither.
 std::string RangeOfMotionMigration(const std::string& real_type) {
   return "ALTER TABLE subject_revisions ADD COLUMN rom_min_deg " + real_type +
@@ -736,6 +743,7 @@ const std::vector<Migration>& AllMigrations() {
        DeviceCommandsMigration("INTEGER", "REAL", "BLOB") +
            AppendOnly({"trial_device_commands"})},
       {17, "a subject's range of motion", RangeOfMotionMigration("REAL")},
+      {18, "a run's bench time as it ran", RunBenchTimeMigration("REAL")},
   };
   return kMigrations;
 }
@@ -763,6 +771,7 @@ const std::vector<Migration>& PostgresMigrations() {
        DeviceCommandsMigration("BIGINT", "DOUBLE PRECISION", "BYTEA") +
            PostgresAppendOnly({"trial_device_commands"})},
       {17, "a subject's range of motion", RangeOfMotionMigration("DOUBLE PRECISION")},
+      {18, "a run's bench time as it ran", RunBenchTimeMigration("DOUBLE PRECISION")},
   };
   return kMigrations;
 }

@@ -87,7 +87,9 @@ constexpr std::string_view kRunSql =
     " (SELECT message FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1),"
     " (SELECT MIN(at_utc) FROM run_events WHERE run_id = r.id AND state = 'running'),"
     " (SELECT MAX(at_utc) FROM run_events WHERE run_id = r.id"
-    "    AND state IN ('done', 'failed', 'aborted'))"
+    "    AND state IN ('done', 'failed', 'aborted')),"
+    " (SELECT bench_s FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1),"
+    " (SELECT bench_planned_s FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1)"
     " FROM runs r ";
 
 template <typename... Values>
@@ -111,6 +113,8 @@ api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where,
         run.message = s.Text(8);
         if (!s.IsNull(9)) run.started_at = ParseUtc(s.Text(9));
         if (!s.IsNull(10)) run.finished_at = ParseUtc(s.Text(10));
+        if (!s.IsNull(11)) run.bench_s = s.Double(11);
+        if (!s.IsNull(12)) run.bench_planned_s = s.Double(12);
         return run;
       },
       values...);
@@ -121,7 +125,15 @@ api::Result<Run> GetRunIn(Connection& c, std::int64_t id) {
 }
 
 api::Status AppendRunEvent(Connection& c, std::int64_t run_id, RunState state,
-                           std::string_view message, UtcTime now) {
+                           std::string_view message, UtcTime now,
+                           const std::optional<RunBenchTime>& bench = std::nullopt) {
+  if (bench) {
+    return internal::Execute(c,
+                             "INSERT INTO run_events (run_id, state, message, at_utc, bench_s,"
+                             " bench_planned_s) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+                             run_id, api::RunStateName(state), message, FormatUtc(now),
+                             bench->ran_s, bench->planned_s);
+  }
   return internal::Execute(
       c, "INSERT INTO run_events (run_id, state, message, at_utc) VALUES (?1, ?2, ?3, ?4)", run_id,
       api::RunStateName(state), message, FormatUtc(now));
@@ -152,6 +164,8 @@ api::RunView RunViewOf(const Run& run) {
   v.started_at = run.started_at;
   v.finished_at = run.finished_at;
   if (v.state == RunState::kDone) v.progress.fraction = 1.0;
+  if (run.bench_s) v.progress.bench_elapsed_s = v.progress.bench_total_s = *run.bench_s;
+  if (run.bench_planned_s) v.progress.bench_planned_s = *run.bench_planned_s;
   return v;
 }
 
@@ -303,7 +317,8 @@ api::Result<std::vector<Run>> SessionRepository::ListUnfinishedRuns() {
 }
 
 api::Result<Run> SessionRepository::RecordRunState(std::int64_t run_id, RunState state,
-                                                   std::string_view message) {
+                                                   std::string_view message,
+                                                   std::optional<RunBenchTime> bench) {
   return db_.Write([&](Connection& c) -> api::Result<Run> {
     auto run = GetRunIn(c, run_id);
     if (!run.ok()) return run.status();
@@ -322,7 +337,12 @@ api::Result<Run> SessionRepository::RecordRunState(std::int64_t run_id, RunState
                                              std::string(api::RunStateName(from)) + " to " +
                                              std::string(api::RunStateName(state)));
     }
-    if (auto s = AppendRunEvent(c, run_id, state, message, db_.Now()); !s.ok()) return s;
+    if (bench && (!api::IsFinal(state) || !(bench->ran_s >= 0.0) || !(bench->planned_s >= 0.0) ||
+                  !std::isfinite(bench->ran_s) || !std::isfinite(bench->planned_s))) {
+      return api::Status::InvalidArgument("a bench time belongs to a run that ended, >= 0 s",
+                                          "bench");
+    }
+    if (auto s = AppendRunEvent(c, run_id, state, message, db_.Now(), bench); !s.ok()) return s;
     return GetRunIn(c, run_id);
   });
 }

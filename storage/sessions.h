@@ -68,6 +68,15 @@ struct Run {
   UtcTime created_at;
   std::optional<UtcTime> started_at;   ///< first "running" event.
   std::optional<UtcTime> finished_at;  ///< the terminal event.
+  /// Bench time, s, as the run ran and as planned (on its terminal event;
+  /// unset for runs stored before schema 18 and runs closed at a restart).
+  std::optional<double> bench_s, bench_planned_s;
+};
+
+/// A finished run's bench time, s: as it ran (however it ended) and as planned.
+struct RunBenchTime {
+  double ran_s = 0.0;
+  double planned_s = 0.0;
 };
 
 /// Checks SessionDetails (field names the member): a valid date, currents in
@@ -114,8 +123,10 @@ class SessionRepository {
   /// running → done | failed | aborted. Anything else (including from
   /// a terminal state) is kFailedPrecondition naming both states, and so is
   /// a run of another bench (only its own server moves it).
+  /// `bench`: the bench time of a run that ended (terminal states only).
   api::Result<Run> RecordRunState(std::int64_t run_id, RunState state,
-                                  std::string_view message = {});
+                                  std::string_view message = {},
+                                  std::optional<RunBenchTime> bench = std::nullopt);
 
  private:
   Database& db_;

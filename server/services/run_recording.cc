@@ -89,6 +89,7 @@ struct RunService::FinishRecord {
   // Set when a tolerance test ended at its ceiling: why no max is recorded.
   std::optional<std::string> max_not_recorded;
   std::vector<std::string> warnings;
+  storage::RunBenchTime bench;  // as ran and as planned
   // Filled by StoreFinish.
   std::optional<std::int64_t> set_id;
   std::optional<int> session_revision;
@@ -107,6 +108,8 @@ void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
   {
     std::lock_guard lock(mu_);
     f.trial_ids = run->trial_ids;
+    // The final progress (the time run) came before the result.
+    f.bench = {run->view.progress.bench_total_s, run->view.progress.bench_planned_s};
   }
   PrepareParameterSet(*run, result, f);
   PrepareMeasuredLimits(*run, result, f);
@@ -249,7 +252,7 @@ api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool wi
       if (api::Status st = ApproveRunSet(run, ins->id); !st.ok()) return st;
     }
     api::Result<storage::Run> r =
-        storage::SessionRepository(db_).RecordRunState(run.run_id, f.state, f.reason);
+        storage::SessionRepository(db_).RecordRunState(run.run_id, f.state, f.reason, f.bench);
     if (!r.ok()) return r.status();
     f.stored = *r;
     return Audit(run.actor, "run.finish", RunTarget(run.run_id), summary, "ok");

@@ -78,6 +78,9 @@ TEST(RunService, IsometricRampRunStoresStatesTrialsAndAudit) {
   EXPECT_EQ(nlohmann::json::parse(run->parameters_json).at("ramps"), plan.parameters.at("ramps"));
   EXPECT_EQ(run->started_at, view->started_at);
   EXPECT_EQ(run->finished_at, view->finished_at);
+  ASSERT_TRUE(run->bench_s.has_value());
+  EXPECT_NEAR(*run->bench_s, plan.duration_s(), 1e-9);  // done: it ran the whole plan
+  EXPECT_NEAR(run->bench_planned_s.value_or(0.0), plan.duration_s(), 1e-9);
 
   // Every planned trial, stored with all channels, as many samples as streamed.
   ASSERT_EQ(view->trial_ids.size(), plan.trials.size());
@@ -283,6 +286,17 @@ TEST(RunService, SecondStartConflictsAndCancelAbortsTheRun) {
   ASSERT_TRUE(run.ok());
   EXPECT_EQ(run->state, storage::RunState::kAborted);
   EXPECT_EQ(run->message, "cancelled by cora");
+  // The bench time stored is the time it ran, not the plan's; the stored
+  // view (what a restarted server answers) shows both.
+  const protocols::Plan plan = rig.PlanFor("isometric_ramp_irc", {});
+  ASSERT_TRUE(run->bench_s.has_value());
+  EXPECT_DOUBLE_EQ(*run->bench_s, view->progress.bench_total_s);
+  EXPECT_LT(*run->bench_s, 0.5 * plan.duration_s());
+  EXPECT_DOUBLE_EQ(run->bench_planned_s.value_or(0.0), plan.duration_s());
+  const api::RunView stored = storage::RunViewOf(*run);
+  EXPECT_DOUBLE_EQ(stored.progress.bench_total_s, *run->bench_s);
+  EXPECT_DOUBLE_EQ(stored.progress.bench_elapsed_s, *run->bench_s);
+  EXPECT_DOUBLE_EQ(stored.progress.bench_planned_s, plan.duration_s());
   EXPECT_DOUBLE_EQ(rig.bench->ReadSensors().stim_ma, 0.0);
   EXPECT_FALSE(rig.service->State().busy);
 

@@ -218,11 +218,20 @@ TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
     details.date = "2026-01-02";
     auto session = SessionRepository(**db).Create(subject_id, leg_id, details);
     ASSERT_TRUE(session.ok());
-    auto first =
-        SessionRepository(**db).CreateRun(session->id, {"rapid_parameterisation", "1", "{}"});
-    auto second = SessionRepository(**db).CreateRun(session->id, {"daily_check", "1", "{}"});
+    // Runs as schema 14 stores them (the repository reads columns of later
+    // migrations).
+    auto run = [&](const char* protocol) {
+      return (*db)->Write([&](Connection& c) {
+        return internal::InsertRow(c,
+                                   "INSERT INTO runs (session_id, protocol_name, protocol_version,"
+                                   " parameters_json, created_at_utc) VALUES (?1, ?2, '1', '{}', ?3)",
+                                   session->id, std::string(protocol), FormatUtc((*db)->Now()));
+      });
+    };
+    auto first = run("rapid_parameterisation");
+    auto second = run("daily_check");
     ASSERT_TRUE(first.ok() && second.ok());
-    run_id = second->id;
+    run_id = *second;
     ParameterSetRepository sets(**db);
     auto insert = [&](std::optional<std::int64_t> run) {
       NewParameterSet set{subject_id, leg_id, Params("ramp_correlation", "free_swing"),
@@ -232,8 +241,8 @@ TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
       EXPECT_TRUE(stored.ok()) << stored.status().ToString();
       return stored->id;
     };
-    older = insert(first->id);
-    by_run = insert(second->id);
+    older = insert(*first);
+    by_run = insert(*second);
     candidate = insert(std::nullopt);  // an import or a re-identification
   }
   DatabaseOptions latest = v14;
