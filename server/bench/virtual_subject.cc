@@ -378,12 +378,12 @@ VirtualSubject DrawPlateauSubject(std::uint64_t seed, const SubjectRanges& range
   const double hang_deg = HangingAngleDeg(a);
 
   // τ_pta: gravity plus steep exponential stiffness at both ends (Eq. 7.3,
-  // §7.4.4, with an extension-end term): each end term is 15–35 N·m at the
-  // bench's stop (10°, 110°) and falls by e every 3.5–7° inside it.
+  // §7.4.4, with an extension-end term): each end term is 20–50 N·m at the
+  // bench's stop (10°, 110°) and falls by e every 3–8° inside it.
   constexpr double kLoStopDeg = 10.0, kHiStopDeg = 110.0;
   constexpr int kPoints = 61;  // every 2° over 0–120°.
-  const double hi_nm = draw.Uniform(15.0, 35.0), hi_width = draw.Uniform(3.5, 7.0);
-  const double lo_nm = draw.Uniform(15.0, 35.0), lo_width = draw.Uniform(3.5, 7.0);
+  const double hi_nm = draw.Uniform(20.0, 50.0), hi_width = draw.Uniform(3.0, 8.0);
+  const double lo_nm = draw.Uniform(20.0, 50.0), lo_width = draw.Uniform(3.0, 8.0);
   std::vector<double> angles, pta;
   for (int i = 0; i < kPoints; ++i) {
     const double th = 120.0 * i / (kPoints - 1);

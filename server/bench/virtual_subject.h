@@ -167,8 +167,8 @@ VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& rang
 ///   J = (Eq. 4.13 + brace)·(0.9–1.1), redrawn until inside the ranges;
 /// - τ_pta(θ) = m·g·l·sin(θ − θ_hang) + A_hi·e^{(θ−110°)/w_hi} −
 ///   A_lo·e^{(10°−θ)/w_lo}: gravity plus steep exponential stiffness at both
-///   ends (Eq. 7.3 of §7.4.4 with an extension-end term), A 15–35 N·m at
-///   the bench's stops (10°, 110°), w 3.5–7° (the end torque falls by e
+///   ends (Eq. 7.3 of §7.4.4 with an extension-end term), A 20–50 N·m at
+///   the bench's stops (10°, 110°), w 3–8° (the end torque falls by e
 ///   every w inside the stop), sampled every 2° over 0–120°;
 /// - τ_ptv = b·v·(1 + g·(v/200 deg/s)²), g 0–0.5, b giving the drawn
 ///   free-swing ζ about the rest angle;

@@ -203,7 +203,7 @@ TEST(PlateauSubject, HasItsShapesInsideTheRanges) {
     EXPECT_EQ(s.truth.irc(s.threshold_ma), 0.0);
     EXPECT_GT(s.truth.irc(s.threshold_ma + 1.0), 0.0);
     // Steep end-range stiffness at both ends: over the 5° inside each stop
-    // the passive torque changes by ≥ 7 N·m (≥ 15·(1 − e^{−5/7}) N·m of end
+    // the passive torque changes by ≥ 7 N·m (≥ 20·(1 − e^{−5/8}) N·m of end
     // term, less at most 2 N·m of gravity against it).
     EXPECT_GT(p.torque_angle(110.0) - p.torque_angle(105.0), 7.0);
     EXPECT_LT(p.torque_angle(10.0) - p.torque_angle(15.0), -7.0);
