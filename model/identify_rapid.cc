@@ -415,7 +415,8 @@ RapidResult IdentifyRapid(const TrialColumns& isometric, const TrialColumns& pas
 
 ReleaseInertia InertiaFromReleases(std::span<const TrialColumns> swings,
                                    std::span<const RapidTrials::Release> releases,
-                                   double window_s) {
+                                   double window_s, double max_travel_deg,
+                                   double min_window_s) {
   const char* what = "InertiaFromReleases";
   if (releases.size() < 2) throw std::invalid_argument(std::string(what) + ": needs 2 releases");
   ReleaseInertia out;
@@ -430,8 +431,18 @@ ReleaseInertia InertiaFromReleases(std::span<const TrialColumns> swings,
     if (r.swing >= swings.size()) throw std::invalid_argument(std::string(what) + ": no such swing");
     const TrialColumns& sw = swings[r.swing];
     RequireColumn(what, "angle_deg", sw.angle_deg, sw.t_s.size());
+    // The window: to the first sample max_travel_deg from the release
+    // angle, within [min_window_s, window_s].
+    double window = window_s;
+    for (std::size_t i = 0; i < sw.t_s.size(); ++i) {
+      if (std::abs(sw.angle_deg[i] - sw.angle_deg.front()) > max_travel_deg) {
+        window = std::min(window_s, std::max(min_window_s, sw.t_s[i] - sw.t_s.front()));
+        break;
+      }
+    }
+    out.window_s.push_back(window);
     std::size_t n = 0;
-    while (n < sw.t_s.size() && sw.t_s[n] - sw.t_s.front() <= window_s + 1e-9) ++n;
+    while (n < sw.t_s.size() && sw.t_s[n] - sw.t_s.front() <= window + 1e-9) ++n;
     if (n < 6) throw std::invalid_argument(std::string(what) + ": a swing is shorter than the window");
     // θ = c0 + c1·τ + c2·τ²/2 + c3·τ³/6, τ from the first sample.
     Eigen::MatrixXd a(static_cast<Eigen::Index>(n), 4);
@@ -611,7 +622,8 @@ RapidResult IdentifyRapid(const RapidTrials& trials, const RapidOptions& options
   if (trials.releases.size() >= 2) {
     try {
       const ReleaseInertia ri =
-          InertiaFromReleases(trials.swings, trials.releases, options.release_window_s);
+          InertiaFromReleases(trials.swings, trials.releases, options.release_window_s,
+                              options.release_max_travel_deg, options.release_min_window_s);
       const double scale = ri.inertia_kgm2 / ps.passive.inertia_kgm2;
       out.report.values["inertia_release_kgm2"] = ri.inertia_kgm2;
       out.report.fit_rms["inertia_releases_nm"] = ri.rms_nm;

@@ -77,9 +77,14 @@ struct RapidOptions {
   /// span under 60° (0 = fit it; FitPassiveAngleForm).
   double mgl_prior_nm = 0.0;
   /// InertiaFromReleases's window: the first window_s of each released
-  /// swing, s (0.16 s: shorter is noisier, longer lets the changing torque in;
-  /// measured on the cohort, docs/STUDY.md).
+  /// swing at most, s (0.16 s: shorter is noisier, longer lets the changing
+  /// torque in; measured on the cohort, docs/MODEL.md) ...
   double release_window_s = 0.16;
+  /// ... ended where the knee has travelled release_max_travel_deg from
+  /// the release angle, but not before release_min_window_s (docs/MODEL.md,
+  /// "J measured by the rapid routine").
+  double release_max_travel_deg = 15.0;
+  double release_min_window_s = 0.06;
   /// A J from the releases outside [1/max_inertia_scale, max_inertia_scale]
   /// of the given inertia is reported and not applied.
   double max_inertia_scale = 1.6;
@@ -105,6 +110,7 @@ struct ReleaseInertia {
   double inertia_kgm2 = 0.0;
   std::vector<double> hold_torque_nm;   ///< per release.
   std::vector<double> accel_deg_s2;     ///< per release, at its first sample.
+  std::vector<double> window_s;         ///< per release, the window fitted.
   double rms_nm = 0.0;                  ///< misfit of torque = c − J·θ̈₀.
 };
 
@@ -112,17 +118,30 @@ struct ReleaseInertia {
 /// motor lets go of the still knee, nothing but the held torque moves it,
 /// J·θ̈₀ = −τ_hold (Eq. 4.9 with θ̇ = 0 and no brace torque; the tissue's
 /// hysteresis is in the held torque and acts the same just after). θ̈₀ is
-/// the t² term of a cubic fitted to the first window_s of the swing's angle;
+/// the t² term of a cubic fitted to the start of the swing's angle;
 /// τ_hold the mean of the hold's second half. J is the least-squares slope
 /// of τ_hold against −θ̈₀ over the releases (the intercept takes the torque
 /// sensor's offset). Friction opposing the first motion biases J by about
 /// 2·F/Δτ_hold (a few %).
+///
+/// The window is chosen by the angle travelled, not by time: it ends at the
+/// first sample max_travel_deg from the first one, kept within
+/// [min_window_s, window_s]. Once the knee moves, τ_pta(θ) (Eq. 4.9) is no
+/// longer τ_hold: the cubic's t² term stays θ̈₀ while θ̈ changes about
+/// linearly over the window, and the change grows with the travel and the
+/// stiffness the knee runs through (steep end-range stiffness, Eq. 7.3,
+/// turns a fixed window's t² term into an average over a falling torque).
+/// Bounding the travel bounds that change; the noise of the t² term,
+/// relative to θ̈₀, is set by the travel too (σ_θ / (θ̈₀·T²) ∝ σ_θ / travel),
+/// so a leg that accelerates fast gets a short window and no noisier an
+/// estimate. min_window_s keeps enough samples for the cubic.
 /// @throws std::invalid_argument if fewer than 2 releases, a column is
-///   missing, a swing is shorter than window_s, or the held torques do not
-///   differ.
+///   missing, a swing is shorter than its window, or the held torques do
+///   not differ.
 ReleaseInertia InertiaFromReleases(std::span<const TrialColumns> swings,
                                    std::span<const RapidTrials::Release> releases,
-                                   double window_s = 0.16);
+                                   double window_s = 0.16, double max_travel_deg = 15.0,
+                                   double min_window_s = 0.06);
 
 /// The trial without the samples within margin_deg of a stop, and guard_s
 /// either side of them: a stop's contact torque is not in the model.

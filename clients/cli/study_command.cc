@@ -35,9 +35,10 @@ void RegisterStudyCommand(CLI::App& app, CliContext& context) {
       ->check(CLI::Range(2, 1000));
   cmd->add_option("--seed", form->seed, "cohort seed (default 1)");
   cmd->add_option("--families", form->families,
-                  "shape families of the legs, taken in turn (default thesis,analytic)")
+                  "shape families of the legs, taken in turn: thesis, analytic, plateau "
+                  "(default thesis,analytic)")
       ->delimiter(',')
-      ->check(CLI::IsMember({"thesis", "analytic"}));
+      ->check(CLI::IsMember({"thesis", "analytic", "plateau"}));
   cmd->add_option("--out", form->out, "output folder (default study-out)");
   cmd->add_option("--date", form->date, "session date YYYY-MM-DD");
   cmd->add_flag("--no-plots", form->no_plots, "do not run gnuplot");

@@ -192,18 +192,34 @@ VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& range
 }
 
 std::string_view SubjectFamilyName(SubjectFamily family) {
-  return family == SubjectFamily::kAnalytic ? "analytic" : "thesis";
+  switch (family) {
+    case SubjectFamily::kAnalytic:
+      return "analytic";
+    case SubjectFamily::kPlateau:
+      return "plateau";
+    case SubjectFamily::kThesis:
+      break;
+  }
+  return "thesis";
 }
 
 std::optional<SubjectFamily> SubjectFamilyFromName(std::string_view name) {
   if (name == "thesis") return SubjectFamily::kThesis;
   if (name == "analytic") return SubjectFamily::kAnalytic;
+  if (name == "plateau") return SubjectFamily::kPlateau;
   return std::nullopt;
 }
 
 VirtualSubject DrawSubject(std::uint64_t seed, SubjectFamily family, const SubjectRanges& ranges) {
-  return family == SubjectFamily::kAnalytic ? DrawAnalyticSubject(seed, ranges)
-                                            : DrawVirtualSubject(seed, ranges);
+  switch (family) {
+    case SubjectFamily::kAnalytic:
+      return DrawAnalyticSubject(seed, ranges);
+    case SubjectFamily::kPlateau:
+      return DrawPlateauSubject(seed, ranges);
+    case SubjectFamily::kThesis:
+      break;
+  }
+  return DrawVirtualSubject(seed, ranges);
 }
 
 VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& ranges) {
@@ -319,6 +335,123 @@ VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& rang
                            : 1.0 + a_ecc * std::tanh(v / v_ecc));
   }
   // Max isometric torque at the Gaussian's peak (1 there) and max tolerated.
+  const double max_torque_nm = draw.Uniform(ranges.min_max_torque_nm, ranges.max_max_torque_nm);
+  model::ActiveParams active;
+  active.torque_angle = PiecewiseLinear(angles, fata);
+  active.torque_velocity = PiecewiseLinear(vel, fatv);
+  active.torque_scale_nm = max_torque_nm / s.truth.irc(s.max_tolerated_ma);
+  s.truth.active = model::NormaliseActive(active);
+  s.truth.provenance.passive_method = "virtual_subject";
+  return s;
+}
+
+VirtualSubject DrawPlateauSubject(std::uint64_t seed, const SubjectRanges& ranges) {
+  // Its own stream, unrelated to the other families' seed N.
+  Draw draw(seed ^ 0xD1B54A32D192ED03ULL);
+  VirtualSubject s;
+  s.name = "plateau-" + std::to_string(seed);
+  s.seed = seed;
+  // Strong post-tetanic potentiation and slow recovery from fatigue (§3.3).
+  s.fidelity = Fidelity::Default();
+  s.fidelity.potentiation_max = draw.Uniform(0.6, 1.0);
+  s.fidelity.fatigue_recovery_s = draw.Uniform(90.0, 180.0);
+
+  // Anthropometrics and J (Eq. 4.13 plus the brace, ±10 %), redrawn until J
+  // is in range.
+  Anthropometrics& a = s.anthropometrics;
+  double j = 0.0;
+  for (int attempt = 0;; ++attempt) {
+    a.height_m = draw.Uniform(1.50, 1.95);
+    a.body_mass_kg = draw.Uniform(18.0, 32.0) * a.height_m * a.height_m;
+    a.shank_length_m = kShankOfHeight * a.height_m;
+    j = (model::AnthropometricInertia(a.body_mass_kg, a.shank_length_m) + kBraceInertiaKgm2) *
+        draw.Uniform(0.9, 1.1);
+    if (j >= ranges.min_inertia_kgm2 && j <= ranges.max_inertia_kgm2) break;
+    if (attempt == 1000) {
+      throw std::invalid_argument("DrawPlateauSubject: the inertia range admits no subject");
+    }
+  }
+  a.accel_distance_m = draw.Uniform(0.24, 0.31);  // ≈ 11 in (§5.1)
+  a.thigh_elevation_deg = draw.Uniform(4.0, 14.0);
+  const double mgl_nm = kShankFootMassFraction * a.body_mass_kg * model::kStandardGravity_m_s2 *
+                        kShankFootComFraction * a.shank_length_m;
+  const double hang_deg = HangingAngleDeg(a);
+
+  // τ_pta: gravity plus steep exponential stiffness at both ends (Eq. 7.3,
+  // §7.4.4, with an extension-end term): each end term is 20–50 N·m at the
+  // bench's stop (10°, 110°) and falls by e every 3–8° inside it.
+  constexpr double kLoStopDeg = 10.0, kHiStopDeg = 110.0;
+  constexpr int kPoints = 61;  // every 2° over 0–120°.
+  const double hi_nm = draw.Uniform(20.0, 50.0), hi_width = draw.Uniform(3.0, 8.0);
+  const double lo_nm = draw.Uniform(20.0, 50.0), lo_width = draw.Uniform(3.0, 8.0);
+  std::vector<double> angles, pta;
+  for (int i = 0; i < kPoints; ++i) {
+    const double th = 120.0 * i / (kPoints - 1);
+    angles.push_back(th);
+    pta.push_back(mgl_nm * std::sin(DegToRad(th - hang_deg)) +
+                  hi_nm * std::exp((th - kHiStopDeg) / hi_width) -
+                  lo_nm * std::exp((kLoStopDeg - th) / lo_width));
+  }
+  model::PassiveParams passive;
+  passive.inertia_kgm2 = j;
+  passive.torque_angle = PiecewiseLinear(angles, pta);
+  passive.torque_velocity = PiecewiseLinear::Constant(0.0);
+
+  // τ_ptv: b·v·(1 + g·(v/200)²), progressive with speed (g 0–0.5); b gives
+  // the drawn linearised ζ about the rest angle (Table 6.4, §6.9).
+  const double b = DrawDampingNmPerDegS(draw, ranges, passive, j);
+  const double grow = draw.Uniform(0.0, 0.5);
+  constexpr double kMaxVel = 400.0;
+  constexpr int kVelPoints = 41;
+  std::vector<double> vel, ptv;
+  for (int i = 0; i < kVelPoints; ++i) {
+    const double v = -kMaxVel + 2.0 * kMaxVel * i / (kVelPoints - 1);
+    vel.push_back(v);
+    ptv.push_back(b * v * (1.0 + grow * (v / 200.0) * (v / 200.0)));
+  }
+  passive.torque_velocity = PiecewiseLinear(vel, ptv);
+  s.truth.passive = model::ReferencePassive(passive);
+
+  // Contraction dynamics: 3rd order, pole 20–30 s⁻¹ (§6.2).
+  s.truth.model = model::ModelKind::kFull;
+  s.truth.contraction.order = 3;
+  s.truth.contraction.pole_per_s = ranges.nominal_pole_per_s * draw.Uniform(0.8, 1.2);
+
+  // IRC: zero to threshold, then a concave rise p·(1 − (1 − x)^n) that
+  // plateaus at p = 0.6–0.9 of full activation from 70–90 % of the max
+  // tolerated amplitude on: the top of the tolerable range recruits no more.
+  s.max_tolerated_ma = draw.Uniform(ranges.min_max_tolerated_ma, ranges.max_max_tolerated_ma);
+  s.threshold_ma = s.max_tolerated_ma * draw.Uniform(0.3, 0.5);
+  const double plateau_ma = s.max_tolerated_ma * draw.Uniform(0.7, 0.9);
+  const double plateau = draw.Uniform(0.6, 0.9), irc_n = draw.Uniform(2.0, 3.0);
+  std::vector<double> irc_u = {0.0}, irc_r = {0.0};
+  constexpr int kIrcPoints = 13;
+  for (int i = 0; i < kIrcPoints; ++i) {
+    const double x = static_cast<double>(i) / (kIrcPoints - 1);
+    irc_u.push_back(s.threshold_ma + x * (plateau_ma - s.threshold_ma));
+    irc_r.push_back(plateau * (1.0 - std::pow(1.0 - x, irc_n)));
+  }
+  irc_u.push_back(std::max(s.max_tolerated_ma, plateau_ma) * 1.5);
+  irc_r.push_back(plateau);
+  s.truth.irc = PiecewiseLinear(irc_u, irc_r);
+
+  // f_ata: a Gaussian centred at 55–85°, width 30–50°; f_atv: concentric
+  // 1 + A·tanh(v/v0) (A 0.5–0.8, v0 150–350 deg/s), eccentric rise to
+  // 1.2–1.5 by a hyperbola of half-speed 80–200 deg/s.
+  const double centre_deg = draw.Uniform(55.0, 85.0), width_deg = draw.Uniform(30.0, 50.0);
+  std::vector<double> fata;
+  for (double th : angles) {
+    fata.push_back(
+        std::exp(-(th - centre_deg) * (th - centre_deg) / (2.0 * width_deg * width_deg)));
+  }
+  const double a_con = draw.Uniform(0.5, 0.8), v_con = draw.Uniform(150.0, 350.0);
+  const double ecc_max = draw.Uniform(1.2, 1.5), ecc_half = draw.Uniform(80.0, 200.0);
+  std::vector<double> fatv;
+  for (double v : vel) {
+    fatv.push_back(v < 0.0 ? 1.0 + a_con * std::tanh(v / v_con)
+                           : 1.0 + (ecc_max - 1.0) * v / (v + ecc_half));
+  }
+  // Max isometric torque (at the Gaussian's peak, max tolerated) 10–60 N·m.
   const double max_torque_nm = draw.Uniform(ranges.min_max_torque_nm, ranges.max_max_torque_nm);
   model::ActiveParams active;
   active.torque_angle = PiecewiseLinear(angles, fata);

@@ -124,10 +124,13 @@ VirtualSubject DrawVirtualSubject(std::uint64_t seed, const SubjectRanges& range
 
 /// Shape families of drawn subjects. kThesis is DrawVirtualSubject's
 /// generator (the default); kAnalytic (DrawAnalyticSubject) samples other
-/// analytic shapes, so a study is not tuned to one generator.
-enum class SubjectFamily { kThesis, kAnalytic };
+/// analytic shapes, so a study is not tuned to one generator; kPlateau
+/// (DrawPlateauSubject) shapes neither draws: a recruitment plateau below
+/// full activation, steep end-range stiffness, strong potentiation and slow
+/// fatigue recovery.
+enum class SubjectFamily { kThesis, kAnalytic, kPlateau };
 
-/// "thesis" / "analytic".
+/// "thesis" / "analytic" / "plateau".
 std::string_view SubjectFamilyName(SubjectFamily family);
 /// The family named `name`, or nullopt for an unknown name.
 std::optional<SubjectFamily> SubjectFamilyFromName(std::string_view name);
@@ -158,7 +161,33 @@ std::optional<SubjectFamily> SubjectFamilyFromName(std::string_view name);
 /// Fidelity is Fidelity::Default().
 VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& ranges = {});
 
-/// DrawVirtualSubject or DrawAnalyticSubject by family.
+/// Draws a subject of the plateau family from the seed (an independent
+/// random stream: seed N here is unrelated to the other families' seed N):
+/// - anthropometrics: height 1.50–1.95 m, body-mass index 18–32 kg/m²;
+///   J = (Eq. 4.13 + brace)·(0.9–1.1), redrawn until inside the ranges;
+/// - τ_pta(θ) = m·g·l·sin(θ − θ_hang) + A_hi·e^{(θ−110°)/w_hi} −
+///   A_lo·e^{(10°−θ)/w_lo}: gravity plus steep exponential stiffness at both
+///   ends (Eq. 7.3 of §7.4.4 with an extension-end term), A 20–50 N·m at
+///   the bench's stops (10°, 110°), w 3–8° (the end torque falls by e
+///   every w inside the stop), sampled every 2° over 0–120°;
+/// - τ_ptv = b·v·(1 + g·(v/200 deg/s)²), g 0–0.5, b giving the drawn
+///   free-swing ζ about the rest angle;
+/// - 3rd-order contraction, pole 20–30 s⁻¹;
+/// - IRC: zero to threshold (0.3–0.5 of the max tolerated), then
+///   p·(1 − (1 − x)^n), n 2–3, to a plateau p = 0.6–0.9 of full activation
+///   reached at 0.7–0.9 of the max tolerated and kept above it (an
+///   identified IRC, normalised to R = 1 at its top, has τ_scale·p for
+///   τ_scale: the same torques);
+/// - f_ata a Gaussian centred at 55–85°, width 30–50°; f_atv concentric
+///   1 + A·tanh(v/v0) (A 0.5–0.8, v0 150–350 deg/s), eccentric a hyperbola
+///   rising to 1.2–1.5 (half-speed 80–200 deg/s);
+/// - max isometric torque (at the f_ata peak, max tolerated) 10–60 N·m;
+/// - Fidelity::Default() but strong post-tetanic potentiation
+///   (potentiation_max 0.6–1.0) and slow fatigue recovery
+///   (fatigue_recovery_s 90–180 s), §3.3.
+VirtualSubject DrawPlateauSubject(std::uint64_t seed, const SubjectRanges& ranges = {});
+
+/// DrawVirtualSubject, DrawAnalyticSubject or DrawPlateauSubject by family.
 VirtualSubject DrawSubject(std::uint64_t seed, SubjectFamily family,
                            const SubjectRanges& ranges = {});
 

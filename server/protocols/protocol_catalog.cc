@@ -479,7 +479,7 @@ std::vector<ProtocolDescription> MakeCatalog() {
            "IRC trial (2 impulses, one 4 s cosine ramp) → contraction pole and IRC by ramp "
            "correlation; the motor takes the knee near full flexion and near full extension "
            "and releases it twice (free swings through the range, §4.2.3; the held torque and "
-           "the first 0.16 s of each swing measure J); a ≤ 3 s ascending "
+           "the start of each swing, until the knee has travelled 15°, measure J); a ≤ 3 s ascending "
            "amplitude search on the decoupled leg that stops at full extension (§5.4.3); a 10 s "
            "dense random-binary free-swing trial at the amplitude found → τ_pta and τ_ptv with "
            "known inertia from the passive samples of every swing → the active curves "

@@ -64,7 +64,7 @@ api::Status NeedAdmin(const Actor& actor, const char* what) {
 }
 
 // {"draw_seed": N, "family": F}: N a non-negative integer, F "thesis" (the
-// default) or "analytic", no other key.
+// default), "analytic" or "plateau", no other key.
 struct DrawRequest {
   std::uint64_t seed = 0;
   SubjectFamily family = SubjectFamily::kThesis;

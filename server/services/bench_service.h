@@ -52,7 +52,8 @@ class BenchService {
   /// Replaces the virtual subject between runs. The body is either a full
   /// subject (VirtualSubjectFromJson) or a draw {"draw_seed": N,
   /// "family": F}, N a non-negative integer, F "thesis" (default:
-  /// DrawVirtualSubject(N)) or "analytic" (DrawAnalyticSubject(N)).
+  /// DrawVirtualSubject(N)), "analytic" (DrawAnalyticSubject(N)) or
+  /// "plateau" (DrawPlateauSubject(N)).
   /// kPermissionDenied unless admin; kConflict "not a simulated bench" or
   /// while a run holds the bench; kInvalidArgument naming the field (a
   /// missing, non-integer or negative draw_seed, an unknown family, a key

@@ -184,6 +184,17 @@ TEST(InertiaFromReleases, RecoversJWhateverTheTorqueOffset) {
   EXPECT_NEAR(r.inertia_kgm2, truth.passive.inertia_kgm2, 0.06 * truth.passive.inertia_kgm2);
   ASSERT_EQ(r.accel_deg_s2.size(), 2u);
   EXPECT_LT(r.accel_deg_s2[0] * r.accel_deg_s2[1], 0.0);  // toward extension, toward flexion
+  // The window ends where the knee has travelled max_travel_deg (here
+  // under 15° in 0.16 s: the full window); 5° cuts both windows short,
+  // within [min_window_s, window_s], and the truncation with them (−2.4 %).
+  EXPECT_EQ(r.window_s, (std::vector<double>{0.16, 0.16}));
+  const ReleaseInertia short_travel = InertiaFromReleases(swings, releases, 0.16, 5.0, 0.06);
+  for (double w : short_travel.window_s) {
+    EXPECT_GE(w, 0.06);
+    EXPECT_LT(w, 0.16);
+  }
+  EXPECT_NEAR(short_travel.inertia_kgm2, truth.passive.inertia_kgm2,
+              0.03 * truth.passive.inertia_kgm2);
   // Refused with the reason: one release, a swing that does not exist.
   EXPECT_THROW(InertiaFromReleases(swings, std::span(releases).first(1)), std::invalid_argument);
   const std::vector<RapidTrials::Release> bad = {{Hold(truth, 100.0, 0.0), 0},

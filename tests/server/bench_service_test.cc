@@ -178,6 +178,10 @@ TEST(BenchService, ADrawTakesAFamily) {
   auto thesis = rig.service->PutVirtualSubject(rig.admin, {{"draw_seed", 8}, {"family", "thesis"}});
   ASSERT_TRUE(thesis.ok()) << thesis.status().ToString();
   EXPECT_EQ(rig.bench->subject(), DrawVirtualSubject(8));
+  auto plateau =
+      rig.service->PutVirtualSubject(rig.admin, {{"draw_seed", 8}, {"family", "plateau"}});
+  ASSERT_TRUE(plateau.ok()) << plateau.status().ToString();
+  EXPECT_EQ(rig.bench->subject(), DrawPlateauSubject(8));
   auto audit = storage::AuditLog(*rig.db).List({});
   ASSERT_TRUE(audit.ok());
   bool seen = false;

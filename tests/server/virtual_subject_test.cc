@@ -181,6 +181,81 @@ TEST(AnalyticSubject, SeededAndIndependentOfTheThesisFamily) {
   EXPECT_EQ(*back, s);
 }
 
+// The plateau family's stated shapes (DrawPlateauSubject) on 100 seeds,
+// inside the ranges.
+TEST(PlateauSubject, HasItsShapesInsideTheRanges) {
+  const SubjectRanges r;
+  for (std::uint64_t seed = 1; seed <= 100; ++seed) {
+    const VirtualSubject s = DrawPlateauSubject(seed);
+    SCOPED_TRACE(s.name);
+    const model::PassiveParams& p = s.truth.passive;
+    EXPECT_GE(p.inertia_kgm2, r.min_inertia_kgm2);
+    EXPECT_LE(p.inertia_kgm2, r.max_inertia_kgm2);
+    EXPECT_GE(s.max_tolerated_ma, r.min_max_tolerated_ma);
+    EXPECT_LE(s.max_tolerated_ma, r.max_max_tolerated_ma);
+    // Recruitment plateaus at 0.6–0.9 of full activation below the max
+    // tolerated amplitude: no more recruited above it.
+    const double top = s.truth.irc(s.max_tolerated_ma);
+    EXPECT_GE(top, 0.6 - 1e-9);
+    EXPECT_LE(top, 0.9 + 1e-9);
+    EXPECT_NEAR(s.truth.irc(0.9 * s.max_tolerated_ma), top, 1e-12);
+    EXPECT_NEAR(s.truth.irc(100.0), top, 1e-12);
+    EXPECT_EQ(s.truth.irc(s.threshold_ma), 0.0);
+    EXPECT_GT(s.truth.irc(s.threshold_ma + 1.0), 0.0);
+    // Steep end-range stiffness at both ends: over the 5° inside each stop
+    // the passive torque changes by ≥ 7 N·m (≥ 20·(1 − e^{−5/8}) N·m of end
+    // term, less at most 2 N·m of gravity against it).
+    EXPECT_GT(p.torque_angle(110.0) - p.torque_angle(105.0), 7.0);
+    EXPECT_LT(p.torque_angle(10.0) - p.torque_angle(15.0), -7.0);
+    EXPECT_EQ(p.torque_angle.x().size(), 61u);
+    EXPECT_NEAR(p.torque_angle(90.0), 0.0, 1e-9);  // referenced (§6.5)
+    // A stable rest angle with ζ in range (Table 6.4).
+    const double rest_deg = model::PassiveRestAngle(p);
+    EXPECT_GE(rest_deg, 10.0);
+    EXPECT_LE(rest_deg, 110.0);
+    const model::PassiveLinearisation lin = model::LinearisePassive(p, rest_deg, 0.0);
+    EXPECT_GE(lin.damping_ratio, r.min_zeta);
+    EXPECT_LE(lin.damping_ratio, r.max_zeta);
+    EXPECT_GE(s.truth.contraction.pole_per_s, 20.0);
+    EXPECT_LE(s.truth.contraction.pole_per_s, 30.0);
+    // Max isometric torque at max tolerated 10–60 N·m.
+    double max_torque = 0.0;
+    for (double th = 0.0; th <= 120.0; th += 0.5) {
+      max_torque = std::max(max_torque,
+                            SteadyIsometricActiveTorqueNm(s.truth, s.max_tolerated_ma, th));
+    }
+    EXPECT_GE(max_torque, 0.99 * r.min_max_torque_nm);
+    EXPECT_LE(max_torque, r.max_max_torque_nm + 1e-9);
+    EXPECT_NEAR(s.truth.active.torque_angle(90.0), 1.0, 1e-9);  // §6.7
+    // Strong potentiation, slow fatigue recovery; the rest as Default().
+    EXPECT_GE(s.fidelity.potentiation_max, 0.6);
+    EXPECT_LE(s.fidelity.potentiation_max, 1.0);
+    EXPECT_GE(s.fidelity.fatigue_recovery_s, 90.0);
+    EXPECT_LE(s.fidelity.fatigue_recovery_s, 180.0);
+    Fidelity rest = s.fidelity;
+    rest.potentiation_max = Fidelity::Default().potentiation_max;
+    rest.fatigue_recovery_s = Fidelity::Default().fatigue_recovery_s;
+    EXPECT_EQ(rest, Fidelity::Default());
+  }
+}
+
+TEST(PlateauSubject, SeededAndIndependentOfTheOtherFamilies) {
+  EXPECT_EQ(DrawPlateauSubject(42), DrawPlateauSubject(42));
+  EXPECT_NE(DrawPlateauSubject(42).truth, DrawPlateauSubject(43).truth);
+  EXPECT_NE(DrawPlateauSubject(42).anthropometrics, DrawAnalyticSubject(42).anthropometrics);
+  EXPECT_NE(DrawPlateauSubject(42).anthropometrics, DrawVirtualSubject(42).anthropometrics);
+  EXPECT_EQ(DrawPlateauSubject(42).name, "plateau-42");
+  EXPECT_EQ(DrawSubject(42, SubjectFamily::kPlateau), DrawPlateauSubject(42));
+  EXPECT_EQ(SubjectFamilyFromName("plateau"), SubjectFamily::kPlateau);
+  EXPECT_EQ(SubjectFamilyName(SubjectFamily::kPlateau), "plateau");
+  EXPECT_EQ(SubjectFamilyName(SubjectFamily::kThesis), "thesis");
+  // The truth and the fidelity survive the JSON the server sends.
+  const VirtualSubject s = DrawPlateauSubject(7);
+  const auto back = VirtualSubjectFromJson(nlohmann::json::parse(VirtualSubjectToJson(s).dump()));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(*back, s);
+}
+
 TEST(VirtualSubjectJson, RoundTripsThroughText) {
   VirtualSubject s = DrawVirtualSubject(5);
   s.fidelity.cocontraction_per_min = 2.5;

@@ -436,9 +436,9 @@ StudySummary RunStudy(ApiClient& client, const StudyOptions& options, std::ostre
   if (options.legs < 2) throw CliError::Usage("study: --legs must be at least 2");
   if (options.families.empty()) throw CliError::Usage("study: --families must name a family");
   for (const auto& family : options.families) {
-    if (family != "thesis" && family != "analytic") {
+    if (family != "thesis" && family != "analytic" && family != "plateau") {
       throw CliError::Usage("study: --families: unknown family '" + family +
-                            "' (thesis, analytic)");
+                            "' (thesis, analytic, plateau)");
     }
   }
   fs::create_directories(options.output_dir);

@@ -26,7 +26,7 @@ struct StudyOptions {
   /// leg i's virtual subject is the server's draw from seed·1000 + i
   /// (PUT /bench/virtual-subject {"draw_seed"}).
   std::uint64_t seed = 1;
-  /// Shape families of the drawn legs ("thesis", "analytic"; PUT
+  /// Shape families of the drawn legs ("thesis", "analytic", "plateau"; PUT
   /// /bench/virtual-subject {"family"}), taken in turn: leg i is
   /// families[(i − 1) mod size].
   std::vector<std::string> families = {"thesis", "analytic"};
