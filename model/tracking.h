@@ -17,7 +17,11 @@
 ///    from τ̂_scale, which a model::ScaleEstimator follows from the measured
 ///    motion (§7.6.3: "A simple adaptive scheme which updates the active gain
 ///    parameter τ_scale based on the system response may be enough to
-///    compensate for short term fatigue or potentiation effects").
+///    compensate for short term fatigue or potentiation effects"). The
+///    estimate is of the gain g in τ_act = g·s(t)·τ_scale·φ, with s(t) the
+///    strength state (model/strength.h) the commanded stimulation predicts:
+///    §7.6.5's two remedies together (docs/MODEL.md, "Strength that changes
+///    with use").
 ///
 /// The estimator's regression τ_act = τ_scale·φ (model/inverse_model.h)
 /// needs the measured θ̇ and θ̈ and the activation the commanded pulses
