@@ -330,6 +330,7 @@ TrackingController::TrackingController(const ParameterSet& params, KneeTarget ta
            std::max(options_.max_amplitude_ma, 0.0)),
       dt_s_(1.0 / target_.rate_hz),
       tau_scale_(params.active.torque_scale_nm),
+      base_scale_(params.active.torque_scale_nm),
       estimator_(
           std::max(params.active.torque_scale_nm, 1e-6),
           options_.forgetting > 0.0 && options_.forgetting <= 1.0 ? options_.forgetting : 1.0,
@@ -348,6 +349,9 @@ TrackingController::TrackingController(const ParameterSet& params, KneeTarget ta
               2.0 * std::numbers::pi * options_.velocity_filter_hz / target_.rate_hz < 1.0,
           "tracking: velocity_filter_hz must be > 0 and well below the sample rate");
   Require(params.active.torque_scale_nm > 0.0, "tracking: the set's τ_scale must be > 0");
+  if (options_.kind == ControllerKind::kAdaptive && options_.strength) {
+    strength_model_.emplace(*options_.strength);
+  }
   InverseOptions inverse;
   inverse.pulse_rate_hz = options_.pulse_rate_hz;
   inverse.max_amplitude_ma = options_.max_amplitude_ma;
@@ -376,7 +380,9 @@ double TrackingController::AmplitudeFor(double activation) const {
 
 void TrackingController::Observe(double measured_deg) {
   const double omega = 2.0 * std::numbers::pi * options_.velocity_filter_hz;
-  const double phi_raw = chain_.Output(activation_) *
+  // φ with the strength the stimulation history predicts: the regression
+  // τ_act = (g·τ_scale)·(s·φ) estimates g·τ_scale (s ≡ 1 without a state).
+  const double phi_raw = StrengthFactor(strength_) * chain_.Output(activation_) *
                          joint_.ActiveGain(filters_started_ ? angle_filter_[0] : measured_deg,
                                            filters_started_ ? angle_filter_[1] : 0.0) /
                          params_.active.torque_scale_nm;
@@ -398,7 +404,7 @@ void TrackingController::Observe(double measured_deg) {
                            joint_.PassiveVelocityTorque(angle_filter_[1]);
   const double estimate = estimator_.Update(regressor_filter_[0], active_nm);
   const double base = params_.active.torque_scale_nm;
-  tau_scale_ =
+  base_scale_ =
       std::clamp(estimate, options_.min_scale_fraction * base, options_.max_scale_fraction * base);
 }
 
@@ -406,6 +412,11 @@ TrackingSample TrackingController::Update(double measured_deg) {
   Require(std::isfinite(measured_deg), "tracking: the measured angle is not finite");
   const std::size_t i = std::min(index_, target_.size() - 1);
   Observe(measured_deg);
+  if (options_.kind == ControllerKind::kAdaptive) {
+    const double base = params_.active.torque_scale_nm;
+    tau_scale_ = std::clamp(base_scale_ * StrengthFactor(strength_),
+                            options_.min_scale_fraction * base, options_.max_scale_fraction * base);
+  }
   TrackingSample s;
   s.target_deg = target_.angle_deg[i];
   s.error_deg = measured_deg - s.target_deg;
@@ -458,6 +469,12 @@ TrackingSample TrackingController::Update(double measured_deg) {
     chain_.ApplyImpulse(activation_, weight);
   }
   activation_ = chain_.Propagate(activation_, t + dt_s_ - now);
+  // The strength state, driven by the activation this amplitude's train
+  // asks for (R(u): its mean f_stim), constant until the next sample.
+  if (strength_model_) {
+    const double f = s.amplitude_ma > 0.0 ? params_.irc(s.amplitude_ma) : 0.0;
+    strength_ = strength_model_->Propagate(strength_, f, dt_s_);
+  }
   ++index_;
   return s;
 }

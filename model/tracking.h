@@ -17,7 +17,11 @@
 ///    from τ̂_scale, which a model::ScaleEstimator follows from the measured
 ///    motion (§7.6.3: "A simple adaptive scheme which updates the active gain
 ///    parameter τ_scale based on the system response may be enough to
-///    compensate for short term fatigue or potentiation effects").
+///    compensate for short term fatigue or potentiation effects"). The
+///    estimate is of the gain g in τ_act = g·s(t)·τ_scale·φ, with s(t) the
+///    strength state (model/strength.h) the commanded stimulation predicts:
+///    §7.6.5's two remedies together (docs/MODEL.md, "Strength that changes
+///    with use").
 ///
 /// The estimator's regression τ_act = τ_scale·φ (model/inverse_model.h)
 /// needs the measured θ̇ and θ̈ and the activation the commanded pulses
@@ -39,6 +43,7 @@
 #include "model/inverse_model.h"
 #include "model/joint_model.h"
 #include "model/parameter_set.h"
+#include "model/strength.h"
 
 namespace fesbench::model {
 
@@ -63,6 +68,12 @@ struct TrackingOptions {
   /// τ̂_scale stays within these fractions of the set's τ_scale.
   double min_scale_fraction = 0.3;
   double max_scale_fraction = 3.0;
+  /// The strength state of the adaptive estimator (model/strength.h): the
+  /// controller propagates s(t) from the activation it commands and
+  /// estimates the gain g in τ_act = g·s(t)·τ_scale·φ, so the feedforward
+  /// follows the fatigue the stimulation history predicts and the estimator
+  /// only the prior's error. Unset: s ≡ 1 (τ_act = τ̂_scale·φ).
+  std::optional<StrengthParameters> strength = StrengthParameters::RienerPrior();
 };
 
 /// The tracking loop linearised about a hold at the target's mid angle θ_m
@@ -249,7 +260,10 @@ class TrackingController {
   /// The gains now: gains() halved once per back-off.
   const Pid::Gains& current_gains() const { return pid_.gains(); }
   int backoffs() const { return backoffs_; }
+  /// τ̂_scale now: ĝ·τ_scale·s(t) (adaptive; the set's τ_scale otherwise).
   double tau_scale_nm() const { return tau_scale_; }
+  /// The strength state's prediction s(t) (1 without a strength state).
+  double strength() const { return StrengthFactor(strength_); }
 
  private:
   // f_stim* the target needs a lead n/a after sample i, with the current τ̂.
@@ -269,7 +283,11 @@ class TrackingController {
   double dt_s_;
   std::size_t index_ = 0;
   double tau_scale_;
+  // The estimator's τ̂ of g·τ_scale, clamped (tau_scale_ is it times s).
+  double base_scale_;
   ScaleEstimator estimator_;
+  std::optional<StrengthModel> strength_model_;
+  StrengthState strength_{};
   // Measured-motion filter (θ_f, θ̇_f in deg, deg/s) and the same filter on
   // the regression's model side: passive torque and φ.
   std::array<double, 2> angle_filter_{};
