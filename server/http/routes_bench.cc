@@ -110,11 +110,13 @@ json VirtualSubjectPutSchema() {
        {{"draw_seed", {{"type", "integer"}, {"minimum", 0}}},
         {"family",
          {{"type", "string"},
-          {"enum", {"thesis", "analytic"}},
+          {"enum", {"thesis", "analytic", "plateau"}},
           {"default", "thesis"},
           {"description",
            "thesis: the server's generator; analytic: gravity + exponential end-range "
-           "stiffness, asymmetric damping, other Gaussian f_ata, tanh f_atv"}}}}}};
+           "stiffness, asymmetric damping, other Gaussian f_ata, tanh f_atv; plateau: a "
+           "recruitment that plateaus below full activation, steep stiffness at both ends, "
+           "strong potentiation, slow recovery"}}}}}};
   const json full = {{"type", "object"},
                      {"required", {"truth", "threshold_ma", "max_tolerated_ma"}},
                      {"description", "a full virtual subject (docs/ARCHITECTURE.md, The benches)"}};
@@ -348,7 +350,9 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
                  "Replace the virtual subject between runs: a full subject, or {\"draw_seed\": N, "
                  "\"family\": F} (N a non-negative integer; F \"thesis\", the default, or "
                  "\"analytic\": gravity + exponential end-range stiffness, asymmetric damping, "
-                 "other Gaussian f_ata, tanh f_atv; no other key) for the server's seeded draw "
+                 "other Gaussian f_ata, tanh f_atv, or \"plateau\": a recruitment that plateaus "
+                 "below full activation, steep stiffness at both ends; no other key) for the "
+                 "server's seeded draw "
                  "(simulation only; 409 on a real bench or while a run holds the bench)",
              .request_schema = VirtualSubjectPutSchema(),
              .handler = [bench](RequestContext& ctx) -> api::Result<Reply> {
