@@ -20,7 +20,12 @@ RouteTable BuildApiRoutes(const ApiDependencies& deps) {
                ctx.res.set_content(*document, "application/json");
                return Reply{200, nullptr, true};
              }});
-  AddStorageRoutes(table, deps);
+  AddHealthRoute(table, deps);
+  AddSubjectRoutes(table, deps);
+  AddSessionRoutes(table, deps);
+  AddTrialRoutes(table, deps);
+  AddParameterSetRoutes(table, deps);
+  AddProtocolRoutes(table, deps);
   AddAdminRoutes(table, deps);
   AddBenchRoutes(table, deps);
   AddJobRoutes(table, deps);

@@ -54,7 +54,14 @@ struct ApiDependencies {
 RouteTable BuildApiRoutes(const ApiDependencies& deps);
 
 /// Adds the routes of one area (used by BuildApiRoutes).
-void AddStorageRoutes(RouteTable& table, const ApiDependencies& deps);
+void AddHealthRoute(RouteTable& table, const ApiDependencies& deps);
+void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps);
+/// Sessions, their corrections and revisions, their runs and trials.
+void AddSessionRoutes(RouteTable& table, const ApiDependencies& deps);
+void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps);
+/// Parameter sets, their stored predictions and export.
+void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps);
+void AddProtocolRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddAdminRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddBenchRoutes(RouteTable& table, const ApiDependencies& deps);
 void AddJobRoutes(RouteTable& table, const ApiDependencies& deps);

@@ -3,6 +3,7 @@
 #include <charconv>
 
 #include "server/http/resources_json.h"
+#include "storage/audit_log.h"
 
 namespace fesbench::server::http {
 
@@ -126,6 +127,35 @@ api::Result<nlohmann::json> SessionJson(storage::Database& db, const storage::Se
   auto leg = storage::SubjectRepository(db).GetLeg(session.leg_id);
   if (!leg.ok()) return leg.status();
   return SessionToJson(session, storage::SideName(leg->side));
+}
+
+api::Result<nlohmann::json> AuditedCorrection(storage::Database& db, RequestContext& ctx,
+                                    const std::string& target, const std::string& reason,
+                                    const std::vector<std::string>& changed,
+                                    const nlohmann::json& new_details,
+                                    const std::function<api::Result<nlohmann::json>()>& write) {
+  std::string summary = "reason: " + reason + "; changed:";
+  for (const std::string& key : changed) {
+    summary += " " + key + "=" + (new_details.contains(key) ? new_details.at(key).dump() : "null");
+  }
+  auto result = db.Write([&](storage::Connection&) -> api::Result<nlohmann::json> {
+    api::Result<nlohmann::json> value = write();
+    if (!value.ok()) return value;
+    auto appended = storage::AuditLog(db).Append(
+        {ctx.user ? std::optional<std::int64_t>(ctx.user->id) : std::nullopt,
+         ctx.user ? ctx.user->name : std::string("anonymous"), ctx.req.method + " " + ctx.req.path,
+         target, summary, "200"});
+    if (!appended.ok()) return appended.status();
+    return value;
+  });
+  if (result.ok()) ctx.audited = true;
+  return result;
+}
+
+nlohmann::json CorrectionSchema(nlohmann::json details) {
+  return ObjectSchema({{"reason", {{"type", "string"}, {"minLength", 1}, {"maxLength", 500}}},
+                       {"details", std::move(details)}},
+                      {"reason", "details"});
 }
 
 }  // namespace fesbench::server::http

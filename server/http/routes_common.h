@@ -103,4 +103,31 @@ api::Result<nlohmann::json> SessionJson(storage::Database& db, const storage::Se
 /// JSON Schema helpers for Route::request_schema.
 nlohmann::json ObjectSchema(nlohmann::json properties, std::vector<std::string> required);
 
+/// A correction (PATCH of a subject or session) in one write transaction
+/// with its audit entry, whose summary carries the reason and the changed
+/// values in full.
+api::Result<nlohmann::json> AuditedCorrection(
+    storage::Database& db, RequestContext& ctx, const std::string& target,
+    const std::string& reason, const std::vector<std::string>& changed,
+    const nlohmann::json& new_details, const std::function<api::Result<nlohmann::json>()>& write);
+
+/// A correction's request schema: a reason and the corrected `details`.
+nlohmann::json CorrectionSchema(nlohmann::json details);
+
+/// Revisions as {"items": [...]}, each with the revision number it corrects
+/// (ids → numbers).
+template <typename Revision>
+nlohmann::json RevisionsJson(const std::vector<Revision>& revisions,
+                             nlohmann::json (*to_json)(const Revision&, std::optional<int>)) {
+  nlohmann::json items = nlohmann::json::array();
+  for (const Revision& r : revisions) {
+    std::optional<int> corrects;
+    for (const Revision& other : revisions) {
+      if (r.corrects_id && other.id == *r.corrects_id) corrects = other.revision;
+    }
+    items.push_back(to_json(r, corrects));
+  }
+  return {{"items", std::move(items)}};
+}
+
 }  // namespace fesbench::server::http
