@@ -107,7 +107,14 @@ Table BuildChainTable(const std::vector<LegData>& legs) {
                     : kNaN);
     v.push_back(set ? RelativeErrorPct(set->contraction.pole_per_s, truth.contraction.pole_per_s)
                     : kNaN);
-    v.push_back(set ? RelativeErrorPct(set->active.torque_scale_nm, truth.active.torque_scale_nm)
+    // τ_scale at the max tolerated amplitude, τ_scale·R(u_max): a leg whose
+    // recruitment plateaus below full activation (the plateau family) has a
+    // true R(u_max) < 1, while an identified IRC reaches 1 at the top of
+    // what was tested, so raw τ_scale values are not comparable; the
+    // torque the set drives at the maximum is.
+    const double u_max = leg.subject.max_tolerated_ma;
+    v.push_back(set ? RelativeErrorPct(set->active.torque_scale_nm * set->irc(u_max),
+                                       truth.active.torque_scale_nm * truth.irc(u_max))
                     : kNaN);
     const auto b = leg.bench_s.find(kRapid);
     v.push_back(b == leg.bench_s.end() ? kNaN : b->second);
