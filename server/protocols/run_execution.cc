@@ -7,7 +7,7 @@
 
 #include "api/json_fields.h"
 #include "model/simulate.h"
-#include "server/protocols/daily_check.h"
+#include "server/protocols/daily_check_protocol.h"
 #include "server/protocols/protocol.h"
 #include "server/protocols/rapid_identification.h"
 

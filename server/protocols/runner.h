@@ -39,7 +39,7 @@
 #include "model/identify_common.h"
 #include "model/parameter_set.h"
 #include "server/protocols/plan.h"
-#include "server/protocols/run_state.h"
+#include "server/protocols/run_transitions.h"
 #include "server/safety/safe_bench.h"
 
 namespace fesbench::server::protocols {

@@ -9,7 +9,7 @@
 
 #include "model/stimulus_generators.h"
 #include "server/protocols/plan.h"
-#include "server/protocols/run_state.h"
+#include "server/protocols/run_transitions.h"
 
 namespace fesbench::server::protocols {
 namespace {

@@ -1,4 +1,4 @@
-#include "server/protocols/daily_check.h"
+#include "server/protocols/daily_check_protocol.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "server/protocols/run_state.h"
+#include "server/protocols/run_transitions.h"
 
 namespace fesbench::server::protocols {
 
