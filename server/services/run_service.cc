@@ -211,7 +211,9 @@ BenchState RunService::State() const {
     s.estop_source = estop_source_;
     // A device that failed latched the e-stop itself: it is the source.
     if (estop_source_.empty()) {
-      if (std::string fault = bench_.HardwareFault(); !fault.empty()) s.estop_source = fault;
+      if (const api::Status fault = bench_.HardwareFault(); !fault.ok()) {
+        s.estop_source = fault.message();
+      }
     }
   }
   const auto it = runs_.find(current_run_id_);
