@@ -59,8 +59,7 @@ void BM_CommandToWire(benchmark::State& state) {
   ::cfmakeraw(&tio);
   ::tcsetattr(master, TCSANOW, &tio);
   SerialPort port;
-  if (!port.Open(::ptsname(master), p24 ? ScienceMode4Settings() : ScienceMode2Settings())
-           .empty()) {
+  if (!port.Open(::ptsname(master), p24 ? ScienceMode4Settings() : ScienceMode2Settings()).ok()) {
     state.SkipWithError("cannot open the pty slave");
     return;
   }
@@ -79,7 +78,7 @@ void BM_CommandToWire(benchmark::State& state) {
       wire = BuildStartChannelListMode(number++, std::span(&pulse, 1));
     }
     ma = (ma + 1) % 100;
-    if (!port.Write(wire).empty()) {
+    if (!port.Write(wire).ok()) {
       state.SkipWithError("write failed");
       break;
     }
@@ -107,19 +106,19 @@ void BM_AcknowledgedUpdate(benchmark::State& state) {
   StimulatorConfig config;
   config.port_path = emulator.port_path();
   Stimulator stim(config);
-  if (!stim.Connect()) {
-    state.SkipWithError(stim.fault().c_str());
+  if (!stim.Connect().ok()) {
+    state.SkipWithError(stim.fault().message().c_str());
     return;
   }
   int ma = 0;
   for (auto _ : state) {
-    if (!stim.SetAmplitude(ma)) {
-      state.SkipWithError(stim.fault().c_str());
+    if (!stim.SetAmplitude(ma).ok()) {
+      state.SkipWithError(stim.fault().message().c_str());
       break;
     }
     ma = (ma + 1) % 100;
   }
-  stim.Stop();
+  (void)stim.Stop();
 }
 BENCHMARK(BM_AcknowledgedUpdate)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
@@ -128,8 +127,8 @@ void BM_EStopToDevice(benchmark::State& state) {
   StimulatorConfig config;
   config.port_path = emulator.port_path();
   auto stim = std::make_unique<Stimulator>(config);
-  if (!stim->Connect()) {
-    state.SkipWithError(stim->fault().c_str());
+  if (!stim->Connect().ok()) {
+    state.SkipWithError(stim->fault().message().c_str());
     return;
   }
   ComposedBench bench(std::make_unique<SimulatedBench>(DrawVirtualSubject(1)), std::move(stim));
@@ -151,14 +150,14 @@ void BM_Sm4PulseAcknowledged(benchmark::State& state) {
   sciencemode4::StimulatorConfig config;
   config.port_path = emulator.port_path();
   sciencemode4::Stimulator stim(config);
-  if (!stim.Connect()) {
-    state.SkipWithError(stim.fault().c_str());
+  if (!stim.Connect().ok()) {
+    state.SkipWithError(stim.fault().message().c_str());
     return;
   }
   double ma = 1.0;
   for (auto _ : state) {
-    if (!stim.SinglePulse(ma)) {
-      state.SkipWithError(stim.fault().c_str());
+    if (!stim.SinglePulse(ma).ok()) {
+      state.SkipWithError(stim.fault().message().c_str());
       break;
     }
     ma = ma >= 60.0 ? 1.0 : ma + 0.5;

@@ -145,7 +145,7 @@ api::Result<OpenedBench> OpenBench(const server::ServerConfig& config) {
 template <typename Device, typename Config>
 api::Status Compose(Config device_config, std::unique_ptr<server::Bench>& bench) {
   auto device = std::make_unique<Device>(std::move(device_config));
-  if (!device->Connect()) return api::Status::Unavailable(device->fault());
+  if (api::Status connected = device->Connect(); !connected.ok()) return connected;
   bench = std::make_unique<server::ComposedBench>(std::move(bench), std::move(device));
   return api::Status::Ok();
 }

@@ -18,6 +18,7 @@
 #include <string_view>
 #include <vector>
 
+#include "api/status.h"
 #include "model/signal.h"
 
 namespace fesbench::server {
@@ -122,10 +123,11 @@ class Bench {
   virtual void ClearHardwareEStop() = 0;
   virtual bool HardwareEStopped() const = 0;
   /// Why the bench latched its e-stop on its own (a stimulator driver that
-  /// lost its device, a garbled reply, a timeout), empty if it did not.
-  /// Thread-safe. SafeBench adopts such a latch as an e-stop with this
-  /// reason, and the run ends with it.
-  virtual std::string HardwareFault() const { return {}; }
+  /// lost its device, a garbled reply, a timeout), OK if it did not. Its
+  /// message names the device and the reason ("sciencemode2 stimulator
+  /// timeout: …"). Thread-safe. SafeBench adopts such a latch as an e-stop
+  /// with this message as its source, and the run ends with it.
+  virtual api::Status HardwareFault() const { return api::Status::Ok(); }
   /// The session's stimulation ceiling, mA (SafeBench sets it with the
   /// session's limits): a real driver refuses anything above it on its own,
   /// a second line below SafeBench's clamp. Thread-safe.

@@ -24,7 +24,7 @@ void ComposedBench::SetStimAmplitude(double stim_ma) {
   if (stimulator_->host_paced()) {
     // Nothing to send: the leg's pulse clock paces the device (AdvanceTo).
     requested_train_ma_ = stim_ma;
-    if (!stimulator_->SetAmplitude(stim_ma)) {
+    if (!stimulator_->SetAmplitude(stim_ma).ok()) {
       if (!stimulator_->estopped()) HardwareEStop();
       body_->SetStimAmplitude(0.0);
       return;
@@ -37,7 +37,7 @@ void ComposedBench::SetStimAmplitude(double stim_ma) {
   const double step = stimulator_->current_step_ma();
   const double wanted = std::floor(stim_ma / step + 1e-9) * step;
   if (wanted != sent_ma_.load()) {
-    if (!stimulator_->SetAmplitude(stim_ma)) {
+    if (!stimulator_->SetAmplitude(stim_ma).ok()) {
       if (!stimulator_->estopped()) HardwareEStop();  // a fault: latch with its reason
       body_->SetStimAmplitude(0.0);
       sent_ma_.store(0.0);
@@ -59,9 +59,9 @@ void ComposedBench::TriggerPulse(double stim_ma) {
     body_->TriggerPulse(rounded);
     return;
   }
-  const std::optional<double> delivered = stimulator_->SinglePulse(stim_ma);
+  const api::Result<double> delivered = stimulator_->SinglePulse(stim_ma);
   sent_ma_.store(0.0);  // the device's pulse train is stopped either way
-  if (!delivered) {
+  if (!delivered.ok()) {
     if (!stimulator_->estopped()) HardwareEStop();  // a fault: latch with its reason
     return;
   }
@@ -75,8 +75,8 @@ void ComposedBench::AdvanceTo(double t_s) {
     std::vector<model::Pulse> pulses = body_->DrainDeliveredPulses();
     for (const model::Pulse& p : pulses) {
       if (HardwareEStopped()) break;
-      const std::optional<double> sent = stimulator_->SinglePulse(p.stim_ma);
-      if (!sent) {
+      const api::Result<double> sent = stimulator_->SinglePulse(p.stim_ma);
+      if (!sent.ok()) {
         if (!stimulator_->estopped()) HardwareEStop();  // a fault: latch with its reason
         break;
       }
@@ -89,7 +89,7 @@ void ComposedBench::AdvanceTo(double t_s) {
     std::lock_guard lock(paced_mu_);
     paced_.insert(paced_.end(), pulses.begin(), pulses.end());
   }
-  if (!stimulator_->Service() && !estop_.load()) HardwareEStop();
+  if (!stimulator_->Service().ok() && !estop_.load()) HardwareEStop();
 }
 
 void ComposedBench::LogCommand(double requested_ma, double commanded_ma, bool single_pulse) {
@@ -132,7 +132,7 @@ void ComposedBench::HardwareEStop() {
 void ComposedBench::ClearHardwareEStop() {
   // A device fault stays latched: the device must be reconnected (a new
   // server).
-  if (!stimulator_->fault().empty()) return;
+  if (!stimulator_->fault().ok()) return;
   sent_ma_.store(0.0);
   stimulator_->ClearEStop();
   body_->ClearHardwareEStop();
@@ -140,14 +140,14 @@ void ComposedBench::ClearHardwareEStop() {
 }
 
 bool ComposedBench::HardwareEStopped() const {
-  return estop_.load() || stimulator_->estopped() || !stimulator_->fault().empty();
+  return estop_.load() || stimulator_->estopped() || !stimulator_->fault().ok();
 }
 
-
-std::string ComposedBench::HardwareFault() const {
-  std::string fault = stimulator_->fault();
-  if (fault.empty()) return fault;
-  return std::string(stimulator_->name()) + " " + fault;  // e.g. "sciencemode2 stimulator timeout: …"
+api::Status ComposedBench::HardwareFault() const {
+  const api::Status fault = stimulator_->fault();
+  if (fault.ok()) return fault;
+  // e.g. "sciencemode2 stimulator timeout: …"
+  return {fault.code(), std::string(stimulator_->name()) + " " + fault.message()};
 }
 
 }  // namespace fesbench::server

@@ -63,7 +63,7 @@ class ComposedBench final : public Bench {
   void HardwareEStop() override;
   void ClearHardwareEStop() override;
   bool HardwareEStopped() const override;
-  std::string HardwareFault() const override;
+  api::Status HardwareFault() const override;
   void SetStimulationCeiling(double max_ma) override { stimulator_->SetSessionLimit(max_ma); }
   std::optional<StimulatorInfo> HardwareStimulator() const override;
   std::vector<DeviceCommand> DrainDeviceCommands() override;

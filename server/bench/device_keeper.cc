@@ -4,13 +4,13 @@
 
 namespace fesbench::server {
 
-void DeviceKeeper::Start(std::chrono::milliseconds period, std::function<bool()> duty) {
+void DeviceKeeper::Start(std::chrono::milliseconds period, std::function<api::Status()> duty) {
   if (thread_.joinable()) return;
   thread_ = std::thread([this, period, duty = std::move(duty)] {
     std::unique_lock lock(mu_);
     while (!cv_.wait_for(lock, period, [&] { return stop_; })) {
       lock.unlock();
-      const bool alive = duty();
+      const bool alive = duty().ok();
       lock.lock();
       if (!alive) return;
     }

@@ -12,6 +12,8 @@
 #include <mutex>
 #include <thread>
 
+#include "api/status.h"
+
 namespace fesbench::server {
 
 class DeviceKeeper {
@@ -21,9 +23,10 @@ class DeviceKeeper {
   DeviceKeeper& operator=(const DeviceKeeper&) = delete;
   ~DeviceKeeper() { Stop(); }
 
-  /// Calls `duty` every `period` on a thread of its own until it returns
-  /// false (a fault: nothing more to keep) or Stop. Nothing if running.
-  void Start(std::chrono::milliseconds period, std::function<bool()> duty);
+  /// Calls `duty` every `period` on a thread of its own until it returns a
+  /// Status that is not OK (a fault, which the driver has latched: nothing
+  /// more to keep) or Stop. Nothing if running.
+  void Start(std::chrono::milliseconds period, std::function<api::Status()> duty);
   /// Ends the thread and waits for it; the duty is not called again.
   void Stop();
 

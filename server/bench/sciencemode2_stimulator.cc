@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace fesbench::server::sciencemode2 {
 
@@ -32,67 +33,76 @@ void Stimulator::EmergencyStop() {
   if (!faulted()) WriteStopLocked();
 }
 
-void Stimulator::Fault(const std::string& reason) {
+api::Status Stimulator::Fault(api::Status reason) {
   {
     std::lock_guard lock(write_mu_);
     if (!faulted()) WriteStopLocked();
   }
   std::lock_guard lock(fault_mu_);
-  if (fault_.empty()) fault_ = reason;
+  if (fault_.ok()) fault_ = std::move(reason);
   faulted_.store(true);
+  return fault_;
 }
 
-std::string Stimulator::fault() const {
+api::Status Stimulator::fault() const {
   std::lock_guard lock(fault_mu_);
   return fault_;
 }
 
-bool Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
-  if (faulted()) return false;
-  std::string why;
+namespace {
+// A command not sent because an e-stop is latched: not a fault.
+api::Status EStopped() {
+  return api::Status::Conflict("stimulator e-stopped: nothing is sent until the e-stop is cleared");
+}
+}  // namespace
+
+api::Status Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
+  if (faulted()) return fault();
+  api::Status written;
   {
     std::lock_guard lock(write_mu_);
-    if (stimulating && estop_.load()) return false;
+    if (stimulating && estop_.load()) return EStopped();
     // Handed to the port now: the device cannot have it earlier.
     const auto handed = std::chrono::steady_clock::now();
-    why = port_.Write(wire);
+    written = port_.Write(wire);
     if (stimulating) last_command_written_ = handed;
   }
-  if (!why.empty()) {
-    Fault("stimulator lost: " + why);
-    return false;
+  if (!written.ok()) {
+    return Fault(api::Status::Unavailable("stimulator lost: " + written.message()));
   }
-  return true;
+  return api::Status::Ok();
 }
 
-bool Stimulator::HandleSpontaneous(const Reply& reply) {
+api::Status Stimulator::HandleSpontaneous(const Reply& reply) {
   if (reply.command == Command::kStimulationError) {
-    Fault("stimulator reported: " + StimulationErrorName(reply.result));
-    return false;
+    return Fault(
+        api::Status::Unavailable("stimulator reported: " + StimulationErrorName(reply.result)));
   }
   if (reply.command == Command::kInit && connected_.load()) {
     // §3.5: a device sends Init after it starts; once connected, it restarted.
-    Fault("stimulator reset: the device sent Init again (it restarted and stopped stimulating)");
-    return false;
+    return Fault(api::Status::Unavailable(
+        "stimulator reset: the device sent Init again (it restarted and stopped stimulating)"));
   }
-  return true;  // UnknownCommand for another packet, acks of an e-stop's stop: ignored
+  return api::Status::Ok();  // UnknownCommand for another packet, acks of an e-stop's stop: ignored
 }
 
-bool Stimulator::AwaitAck(Command command, Reply* ack) {
+api::Status Stimulator::AwaitAck(Command command, Reply* ack) {
   const auto deadline = std::chrono::steady_clock::now() + config_.reply_timeout;
   while (true) {
     while (const auto frame = reader_.Pop()) {
       const DecodeResult r = DecodePacket(*frame);
       if (!r.packet) {
-        Fault("stimulator reply garbled: " + DecodeErrorName(*r.error));
-        return false;
+        return Fault(
+            api::Status::Unavailable("stimulator reply garbled: " + DecodeErrorName(*r.error)));
       }
       const auto reply = ParseReply(*r.packet);
       if (!reply) continue;
-      if (!HandleSpontaneous(*reply)) return false;
+      if (api::Status spontaneous = HandleSpontaneous(*reply); !spontaneous.ok()) {
+        return spontaneous;
+      }
       if (reply->command == Command::kUnknownCommand && reply->packet_number == last_sent_number_) {
-        Fault("stimulator did not know command " + std::to_string(static_cast<int>(reply->result)));
-        return false;
+        return Fault(api::Status::Unavailable("stimulator did not know command " +
+                                              std::to_string(static_cast<int>(reply->result))));
       }
       if (reply->command != command) continue;
       // The ack of an e-stop's StopChannelListMode, sent from another thread.
@@ -101,34 +111,30 @@ bool Stimulator::AwaitAck(Command command, Reply* ack) {
         continue;
       }
       if (reply->packet_number != last_sent_number_) {
-        Fault("stimulator acknowledged packet " + std::to_string(reply->packet_number) +
-              ", expected " + std::to_string(last_sent_number_));
-        return false;
+        return Fault(api::Status::Unavailable("stimulator acknowledged packet " +
+                                              std::to_string(reply->packet_number) + ", expected " +
+                                              std::to_string(last_sent_number_)));
       }
       if (reply->result != 0) {
-        Fault("stimulator refused: " + ResultName(reply->result));
-        return false;
+        return Fault(api::Status::Unavailable("stimulator refused: " + ResultName(reply->result)));
       }
       if (ack != nullptr) *ack = *reply;
-      return true;
+      return api::Status::Ok();
     }
-    if (const std::string why = reader_.ReadReply(deadline, config_.reply_timeout); !why.empty()) {
-      Fault(why);
-      return false;
+    if (api::Status read = reader_.ReadReply(deadline, config_.reply_timeout); !read.ok()) {
+      return Fault(std::move(read));
     }
   }
 }
 
-bool Stimulator::Connect() {
+api::Status Stimulator::Connect() {
   std::lock_guard io(io_mu_);
   if (config_.channel < 1 || config_.channel > kChannelCount) {
-    Fault("channel must be 1–8, got " + std::to_string(config_.channel));
-    return false;
+    return Fault(api::Status::InvalidArgument("channel must be 1–8, got " +
+                                              std::to_string(config_.channel)));
   }
-  const std::string why = port_.Open(config_.port_path, ScienceMode2Settings());
-  if (!why.empty()) {
-    Fault(why);
-    return false;
+  if (api::Status opened = port_.Open(config_.port_path, ScienceMode2Settings()); !opened.ok()) {
+    return Fault(std::move(opened));
   }
   // §3.5: the device sends Init every InitRepetitionTime; answer InitAck 0.
   const auto deadline = std::chrono::steady_clock::now() + config_.connect_timeout;
@@ -138,12 +144,11 @@ bool Stimulator::Connect() {
       case FrameReader::ReadOutcome::kRead:
         break;
       case FrameReader::ReadOutcome::kTimedOut:
-        Fault("stimulator timeout: no Init from the device within " +
-              std::to_string(config_.connect_timeout.count()) + " ms (is ScienceMode2 selected?)");
-        return false;
+        return Fault(api::Status::Unavailable(
+            "stimulator timeout: no Init from the device within " +
+            std::to_string(config_.connect_timeout.count()) + " ms (is ScienceMode2 selected?)"));
       case FrameReader::ReadOutcome::kHungUp:
-        Fault(kStimulatorLost);
-        return false;
+        return Fault(api::Status::Unavailable(kStimulatorLost));
     }
     while (const auto frame = reader_.Pop()) {
       const DecodeResult r = DecodePacket(*frame);
@@ -151,18 +156,21 @@ bool Stimulator::Connect() {
       const auto reply = ParseReply(*r.packet);
       if (reply && reply->command == Command::kInit) {
         got_init = true;
-        if (!Send(BuildInitAck(reply->packet_number, 0), /*stimulating=*/false)) return false;
+        if (api::Status sent = Send(BuildInitAck(reply->packet_number, 0), /*stimulating=*/false);
+            !sent.ok()) {
+          return sent;
+        }
       }
     }
   }
   connected_.store(true);
-  if (!InitChannelList()) return false;
+  if (api::Status init = InitChannelList(); !init.ok()) return init;
   last_status_ = std::chrono::steady_clock::now();
   keeper_.Start(std::chrono::milliseconds(50), [this] { return KeepAlive(); });
-  return true;
+  return api::Status::Ok();
 }
 
-bool Stimulator::InitChannelList() {
+api::Status Stimulator::InitChannelList() {
   ChannelListInit init;
   init.active_channels = static_cast<std::uint8_t>(1u << (config_.channel - 1));
   init.main_interval_ms = 1000.0 / config_.pulse_rate_hz;
@@ -170,112 +178,122 @@ bool Stimulator::InitChannelList() {
     const std::uint8_t number = NextPacketNumber();
     const auto wire = BuildInitChannelListMode(number, init);
     last_sent_number_ = number;
-    if (!Send(wire, /*stimulating=*/true)) return false;
+    if (api::Status sent = Send(wire, /*stimulating=*/true); !sent.ok()) return sent;
   } catch (const std::invalid_argument& e) {
-    Fault(std::string("stimulator configuration: ") + e.what());
-    return false;
+    return Fault(
+        api::Status::InvalidArgument(std::string("stimulator configuration: ") + e.what()));
   }
-  if (!AwaitAck(Command::kInitChannelListModeAck)) return false;
+  if (api::Status acked = AwaitAck(Command::kInitChannelListModeAck); !acked.ok()) return acked;
   mode_ready_.store(!estop_.load());
-  return true;
+  return api::Status::Ok();
 }
 
-bool Stimulator::SetAmplitude(double stim_ma) {
+api::Status Stimulator::SetAmplitude(double stim_ma) {
   std::lock_guard io(io_mu_);
-  if (faulted()) return false;
-  if (estopped()) return stim_ma == 0.0;
-  if (!CheckLimit(stim_ma)) return false;
-  if (!mode_ready_.load() && !InitChannelList()) return false;
+  if (faulted()) return fault();
+  if (estopped()) return stim_ma == 0.0 ? api::Status::Ok() : EStopped();
+  if (api::Status within = CheckLimit(stim_ma); !within.ok()) return within;
+  if (!mode_ready_.load()) {
+    if (api::Status init = InitChannelList(); !init.ok()) return init;
+  }
   // Down to the 1 mA step (§4.3): never more than commanded.
   const int current = static_cast<int>(std::floor(stim_ma + 1e-9));
   const ChannelPulse pulse{0, config_.pulse_width_us, current};
   last_sent_number_ = NextPacketNumber();
-  if (!Send(BuildStartChannelListMode(last_sent_number_, std::span(&pulse, 1)),
-            /*stimulating=*/true)) {
-    return false;
+  if (api::Status sent = Send(BuildStartChannelListMode(last_sent_number_, std::span(&pulse, 1)),
+                              /*stimulating=*/true);
+      !sent.ok()) {
+    return sent;
   }
-  if (!AwaitAck(Command::kStartChannelListModeAck)) return false;
+  if (api::Status acked = AwaitAck(Command::kStartChannelListModeAck); !acked.ok()) return acked;
   std::lock_guard lock(write_mu_);
-  if (estop_.load()) return false;  // an e-stop's StopChannelListMode followed this start
+  if (estop_.load()) return EStopped();  // an e-stop's StopChannelListMode followed this start
   stimulating_.store(true);
   acknowledged_ma_.store(pulse.current_ma);
-  return true;
+  return api::Status::Ok();
 }
 
-bool Stimulator::CheckLimit(double stim_ma) {
+api::Status Stimulator::CheckLimit(double stim_ma) {
   const double limit = std::min<double>(kMaxCurrentMa, session_max_ma_.load());
   if (!(stim_ma >= 0.0) || stim_ma > limit) {
     // Second line: the safety layer should have clamped; refuse and stop.
-    Fault("stimulator refused " + std::to_string(stim_ma) + " mA: outside 0–" +
-          std::to_string(limit) + " mA");
-    return false;
+    return Fault(api::Status::FailedPrecondition("stimulator refused " + std::to_string(stim_ma) +
+                                                 " mA: outside 0–" + std::to_string(limit) +
+                                                 " mA"));
   }
-  return true;
+  return api::Status::Ok();
 }
 
-std::optional<double> Stimulator::SinglePulse(double stim_ma) {
+api::Result<double> Stimulator::SinglePulse(double stim_ma) {
   std::lock_guard io(io_mu_);
-  if (faulted() || estopped()) return std::nullopt;
-  if (!CheckLimit(stim_ma)) return std::nullopt;
+  if (faulted()) return fault();
+  if (estopped()) return EStopped();
+  if (api::Status within = CheckLimit(stim_ma); !within.ok()) return within;
   if (stimulating_.load() || mode_ready_.load()) {
     last_sent_number_ = NextPacketNumber();
-    if (!Send(BuildStopChannelListMode(last_sent_number_), /*stimulating=*/false) ||
-        !AwaitAck(Command::kStopChannelListModeAck)) {
-      return std::nullopt;
+    if (api::Status sent = Send(BuildStopChannelListMode(last_sent_number_), /*stimulating=*/false);
+        !sent.ok()) {
+      return sent;
     }
+    if (api::Status acked = AwaitAck(Command::kStopChannelListModeAck); !acked.ok()) return acked;
     stimulating_.store(false);
     mode_ready_.store(false);
     acknowledged_ma_.store(0.0);
   }
   const int current = static_cast<int>(std::floor(stim_ma + 1e-9));
   last_sent_number_ = NextPacketNumber();
-  if (!Send(BuildSinglePulse(last_sent_number_, config_.channel, config_.pulse_width_us, current),
-            /*stimulating=*/true)) {
-    return std::nullopt;
+  if (api::Status sent = Send(
+          BuildSinglePulse(last_sent_number_, config_.channel, config_.pulse_width_us, current),
+          /*stimulating=*/true);
+      !sent.ok()) {
+    return sent;
   }
-  if (!AwaitAck(Command::kSinglePulseAck)) return std::nullopt;
-  return current;
+  if (api::Status acked = AwaitAck(Command::kSinglePulseAck); !acked.ok()) return acked;
+  return static_cast<double>(current);
 }
 
-bool Stimulator::Stop() {
+api::Status Stimulator::Stop() {
   std::lock_guard io(io_mu_);
-  if (faulted()) return false;
+  if (faulted()) return fault();
   last_sent_number_ = NextPacketNumber();
-  if (!Send(BuildStopChannelListMode(last_sent_number_), /*stimulating=*/false)) return false;
-  if (!AwaitAck(Command::kStopChannelListModeAck)) return false;
+  if (api::Status sent = Send(BuildStopChannelListMode(last_sent_number_), /*stimulating=*/false);
+      !sent.ok()) {
+    return sent;
+  }
+  if (api::Status acked = AwaitAck(Command::kStopChannelListModeAck); !acked.ok()) return acked;
   stimulating_.store(false);
   mode_ready_.store(false);
   acknowledged_ma_.store(0.0);
-  return true;
+  return api::Status::Ok();
 }
 
-bool Stimulator::KeepAlive() {
+api::Status Stimulator::KeepAlive() {
   std::lock_guard io(io_mu_);
   return KeepAliveLocked();
 }
 
-bool Stimulator::KeepAliveLocked() {
-  if (faulted()) return false;
+api::Status Stimulator::KeepAliveLocked() {
+  if (faulted()) return fault();
   if (reader_.ReadAvailable() == FrameReader::ReadOutcome::kHungUp) {
-    Fault(kStimulatorLost);
-    return false;
+    return Fault(api::Status::Unavailable(kStimulatorLost));
   }
   while (const auto frame = reader_.Pop()) {
     const DecodeResult r = DecodePacket(*frame);
     if (!r.packet) {
-      Fault("stimulator reply garbled: " + DecodeErrorName(*r.error));
-      return false;
+      return Fault(
+          api::Status::Unavailable("stimulator reply garbled: " + DecodeErrorName(*r.error)));
     }
     const auto reply = ParseReply(*r.packet);
-    if (reply && !HandleSpontaneous(*reply)) return false;
+    if (!reply) continue;
+    if (api::Status spontaneous = HandleSpontaneous(*reply); !spontaneous.ok()) return spontaneous;
   }
   if (std::chrono::steady_clock::now() - last_status_ >= config_.status_interval) {
     return CheckModeLocked();
   }
-  return true;
+  return api::Status::Ok();
 }
 
-bool Stimulator::CheckModeLocked() {
+api::Status Stimulator::CheckModeLocked() {
   // The mode the driver set, read before asking: a command of this thread
   // cannot change it meanwhile (io_mu_ is held), an e-stop can.
   const StimulationMode expected = stimulating_.load()   ? StimulationMode::kChannelListRun
@@ -283,22 +301,27 @@ bool Stimulator::CheckModeLocked() {
                                                         : StimulationMode::kStart;
   last_status_ = std::chrono::steady_clock::now();
   last_sent_number_ = NextPacketNumber();
-  if (!Send(BuildGetStimulationMode(last_sent_number_), /*stimulating=*/false)) return false;
+  if (api::Status sent = Send(BuildGetStimulationMode(last_sent_number_), /*stimulating=*/false);
+      !sent.ok()) {
+    return sent;
+  }
   Reply ack;
-  if (!AwaitAck(Command::kGetStimulationModeAck, &ack)) return false;
+  if (api::Status acked = AwaitAck(Command::kGetStimulationModeAck, &ack); !acked.ok()) {
+    return acked;
+  }
   // An e-stop on another thread stops the device (start mode) at any moment.
-  if (estop_.load()) return true;
+  if (estop_.load()) return api::Status::Ok();
   const StimulationMode now = stimulating_.load()   ? StimulationMode::kChannelListRun
                               : mode_ready_.load() ? StimulationMode::kChannelListInit
                                                    : StimulationMode::kStart;
   if (ack.extra != static_cast<std::uint8_t>(expected) &&
       ack.extra != static_cast<std::uint8_t>(now)) {
-    Fault("stimulator in " + StimulationModeName(ack.extra) + " where the driver set " +
-          StimulationModeName(static_cast<std::uint8_t>(expected)) +
-          ": the device stopped or reset on its own");
-    return false;
+    return Fault(api::Status::Unavailable("stimulator in " + StimulationModeName(ack.extra) +
+                                          " where the driver set " +
+                                          StimulationModeName(static_cast<std::uint8_t>(expected)) +
+                                          ": the device stopped or reset on its own"));
   }
-  return true;
+  return api::Status::Ok();
 }
 
 }  // namespace fesbench::server::sciencemode2

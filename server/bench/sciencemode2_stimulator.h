@@ -31,6 +31,7 @@
 #include <mutex>
 #include <string>
 
+#include "api/status.h"
 #include "server/bench/device_keeper.h"
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/sciencemode_frames.h"
@@ -64,9 +65,9 @@ class Stimulator final : public StimulatorDevice {
   ~Stimulator() override;  ///< stops stimulation if running.
 
   /// Opens the port, waits for the device's Init, answers InitAck, sets
-  /// channel-list mode, and starts the keeper thread. Returns false (and
-  /// fault() says why) on failure.
-  bool Connect();
+  /// channel-list mode, and starts the keeper thread. Returns the fault on
+  /// failure (fault() keeps it).
+  api::Status Connect();
 
   std::string_view name() const override { return "sciencemode2"; }
   double max_current_ma() const override { return kMaxCurrentMa; }
@@ -78,10 +79,10 @@ class Stimulator final : public StimulatorDevice {
   /// channel-list mode again first after a stop. 0 mA keeps channel-list
   /// mode with zero current. Refused, as a fault, if above the device or
   /// session limit; while e-stopped only 0 mA is accepted (nothing sent).
-  bool SetAmplitude(double stim_ma) override;
+  api::Status SetAmplitude(double stim_ma) override;
   /// Stops channel-list mode if it is running (and waits for the ack), then
   /// SinglePulse (§4.4) and waits for its ack. Limits as SetAmplitude.
-  std::optional<double> SinglePulse(double stim_ma) override;
+  api::Result<double> SinglePulse(double stim_ma) override;
   double delivered_ma() const override { return acknowledged_ma_.load(); }
   std::chrono::steady_clock::time_point last_command_written() const override {
     return last_command_written_;
@@ -90,21 +91,22 @@ class Stimulator final : public StimulatorDevice {
     return DevicePulseRateHz(config_.pulse_rate_hz);
   }
   /// StopChannelListMode and wait for its ack.
-  bool Stop();
+  api::Status Stop();
   /// Reads any spontaneous packet (StimulationError, a repeated Init) and,
   /// once per status_interval, asks the device its mode and checks the
   /// answer. Call every control period (the keeper thread calls it too).
-  bool KeepAlive();
-  bool Service() override { return KeepAlive(); }
+  api::Status KeepAlive();
+  api::Status Service() override { return KeepAlive(); }
   /// Sends StopChannelListMode at once (no wait for its ack) and latches.
   void EmergencyStop() override;
   void ClearEStop() override { estop_.store(false); }
   bool estopped() const override { return estop_.load(); }
-  /// Stops the device best-effort and latches `reason`. Thread-safe.
-  void Fault(const std::string& reason);
+  /// Stops the device best-effort and latches `reason` (the first reason
+  /// stays); returns the latched fault. Thread-safe.
+  api::Status Fault(api::Status reason);
 
   bool faulted() const { return faulted_.load(); }
-  std::string fault() const override;
+  api::Status fault() const override;
   /// The port's line settings as the terminal reports them now (tcgetattr).
   SerialSettings port_settings() const { return port_.settings(); }
   /// The amplitude the device last acknowledged, mA (0 after a stop).
@@ -114,21 +116,22 @@ class Stimulator final : public StimulatorDevice {
   /// Writes one packet. A stimulating packet (channel-list init or start)
   /// is not written once an e-stop has latched: the check and the write
   /// hold the same lock as EmergencyStop's StopChannelListMode.
-  bool Send(const std::vector<std::uint8_t>& wire, bool stimulating);
+  api::Status Send(const std::vector<std::uint8_t>& wire, bool stimulating);
   /// Writes StopChannelListMode without waiting; the caller holds write_mu_.
   void WriteStopLocked();
   /// InitChannelListMode (§4.3) and wait for its ack.
-  bool InitChannelList();
+  api::Status InitChannelList();
   /// Waits for `command`'s ack with the packet number just sent; the ack in
   /// `ack` if given.
-  bool AwaitAck(Command command, Reply* ack = nullptr);
+  api::Status AwaitAck(Command command, Reply* ack = nullptr);
   /// GetStimulationMode and its answer against the mode the driver set.
-  bool CheckModeLocked();
-  bool HandleSpontaneous(const Reply& reply);
-  bool KeepAliveLocked();
-  /// The limit check of SetAmplitude and SinglePulse: false (a fault) if
-  /// stim_ma is outside 0 – min(device, session maximum).
-  bool CheckLimit(double stim_ma);
+  api::Status CheckModeLocked();
+  api::Status HandleSpontaneous(const Reply& reply);
+  api::Status KeepAliveLocked();
+  /// The limit check of SetAmplitude and SinglePulse: a fault
+  /// (kFailedPrecondition) if stim_ma is outside 0 – min(device, session
+  /// maximum).
+  api::Status CheckLimit(double stim_ma);
   std::uint8_t NextPacketNumber() { return packet_number_.fetch_add(1); }
 
   StimulatorConfig config_;
@@ -148,7 +151,7 @@ class Stimulator final : public StimulatorDevice {
   std::atomic<double> session_max_ma_;  // from config, then SetSessionLimit
   std::atomic<bool> faulted_{false};
   mutable std::mutex fault_mu_;  // guards fault_
-  std::string fault_;
+  api::Status fault_;
   DeviceKeeper keeper_;  // last: stopped first
 };
 

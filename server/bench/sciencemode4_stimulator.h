@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "api/status.h"
 #include "server/bench/device_keeper.h"
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/sciencemode4_packet.h"
@@ -52,8 +53,9 @@ class Stimulator final : public StimulatorDevice {
   explicit Stimulator(StimulatorConfig config);
   ~Stimulator() override;  ///< Ll_Stop if connected.
 
-  /// Opens the port and sends Ll_Init; false (fault() says why) on failure.
-  bool Connect();
+  /// Opens the port and sends Ll_Init; the fault on failure (fault() keeps
+  /// it).
+  api::Status Connect();
 
   std::string_view name() const override { return "sciencemode4"; }
   double max_current_ma() const override { return kMaxCurrentMa; }
@@ -62,36 +64,38 @@ class Stimulator final : public StimulatorDevice {
   void SetSessionLimit(double max_ma) override { session_max_ma_.store(max_ma); }
   /// Checks the limit and keeps the amplitude (rounded down to the step)
   /// for the host's pulses; sends nothing (the device has no pulse train).
-  bool SetAmplitude(double stim_ma) override;
+  api::Status SetAmplitude(double stim_ma) override;
   /// One biphasic pulse now (Ll_Channel_Config) and its ack.
-  std::optional<double> SinglePulse(double stim_ma) override;
+  api::Result<double> SinglePulse(double stim_ma) override;
   double delivered_ma() const override { return amplitude_ma_.load(); }
   std::chrono::steady_clock::time_point last_command_written() const override {
     return last_command_written_;
   }
   /// Reads what the device sent on its own and, once per status_interval,
-  /// checks its status; false on a fault.
-  bool Service() override;
+  /// checks its status; the fault on a fault.
+  api::Status Service() override;
   /// Sends Ll_Stop at once (no wait for its ack) and latches: no pulse is
   /// sent until ClearEStop, which initialises low-level mode again.
   void EmergencyStop() override;
   void ClearEStop() override { estop_.store(false); }
   bool estopped() const override { return estop_.load(); }
-  std::string fault() const override;
+  api::Status fault() const override;
   /// The port's line settings as the terminal reports them now (tcgetattr).
   SerialSettings port_settings() const { return port_.settings(); }
-  void Fault(const std::string& reason);
+  /// Stops the device best-effort and latches `reason` (the first reason
+  /// stays); returns the latched fault. Thread-safe.
+  api::Status Fault(api::Status reason);
   bool faulted() const { return faulted_.load(); }
 
  private:
-  bool Send(const std::vector<std::uint8_t>& wire, bool stimulating);
+  api::Status Send(const std::vector<std::uint8_t>& wire, bool stimulating);
   /// Waits for `ack` with the packet number just sent; its result must be 0.
   /// The ack's data in `data` if given.
-  bool AwaitAck(Command ack, std::vector<std::uint8_t>* data = nullptr);
+  api::Status AwaitAck(Command ack, std::vector<std::uint8_t>* data = nullptr);
   /// Get_Stim_Status and its answer against the status the driver set.
-  bool CheckStatusLocked();
-  bool CheckLimit(double stim_ma);
-  bool InitLowLevel();
+  api::Status CheckStatusLocked();
+  api::Status CheckLimit(double stim_ma);
+  api::Status InitLowLevel();
   std::uint8_t NextPacketNumber() { return packet_number_.fetch_add(1) & 0x3F; }
 
   StimulatorConfig config_;
@@ -107,7 +111,7 @@ class Stimulator final : public StimulatorDevice {
   std::atomic<double> session_max_ma_;
   std::atomic<bool> faulted_{false};
   mutable std::mutex fault_mu_;  // guards fault_
-  std::string fault_;
+  api::Status fault_;
   std::chrono::steady_clock::time_point last_status_{};  // under io_mu_
   std::chrono::steady_clock::time_point last_command_written_{};  // written by the control thread
   DeviceKeeper keeper_;  // last: stopped first

@@ -19,17 +19,18 @@ FrameReader::ReadOutcome FrameReader::ReadBefore(std::chrono::steady_clock::time
   return ReadFor(left);
 }
 
-std::string FrameReader::ReadReply(std::chrono::steady_clock::time_point deadline,
+api::Status FrameReader::ReadReply(std::chrono::steady_clock::time_point deadline,
                                    std::chrono::milliseconds reply_timeout) {
   switch (ReadBefore(deadline)) {
     case ReadOutcome::kRead:
-      return "";
+      return api::Status::Ok();
     case ReadOutcome::kTimedOut:
-      return "stimulator timeout: no reply within " + std::to_string(reply_timeout.count()) + " ms";
+      return api::Status::Unavailable("stimulator timeout: no reply within " +
+                                      std::to_string(reply_timeout.count()) + " ms");
     case ReadOutcome::kHungUp:
-      return kStimulatorLost;
+      return api::Status::Unavailable(kStimulatorLost);
   }
-  return kStimulatorLost;
+  return api::Status::Unavailable(kStimulatorLost);
 }
 
 FrameReader::ReadOutcome FrameReader::ReadAvailable() {

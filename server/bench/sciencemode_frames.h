@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "api/status.h"
 #include "server/bench/sciencemode2_packet.h"
 #include "server/bench/serial_port.h"
 
@@ -43,10 +44,10 @@ class FrameReader {
   /// passed), split into frames.
   ReadOutcome ReadBefore(std::chrono::steady_clock::time_point deadline);
 
-  /// ReadBefore for a reply due within `reply_timeout` of the request: ""
-  /// once the port answered, else the fault the driver reports
-  /// ("stimulator timeout: no reply within 150 ms", kStimulatorLost).
-  std::string ReadReply(std::chrono::steady_clock::time_point deadline,
+  /// ReadBefore for a reply due within `reply_timeout` of the request: OK
+  /// once the port answered, else kUnavailable with the fault the driver
+  /// reports ("stimulator timeout: no reply within 150 ms", kStimulatorLost).
+  api::Status ReadReply(std::chrono::steady_clock::time_point deadline,
                         std::chrono::milliseconds reply_timeout);
 
   /// One read of what the port already holds, without waiting: kRead or

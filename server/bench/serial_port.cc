@@ -141,24 +141,29 @@ void SerialPort::Close() {
   fd_ = -1;
 }
 
-std::string SerialPort::Open(const std::string& path, const SerialSettings& settings) {
+api::Status SerialPort::Open(const std::string& path, const SerialSettings& settings) {
   Close();
   const std::string where = "serial port " + path;
   const speed_t speed = SpeedCode(settings.baud);
-  if (speed == B0) return where + ": unsupported baud rate " + std::to_string(settings.baud);
+  if (speed == B0) {
+    return api::Status::InvalidArgument(where + ": unsupported baud rate " +
+                                        std::to_string(settings.baud));
+  }
   if (settings.stop_bits != 1 && settings.stop_bits != 2) {
-    return where + ": stop bits must be 1 or 2, got " + std::to_string(settings.stop_bits);
+    return api::Status::InvalidArgument(where + ": stop bits must be 1 or 2, got " +
+                                        std::to_string(settings.stop_bits));
   }
   // O_NONBLOCK: the open does not wait for a carrier a port's last user may
   // have left it expecting (CLOCAL off); cleared once the port is set.
   const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) {
-    return where + ": " + std::strerror(errno) +
-           (errno == EBUSY ? " (held exclusively by " + Holder(path) + ")" : "");
+    return api::Status::Unavailable(
+        where + ": " + std::strerror(errno) +
+        (errno == EBUSY ? " (held exclusively by " + Holder(path) + ")" : ""));
   }
   auto fail = [&](const std::string& why) {
     ::close(fd);
-    return where + ": " + why;
+    return api::Status::Unavailable(where + ": " + why);
   };
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
     return fail(errno == EWOULDBLOCK ? "in use by " + Holder(path) + " (one stimulator, one server)"
@@ -192,21 +197,21 @@ std::string SerialPort::Open(const std::string& path, const SerialSettings& sett
   ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
   ::tcflush(fd, TCIOFLUSH);
   fd_ = fd;
-  return "";
+  return api::Status::Ok();
 }
 
-std::string SerialPort::Write(std::span<const std::uint8_t> bytes) {
-  if (fd_ < 0) return "serial port not open";
+api::Status SerialPort::Write(std::span<const std::uint8_t> bytes) {
+  if (fd_ < 0) return api::Status::Unavailable("serial port not open");
   std::size_t done = 0;
   while (done < bytes.size()) {
     const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
     if (n < 0) {
       if (errno == EINTR) continue;
-      return std::string("serial write failed: ") + std::strerror(errno);
+      return api::Status::Unavailable(std::string("serial write failed: ") + std::strerror(errno));
     }
     done += static_cast<std::size_t>(n);
   }
-  return "";
+  return api::Status::Ok();
 }
 
 int SerialPort::Read(std::span<std::uint8_t> buffer, std::chrono::milliseconds timeout) {

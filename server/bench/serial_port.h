@@ -18,6 +18,8 @@
 #include <span>
 #include <string>
 
+#include "api/status.h"
+
 namespace fesbench::server {
 
 /// A device's line settings, 8 data bits always.
@@ -49,17 +51,18 @@ class SerialPort {
   ~SerialPort();
 
   /// Opens `path`, takes it exclusively, sets `settings` and reads them
-  /// back. Returns "" on success, else a sentence naming the path and the
-  /// reason (errno text, the process holding the port, or the setting the
-  /// port did not keep).
-  std::string Open(const std::string& path, const SerialSettings& settings);
+  /// back. OK on success, else a Status whose message is a sentence naming
+  /// the path and the reason: kInvalidArgument for settings no port can
+  /// have (baud rate, stop bits), kUnavailable for the rest (errno text,
+  /// the process holding the port, or the setting the port did not keep).
+  api::Status Open(const std::string& path, const SerialSettings& settings);
   bool is_open() const { return fd_ >= 0; }
   void Close();
   /// The settings the terminal has now (ReadSettings); all zero if closed.
   SerialSettings settings() const;
 
-  /// Writes all bytes. Returns "" or the reason it could not.
-  std::string Write(std::span<const std::uint8_t> bytes);
+  /// Writes all bytes. OK, or kUnavailable naming the reason it could not.
+  api::Status Write(std::span<const std::uint8_t> bytes);
 
   /// Reads what is available, waiting at most `timeout`. Returns the count
   /// read (0 on timeout), or −1 if the port is gone (hang-up, EOF or error).

@@ -8,11 +8,20 @@
 /// Threading: one control thread calls SetAmplitude, Service and ClearEStop;
 /// EmergencyStop, estopped and fault may be called from any thread, and
 /// EmergencyStop acts at once without waiting for the device's reply.
+///
+/// Errors (docs/ARCHITECTURE.md, "Errors"): every command returns an
+/// api::Status or api::Result. A fault is kUnavailable (the device lost,
+/// garbled, timed out or refused), kFailedPrecondition (an amplitude above
+/// a limit) or kInvalidArgument (a configuration the device cannot take),
+/// and is the latched fault() itself; kConflict means the command was not
+/// sent because an e-stop is latched (not a fault).
 
 #include <chrono>
 #include <optional>
 #include <string>
 #include <string_view>
+
+#include "api/status.h"
 
 namespace fesbench::server {
 
@@ -38,14 +47,15 @@ class StimulatorDevice {
   /// above it. Thread-safe.
   virtual void SetSessionLimit(double max_ma) = 0;
   /// Sets the current of every pulse from the device's next pulse on and
-  /// waits for the device to accept it. false on a fault (fault() says why;
-  /// the device has been told to stop) or while e-stopped (nothing is sent).
-  virtual bool SetAmplitude(double stim_ma) = 0;
+  /// waits for the device to accept it. The fault on a fault (the device
+  /// has been told to stop), kConflict while e-stopped (nothing is sent; 0 mA
+  /// is accepted).
+  virtual api::Status SetAmplitude(double stim_ma) = 0;
   /// One pulse now, off the pulse grid (docs/MODEL.md's single pulse), at
   /// stim_ma rounded down to the step; leaves any running pulse train
   /// stopped (the next SetAmplitude starts it again). Returns the amplitude
-  /// delivered, or nullopt on a fault or while e-stopped.
-  virtual std::optional<double> SinglePulse(double stim_ma) = 0;
+  /// delivered, or the fault, or kConflict while e-stopped.
+  virtual api::Result<double> SinglePulse(double stim_ma) = 0;
   /// The amplitude the device last accepted, mA (0 after a stop).
   virtual double delivered_ma() const = 0;
   /// When the last command that sets stimulation (an amplitude, a single
@@ -57,17 +67,17 @@ class StimulatorDevice {
   /// device, whose pulses fire when the host sends them.
   virtual std::optional<double> own_pulse_rate_hz() const { return std::nullopt; }
   /// The device's periodic duties (its watchdog, messages it sends on its
-  /// own); call every control period. false on a fault.
-  virtual bool Service() = 0;
+  /// own); call every control period. The fault on a fault.
+  virtual api::Status Service() = 0;
 
   /// Stops stimulation now and latches until ClearEStop.
   virtual void EmergencyStop() = 0;
   /// Ends an EmergencyStop latch (not a fault).
   virtual void ClearEStop() = 0;
   virtual bool estopped() const = 0;
-  /// Why the device failed (lost, garbled, timed out, refused); empty if it
-  /// has not. A fault stays latched until the device is reconnected.
-  virtual std::string fault() const = 0;
+  /// Why the device failed (lost, garbled, timed out, refused); OK if it has
+  /// not. A fault stays latched until the device is reconnected.
+  virtual api::Status fault() const = 0;
 };
 
 }  // namespace fesbench::server

@@ -6,6 +6,7 @@
 #include <string>
 #include <string_view>
 
+#include "api/model_call.h"
 #include "api/parameter_set_json.h"
 #include "model/contraction.h"
 #include "model/joint_model.h"
@@ -149,11 +150,14 @@ json VirtualSubjectToJson(const VirtualSubject& s) {
 }
 
 api::Status ValidateVirtualSubject(const VirtualSubject& s) {
-  try {
-    model::ValidateContraction(s.truth.contraction);
-    (void)model::JointModel::FromParameters(s.truth);
-  } catch (const std::invalid_argument& e) {
-    return api::Status::InvalidArgument(e.what(), "truth");
+  if (api::Status valid = api::CallModel(
+          [&] {
+            model::ValidateContraction(s.truth.contraction);
+            (void)model::JointModel::FromParameters(s.truth);
+          },
+          "truth");
+      !valid.ok()) {
+    return valid;
   }
   if (s.truth.irc.empty()) return api::Status::InvalidArgument("must not be empty", "truth.irc");
   if (api::Status st = CheckLevels(s); !st.ok()) return st;

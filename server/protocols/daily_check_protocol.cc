@@ -4,6 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "api/model_call.h"
 #include "api/trial.h"
 #include "model/daily_check.h"
 #include "server/protocols/model_gate.h"
@@ -56,15 +57,16 @@ api::Result<DailyCheckOutcome> EvaluateDailyCheck(const DailyCheckSettings& sett
   if (ramp == nullptr || swing == nullptr) {
     return api::Status::FailedPrecondition("daily_check: a trial is missing");
   }
-  model::DailyCheck check;
-  try {
-    check = model::CompareDaily(
-        *subject.parameter_set, api::ToTrialColumns(*ramp), settings.lock_angle_deg,
-        subject.history, subject.base_ramp_trial ? &*subject.base_ramp_trial : nullptr);
-  } catch (const std::invalid_argument& e) {
-    return api::Status::FailedPrecondition(std::string("daily_check: today's ramp trial: ") +
-                                           e.what());
+  api::Result<model::DailyCheck> compared = api::CallModel([&] {
+    return model::CompareDaily(*subject.parameter_set, api::ToTrialColumns(*ramp),
+                               settings.lock_angle_deg, subject.history,
+                               subject.base_ramp_trial ? &*subject.base_ramp_trial : nullptr);
+  });
+  if (!compared.ok()) {
+    return api::Status::FailedPrecondition("daily_check: today's ramp trial: " +
+                                           compared.status().message());
   }
+  model::DailyCheck check = *std::move(compared);
   const double stored_erms = SwingErms(*subject.parameter_set, *swing, stops);
   const double updated_erms =
       check.updated ? SwingErms(*check.updated, *swing, stops) : std::nan("");

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "api/model_call.h"
 #include "model/identify_passive.h"
 #include "model/identify_rapid.h"
 #include "server/protocols/runner.h"
@@ -15,13 +16,15 @@ api::Result<double> KnownInertia(const SubjectContext& subject) {
     return subject.parameter_set->passive.inertia_kgm2;
   }
   if (subject.body_mass_kg && subject.leg_length_m) {
-    try {
+    api::Result<double> inertia = api::CallModel([&] {
       return model::AnthropometricInertia(*subject.body_mass_kg,
                                           *subject.leg_length_m);  // Eq. 4.13
-    } catch (const std::invalid_argument& e) {
-      return api::Status::FailedPrecondition(std::string("inertia from anthropometrics: ") +
-                                             e.what());
+    });
+    if (!inertia.ok()) {
+      return api::Status::FailedPrecondition("inertia from anthropometrics: " +
+                                             inertia.status().message());
     }
+    return inertia;
   }
   return api::Status::InvalidArgument(
       "rapid parameterisation needs the limb inertia: give it as parameters.inertia_kgm2 "

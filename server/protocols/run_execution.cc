@@ -33,7 +33,7 @@ RunExecution::RunExecution(ProtocolRunner& runner, const Plan& plan, const Subje
       stim_scale_(plan.trials.size(), 1.0),
       stim_floor_(plan.trials.size(), 0.0),
       recorder_(runner.bench_, runner.observer_, runner.options_.batch_samples) {
-  if (const auto device = bench_.bench().HardwareStimulator()) {
+  if (const auto device = bench_.HardwareStimulator()) {
     device_paced_train_ = device->paces_own_train;
   }
   runner_.result_ = &result_;
@@ -325,8 +325,9 @@ void RunExecution::CloseTrial(bool complete) {
 
 std::optional<RunExecution::Abort> RunExecution::AbortReason() {
   if (bench_.estopped()) {
-    const std::string fault = bench_.bench().HardwareFault();
-    return Abort{RunTransition::kEStop, fault.empty() ? std::string("e-stop") : "e-stop: " + fault};
+    const api::Status fault = bench_.HardwareFault();
+    return Abort{RunTransition::kEStop,
+                 fault.ok() ? std::string("e-stop") : "e-stop: " + fault.message()};
   }
   if (bench_.watchdog_fired()) {
     return Abort{RunTransition::kWatchdog,

@@ -16,10 +16,10 @@ void TrialRecorder::Open(int index, std::string name, std::int64_t start_tick,
   start_tick_ = start_tick;
   recorded_.bench_start_s = bench_start_s;
   record_setpoint_ = record_setpoint;
-  bench_.bench().DrainEmg_mv();  // EMG from the trial's first sample on
+  bench_.DrainEmg_mv();          // EMG from the trial's first sample on
   bench_.RestartPulseClock();    // the trial's grid: k / f from its t_s = 0
   bench_.DrainDeliveredPulses();
-  bench_.bench().DrainDeviceCommands();
+  bench_.DrainDeviceCommands();
   // The trial's start on both clocks: UTC for people, monotonic for the
   // device commands' times (and any other host's log of the same run).
   start_steady_ = std::chrono::steady_clock::now();
@@ -49,7 +49,7 @@ void TrialRecorder::Append(double t_s, double stim_ma, double angle_deg, double 
     correction_ma_.push_back(tracking->correction_ma);
     tau_scale_nm_.push_back(tracking->tau_scale_nm);
   }
-  for (double v : bench_.bench().DrainEmg_mv()) emg_mv_.push_back(v);
+  for (double v : bench_.DrainEmg_mv()) emg_mv_.push_back(v);
   CollectPulses();
   EmitBatch(false);
 }
@@ -87,7 +87,7 @@ void TrialRecorder::CollectPulses() {
 RecordedTrial TrialRecorder::Close(bool complete) {
   EmitBatch(true);
   CollectPulses();
-  for (double v : bench_.bench().DrainEmg_mv()) emg_mv_.push_back(v);
+  for (double v : bench_.DrainEmg_mv()) emg_mv_.push_back(v);
   const BenchLimits& hw = bench_.bench_limits();
   api::Trial& t = recorded_.trial;
   t.name = name_;
@@ -111,7 +111,7 @@ RecordedTrial TrialRecorder::Close(bool complete) {
   t.SetChannel("stim_delivered_ma",
                model::StimulusColumn(pulses_.Train(), hw.pulse_rate_hz, *t.Values("t_s")));
   t.pulses = std::move(pulses_);
-  if (const auto device = bench_.bench().HardwareStimulator()) {
+  if (const auto device = bench_.HardwareStimulator()) {
     // What the device was told, and when (api::DeviceCommandLog).
     api::DeviceCommandLog log;
     log.device = device->device;
@@ -120,7 +120,7 @@ RecordedTrial TrialRecorder::Close(bool complete) {
     log.start_monotonic_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                                  start_steady_.time_since_epoch())
                                  .count();
-    for (const Bench::DeviceCommand& c : bench_.bench().DrainDeviceCommands()) {
+    for (const Bench::DeviceCommand& c : bench_.DrainDeviceCommands()) {
       log.t_s.push_back(std::max(
           0.0, std::chrono::duration<double>(c.written - start_steady_).count()));
       log.requested_ma.push_back(c.requested_ma);

@@ -118,7 +118,7 @@ void SafeBench::AdvanceTo(double t_s) {
   bench_.AdvanceTo(t_s);
   if (!estop_.load()) {
     // A latch the bench set on its own (its device failed): an e-stop.
-    if (std::string fault = bench_.HardwareFault(); !fault.empty()) EStop(fault);
+    if (const api::Status fault = bench_.HardwareFault(); !fault.ok()) EStop(fault.message());
   }
   CheckReadBack();
 }

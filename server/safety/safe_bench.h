@@ -20,12 +20,14 @@
 #include <atomic>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "api/clock.h"
 #include "api/run.h"
+#include "api/status.h"
 #include "server/bench/bench.h"
 
 namespace fesbench::server {
@@ -92,8 +94,22 @@ class SafeBench {
   /// True once the watchdog has fired since it was last armed.
   bool watchdog_fired() const { return watchdog_fired_.load(); }
 
+  /// What the layer above may read of the bench below. There is no way to
+  /// the raw Bench through this class: every command goes through the
+  /// interlocks above, and these only read or drain what the bench recorded.
   const BenchLimits& bench_limits() const { return bench_.limits(); }
-  Bench& bench() { return bench_; }
+  /// The hardware stimulator behind the bench (Bench::HardwareStimulator).
+  std::optional<Bench::StimulatorInfo> HardwareStimulator() const {
+    return bench_.HardwareStimulator();
+  }
+  /// Why the bench latched its e-stop on its own; OK if it did not
+  /// (Bench::HardwareFault).
+  api::Status HardwareFault() const { return bench_.HardwareFault(); }
+  /// EMG samples (mV) recorded since the previous call (Bench::DrainEmg_mv).
+  std::vector<double> DrainEmg_mv() { return bench_.DrainEmg_mv(); }
+  /// The commands written to a hardware stimulator since the previous call
+  /// (Bench::DrainDeviceCommands). Control thread.
+  std::vector<Bench::DeviceCommand> DrainDeviceCommands() { return bench_.DrainDeviceCommands(); }
 
  private:
   void Emit(SafetyEvent event) const;

@@ -5,6 +5,7 @@
 #include <optional>
 #include <set>
 
+#include "api/model_call.h"
 #include "server/services/stored_trials.h"
 #include "storage/parameter_sets.h"
 
@@ -140,9 +141,11 @@ api::Result<ComparisonResult> ComparisonService::Compare(const ComparisonRequest
       out.test_note = "no paired t-test: it needs at least 2 pairs, got " +
                       std::to_string(a.size()) + "; the errors of each set are given";
     } else {
-      try {
-        out.test = model::PairedTTest(a, b, request.confidence);
-      } catch (const std::invalid_argument&) {
+      api::Result<model::PairedTTestResult> test =
+          api::CallModel([&] { return model::PairedTTest(a, b, request.confidence); });
+      if (test.ok()) {
+        out.test = *std::move(test);
+      } else {
         out.test_note =
             "no paired t-test: every pair's difference is the same (S_d = 0, t undefined); the "
             "errors of each set are given";

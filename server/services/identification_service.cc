@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "api/model_call.h"
 #include "api/trial_kind.h"
 #include "model/conditioning.h"
 #include "model/contraction.h"
@@ -114,15 +115,13 @@ class Fitter {
     TrialColumns c = api::ToTrialColumns(t.trial);
     if (const api::ChannelGroup* emg = t.trial.emg ? &*t.trial.emg : nullptr) {
       if (const std::vector<double>* v = emg->Values("emg_mv"); v != nullptr) {
-        try {
-          const model::EmgComparison cmp = model::CompareEmgPrePost(*v, emg->sample_rate_hz);
-          if (cmp.voluntary_contraction) {
-            common_.warnings.push_back(
-                "trial " + std::to_string(t.id) + ": EMG differs before and after (ratio " +
-                std::to_string(cmp.ratio) + "): voluntary contraction? (§5.2.1)");
-          }
-        } catch (const std::invalid_argument&) {
-          // Too short a recording to compare: nothing to report.
+        // Refused (too short a recording to compare): nothing to report.
+        const api::Result<model::EmgComparison> cmp =
+            api::CallModel([&] { return model::CompareEmgPrePost(*v, emg->sample_rate_hz); });
+        if (cmp.ok() && cmp->voluntary_contraction) {
+          common_.warnings.push_back(
+              "trial " + std::to_string(t.id) + ": EMG differs before and after (ratio " +
+              std::to_string(cmp->ratio) + "): voluntary contraction? (§5.2.1)");
         }
       }
     }

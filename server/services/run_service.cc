@@ -9,6 +9,7 @@
 #include <sstream>
 #include <utility>
 
+#include "api/model_call.h"
 #include "model/tracking.h"
 #include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_json.h"
@@ -211,7 +212,9 @@ BenchState RunService::State() const {
     s.estop_source = estop_source_;
     // A device that failed latched the e-stop itself: it is the source.
     if (estop_source_.empty()) {
-      if (std::string fault = bench_.HardwareFault(); !fault.empty()) s.estop_source = fault;
+      if (const api::Status fault = bench_.HardwareFault(); !fault.ok()) {
+        s.estop_source = fault.message();
+      }
     }
   }
   const auto it = runs_.find(current_run_id_);
@@ -264,11 +267,10 @@ api::Result<const protocols::ProtocolDescription*> CheckStartRequest(
 
 // tracking's uploaded target, at the control's 200 Hz.
 api::Status ResampleUploadedTarget(const TargetSamples& target, protocols::StartRequest& request) {
-  try {
-    request.target_angle_deg = model::ResampleTarget(target.t_s, target.angle_deg, 200.0);
-  } catch (const std::invalid_argument& e) {
-    return api::Status::InvalidArgument(e.what(), "target_samples");
-  }
+  auto resampled = api::CallModel(
+      [&] { return model::ResampleTarget(target.t_s, target.angle_deg, 200.0); }, "target_samples");
+  if (!resampled.ok()) return resampled.status();
+  request.target_angle_deg = *std::move(resampled);
   if (request.target_angle_deg.size() > 600 * 200 + 1) {
     return api::Status::InvalidArgument("longer than 600 s", "target_samples");
   }

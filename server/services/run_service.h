@@ -189,7 +189,9 @@ class RunService {
   void Shutdown();
 
   const RunServiceConfig& config() const { return config_; }
-  Bench& bench() { return bench_; }
+  /// The bench, to read (its kind, its limits): every command goes through
+  /// the bench owner's SafeBench (docs/SAFETY.md).
+  const Bench& bench() const { return bench_; }
   protocols::BenchOwner& bench_owner() { return owner_; }
 
  private:

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <set>
 
+#include "api/model_call.h"
 #include "api/trial.h"
 #include "model/joint_model.h"
 #include "storage/parameter_sets.h"
@@ -166,7 +167,8 @@ std::string CurvePlots(const model::ParameterSet& params) {
   PlotSpec irc{"Recruitment curve (IRC, §4.1)", "stimulation (mA)", "activation", {}, {}};
   irc.series.push_back({"R(u)", "#1f5fbf", params.irc.x(), params.irc.y()});
   out += Svg(irc);
-  try {
+  api::Result<std::string> curves = api::CallModel([&] {
+    std::string svg;
     const model::JointModel joint = model::JointModel::FromParameters(params);
     std::vector<double> angle, pta, ata, velocity, ptv, atv;
     for (int a = 0; a <= 130; ++a) {
@@ -180,29 +182,31 @@ std::string CurvePlots(const model::ParameterSet& params) {
       atv.push_back(joint.VelocityGain(v));
     }
     const model::Provenance& p = params.provenance;
-    out += Svg({"Passive torque–angle τ_pta (§4.2)",
+    svg += Svg({"Passive torque–angle τ_pta (§4.2)",
                 "knee angle (deg)",
                 "N·m",
                 {{"τ_pta", "#b03a2e", angle, pta}},
                 RangeOf(p.identified_range_deg, "tau_pta")});
-    out += Svg({"Active torque–angle f_ata (§4.3)",
+    svg += Svg({"Active torque–angle f_ata (§4.3)",
                 "knee angle (deg)",
                 "gain",
                 {{"f_ata", "#1e8449", angle, ata}},
                 RangeOf(p.identified_range_deg, "f_ata")});
-    out += Svg({"Passive torque–velocity τ_ptv",
+    svg += Svg({"Passive torque–velocity τ_ptv",
                 "knee velocity (deg/s)",
                 "N·m",
                 {{"τ_ptv", "#b03a2e", velocity, ptv}},
                 RangeOf(p.identified_range_deg_s, "tau_ptv")});
-    out += Svg({"Active torque–velocity f_atv",
+    svg += Svg({"Active torque–velocity f_atv",
                 "knee velocity (deg/s)",
                 "gain",
                 {{"f_atv", "#1e8449", velocity, atv}},
                 RangeOf(p.identified_range_deg_s, "f_atv")});
-  } catch (const std::invalid_argument& e) {
-    out += "<p class=\"warn\">The curves cannot be drawn: " + HtmlEscape(e.what()) + "</p>";
-  }
+    return svg;
+  });
+  out += curves.ok() ? *curves
+                     : "<p class=\"warn\">The curves cannot be drawn: " +
+                           HtmlEscape(curves.status().message()) + "</p>";
   // Twitch: the contraction dynamics' impulse response t^(n−1)·e^(−a·t), peak 1 (§4.1.3).
   const int n = params.contraction.order;
   const double a = params.contraction.pole_per_s;

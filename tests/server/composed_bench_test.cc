@@ -51,15 +51,15 @@ class RecordingDevice final : public StimulatorDevice {
   double max_current_ma() const override { return device_->max_current_ma(); }
   double current_step_ma() const override { return device_->current_step_ma(); }
   void SetSessionLimit(double max_ma) override { device_->SetSessionLimit(max_ma); }
-  bool SetAmplitude(double stim_ma) override {
-    const bool ok = device_->SetAmplitude(stim_ma);
-    updates.push_back({stim_ma, device_->delivered_ma(), ok});
+  api::Status SetAmplitude(double stim_ma) override {
+    api::Status status = device_->SetAmplitude(stim_ma);
+    updates.push_back({stim_ma, device_->delivered_ma(), status.ok()});
     if (after_update) after_update(updates.size());
-    return ok;
+    return status;
   }
-  std::optional<double> SinglePulse(double stim_ma) override {
-    const auto delivered = device_->SinglePulse(stim_ma);
-    singles.push_back({stim_ma, delivered.value_or(-1.0), delivered.has_value()});
+  api::Result<double> SinglePulse(double stim_ma) override {
+    api::Result<double> delivered = device_->SinglePulse(stim_ma);
+    singles.push_back({stim_ma, delivered.ok() ? *delivered : -1.0, delivered.ok()});
     return delivered;
   }
   double delivered_ma() const override { return device_->delivered_ma(); }
@@ -67,11 +67,11 @@ class RecordingDevice final : public StimulatorDevice {
     return device_->last_command_written();
   }
   std::optional<double> own_pulse_rate_hz() const override { return device_->own_pulse_rate_hz(); }
-  bool Service() override { return device_->Service(); }
+  api::Status Service() override { return device_->Service(); }
   void EmergencyStop() override { device_->EmergencyStop(); }
   void ClearEStop() override { device_->ClearEStop(); }
   bool estopped() const override { return device_->estopped(); }
-  std::string fault() const override { return device_->fault(); }
+  api::Status fault() const override { return device_->fault(); }
 
   std::vector<Update> updates;
   std::vector<Update> singles;
@@ -88,8 +88,9 @@ struct Rig {
     config.channel = 1;
     config.reply_timeout = 150ms;
     auto sm2 = std::make_unique<sciencemode2::Stimulator>(config);
-    connected = sm2->Connect();
-    connect_fault = sm2->fault();
+    const api::Status connect = sm2->Connect();
+    connected = connect.ok();
+    connect_fault = connect.ToString();
     auto recording = std::make_unique<RecordingDevice>(std::move(sm2));
     device = recording.get();
     SimulatedBenchOptions options;  // time scale 0: as fast as the device answers
@@ -250,8 +251,9 @@ TEST(ComposedBench, ADriverRefusesAboveTheSessionCeilingOnItsOwn) {
   rig.safe->Configure({.max_stim_ma = 30.0});
   rig.bench->SetStimAmplitude(40.0);
   EXPECT_TRUE(rig.bench->HardwareEStopped());
-  EXPECT_NE(rig.bench->HardwareFault().find("refused 40"), std::string::npos)
-      << rig.bench->HardwareFault();
+  const api::Status fault = rig.bench->HardwareFault();
+  EXPECT_EQ(fault.code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_NE(fault.message().find("refused 40"), std::string::npos) << fault.ToString();
   for (const auto& d : rig.emulator.deliveries()) EXPECT_LE(d.current_ma, 30);
 }
 

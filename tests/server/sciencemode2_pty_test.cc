@@ -30,7 +30,7 @@ using namespace std::chrono_literals;
 class Link {
  public:
   explicit Link(const std::string& path) { error_ = port_.Open(path, ScienceMode2Settings()); }
-  const std::string& error() const { return error_; }
+  const api::Status& error() const { return error_; }
   SerialPort& port() { return port_; }
 
   /// The next frame, decoded; nullopt on timeout. `gone` is set on hang-up.
@@ -70,14 +70,14 @@ class Link {
   /// §3.5: wait for the device's Init, answer InitAck 0.
   void Connect() {
     ASSERT_TRUE(Expect(Command::kInit, 2000ms)) << "no Init from the device";
-    ASSERT_EQ(port_.Write(BuildInitAck(0, 0)), "");
+    ASSERT_TRUE(port_.Write(BuildInitAck(0, 0)).ok());
   }
 
  private:
   SerialPort port_;
   FrameSplitter splitter_;
   std::vector<std::vector<std::uint8_t>> frames_;
-  std::string error_;
+  api::Status error_;
 };
 
 ChannelListInit TwoChannels() {
@@ -90,19 +90,19 @@ ChannelListInit TwoChannels() {
 TEST(ScienceMode2Pty, InitChannelListStartStopAreAckedAndRecorded) {
   Emulator emulator;
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
-  ASSERT_EQ(link.port().Write(BuildInitChannelListMode(1, TwoChannels())), "");
+  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(1, TwoChannels())).ok());
   auto ack = link.Expect(Command::kInitChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ack->packet_number, 1);  // §2.2: echoed packet number
   EXPECT_EQ(ack->result, 0);
   const ChannelPulse pulses[] = {{0, 300, 40}, {0, 250, 15}};  // 15 mA is 0x0F: stuffed
-  ASSERT_EQ(link.port().Write(BuildStartChannelListMode(2, pulses)), "");
+  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(2, pulses)).ok());
   ack = link.Expect(Command::kStartChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ack->result, 0);
-  ASSERT_EQ(link.port().Write(BuildStopChannelListMode(3)), "");
+  ASSERT_TRUE(link.port().Write(BuildStopChannelListMode(3)).ok());
   ack = link.Expect(Command::kStopChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ack->packet_number, 3);
@@ -121,16 +121,16 @@ TEST(ScienceMode2Pty, InitChannelListStartStopAreAckedAndRecorded) {
 TEST(ScienceMode2Pty, WrongChannelCountIsAParameterErrorAndStartBeforeInitAWrongModeError) {
   Emulator emulator;
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
   const ChannelPulse one[] = {{0, 300, 40}};
-  ASSERT_EQ(link.port().Write(BuildStartChannelListMode(1, one)), "");
+  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(1, one)).ok());
   auto ack = link.Expect(Command::kStartChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ResultName(ack->result), "Wrong mode error");
-  ASSERT_EQ(link.port().Write(BuildInitChannelListMode(2, TwoChannels())), "");
+  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(2, TwoChannels())).ok());
   ASSERT_TRUE(link.Expect(Command::kInitChannelListModeAck));
-  ASSERT_EQ(link.port().Write(BuildStartChannelListMode(3, one)), "");  // 2 active, 1 sent
+  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(3, one)).ok());  // 2 active, 1 sent
   ack = link.Expect(Command::kStartChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ResultName(ack->result), "Parameter error");
@@ -140,11 +140,11 @@ TEST(ScienceMode2Pty, WrongChannelCountIsAParameterErrorAndStartBeforeInitAWrong
 TEST(ScienceMode2Pty, BadChecksumFromThePcIsAckedWithTransferError) {
   Emulator emulator;
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
   auto wire = BuildInitChannelListMode(4, TwoChannels());
   wire[2] ^= 0x01;
-  ASSERT_EQ(link.port().Write(wire), "");
+  ASSERT_TRUE(link.port().Write(wire).ok());
   const auto ack = link.Expect(Command::kInitChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ack->packet_number, 4);
@@ -154,10 +154,10 @@ TEST(ScienceMode2Pty, BadChecksumFromThePcIsAckedWithTransferError) {
 TEST(ScienceMode2Pty, UnknownCommandIsEchoed) {
   Emulator emulator;
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
   const std::uint8_t none[] = {0};
-  ASSERT_EQ(link.port().Write(EncodePacket(5, static_cast<Command>(99), none)), "");
+  ASSERT_TRUE(link.port().Write(EncodePacket(5, static_cast<Command>(99), none)).ok());
   const auto reply = link.Expect(Command::kUnknownCommand);
   ASSERT_TRUE(reply);
   EXPECT_EQ(static_cast<std::uint8_t>(reply->result), 99);
@@ -167,7 +167,7 @@ TEST(ScienceMode2Pty, CorruptRepliesFailTheirChecksum) {
   Emulator emulator;
   emulator.set_fault(EmulatorFault::kCorruptReplies);
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   const auto r = link.Next(2000ms);
   ASSERT_TRUE(r);
   EXPECT_EQ(r->error, DecodeError::kChecksum);
@@ -176,17 +176,17 @@ TEST(ScienceMode2Pty, CorruptRepliesFailTheirChecksum) {
 TEST(ScienceMode2Pty, SilentDeviceAnswersNothing) {
   Emulator emulator;
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
   emulator.set_fault(EmulatorFault::kSilent);
-  ASSERT_EQ(link.port().Write(BuildInitChannelListMode(1, TwoChannels())), "");
+  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(1, TwoChannels())).ok());
   EXPECT_FALSE(link.Next(300ms));  // MaxResponseTime is 100 ms (§2.3)
 }
 
 TEST(ScienceMode2Pty, PulledCableIsAHangUp) {
   Emulator emulator;
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
   emulator.Unplug();
   bool gone = false;
@@ -198,12 +198,12 @@ TEST(ScienceMode2Pty, DeviceWatchdogStopsStimulationWithoutTraffic) {
   // §2.3: WatchdogTimeout 1200 ms; §5.2: stimulation stopped, Init resent.
   Emulator emulator;
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
-  ASSERT_EQ(link.port().Write(BuildInitChannelListMode(1, TwoChannels())), "");
+  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(1, TwoChannels())).ok());
   ASSERT_TRUE(link.Expect(Command::kInitChannelListModeAck));
   const ChannelPulse pulses[] = {{0, 300, 40}, {0, 300, 40}};
-  ASSERT_EQ(link.port().Write(BuildStartChannelListMode(2, pulses)), "");
+  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(2, pulses)).ok());
   ASSERT_TRUE(link.Expect(Command::kStartChannelListModeAck));
   EXPECT_TRUE(link.Expect(Command::kInit, 2500ms)) << "no Init after the watchdog";
   EXPECT_FALSE(emulator.stimulating());
@@ -217,21 +217,21 @@ TEST(ScienceMode2Pty, GetStimulationModeIsAnsweredWithTheMode) {
   // §4.2: result 0, then 0 start mode, 1 initialised, 2 running.
   Emulator emulator;
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
   const auto mode = [&](std::uint8_t number) {
-    EXPECT_EQ(link.port().Write(BuildGetStimulationMode(number)), "");
+    EXPECT_TRUE(link.port().Write(BuildGetStimulationMode(number)).ok());
     auto reply = link.Expect(Command::kGetStimulationModeAck);
     EXPECT_TRUE(reply);
     EXPECT_EQ(reply ? reply->packet_number : 0, number);
     return reply ? reply->extra : 0xFF;
   };
   EXPECT_EQ(mode(1), 0);
-  ASSERT_EQ(link.port().Write(BuildInitChannelListMode(2, TwoChannels())), "");
+  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(2, TwoChannels())).ok());
   ASSERT_TRUE(link.Expect(Command::kInitChannelListModeAck));
   EXPECT_EQ(mode(3), 1);
   const ChannelPulse pulses[] = {{0, 300, 10}, {0, 300, 10}};
-  ASSERT_EQ(link.port().Write(BuildStartChannelListMode(4, pulses)), "");
+  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(4, pulses)).ok());
   ASSERT_TRUE(link.Expect(Command::kStartChannelListModeAck));
   EXPECT_EQ(mode(5), 2);
   EXPECT_EQ(StimulationModeName(2), "channel list running");
@@ -243,7 +243,7 @@ TEST(ScienceMode2Pty, GetStimulationModeIsAnsweredWithTheMode) {
 TEST(SerialPortOnAPty, EachDevicesSettingsReadBack) {
   Emulator emulator;
   SerialPort port;
-  ASSERT_EQ(port.Open(emulator.port_path(), ScienceMode2Settings()), "");
+  ASSERT_TRUE(port.Open(emulator.port_path(), ScienceMode2Settings()).ok());
   const SerialSettings sm2 = port.settings();
   EXPECT_EQ(sm2.baud, 460800);
   // Parity (E) is not kept by a pty: Linux's pty driver clears PARENB, so
@@ -253,7 +253,7 @@ TEST(SerialPortOnAPty, EachDevicesSettingsReadBack) {
   EXPECT_FALSE(sm2.rts_cts);
   EXPECT_EQ(ScienceMode2Settings().Describe(), "460800 8E1, no flow control");
   port.Close();
-  ASSERT_EQ(port.Open(emulator.port_path(), ScienceMode4Settings()), "");
+  ASSERT_TRUE(port.Open(emulator.port_path(), ScienceMode4Settings()).ok());
   const SerialSettings sm4 = port.settings();
   EXPECT_EQ(sm4.baud, 3000000);
   EXPECT_FALSE(sm4.even_parity);
@@ -282,15 +282,15 @@ TEST(SerialPortOnAPty, APortAnotherProgramLeftConfiguredOpens) {
   // Each device's settings over the other's, twice: a second server start
   // on a port the first one configured.
   for (int round = 0; round < 2; ++round) {
-    ASSERT_EQ(port.Open(emulator.port_path(), ScienceMode2Settings()), "") << round;
+    ASSERT_TRUE(port.Open(emulator.port_path(), ScienceMode2Settings()).ok()) << round;
     EXPECT_EQ(port.settings().baud, 460800);
-    ASSERT_EQ(port.Open(emulator.port_path(), ScienceMode4Settings()), "") << round;
+    ASSERT_TRUE(port.Open(emulator.port_path(), ScienceMode4Settings()).ok()) << round;
     EXPECT_EQ(port.settings().baud, 3000000);
   }
   port.Close();
   // And the driver talks through it.
   Link link(emulator.port_path());
-  ASSERT_EQ(link.error(), "");
+  ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
 }
 
@@ -315,30 +315,32 @@ TEST(SerialPortOnAPty, APortHeldByAnotherProcessIsRefusedNamingIt) {
   }
   ASSERT_TRUE(held) << "flock(1) did not take the port";
   SerialPort port;
-  const std::string why = port.Open(path, ScienceMode2Settings());
+  const api::Status why = port.Open(path, ScienceMode2Settings());
   ::kill(-holder, SIGTERM);
   ::waitpid(holder, nullptr, 0);
-  EXPECT_NE(why.find(path + ": in use by process " + std::to_string(holder) + " (flock)"),
+  EXPECT_EQ(why.code(), api::ErrorCode::kUnavailable);
+  EXPECT_NE(why.message().find(path + ": in use by process " + std::to_string(holder) + " (flock)"),
             std::string::npos)
-      << why;
+      << why.ToString();
   EXPECT_FALSE(port.is_open());
   // Once it is gone, the port opens.
-  std::string after;
+  api::Status after;
   for (int i = 0; i < 200; ++i) {
     after = port.Open(path, ScienceMode2Settings());
-    if (after.empty()) break;
+    if (after.ok()) break;
     std::this_thread::sleep_for(10ms);
   }
-  EXPECT_EQ(after, "");
+  EXPECT_TRUE(after.ok()) << after.ToString();
   // And this server holds it against a second one (the same lock).
   SerialPort second;
-  EXPECT_NE(second.Open(path, ScienceMode4Settings()), "");
+  EXPECT_FALSE(second.Open(path, ScienceMode4Settings()).ok());
 }
 
 TEST(ScienceMode2Pty, OpeningAMissingPortNamesIt) {
   SerialPort port;
-  const std::string why = port.Open("/dev/does-not-exist-sm2", ScienceMode2Settings());
-  EXPECT_NE(why.find("/dev/does-not-exist-sm2"), std::string::npos) << why;
+  const api::Status why = port.Open("/dev/does-not-exist-sm2", ScienceMode2Settings());
+  EXPECT_EQ(why.code(), api::ErrorCode::kUnavailable);
+  EXPECT_NE(why.message().find("/dev/does-not-exist-sm2"), std::string::npos) << why.ToString();
   EXPECT_FALSE(port.is_open());
 }
 

@@ -17,6 +17,11 @@
 namespace fesbench::server::sciencemode2 {
 namespace {
 
+// The amplitude a SinglePulse delivered, nullopt if it was refused.
+std::optional<double> Delivered(const api::Result<double>& r) {
+  return r.ok() ? std::optional<double>(*r) : std::nullopt;
+}
+
 using namespace std::chrono_literals;
 
 StimulatorConfig ConfigFor(const Emulator& emulator) {
@@ -31,17 +36,17 @@ StimulatorConfig ConfigFor(const Emulator& emulator) {
 TEST(ScienceMode2Stimulator, RampIsDeliveredWithinTheDeviceResolution) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   // A 0 → 50 mA ramp in 0.7 mA steps; the device's step is 1 mA (§4.3),
   // and the driver rounds down: never more than commanded.
   std::vector<double> commanded;
   for (double ma = 0.0; ma <= 50.0; ma += 0.7) {
-    ASSERT_TRUE(stim.SetAmplitude(ma)) << stim.fault();
+    ASSERT_TRUE(stim.SetAmplitude(ma).ok()) << stim.fault().ToString();
     EXPECT_EQ(stim.acknowledged_ma(), std::floor(ma + 1e-9));
     commanded.push_back(ma);
-    ASSERT_TRUE(stim.KeepAlive()) << stim.fault();
+    ASSERT_TRUE(stim.KeepAlive().ok()) << stim.fault().ToString();
   }
-  ASSERT_TRUE(stim.Stop()) << stim.fault();
+  ASSERT_TRUE(stim.Stop().ok()) << stim.fault().ToString();
   const auto d = emulator.deliveries();
   ASSERT_EQ(d.size(), commanded.size() + 1);
   for (std::size_t i = 0; i < commanded.size(); ++i) {
@@ -57,10 +62,13 @@ TEST(ScienceMode2Stimulator, RampIsDeliveredWithinTheDeviceResolution) {
 TEST(ScienceMode2Stimulator, RefusesAboveTheSessionMaximumAndStops) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
-  ASSERT_TRUE(stim.SetAmplitude(30.0));
-  EXPECT_FALSE(stim.SetAmplitude(61.0));
-  EXPECT_NE(stim.fault().find("outside 0–60"), std::string::npos) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
+  ASSERT_TRUE(stim.SetAmplitude(30.0).ok());
+  const api::Status refused = stim.SetAmplitude(61.0);
+  EXPECT_EQ(refused.code(), api::ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(refused.message(), stim.fault().message());  // the latched fault itself
+  EXPECT_NE(stim.fault().message().find("outside 0–60"), std::string::npos)
+      << stim.fault().ToString();
   std::this_thread::sleep_for(50ms);
   EXPECT_FALSE(emulator.stimulating());
   for (const auto& d : emulator.deliveries()) EXPECT_LE(d.current_ma, 60);
@@ -69,8 +77,8 @@ TEST(ScienceMode2Stimulator, RefusesAboveTheSessionMaximumAndStops) {
 TEST(ScienceMode2Stimulator, EmergencyStopFromAnotherThreadStopsTheDeviceAndLatches) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
-  ASSERT_TRUE(stim.SetAmplitude(20.0));
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
+  ASSERT_TRUE(stim.SetAmplitude(20.0).ok());
   std::thread([&] { stim.EmergencyStop(); }).join();
   std::this_thread::sleep_for(50ms);
   EXPECT_FALSE(emulator.stimulating());
@@ -80,25 +88,27 @@ TEST(ScienceMode2Stimulator, EmergencyStopFromAnotherThreadStopsTheDeviceAndLatc
   EXPECT_EQ(stim.acknowledged_ma(), 0.0);
   // Latched: nothing stimulating is sent; zero is accepted.
   const std::size_t sent = emulator.deliveries().size();
-  EXPECT_FALSE(stim.SetAmplitude(5.0));
-  EXPECT_TRUE(stim.SetAmplitude(0.0));
-  EXPECT_TRUE(stim.KeepAlive());  // the stop's ack is read and ignored
+  EXPECT_EQ(stim.SetAmplitude(5.0).code(), api::ErrorCode::kConflict);  // not a fault
+  EXPECT_TRUE(stim.fault().ok());
+  EXPECT_TRUE(stim.SetAmplitude(0.0).ok());
+  EXPECT_TRUE(stim.KeepAlive().ok());  // the stop's ack is read and ignored
   EXPECT_EQ(emulator.deliveries().size(), sent);
   // Cleared: channel-list mode is initialised again, then started.
   stim.ClearEStop();
-  ASSERT_TRUE(stim.SetAmplitude(7.0)) << stim.fault();
+  ASSERT_TRUE(stim.SetAmplitude(7.0).ok()) << stim.fault().ToString();
   std::this_thread::sleep_for(20ms);
   EXPECT_TRUE(emulator.stimulating());
   EXPECT_EQ(emulator.deliveries().back().current_ma, 7);
-  EXPECT_TRUE(stim.Stop()) << stim.fault();
+  EXPECT_TRUE(stim.Stop().ok()) << stim.fault().ToString();
 }
 
 TEST(ScienceMode2Stimulator, SinglePulseStopsTheTrainFirstAndIsRoundedDown) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
-  ASSERT_TRUE(stim.SetAmplitude(20.0));
-  EXPECT_EQ(stim.SinglePulse(33.7), std::optional<double>(33.0)) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
+  ASSERT_TRUE(stim.SetAmplitude(20.0).ok());
+  EXPECT_EQ(Delivered(stim.SinglePulse(33.7)), std::optional<double>(33.0))
+      << stim.fault().ToString();
   const auto d = emulator.deliveries();
   ASSERT_EQ(d.size(), 3u);
   EXPECT_TRUE(d[1].stop);  // the train stopped, then the pulse
@@ -107,54 +117,57 @@ TEST(ScienceMode2Stimulator, SinglePulseStopsTheTrainFirstAndIsRoundedDown) {
   EXPECT_EQ(d[2].current_ma, 33);
   EXPECT_EQ(d[2].pulse_width_us, 300);
   // The train starts again (channel-list mode initialised again).
-  ASSERT_TRUE(stim.SetAmplitude(10.0)) << stim.fault();
+  ASSERT_TRUE(stim.SetAmplitude(10.0).ok()) << stim.fault().ToString();
   EXPECT_EQ(emulator.deliveries().back().current_ma, 10);
   // Above the session maximum: refused without sending, a fault.
-  EXPECT_FALSE(stim.SinglePulse(61.0));
-  EXPECT_NE(stim.fault().find("outside 0–60"), std::string::npos) << stim.fault();
+  EXPECT_FALSE(stim.SinglePulse(61.0).ok());
+  EXPECT_NE(stim.fault().message().find("outside 0–60"), std::string::npos)
+      << stim.fault().ToString();
 }
 
 TEST(ScienceMode2Stimulator, FaultStopsTheDevice) {
   // The bench e-stop path: Fault() sends StopChannelListMode at once.
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
-  ASSERT_TRUE(stim.SetAmplitude(20.0));
-  stim.Fault("bench e-stop");
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
+  ASSERT_TRUE(stim.SetAmplitude(20.0).ok());
+  (void)stim.Fault(api::Status::Unavailable("bench e-stop"));
   std::this_thread::sleep_for(50ms);
   EXPECT_FALSE(emulator.stimulating());
   EXPECT_EQ(emulator.deliveries().back().reason, "command");
-  EXPECT_EQ(stim.fault(), "bench e-stop");
-  EXPECT_FALSE(stim.SetAmplitude(5.0));  // latched
+  EXPECT_EQ(stim.fault().message(), "bench e-stop");
+  EXPECT_FALSE(stim.SetAmplitude(5.0).ok());  // latched
 }
 
 TEST(ScienceMode2Stimulator, LostDeviceIsAFaultNamingTheCable) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
-  ASSERT_TRUE(stim.SetAmplitude(20.0));
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
+  ASSERT_TRUE(stim.SetAmplitude(20.0).ok());
   emulator.Unplug();
-  EXPECT_FALSE(stim.SetAmplitude(21.0) && stim.KeepAlive());
-  EXPECT_NE(stim.fault().find("stimulator lost"), std::string::npos) << stim.fault();
+  EXPECT_FALSE(stim.SetAmplitude(21.0).ok() && stim.KeepAlive().ok());
+  EXPECT_NE(stim.fault().message().find("stimulator lost"), std::string::npos)
+      << stim.fault().ToString();
   EXPECT_EQ(stim.acknowledged_ma(), 0.0);
 }
 
 TEST(ScienceMode2Stimulator, GarbledReplyIsAFaultNamingTheChecksum) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   emulator.set_fault(EmulatorFault::kCorruptReplies);
-  EXPECT_FALSE(stim.SetAmplitude(20.0));
-  EXPECT_EQ(stim.fault(), "stimulator reply garbled: checksum error");
+  EXPECT_FALSE(stim.SetAmplitude(20.0).ok());
+  EXPECT_EQ(stim.fault().message(), "stimulator reply garbled: checksum error");
 }
 
 TEST(ScienceMode2Stimulator, SilenceIsATimeout) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   emulator.set_fault(EmulatorFault::kSilent);
-  EXPECT_FALSE(stim.SetAmplitude(20.0));
-  EXPECT_EQ(stim.fault(), "stimulator timeout: no reply within 150 ms");
+  EXPECT_FALSE(stim.SetAmplitude(20.0).ok());
+  EXPECT_EQ(stim.fault().code(), api::ErrorCode::kUnavailable);
+  EXPECT_EQ(stim.fault().message(), "stimulator timeout: no reply within 150 ms");
 }
 
 // A device that goes silent, restarts, or stops on its own while the driver
@@ -179,13 +192,14 @@ TEST(ScienceMode2Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
       config.port_path = emulator.port_path();
       config.session_max_ma = 60.0;
       Stimulator stim(config);
-      ASSERT_TRUE(stim.Connect()) << stim.fault();
-      ASSERT_TRUE(stim.SetAmplitude(20.0)) << stim.fault();
+      ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
+      ASSERT_TRUE(stim.SetAmplitude(20.0).ok()) << stim.fault().ToString();
       std::this_thread::sleep_for(phase);
       emulator.set_fault(c.fault);
       const double ms = test::MsUntil([&] { return stim.faulted(); });
       ASSERT_TRUE(stim.faulted()) << c.reason;
-      EXPECT_NE(stim.fault().find(c.reason), std::string::npos) << stim.fault();
+      EXPECT_NE(stim.fault().message().find(c.reason), std::string::npos)
+          << stim.fault().ToString();
       EXPECT_EQ(stim.acknowledged_ma(), 0.0);
       std::this_thread::sleep_for(20ms);
       EXPECT_FALSE(emulator.stimulating()) << c.reason;
@@ -202,7 +216,7 @@ TEST(ScienceMode2Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
 TEST(ScienceMode2Stimulator, ThePortHasTheDescriptionsSettings) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   const SerialSettings s = stim.port_settings();  // tcgetattr on the open port
   EXPECT_EQ(s.baud, 460800);  // §2.1 Table 4 (its even parity a pty cannot keep)
   EXPECT_TRUE(ScienceMode2Settings().even_parity);
@@ -215,15 +229,15 @@ TEST(ScienceMode2Stimulator, WatchdogKeepsTheDeviceStimulating) {
   // (GetStimulationMode every 200 ms) is traffic.
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
-  ASSERT_TRUE(stim.SetAmplitude(10.0));
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
+  ASSERT_TRUE(stim.SetAmplitude(10.0).ok());
   const auto end = std::chrono::steady_clock::now() + 1600ms;
   while (std::chrono::steady_clock::now() < end) {
-    ASSERT_TRUE(stim.KeepAlive()) << stim.fault();
+    ASSERT_TRUE(stim.KeepAlive().ok()) << stim.fault().ToString();
     std::this_thread::sleep_for(30ms);
   }
   EXPECT_TRUE(emulator.stimulating());
-  EXPECT_TRUE(stim.Stop());
+  EXPECT_TRUE(stim.Stop().ok());
 }
 
 }  // namespace

@@ -30,6 +30,11 @@
 namespace fesbench::server::sciencemode4 {
 namespace {
 
+// The amplitude a SinglePulse delivered, nullopt if it was refused.
+std::optional<double> Delivered(const api::Result<double>& r) {
+  return r.ok() ? std::optional<double>(*r) : std::nullopt;
+}
+
 using namespace std::chrono_literals;
 using Bytes = std::vector<std::uint8_t>;
 
@@ -126,9 +131,10 @@ StimulatorConfig ConfigFor(const Emulator& emulator) {
 TEST(ScienceMode4Stimulator, PulsesAreBiphasicRoundedDownAndRefusedAboveTheMaximum) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   EXPECT_TRUE(emulator.initialised());
-  EXPECT_EQ(stim.SinglePulse(20.3), std::optional<double>(20.0)) << stim.fault();
+  EXPECT_EQ(Delivered(stim.SinglePulse(20.3)), std::optional<double>(20.0))
+      << stim.fault().ToString();
   const auto d = emulator.deliveries();
   ASSERT_EQ(d.size(), 1u);
   EXPECT_EQ(d[0].channel, 2);
@@ -138,8 +144,9 @@ TEST(ScienceMode4Stimulator, PulsesAreBiphasicRoundedDownAndRefusedAboveTheMaxim
   EXPECT_EQ(d[0].points[1].current_ma, 0.0);
   EXPECT_EQ(d[0].points[2].current_ma, -20.0);
   // Above the session maximum: refused without sending, a fault.
-  EXPECT_FALSE(stim.SinglePulse(61.0));
-  EXPECT_NE(stim.fault().find("outside 0–60"), std::string::npos) << stim.fault();
+  EXPECT_FALSE(stim.SinglePulse(61.0).ok());
+  EXPECT_NE(stim.fault().message().find("outside 0–60"), std::string::npos)
+      << stim.fault().ToString();
   // The pulse, then the fault's Ll_Stop once the emulator has read it.
   for (int i = 0; i < 100 && emulator.deliveries().size() < 2; ++i) std::this_thread::sleep_for(1ms);
   ASSERT_EQ(emulator.deliveries().size(), 2u);
@@ -149,14 +156,15 @@ TEST(ScienceMode4Stimulator, PulsesAreBiphasicRoundedDownAndRefusedAboveTheMaxim
 TEST(ScienceMode4Stimulator, EmergencyStopLatchesUntilCleared) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   std::thread([&] { stim.EmergencyStop(); }).join();
   std::this_thread::sleep_for(30ms);
   EXPECT_FALSE(emulator.initialised());
-  EXPECT_FALSE(stim.SinglePulse(10.0));
+  EXPECT_FALSE(stim.SinglePulse(10.0).ok());
   EXPECT_FALSE(stim.faulted());
   stim.ClearEStop();
-  EXPECT_EQ(stim.SinglePulse(10.0), std::optional<double>(10.0)) << stim.fault();  // Ll_Init again
+  EXPECT_EQ(Delivered(stim.SinglePulse(10.0)), std::optional<double>(10.0))
+      << stim.fault().ToString();  // Ll_Init again
   EXPECT_EQ(emulator.deliveries().back().current_ma(), 10.0);
 }
 
@@ -164,26 +172,27 @@ TEST(ScienceMode4Stimulator, LostGarbledAndSilentDevicesAreNamedFaults) {
   {
     Emulator emulator;
     Stimulator stim(ConfigFor(emulator));
-    ASSERT_TRUE(stim.Connect());
+    ASSERT_TRUE(stim.Connect().ok());
     emulator.Unplug();
-    EXPECT_FALSE(stim.SinglePulse(10.0) && stim.Service());
-    EXPECT_NE(stim.fault().find("stimulator lost"), std::string::npos) << stim.fault();
+    EXPECT_FALSE(stim.SinglePulse(10.0).ok() && stim.Service().ok());
+    EXPECT_NE(stim.fault().message().find("stimulator lost"), std::string::npos)
+        << stim.fault().ToString();
   }
   {
     Emulator emulator;
     Stimulator stim(ConfigFor(emulator));
-    ASSERT_TRUE(stim.Connect());
+    ASSERT_TRUE(stim.Connect().ok());
     emulator.set_fault(EmulatorFault::kCorruptReplies);
-    EXPECT_FALSE(stim.SinglePulse(10.0));
-    EXPECT_EQ(stim.fault(), "stimulator reply garbled: checksum error");
+    EXPECT_FALSE(stim.SinglePulse(10.0).ok());
+    EXPECT_EQ(stim.fault().message(), "stimulator reply garbled: checksum error");
   }
   {
     Emulator emulator;
     Stimulator stim(ConfigFor(emulator));
-    ASSERT_TRUE(stim.Connect());
+    ASSERT_TRUE(stim.Connect().ok());
     emulator.set_fault(EmulatorFault::kSilent);
-    EXPECT_FALSE(stim.SinglePulse(10.0));
-    EXPECT_EQ(stim.fault(), "stimulator timeout: no reply within 150 ms");
+    EXPECT_FALSE(stim.SinglePulse(10.0).ok());
+    EXPECT_EQ(stim.fault().message(), "stimulator timeout: no reply within 150 ms");
   }
 }
 
@@ -208,14 +217,16 @@ TEST(ScienceMode4Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
       config.port_path = emulator.port_path();
       config.session_max_ma = 60.0;
       Stimulator stim(config);
-      ASSERT_TRUE(stim.Connect()) << stim.fault();
-      ASSERT_EQ(stim.SinglePulse(20.0), std::optional<double>(20.0)) << stim.fault();
+      ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
+      ASSERT_EQ(Delivered(stim.SinglePulse(20.0)), std::optional<double>(20.0))
+          << stim.fault().ToString();
       std::this_thread::sleep_for(phase);
       emulator.set_fault(c.fault);
       const double ms = test::MsUntil([&] { return stim.faulted(); });
       ASSERT_TRUE(stim.faulted()) << c.reason;
-      EXPECT_NE(stim.fault().find(c.reason), std::string::npos) << stim.fault();
-      EXPECT_FALSE(stim.SinglePulse(10.0));
+      EXPECT_NE(stim.fault().message().find(c.reason), std::string::npos)
+          << stim.fault().ToString();
+      EXPECT_FALSE(stim.SinglePulse(10.0).ok());
       worst_ms = std::max(worst_ms, ms);
       std::cout << "[ figure ] ScienceMode4 " << c.reason << ", phase " << phase.count()
                 << " ms: noticed in " << ms << " ms\n";
@@ -229,7 +240,7 @@ TEST(ScienceMode4Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
 TEST(ScienceMode4Stimulator, ThePortHasTheLibrarysSettings) {
   Emulator emulator;
   Stimulator stim(ConfigFor(emulator));
-  ASSERT_TRUE(stim.Connect()) << stim.fault();
+  ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   const SerialSettings s = stim.port_settings();  // tcgetattr on the open port
   EXPECT_EQ(s.baud, 3000000);  // smpt_serial_port.c: B3000000
   EXPECT_FALSE(s.even_parity);  // smpt_serial_port_linux.c: PARENB cleared, CSTOPB, CRTSCTS
@@ -242,7 +253,7 @@ TEST(ScienceMode4ComposedBench, EveryPulseTheLegReceivedWasSentToTheDevice) {
   StimulatorConfig config;
   config.port_path = emulator.port_path();
   auto device = std::make_unique<Stimulator>(config);
-  ASSERT_TRUE(device->Connect()) << device->fault();
+  ASSERT_TRUE(device->Connect().ok()) << device->fault().ToString();
   const VirtualSubject subject = DrawVirtualSubject(7);
   ComposedBench bench(std::make_unique<SimulatedBench>(subject), std::move(device));
   EXPECT_EQ(bench.kind(), "sciencemode4+sim");
