@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "model/strength_history.h"
 #include "model/units.h"
 
 namespace fesbench::model {
@@ -80,6 +81,106 @@ struct KneeState {
   friend KneeState operator*(double k, const KneeState& a) { return {k * a.angle, k * a.velocity}; }
 };
 
+// The strength on the active torque (SimulationOptions::strength): the
+// activation the mechanics see is f_stim · s(t) / reference (τ_act is linear
+// in f_stim). NoStrength leaves it untouched (the thesis's model).
+struct NoStrength {
+  static constexpr bool kOn = false;
+  double Apply(double /*t*/, double activation) const { return activation; }
+  double Factor(double /*t*/) const { return 1.0; }
+};
+
+class StrengthGain {
+ public:
+  static constexpr bool kOn = true;
+  StrengthGain(const SimulationStrength& strength, const PiecewiseLinear& irc,
+               const PulseTrain& pulses, double pulse_rate_hz)
+      : model_(strength.parameters),
+        trace_(model_, irc, pulses, pulse_rate_hz, strength.initial),
+        inverse_reference_(1.0 / strength.reference_factor) {}
+  StrengthGain(const StrengthGain&) = delete;
+  StrengthGain& operator=(const StrengthGain&) = delete;
+  double Factor(double t) const { return trace_.FactorAt(t) * inverse_reference_; }
+  double Apply(double t, double activation) const { return activation * Factor(t); }
+
+ private:
+  StrengthModel model_;
+  StrengthTrace trace_;  // points at model_
+  double inverse_reference_;
+};
+
+// SimulateFreeSwing's integration (validated inputs, r sized), with the
+// strength `gain`.
+template <class Gain>
+void RunFreeSwing(const JointModel& model, const ParameterSet& params, const PulseTrain& pulses,
+                  const SimulationOptions& options, std::size_t n, SimulationResult& r,
+                  const Gain& gain) {
+  // State x = (θ in deg, θ̇ in deg/s); ẍ from J·θ̈ = −τ_pta − τ_ptv − τ_act (§3.4).
+  using State = KneeState;
+  JointModel::Segments segments;  // the look-ups follow the trajectory
+  const auto rhs = [&model, &segments, &gain](double t, const State& x, double activation) {
+    return State{x.velocity,
+                 model.AccelerationDegS2(x.angle, x.velocity, gain.Apply(t, activation), segments)};
+  };
+  const std::optional<JointLimits>& limits = options.joint_limits;
+  const auto record = [&](std::size_t i, double t, const State& x, double activation) {
+    r.angle_deg[i] = x.angle;
+    r.velocity_deg_s[i] = x.velocity;
+    double accel =
+        model.AccelerationDegS2(x.angle, x.velocity, gain.Apply(t, activation), segments);
+    // Resting on a stop that the net torque pushes into: the stop holds.
+    if (limits && ((x.angle <= limits->min_angle_deg && accel < 0.0) ||
+                   (x.angle >= limits->max_angle_deg && accel > 0.0))) {
+      accel = 0.0;
+    }
+    r.accel_deg_s2[i] = accel;
+    r.activation[i] = activation;
+    if constexpr (Gain::kOn) r.strength[i] = gain.Factor(t);
+  };
+  const IntegratorSettings settings{options.integrator, options.step_s, options.tolerances};
+  IntegratorWorkspace ws;
+  // Plastic stops (JointLimits): clamp the angle, drop the velocity into
+  // the stop; without limits nothing moves.
+  const auto stop = [&limits](State& x) {
+    if (!limits) return false;
+    if (x.angle < limits->min_angle_deg || (x.angle == limits->min_angle_deg && x.velocity < 0.0)) {
+      x.angle = limits->min_angle_deg;
+      x.velocity = std::max(x.velocity, 0.0);
+      return true;
+    }
+    if (x.angle > limits->max_angle_deg || (x.angle == limits->max_angle_deg && x.velocity > 0.0)) {
+      x.angle = limits->max_angle_deg;
+      x.velocity = std::min(x.velocity, 0.0);
+      return true;
+    }
+    return false;
+  };
+  const State x0{options.initial_angle_deg, options.initial_velocity_deg_s};
+  if (model.has_scaled_tables()) {
+    // Rk4Stages arranged for the stages' dependency chain (FreeSwingRk4Step).
+    const auto step = [&model, &segments, &gain](const auto& /*rhs*/, const State& x, double ts,
+                                                 double h, double a0, double a_half,
+                                                 double a_end) {
+      State y = x;
+      if constexpr (Gain::kOn) {
+        model.FreeSwingRk4Step(y.angle, y.velocity, h, gain.Apply(ts, a0),
+                               gain.Apply(ts + 0.5 * h, a_half), gain.Apply(ts + h, a_end),
+                               segments);
+      } else {
+        model.FreeSwingRk4Step(y.angle, y.velocity, h, a0, a_half, a_end, segments);
+      }
+      return y;
+    };
+    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
+                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop,
+                           step);
+  } else {
+    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
+                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop);
+  }
+  r.stats = ws.stats;
+}
+
 }  // namespace
 
 namespace detail {
@@ -95,6 +196,15 @@ std::size_t ValidateOptions(const SimulationOptions& options, double default_dur
   const double duration = options.duration_s.value_or(default_duration_s);
   RequirePositive(duration, "duration_s");
   if (options.integrator == IntegratorKind::kAdaptive) ValidateTolerances(options.tolerances);
+  if (options.strength) {
+    RequirePositive(options.strength->reference_factor, "strength.reference_factor");
+    const StrengthState& s0 = options.strength->initial;
+    if (!std::isfinite(s0.fitness) || s0.fitness < 0.0 || !std::isfinite(s0.potentiation) ||
+        s0.potentiation < 0.0) {
+      throw std::invalid_argument("simulation: strength.initial must be finite and >= 0");
+    }
+    const StrengthModel check(options.strength->parameters);  // throws on bad parameters
+  }
   const double n = std::floor(duration * options.output_rate_hz + 1e-9);
   if (n > 1e9) throw std::invalid_argument("simulation: duration_s * output_rate_hz too large");
   return std::max<std::size_t>(1, static_cast<std::size_t>(n));
@@ -143,61 +253,13 @@ SimulationResult SimulateFreeSwing(const ParameterSet& params, const PulseTrain&
 
   SimulationResult r = MakeResult(n, options.output_rate_hz, model.kind());
   r.stim_ma = StimulusColumn(pulses, options.pulse_rate_hz, r.t_s);
-
-  // State x = (θ in deg, θ̇ in deg/s); ẍ from J·θ̈ = −τ_pta − τ_ptv − τ_act (§3.4).
-  using State = KneeState;
-  JointModel::Segments segments;  // the look-ups follow the trajectory
-  const auto rhs = [&model, &segments](double /*t*/, const State& x, double activation) {
-    return State{x.velocity, model.AccelerationDegS2(x.angle, x.velocity, activation, segments)};
-  };
-  const std::optional<JointLimits>& limits = options.joint_limits;
-  const auto record = [&](std::size_t i, double /*t*/, const State& x, double activation) {
-    r.angle_deg[i] = x.angle;
-    r.velocity_deg_s[i] = x.velocity;
-    double accel = model.AccelerationDegS2(x.angle, x.velocity, activation, segments);
-    // Resting on a stop that the net torque pushes into: the stop holds.
-    if (limits && ((x.angle <= limits->min_angle_deg && accel < 0.0) ||
-                   (x.angle >= limits->max_angle_deg && accel > 0.0))) {
-      accel = 0.0;
-    }
-    r.accel_deg_s2[i] = accel;
-    r.activation[i] = activation;
-  };
-  const IntegratorSettings settings{options.integrator, options.step_s, options.tolerances};
-  IntegratorWorkspace ws;
-  // Plastic stops (JointLimits): clamp the angle, drop the velocity into
-  // the stop; without limits nothing moves.
-  const auto stop = [&limits](State& x) {
-    if (!limits) return false;
-    if (x.angle < limits->min_angle_deg || (x.angle == limits->min_angle_deg && x.velocity < 0.0)) {
-      x.angle = limits->min_angle_deg;
-      x.velocity = std::max(x.velocity, 0.0);
-      return true;
-    }
-    if (x.angle > limits->max_angle_deg || (x.angle == limits->max_angle_deg && x.velocity > 0.0)) {
-      x.angle = limits->max_angle_deg;
-      x.velocity = std::min(x.velocity, 0.0);
-      return true;
-    }
-    return false;
-  };
-  const State x0{options.initial_angle_deg, options.initial_velocity_deg_s};
-  if (model.has_scaled_tables()) {
-    // Rk4Stages arranged for the stages' dependency chain (FreeSwingRk4Step).
-    const auto step = [&model, &segments](const auto& /*rhs*/, const State& x, double /*ts*/,
-                                          double h, double a0, double a_half, double a_end) {
-      State y = x;
-      model.FreeSwingRk4Step(y.angle, y.velocity, h, a0, a_half, a_end, segments);
-      return y;
-    };
-    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
-                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop,
-                           step);
-  } else {
-    detail::RunPulseDriven(rhs, record, x0, params.contraction, params.irc, pulses,
-                           options.pulse_rate_hz, options.output_rate_hz, n, settings, ws, stop);
+  if (!options.strength) {
+    RunFreeSwing(model, params, pulses, options, n, r, NoStrength{});
+    return r;
   }
-  r.stats = ws.stats;
+  const StrengthGain gain(*options.strength, params.irc, pulses, options.pulse_rate_hz);
+  r.strength.assign(n, 0.0);
+  RunFreeSwing(model, params, pulses, options, n, r, gain);
   return r;
 }
 
@@ -214,9 +276,15 @@ SimulationResult SimulateIsometric(const ParameterSet& params, const PulseTrain&
   // Eqs. 3.18–3.20: τ = C₀·f_stim + C₁ with the τ_ptv(0) of §6.5 referencing.
   const double c0 = model.ActiveGain(angle_deg, 0.0);
   const double c1 = model.PassiveAngleTorque(angle_deg) + model.PassiveVelocityTorque(0.0);
+  if (options.strength) {
+    const StrengthGain gain(*options.strength, params.irc, pulses, options.pulse_rate_hz);
+    r.strength.resize(n);
+    for (std::size_t i = 0; i < n; ++i) r.strength[i] = gain.Factor(r.t_s[i]);
+  }
   for (std::size_t i = 0; i < n; ++i) {
     r.angle_deg[i] = angle_deg;
-    r.torque_nm[i] = c1 + c0 * r.activation[i];
+    r.torque_nm[i] =
+        c1 + c0 * (r.strength.empty() ? r.activation[i] : r.activation[i] * r.strength[i]);
   }
   return r;
 }
@@ -231,7 +299,13 @@ SimulationResult SimulateTrajectory(const ParameterSet& params, const PulseTrain
   SimulationResult r = MakeResult(n, options.output_rate_hz, model.kind());
   r.stim_ma = StimulusColumn(pulses, options.pulse_rate_hz, r.t_s);
   r.activation = ActivationAt(params.contraction, params.irc, pulses, options.pulse_rate_hz, r.t_s);
+  if (options.strength) {
+    const StrengthGain gain(*options.strength, params.irc, pulses, options.pulse_rate_hz);
+    r.strength.resize(n);
+    for (std::size_t i = 0; i < n; ++i) r.strength[i] = gain.Factor(r.t_s[i]);
+  }
   for (std::size_t i = 0; i < n; ++i) {
+    const double active = r.strength.empty() ? r.activation[i] : r.activation[i] * r.strength[i];
     const Kinematics k = trajectory.At(r.t_s[i]);
     if (!std::isfinite(k.velocity_deg_s) || !std::isfinite(k.accel_deg_s2)) {
       throw std::invalid_argument("simulation: trajectory gives a non-finite value at t = " +
@@ -245,7 +319,7 @@ SimulationResult SimulateTrajectory(const ParameterSet& params, const PulseTrain
     r.torque_nm[i] = model.inertia_kgm2() * DegToRad(k.accel_deg_s2) +
                      model.PassiveVelocityTorque(k.velocity_deg_s) +
                      model.PassiveAngleTorque(k.angle_deg) +
-                     r.activation[i] * model.ActiveGain(k.angle_deg, k.velocity_deg_s);
+                     active * model.ActiveGain(k.angle_deg, k.velocity_deg_s);
   }
   return r;
 }

@@ -29,6 +29,7 @@
 #include "model/joint_model.h"
 #include "model/parameter_set.h"
 #include "model/signal.h"
+#include "model/strength.h"
 
 namespace fesbench::model {
 
@@ -43,6 +44,19 @@ struct JointLimits {
   double min_angle_deg = 10.0;   ///< full extension stop, deg.
   double max_angle_deg = 110.0;  ///< flexion stop, deg, > min_angle_deg.
   friend bool operator==(const JointLimits&, const JointLimits&) = default;
+};
+
+/// A strength state on the active torque (model/strength.h; docs/MODEL.md,
+/// "Strength that changes with use"): τ_act is multiplied by
+/// s(t) / reference_factor, s = x·(1 + P) propagated from `initial` at t = 0
+/// by the activation the simulated pulses ask for (model/strength_history.h:
+/// R(u) of each pulse for one pulse period).
+struct SimulationStrength {
+  StrengthParameters parameters;
+  StrengthState initial;
+  /// The strength the parameter set's τ_scale was identified at (1: a rested
+  /// leg), > 0: the set's τ_scale already holds it.
+  double reference_factor = 1.0;
 };
 
 /// Options of every simulation mode.
@@ -63,6 +77,8 @@ struct SimulationOptions {
   /// applied after every step; with the adaptive integrator after every
   /// accepted step.
   std::optional<JointLimits> joint_limits;
+  /// The strength state (none when unset: s ≡ 1, the thesis's model).
+  std::optional<SimulationStrength> strength;
 };
 
 /// Equal-length columns, one row per output sample.
@@ -80,7 +96,10 @@ struct SimulationResult {
   /// τ_pta(θ₀) + τ_ptv(0) + τ_act (raw, offset not removed); trajectory
   /// J·θ̈ + τ_pta(θ) + τ_ptv(θ̇) + τ_act (Eq. 4.9 plus the active term).
   std::vector<double> torque_nm;
-  std::vector<double> activation;      ///< f_stim (dimensionless).
+  std::vector<double> activation;      ///< f_stim (dimensionless), before the strength.
+  /// With SimulationOptions::strength: s(t) / reference_factor at each
+  /// sample, the factor on τ_act; empty otherwise.
+  std::vector<double> strength;
   ModelKind model = ModelKind::kFull;  ///< the variant simulated.
   IntegrationStats stats;              ///< free swing only; zeros otherwise.
 

@@ -74,7 +74,8 @@ json PredictionResultToJson(const PredictionResult& r, bool include_columns) {
             {"errors", r.errors ? PredictionErrorsToJson(*r.errors) : json(nullptr)},
             {"fitted_scale", api::OrNull(r.fitted_scale)},
             {"share_outside_identified_ranges", api::OrNull(r.share_outside_identified_ranges)},
-            {"released_at_s", api::OrNull(r.released_at_s)}};
+            {"released_at_s", api::OrNull(r.released_at_s)},
+            {"strength_at_start", api::OrNull(r.strength_at_start)}};
   j["joint_limits"] = r.joint_limits ? json{{"min_angle_deg", r.joint_limits->min_angle_deg},
                                             {"max_angle_deg", r.joint_limits->max_angle_deg}}
                                      : json(nullptr);

@@ -15,6 +15,7 @@
 #include "model/identify_passive_only.h"
 #include "model/identify_rapid.h"
 #include "model/signal.h"
+#include "model/strength_history.h"
 #include "server/protocols/model_gate.h"
 #include "server/services/analysis_json.h"
 #include "server/services/model_failure.h"
@@ -142,7 +143,67 @@ struct PredictionInput {
   std::string stage = "stimulus";
   bool imported = false;  // the trial was recorded elsewhere (not on this bench)
   std::optional<model::JointLimits> imported_stops;  // the stops its spec declared
+  std::optional<LoadedTrial> trial;                  // with a trial: the stored trial
 };
+
+// A stored trial's stimulation on the session's clock: its start relative to
+// `origin_ms` (s) and its delivered pulses.
+std::optional<model::StimulationRecord> StimulationOf(const api::Trial& t, std::int64_t origin_ms) {
+  if (!t.start_time_unix_ms || !t.pulses) return std::nullopt;
+  model::StimulationRecord r;
+  r.start_s = static_cast<double>(*t.start_time_unix_ms - origin_ms) / 1000.0;
+  r.pulses = t.pulses->Train();
+  r.pulse_rate_hz = t.pulses->pulse_rate_hz;
+  return r;
+}
+
+bool IsFreeSwing(const api::Trial& t) {
+  if (!t.kind) return false;
+  const api::TrialKindInfo& k = api::InfoOf(*t.kind);
+  return !k.knee_locked && !k.motor;
+}
+
+// docs/MODEL.md, "The strength at a trial's start": the strength state at
+// the stored trial's start from its session's earlier trials (their start
+// times and delivered pulses, rested before the first), relative to the
+// strength of the set's free-swing trials of that session (the trials its
+// τ_scale was fitted to; 1 if none is in the session). Unset for a trial
+// without a start time.
+api::Result<std::optional<model::SimulationStrength>> SessionStrength(
+    storage::Database& db, const model::StrengthParameters& parameters,
+    const model::ParameterSet& params, const LoadedTrial& trial) {
+  if (!trial.trial.start_time_unix_ms) return std::optional<model::SimulationStrength>();
+  const std::int64_t origin = *trial.trial.start_time_unix_ms;
+  storage::TrialRepository repo(db);
+  api::Result<std::vector<storage::TrialSummary>> list = repo.ListForSession(trial.session_id);
+  if (!list.ok()) return list.status();
+  std::vector<model::StimulationRecord> history;
+  std::vector<model::StimulationRecord> reference_trials;
+  const std::vector<std::int64_t>& fitted = params.provenance.trial_ids;
+  for (const storage::TrialSummary& summary : *list) {
+    if (summary.id == trial.id) continue;
+    api::Result<api::Trial> other = repo.Get(summary.id);
+    if (!other.ok()) return other.status();
+    std::optional<model::StimulationRecord> r = StimulationOf(*other, origin);
+    if (!r) continue;
+    if (IsFreeSwing(*other) && std::find(fitted.begin(), fitted.end(), summary.id) != fitted.end()) {
+      reference_trials.push_back(*r);
+    }
+    history.push_back(std::move(*r));
+  }
+  const model::StrengthModel m(parameters);
+  model::SimulationStrength out;
+  out.parameters = parameters;
+  out.initial = model::StrengthAtStart(m, params.irc, history, 0.0);
+  double sum = 0.0, count = 0.0;
+  for (const model::StimulationRecord& r : reference_trials) {
+    const model::StrengthTrace trace(m, params.irc, r.pulses, r.pulse_rate_hz,
+                                     model::StrengthAtStart(m, params.irc, history, r.start_s));
+    if (const std::optional<double> w = trace.ActivationWeightedFactor()) sum += *w, count += 1.0;
+  }
+  if (count > 0.0) out.reference_factor = sum / count;
+  return std::optional<model::SimulationStrength>(out);
+}
 
 // The angles a real knee takes, deg: hyperextension to −30°, flexion to 180°.
 constexpr double kMinKneeAngleDeg = -30.0;
@@ -267,6 +328,7 @@ api::Status PrepareFromTrial(storage::Database& db, const PredictionRequest& req
     }
   }
   in.measured = std::move(c);
+  in.trial = std::move(trial).value();
   return api::Status::Ok();
 }
 
@@ -371,6 +433,19 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
           std::string(request.stimulus ? "stimulus" : "trial") + " stimulates");
     }
     if (api::Status st = ApplyStartAndStops(request, config_, in, out); !st.ok()) return st;
+    if (config_.strength && in.trial && !in.imported) {
+      in.stage = "strength at the trial's start";
+      api::Result<std::optional<model::SimulationStrength>> strength =
+          SessionStrength(db_, *config_.strength, params, *in.trial);
+      if (!strength.ok()) return strength.status();
+      if (*strength) {
+        // The pulses' times are the trial's own from its first sample; a
+        // pendulum test's release does not stimulate.
+        in.options.strength = **strength;
+        out.strength_at_start = model::StrengthFactor((*strength)->initial) /
+                                (*strength)->reference_factor;
+      }
+    }
     in.stage = "simulation";
     out.predicted =
         out.mode == PredictionMode::kIsometric

@@ -42,6 +42,15 @@ struct PredictionConfig {
   /// The bench's range of motion: free-swing predictions stop at it, as the
   /// knee does (model/simulate.h JointLimits). Unset: unbounded.
   std::optional<model::JointLimits> joint_limits = model::JointLimits{};
+  /// The strength state of predictions on a stored trial (docs/MODEL.md,
+  /// "The strength at a trial's start"): when set, the active torque is
+  /// multiplied by s(t)/s_ref, s propagated through the pulses of the
+  /// session's earlier trials and the rests between them to the trial's
+  /// start, then through the trial's own pulses; s_ref the strength of the
+  /// set's free-swing trials in that session (1 if none). Unset (the
+  /// default): s ≡ 1, the thesis's time-invariant model — on the simulated
+  /// legs the literature prior made predictions worse (docs/MODEL.md).
+  std::optional<model::StrengthParameters> strength;
 };
 
 /// The request's wire form (api/analysis_requests.h).
@@ -87,6 +96,10 @@ struct PredictionResult {
   /// A pendulum test held before its release (model::PendulumReleaseIndex):
   /// the time into the trial, s, from which it was predicted and compared.
   std::optional<double> released_at_s;
+  /// With PredictionConfig::strength, on a bench trial with a start time:
+  /// s/s_ref at the trial's start, the factor the set's active torque
+  /// started with (1: as strong as when the set was identified).
+  std::optional<double> strength_at_start;
 };
 
 /// Checks the request alone: kInvalidArgument naming the field.
