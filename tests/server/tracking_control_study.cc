@@ -12,7 +12,8 @@
 // with all and with 0.8 of its activation); docs/STUDY.md's tables aggregate
 // them. Not a
 // ctest: a measurement to run by hand,
-//   tracking_control_study [legs=24] [study_seed=1] [first_leg=1]
+//   tracking_control_study [legs=24] [study_seed=1] [first_leg=1] [max_rate_ma_per_s=0]
+// (a slew limit given to every run; 0: the default, derived from the set).
 #include <cstdint>
 #include <cstdlib>
 #include <fstream>
@@ -53,8 +54,9 @@ double Value(const RunResult& r, const std::string& name) {
 }
 
 void Track(int index, std::string_view family, const std::string& condition, VirtualSubject vs,
-           const model::ParameterSet& set, int controller) {
+           const model::ParameterSet& set, int controller, double max_rate_ma_per_s) {
   ParameterValues values{{"controller", controller}};
+  if (max_rate_ma_per_s > 0.0) values["max_rate_ma_per_s"] = max_rate_ma_per_s;
   if (condition == "holds") values["target"] = 1.0;
   if (condition == "fatigue") {
     values["duration_s"] = 120.0;
@@ -99,6 +101,7 @@ int Main(int argc, char** argv) {
   const int legs = argc > 1 ? std::atoi(argv[1]) : 24;
   const std::uint64_t study_seed = argc > 2 ? std::strtoull(argv[2], nullptr, 10) : 1;
   const int first = argc > 3 ? std::atoi(argv[3]) : 1;
+  const double max_rate = argc > 4 ? std::atof(argv[4]) : 0.0;
   const SubjectFamily families[] = {SubjectFamily::kThesis, SubjectFamily::kAnalytic,
                                     SubjectFamily::kPlateau};
   std::cout << std::fixed << std::setprecision(3);
@@ -115,7 +118,7 @@ int Main(int argc, char** argv) {
     }
     for (const char* condition : {"sine", "holds", "fatigue"}) {
       for (int controller : {1, 2}) {
-        Track(index, SubjectFamilyName(family), condition, vs, *set, controller);
+        Track(index, SubjectFamilyName(family), condition, vs, *set, controller, max_rate);
       }
     }
   }
