@@ -141,8 +141,8 @@ Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
       (options.kind == ControllerKind::kPid ? 1.0 : 2.0) * l.stiffness / l.plant_gain;
   double kp = cap;
   const auto [lo, hi] = std::minmax_element(target.angle_deg.begin(), target.angle_deg.end());
-  for (std::optional<double> about : {std::optional<double>(), std::optional<double>(*lo),
-                                      std::optional<double>(*hi)}) {
+  for (std::optional<double> about :
+       {std::optional<double>(), std::optional<double>(*lo), std::optional<double>(*hi)}) {
     const LoopShape at = LoopShapeOf(params, target, options, about);
     if (const std::optional<double> w = PhaseCrossover(at)) {
       kp = std::min(kp, 1.0 / (kGainMargin * std::abs(UnitLoop(at, *w))));
@@ -173,9 +173,9 @@ double ReachableExtensionDeg(const ParameterSet& params, double max_amplitude_ma
                              double activation_fraction) {
   Require(std::isfinite(max_amplitude_ma) && max_amplitude_ma >= 0.0,
           "reachable angle: the amplitude must be ≥ 0");
-  Require(std::isfinite(activation_fraction) && activation_fraction > 0.0 &&
-              activation_fraction <= 1.0,
-          "reachable angle: the activation fraction must be in (0, 1]");
+  Require(
+      std::isfinite(activation_fraction) && activation_fraction > 0.0 && activation_fraction <= 1.0,
+      "reachable angle: the activation fraction must be in (0, 1]");
   const JointModel joint = JointModel::FromParameters(params);
   const double available = activation_fraction * std::clamp(params.irc(max_amplitude_ma), 0.0, 1.0);
   std::optional<double> rest;

@@ -538,11 +538,13 @@ api::Status BuildTracking(const ParameterValues& resolved, const SubjectContext&
   // (kDefaultTargetActivationFraction). A lo_deg the client gave stays; the
   // gate below judges it for the controllers that invert the set.
   if (t.params && !upload && given != nullptr && !given->contains("lo_deg")) {
-    const double fitted = std::ceil(model::ReachableExtensionDeg(
-        *t.params, v.at("max_ma"), kDefaultTargetActivationFraction));
-    if (fitted > v.at("lo_deg")) {
-      v["lo_deg"] = std::min(fitted, v.at("hi_deg") - kMinFittedSpanDeg);
-      plan.parameters["lo_deg"] = v.at("lo_deg");  // the run records the target used
+    const double fitted = std::ceil(
+        model::ReachableExtensionDeg(*t.params, v.at("max_ma"), kDefaultTargetActivationFraction));
+    const double lo =
+        std::max(v.at("lo_deg"), std::min(fitted, v.at("hi_deg") - kMinFittedSpanDeg));
+    if (lo > v.at("lo_deg")) {
+      v["lo_deg"] = lo;
+      plan.parameters["lo_deg"] = lo;  // the run records the target used
     }
   }
   t.target = TrackingTarget(v, uploaded, t.target_name);
@@ -562,9 +564,9 @@ api::Status BuildTracking(const ParameterValues& resolved, const SubjectContext&
   // The slew limit: given, or derived from the set's loop (model::DefaultSlewLimit:
   // no faster than the loop can use, so it adds no lag where the margin is set).
   if (t.max_rate_ma_per_s <= 0.0) {
-    t.max_rate_ma_per_s =
-        t.params ? std::round(model::DefaultSlewLimit(*t.params, t.target, t.options))
-                 : kModelFreeSlewLimitMaPerS;
+    t.max_rate_ma_per_s = t.params
+                              ? std::round(model::DefaultSlewLimit(*t.params, t.target, t.options))
+                              : kModelFreeSlewLimitMaPerS;
     plan.parameters["max_rate_ma_per_s"] = t.max_rate_ma_per_s;
   } else if (t.max_rate_ma_per_s < model::kMinSlewLimitMaPerS) {
     return api::Status::InvalidArgument("must be 0 (derived from the set) or 5–5000 mA/s",
@@ -676,7 +678,8 @@ api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const Parameter
       if (api::Status st = BuildDailyCheck(values, protocol.min_rest_s, subject, plan, b); !st.ok())
         return st;
     } else if (name == "tracking") {
-      if (api::Status st = BuildTracking(values, subject, uploaded_target, given, plan, b); !st.ok())
+      if (api::Status st = BuildTracking(values, subject, uploaded_target, given, plan, b);
+          !st.ok())
         return st;
     } else {
       return api::Status::NotFound("no plan for protocol " + name);

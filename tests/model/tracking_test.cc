@@ -179,8 +179,8 @@ TEST(TuneGainsTest, TheGainsGiveTheMarginOrTheCap) {
     const double cap = (kind == ControllerKind::kPid ? 1.0 : 2.0) * l.stiffness / l.plant_gain;
     // The margin about the mean, the most extended and the most flexed angle.
     double kp = cap;
-    for (std::optional<double> about : {std::optional<double>(), std::optional<double>(30.0),
-                                        std::optional<double>(80.0)}) {
+    for (std::optional<double> about :
+         {std::optional<double>(), std::optional<double>(30.0), std::optional<double>(80.0)}) {
       const LoopShape at = LoopShapeOf(params, sine, options, about);
       kp = std::min(kp, 1.0 / (kGainMargin * std::abs(UnitLoop(at, *PhaseCrossover(at)))));
     }

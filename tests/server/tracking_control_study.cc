@@ -69,8 +69,10 @@ void Track(int index, std::string_view family, const std::string& condition, Vir
             << (controller == 1 ? "inverse_model" : "adaptive") << ",";
   auto plan = MakePlan("tracking", values, ctx);
   if (!plan.ok()) {
-    std::cout << "-1,-1,-1,-1,-1,-1,-1,-1," << model::ReachableExtensionDeg(set, ctx.max_tolerated_ma)
-              << "," << model::ReachableExtensionDeg(set, ctx.max_tolerated_ma, 0.8) << ",refused: " << plan.status().message() << std::endl;
+    std::cout << "-1,-1,-1,-1,-1,-1,-1,-1,"
+              << model::ReachableExtensionDeg(set, ctx.max_tolerated_ma) << ","
+              << model::ReachableExtensionDeg(set, ctx.max_tolerated_ma, 0.8)
+              << ",refused: " << plan.status().message() << std::endl;
     return;
   }
   ProtocolRunner runner(leg.safe, &leg.log, nullptr, test::NoWatchdog());
@@ -106,7 +108,8 @@ int Main(int argc, char** argv) {
                                     SubjectFamily::kPlateau};
   std::cout << std::fixed << std::setprecision(3);
   std::cout << "leg,family,condition,controller,rms_deg,above_1hz_deg,max_ma_s,backoffs,"
-               "worst_overshoot_deg,worst_settling_s,lo_deg,max_rate_ma_per_s,reach_deg,reach80_deg,failure\n";
+               "worst_overshoot_deg,worst_settling_s,lo_deg,max_rate_ma_per_s,reach_deg,"
+               "reach80_deg,failure\n";
   for (int index = first; index < first + legs; ++index) {
     const std::uint64_t seed = study_seed * 1000 + static_cast<std::uint64_t>(index);
     const SubjectFamily family = families[static_cast<std::size_t>(index - 1) % 3];

@@ -180,7 +180,7 @@ TEST(Tracking, TheDefaultTargetFitsAWeakLeg) {
   ASSERT_TRUE(plan.ok()) << plan.status().ToString();
   const double lo = plan->parameters.at("lo_deg");
   EXPECT_EQ(lo, std::ceil(model::ReachableExtensionDeg(vs.truth, ctx.max_tolerated_ma,
-                                                        kDefaultTargetActivationFraction)));
+                                                       kDefaultTargetActivationFraction)));
   EXPECT_GE(lo, reach);
   EXPECT_NEAR(plan->tracking->target.angle_deg.front(), (lo + 80.0) / 2.0, 1e-9);
   EXPECT_EQ(plan->parameters.at("max_rate_ma_per_s"), plan->tracking->max_rate_ma_per_s);
@@ -318,9 +318,10 @@ TEST(Tracking, ALimitCycleIsBackedOffWithAndWithoutASet) {
     derived["max_rate_ma_per_s"] = 0.0;
     const RunResult r = Track(rig, full, derived);
     std::cout << "[ figure ] simulated leg 11, pid at " << kHot
-              << "x its tuned gains on holds at the derived slew limit " << r.parameters.at("max_rate_ma_per_s") << " mA/s: "
-              << RunStateName(r.state) << "; back-offs " << r.values.at("oscillation_backoffs")
-              << ", error RMS above 1 Hz " << r.values.at("error_rms_above_1hz_deg") << "°\n";
+              << "x its tuned gains on holds at the derived slew limit "
+              << r.parameters.at("max_rate_ma_per_s") << " mA/s: " << RunStateName(r.state)
+              << "; back-offs " << r.values.at("oscillation_backoffs") << ", error RMS above 1 Hz "
+              << r.values.at("error_rms_above_1hz_deg") << "°\n";
   }
   ParameterValues fixed = hot;
   fixed["max_rate_ma_per_s"] = 1000.0;
@@ -335,14 +336,14 @@ TEST(Tracking, ALimitCycleIsBackedOffWithAndWithoutASet) {
     ASSERT_TRUE(plan.ok()) << plan.status().ToString();
     ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
     const RunResult r = runner.Run(*plan, ctx);
-    std::cout << "[ figure ] simulated leg 11, pid at " << kHot << "x its tuned gains on holds at 1000 mA/s"
-              << (with_set ? "" : " (no set)") << ": " << RunStateName(r.state) << " "
-              << r.reason << "; back-offs " << r.values.at("oscillation_backoffs")
-              << ", error RMS above 1 Hz " << r.values.at("error_rms_above_1hz_deg")
-              << "° (tuned gains " << tuned.values.at("error_rms_above_1hz_deg")
-              << "°), worst settling " << r.values.at("worst_settling_s") << " s, at 0 mA "
-              << r.values.at("zero_ma_s") << " s, at the maximum " << r.values.at("max_ma_s")
-              << " s\n";
+    std::cout << "[ figure ] simulated leg 11, pid at " << kHot
+              << "x its tuned gains on holds at 1000 mA/s" << (with_set ? "" : " (no set)") << ": "
+              << RunStateName(r.state) << " " << r.reason << "; back-offs "
+              << r.values.at("oscillation_backoffs") << ", error RMS above 1 Hz "
+              << r.values.at("error_rms_above_1hz_deg") << "° (tuned gains "
+              << tuned.values.at("error_rms_above_1hz_deg") << "°), worst settling "
+              << r.values.at("worst_settling_s") << " s, at 0 mA " << r.values.at("zero_ma_s")
+              << " s, at the maximum " << r.values.at("max_ma_s") << " s\n";
     EXPECT_GE(r.values.at("oscillation_backoffs"), 1.0) << with_set;
     if (r.state != RunState::kDone) {
       EXPECT_NE(r.reason.find("still oscillates"), std::string::npos) << r.reason;
