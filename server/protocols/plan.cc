@@ -605,6 +605,25 @@ api::Status BuildTracking(const ParameterValues& resolved, const SubjectContext&
              "uses no model, is not refused";
       return api::Status::FailedPrecondition(why.str());
     }
+    // A target whose extended end lies past where the maximum holds the
+    // knee at all: each dip past it may be shorter than max_saturation_s (a
+    // sine's extended end), but the controller strains at the maximum there
+    // every cycle and cannot reach it.
+    const double reach = *t.reachable_extension_deg;
+    const auto most_extended =
+        std::min_element(t.target.angle_deg.begin(), t.target.angle_deg.end());
+    if (*most_extended < reach - kReachToleranceDeg) {
+      std::ostringstream why;
+      why << "the parameter set";
+      if (subject.parameter_set_id) why << " #" << *subject.parameter_set_id;
+      why << " predicts the target cannot be followed: its most extended angle " << *most_extended
+          << "° (t = "
+          << static_cast<double>(most_extended - t.target.angle_deg.begin()) / t.target.rate_hz
+          << " s) lies beyond the " << reach << "° the maximum " << t.options.max_amplitude_ma
+          << " mA holds the knee at; give lo_deg at or above it, or leave lo_deg out (the "
+             "default target fits the leg); pid, which uses no model, is not refused";
+      return api::Status::FailedPrecondition(why.str());
+    }
   }
   b.Prepare("decouple", MotorMode::kDecoupled, 90.0, v.at("settle_s"));
   const int trial = b.AddTrial("tracking_" + t.target_name, MotorMode::kDecoupled);

@@ -22,6 +22,12 @@ inline constexpr double kModelFreeSlewLimitMaPerS = 1000.0;
 /// of the muscle is the loop's authority for its corrections and the set's
 /// error (docs/PROTOCOLS.md, tracking).
 inline constexpr double kDefaultTargetActivationFraction = 0.8;
+/// The gate of the model-based controllers refuses a target whose most
+/// extended angle lies more than this beyond the set's reachable extension
+/// at the maximum (TrackingSettings::reachable_extension_deg), deg: the
+/// reach is static and scanned in 0.1° steps, a clinician types whole
+/// degrees.
+inline constexpr double kReachToleranceDeg = 1.0;
 /// A fitted default target keeps at least this span below hi_deg, deg.
 inline constexpr double kMinFittedSpanDeg = 10.0;
 

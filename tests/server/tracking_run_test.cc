@@ -168,8 +168,8 @@ TEST(Tracking, RefusesWithoutASetAndTargetsTheSetCannotReach) {
 // analytic leg whose muscle cannot hold 30° at the maximum, the default
 // sine's extended end moves to where the set says 0.8 of the muscle holds
 // the knee, the run records it and follows it; the default slew limit comes
-// from the set's loop. A 30° hold given explicitly is refused for the model
-// controllers with the reachable angle named, and not for pid.
+// from the set's loop. A 30° hold or sine given explicitly is refused for
+// the model controllers with the reachable angle named, and not for pid.
 TEST(Tracking, TheDefaultTargetFitsAWeakLeg) {
   const VirtualSubject vs = DrawSubject(1020, SubjectFamily::kAnalytic);
   SubjectContext ctx = test::SessionValues(vs);
@@ -204,6 +204,14 @@ TEST(Tracking, TheDefaultTargetFitsAWeakLeg) {
   EXPECT_NE(given.status().message().find(reach_text.str()), std::string::npos)
       << given.status().message();
   EXPECT_TRUE(MakePlan("tracking", {{"target", 1}, {"lo_deg", 30.0}, {"controller", 0}}, ctx).ok());
+  // A sine dips past the reach for less than max_saturation_s at a time,
+  // and is refused all the same.
+  auto sine = MakePlan("tracking", {{"lo_deg", 30.0}, {"controller", 2}}, ctx);
+  ASSERT_FALSE(sine.ok());
+  std::ostringstream beyond;
+  beyond << "beyond the " << reach << "°";
+  EXPECT_NE(sine.status().message().find(beyond.str()), std::string::npos)
+      << sine.status().message();
 }
 
 // The gate refuses only what the controller needs (docs/PROTOCOLS.md,
