@@ -9,6 +9,7 @@
 #include <unsupported/Eigen/FFT>
 #include <utility>
 
+#include "model/evaluation.h"
 #include "model/units.h"
 
 namespace fesbench::model {
@@ -58,12 +59,13 @@ std::optional<ControllerKind> ControllerKindOf(std::string_view name) {
 }
 
 LoopShape LoopShapeOf(const ParameterSet& params, const KneeTarget& target,
-                      const TrackingOptions& options) {
+                      const TrackingOptions& options, std::optional<double> about_deg) {
   Require(!target.angle_deg.empty() && target.rate_hz > 0.0, "tracking: the target is empty");
   const JointModel joint = JointModel::FromParameters(params);
   double mid = 0.0;
   for (double a : target.angle_deg) mid += a;
   mid /= static_cast<double>(target.size());
+  if (about_deg) mid = *about_deg;
   const double gain = joint.ActiveGain(mid, 0.0);
   const double hold =
       gain > 1e-9 ? std::clamp(-joint.PassiveAngleTorque(mid) / gain, 0.0, 1.0) : 0.0;
@@ -138,8 +140,13 @@ Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
   const double cap =
       (options.kind == ControllerKind::kPid ? 1.0 : 2.0) * l.stiffness / l.plant_gain;
   double kp = cap;
-  if (const std::optional<double> w = PhaseCrossover(l)) {
-    kp = std::min(cap, 1.0 / (kGainMargin * std::abs(UnitLoop(l, *w))));
+  const auto [lo, hi] = std::minmax_element(target.angle_deg.begin(), target.angle_deg.end());
+  for (std::optional<double> about :
+       {std::optional<double>(), std::optional<double>(*lo), std::optional<double>(*hi)}) {
+    const LoopShape at = LoopShapeOf(params, target, options, about);
+    if (const std::optional<double> w = PhaseCrossover(at)) {
+      kp = std::min(kp, 1.0 / (kGainMargin * std::abs(UnitLoop(at, *w))));
+    }
   }
   Pid::Gains g;
   g.kp = kp;
@@ -147,6 +154,44 @@ Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
   g.kd = kp * l.derivative_s;
   g.derivative_filter_s = l.derivative_filter_s;
   return g;
+}
+
+double SlewLimitFor(const LoopShape& l, double span_ma) {
+  Require(std::isfinite(span_ma) && span_ma >= 0.0, "slew limit: the span must be ≥ 0 mA");
+  const std::optional<double> w = PhaseCrossover(l);
+  const double omega = w ? *w : 1.0 / std::max(l.delay_s, 1e-3);
+  return std::clamp(omega * span_ma / 2.0, kMinSlewLimitMaPerS, kMaxSlewLimitMaPerS);
+}
+
+double DefaultSlewLimit(const ParameterSet& params, const KneeTarget& target,
+                        const TrackingOptions& options) {
+  const double span = std::max(options.max_amplitude_ma - std::max(options.threshold_ma, 0.0), 0.0);
+  return SlewLimitFor(LoopShapeOf(params, target, options), span);
+}
+
+double ReachableExtensionDeg(const ParameterSet& params, double max_amplitude_ma,
+                             double activation_fraction) {
+  Require(std::isfinite(max_amplitude_ma) && max_amplitude_ma >= 0.0,
+          "reachable angle: the amplitude must be ≥ 0");
+  Require(
+      std::isfinite(activation_fraction) && activation_fraction > 0.0 && activation_fraction <= 1.0,
+      "reachable angle: the activation fraction must be in (0, 1]");
+  const JointModel joint = JointModel::FromParameters(params);
+  const double available = activation_fraction * std::clamp(params.irc(max_amplitude_ma), 0.0, 1.0);
+  std::optional<double> rest;
+  if (!params.passive.torque_angle.empty() && !params.passive.torque_velocity.empty()) {
+    rest = FindPassiveRestAngle(params.passive);
+  }
+  // Tenths of a degree, from the rest angle toward extension.
+  const auto start = static_cast<int>(std::floor(rest.value_or(kReferenceAngleDeg) * 10.0));
+  int reached = std::max(start, 0);
+  for (int k = reached; k >= 0; --k) {
+    const double angle = 0.1 * k;
+    const double need = -joint.PassiveAngleTorque(angle);  // extension torque to hold
+    if (need > 0.0 && need > available * joint.ActiveGain(angle, 0.0)) break;
+    reached = k;
+  }
+  return 0.1 * reached;
 }
 
 std::vector<double> ResampleTarget(const std::vector<double>& t_s,

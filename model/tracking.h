@@ -76,7 +76,8 @@ struct TrackingOptions {
   std::optional<StrengthParameters> strength = StrengthParameters::RienerPrior();
 };
 
-/// The tracking loop linearised about a hold at the target's mid angle θ_m
+/// The tracking loop linearised about a hold at the target's mean angle θ_m
+/// (or at about_deg)
 /// (per degree; the plant from the PID's output to the knee angle):
 ///   P(s) = plant_gain · H_n(s) · e^(−s·delay) / (J·s² + B·s + K),
 /// with K and B the slopes of the model's angle and velocity torques
@@ -107,7 +108,8 @@ struct LoopShape {
 inline constexpr double kGainMargin = 2.0;
 
 LoopShape LoopShapeOf(const ParameterSet& params, const KneeTarget& target,
-                      const TrackingOptions& options);
+                      const TrackingOptions& options,
+                      std::optional<double> about_deg = std::nullopt);
 
 /// The open loop C(jω)·P(jω) with kp = 1.
 std::complex<double> UnitLoop(const LoopShape& loop, double omega);
@@ -118,7 +120,10 @@ std::optional<double> PhaseCrossover(const LoopShape& loop);
 
 /// The PID gains a tracking run uses when none are given: kp for a gain
 /// margin of kGainMargin at the phase crossover of LoopShapeOf (classical
-/// loop shaping on the set's linearised leg), at most a static loop gain
+/// loop shaping on the set's linearised leg) about the target's mean angle,
+/// its most extended and its most flexed angle, the smallest of the three
+/// (the margin holds wherever the target takes the knee: the leg's local
+/// stiffness and damping change along it), at most a static loop gain
 /// kp·plant_gain/K of 1 (`pid`) or 2 (around the compensator); `pid`:
 /// integral_s 1 s, derivative_s 0.1 s; around the compensator 0.5 s and
 /// 0.03 s. (Fixed loop gains fail both ways: on the example set a torque
@@ -127,6 +132,44 @@ std::optional<double> PhaseCrossover(const LoopShape& loop);
 /// @throws std::invalid_argument as InvertModel.
 Pid::Gains TuneGains(const ParameterSet& params, const KneeTarget& target,
                      const TrackingOptions& options);
+
+/// Bounds of a tracking run's slew limit, mA/s.
+inline constexpr double kMinSlewLimitMaPerS = 5.0;
+inline constexpr double kMaxSlewLimitMaPerS = 5000.0;
+
+/// The slew limit a loop can use, mA/s (docs/MODEL.md, "Tracking: the slew
+/// limit"): ω₁₈₀·span_ma/2, with ω₁₈₀ the loop's phase crossover
+/// (PhaseCrossover; 1/delay_s if the phase never reaches −180°) and span_ma
+/// the amplitudes the loop recruits over (threshold to maximum). The
+/// fastest command the loop can use is a swing over the whole span at
+/// ω₁₈₀, where TuneGains sets the gain margin; its peak rate is
+/// ω₁₈₀·span/2. Every command inside the span at or below ω₁₈₀ then passes
+/// the limit untouched, so the limit adds no phase lag where the margin is
+/// computed (a rate limiter that acts adds lag, and lag at ω₁₈₀ eats the
+/// margin), and it cuts only what the loop cannot follow: steps, the
+/// derivative's kicks, swings above the crossover. Clamped to 5–5000 mA/s
+/// (the `tracking` protocol's bounds of max_rate_ma_per_s).
+double SlewLimitFor(const LoopShape& loop, double span_ma);
+
+/// SlewLimitFor(LoopShapeOf(params, target, options), max − threshold): the
+/// default slew limit of a tracking run with a set.
+/// @throws std::invalid_argument as LoopShapeOf.
+double DefaultSlewLimit(const ParameterSet& params, const KneeTarget& target,
+                        const TrackingOptions& options);
+
+/// The most extended knee angle, deg, at which the set predicts the knee is
+/// held still with at most activation_fraction of the activation the
+/// maximum amplitude recruits, R(max_amplitude_ma) (Eqs. 3.16–3.20 at rest:
+/// f·τ_scale·f_ata(θ)·f_atv(0) = −τ_pta(θ)): from the passive rest angle
+/// (model::FindPassiveRestAngle; 90° without one) toward extension in steps
+/// of 0.1°, the last angle before the needed activation exceeds that bound
+/// (down to 0°). The quadriceps only extends, so flexion up to the rest
+/// angle needs no stimulation. `tracking` fits its default target to it
+/// (docs/PROTOCOLS.md, tracking).
+/// @throws std::invalid_argument for an invalid set, a negative amplitude
+///   or a fraction outside (0, 1].
+double ReachableExtensionDeg(const ParameterSet& params, double max_amplitude_ma,
+                             double activation_fraction = 1.0);
 
 /// An uploaded trajectory (t_s, angle_deg) resampled at rate_hz by linear
 /// interpolation from its t = 0 (its first time) to its last.

@@ -491,8 +491,10 @@ std::pair<std::size_t, std::size_t> LongestUnreachable(const model::Feedforward&
   return best;
 }
 
-api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subject,
-                          const std::vector<double>& uploaded, Plan& plan, Builder& b) {
+api::Status BuildTracking(const ParameterValues& resolved, const SubjectContext& subject,
+                          const std::vector<double>& uploaded, const ParameterValues* given,
+                          Plan& plan, Builder& b) {
+  ParameterValues v = resolved;
   // Only the model-based controllers need the leg's set; pid uses none when
   // its gains are given (docs/PROTOCOLS.md, tracking).
   const auto kind = static_cast<model::ControllerKind>(static_cast<int>(v.at("controller")));
@@ -528,6 +530,23 @@ api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subjec
   }
   TrackingSettings t;
   t.params = subject.parameter_set;
+  if (t.params) {
+    t.reachable_extension_deg = model::ReachableExtensionDeg(*t.params, v.at("max_ma"));
+  }
+  // The default target fits the leg: its extended end no further than the
+  // set says the maximum holds the knee with a fifth of the muscle to spare
+  // (kDefaultTargetActivationFraction). A lo_deg the client gave stays; the
+  // gate below judges it for the controllers that invert the set.
+  if (t.params && !upload && given != nullptr && !given->contains("lo_deg")) {
+    const double fitted = std::ceil(
+        model::ReachableExtensionDeg(*t.params, v.at("max_ma"), kDefaultTargetActivationFraction));
+    const double lo =
+        std::max(v.at("lo_deg"), std::min(fitted, v.at("hi_deg") - kMinFittedSpanDeg));
+    if (lo > v.at("lo_deg")) {
+      v["lo_deg"] = lo;
+      plan.parameters["lo_deg"] = lo;  // the run records the target used
+    }
+  }
   t.target = TrackingTarget(v, uploaded, t.target_name);
   t.lead_in_s = v.at("lead_in_s");
   t.max_rate_ma_per_s = v.at("max_rate_ma_per_s");
@@ -542,6 +561,17 @@ api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subjec
   const double ki = v.at(amplitude ? "ki_ma_per_deg_s" : "ki_nm_per_deg_s");
   const double kd = v.at(amplitude ? "kd_ma_s_per_deg" : "kd_nm_s_per_deg");
   if (kp > 0.0 || ki > 0.0 || kd > 0.0) t.options.gains = model::Pid::Gains{kp, ki, kd, 0.02};
+  // The slew limit: given, or derived from the set's loop (model::DefaultSlewLimit:
+  // no faster than the loop can use, so it adds no lag where the margin is set).
+  if (t.max_rate_ma_per_s <= 0.0) {
+    t.max_rate_ma_per_s = t.params
+                              ? std::round(model::DefaultSlewLimit(*t.params, t.target, t.options))
+                              : kModelFreeSlewLimitMaPerS;
+    plan.parameters["max_rate_ma_per_s"] = t.max_rate_ma_per_s;
+  } else if (t.max_rate_ma_per_s < model::kMinSlewLimitMaPerS) {
+    return api::Status::InvalidArgument("must be 0 (derived from the set) or 5–5000 mA/s",
+                                        "parameters.max_rate_ma_per_s");
+  }
   // The model gate of tracking, for the controllers that invert the set: its
   // inverse along the target must not stay saturated longer than the
   // controller would be allowed to. pid uses no model, so the set's limits
@@ -564,13 +594,34 @@ api::Status BuildTracking(const ParameterValues& v, const SubjectContext& subjec
       why << " predicts the target cannot be followed: from t = " << ff.t_s[from] << " s (target "
           << t.target.angle_deg[from] << "°) for " << span_s << " s it needs ";
       if (too_much) {
-        why << "more than the maximum " << inverse.max_amplitude_ma << " mA gives";
+        why << "more than the maximum " << inverse.max_amplitude_ma
+            << " mA gives; the set predicts the maximum holds the knee no further extended than "
+            << *t.reachable_extension_deg << "°";
       } else {
         why << "the knee held beyond its rest angle " << rest_deg
             << "° (flexion, which the quadriceps cannot give)";
       }
       why << " (longer than max_saturation_s = " << t.max_saturation_s << " s); pid, which "
              "uses no model, is not refused";
+      return api::Status::FailedPrecondition(why.str());
+    }
+    // A target whose extended end lies past where the maximum holds the
+    // knee at all: each dip past it may be shorter than max_saturation_s (a
+    // sine's extended end), but the controller strains at the maximum there
+    // every cycle and cannot reach it.
+    const double reach = *t.reachable_extension_deg;
+    const auto most_extended =
+        std::min_element(t.target.angle_deg.begin(), t.target.angle_deg.end());
+    if (*most_extended < reach - kReachToleranceDeg) {
+      std::ostringstream why;
+      why << "the parameter set";
+      if (subject.parameter_set_id) why << " #" << *subject.parameter_set_id;
+      why << " predicts the target cannot be followed: its most extended angle " << *most_extended
+          << "° (t = "
+          << static_cast<double>(most_extended - t.target.angle_deg.begin()) / t.target.rate_hz
+          << " s) lies beyond the " << reach << "° the maximum " << t.options.max_amplitude_ma
+          << " mA holds the knee at; give lo_deg at or above it, or leave lo_deg out (the "
+             "default target fits the leg); pid, which uses no model, is not refused";
       return api::Status::FailedPrecondition(why.str());
     }
   }
@@ -615,7 +666,8 @@ api::Status BuildDailyCheck(const ParameterValues& v, double min_rest_s,
 
 api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const ParameterValues& values,
                             const SubjectContext& subject,
-                            const std::vector<double>& uploaded_target) {
+                            const std::vector<double>& uploaded_target,
+                            const ParameterValues* given) {
   Plan plan;
   plan.protocol = protocol.name;
   plan.protocol_version = protocol.version;
@@ -645,7 +697,8 @@ api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const Parameter
       if (api::Status st = BuildDailyCheck(values, protocol.min_rest_s, subject, plan, b); !st.ok())
         return st;
     } else if (name == "tracking") {
-      if (api::Status st = BuildTracking(values, subject, uploaded_target, plan, b); !st.ok())
+      if (api::Status st = BuildTracking(values, subject, uploaded_target, given, plan, b);
+          !st.ok())
         return st;
     } else {
       return api::Status::NotFound("no plan for protocol " + name);
@@ -666,7 +719,7 @@ api::Result<Plan> MakePlan(std::string_view protocol, const ParameterValues& val
   if (p == nullptr) return api::Status::NotFound("unknown protocol " + std::string(protocol));
   api::Result<ParameterValues> resolved = ResolveParameters(*p, values, subject);
   if (!resolved.ok()) return resolved.status();
-  return BuildPlan(*p, *resolved, subject, uploaded_target);
+  return BuildPlan(*p, *resolved, subject, uploaded_target, &values);
 }
 
 model::SampledSignal TrialEnvelope(const Plan& plan, int trial) {

@@ -157,9 +157,13 @@ struct Plan {
 /// subject. kInvalidArgument if a generator refuses the values (the message
 /// names the parameter), kNotFound for an unknown protocol.
 /// `uploaded_target`: tracking's uploaded trajectory at 200 Hz (target 3).
+/// `given`: the values the client gave, before defaults (null: every value
+/// counts as given); tracking fits its default target to the leg where
+/// lo_deg was left out (docs/PROTOCOLS.md, tracking).
 api::Result<Plan> BuildPlan(const ProtocolDescription& protocol, const ParameterValues& values,
                             const SubjectContext& subject,
-                            const std::vector<double>& uploaded_target = {});
+                            const std::vector<double>& uploaded_target = {},
+                            const ParameterValues* given = nullptr);
 
 /// ResolveParameters then BuildPlan.
 api::Result<Plan> MakePlan(std::string_view protocol, const ParameterValues& values,

@@ -425,7 +425,9 @@ std::vector<ProtocolDescription> MakeCatalog() {
                   "0 = sine, 1 = holds, 2 = ramp, 3 = uploaded (the request's target_samples: t_s, "
                   "angle_deg)",
                   0, {"sine", "holds", "ramp", "uploaded"}),
-           Number("lo_deg", "lower target angle (extension side), deg",
+           Number("lo_deg",
+                  "lower target angle (extension side), deg (left out: 30, or with a set no "
+                  "further extended than the set says the maximum holds the knee)",
                   {.value = 30.0, .min = 0.0, .max = 180.0}),
            Number("hi_deg", "upper target angle (flexion side), deg",
                   {.value = 80.0, .min = 0.0, .max = 180.0}),
@@ -455,8 +457,10 @@ std::vector<ProtocolDescription> MakeCatalog() {
                   {.value = 0.0, .min = 0.0, .max = 50.0}),
            Number("kd_nm_s_per_deg", "inverse_model, adaptive: derivative gain, N·m·s/deg",
                   {.value = 0.0, .min = 0.0, .max = 5.0}),
-           Number("max_rate_ma_per_s", "fastest amplitude change, mA/s",
-                  {.value = 1000.0, .min = 5.0, .max = 5000.0}),
+           Number("max_rate_ma_per_s",
+                  "fastest amplitude change, mA/s (0: derived from the set's loop; 1000 for pid "
+                  "without a set)",
+                  {.value = 0.0, .min = 0.0, .max = 5000.0}),
            Number("max_saturation_s",
                   "the run ends if the controller asks for more than the maximum "
                   "this long, s",

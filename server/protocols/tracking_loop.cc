@@ -113,6 +113,9 @@ void TrackingLoop::Summarise(const api::Trial& trial, std::map<std::string, doub
   values["charge_uc"] = charge_nc / 1000.0;
   values["saturated_s"] = saturated_total_s_;
   if (controller_) values["tau_scale_nm"] = controller_->tau_scale_nm();
+  if (settings_.reachable_extension_deg) {
+    values["reachable_extension_deg"] = *settings_.reachable_extension_deg;
+  }
   const model::Pid::Gains& g = controller_ ? controller_->gains() : *settings_.options.gains;
   const bool amplitude = settings_.options.kind == model::ControllerKind::kPid;
   values[amplitude ? "kp_ma_per_deg" : "kp_nm_per_deg"] = g.kp;

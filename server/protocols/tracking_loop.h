@@ -46,8 +46,9 @@ class TrackingLoop {
   /// and worst) and the error's RMS above 1 Hz over the target after the
   /// lead-in, the seconds it commanded 0 mA and the maximum there,
   /// charge_uc from the delivered pulses, saturated_s, the final
-  /// tau_scale_nm, the gains it started with and the oscillation
-  /// back-offs taken.
+  /// tau_scale_nm, the gains it started with, the oscillation back-offs
+  /// taken and, with a set, reachable_extension_deg
+  /// (TrackingSettings::reachable_extension_deg).
   void Summarise(const api::Trial& trial, std::map<std::string, double>& values) const;
 
  private:

@@ -177,7 +177,14 @@ TEST(TuneGainsTest, TheGainsGiveTheMarginOrTheCap) {
     EXPECT_NEAR(std::remainder(std::arg(UnitLoop(l, *w)) + std::numbers::pi, 2 * std::numbers::pi),
                 0.0, 1e-2);
     const double cap = (kind == ControllerKind::kPid ? 1.0 : 2.0) * l.stiffness / l.plant_gain;
-    EXPECT_NEAR(g.kp, std::min(cap, 1.0 / (kGainMargin * std::abs(UnitLoop(l, *w)))), 1e-12);
+    // The margin about the mean, the most extended and the most flexed angle.
+    double kp = cap;
+    for (std::optional<double> about :
+         {std::optional<double>(), std::optional<double>(30.0), std::optional<double>(80.0)}) {
+      const LoopShape at = LoopShapeOf(params, sine, options, about);
+      kp = std::min(kp, 1.0 / (kGainMargin * std::abs(UnitLoop(at, *PhaseCrossover(at)))));
+    }
+    EXPECT_NEAR(g.kp, kp, 1e-12);
     EXPECT_NEAR(g.ki, g.kp / l.integral_s, 1e-12);
     EXPECT_NEAR(g.kd, g.kp * l.derivative_s, 1e-12);
   }
@@ -190,6 +197,32 @@ TEST(TuneGainsTest, TheGainsGiveTheMarginOrTheCap) {
   };
   EXPECT_NEAR(LoopShapeOf(params, sine, Options(ControllerKind::kPid)).stiffness,
               std::abs(total(56.0) - total(54.0)) / 2.0, 1e-9);
+}
+
+TEST(SlewLimitTest, OnAKnownLinearPlantItIsThePhaseCrossoverTimesHalfTheSpan) {
+  // A first-order activation (pole a) on a leg without stiffness, no delay,
+  // a P controller: L(jω) = a/(jω + a) / (jω·(B + J·jω)), whose phase
+  // −90° − atan(ω/a) − atan(ω·J/B) reaches −180° where (ω/a)·(ω·J/B) = 1:
+  // ω₁₈₀ = √(a·B/J).
+  LoopShape l;
+  l.inertia = 0.004;
+  l.damping = 0.03;
+  l.stiffness = 0.0;
+  l.pole_per_s = 15.0;
+  l.order = 1;
+  l.integral_s = 1e15;
+  l.derivative_s = 0.0;
+  const double w180 = std::sqrt(15.0 * 0.03 / 0.004);  // 10.6 rad/s
+  EXPECT_NEAR(SlewLimitFor(l, 40.0), w180 * 40.0 / 2.0, 1e-3 * w180 * 20.0);
+  // Bounded by the protocol's limits; a pure delay crosses −180° at π/delay.
+  EXPECT_EQ(SlewLimitFor(l, 0.0), kMinSlewLimitMaPerS);
+  l.pole_per_s = 1e9;
+  l.order = 1;
+  l.inertia = l.damping = 0.0;
+  l.stiffness = 1.0;
+  l.delay_s = 0.02;
+  EXPECT_NEAR(SlewLimitFor(l, 10.0), std::numbers::pi / 0.02 * 5.0, 1.0);
+  EXPECT_EQ(SlewLimitFor(l, 1000.0), kMaxSlewLimitMaPerS);
 }
 
 TEST(TrackingTargetTest, LeadInAndMetrics) {

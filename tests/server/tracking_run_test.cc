@@ -8,6 +8,7 @@
 #include <cmath>
 #include <iostream>
 #include <random>
+#include <sstream>
 
 #include "server/bench/simulated_bench.h"
 #include "server/protocols/bench_owner.h"
@@ -15,6 +16,7 @@
 #include "server/protocols/protocol.h"
 #include "server/protocols/runner.h"
 #include "server/protocols/tracking_loop.h"
+#include "server/protocols/tracking_plan.h"
 #include "tests/server/runner_rig.h"
 #include "tests/support/manual_clock.h"
 
@@ -162,6 +164,56 @@ TEST(Tracking, RefusesWithoutASetAndTargetsTheSetCannotReach) {
       << weak.status().message();
 }
 
+// The default target fits the leg (docs/PROTOCOLS.md, tracking): on a weak
+// analytic leg whose muscle cannot hold 30° at the maximum, the default
+// sine's extended end moves to where the set says 0.8 of the muscle holds
+// the knee, the run records it and follows it; the default slew limit comes
+// from the set's loop. A 30° hold or sine given explicitly is refused for
+// the model controllers with the reachable angle named, and not for pid.
+TEST(Tracking, TheDefaultTargetFitsAWeakLeg) {
+  const VirtualSubject vs = DrawSubject(1020, SubjectFamily::kAnalytic);
+  SubjectContext ctx = test::SessionValues(vs);
+  ctx.parameter_set = vs.truth;
+  const double reach = model::ReachableExtensionDeg(vs.truth, ctx.max_tolerated_ma);
+  ASSERT_GT(reach, 35.0);
+  auto plan = MakePlan("tracking", {{"duration_s", 15.0}}, ctx);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  const double lo = plan->parameters.at("lo_deg");
+  EXPECT_EQ(lo, std::ceil(model::ReachableExtensionDeg(vs.truth, ctx.max_tolerated_ma,
+                                                       kDefaultTargetActivationFraction)));
+  EXPECT_GE(lo, reach);
+  EXPECT_NEAR(plan->tracking->target.angle_deg.front(), (lo + 80.0) / 2.0, 1e-9);
+  EXPECT_EQ(plan->parameters.at("max_rate_ma_per_s"), plan->tracking->max_rate_ma_per_s);
+  EXPECT_EQ(plan->tracking->max_rate_ma_per_s,
+            std::round(model::DefaultSlewLimit(vs.truth, plan->tracking->target,
+                                               plan->tracking->options)));
+  SimulatedBench bench(vs);
+  SafetyEventLog log;
+  SafeBench safe(bench, log.sink());
+  ProtocolRunner runner(safe, &log, nullptr, NoWatchdog());
+  const RunResult r = runner.Run(*plan, ctx);
+  ASSERT_EQ(r.state, RunState::kDone) << r.reason;
+  EXPECT_LT(r.values.at("tracking_rms_deg"), 4.0);
+  EXPECT_EQ(r.values.at("reachable_extension_deg"), reach);
+  // Given, 30° stays, and the gate judges it.
+  auto given = MakePlan("tracking", {{"target", 1}, {"lo_deg", 30.0}}, ctx);
+  ASSERT_FALSE(given.ok());
+  EXPECT_EQ(given.status().code(), api::ErrorCode::kFailedPrecondition);
+  std::ostringstream reach_text;
+  reach_text << "no further extended than " << reach << "°";
+  EXPECT_NE(given.status().message().find(reach_text.str()), std::string::npos)
+      << given.status().message();
+  EXPECT_TRUE(MakePlan("tracking", {{"target", 1}, {"lo_deg", 30.0}, {"controller", 0}}, ctx).ok());
+  // A sine dips past the reach for less than max_saturation_s at a time,
+  // and is refused all the same.
+  auto sine = MakePlan("tracking", {{"lo_deg", 30.0}, {"controller", 2}}, ctx);
+  ASSERT_FALSE(sine.ok());
+  std::ostringstream beyond;
+  beyond << "beyond the " << reach << "°";
+  EXPECT_NE(sine.status().message().find(beyond.str()), std::string::npos)
+      << sine.status().message();
+}
+
 // The gate refuses only what the controller needs (docs/PROTOCOLS.md,
 // tracking): a hold the set says the maximum cannot give refuses the
 // model-based controllers, not pid, which uses no model. pid then runs with
@@ -217,8 +269,9 @@ TEST(Tracking, PidWithItsGainsRunsWithoutASet) {
     ASSERT_FALSE(refused.ok()) << c;
     EXPECT_EQ(refused.status().code(), api::ErrorCode::kFailedPrecondition);
   }
-  // The gains pid tunes from the set, given: without the set pid commands
-  // what it commands with it (its amplitude PID uses no model).
+  // The gains pid tunes from the set, given with the target and the slew
+  // limit the set chose: without the set pid commands what it commands with
+  // it (its amplitude PID uses no model).
   Rig with_set(11);
   const SubjectContext full = Context(with_set.subject);
   const RunResult tuned = Track(with_set, full, {{"controller", 0}, {"duration_s", 10.0}});
@@ -227,7 +280,9 @@ TEST(Tracking, PidWithItsGainsRunsWithoutASet) {
                                  {"duration_s", 10.0},
                                  {"kp_ma_per_deg", tuned.values.at("kp_ma_per_deg")},
                                  {"ki_ma_per_deg_s", tuned.values.at("ki_ma_per_deg_s")},
-                                 {"kd_ma_s_per_deg", tuned.values.at("kd_ma_s_per_deg")}};
+                                 {"kd_ma_s_per_deg", tuned.values.at("kd_ma_s_per_deg")},
+                                 {"lo_deg", tuned.parameters.at("lo_deg")},
+                                 {"max_rate_ma_per_s", tuned.parameters.at("max_rate_ma_per_s")}};
   auto plan = MakePlan("tracking", gains, ctx);
   ASSERT_TRUE(plan.ok()) << plan.status().ToString();
   EXPECT_EQ(plan->parameters.at("parameter_set_id"), 0.0);  // none used
@@ -247,8 +302,10 @@ TEST(Tracking, PidWithItsGainsRunsWithoutASet) {
 }
 
 // pid with eight times the gains it tunes from the set swings the knee on
-// holds; the loop halves its gains until the swinging stops (or ends the
-// run naming it), with the set and without one.
+// holds at the former fixed slew limit of 1000 mA/s; the loop halves its
+// gains until the swinging stops (or ends the run naming it), with the set
+// and without one. (At the slew limit derived from the set the same gains
+// swing too, the swing then slew-limited: the figure below.)
 TEST(Tracking, ALimitCycleIsBackedOffWithAndWithoutASet) {
   Rig tuned_rig(11);
   const SubjectContext full = Context(tuned_rig.subject);
@@ -256,12 +313,26 @@ TEST(Tracking, ALimitCycleIsBackedOffWithAndWithoutASet) {
       Track(tuned_rig, full, {{"controller", 0}, {"target", 1}, {"duration_s", 20.0}});
   ASSERT_EQ(tuned.state, RunState::kDone) << tuned.reason;
   EXPECT_EQ(tuned.values.at("oscillation_backoffs"), 0.0);
+  const double kHot = 16.0;
   const ParameterValues hot = {{"controller", 0},
                                {"target", 1},
                                {"duration_s", 20.0},
-                               {"kp_ma_per_deg", 8.0 * tuned.values.at("kp_ma_per_deg")},
-                               {"ki_ma_per_deg_s", 8.0 * tuned.values.at("ki_ma_per_deg_s")},
-                               {"kd_ma_s_per_deg", 8.0 * tuned.values.at("kd_ma_s_per_deg")}};
+                               {"kp_ma_per_deg", kHot * tuned.values.at("kp_ma_per_deg")},
+                               {"ki_ma_per_deg_s", kHot * tuned.values.at("ki_ma_per_deg_s")},
+                               {"kd_ma_s_per_deg", kHot * tuned.values.at("kd_ma_s_per_deg")}};
+  {
+    Rig rig(11);
+    ParameterValues derived = hot;
+    derived["max_rate_ma_per_s"] = 0.0;
+    const RunResult r = Track(rig, full, derived);
+    std::cout << "[ figure ] simulated leg 11, pid at " << kHot
+              << "x its tuned gains on holds at the derived slew limit "
+              << r.parameters.at("max_rate_ma_per_s") << " mA/s: " << RunStateName(r.state)
+              << "; back-offs " << r.values.at("oscillation_backoffs") << ", error RMS above 1 Hz "
+              << r.values.at("error_rms_above_1hz_deg") << "°\n";
+  }
+  ParameterValues fixed = hot;
+  fixed["max_rate_ma_per_s"] = 1000.0;
   for (bool with_set : {true, false}) {
     Rig rig(11);
     SubjectContext ctx = Context(rig.subject);
@@ -269,18 +340,18 @@ TEST(Tracking, ALimitCycleIsBackedOffWithAndWithoutASet) {
       ctx.parameter_set.reset();
       ctx.parameter_set_id.reset();
     }
-    auto plan = MakePlan("tracking", hot, ctx);
+    auto plan = MakePlan("tracking", fixed, ctx);
     ASSERT_TRUE(plan.ok()) << plan.status().ToString();
     ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
     const RunResult r = runner.Run(*plan, ctx);
-    std::cout << "[ figure ] simulated leg 11, pid at 8x its tuned gains on holds"
-              << (with_set ? "" : " (no set)") << ": " << RunStateName(r.state) << " "
-              << r.reason << "; back-offs " << r.values.at("oscillation_backoffs")
-              << ", error RMS above 1 Hz " << r.values.at("error_rms_above_1hz_deg")
-              << "° (tuned gains " << tuned.values.at("error_rms_above_1hz_deg")
-              << "°), worst settling " << r.values.at("worst_settling_s") << " s, at 0 mA "
-              << r.values.at("zero_ma_s") << " s, at the maximum " << r.values.at("max_ma_s")
-              << " s\n";
+    std::cout << "[ figure ] simulated leg 11, pid at " << kHot
+              << "x its tuned gains on holds at 1000 mA/s" << (with_set ? "" : " (no set)") << ": "
+              << RunStateName(r.state) << " " << r.reason << "; back-offs "
+              << r.values.at("oscillation_backoffs") << ", error RMS above 1 Hz "
+              << r.values.at("error_rms_above_1hz_deg") << "° (tuned gains "
+              << tuned.values.at("error_rms_above_1hz_deg") << "°), worst settling "
+              << r.values.at("worst_settling_s") << " s, at 0 mA " << r.values.at("zero_ma_s")
+              << " s, at the maximum " << r.values.at("max_ma_s") << " s\n";
     EXPECT_GE(r.values.at("oscillation_backoffs"), 1.0) << with_set;
     if (r.state != RunState::kDone) {
       EXPECT_NE(r.reason.find("still oscillates"), std::string::npos) << r.reason;

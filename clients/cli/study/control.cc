@@ -18,7 +18,8 @@ using nlohmann::json;
 
 const std::vector<std::string> kControllers = {"pid", "inverse_model", "adaptive"};
 
-// A condition of the chapter: its tracking parameters, and the fatigue rate
+// A condition of the chapter: its tracking parameters (lo_deg left to its
+// default, which fits the leg: docs/PROTOCOLS.md, tracking), and the fatigue rate
 // the leg is given for it (0: the subject's own).
 struct Condition {
   std::string name;
@@ -30,22 +31,24 @@ const std::vector<Condition>& Conditions() {
   static const std::vector<Condition> conditions = {
       {"sine",
        {.protocol = "tracking",
-        .parameters = {{"lo_deg", 30}, {"hi_deg", 80}, {"frequency_hz", 0.2}, {"duration_s", 30}},
+        .parameters = {{"hi_deg", 80}, {"frequency_hz", 0.2}, {"duration_s", 30}},
         .choices = {{"target", "sine"}}},
        0.0,
-       "0.2 Hz sine 30–80°, 30 s"},
+       "0.2 Hz sine from the default extended end (30°, or what the leg's set says it reaches) "
+       "to 80°, 30 s"},
       {"holds",
        {.protocol = "tracking",
-        .parameters = {{"lo_deg", 30}, {"hi_deg", 80}, {"duration_s", 30}},
+        .parameters = {{"hi_deg", 80}, {"duration_s", 30}},
         .choices = {{"target", "holds"}}},
        0.0,
-       "holds at 55, 30, 67.5, 42.5, 55, 30° (4 s each, 1 s moves), 30 s"},
+       "holds at lo + ½, 0, ¾, ¼ of 80° − lo (lo the default extended end; 55, 30, 67.5, 42.5° "
+       "on a leg that reaches 30°; 4 s each, 1 s moves), 30 s"},
       {"fatigue",
        {.protocol = "tracking",
-        .parameters = {{"lo_deg", 30}, {"hi_deg", 80}, {"frequency_hz", 0.2}, {"duration_s", 120}},
+        .parameters = {{"hi_deg", 80}, {"frequency_hz", 0.2}, {"duration_s", 120}},
         .choices = {{"target", "sine"}}},
        5.0,
-       "0.2 Hz sine 30–80°, 2 min, fatigue rate five times the leg's"},
+       "the sine for 2 min, fatigue rate five times the leg's"},
   };
   return conditions;
 }
