@@ -62,6 +62,15 @@ VirtualSubject ElectrodeMoved(VirtualSubject vs, double shift_ma) {
   return vs;
 }
 
+// `ctx` with the set of a rapid run as the leg's approved (and only) set,
+// and the run's ramp trial as the set's base, as the server loads them.
+void WithRapidSet(SubjectContext& ctx, const RunResult& rapid) {
+  ctx.parameter_set = rapid.parameter_set;
+  ctx.parameter_set_id = 1;
+  ctx.history = {*rapid.parameter_set};
+  ctx.base_ramp_trial = api::ToTrialColumns(rapid.trials.front().trial);
+}
+
 TEST(DailyCheck, NeedsAStoredSet) {
   const VirtualSubject vs = DrawVirtualSubject(3);
   auto plan = MakePlan("daily_check", {}, Context(vs));
@@ -76,10 +85,7 @@ TEST(DailyCheck, UnchangedLegNoChangeMovedElectrodeRefitsOnlyTheIrc) {
     SubjectContext ctx = Context(vs);
     const RunResult rapid = RunOn(vs, "rapid_parameterisation", ctx);
     ASSERT_EQ(rapid.state, RunState::kDone) << rapid.reason;
-    ctx.parameter_set = rapid.parameter_set;
-    ctx.parameter_set_id = 1;
-    ctx.history = {*rapid.parameter_set};
-    ctx.base_ramp_trial = api::ToTrialColumns(rapid.trials.front().trial);  // as the server loads it
+    WithRapidSet(ctx, rapid);
 
     // The same leg another day (other sensor noise, other twitch bursts):
     // nothing moved.
@@ -185,10 +191,7 @@ TEST(DailyCheck, ACohortAfterTheElectrodeMovedPredictsLikeAFreshRapidRun) {
       ctx.leg_length_m = vs.anthropometrics.shank_length_m;
       const RunResult rapid = RunOn(vs, "rapid_parameterisation", ctx);
       ASSERT_TRUE(rapid.parameter_set.has_value()) << rapid.reason;
-      ctx.parameter_set = rapid.parameter_set;
-      ctx.parameter_set_id = 1;
-      ctx.history = {*rapid.parameter_set};
-      ctx.base_ramp_trial = api::ToTrialColumns(rapid.trials.front().trial);
+      WithRapidSet(ctx, rapid);
       VirtualSubject another_day = vs;
       another_day.seed += 1000;
       const RunResult same = RunOn(another_day, "daily_check", ctx);
@@ -231,10 +234,7 @@ TEST(DailyCheck, ARecruitmentOfAnotherShapeAsksForARapidRun) {
   SubjectContext ctx = Context(vs);
   const RunResult rapid = RunOn(vs, "rapid_parameterisation", ctx);
   ASSERT_TRUE(rapid.parameter_set.has_value()) << rapid.reason;
-  ctx.parameter_set = rapid.parameter_set;
-  ctx.parameter_set_id = 1;
-  ctx.history = {*rapid.parameter_set};
-  ctx.base_ramp_trial = api::ToTrialColumns(rapid.trials.front().trial);
+  WithRapidSet(ctx, rapid);
   VirtualSubject changed = vs;
   changed.seed += 1000;
   const double knee = model::InverseRecruitment(vs.truth.irc, 0.3);
