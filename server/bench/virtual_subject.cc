@@ -222,6 +222,36 @@ VirtualSubject DrawSubject(std::uint64_t seed, SubjectFamily family, const Subje
   return DrawVirtualSubject(seed, ranges);
 }
 
+namespace {
+
+// Anthropometrics and J (Eq. 4.13 plus the brace, ±10 %) of the analytic
+// and plateau families: height and body-mass index uniform in their
+// ranges, redrawn until J is in range so the body measures and J always
+// agree; then the accelerometer's distance and the thigh's elevation.
+// Returns J.
+double DrawBodyAndInertia(Draw& draw, const SubjectRanges& ranges,
+                          std::pair<double, double> height_m, std::pair<double, double> bmi,
+                          const char* generator, Anthropometrics& a) {
+  double j = 0.0;
+  for (int attempt = 0;; ++attempt) {
+    a.height_m = draw.Uniform(height_m.first, height_m.second);
+    a.body_mass_kg = draw.Uniform(bmi.first, bmi.second) * a.height_m * a.height_m;
+    a.shank_length_m = kShankOfHeight * a.height_m;
+    j = (model::AnthropometricInertia(a.body_mass_kg, a.shank_length_m) + kBraceInertiaKgm2) *
+        draw.Uniform(0.9, 1.1);
+    if (j >= ranges.min_inertia_kgm2 && j <= ranges.max_inertia_kgm2) break;
+    if (attempt == 1000) {
+      throw std::invalid_argument(std::string(generator) +
+                                  ": the inertia range admits no subject");
+    }
+  }
+  a.accel_distance_m = draw.Uniform(0.24, 0.31);  // ≈ 11 in (§5.1)
+  a.thigh_elevation_deg = draw.Uniform(4.0, 14.0);
+  return j;
+}
+
+}  // namespace
+
 VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& ranges) {
   // Its own stream: the analytic leg of seed N shares nothing with the
   // thesis-family leg of seed N.
@@ -231,23 +261,9 @@ VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& rang
   s.seed = seed;
   s.fidelity = Fidelity::Default();
 
-  // Anthropometrics and J (Eq. 4.13 plus the brace, ±10 %), redrawn until J
-  // is in range so the body measures and J always agree.
   Anthropometrics& a = s.anthropometrics;
-  double j = 0.0;
-  for (int attempt = 0;; ++attempt) {
-    a.height_m = draw.Uniform(1.55, 1.93);
-    a.body_mass_kg = draw.Uniform(19.0, 29.0) * a.height_m * a.height_m;
-    a.shank_length_m = kShankOfHeight * a.height_m;
-    j = (model::AnthropometricInertia(a.body_mass_kg, a.shank_length_m) + kBraceInertiaKgm2) *
-        draw.Uniform(0.9, 1.1);
-    if (j >= ranges.min_inertia_kgm2 && j <= ranges.max_inertia_kgm2) break;
-    if (attempt == 1000) {
-      throw std::invalid_argument("DrawAnalyticSubject: the inertia range admits no subject");
-    }
-  }
-  a.accel_distance_m = draw.Uniform(0.24, 0.31);  // ≈ 11 in (§5.1)
-  a.thigh_elevation_deg = draw.Uniform(4.0, 14.0);
+  const double j =
+      DrawBodyAndInertia(draw, ranges, {1.55, 1.93}, {19.0, 29.0}, "DrawAnalyticSubject", a);
   const double mgl_nm = kShankFootMassFraction * a.body_mass_kg * model::kStandardGravity_m_s2 *
                         kShankFootComFraction * a.shank_length_m;
   const double hang_deg = HangingAngleDeg(a);
@@ -356,23 +372,9 @@ VirtualSubject DrawPlateauSubject(std::uint64_t seed, const SubjectRanges& range
   s.fidelity.potentiation_max = draw.Uniform(0.6, 1.0);
   s.fidelity.fatigue_recovery_s = draw.Uniform(90.0, 180.0);
 
-  // Anthropometrics and J (Eq. 4.13 plus the brace, ±10 %), redrawn until J
-  // is in range.
   Anthropometrics& a = s.anthropometrics;
-  double j = 0.0;
-  for (int attempt = 0;; ++attempt) {
-    a.height_m = draw.Uniform(1.50, 1.95);
-    a.body_mass_kg = draw.Uniform(18.0, 32.0) * a.height_m * a.height_m;
-    a.shank_length_m = kShankOfHeight * a.height_m;
-    j = (model::AnthropometricInertia(a.body_mass_kg, a.shank_length_m) + kBraceInertiaKgm2) *
-        draw.Uniform(0.9, 1.1);
-    if (j >= ranges.min_inertia_kgm2 && j <= ranges.max_inertia_kgm2) break;
-    if (attempt == 1000) {
-      throw std::invalid_argument("DrawPlateauSubject: the inertia range admits no subject");
-    }
-  }
-  a.accel_distance_m = draw.Uniform(0.24, 0.31);  // ≈ 11 in (§5.1)
-  a.thigh_elevation_deg = draw.Uniform(4.0, 14.0);
+  const double j =
+      DrawBodyAndInertia(draw, ranges, {1.50, 1.95}, {18.0, 32.0}, "DrawPlateauSubject", a);
   const double mgl_nm = kShankFootMassFraction * a.body_mass_kg * model::kStandardGravity_m_s2 *
                         kShankFootComFraction * a.shank_length_m;
   const double hang_deg = HangingAngleDeg(a);
