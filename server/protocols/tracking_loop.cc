@@ -59,9 +59,19 @@ model::TrackingSample TrackingLoop::UpdateModelFreePid(double measured_deg) {
 std::optional<std::string> TrackingLoop::Sample(double measured_deg) {
   last_ = controller_ ? controller_->Update(measured_deg) : UpdateModelFreePid(measured_deg);
   ++index_;
-  // Below the controller: the slew limit (SafeBench then clamps the maximum).
+  // Below the controller: the slew limit (SafeBench then clamps the
+  // maximum), on the recruiting range only. An amplitude at or below the
+  // threshold recruits nothing, so stimulation turns on at the threshold
+  // and off from it at once; only the change above it is limited (a 0 ↔
+  // threshold step held to the limit is a dead time of threshold/limit,
+  // 0.3 s at 75 mA/s, that the loop's margin never saw).
   const double step_ma = settings_.max_rate_ma_per_s / kSampleRateHz;
-  amplitude_ma_ = std::clamp(last_.amplitude_ma, amplitude_ma_ - step_ma, amplitude_ma_ + step_ma);
+  const double floor_ma = std::max(settings_.options.threshold_ma, 0.0);
+  const double from = std::max(amplitude_ma_, floor_ma);
+  const double limited =
+      std::clamp(std::max(last_.amplitude_ma, floor_ma), from - step_ma, from + step_ma);
+  amplitude_ma_ = limited <= floor_ma && last_.amplitude_ma <= floor_ma ? last_.amplitude_ma
+                                                                        : limited;
   saturated_samples_ = last_.saturated ? saturated_samples_ + 1 : 0;
   if (last_.saturated) saturated_total_s_ += 1.0 / kSampleRateHz;
   if (static_cast<double>(index_) > settings_.lead_in_s * kSampleRateHz) {
