@@ -131,7 +131,7 @@ BENCHMARK(BM_InsertAndReadTrial10s)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecon
 BenchDb& HistoryDb() {
   static BenchDb* bench = [] {
     auto* b = new BenchDb("history", Synchronous::kFull);
-    const UtcTime start =
+    const api::UtcTime start =
         std::chrono::sys_days{std::chrono::year{2025} / 1 / 1} + std::chrono::microseconds(0);
     auto status = b->db->Write([&](Connection&) -> api::Status {
       ParameterSetRepository sets(*b->db);
@@ -173,7 +173,7 @@ void BM_HistoryQueryDateRangeAndMethod(benchmark::State& state) {
   BenchDb& bench = HistoryDb();
   ParameterSetRepository sets(*bench.db);
   const std::int64_t subject = bench.subject_ids[57];
-  const UtcTime from =
+  const api::UtcTime from =
       std::chrono::sys_days{std::chrono::year{2025} / 2 / 1} + std::chrono::microseconds(0);
   for (auto _ : state) {
     auto history = sets.History(

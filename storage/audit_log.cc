@@ -20,7 +20,7 @@ api::Result<std::int64_t> AuditLog::Append(const NewAuditEntry& entry) {
         c,
         "INSERT INTO audit_log (at_utc, user_id, actor, action, target, request_summary, outcome)"
         " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
-        FormatUtc(db_.Now()), entry.user_id, entry.actor, entry.action, entry.target,
+        api::FormatUtc(db_.Now()), entry.user_id, entry.actor, entry.action, entry.target,
         entry.request_summary, entry.outcome);
   });
 }
@@ -29,8 +29,8 @@ api::Result<std::vector<AuditEntry>> AuditLog::List(const AuditQuery& query) {
   return db_.Read([&](Connection& c) -> api::Result<std::vector<AuditEntry>> {
     std::optional<std::string> from;
     std::optional<std::string> to;
-    if (query.from) from = FormatUtc(*query.from);
-    if (query.to) to = FormatUtc(*query.to);
+    if (query.from) from = api::FormatUtc(*query.from);
+    if (query.to) to = api::FormatUtc(*query.to);
     return internal::QueryRows(
         c,
         "SELECT id, at_utc, user_id, actor, action, target, request_summary, outcome"
@@ -42,7 +42,7 @@ api::Result<std::vector<AuditEntry>> AuditLog::List(const AuditQuery& query) {
         [](const Statement& s) -> api::Result<AuditEntry> {
           AuditEntry e;
           e.id = s.Int64(0);
-          const auto at = ParseUtc(s.Text(1));
+          const auto at = api::ParseUtc(s.Text(1));
           if (!at) return internal::BadStoredValue("audit entry");
           e.at = *at;
           e.entry.user_id = s.OptionalInt64(2);

@@ -27,13 +27,13 @@ struct NewAuditEntry {
 
 struct AuditEntry {
   std::int64_t id = 0;
-  UtcTime at;
+  api::UtcTime at;
   NewAuditEntry entry;
 };
 
 struct AuditQuery {
-  std::optional<UtcTime> from;  ///< inclusive.
-  std::optional<UtcTime> to;    ///< exclusive.
+  std::optional<api::UtcTime> from;  ///< inclusive.
+  std::optional<api::UtcTime> to;    ///< exclusive.
   std::optional<std::int64_t> user_id;
   std::size_t limit = 1000;  ///< at most this many, newest first.
   /// Keyset paging: only entries older than this id (the last one of the

@@ -154,7 +154,7 @@ Database::~Database() {
   file_lock_.reset();  // last: the file is free only once every connection is closed
 }
 
-UtcTime Database::Now() const { return options_.clock->UtcNow(); }
+api::UtcTime Database::Now() const { return options_.clock->UtcNow(); }
 
 bool IsPostgresUrl(std::string_view location) {
   return location.starts_with("postgresql://") || location.starts_with("postgres://");
@@ -328,7 +328,7 @@ api::Status Database::Migrate(std::optional<int> target) {
       auto insert = c.Prepare(
           "INSERT INTO schema_migrations (version, name, applied_at_utc) VALUES (?1, ?2, ?3)");
       if (!insert.ok()) return insert.status();
-      insert->Bind(1, migration.version).Bind(2, migration.name).Bind(3, FormatUtc(Now()));
+      insert->Bind(1, migration.version).Bind(2, migration.name).Bind(3, api::FormatUtc(Now()));
       if (auto s = insert->Run(); !s.ok()) return s;
       if (c.engine() == Engine::kPostgres) return api::Status::Ok();  // the row is the version
       return c.ExecScript("PRAGMA user_version = " + std::to_string(migration.version));

@@ -45,7 +45,7 @@
 #include "api/status.h"
 #include "storage/bench_lock.h"
 #include "storage/connection.h"
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 
 namespace fesbench::storage {
 
@@ -148,7 +148,7 @@ class Database {
   api::Result<int> SchemaVersion();
 
   /// The time stamp for new rows, from options.clock.
-  UtcTime Now() const;
+  api::UtcTime Now() const;
 
   /// Runs `fn` once the current write transaction (the outermost one, on
   /// this thread) has committed; dropped if it rolls back. Outside a write

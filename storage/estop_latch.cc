@@ -13,7 +13,7 @@ api::Status Append(Database& db, bool latched, std::string_view source,
         c,
         "INSERT INTO estop_events (latched, source, recorded_by, at_utc, bench_id)"
         " VALUES (?1, ?2, ?3, ?4, ?5)",
-        static_cast<std::int64_t>(latched ? 1 : 0), source, recorded_by, FormatUtc(db.Now()),
+        static_cast<std::int64_t>(latched ? 1 : 0), source, recorded_by, api::FormatUtc(db.Now()),
         db.options().bench_id);
   });
 }
@@ -41,7 +41,7 @@ api::Result<std::optional<LatchedEStop>> EStopLatchRepository::Current() {
           e.id = s.Int64(0);
           e.source = s.Text(2);
           e.recorded_by = s.Text(3);
-          const auto at = ParseUtc(s.Text(4));
+          const auto at = api::ParseUtc(s.Text(4));
           if (!at) return internal::BadStoredValue("e-stop event");
           e.at = *at;
           return std::optional<LatchedEStop>(std::move(e));

@@ -21,7 +21,7 @@ struct LatchedEStop {
   std::int64_t id = 0;
   std::string source;       ///< e.g. "http (cora)".
   std::string recorded_by;  ///< the user name, or "system".
-  UtcTime at;
+  api::UtcTime at;
 };
 
 class EStopLatchRepository {

@@ -30,7 +30,7 @@ api::Result<ParameterSetSummary> ReadSummary(const Statement& s) {
   summary.active_method = s.Text(7);
   summary.software_version = s.Text(8);
   summary.supersedes_id = s.OptionalInt64(9);
-  const auto created = ParseUtc(s.Text(10));
+  const auto created = api::ParseUtc(s.Text(10));
   if (!created) return internal::BadStoredValue("parameter set");
   summary.created_at = *created;
   summary.run_id = s.OptionalInt64(11);
@@ -146,7 +146,7 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
     if (!next.ok()) return next.status();
     const std::int64_t version = next->front();
 
-    const UtcTime created_at = set.created_at.value_or(db_.Now());
+    const api::UtcTime created_at = set.created_at.value_or(db_.Now());
     auto inserted = internal::InsertRow(
         c,
         "INSERT INTO parameter_sets (subject_id, leg_id, version, model, irc_method,"
@@ -155,7 +155,7 @@ api::Result<ParameterSetSummary> ParameterSetRepository::Insert(const NewParamet
         set.subject_id, set.leg_id, version, model::ModelKindName(params.model),
         params.provenance.irc_method, params.provenance.passive_method,
         params.provenance.active_method, params.provenance.software_version, set.supersedes_id,
-        FormatUtc(created_at), json_text, set.run_id);
+        api::FormatUtc(created_at), json_text, set.run_id);
     if (!inserted.ok()) return inserted.status();
     const std::int64_t id = *inserted;
     for (std::int64_t trial_id : trial_ids) {
@@ -216,8 +216,8 @@ api::Result<std::vector<ParameterSetSummary>> ParameterSetRepository::History(
   if (query.leg_id) sql += " AND leg_id = ?4";
   if (query.method) sql += " AND ?5 IN (irc_method, passive_method, active_method)";
   sql += " ORDER BY created_at_utc, id LIMIT ?6";
-  const std::string from = query.from ? FormatUtc(*query.from) : std::string();
-  const std::string to = query.to ? FormatUtc(*query.to) : std::string("~");  // '~' > any digit
+  const std::string from = query.from ? api::FormatUtc(*query.from) : std::string();
+  const std::string to = query.to ? api::FormatUtc(*query.to) : std::string("~");  // '~' > any digit
   return db_.Read([&](Connection& c) -> api::Result<std::vector<ParameterSetSummary>> {
     if (auto s = internal::RequireRow(c, "SELECT 1 FROM subjects WHERE id = ?1", query.subject_id,
                                       "subject");
@@ -260,8 +260,8 @@ api::Result<std::vector<ParameterSetSummary>> ParameterSetRepository::List(
     if (query.subject_id) statement->Bind(2, *query.subject_id);
     if (query.subject_id && query.leg_id) statement->Bind(3, *query.leg_id);
     if (query.method) statement->Bind(4, *query.method);
-    if (query.from) statement->Bind(5, FormatUtc(*query.from));
-    if (query.to) statement->Bind(6, FormatUtc(*query.to));
+    if (query.from) statement->Bind(5, api::FormatUtc(*query.from));
+    if (query.to) statement->Bind(6, api::FormatUtc(*query.to));
     return internal::ReadAll(*statement, ReadSummary);
   });
 }
@@ -300,7 +300,7 @@ api::Result<Approval> ReadApproval(const Statement& s) {
   a.approved_by = s.Text(4);
   a.run_id = s.OptionalInt64(5);
   a.note = s.Text(6);
-  const auto at = ParseUtc(s.Text(7));
+  const auto at = api::ParseUtc(s.Text(7));
   if (!at) return internal::BadStoredValue("parameter set approval");
   a.approved_at = *at;
   a.current = s.Int64(8) != 0;
@@ -361,15 +361,15 @@ api::Result<Approval> ParameterSetRepository::Approve(const NewApproval& approva
       return api::Status::FailedPrecondition(
           "parameter set " + std::to_string(approval.parameter_set_id) +
           " already is its leg's approved set (approved by " + (*current)->approved_by + " at " +
-          FormatUtc((*current)->approved_at) + ")");
+          api::FormatUtc((*current)->approved_at) + ")");
     }
-    const UtcTime at = approval.approved_at.value_or(db_.Now());
+    const api::UtcTime at = approval.approved_at.value_or(db_.Now());
     auto id = internal::InsertRow(
         c,
         "INSERT INTO parameter_set_approvals (parameter_set_id, leg_id, approved_by_user_id,"
         " approved_by, run_id, note, approved_at_utc) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
         approval.parameter_set_id, *leg, approval.approved_by_user_id, approval.approved_by,
-        approval.run_id, approval.note, FormatUtc(at));
+        approval.run_id, approval.note, api::FormatUtc(at));
     if (!id.ok()) return id.status();
     db_.ApprovalsChanged();
     // The DDS topic learns of the approval as of the set approved, after the

@@ -25,7 +25,7 @@ struct NewParameterSet {
   std::int64_t leg_id = 0;
   model::ParameterSet params;  ///< provenance.trial_ids / active_trial_id must be stored trials.
   std::optional<std::int64_t> supersedes_id;  ///< an earlier set of the same subject and leg.
-  std::optional<UtcTime> created_at;          ///< default: the database clock.
+  std::optional<api::UtcTime> created_at;          ///< default: the database clock.
   std::optional<std::int64_t> run_id{};       ///< the run that identified it, if one did.
 };
 
@@ -41,7 +41,7 @@ struct ParameterSetSummary {
   std::string active_method;
   std::string software_version;
   std::optional<std::int64_t> supersedes_id;
-  UtcTime created_at;
+  api::UtcTime created_at;
   std::optional<std::int64_t> run_id;  ///< the run that identified it (migration 13).
 };
 
@@ -57,8 +57,8 @@ struct HistoryQuery {
   std::int64_t subject_id = 0;
   std::optional<std::int64_t> leg_id;
   std::optional<std::string> method;
-  std::optional<UtcTime> from;
-  std::optional<UtcTime> to;
+  std::optional<api::UtcTime> from;
+  std::optional<api::UtcTime> to;
   std::size_t limit = 1000;  ///< oldest first, at most this many.
 };
 
@@ -70,8 +70,8 @@ struct ParameterSetListQuery {
   std::optional<std::int64_t> subject_id;
   std::optional<std::int64_t> leg_id;  ///< with subject_id.
   std::optional<std::string> method;   ///< IRC, passive or active method name.
-  std::optional<UtcTime> from;         ///< created at or after.
-  std::optional<UtcTime> to;           ///< created before.
+  std::optional<api::UtcTime> from;         ///< created at or after.
+  std::optional<api::UtcTime> to;           ///< created before.
   std::int64_t after_id = 0;
   std::size_t limit = 50;
 };
@@ -85,7 +85,7 @@ struct NewApproval {
   std::string approved_by;                          ///< the user's name, not empty.
   std::optional<std::int64_t> run_id;    ///< the bench run whose own measurement the set is.
   std::string note;                      ///< why, 1–500 bytes.
-  std::optional<UtcTime> approved_at{};  ///< default: the database clock.
+  std::optional<api::UtcTime> approved_at{};  ///< default: the database clock.
 };
 
 struct Approval {
@@ -96,7 +96,7 @@ struct Approval {
   std::string approved_by;
   std::optional<std::int64_t> run_id;
   std::string note;
-  UtcTime approved_at;
+  api::UtcTime approved_at;
   bool current = false;  ///< the leg's newest approval: its set is the leg's approved set.
 };
 

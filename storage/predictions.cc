@@ -27,7 +27,7 @@ api::Result<std::vector<Prediction>> QueryPredictions(Connection& c, std::string
         p.prediction.trial_id = s.OptionalInt64(2);
         p.prediction.input_json = s.Text(3);
         p.prediction.output_json = s.Text(4);
-        const auto created = ParseUtc(s.Text(5));
+        const auto created = api::ParseUtc(s.Text(5));
         if (!created) return internal::BadStoredValue("prediction");
         p.created_at = *created;
         return p;
@@ -53,7 +53,7 @@ api::Result<std::vector<Evaluation>> QueryEvaluations(Connection& c, std::string
         e.evaluation.rms_error = s.Double(6);
         e.evaluation.max_abs_error = s.Double(7);
         e.evaluation.details_json = s.Text(8);
-        const auto created = ParseUtc(s.Text(9));
+        const auto created = api::ParseUtc(s.Text(9));
         if (!created) return internal::BadStoredValue("evaluation");
         e.created_at = *created;
         return e;
@@ -89,7 +89,7 @@ api::Result<Prediction> PredictionRepository::InsertPrediction(const NewPredicti
         c,
         "INSERT INTO predictions (parameter_set_id, trial_id, input_json, output_json,"
         " created_at_utc) VALUES (?1, ?2, ?3, ?4, ?5)",
-        p.parameter_set_id, p.trial_id, p.input_json, p.output_json, FormatUtc(db_.Now()));
+        p.parameter_set_id, p.trial_id, p.input_json, p.output_json, api::FormatUtc(db_.Now()));
     if (!id.ok()) return id.status();
     return One(QueryPredictions(c, "WHERE id = ?1", *id), "prediction", *id);
   });
@@ -152,7 +152,7 @@ api::Result<Evaluation> PredictionRepository::InsertEvaluation(const NewEvaluati
         " rms_error, max_abs_error, details_json, created_at_utc)"
         " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
         e.parameter_set_id, e.trial_id, e.prediction_id, e.channel, e.unit, e.rms_error,
-        e.max_abs_error, e.details_json, FormatUtc(db_.Now()));
+        e.max_abs_error, e.details_json, api::FormatUtc(db_.Now()));
     if (!id.ok()) return id.status();
     return One(QueryEvaluations(c, "WHERE id = ?1", *id), "evaluation", *id);
   });

@@ -25,7 +25,7 @@ struct NewPrediction {
 struct Prediction {
   std::int64_t id = 0;
   NewPrediction prediction;
-  UtcTime created_at;
+  api::UtcTime created_at;
 };
 
 struct NewEvaluation {
@@ -42,7 +42,7 @@ struct NewEvaluation {
 struct Evaluation {
   std::int64_t id = 0;
   NewEvaluation evaluation;
-  UtcTime created_at;
+  api::UtcTime created_at;
 };
 
 class PredictionRepository {

@@ -24,7 +24,7 @@ api::Result<SessionRevision> ReadRevision(const Statement& s, int first) {
   revision.details.notes = s.Text(first + 6);
   revision.corrects_id = s.OptionalInt64(first + 7);
   revision.reason = s.Text(first + 8);
-  const auto recorded = ParseUtc(s.Text(first + 9));
+  const auto recorded = api::ParseUtc(s.Text(first + 9));
   if (!recorded) return internal::BadStoredValue("session revision");
   revision.recorded_at = *recorded;
   revision.recorded_by = s.Text(first + 10);
@@ -46,7 +46,7 @@ api::Result<std::vector<Session>> QuerySessions(Connection& c, std::string_view 
         session.id = s.Int64(0);
         session.subject_id = s.Int64(1);
         session.leg_id = s.Int64(2);
-        const auto created = ParseUtc(s.Text(3));
+        const auto created = api::ParseUtc(s.Text(3));
         auto revision = ReadRevision(s, 4);
         if (!created) return internal::BadStoredValue("session");
         if (!revision.ok()) return revision.status();
@@ -63,14 +63,14 @@ api::Result<Session> GetSession(Connection& c, std::int64_t id) {
 
 api::Status InsertRevision(Connection& c, std::int64_t session_id, int revision,
                            const SessionDetails& d, std::optional<std::int64_t> corrects_id,
-                           std::string_view reason, std::string_view recorded_by, UtcTime now) {
+                           std::string_view reason, std::string_view recorded_by, api::UtcTime now) {
   return internal::Execute(
       c,
       "INSERT INTO session_revisions (session_id, revision, session_date,"
       " accelerometer_placement, threshold_ma, max_tolerated_ma, notes, corrects_id, reason,"
       " recorded_at_utc, recorded_by) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
       session_id, revision, d.date, d.accelerometer_placement, d.threshold_ma, d.max_tolerated_ma,
-      d.notes, corrects_id, reason, FormatUtc(now), recorded_by);
+      d.notes, corrects_id, reason, api::FormatUtc(now), recorded_by);
 }
 
 api::Status CheckCurrent(const std::optional<double>& value, const char* field) {
@@ -104,15 +104,15 @@ api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where,
         run.protocol_name = s.Text(2);
         run.protocol_version = s.Text(3);
         run.parameters_json = s.Text(4);
-        const auto created = ParseUtc(s.Text(5));
+        const auto created = api::ParseUtc(s.Text(5));
         run.bench_id = s.Text(6);
         const auto state = api::ParseRunState(s.Text(7));
         if (!created || !state) return internal::BadStoredValue("run");
         run.created_at = *created;
         run.state = *state;
         run.message = s.Text(8);
-        if (!s.IsNull(9)) run.started_at = ParseUtc(s.Text(9));
-        if (!s.IsNull(10)) run.finished_at = ParseUtc(s.Text(10));
+        if (!s.IsNull(9)) run.started_at = api::ParseUtc(s.Text(9));
+        if (!s.IsNull(10)) run.finished_at = api::ParseUtc(s.Text(10));
         if (!s.IsNull(11)) run.bench_s = s.Double(11);
         if (!s.IsNull(12)) run.bench_planned_s = s.Double(12);
         return run;
@@ -125,18 +125,18 @@ api::Result<Run> GetRunIn(Connection& c, std::int64_t id) {
 }
 
 api::Status AppendRunEvent(Connection& c, std::int64_t run_id, RunState state,
-                           std::string_view message, UtcTime now,
+                           std::string_view message, api::UtcTime now,
                            const std::optional<RunBenchTime>& bench = std::nullopt) {
   if (bench) {
     return internal::Execute(c,
                              "INSERT INTO run_events (run_id, state, message, at_utc, bench_s,"
                              " bench_planned_s) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                             run_id, api::RunStateName(state), message, FormatUtc(now),
+                             run_id, api::RunStateName(state), message, api::FormatUtc(now),
                              bench->ran_s, bench->planned_s);
   }
   return internal::Execute(
       c, "INSERT INTO run_events (run_id, state, message, at_utc) VALUES (?1, ?2, ?3, ?4)", run_id,
-      api::RunStateName(state), message, FormatUtc(now));
+      api::RunStateName(state), message, api::FormatUtc(now));
 }
 
 }  // namespace
@@ -170,7 +170,7 @@ api::RunView RunViewOf(const Run& run) {
 }
 
 api::Status ValidateSessionDetails(const SessionDetails& d) {
-  if (!IsIsoDate(d.date)) {
+  if (!api::IsIsoDate(d.date)) {
     return api::Status::InvalidArgument("date must be a calendar date YYYY-MM-DD", "date");
   }
   if (auto s = CheckCurrent(d.threshold_ma, "threshold_ma"); !s.ok()) return s;
@@ -192,10 +192,10 @@ api::Result<Session> SessionRepository::Create(std::int64_t subject_id, std::int
       return s;
     }
     if (auto s = internal::RequireLegOfSubject(c, leg_id, subject_id); !s.ok()) return s;
-    const UtcTime now = db_.Now();
+    const api::UtcTime now = db_.Now();
     auto id = internal::InsertRow(
         c, "INSERT INTO sessions (subject_id, leg_id, created_at_utc) VALUES (?1, ?2, ?3)",
-        subject_id, leg_id, FormatUtc(now));
+        subject_id, leg_id, api::FormatUtc(now));
     if (!id.ok()) return id.status();
     if (auto s = InsertRevision(c, *id, 1, details, std::nullopt, "", "", now); !s.ok()) return s;
     return GetSession(c, *id);
@@ -264,12 +264,12 @@ api::Result<Run> SessionRepository::CreateRun(std::int64_t session_id, const New
         !s.ok()) {
       return s;
     }
-    const UtcTime now = db_.Now();
+    const api::UtcTime now = db_.Now();
     auto id = internal::InsertRow(
         c,
         "INSERT INTO runs (session_id, protocol_name, protocol_version, parameters_json,"
         " created_at_utc, bench_id) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-        session_id, run.protocol_name, run.protocol_version, run.parameters_json, FormatUtc(now),
+        session_id, run.protocol_name, run.protocol_version, run.parameters_json, api::FormatUtc(now),
         db_.options().bench_id);
     if (!id.ok()) return id.status();
     if (auto s = AppendRunEvent(c, *id, RunState::kQueued, "", now); !s.ok()) return s;

@@ -34,7 +34,7 @@ struct SessionRevision {
   SessionDetails details;
   std::optional<std::int64_t> corrects_id;
   std::string reason;
-  UtcTime recorded_at;
+  api::UtcTime recorded_at;
   std::string recorded_by;  ///< user name of who recorded it ("" if unknown).
 };
 
@@ -42,7 +42,7 @@ struct Session {
   std::int64_t id = 0;
   std::int64_t subject_id = 0;
   std::int64_t leg_id = 0;
-  UtcTime created_at;
+  api::UtcTime created_at;
   SessionRevision current;  ///< the latest revision.
 };
 
@@ -65,9 +65,9 @@ struct Run {
   std::string bench_id;  ///< the bench that ran it ('' before benches had ids).
   RunState state = RunState::kQueued;
   std::string message;  ///< of the last state event.
-  UtcTime created_at;
-  std::optional<UtcTime> started_at;   ///< first "running" event.
-  std::optional<UtcTime> finished_at;  ///< the terminal event.
+  api::UtcTime created_at;
+  std::optional<api::UtcTime> started_at;   ///< first "running" event.
+  std::optional<api::UtcTime> finished_at;  ///< the terminal event.
   /// Bench time, s, as the run ran and as planned (on its terminal event;
   /// unset for runs stored before schema 18 and runs closed at a restart).
   std::optional<double> bench_s, bench_planned_s;

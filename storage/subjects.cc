@@ -19,7 +19,7 @@ api::Result<SubjectRevision> ReadRevision(const Statement& s, int first) {
   revision.revision = static_cast<int>(s.Int64(first + 1));
   if (!s.IsNull(first + 2)) revision.details.age_years = static_cast<int>(s.Int64(first + 2));
   const auto sex = ParseSex(s.Text(first + 3));
-  const auto recorded = ParseUtc(s.Text(first + 10));
+  const auto recorded = api::ParseUtc(s.Text(first + 10));
   if (!sex || !recorded) return internal::BadStoredValue("subject revision");
   revision.details.sex = *sex;
   revision.details.height_cm = s.OptionalDouble(first + 4);
@@ -56,7 +56,7 @@ api::Result<std::vector<Subject>> QuerySubjects(Connection& c, std::string_view 
         Subject subject;
         subject.id = s.Int64(0);
         subject.code = s.Text(1);
-        const auto created = ParseUtc(s.Text(2));
+        const auto created = api::ParseUtc(s.Text(2));
         auto revision = ReadRevision(s, 3);
         if (!created) return internal::BadStoredValue("subject");
         if (!revision.ok()) return revision.status();
@@ -73,7 +73,7 @@ api::Result<Subject> GetById(Connection& c, std::int64_t id) {
 
 api::Status InsertRevision(Connection& c, std::int64_t subject_id, int revision,
                            const SubjectDetails& d, std::optional<std::int64_t> corrects_id,
-                           std::string_view reason, std::string_view recorded_by, UtcTime now) {
+                           std::string_view reason, std::string_view recorded_by, api::UtcTime now) {
   std::optional<std::int64_t> age;
   if (d.age_years) age = *d.age_years;
   return internal::Execute(
@@ -83,7 +83,7 @@ api::Status InsertRevision(Connection& c, std::int64_t subject_id, int revision,
       " rom_min_deg, rom_max_deg)"
       " VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
       subject_id, revision, age, SexName(d.sex), d.height_cm, d.weight_kg, d.shank_length_cm,
-      d.calf_circumference_cm, corrects_id, reason, FormatUtc(now), recorded_by, d.rom_min_deg,
+      d.calf_circumference_cm, corrects_id, reason, api::FormatUtc(now), recorded_by, d.rom_min_deg,
       d.rom_max_deg);
 }
 
@@ -103,7 +103,7 @@ api::Result<Leg> ReadLeg(const Statement& s) {
   leg.id = s.Int64(0);
   leg.subject_id = s.Int64(1);
   const auto side = ParseSide(s.Text(2));
-  const auto created = ParseUtc(s.Text(3));
+  const auto created = api::ParseUtc(s.Text(3));
   if (!side || !created) return internal::BadStoredValue("leg");
   leg.side = *side;
   leg.created_at = *created;
@@ -198,9 +198,9 @@ api::Result<Subject> SubjectRepository::Create(std::string_view code,
       return api::Status::AlreadyExists("subject code '" + std::string(code) + "' already exists",
                                         "code");
     }
-    const UtcTime now = db_.Now();
+    const api::UtcTime now = db_.Now();
     auto id = internal::InsertRow(c, "INSERT INTO subjects (code, created_at_utc) VALUES (?1, ?2)",
-                                  code, FormatUtc(now));
+                                  code, api::FormatUtc(now));
     if (!id.ok()) return id.status();
     if (auto s = InsertRevision(c, *id, 1, details, std::nullopt, "", "", now); !s.ok()) return s;
     return GetById(c, *id);
@@ -283,10 +283,10 @@ api::Result<Leg> SubjectRepository::AddLeg(std::int64_t subject_id, Side side) {
                                             " leg",
                                         "side");
     }
-    const UtcTime now = db_.Now();
+    const api::UtcTime now = db_.Now();
     auto id = internal::InsertRow(
         c, "INSERT INTO legs (subject_id, side, created_at_utc) VALUES (?1, ?2, ?3)", subject_id,
-        SideName(side), FormatUtc(now));
+        SideName(side), api::FormatUtc(now));
     if (!id.ok()) return id.status();
     return Leg{*id, subject_id, side, now};
   });

@@ -50,7 +50,7 @@ struct SubjectRevision {
   SubjectDetails details;
   std::optional<std::int64_t> corrects_id;  ///< the revision this one corrects.
   std::string reason;
-  UtcTime recorded_at;
+  api::UtcTime recorded_at;
   std::string recorded_by;  ///< user name of who recorded it ("" if unknown).
 };
 
@@ -58,7 +58,7 @@ struct SubjectRevision {
 struct Subject {
   std::int64_t id = 0;
   std::string code;  ///< pseudonymous: [A-Za-z0-9_-], 1–32 characters.
-  UtcTime created_at;
+  api::UtcTime created_at;
   SubjectRevision current;
 };
 
@@ -66,7 +66,7 @@ struct Leg {
   std::int64_t id = 0;
   std::int64_t subject_id = 0;
   Side side = Side::kRight;
-  UtcTime created_at;
+  api::UtcTime created_at;
 };
 
 /// Checks a pseudonymous code: 1–32 of [A-Za-z0-9_-] (no spaces, so no

@@ -162,7 +162,7 @@ api::Result<std::int64_t> TrialRepository::Insert(const TrialOwner& owner, const
         c,
         "INSERT INTO trials (session_id, run_id, name, start_time_unix_ms, created_at_utc, kind)"
         " VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-        owner.session_id, owner.run_id, trial.name, trial.start_time_unix_ms, FormatUtc(db_.Now()),
+        owner.session_id, owner.run_id, trial.name, trial.start_time_unix_ms, api::FormatUtc(db_.Now()),
         StoredKind(trial));
     if (!inserted.ok()) return inserted.status();
     const std::int64_t id = *inserted;
@@ -306,7 +306,7 @@ api::Result<std::vector<TrialSummary>> TrialRepository::ListForSessionPage(std::
           t.session_id = s.Int64(1);
           t.run_id = s.OptionalInt64(2);
           if (!s.IsNull(3)) t.name = s.Text(3);
-          const auto created = ParseUtc(s.Text(4));
+          const auto created = api::ParseUtc(s.Text(4));
           if (!created) return internal::BadStoredValue("trial");
           t.created_at = *created;
           t.num_samples = static_cast<std::size_t>(s.Int64(5));

@@ -33,7 +33,7 @@ struct TrialSummary {
   std::optional<api::TrialKind> kind;  ///< none for a name of no kind.
   std::size_t num_samples = 0;  ///< per main channel.
   double sample_rate_hz = 0;
-  UtcTime created_at;
+  api::UtcTime created_at;
 };
 
 /// Where an imported trial came from (POST /sessions/{id}/trials): kept

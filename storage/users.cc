@@ -24,7 +24,7 @@ api::Result<std::vector<User>> QueryUsers(Connection& c, std::string_view where,
         user.id = s.Int64(0);
         user.name = s.Text(1);
         const auto role = ParseRole(s.Text(2));
-        const auto created = ParseUtc(s.Text(3));
+        const auto created = api::ParseUtc(s.Text(3));
         if (!role || !created) return internal::BadStoredValue("user");
         user.role = *role;
         user.created_at = *created;
@@ -94,7 +94,7 @@ api::Result<User> UserRepository::CreateUser(std::string_view name, Role role) {
     }
     auto id =
         internal::InsertRow(c, "INSERT INTO users (name, role, created_at_utc) VALUES (?1, ?2, ?3)",
-                            name, RoleName(role), FormatUtc(db_.Now()));
+                            name, RoleName(role), api::FormatUtc(db_.Now()));
     if (!id.ok()) return id.status();
     return GetUserIn(c, *id);
   });
@@ -127,12 +127,12 @@ api::Status UserRepository::DeactivateUser(std::int64_t user_id, std::string_vie
     }
     return internal::Execute(
         c, "INSERT INTO user_deactivations (user_id, reason, at_utc) VALUES (?1, ?2, ?3)", user_id,
-        reason, FormatUtc(db_.Now()));
+        reason, api::FormatUtc(db_.Now()));
   });
 }
 
 api::Result<IssuedToken> UserRepository::IssueToken(std::int64_t user_id, std::string_view label,
-                                                    std::optional<UtcTime> expires_at) {
+                                                    std::optional<api::UtcTime> expires_at) {
   // The secret is drawn once, outside the transaction (which may be retried).
   auto token = NewTokenText();
   if (!token.ok()) return token.status();
@@ -144,12 +144,12 @@ api::Result<IssuedToken> UserRepository::IssueToken(std::int64_t user_id, std::s
       return api::Status::FailedPrecondition("user " + std::to_string(user_id) + " is deactivated");
     }
     std::optional<std::string> expires;
-    if (expires_at) expires = FormatUtc(*expires_at);
+    if (expires_at) expires = api::FormatUtc(*expires_at);
     auto id = internal::InsertRow(
         c,
         "INSERT INTO tokens (user_id, token_sha256, label, created_at_utc, expires_at_utc)"
         " VALUES (?1, ?2, ?3, ?4, ?5)",
-        user_id, digest, label, FormatUtc(db_.Now()), expires);
+        user_id, digest, label, api::FormatUtc(db_.Now()), expires);
     if (!id.ok()) return id.status();
     return IssuedToken{*id, *token, expires_at};
   });
@@ -157,7 +157,7 @@ api::Result<IssuedToken> UserRepository::IssueToken(std::int64_t user_id, std::s
 
 api::Result<User> UserRepository::Authenticate(std::string_view token) {
   const std::vector<std::byte> digest = Sha256(token);
-  const std::string now = FormatUtc(db_.Now());
+  const std::string now = api::FormatUtc(db_.Now());
   return db_.Read([&](Connection& c) -> api::Result<User> {
     auto statement = c.Prepare(
         "SELECT t.user_id FROM tokens t WHERE t.token_sha256 = ?1"
@@ -188,7 +188,7 @@ api::Status UserRepository::RevokeToken(std::int64_t token_id) {
                                              " is already revoked");
     }
     return internal::Execute(c, "INSERT INTO token_revocations (token_id, at_utc) VALUES (?1, ?2)",
-                             token_id, FormatUtc(db_.Now()));
+                             token_id, api::FormatUtc(db_.Now()));
   });
 }
 

@@ -26,7 +26,7 @@ struct User {
   std::int64_t id = 0;
   std::string name;
   Role role = Role::kAnalyst;
-  UtcTime created_at;
+  api::UtcTime created_at;
   bool active = true;  ///< false once deactivated.
 };
 
@@ -34,7 +34,7 @@ struct User {
 struct IssuedToken {
   std::int64_t token_id = 0;
   std::string token;
-  std::optional<UtcTime> expires_at;
+  std::optional<api::UtcTime> expires_at;
 };
 
 /// SHA-256 of `text` (32 bytes).
@@ -56,7 +56,7 @@ class UserRepository {
   /// Issues a token for an active user (kFailedPrecondition otherwise);
   /// `expires_at` nullopt never expires.
   api::Result<IssuedToken> IssueToken(std::int64_t user_id, std::string_view label,
-                                      std::optional<UtcTime> expires_at = std::nullopt);
+                                      std::optional<api::UtcTime> expires_at = std::nullopt);
   /// The user a presented token belongs to. kUnauthenticated for an unknown,
   /// revoked or expired token or a deactivated user (one message for all,
   /// so a caller learns nothing about which).

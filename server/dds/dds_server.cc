@@ -10,7 +10,7 @@
 #include "api/parameter_set_json.h"
 #include "storage/parameter_sets.h"
 #include "storage/subjects.h"
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 
 namespace fesbench::server::dds {
 
@@ -311,7 +311,7 @@ void DdsServer::PublishParameterSet(const storage::StoredParameterSet& set) {
   msg.irc_method(sum.irc_method);
   msg.passive_method(sum.passive_method);
   msg.active_method(sum.active_method);
-  msg.created_at(storage::FormatUtc(sum.created_at));
+  msg.created_at(api::FormatUtc(sum.created_at));
   msg.parameters_json(api::ParameterSetToJson(set.params).dump());
   msg.approved(approved_id == sum.id);
   msg.approved_parameter_set_id(approved_id);

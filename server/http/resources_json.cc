@@ -6,7 +6,7 @@
 #include "api/parameter_set_json.h"
 #include "api/json_fields.h"
 #include "server/services/model_check.h"
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 
 namespace fesbench::server::http {
 
@@ -39,7 +39,7 @@ nlohmann::json SubjectToJson(const storage::Subject& s, const std::vector<storag
     leg_list.push_back({{"id", leg.id}, {"side", storage::SideName(leg.side)}});
   return {{"id", s.id},
           {"code", s.code},
-          {"created_at_utc", storage::FormatUtc(s.created_at)},
+          {"created_at_utc", api::FormatUtc(s.created_at)},
           {"revision", s.current.revision},
           {"details", SubjectDetailsToJson(s.current.details)},
           {"legs", std::move(leg_list)}};
@@ -56,7 +56,7 @@ nlohmann::json SessionToJson(const storage::Session& s, std::string_view leg_sid
           {"leg_id", s.leg_id},
           {"leg", leg_side},
           {"date", d.date},
-          {"created_at_utc", storage::FormatUtc(s.created_at)},
+          {"created_at_utc", api::FormatUtc(s.created_at)},
           {"revision", s.current.revision},
           {"details", std::move(details)}};
 }
@@ -72,7 +72,7 @@ nlohmann::json TrialSummaryToJson(const storage::TrialSummary& t) {
           {"duration_s", t.sample_rate_hz > 0.0
                              ? nlohmann::json(static_cast<double>(t.num_samples) / t.sample_rate_hz)
                              : nlohmann::json(nullptr)},
-          {"created_at_utc", storage::FormatUtc(t.created_at)}};
+          {"created_at_utc", api::FormatUtc(t.created_at)}};
 }
 
 nlohmann::json ParameterSetSummaryToJson(const storage::ParameterSetSummary& s) {
@@ -86,7 +86,7 @@ nlohmann::json ParameterSetSummaryToJson(const storage::ParameterSetSummary& s) 
           {"active_method", s.active_method},
           {"software_version", s.software_version},
           {"supersedes_id", api::OrNull(s.supersedes_id)},
-          {"created_at_utc", storage::FormatUtc(s.created_at)}};
+          {"created_at_utc", api::FormatUtc(s.created_at)}};
 }
 
 nlohmann::json ApprovalFieldsToJson(const std::optional<storage::Approval>& newest) {
@@ -95,7 +95,7 @@ nlohmann::json ApprovalFieldsToJson(const std::optional<storage::Approval>& newe
           {"approval",
            {{"approved_by", newest->approved_by},
             {"approved_by_user_id", api::OrNull(newest->approved_by_user_id)},
-            {"approved_at_utc", storage::FormatUtc(newest->approved_at)},
+            {"approved_at_utc", api::FormatUtc(newest->approved_at)},
             {"note", newest->note},
             {"run_id", api::OrNull(newest->run_id)}}}};
 }
@@ -119,12 +119,12 @@ nlohmann::json UserToJson(const storage::User& u) {
           {"name", u.name},
           {"role", storage::RoleName(u.role)},
           {"active", u.active},
-          {"created_at_utc", storage::FormatUtc(u.created_at)}};
+          {"created_at_utc", api::FormatUtc(u.created_at)}};
 }
 
 nlohmann::json AuditEntryToJson(const storage::AuditEntry& e) {
   return {{"id", e.id},
-          {"at_utc", storage::FormatUtc(e.at)},
+          {"at_utc", api::FormatUtc(e.at)},
           {"user_id", api::OrNull(e.entry.user_id)},
           {"actor", e.entry.actor},
           {"action", e.entry.action},
@@ -207,7 +207,7 @@ api::Result<NewSessionRequest> NewSessionFromJson(const nlohmann::json& body) {
   out.details.max_tolerated_ma = f.Number("max_tolerated_ma", false, 0.0, 100.0);
   if (auto notes = f.String("notes", false, 4096)) out.details.notes = *notes;
   if (auto st = f.Finish(); !st.ok()) return st;
-  if (!storage::IsIsoDate(out.details.date)) {
+  if (!api::IsIsoDate(out.details.date)) {
     return api::Status::InvalidArgument("must be a date YYYY-MM-DD", "date");
   }
   if (auto st = storage::ValidateSessionDetails(out.details); !st.ok()) return st;
@@ -359,7 +359,7 @@ api::Result<SessionCorrection> SessionCorrectionFromJson(const nlohmann::json& b
     const std::string field = "details." + key;
     api::Status st;
     if (key == "date") {
-      if (!value.is_string() || !storage::IsIsoDate(value.get<std::string>())) {
+      if (!value.is_string() || !api::IsIsoDate(value.get<std::string>())) {
         st = api::Status::InvalidArgument(
             "must be a calendar date YYYY-MM-DD (it cannot be cleared)", field);
       } else {
@@ -408,7 +408,7 @@ nlohmann::json RevisionToJson(const Revision& r, std::optional<int> corrects_rev
           {"reason", r.reason},
           {"changed_by",
            r.recorded_by.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.recorded_by)},
-          {"changed_at_utc", storage::FormatUtc(r.recorded_at)},
+          {"changed_at_utc", api::FormatUtc(r.recorded_at)},
           {"details", std::move(details)}};
 }
 

@@ -171,7 +171,7 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
        .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
          auto request = NewTokenFromJson(ctx.body);
          if (!request.ok()) return request.status();
-         std::optional<storage::UtcTime> expires;
+         std::optional<api::UtcTime> expires;
          if (request->expires_in_s) {
            expires = db.Now() + std::chrono::seconds(*request->expires_in_s);
          }
@@ -194,7 +194,7 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
               {"label", request->label},
               {"token", issued->token},
               {"expires_at_utc",
-               issued->expires_at ? json(storage::FormatUtc(*issued->expires_at)) : json(nullptr)}},
+               issued->expires_at ? json(api::FormatUtc(*issued->expires_at)) : json(nullptr)}},
              201);
        }});
   table.Add({.method = "DELETE",
@@ -276,7 +276,7 @@ void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
                // 0700, like every folder the server makes (docs/SAFETY.md, "Files").
                if (auto made = storage::CreatePrivateFolders(backup_dir); !made.ok()) return made;
                std::error_code ec;
-               std::string stamp = storage::FormatUtc(db.Now());
+               std::string stamp = api::FormatUtc(db.Now());
                for (char& c : stamp) {
                  if (c == ':' || c == '.') c = '-';
                }

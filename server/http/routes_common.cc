@@ -97,15 +97,15 @@ api::Result<std::optional<std::int64_t>> QueryId(const RequestContext& ctx,
   return std::optional<std::int64_t>(*value);
 }
 
-api::Result<std::optional<storage::UtcTime>> QueryTime(const RequestContext& ctx,
+api::Result<std::optional<api::UtcTime>> QueryTime(const RequestContext& ctx,
                                                        const std::string& name) {
   auto text = ctx.Query(name);
-  if (!text) return std::optional<storage::UtcTime>();
-  if (storage::IsIsoDate(*text)) {
-    auto t = storage::ParseUtc(*text + "T00:00:00.000000Z");
-    if (t) return std::optional<storage::UtcTime>(*t);
+  if (!text) return std::optional<api::UtcTime>();
+  if (api::IsIsoDate(*text)) {
+    auto t = api::ParseUtc(*text + "T00:00:00.000000Z");
+    if (t) return std::optional<api::UtcTime>(*t);
   }
-  if (auto t = storage::ParseUtc(*text)) return std::optional<storage::UtcTime>(*t);
+  if (auto t = api::ParseUtc(*text)) return std::optional<api::UtcTime>(*t);
   return api::Status::InvalidArgument(
       "must be a date YYYY-MM-DD or a UTC time YYYY-MM-DDTHH:MM:SS.ffffffZ", name);
 }

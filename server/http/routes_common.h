@@ -20,7 +20,7 @@
 #include "storage/database.h"
 #include "storage/sessions.h"
 #include "storage/subjects.h"
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 
 namespace fesbench::server::http {
 
@@ -61,7 +61,7 @@ nlohmann::json MakePage(const std::vector<T>& items, const PageRequest& page, Id
 /// An optional integer query parameter ≥ 1 (kInvalidArgument naming it).
 api::Result<std::optional<std::int64_t>> QueryId(const RequestContext& ctx, const std::string& name);
 /// An optional time bound: "YYYY-MM-DD" (midnight UTC) or a full UTC stamp.
-api::Result<std::optional<storage::UtcTime>> QueryTime(const RequestContext& ctx,
+api::Result<std::optional<api::UtcTime>> QueryTime(const RequestContext& ctx,
                                                        const std::string& name);
 
 /// Runs `fn` (returning api::Result<T>) in one write transaction and, when it

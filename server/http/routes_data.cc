@@ -19,7 +19,7 @@
 #include "server/services/session_report.h"
 #include "storage/sessions.h"
 #include "storage/subjects.h"
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 #include "storage/trials.h"
 
 namespace fesbench::server::http {
@@ -218,7 +218,7 @@ void AddReportAndExportRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (!session.ok()) return session.status();
          services::SessionReport base;
          base.software_version = version;
-         base.generated_at_utc = storage::FormatUtc(db.Now());
+         base.generated_at_utc = api::FormatUtc(db.Now());
          auto session_json = SessionJson(db, *session);
          if (!session_json.ok()) return session_json.status();
          base.session = std::move(*session_json);

@@ -23,7 +23,7 @@ void AddHealthRoute(RouteTable& table, const ApiDependencies& deps) {
                return JsonReply({{"status", "ok"},
                                  {"version", version},
                                  {"schema_version", *schema},
-                                 {"time_utc", storage::FormatUtc(db.Now())}});
+                                 {"time_utc", api::FormatUtc(db.Now())}});
              }});
 }
 

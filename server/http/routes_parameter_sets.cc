@@ -243,7 +243,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                                  {"parameter_set_id", p.prediction.parameter_set_id},
                                  {"trial_id", p.prediction.trial_id ? json(*p.prediction.trial_id)
                                                                     : json(nullptr)},
-                                 {"created_at_utc", storage::FormatUtc(p.created_at)}};
+                                 {"created_at_utc", api::FormatUtc(p.created_at)}};
                    }));
              }});
   table.Add({.method = "GET",
@@ -264,7 +264,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                                                                      : json(nullptr)},
                                  {"input", parse(p->prediction.input_json)},
                                  {"output", parse(p->prediction.output_json)},
-                                 {"created_at_utc", storage::FormatUtc(p->created_at)}});
+                                 {"created_at_utc", api::FormatUtc(p->created_at)}});
              }});
 }
 

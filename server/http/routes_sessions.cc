@@ -42,8 +42,8 @@ void AddSessionListRoutes(RouteTable& table, const ApiDependencies& deps) {
                  for (auto& s : *sessions) {
                    // Session dates are calendar dates: compare as text.
                    const std::string& date = s.current.details.date;
-                   if (*from && date < storage::FormatUtc(**from).substr(0, 10)) continue;
-                   if (*to && date >= storage::FormatUtc(**to).substr(0, 10)) continue;
+                   if (*from && date < api::FormatUtc(**from).substr(0, 10)) continue;
+                   if (*to && date >= api::FormatUtc(**to).substr(0, 10)) continue;
                    kept.push_back(std::move(s));
                  }
                  api::Status failure;

@@ -102,7 +102,7 @@ void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
          metadata.push_back({"fesbench_leg", std::string(storage::SideName(leg->side))});
          if (trial->start_time_unix_ms) {
            metadata.push_back({"fesbench_start_time_utc",
-                               storage::FormatUtc(storage::UtcTime(
+                               api::FormatUtc(api::UtcTime(
                                    std::chrono::milliseconds(*trial->start_time_unix_ms)))});
          }
          std::ostringstream rate;

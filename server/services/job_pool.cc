@@ -7,8 +7,8 @@
 namespace fesbench::server::services {
 
 nlohmann::json JobToJson(const JobRecord& job) {
-  const auto stamp = [](const std::optional<storage::UtcTime>& t) {
-    return t ? nlohmann::json(storage::FormatUtc(*t)) : nlohmann::json(nullptr);
+  const auto stamp = [](const std::optional<api::UtcTime>& t) {
+    return t ? nlohmann::json(api::FormatUtc(*t)) : nlohmann::json(nullptr);
   };
   nlohmann::json j = {
       {"id", job.id},
@@ -18,7 +18,7 @@ nlohmann::json JobToJson(const JobRecord& job) {
        {{"user_id", job.actor.user_id},
         {"user_name", job.actor.user_name},
         {"role", RoleName(job.actor.role)}}},
-      {"submitted_at_utc", storage::FormatUtc(job.submitted_at)},
+      {"submitted_at_utc", api::FormatUtc(job.submitted_at)},
       {"started_at_utc", stamp(job.started_at)},
       {"finished_at_utc", stamp(job.finished_at)},
   };
@@ -40,14 +40,14 @@ JobPool::JobPool(JobPoolConfig config) : config_(std::move(config)) {
 
 JobPool::~JobPool() { Shutdown(/*drain=*/false); }
 
-storage::UtcTime JobPool::Now() const {
+api::UtcTime JobPool::Now() const {
   return config_.clock->UtcNow();
 }
 
 api::Result<std::int64_t> JobPool::Submit(std::string kind, const Actor& actor, JobFunction fn) {
   if (kind.empty()) return api::Status::InvalidArgument("job kind must not be empty", "kind");
   if (!fn) return api::Status::InvalidArgument("job has no function", "kind");
-  const storage::UtcTime now = Now();
+  const api::UtcTime now = Now();
   std::lock_guard lock(mu_);
   if (stopping_) return api::Status::Unavailable("job pool shutting down");
   if (queue_.size() >= config_.queue_capacity) {
@@ -139,7 +139,7 @@ void JobPool::WorkerLoop() {
     } catch (...) {
       out = api::Status::Internal("job threw a non-standard exception");
     }
-    const storage::UtcTime finished = Now();
+    const api::UtcTime finished = Now();
     const std::size_t result_bytes = out.ok() ? ApproximateJsonBytes(*out) : 0;
     std::lock_guard lock(mu_);
     JobRecord& r = records_.at(id);
@@ -167,7 +167,7 @@ void JobPool::Shutdown(bool drain) {
       drain_ = drain;
     }
     if (!drain_) {
-      const storage::UtcTime now = Now();
+      const api::UtcTime now = Now();
       for (const std::int64_t id : queue_) {
         JobRecord& r = records_.at(id);
         r.state = JobState::kFailed;

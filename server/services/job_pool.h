@@ -30,7 +30,7 @@
 #include "api/job.h"
 #include "api/status.h"
 #include "server/services/actor.h"
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 
 namespace fesbench::server::services {
 
@@ -60,9 +60,9 @@ struct JobRecord {
   std::string kind;     ///< e.g. "identification".
   Actor actor;          ///< who submitted it.
   JobState state = JobState::kQueued;
-  storage::UtcTime submitted_at;
-  std::optional<storage::UtcTime> started_at;
-  std::optional<storage::UtcTime> finished_at;
+  api::UtcTime submitted_at;
+  std::optional<api::UtcTime> started_at;
+  std::optional<api::UtcTime> finished_at;
   nlohmann::json result;         ///< done: the function's value; otherwise null.
   std::size_t result_bytes = 0;  ///< ApproximateJsonBytes(result) once done.
   api::Status error;             ///< failed: why; otherwise OK.
@@ -105,7 +105,7 @@ class JobPool {
 
  private:
   void WorkerLoop();
-  storage::UtcTime Now() const;
+  api::UtcTime Now() const;
   // Drops the oldest finished records beyond history or history_bytes (mu_ held).
   void Forget();
 

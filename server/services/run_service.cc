@@ -683,7 +683,7 @@ api::Result<Recovery> RunService::RecoverAfterRestart() {
       estop_source_ = who;
     }
     if (api::Status a = Audit(system, "bench.estop_restored", "bench",
-                              "e-stop latched since " + storage::FormatUtc((*latched)->at) +
+                              "e-stop latched since " + api::FormatUtc((*latched)->at) +
                                   " by " + who + ": latched again at start",
                               "ok");
         !a.ok()) {

@@ -17,7 +17,7 @@
 #include "storage/predictions.h"
 #include "storage/sessions.h"
 #include "storage/subjects.h"
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 #include "storage/trials.h"
 
 namespace fesbench::server::services {
@@ -104,7 +104,7 @@ std::string ReadmeText(std::int64_t session_id, const std::string& subject_label
 struct ArchivedSet {
   std::int64_t original_id = 0;
   std::optional<std::int64_t> supersedes_id;
-  std::optional<storage::UtcTime> created_at;
+  std::optional<api::UtcTime> created_at;
   model::ParameterSet params;
 };
 
@@ -130,7 +130,7 @@ api::Result<ArchivedSet> ReadArchivedSet(const std::string& path, const std::str
   if (api::Status s = fields.Finish(); !s.ok()) return InFile(path, s);
   set.original_id = *id;
   if (created_at) {
-    set.created_at = storage::ParseUtc(*created_at);
+    set.created_at = api::ParseUtc(*created_at);
     if (!set.created_at) {
       return InFile(path, api::Status::InvalidArgument("must be a UTC time such as "
                                                        "2026-11-25T10:00:00.000000Z",
@@ -151,7 +151,7 @@ api::Result<ArchivedSet> ReadArchivedSet(const std::string& path, const std::str
 std::string AcqTime(std::optional<std::int64_t> start_ms) {
   if (!start_ms) return "n/a";
   std::string t =
-      storage::FormatUtc(storage::UtcTime(std::chrono::milliseconds(*start_ms)));  // ...ffffffZ
+      api::FormatUtc(api::UtcTime(std::chrono::milliseconds(*start_ms)));  // ...ffffffZ
   if (!t.empty() && t.back() == 'Z') t.pop_back();
   return t;
 }
@@ -187,7 +187,7 @@ api::Status AddPredictions(storage::Database& db, const std::vector<std::int64_t
       const json output = json::parse(p.prediction.output_json, nullptr, false);
       const json errors = output.is_object() ? output.value("errors", json::object()) : json();
       table += std::to_string(p.id) + "\t" + std::to_string(set_id) + "\t" +
-               std::to_string(*p.prediction.trial_id) + "\t" + storage::FormatUtc(p.created_at) +
+               std::to_string(*p.prediction.trial_id) + "\t" + api::FormatUtc(p.created_at) +
                "\t" + Text(errors, "channel") + "\t" + Text(errors, "unit") + "\t" +
                Number(errors.value("e_rms", json())) + "\t" +
                Number(errors.value("e_abs", json())) + "\n";
@@ -195,7 +195,7 @@ api::Status AddPredictions(storage::Database& db, const std::vector<std::int64_t
           json{{"id", p.id},
                {"parameter_set_id", set_id},
                {"trial_id", *p.prediction.trial_id},
-               {"created_at", storage::FormatUtc(p.created_at)},
+               {"created_at", api::FormatUtc(p.created_at)},
                {"input", input.is_discarded() ? json(nullptr) : input},
                {"output", output.is_discarded() ? json(nullptr) : output}}
               .dump(2) +
@@ -217,7 +217,7 @@ api::Status AddPredictions(storage::Database& db, const std::vector<std::int64_t
            {"rms_error", e.evaluation.rms_error},
            {"max_abs_error", e.evaluation.max_abs_error},
            {"details", details.is_discarded() ? json(nullptr) : details},
-           {"created_at", storage::FormatUtc(e.created_at)}});
+           {"created_at", api::FormatUtc(e.created_at)}});
     }
   }
   files[dir + "predictions.tsv"] = std::move(table);
@@ -360,7 +360,7 @@ api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const Sessio
     if (!set.ok()) return set.status();
     json j = {{"id", id},
               {"version", set->summary.version},
-              {"created_at", storage::FormatUtc(set->summary.created_at)},
+              {"created_at", api::FormatUtc(set->summary.created_at)},
               {"supersedes_id",
                set->summary.supersedes_id ? json(*set->summary.supersedes_id) : json(nullptr)},
               {"parameter_set", api::ParameterSetToJson(set->params)}};

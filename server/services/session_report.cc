@@ -12,7 +12,7 @@
 #include "storage/parameter_sets.h"
 #include "storage/predictions.h"
 #include "storage/sessions.h"
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 #include "storage/trials.h"
 
 namespace fesbench::server::services {
@@ -479,7 +479,7 @@ api::Result<SessionReport> GatherSessionReport(storage::Database& db, std::int64
     if (!stored.ok()) return stored.status();
     ReportSet set{id,
                   stored->summary.version,
-                  storage::FormatUtc(stored->summary.created_at),
+                  api::FormatUtc(stored->summary.created_at),
                   stored->params,
                   {}};
     const std::set<std::int64_t> fitted(stored->trial_ids.begin(), stored->trial_ids.end());

@@ -25,7 +25,7 @@ TEST_P(StorageTest, AuditLogAppendsAndFilters) {
   ASSERT_TRUE(all.ok()) << all.status().ToString();
   ASSERT_EQ(all->size(), 5u);
   EXPECT_EQ(all->front().entry.target, "backup/4");  // newest first
-  EXPECT_EQ(FormatUtc(all->back().at), "2026-01-01T00:00:01.000000Z");
+  EXPECT_EQ(api::FormatUtc(all->back().at), "2026-01-01T00:00:01.000000Z");
   auto by_user = log.List({std::nullopt, std::nullopt, user->id, 100, std::nullopt});
   ASSERT_TRUE(by_user.ok());
   EXPECT_EQ(by_user->size(), 3u);

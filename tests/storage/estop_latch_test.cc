@@ -22,7 +22,7 @@ TEST_P(StorageTest, TheEStopLatchIsTheLastRowAndSurvivesReopening) {
   ASSERT_TRUE(latched->has_value());
   EXPECT_EQ((*latched)->source, "dds (ana)");
   EXPECT_EQ((*latched)->recorded_by, "ana");
-  EXPECT_EQ(FormatUtc((*latched)->at), "2026-01-01T00:00:01.000000Z");
+  EXPECT_EQ(api::FormatUtc((*latched)->at), "2026-01-01T00:00:01.000000Z");
 
   db_.reset();  // a restart
   auto reopened = Database::Open(Options());

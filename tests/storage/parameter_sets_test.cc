@@ -192,7 +192,7 @@ TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
     // columns of later migrations).
     std::int64_t subject_id = 0;
     api::Status made = (*db)->Write([&](Connection& c) -> api::Status {
-      const std::string now = FormatUtc((*db)->Now());
+      const std::string now = api::FormatUtc((*db)->Now());
       auto subject =
           internal::InsertRow(c, "INSERT INTO subjects (code, created_at_utc) VALUES (?1, ?2)",
                               std::string("M15"), now);
@@ -225,7 +225,7 @@ TEST_P(StorageTest, MigrationFifteenApprovesTheSetsRunsStored) {
         return internal::InsertRow(c,
                                    "INSERT INTO runs (session_id, protocol_name, protocol_version,"
                                    " parameters_json, created_at_utc) VALUES (?1, ?2, '1', '{}', ?3)",
-                                   session->id, std::string(protocol), FormatUtc((*db)->Now()));
+                                   session->id, std::string(protocol), api::FormatUtc((*db)->Now()));
       });
     };
     auto first = run("rapid_parameterisation");
@@ -326,7 +326,7 @@ TEST_P(StorageTest, HistoryFiltersBySubjectLegMethodAndDate) {
   ASSERT_TRUE(all.ok());
   ASSERT_EQ(all->size(), 12u);
   for (const auto& s : *all) EXPECT_EQ(s.subject_id, a.subject_id);
-  EXPECT_EQ(FormatUtc(all->front().created_at), "2026-01-01T00:00:00.000000Z");
+  EXPECT_EQ(api::FormatUtc(all->front().created_at), "2026-01-01T00:00:00.000000Z");
   EXPECT_EQ(all->back().version, 2);  // second set of the left leg
 
   auto right_leg = sets.History({a.subject_id, a.leg_id, std::nullopt, std::nullopt, std::nullopt});

@@ -34,7 +34,7 @@ inline std::filesystem::path MakeTempDir(const std::string& tag) {
   return dir;
 }
 
-inline UtcTime Epoch2026() {
+inline api::UtcTime Epoch2026() {
   return std::chrono::sys_days{std::chrono::year{2026} / 1 / 1} + std::chrono::microseconds(0);
 }
 
@@ -45,7 +45,7 @@ class SteppingClock : public api::Clock {
   explicit SteppingClock(std::shared_ptr<std::atomic<long long>> ticks)
       : ticks_(std::move(ticks)) {}
   double MonotonicSeconds() override { return static_cast<double>(ticks_->load()); }
-  UtcTime UtcNow() override { return Epoch2026() + std::chrono::seconds(ticks_->fetch_add(1)); }
+  api::UtcTime UtcNow() override { return Epoch2026() + std::chrono::seconds(ticks_->fetch_add(1)); }
   void SleepFor(double) override {}
 
  private:

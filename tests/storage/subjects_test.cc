@@ -30,7 +30,7 @@ TEST_P(StorageTest, SubjectCreateGetAndList) {
   EXPECT_EQ(created->current.revision, 1);
   EXPECT_EQ(created->current.details, Details());
   EXPECT_FALSE(created->current.corrects_id.has_value());
-  EXPECT_EQ(FormatUtc(created->created_at), "2026-01-01T00:00:00.000000Z");
+  EXPECT_EQ(api::FormatUtc(created->created_at), "2026-01-01T00:00:00.000000Z");
 
   auto by_id = subjects.Get(created->id);
   ASSERT_TRUE(by_id.ok());

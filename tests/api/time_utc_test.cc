@@ -1,8 +1,8 @@
-#include "storage/time_utc.h"
+#include "api/time_utc.h"
 
 #include <gtest/gtest.h>
 
-namespace fesbench::storage {
+namespace fesbench::api {
 namespace {
 
 TEST(TimeUtc, FormatsAndParsesMicroseconds) {
@@ -21,4 +21,4 @@ TEST(TimeUtc, FormatsAndParsesMicroseconds) {
 }
 
 }  // namespace
-}  // namespace fesbench::storage
+}  // namespace fesbench::api
