@@ -33,11 +33,14 @@ inline SubjectContext WithKnownInertia(const VirtualSubject& vs) {
   return s;
 }
 
-/// The bench, its safety log and the safe bench over it, for seed `seed`.
+/// The bench, its safety log and the safe bench over it, for seed `seed`
+/// (DrawVirtualSubject) or a given subject.
 struct Rig {
   explicit Rig(std::uint64_t seed, SimulatedBenchOptions options = {})
-      : subject(DrawVirtualSubject(seed)), bench(subject, std::move(options)),
-        safe(bench, log.sink()) {}
+      : Rig(DrawVirtualSubject(seed), std::move(options)) {}
+  /// The same for a given subject (another family, changed fidelity).
+  explicit Rig(VirtualSubject vs, SimulatedBenchOptions options = {})
+      : subject(std::move(vs)), bench(subject, std::move(options)), safe(bench, log.sink()) {}
   VirtualSubject subject;
   SimulatedBench bench;
   SafetyEventLog log;

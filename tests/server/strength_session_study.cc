@@ -30,17 +30,10 @@
 #include "server/protocols/plan.h"
 #include "server/protocols/runner.h"
 #include "tests/server/runner_rig.h"
+#include "tests/server/strength_session_rig.h"
 
 namespace fesbench::server::protocols {
 namespace {
-
-struct Leg {
-  explicit Leg(const VirtualSubject& vs) : subject(vs), bench(subject), safe(bench, log.sink()) {}
-  VirtualSubject subject;
-  SimulatedBench bench;
-  SafetyEventLog log;
-  SafeBench safe;
-};
 
 struct Variant {
   std::string name;
@@ -48,39 +41,9 @@ struct Variant {
   bool normalise = true;  // relative to the rapid free swings' strength
 };
 
-model::StimulationRecord Record(const RecordedTrial& t) {
-  model::StimulationRecord r;
-  r.start_s = t.bench_start_s;
-  if (t.trial.pulses) {
-    r.pulses = t.trial.pulses->Train();
-    r.pulse_rate_hz = t.trial.pulses->pulse_rate_hz;
-  }
-  return r;
-}
-
-bool IsFreeSwing(const RecordedTrial& t) {
-  const api::TrialKindInfo* k = api::FindTrialKind(t.trial.name.value_or(""));
-  return k != nullptr && !k->knee_locked && !k->motor;
-}
-
-// E_RMS of a free-swing prediction of `t` from its measured start.
-double Erms(const model::ParameterSet& set, const RecordedTrial& t,
-            std::optional<model::SimulationStrength> strength) {
-  const std::vector<double>& angle = *t.trial.Values("angle_deg");
-  const std::vector<double>& ts = *t.trial.Values("t_s");
-  model::SimulationOptions o;
-  o.initial_angle_deg = std::clamp(angle.front(), 10.0, 110.0);
-  o.initial_velocity_deg_s = model::GcvSmoothingSpline(ts, angle).first.front();
-  o.output_rate_hz = t.trial.sample_rate_hz;
-  o.duration_s = (static_cast<double>(angle.size()) + 0.5) / t.trial.sample_rate_hz;
-  o.pulse_rate_hz = t.trial.pulses->pulse_rate_hz;
-  o.joint_limits = model::JointLimits{};
-  o.strength = strength;
-  const model::SimulationResult sim = SimulateStimulatedSwing(set, t.trial.pulses->Train(), o);
-  std::vector<double> p(angle.size());
-  for (std::size_t i = 0; i < angle.size(); ++i) p[i] = sim.angle_deg[std::min(i, sim.size() - 1)];
-  return model::RmsError(p, angle);
-}
+using test::Erms;
+using test::IsFreeSwing;
+using test::Record;
 
 double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -117,7 +80,7 @@ int Main(int argc, char** argv) {
     for (int i = 1; i <= legs; ++i) {
       VirtualSubject vs = DrawSubject(static_cast<std::uint64_t>(i), family);
       vs.fidelity.fatigue_rate_per_s *= fatigue_factor;
-      Leg leg(vs);
+      test::Rig leg(vs);
       SubjectContext ctx = test::WithKnownInertia(vs);
       ProtocolRunner runner(leg.safe, &leg.log, nullptr, test::NoWatchdog());
       auto rapid_plan = MakePlan("rapid_parameterisation", {}, ctx);

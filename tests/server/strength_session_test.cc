@@ -18,44 +18,14 @@
 #include "server/protocols/plan.h"
 #include "server/protocols/runner.h"
 #include "tests/server/runner_rig.h"
+#include "tests/server/strength_session_rig.h"
 
 namespace fesbench::server::protocols {
 namespace {
 
-model::StimulationRecord Record(const RecordedTrial& t) {
-  model::StimulationRecord r;
-  r.start_s = t.bench_start_s;
-  if (t.trial.pulses) {
-    r.pulses = t.trial.pulses->Train();
-    r.pulse_rate_hz = t.trial.pulses->pulse_rate_hz;
-  }
-  return r;
-}
-
-bool IsFreeSwing(const RecordedTrial& t) {
-  const api::TrialKindInfo* k = api::FindTrialKind(t.trial.name.value_or(""));
-  return k != nullptr && !k->knee_locked && !k->motor && t.trial.pulses;
-}
-
-// E_RMS of a free-swing prediction from the trial's measured start, as
-// POST /predictions computes it.
-double Erms(const model::ParameterSet& set, const RecordedTrial& t,
-            std::optional<model::SimulationStrength> strength) {
-  const std::vector<double>& angle = *t.trial.Values("angle_deg");
-  const std::vector<double>& ts = *t.trial.Values("t_s");
-  model::SimulationOptions o;
-  o.initial_angle_deg = std::clamp(angle.front(), 10.0, 110.0);
-  o.initial_velocity_deg_s = model::GcvSmoothingSpline(ts, angle).first.front();
-  o.output_rate_hz = t.trial.sample_rate_hz;
-  o.duration_s = (static_cast<double>(angle.size()) + 0.5) / t.trial.sample_rate_hz;
-  o.pulse_rate_hz = t.trial.pulses->pulse_rate_hz;
-  o.joint_limits = model::JointLimits{};
-  o.strength = std::move(strength);
-  const model::SimulationResult sim = SimulateStimulatedSwing(set, t.trial.pulses->Train(), o);
-  std::vector<double> p(angle.size());
-  for (std::size_t i = 0; i < angle.size(); ++i) p[i] = sim.angle_deg[std::min(i, sim.size() - 1)];
-  return model::RmsError(p, angle);
-}
+using test::Erms;
+using test::IsFreeSwing;
+using test::Record;
 
 TEST(StrengthSession, KnownFatiguePredictsTheSessionsLaterTrialsCloser) {
   double sum_with = 0.0, sum_without = 0.0;

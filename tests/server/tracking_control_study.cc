@@ -30,16 +30,8 @@
 namespace fesbench::server::protocols {
 namespace {
 
-struct Leg {
-  explicit Leg(const VirtualSubject& vs) : subject(vs), bench(subject), safe(bench, log.sink()) {}
-  VirtualSubject subject;
-  SimulatedBench bench;
-  SafetyEventLog log;
-  SafeBench safe;
-};
-
 std::optional<model::ParameterSet> RapidSet(const VirtualSubject& vs) {
-  Leg leg(vs);
+  test::Rig leg(vs);
   SubjectContext ctx = test::WithKnownInertia(vs);
   ctx.min_angle_deg = 10.0;
   ctx.max_angle_deg = 110.0;
@@ -62,7 +54,7 @@ void Track(int index, std::string_view family, const std::string& condition, Vir
     values["duration_s"] = 120.0;
     vs.fidelity.fatigue_rate_per_s *= 5.0;
   }
-  Leg leg(vs);
+  test::Rig leg(vs);
   SubjectContext ctx = test::SessionValues(vs);
   ctx.parameter_set = set;
   std::cout << index << "," << family << "," << condition << ","
