@@ -154,15 +154,6 @@ Result<SampleBatch> SampleBatchFromJson(const json& j) {
   return Done(in, b);
 }
 
-json ToleranceResultToJson(const ToleranceResult& t) {
-  return {{"threshold_ma", OrNull(t.threshold_ma)},
-          {"max_tolerated_ma", t.max_tolerated_ma},
-          {"max_torque_nm", t.max_torque_nm},
-          {"noise_band_nm", t.noise_band_nm},
-          {"stopped_by_clinician", t.stopped_by_clinician},
-          {"warnings", t.warnings}};
-}
-
 json RunViewToJson(const RunView& v) {
   json parameters = json::object();
   for (const auto& [k, x] : v.parameters) parameters[k] = x;
@@ -193,9 +184,22 @@ json RunViewToJson(const RunView& v) {
             {"used_parameter_set_id", OrNull(v.used_parameter_set_id)},
             {"values", std::move(values)},
             {"safety_events", std::move(events)},
-            {"live", v.live}};
+            {"live", v.live},
+            {"outcome", v.outcome ? RunOutcomeToJson(*v.outcome) : json(nullptr)}};
   if (v.tolerance) j["tolerance"] = ToleranceResultToJson(*v.tolerance);
   return j;
+}
+
+void ShowOutcome(const RunOutcome& outcome, RunView& view) {
+  view.state = outcome.state;
+  view.reason = outcome.reason;
+  view.parameter_set_id = outcome.parameter_set_id;
+  if (outcome.used_parameter_set_id) view.used_parameter_set_id = outcome.used_parameter_set_id;
+  view.tolerance.reset();
+  if (outcome.tolerance && outcome.tolerance->test) view.tolerance = outcome.tolerance->test;
+  view.values = RunValuesOf(outcome);
+  view.result = RunResultJsonOf(outcome);
+  view.outcome = outcome;
 }
 
 std::optional<std::int64_t> UsedParameterSetOf(const ParameterValues& parameters) {
@@ -255,6 +259,15 @@ Result<RunView> RunViewFromJson(const json& j) {
     }
   }
   ReadInto(in, "live", v.live);
+  if (const json* outcome = in.Any("outcome", false)) {
+    Result<RunOutcome> read = RunOutcomeFromJson(*outcome);
+    if (!read.ok()) {
+      in.Fail("outcome." + read.status().field(), read.status().message());
+    } else {
+      v.outcome = *std::move(read);
+      if (v.outcome->tolerance) v.tolerance = v.outcome->tolerance->test;
+    }
+  }
   return Done(in, std::move(v));
 }
 

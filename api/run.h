@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "api/clock.h"
+#include "api/run_outcome.h"
 #include "api/run_state.h"
 #include "api/status.h"
 
@@ -88,19 +89,6 @@ struct SampleBatch {
 nlohmann::json SampleBatchToJson(const SampleBatch& batch);
 Result<SampleBatch> SampleBatchFromJson(const nlohmann::json& json);
 
-/// The tolerance test's outcome (Appendix F part II.K).
-struct ToleranceResult {
-  std::optional<double> threshold_ma;  ///< first amplitude with torque above the band.
-  double max_tolerated_ma = 0.0;       ///< amplitude when stopped (or the ceiling).
-  double max_torque_nm = 0.0;          ///< largest smoothed torque (offset removed).
-  double noise_band_nm = 0.0;          ///< torque band used for the threshold.
-  bool stopped_by_clinician = false;
-  std::vector<std::string> warnings;
-};
-/// {"threshold_ma" (null if none), "max_tolerated_ma", "max_torque_nm",
-///  "noise_band_nm", "stopped_by_clinician", "warnings"}.
-nlohmann::json ToleranceResultToJson(const ToleranceResult& result);
-
 /// The run resource (GET /runs/{id}, the runs lists, run commands' replies).
 struct RunView {
   std::int64_t run_id = 0;
@@ -122,12 +110,13 @@ struct RunView {
   /// set" resolved to its id when the run was started), or none.
   std::optional<std::int64_t> used_parameter_set_id;
   std::vector<SafetyEvent> safety_events;        ///< of this run (live/in-memory views only).
-  std::optional<ToleranceResult> tolerance;      ///< tolerance_test.
-  std::map<std::string, double> values;          ///< figures decided during the run.
+  /// What the run concluded (api/run_outcome.h), once it ended and was
+  /// stored; the four fields below show it (ShowOutcome).
+  std::optional<RunOutcome> outcome;
+  std::optional<ToleranceResult> tolerance;      ///< tolerance_test: what it measured.
+  std::map<std::string, double> values;          ///< RunValuesOf(outcome).
   /// What the run produced, for clients (null while running or when it
-  /// produced nothing): tolerance_test {"threshold_ma", "max_tolerated_ma",
-  /// "session_revision"} (the session revision it stored), rapid
-  /// {"parameter_set_id"}.
+  /// produced nothing): RunResultJsonOf(outcome).
   nlohmann::json result;
   bool live = false;  ///< from memory (this process ran it) rather than storage.
 };
@@ -138,11 +127,16 @@ struct RunView {
 ///  "controller" (user name or null)}, plus the details "bench_elapsed_s",
 ///  "bench_total_s" (the time run once it ended), "bench_planned_s",
 ///  "trial_ids", "parameter_set_id", "used_parameter_set_id", "values",
-///  "safety_events", "live" and, for
-///  tolerance_test runs of this process, "tolerance".
+///  "safety_events", "live", "outcome" (RunOutcomeToJson, null until the
+///  run ended) and, for tolerance_test runs, "tolerance".
 nlohmann::json RunViewToJson(const RunView& view);
-/// The fields above except "tolerance" and "owner_user_id" (not sent).
+/// The fields above except "owner_user_id" (not sent); "tolerance" comes
+/// from "outcome".
 Result<RunView> RunViewFromJson(const nlohmann::json& json);
+/// Sets view.outcome and what shows it: state, reason, parameter_set_id,
+/// used_parameter_set_id (when the outcome names one), tolerance (what the
+/// test measured), values (RunValuesOf) and result (RunResultJsonOf).
+void ShowOutcome(const RunOutcome& outcome, RunView& view);
 /// The set a run's resolved parameters name as the one it uses
 /// (`parameter_set_id` ≥ 1: tracking's, docs/PROTOCOLS.md), or none.
 std::optional<std::int64_t> UsedParameterSetOf(const ParameterValues& parameters);

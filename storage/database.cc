@@ -325,6 +325,12 @@ api::Status Database::Migrate(std::optional<int> target) {
       if (!now_version.ok()) return now_version.status();
       if (*now_version >= migration.version) return api::Status::Ok();
       if (auto s = c.ExecScript(migration.sql); !s.ok()) return s;
+      if (migration.backfill) {
+        if (auto s = migration.backfill(c); !s.ok()) return s;
+      }
+      if (!migration.sql_after.empty()) {
+        if (auto s = c.ExecScript(migration.sql_after); !s.ok()) return s;
+      }
       auto insert = c.Prepare(
           "INSERT INTO schema_migrations (version, name, applied_at_utc) VALUES (?1, ?2, ?3)");
       if (!insert.ok()) return insert.status();

@@ -708,6 +708,18 @@ std::string RangeOfMotionMigration(const std::string& real_type) {
          " CHECK (rom_max_deg BETWEEN 60 AND 180);\n";
 }
 
+// A run's outcome (api/run_outcome.h, docs/ARCHITECTURE.md "Runs"), written
+// once with its terminal event; runs that ended before get theirs from
+// BackfillRunOutcomes, which run_events' append-only trigger is lifted for
+// (`lift`, `restore`: each engine's DDL).
+Migration RunOutcomeMigration(const std::string& lift, const std::string& restore) {
+  Migration m{19, "a run's outcome, stored with its end",
+              "ALTER TABLE run_events ADD COLUMN outcome_json TEXT;\n" + lift};
+  m.backfill = &BackfillRunOutcomes;
+  m.sql_after = restore;
+  return m;
+}
+
 const std::vector<Migration>& AllMigrations() {
   static const std::vector<Migration> kMigrations = {
       {1, "subjects, legs, sessions, runs, users, tokens, audit log",
@@ -744,6 +756,7 @@ const std::vector<Migration>& AllMigrations() {
            AppendOnly({"trial_device_commands"})},
       {17, "a subject's range of motion", RangeOfMotionMigration("REAL")},
       {18, "a run's bench time as it ran", RunBenchTimeMigration("REAL")},
+      RunOutcomeMigration("DROP TRIGGER run_events_no_update;\n", AppendOnlyUpdate("run_events")),
   };
   return kMigrations;
 }
@@ -772,6 +785,8 @@ const std::vector<Migration>& PostgresMigrations() {
            PostgresAppendOnly({"trial_device_commands"})},
       {17, "a subject's range of motion", RangeOfMotionMigration("DOUBLE PRECISION")},
       {18, "a run's bench time as it ran", RunBenchTimeMigration("DOUBLE PRECISION")},
+      RunOutcomeMigration("ALTER TABLE run_events DISABLE TRIGGER run_events_append_only;\n",
+                          "ALTER TABLE run_events ENABLE TRIGGER run_events_append_only;\n"),
   };
   return kMigrations;
 }

@@ -89,7 +89,8 @@ constexpr std::string_view kRunSql =
     " (SELECT MAX(at_utc) FROM run_events WHERE run_id = r.id"
     "    AND state IN ('done', 'failed', 'aborted')),"
     " (SELECT bench_s FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1),"
-    " (SELECT bench_planned_s FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1)"
+    " (SELECT bench_planned_s FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1),"
+    " (SELECT outcome_json FROM run_events WHERE run_id = r.id ORDER BY id DESC LIMIT 1)"
     " FROM runs r ";
 
 template <typename... Values>
@@ -115,6 +116,12 @@ api::Result<std::vector<Run>> QueryRuns(Connection& c, std::string_view where,
         if (!s.IsNull(10)) run.finished_at = api::ParseUtc(s.Text(10));
         if (!s.IsNull(11)) run.bench_s = s.Double(11);
         if (!s.IsNull(12)) run.bench_planned_s = s.Double(12);
+        if (!s.IsNull(13)) {
+          const nlohmann::json stored = nlohmann::json::parse(s.Text(13), nullptr, false);
+          api::Result<api::RunOutcome> outcome = api::RunOutcomeFromJson(stored);
+          if (!outcome.ok()) return internal::BadStoredValue("run outcome");
+          run.outcome = *std::move(outcome);
+        }
         return run;
       },
       values...);
@@ -126,7 +133,23 @@ api::Result<Run> GetRunIn(Connection& c, std::int64_t id) {
 
 api::Status AppendRunEvent(Connection& c, std::int64_t run_id, RunState state,
                            std::string_view message, api::UtcTime now,
-                           const std::optional<RunBenchTime>& bench = std::nullopt) {
+                           const std::optional<RunBenchTime>& bench = std::nullopt,
+                           const api::RunOutcome* outcome = nullptr) {
+  if (outcome != nullptr) {
+    const std::string outcome_json = api::RunOutcomeToJson(*outcome).dump();
+    if (!bench) {
+      return internal::Execute(c,
+                               "INSERT INTO run_events (run_id, state, message, at_utc,"
+                               " outcome_json) VALUES (?1, ?2, ?3, ?4, ?5)",
+                               run_id, api::RunStateName(state), message, api::FormatUtc(now),
+                               outcome_json);
+    }
+    return internal::Execute(c,
+                             "INSERT INTO run_events (run_id, state, message, at_utc, bench_s,"
+                             " bench_planned_s, outcome_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                             run_id, api::RunStateName(state), message, api::FormatUtc(now),
+                             bench->ran_s, bench->planned_s, outcome_json);
+  }
   if (bench) {
     return internal::Execute(c,
                              "INSERT INTO run_events (run_id, state, message, at_utc, bench_s,"
@@ -166,6 +189,7 @@ api::RunView RunViewOf(const Run& run) {
   if (v.state == RunState::kDone) v.progress.fraction = 1.0;
   if (run.bench_s) v.progress.bench_elapsed_s = v.progress.bench_total_s = *run.bench_s;
   if (run.bench_planned_s) v.progress.bench_planned_s = *run.bench_planned_s;
+  if (run.outcome) api::ShowOutcome(*run.outcome, v);
   return v;
 }
 
@@ -318,7 +342,8 @@ api::Result<std::vector<Run>> SessionRepository::ListUnfinishedRuns() {
 
 api::Result<Run> SessionRepository::RecordRunState(std::int64_t run_id, RunState state,
                                                    std::string_view message,
-                                                   std::optional<RunBenchTime> bench) {
+                                                   std::optional<RunBenchTime> bench,
+                                                   const api::RunOutcome* outcome) {
   return db_.Write([&](Connection& c) -> api::Result<Run> {
     auto run = GetRunIn(c, run_id);
     if (!run.ok()) return run.status();
@@ -342,7 +367,13 @@ api::Result<Run> SessionRepository::RecordRunState(std::int64_t run_id, RunState
       return api::Status::InvalidArgument("a bench time belongs to a run that ended, >= 0 s",
                                           "bench");
     }
-    if (auto s = AppendRunEvent(c, run_id, state, message, db_.Now(), bench); !s.ok()) return s;
+    if (outcome != nullptr && (outcome->state != state || !api::IsFinal(state))) {
+      return api::Status::InvalidArgument("an outcome belongs to the run's terminal state",
+                                          "outcome");
+    }
+    if (auto s = AppendRunEvent(c, run_id, state, message, db_.Now(), bench, outcome); !s.ok()) {
+      return s;
+    }
     return GetRunIn(c, run_id);
   });
 }

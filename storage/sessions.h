@@ -71,6 +71,9 @@ struct Run {
   /// Bench time, s, as the run ran and as planned (on its terminal event;
   /// unset for runs stored before schema 18 and runs closed at a restart).
   std::optional<double> bench_s, bench_planned_s;
+  /// What the run concluded, stored with its terminal event (schema 19;
+  /// runs that ended before have the one migration 19 derived).
+  std::optional<api::RunOutcome> outcome;
 };
 
 /// A finished run's bench time, s: as it ran (however it ended) and as planned.
@@ -83,11 +86,11 @@ struct RunBenchTime {
 /// [0, 100] mA, threshold ≤ max tolerated.
 api::Status ValidateSessionDetails(const SessionDetails& details);
 
-/// The run resource (api/run.h) of a stored run, as far as the runs table
-/// knows it: no trials, result or parameter set. A done run's progress is
-/// 1; the reason is kept for failed and aborted runs; a stored protocol
-/// version that is not a number reads as 0 and parameters that are not
-/// numbers are left out.
+/// The run resource (api/run.h) of a stored run: everything but its trials,
+/// its outcome shown by api::ShowOutcome. A done run's progress is 1; the
+/// reason is kept for failed and aborted runs; a stored protocol version
+/// that is not a number reads as 0 and parameters that are not numbers are
+/// left out.
 api::RunView RunViewOf(const Run& run);
 
 class SessionRepository {
@@ -124,9 +127,12 @@ class SessionRepository {
   /// a terminal state) is kFailedPrecondition naming both states, and so is
   /// a run of another bench (only its own server moves it).
   /// `bench`: the bench time of a run that ended (terminal states only).
+  /// `outcome`: what a run that ended concluded (terminal states only; its
+  /// state must be `state`), written once with the terminal event.
   api::Result<Run> RecordRunState(std::int64_t run_id, RunState state,
                                   std::string_view message = {},
-                                  std::optional<RunBenchTime> bench = std::nullopt);
+                                  std::optional<RunBenchTime> bench = std::nullopt,
+                                  const api::RunOutcome* outcome = nullptr);
 
  private:
   Database& db_;

@@ -34,6 +34,7 @@ void RunService::RecordState(const std::shared_ptr<LiveRun>& run, RunState state
     return Audit(run->actor, "run.state", RunTarget(run->run_id),
                  std::string(protocols::RunStateName(state)), "ok");
   });
+  if (st.ok()) run->stored_state = state;
   if (!st.ok()) Log("storing state of run " + std::to_string(run->run_id) + ": " + st.ToString());
 }
 
@@ -81,49 +82,54 @@ void RunService::RecordTrial(const std::shared_ptr<LiveRun>& run,
 
 // What the end of a run stores and shows, built up by RecordFinish's parts.
 struct RunService::FinishRecord {
-  RunState state = RunState::kFailed;
-  std::string reason;
+  api::RunOutcome outcome;  // ConcludeRun's; the set and revision filled when stored
+  std::optional<model::ParameterSet> parameter_set;  // the run's fit, to store
+  std::vector<SafetyEvent> safety_events;
   std::vector<std::optional<std::int64_t>> trial_ids;  // stored id per plan trial
   std::optional<storage::NewParameterSet> new_set;
   std::optional<storage::SessionDetails> measured;  // tolerance_test's limits
-  // Set when a tolerance test ended at its ceiling: why no max is recorded.
-  std::optional<std::string> max_not_recorded;
-  std::vector<std::string> warnings;
   storage::RunBenchTime bench;  // as ran and as planned
-  // Filled by StoreFinish.
-  std::optional<std::int64_t> set_id;
-  std::optional<int> session_revision;
-  std::optional<storage::Run> stored;
+  std::optional<storage::Run> stored;  // filled by StoreFinish
 };
 
 void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
                               const protocols::RunResult& result) {
   FinishRecord f;
-  f.state = result.state;
-  f.reason = result.reason;
-  if (!protocols::IsFinal(f.state)) {
-    f.state = RunState::kFailed;
-    f.reason = "the run ended in state " + std::string(protocols::RunStateName(result.state));
-  }
+  protocols::RunConclusionInput input;
+  input.kind = run->kind;
+  input.parameters = run->view.parameters;
+  input.leg_parameter_set_id = run->prior_parameter_set_id;
+  f.outcome = protocols::ConcludeRun(input, result);
+  f.parameter_set = result.parameter_set;
+  f.safety_events = result.safety_events;
+  Finish(run, f);
+}
+
+void RunService::RecordRefused(const std::shared_ptr<LiveRun>& run, const std::string& reason) {
+  FinishRecord f;
+  f.outcome = protocols::FailOutcome(api::RunOutcome{}, run->stored_state, reason);
+  Finish(run, f);
+}
+
+void RunService::Finish(const std::shared_ptr<LiveRun>& run, FinishRecord& f) {
   {
     std::lock_guard lock(mu_);
     f.trial_ids = run->trial_ids;
     // The final progress (the time run) came before the result.
     f.bench = {run->view.progress.bench_total_s, run->view.progress.bench_planned_s};
   }
-  PrepareParameterSet(*run, result, f);
-  PrepareMeasuredLimits(*run, result, f);
+  PrepareParameterSet(*run, f);
+  PrepareMeasuredLimits(*run, f);
   StoreFinish(*run, f);
   // The view turns final only once the bench is free again, so that a
   // caller who saw the end may start the next run at once.
   if (run->on_bench.load()) (void)owner_.Wait();
-  PublishFinish(run, result, f);
+  PublishFinish(run, f);
   Forget();
 }
 
-void RunService::PrepareParameterSet(const LiveRun& run, const protocols::RunResult& result,
-                                     FinishRecord& f) const {
-  if (f.state != RunState::kDone || !result.parameter_set) return;
+void RunService::PrepareParameterSet(const LiveRun& run, FinishRecord& f) const {
+  if (f.outcome.state != RunState::kDone || !f.parameter_set) return;
   const auto stored_id = [&](int index) -> std::optional<std::int64_t> {
     if (index < 0 || static_cast<std::size_t>(index) >= f.trial_ids.size()) return std::nullopt;
     return f.trial_ids[static_cast<std::size_t>(index)];
@@ -134,7 +140,7 @@ void RunService::PrepareParameterSet(const LiveRun& run, const protocols::RunRes
   storage::NewParameterSet ns;
   ns.subject_id = run.subject_id;
   ns.leg_id = run.leg_id;
-  ns.params = *result.parameter_set;
+  ns.params = *f.parameter_set;
   ns.supersedes_id = run.prior_parameter_set_id;
   ns.run_id = run.run_id;
   std::vector<std::int64_t> ids;
@@ -160,8 +166,9 @@ void RunService::PrepareParameterSet(const LiveRun& run, const protocols::RunRes
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
   ns.params.provenance.trial_ids = ids;
   if (ids.size() != expected && run.rapid) {
-    f.state = RunState::kFailed;
-    f.reason = "the run's trials could not all be stored; its parameter set is not stored";
+    f.outcome = protocols::FailOutcome(
+        std::move(f.outcome), run.stored_state,
+        "the run's trials could not all be stored; its parameter set is not stored");
     return;
   }
   f.new_set = std::move(ns);
@@ -169,58 +176,31 @@ void RunService::PrepareParameterSet(const LiveRun& run, const protocols::RunRes
 
 namespace {
 
-// docs/SAFETY.md, tolerance test ceiling: the ramp reaching its ceiling
-// says only that the subject bore the ceiling, not where their limit is.
-// Only a limit the subject signalled or the clinician stopped at is a
-// measured max tolerated amplitude.
-bool EndedAtCeiling(const protocols::RunResult& result) {
-  const auto signalled = result.values.find("subject_signalled_limit");
-  return result.tolerance && !result.tolerance->stopped_by_clinician &&
-         (signalled == result.values.end() || signalled->second != 1.0);
-}
-
-std::string CeilingMessage(const RunView& view) {
-  const auto ceiling = view.parameters.find("ceiling_ma");
-  const std::string at = ceiling == view.parameters.end()
-                             ? std::string("its ceiling")
-                             : "its ceiling of " + FormatNumber(ceiling->second) + " mA";
-  return "the ramp reached " + at +
-         " without the subject signalling the limit or a clinician stopping it: no max "
-         "tolerated amplitude was measured, and the session's threshold and max tolerated are "
-         "unchanged; re-test (stop the ramp where the subject says so), or enter the max "
-         "tolerated amplitude as a clinician (a correction of the session)";
+void Warn(api::RunOutcome& outcome, std::string warning) {
+  if (outcome.tolerance && outcome.tolerance->test) {
+    outcome.tolerance->test->warnings.push_back(std::move(warning));
+  }
 }
 
 }  // namespace
 
-void RunService::PrepareMeasuredLimits(const LiveRun& run, const protocols::RunResult& result,
-                                       FinishRecord& f) {
+void RunService::PrepareMeasuredLimits(const LiveRun& run, FinishRecord& f) {
   // tolerance_test writes what it measured into the session (docs/PROTOCOLS.md,
   // `tolerance_test`): a session revision by the run's user, so that the protocols that need
-  // threshold and max tolerated may run at once.
-  if (f.state != RunState::kDone || !result.tolerance) return;
-  const protocols::ToleranceResult& t = *result.tolerance;
-  if (EndedAtCeiling(result)) {
-    f.max_not_recorded = CeilingMessage(run.view);
-    f.warnings.push_back(*f.max_not_recorded);
-    return;
-  }
-  if (!t.threshold_ma) {
-    f.warnings.push_back(
-        "no threshold was detected: the session's threshold and max tolerated are unchanged");
-    return;
-  }
+  // threshold and max tolerated may run at once. A ramp that ended at its
+  // ceiling measured no max (ConcludeRun said so).
+  const std::optional<api::ToleranceOutcome>& t = f.outcome.tolerance;
+  if (f.outcome.state != RunState::kDone || !t || t->ended_at_ceiling || !t->threshold_ma) return;
   api::Result<storage::Session> session = storage::SessionRepository(db_).Get(run.view.session_id);
   if (!session.ok()) {
-    f.warnings.push_back("the session could not be read: " + session.status().message());
+    Warn(f.outcome, "the session could not be read: " + session.status().message());
     return;
   }
   storage::SessionDetails d = session->current.details;
-  d.threshold_ma = *t.threshold_ma;
-  d.max_tolerated_ma = t.max_tolerated_ma;
+  d.threshold_ma = t->threshold_ma;
+  d.max_tolerated_ma = t->max_tolerated_ma;
   if (api::Status valid = storage::ValidateSessionDetails(d); !valid.ok()) {
-    f.warnings.push_back("the measured values were not stored in the session: " +
-                         valid.message());
+    Warn(f.outcome, "the measured values were not stored in the session: " + valid.message());
     return;
   }
   f.measured = std::move(d);
@@ -228,18 +208,18 @@ void RunService::PrepareMeasuredLimits(const LiveRun& run, const protocols::RunR
 
 api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool with_results) {
   return db_.Write([&](storage::Connection&) -> api::Status {
-    f.set_id.reset();
-    f.session_revision.reset();
-    std::string summary = std::string(protocols::RunStateName(f.state));
-    if (!f.reason.empty()) summary += ": " + f.reason;
+    f.outcome.parameter_set_id.reset();
+    f.outcome.session_revision.reset();
+    std::string summary = std::string(protocols::RunStateName(f.outcome.state));
+    if (!f.outcome.reason.empty()) summary += ": " + f.outcome.reason;
     if (with_results && f.measured) {
       api::Result<storage::Session> corrected = storage::SessionRepository(db_).Correct(
           run.view.session_id, *f.measured, ToleranceRevisionReason(run.run_id),
           run.actor.user_name);
       if (!corrected.ok()) return corrected.status();
-      f.session_revision = corrected->current.revision;
+      f.outcome.session_revision = corrected->current.revision;
       summary += "; session " + std::to_string(run.view.session_id) + " revision " +
-                 std::to_string(*f.session_revision) + " (threshold " +
+                 std::to_string(corrected->current.revision) + " (threshold " +
                  FormatNumber(*f.measured->threshold_ma) + " mA, max tolerated " +
                  FormatNumber(*f.measured->max_tolerated_ma) + " mA)";
     }
@@ -247,12 +227,12 @@ api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool wi
       api::Result<storage::ParameterSetSummary> ins =
           storage::ParameterSetRepository(db_).Insert(*f.new_set);
       if (!ins.ok()) return ins.status();
-      f.set_id = ins->id;
+      f.outcome.parameter_set_id = ins->id;
       summary += "; parameter set " + std::to_string(ins->id);
       if (api::Status st = ApproveRunSet(run, ins->id); !st.ok()) return st;
     }
-    api::Result<storage::Run> r =
-        storage::SessionRepository(db_).RecordRunState(run.run_id, f.state, f.reason, f.bench);
+    api::Result<storage::Run> r = storage::SessionRepository(db_).RecordRunState(
+        run.run_id, f.outcome.state, f.outcome.reason, f.bench, &f.outcome);
     if (!r.ok()) return r.status();
     f.stored = *r;
     return Audit(run.actor, "run.finish", RunTarget(run.run_id), summary, "ok");
@@ -281,15 +261,14 @@ void RunService::StoreFinish(const LiveRun& run, FinishRecord& f) {
   api::Status st = WriteFinish(run, f, true);
   if (!st.ok() && f.measured) {
     Log("storing the measured limits of run " + std::to_string(run.run_id) + ": " + st.ToString());
-    f.warnings.push_back("the measured values could not be stored in the session: " +
-                         st.message());
+    Warn(f.outcome, "the measured values could not be stored in the session: " + st.message());
     f.measured.reset();
     st = WriteFinish(run, f, true);
   }
   if (!st.ok() && f.new_set) {
     Log("storing the parameter set of run " + std::to_string(run.run_id) + ": " + st.ToString());
-    f.state = RunState::kFailed;
-    f.reason = "storing the parameter set failed: " + st.message();
+    f.outcome = protocols::FailOutcome(std::move(f.outcome), run.stored_state,
+                                       "storing the parameter set failed: " + st.message());
     st = WriteFinish(run, f, false);
   }
   if (!st.ok()) {
@@ -297,41 +276,15 @@ void RunService::StoreFinish(const LiveRun& run, FinishRecord& f) {
   }
 }
 
-void RunService::PublishFinish(const std::shared_ptr<LiveRun>& run,
-                               const protocols::RunResult& result, FinishRecord& f) {
+void RunService::PublishFinish(const std::shared_ptr<LiveRun>& run, FinishRecord& f) {
   {
     std::lock_guard lock(mu_);
     RunView& v = run->view;
-    v.state = f.state;
-    v.reason = f.reason;
+    api::ShowOutcome(f.outcome, v);
     v.finished_at = f.stored && f.stored->finished_at ? f.stored->finished_at : db_.Now();
     if (f.stored && f.stored->started_at) v.started_at = f.stored->started_at;
-    v.parameter_set_id = f.set_id;
-    v.safety_events = result.safety_events;
-    v.tolerance = result.tolerance;
-    if (v.tolerance) {
-      for (std::string& w : f.warnings) v.tolerance->warnings.push_back(std::move(w));
-    }
-    v.values = result.values;
-    if (f.session_revision && f.measured) {
-      v.result = ToleranceResultJson(*f.measured, *f.session_revision, v.values);
-    } else if (f.state == RunState::kDone && result.tolerance) {
-      storage::SessionDetails d;  // measured, but not stored in the session
-      d.threshold_ma = result.tolerance->threshold_ma;
-      if (!f.max_not_recorded) d.max_tolerated_ma = result.tolerance->max_tolerated_ma;
-      v.result = ToleranceResultJson(d, 0, v.values);
-      v.result["session_revision"] = nullptr;
-      if (f.max_not_recorded) {
-        v.result["ended_at_ceiling"] = true;
-        v.result["message"] = *f.max_not_recorded;
-      }
-    } else if (f.state == RunState::kDone && result.daily_check) {
-      v.result = *result.daily_check;
-      v.result["parameter_set_id"] = f.set_id ? nlohmann::json(*f.set_id) : nlohmann::json(nullptr);
-    } else if (f.set_id) {
-      v.result = {{"parameter_set_id", *f.set_id}};
-    }
-    if (f.state == RunState::kDone) {
+    v.safety_events = f.safety_events;
+    if (f.outcome.state == RunState::kDone) {
       v.progress.fraction = 1.0;
       v.progress.eta_s = 0.0;
     }
@@ -342,9 +295,9 @@ void RunService::PublishFinish(const std::shared_ptr<LiveRun>& run,
   HubItem item;
   item.kind = HubItem::Kind::kEnd;
   item.run_id = run->run_id;
-  item.state = f.state;
-  item.reason = f.reason;
-  item.parameter_set_id = f.set_id;
+  item.state = f.outcome.state;
+  item.reason = f.outcome.reason;
+  item.parameter_set_id = f.outcome.parameter_set_id;
   {
     std::lock_guard lock(mu_);
     item.result = run->view.result;

@@ -5,14 +5,13 @@
 #include <cmath>
 #include <exception>
 #include <iostream>
-#include <set>
 #include <sstream>
 #include <utility>
 
 #include "api/model_call.h"
 #include "model/tracking.h"
 #include "server/protocols/rapid_identification.h"
-#include "server/protocols/run_json.h"
+#include "server/protocols/run_outcome.h"
 #include "server/services/run_service_internal.h"
 #include "storage/audit_log.h"
 #include "storage/estop_latch.h"
@@ -108,60 +107,15 @@ std::shared_ptr<RunService::LiveRun> RunService::Current() const {
   return it == runs_.end() ? nullptr : it->second;
 }
 
+// A stored run reads back as it was stored: the runs table with its
+// outcome (storage::RunViewOf) and its trials.
 api::Result<RunView> RunService::StoredView(std::int64_t run_id) {
   api::Result<storage::Run> run = storage::SessionRepository(db_).GetRun(run_id);
   if (!run.ok()) return run.status();
   RunView v = storage::RunViewOf(*run);
-
   api::Result<std::vector<std::int64_t>> trial_ids = storage::TrialRepository(db_).IdsOfRun(run_id);
   if (!trial_ids.ok()) return trial_ids.status();
   v.trial_ids = std::move(*trial_ids);
-  if (v.state == RunState::kDone && v.protocol == "tolerance_test") {
-    api::Result<std::vector<storage::SessionRevision>> revisions =
-        storage::SessionRepository(db_).Revisions(run->session_id);
-    if (!revisions.ok()) return revisions.status();
-    const std::string reason = ToleranceRevisionReason(run_id);
-    for (const storage::SessionRevision& r : *revisions) {
-      if (r.reason == reason) v.result = ToleranceResultJson(r.details, r.revision, v.values);
-    }
-  }
-  // The set a completed run stored names the run (migration 13); a set
-  // stored before that is found by its provenance naming the run's trials.
-  if (v.state == RunState::kDone) {
-    api::Result<std::optional<std::int64_t>> by_run =
-        storage::ParameterSetRepository(db_).IdForRun(run_id);
-    if (!by_run.ok()) return by_run.status();
-    if (*by_run) {
-      v.parameter_set_id = **by_run;
-      v.result = {{"parameter_set_id", **by_run}};
-      return v;
-    }
-  }
-  const bool may_have_set = v.protocol == "rapid_parameterisation" || v.protocol == "daily_check";
-  if (v.state == RunState::kDone && may_have_set && !v.trial_ids.empty()) {
-    api::Result<storage::Session> session = storage::SessionRepository(db_).Get(run->session_id);
-    if (!session.ok()) return session.status();
-    storage::HistoryQuery q;
-    q.subject_id = session->subject_id;
-    q.leg_id = session->leg_id;
-    q.from = run->created_at;
-    api::Result<std::vector<storage::ParameterSetSummary>> history =
-        storage::ParameterSetRepository(db_).History(q);
-    if (!history.ok()) return history.status();
-    const std::set<std::int64_t> mine(v.trial_ids.begin(), v.trial_ids.end());
-    for (const storage::ParameterSetSummary& s : *history) {
-      api::Result<storage::StoredParameterSet> set = storage::ParameterSetRepository(db_).Get(s.id);
-      if (!set.ok()) continue;
-      const bool all_mine = !set->trial_ids.empty() &&
-                            std::all_of(set->trial_ids.begin(), set->trial_ids.end(),
-                                        [&](std::int64_t id) { return mine.count(id) > 0; });
-      if (all_mine) {
-        v.parameter_set_id = s.id;
-        v.result = {{"parameter_set_id", s.id}};
-        break;
-      }
-    }
-  }
   return v;
 }
 
@@ -398,6 +352,7 @@ std::shared_ptr<RunService::LiveRun> RunService::RegisterLiveRun(
   run->actor = actor;
   run->mode = description.bench_mode;
   run->rapid = plan.rapid;
+  run->kind = description.kind;
   run->prior_parameter_set_id = context.parameter_set_id;
   RunView& v = run->view;
   v.run_id = created.id;
@@ -479,12 +434,7 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   if (!started.ok()) {
     run->on_bench = false;
     // Refused at the last moment (e.g. an e-stop in between): the run failed.
-    Enqueue([this, run, started] {
-      protocols::RunResult r;
-      r.state = RunState::kFailed;
-      r.reason = started.message();
-      RecordFinish(run, r);
-    });
+    Enqueue([this, run, started] { RecordRefused(run, started.message()); });
     return started;
   }
   std::lock_guard lock(mu_);
@@ -658,9 +608,11 @@ api::Result<Recovery> RunService::RecoverAfterRestart() {
   if (!unfinished.ok()) return unfinished.status();
   for (const storage::Run& run : *unfinished) {
     if (FindLive(run.id)) continue;  // never ours: called before any start
+    const api::RunOutcome outcome =
+        protocols::FailOutcome(api::RunOutcome{}, run.state, kStoppedDuringRunReason);
     const api::Status closed = db_.Write([&](storage::Connection&) -> api::Status {
       api::Result<storage::Run> r = storage::SessionRepository(db_).RecordRunState(
-          run.id, RunState::kFailed, kStoppedDuringRunReason);
+          run.id, outcome.state, outcome.reason, std::nullopt, &outcome);
       if (!r.ok()) return r.status();
       return Audit(system, "run.recovered", RunTarget(run.id),
                    std::string("was ") + std::string(api::RunStateName(run.state)) + ": " +

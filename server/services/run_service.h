@@ -203,20 +203,23 @@ class RunService {
   void RecordState(const std::shared_ptr<LiveRun>& run, protocols::RunState state,
                    const std::string& reason);
   void RecordTrial(const std::shared_ptr<LiveRun>& run, const protocols::RecordedTrial& trial);
+  /// The run's end: ConcludeRun's outcome (server/protocols/run_outcome.h)
+  /// stored with the run's trials' set or session revision and its terminal
+  /// event in one transaction.
   void RecordFinish(const std::shared_ptr<LiveRun>& run, const protocols::RunResult& result);
+  /// A run the bench refused at the last moment: failed from its stored state.
+  void RecordRefused(const std::shared_ptr<LiveRun>& run, const std::string& reason);
   // RecordFinish's parts (run_recording.cc): the set and the session limits
   // the run stores, the one write transaction (with fallbacks), the final
   // view and its event.
   struct FinishRecord;
-  void PrepareParameterSet(const LiveRun& run, const protocols::RunResult& result,
-                           FinishRecord& f) const;
-  void PrepareMeasuredLimits(const LiveRun& run, const protocols::RunResult& result,
-                             FinishRecord& f);
+  void Finish(const std::shared_ptr<LiveRun>& run, FinishRecord& f);
+  void PrepareParameterSet(const LiveRun& run, FinishRecord& f) const;
+  void PrepareMeasuredLimits(const LiveRun& run, FinishRecord& f);
   api::Status WriteFinish(const LiveRun& run, FinishRecord& f, bool with_results);
   api::Status ApproveRunSet(const LiveRun& run, std::int64_t set_id);
   void StoreFinish(const LiveRun& run, FinishRecord& f);
-  void PublishFinish(const std::shared_ptr<LiveRun>& run, const protocols::RunResult& result,
-                     FinishRecord& f);
+  void PublishFinish(const std::shared_ptr<LiveRun>& run, FinishRecord& f);
   api::Status Audit(const Actor& actor, const std::string& action, const std::string& target,
                     const std::string& summary, const std::string& outcome);
   std::shared_ptr<LiveRun> FindLive(std::int64_t run_id) const;

@@ -18,7 +18,7 @@
 
 #include "model/tracking.h"
 #include "server/protocols/rapid_identification.h"
-#include "server/protocols/run_json.h"
+#include "server/protocols/run_outcome.h"
 #include "storage/audit_log.h"
 #include "storage/estop_latch.h"
 #include "storage/parameter_sets.h"
@@ -32,27 +32,11 @@ using protocols::RunState;
 
 inline std::string RunTarget(std::int64_t run_id) { return "runs/" + std::to_string(run_id); }
 
-/// The reason of the session revision a tolerance_test run stores; also how
-/// a stored run finds its revision again.
+/// The reason of the session revision a tolerance_test run stores (for
+/// people reading the session's history; the run's outcome names the
+/// revision).
 inline std::string ToleranceRevisionReason(std::int64_t run_id) {
   return "tolerance_test run " + std::to_string(run_id);
-}
-
-/// The tolerance test's result: the measured limits, the session revision
-/// that stores them (0 when none did) and, when the run's values still say
-/// (the runs table does not keep them), whether the subject signalled the
-/// limit (the run value "subject_signalled_limit", RunExecution).
-inline nlohmann::json ToleranceResultJson(const storage::SessionDetails& d, int revision,
-                                          const std::map<std::string, double>& values) {
-  nlohmann::json result = {
-      {"threshold_ma", d.threshold_ma ? nlohmann::json(*d.threshold_ma) : nlohmann::json()},
-      {"max_tolerated_ma",
-       d.max_tolerated_ma ? nlohmann::json(*d.max_tolerated_ma) : nlohmann::json()},
-      {"session_revision", revision}};
-  if (const auto signalled = values.find("subject_signalled_limit"); signalled != values.end()) {
-    result["subject_signalled_limit"] = signalled->second == 1.0;
-  }
-  return result;
 }
 
 inline std::string FormatNumber(double v) {
@@ -72,6 +56,9 @@ struct RunService::LiveRun {
   protocols::BenchMode mode = protocols::BenchMode::kLocked;
   std::optional<protocols::RapidSettings> rapid;
   std::optional<std::int64_t> prior_parameter_set_id;
+  protocols::ProtocolKind kind = protocols::ProtocolKind::kIsometric;
+  // Recorder thread only: the last state stored (the error transition starts there).
+  RunState stored_state = RunState::kQueued;
   // Guarded by RunService::mu_.
   RunView view;
   std::vector<std::optional<std::int64_t>> trial_ids;  // by trial index

@@ -42,12 +42,12 @@ TEST_F(SqliteStorageTest, OpensInWalWithForeignKeysAndFullSync) {
   auto version = db_->SchemaVersion();
   ASSERT_TRUE(version.ok());
   EXPECT_EQ(*version, LatestSchemaVersion());
-  EXPECT_EQ(LatestSchemaVersion(), 18);
+  EXPECT_EQ(LatestSchemaVersion(), 19);
   auto recorded = db_->Read([](Connection& c) {
     return c.QueryText("SELECT group_concat(version) FROM schema_migrations");
   });
   ASSERT_TRUE(recorded.ok());
-  EXPECT_EQ(*recorded, "1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18");
+  EXPECT_EQ(*recorded, "1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18,19");
 }
 
 TEST_P(StorageTest, ReopeningAppliesNothingTwice) {
@@ -453,7 +453,7 @@ TEST_F(PostgresStorageTest, RecordsItsMigrationsAndRefusesANewerSchema) {
     return c.QueryText("SELECT string_agg(version::text, ',' ORDER BY version) FROM schema_migrations");
   });
   ASSERT_TRUE(recorded.ok()) << recorded.status().ToString();
-  EXPECT_EQ(*recorded, "11,12,13,14,15,16,17,18");
+  EXPECT_EQ(*recorded, "11,12,13,14,15,16,17,18,19");
   ASSERT_TRUE(db_->Write([](Connection& c) {
                    return c.ExecScript(
                        "INSERT INTO schema_migrations VALUES (99, 'from the future', 'x')");
