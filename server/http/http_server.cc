@@ -1,7 +1,6 @@
 #include "server/http/http_server.h"
 
 #include <arpa/inet.h>
-#include <httplib.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -47,28 +46,6 @@ bool IsStateChanging(std::string_view method) {
 // Echo at most a short prefix of client text in messages.
 std::string Clip(std::string_view text, std::size_t n = 120) {
   return text.size() <= n ? std::string(text) : std::string(text.substr(0, n)) + "…";
-}
-
-// Library-made errors (parse failures, 413, 414, …) get the same JSON form.
-HttpError LibraryError(const httplib::Request& req, int status) {
-  switch (status) {
-    case 400:
-      if (req.method == "CONNECT" || req.method == "TRACE" || req.method == "PRI") {
-        return {405, "method_not_allowed", "method " + req.method + " is not supported", {}};
-      }
-      return {400, "bad_request", "malformed HTTP request", {}};
-    case 404:
-      return {404, "not_found", "no route for " + Clip(req.method) + " " + Clip(req.path), {}};
-    case 413:
-      return {413, "payload_too_large", "request body exceeds the server's limit", {}};
-    case 414:
-      return {414, "uri_too_long", "request line too long", {}};
-    case 416:
-      return {416, "range_not_satisfiable", "invalid Range header", {}};
-    default:
-      if (status >= 500) return {status, "internal", "internal server error", {}};
-      return {status, "bad_request", "request refused", {}};
-  }
 }
 
 }  // namespace
@@ -134,44 +111,6 @@ api::Result<int> HttpServer::Bind() {
     const char* tmp = std::getenv("TMPDIR");
     options_.upload_dir = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
   }
-  engine_ = std::make_unique<Engine>();
-  Engine& svr = *engine_;
-  svr.set_payload_max_length(std::max(options_.max_body_bytes, options_.max_upload_bytes));
-  svr.set_keep_alive_timeout(
-      std::chrono::duration_cast<std::chrono::seconds>(options_.keep_alive_timeout).count());
-  svr.set_keep_alive_max_count(options_.keep_alive_max_count);
-  svr.set_default_headers({{"Cache-Control", "no-store"}, {"X-Content-Type-Options", "nosniff"}});
-
-  auto dispatch = [this](const httplib::Request& req, httplib::Response& res) {
-    Dispatch(req, res);
-  };
-  svr.Get(".*", dispatch);
-  svr.Post(".*", dispatch);
-  svr.Put(".*", dispatch);
-  svr.Patch(".*", dispatch);
-  svr.Delete(".*", dispatch);
-  svr.Options(".*", dispatch);
-
-  svr.set_error_handler(httplib::Server::HandlerWithResponse(
-      [](const httplib::Request& req, httplib::Response& res) {
-        if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
-        WriteError(res, LibraryError(req, res.status));
-        return httplib::Server::HandlerResponse::Handled;
-      }));
-  svr.set_exception_handler(
-      [](const httplib::Request& req, httplib::Response& res, std::exception_ptr ep) {
-        std::string what = "unknown exception";
-        try {
-          if (ep) std::rethrow_exception(ep);
-        } catch (const std::exception& e) {
-          what = e.what();
-        } catch (...) {
-        }
-        std::cerr << "fesbench-server: internal error on " << req.method << " " << Clip(req.path)
-                  << ": " << what << std::endl;
-        WriteError(res, HttpError{500, "internal", "internal server error", {}});
-      });
-
   // The listening socket: SO_REUSEADDR (restart while old connections sit
   // in TIME_WAIT) but not SO_REUSEPORT, so a port in use is refused.
   addrinfo hints{};
@@ -234,13 +173,12 @@ api::Result<int> HttpServer::Bind() {
 }
 
 bool HttpServer::Run() {
-  if (!engine_ || listen_fd_ < 0) return false;
+  if (listen_fd_ < 0) return false;
   {
     std::lock_guard lock(run_mutex_);
     if (stop_requested_.load()) return true;
     running_.store(true);
   }
-  engine_->SetServing(listen_fd_);
   std::vector<std::thread> threads;
   threads.reserve(workers_ + 1);
   for (std::size_t i = 0; i < workers_; ++i) threads.emplace_back([this] { WorkerLoop(); });
@@ -267,7 +205,6 @@ bool HttpServer::Run() {
 void HttpServer::Stop() {
   stop_requested_.store(true);
   slots_.Shutdown();
-  if (engine_) engine_->SetServing(INVALID_SOCKET);  // ends event streams
   if (wake_fd_ >= 0) {
     const std::uint64_t one = 1;
     [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
@@ -345,7 +282,7 @@ void HttpServer::AuditRefusal(const RequestContext& ctx, int status, const std::
   }
 }
 
-void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
+void HttpServer::Dispatch(const Request& req, Response& res, const UploadBody* upload) {
   const RouteMatch match = routes_.Match(req.method, req.path);
   if (!match.route) {
     if (match.allowed_methods.empty() && static_files_ && static_files_->Serve(req, res)) return;
@@ -364,7 +301,7 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
     return;
   }
   const Route& route = *match.route;
-  RequestContext ctx{req, res, match.path, std::nullopt, nullptr, false, current_upload};
+  RequestContext ctx{req, res, match.path, std::nullopt, nullptr, false, upload};
   auto refuse = [&](const HttpError& error) {
     WriteError(res, error);
     AuditRefusal(ctx, error.http_status, error.code);

@@ -1,18 +1,19 @@
 #pragma once
 
 /// @file
-/// The HTTP front end (docs/API.md). cpp-httplib 0.11 (Debian's) parses
-/// each request and writes each response, but the connections are ours
-/// (httplib's own loop gives every connection a thread for its whole life,
-/// so slow clients lock everyone out, and it binds with SO_REUSEPORT):
+/// The HTTP front end (docs/API.md; docs/ARCHITECTURE.md, "The HTTP front
+/// end"). The connections are ours, so that slow or crowding clients can
+/// never keep an e-stop out (docs/SAFETY.md, "The e-stop under load");
+/// Boost.Beast parses each framed request (request_parser.h), the route
+/// table dispatches it (router.h) and response_writer.h writes the answer:
 ///
 /// - We bind the listening socket ourselves (SO_REUSEADDR, never
 ///   SO_REUSEPORT): a second server on a port in use fails "address in use".
 /// - Worker threads share one epoll set; the listening socket is one-shot,
 ///   so one worker at a time accepts a batch of connections. A worker reads what a connection
 ///   has sent (non-blocking) and frames it (request_framing.h); only a whole
-///   request (head and body) is handed to httplib, from memory (an upload:
-///   its head, the body being in a file). Deadlines (below) hold whatever
+///   request (head and body) is parsed and dispatched, from memory (an
+///   upload: its head, the body being in a file). Deadlines (below) hold whatever
 ///   pace the bytes come at, and an idle keep-alive connection is closed
 ///   after `keep_alive_timeout`. Slow clients therefore hold no thread. Pipelined requests are answered in order; a request
 ///   whose client half-closed is still answered.
@@ -37,6 +38,10 @@
 ///   body may stall at most `request_timeout` between bytes and must be
 ///   complete within `request_timeout` plus one second per MiB.
 /// - HTTPS (both TLS paths set) runs in the same loop over OpenSSL.
+///
+/// - Event streams (Response::set_event_stream) are sent chunked by the
+///   worker that answered the request, which calls the stream's source until
+///   it is done, the client leaves or the server stops.
 ///
 /// Dispatch order for each request: route (404 / 405 with Allow), bearer
 /// token (401, or 429 for an address presenting many wrong tokens), role
@@ -134,9 +139,8 @@ class HttpServer {
   struct Connection;  ///< one client connection (http_server.cc).
 
  private:
-  class Engine;
-
-  void Dispatch(const httplib::Request& req, httplib::Response& res);
+  void Dispatch(const Request& req, Response& res, const UploadBody* upload);
+  bool SendEventStream(Connection& c, Response& res);
   void AuditRefusal(const RequestContext& ctx, int status, const std::string& code);
 
   // The connection loop (http_server.cc).
@@ -167,7 +171,6 @@ class HttpServer {
   storage::Database& db_;
   StreamSlots& slots_;
   std::optional<StaticFiles> static_files_;
-  std::unique_ptr<Engine> engine_;
   SSL_CTX* tls_ = nullptr;
   int listen_fd_ = -1;
   int epoll_fd_ = -1;

@@ -12,7 +12,7 @@
 /// otherwise; no route matches a path with "..", empty or encoded-slash
 /// segments.
 
-#include <httplib.h>
+#include "server/http/message.h"
 
 #include <cstdint>
 #include <functional>
@@ -41,8 +41,8 @@ struct UploadBody {
 
 /// What a handler sees.
 struct RequestContext {
-  const httplib::Request& req;
-  httplib::Response& res;
+  const Request& req;
+  Response& res;
   std::map<std::string, std::string, std::less<>> path;  ///< template name → segment.
   std::optional<storage::User> user;                     ///< set on authenticated routes.
   nlohmann::json body;                                   ///< parsed JSON body (body routes).

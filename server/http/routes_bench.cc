@@ -1,13 +1,11 @@
 // Bench and run routes: start / read / cancel / heartbeat runs, the live
 // event stream, bench state, e-stop, the virtual subject (docs/API.md; docs/SAFETY.md).
 
-// Eigen (via the bench headers) must come before httplib.h: <resolv.h>
-// defines `_res`, a name Eigen uses for parameters.
+#include <chrono>
+
 #include "server/services/bench_service.h"
 #include "server/services/run_service.h"
 #include "server/services/sample_hub.h"
-// (separate block: keep the order above)
-#include <chrono>
 
 #include "server/http/api_routes.h"
 #include "server/http/routes_common.h"
@@ -50,13 +48,13 @@ api::Result<Reply> ServeEventStream(RequestContext& ctx, std::shared_ptr<EventSt
                                     StreamSlots* slots) {
   ctx.res.status = 200;
   ctx.res.set_header("X-Accel-Buffering", "no");
-  ctx.res.set_chunked_content_provider(
+  ctx.res.set_event_stream(
       "text/event-stream",
-      [stream, slots](std::size_t, httplib::DataSink& sink) {
+      [stream, slots](EventSink& sink) {
         using namespace std::chrono;
         auto write = [&](const std::string& text) {
           stream->last_write = steady_clock::now();
-          return sink.write(text.data(), text.size());
+          return sink.write(text);
         };
         if (!stream->pending.empty()) {
           std::string pending = std::move(stream->pending);
@@ -92,8 +90,7 @@ api::Result<Reply> ServeEventStream(RequestContext& ctx, std::shared_ptr<EventSt
           sink.done();
         }
         return true;
-      },
-      [stream](bool) { stream->subscription.reset(); });
+      });
   return Reply{200, nullptr, true};
 }
 

@@ -27,7 +27,7 @@ namespace {
 
 using nlohmann::json;
 
-std::string MediaType(const httplib::Request& req) {
+std::string MediaType(const Request& req) {
   std::string type = req.get_header_value("Content-Type");
   type = type.substr(0, type.find(';'));
   while (!type.empty() && type.back() == ' ') type.pop_back();

@@ -31,12 +31,12 @@ class StaticFilesTest : public ::testing::Test {
   void TearDown() override { fs::remove_all(base_); }
   static void Write(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
 
-  httplib::Response Get(const StaticFiles& files, const std::string& path, bool* served,
+  Response Get(const StaticFiles& files, const std::string& path, bool* served,
                         const std::string& method = "GET") {
-    httplib::Request req;
+    Request req;
     req.method = method;
     req.path = path;
-    httplib::Response res;
+    Response res;
     *served = files.Serve(req, res);
     return res;
   }
