@@ -310,6 +310,7 @@ bool HttpServer::Answer(Connection& c, std::string_view request, std::size_t con
   c.in.erase(0, consumed);
   ++c.served;
   c.request_started = c.head_seen = c.admitted = c.continue_sent = false;
+  c.preadmission = {};
   if (!keep || last) {
     Close(c, true);
     return false;
@@ -317,7 +318,7 @@ bool HttpServer::Answer(Connection& c, std::string_view request, std::size_t con
   return true;
 }
 
-std::optional<HttpError> HttpServer::Preadmit(const Connection& c, std::string_view method,
+std::optional<HttpError> HttpServer::Preadmit(Connection& c, std::string_view method,
                                               std::string_view path,
                                               std::string_view authorization,
                                               std::string_view content_type,
@@ -327,25 +328,16 @@ std::optional<HttpError> HttpServer::Preadmit(const Connection& c, std::string_v
   const RouteMatch match = routes_.Match(method, path);
   if (!match.route) return std::nullopt;
   const Route& route = *match.route;
-  if (route.roles != 0) {
-    const std::string where(path.substr(0, 200));
-    Admission admitted = auth_.Admit(authorization, c.remote_ip, route.roles,
-                                     std::string(method) + " " + where, where);
-    if (!admitted.user) {
-      if (admitted.retry_after_s > 0) {
-        extra_headers = "Retry-After: " + std::to_string(admitted.retry_after_s) + "\r\n";
-        return HttpError{429, "too_many_requests", admitted.status.message(), {}};
-      }
-      if (admitted.status.code() == api::ErrorCode::kUnauthenticated) {
-        extra_headers = "WWW-Authenticate: Bearer\r\n";
-      }
-      return ToHttpError(admitted.status);
-    }
+  RouteAdmission admitted = AdmitTo(route, method, path, authorization, c.remote_ip);
+  if (admitted.refusal) {
+    for (const auto& [name, value] : admitted.headers) extra_headers += name + ": " + value + "\r\n";
+    return admitted.refusal;
   }
   if (route.json_body && !IsJsonContentType(content_type)) {
     return HttpError{415, "unsupported_media_type",
                      "the request body must be JSON (Content-Type: application/json)", {}};
   }
+  c.preadmission = {&route, std::move(admitted.user)};
   return std::nullopt;
 }
 
@@ -438,7 +430,7 @@ bool HttpServer::ProcessOne(Connection& c, std::string_view request, bool last,
       res.status = 416;  // FinishResponse gives it its JSON body
     } else {
       try {
-        Dispatch(req, res, upload);
+        Dispatch(req, res, upload, std::move(c.preadmission));
       } catch (...) {
         std::cerr << "fesbench-server: internal error on " << req.method << " "
                   << req.path.substr(0, 120) << std::endl;

@@ -139,9 +139,27 @@ class HttpServer {
   struct Connection;  ///< one client connection (http_server.cc).
 
  private:
-  void Dispatch(const Request& req, Response& res, const UploadBody* upload);
+  /// The one role check (docs/API.md, roles): for a route with roles, the
+  /// bearer token's user if its role may use the route, else the refusal
+  /// (401, 403, or 429 for an address presenting many wrong tokens) with
+  /// the header fields that go with it.
+  struct RouteAdmission {
+    std::optional<storage::User> user;
+    std::optional<HttpError> refusal;
+    std::vector<std::pair<std::string, std::string>> headers;
+  };
+  RouteAdmission AdmitTo(const Route& route, std::string_view method, std::string_view path,
+                         std::string_view authorization, const std::string& address);
+  /// A request admitted on its head alone (Preadmit), before its body came.
+  struct Preadmission {
+    const Route* route = nullptr;
+    std::optional<storage::User> user;
+  };
+  void Dispatch(const Request& req, Response& res, const UploadBody* upload,
+                Preadmission preadmitted);
   bool SendEventStream(Connection& c, Response& res);
-  void AuditRefusal(const RequestContext& ctx, int status, const std::string& code);
+  /// Appends the audit entry of a state-changing request by a signed-in user.
+  void WriteAudit(const RequestContext& ctx, const std::string& outcome);
 
   // The connection loop (http_server.cc).
   void WorkerLoop();
@@ -152,7 +170,7 @@ class HttpServer {
   bool ProcessOne(Connection& c, std::string_view request, bool last, const UploadBody* upload);
   bool Answer(Connection& c, std::string_view request, std::size_t consumed, bool keep_alive,
               const UploadBody* upload);
-  std::optional<HttpError> Preadmit(const Connection& c, std::string_view method,
+  std::optional<HttpError> Preadmit(Connection& c, std::string_view method,
                                     std::string_view path, std::string_view authorization,
                                     std::string_view content_type, std::string& extra_headers);
   bool StartSpool(Connection& c, std::size_t head_length, std::size_t body_bytes,

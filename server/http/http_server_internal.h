@@ -89,6 +89,7 @@ struct HttpServer::Connection {
   bool request_started = false;  ///< `in` holds part of a request.
   bool head_seen = false;
   bool admitted = false;  ///< the pending request's head passed the route, token and role checks.
+  HttpServer::Preadmission preadmission;  ///< admitted: its route and user.
   bool continue_sent = false;
   bool urgent_only = false;  ///< accepted with no room left: serves urgent routes only.
   // Spooling an upload: its head is the first `head_length` bytes of `in`;

@@ -185,6 +185,7 @@ void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
        // Writing a session's data is a clinician's (docs/API.md, roles);
        // analysts read and analyse.
        .roles = kClinician | kAdmin,
+       .audit = Audit::kHandler,
        .tag = "trials",
        .summary =
            "Import trials into a session: one recording (CSV, TSV or OpenSim .sto, with its trial "

@@ -63,7 +63,7 @@ TEST_F(StaticFilesTest, HashedBundleIsImmutableAndTyped) {
   ASSERT_TRUE(served);
   EXPECT_EQ(res.get_header_value("Content-Type"), "text/javascript; charset=utf-8");
   EXPECT_EQ(res.get_header_value("Cache-Control"), "public, max-age=31536000, immutable");
-  EXPECT_EQ(res.get_header_value_count("Cache-Control"), 1u);
+  EXPECT_EQ(res.headers.count("Cache-Control"), 1u);
   res = Get(files, "/assets/logo.svg", &served);
   ASSERT_TRUE(served);
   EXPECT_EQ(res.get_header_value("Content-Type"), "image/svg+xml");
