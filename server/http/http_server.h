@@ -47,9 +47,10 @@
 /// token (401, or 429 for an address presenting many wrong tokens), role
 /// (403), Content-Type (415), JSON body (400), handler.
 /// Any exception from a client's bytes ends as a 400 (never a 500).
-/// State-changing requests (POST, PUT, DELETE) by an authenticated user are
-/// audited: handlers that change storage audit in the same transaction;
-/// refusals are audited here.
+/// State-changing requests (POST, PUT, PATCH, DELETE) by an authenticated
+/// user are audited as their route declares (Route::audit): by the
+/// dispatcher, or by the handler in the transaction of its change; refusals
+/// are audited here.
 
 #include <atomic>
 #include <condition_variable>
