@@ -75,6 +75,9 @@ std::optional<HttpError> ParseRequest(std::string_view bytes, Request& req) {
   req.version = message.version() == 11 ? "HTTP/1.1" : "HTTP/1.0";
   req.target = std::string(message.target());
   for (const auto& field : message) {
+    // A field with an empty value is as good as absent (an empty Range is
+    // no range).
+    if (field.value().empty()) continue;
     req.headers.emplace(std::string(field.name_string()), std::string(field.value()));
   }
   req.body = std::move(message.body());
