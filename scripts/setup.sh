@@ -32,7 +32,7 @@ build_dir=${1:-"$root/build"}
 # because the configuration finds them).
 server_packages=(
   build-essential cmake ninja-build pkg-config
-  libeigen3-dev libboost-math-dev nlohmann-json3-dev
+  libeigen3-dev libboost-dev libboost-math-dev nlohmann-json3-dev
   libsqlite3-dev libssl-dev libcpp-httplib-dev
   libfastrtps-dev libfastcdr-dev fastddsgen
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -46,7 +46,6 @@
 #include "storage/postgres_connection.h"
 #include "storage/private_files.h"
 #include "storage/users.h"
-// (separate block: Eigen, above, before httplib.h, see routes_bench.cc)
 #include "server/http/api_routes.h"
 #include "server/http/http_server.h"
 

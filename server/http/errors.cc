@@ -41,20 +41,20 @@ nlohmann::json ErrorJson(const HttpError& error) {
   return {{"error", std::move(body)}};
 }
 
-void WriteJson(httplib::Response& res, int status, const nlohmann::json& body) {
+void WriteJson(Response& res, int status, const nlohmann::json& body) {
   res.status = status;
   // Replace invalid UTF-8 (from echoed client input) rather than throw.
   res.set_content(body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
                   "application/json");
 }
 
-void WriteError(httplib::Response& res, const HttpError& error) {
+void WriteError(Response& res, const HttpError& error) {
   WriteJson(res, error.http_status, ErrorJson(error));
   // Every 503 is a momentary refusal (busy, full, shutting down): say when to retry.
   if (error.http_status == 503 && !res.has_header("Retry-After")) res.set_header("Retry-After", "1");
 }
 
-void WriteError(httplib::Response& res, const api::Status& status) {
+void WriteError(Response& res, const api::Status& status) {
   WriteError(res, ToHttpError(status));
 }
 

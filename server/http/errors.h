@@ -22,7 +22,7 @@
 /// bodies), 413 payload_too_large, 415 unsupported_media_type,
 /// 431 too_many_headers.
 
-#include <httplib.h>
+#include "server/http/message.h"
 
 #include <nlohmann/json.hpp>
 #include <string>
@@ -46,9 +46,9 @@ HttpError ToHttpError(const api::Status& status);
 /// {"error": {"code", "message", "field"?}}.
 nlohmann::json ErrorJson(const HttpError& error);
 /// Sets status, JSON body and Content-Type on `res`.
-void WriteError(httplib::Response& res, const HttpError& error);
-void WriteError(httplib::Response& res, const api::Status& status);
+void WriteError(Response& res, const HttpError& error);
+void WriteError(Response& res, const api::Status& status);
 /// Sets `res` to `status` with a JSON body (serialised compactly).
-void WriteJson(httplib::Response& res, int status, const nlohmann::json& body);
+void WriteJson(Response& res, int status, const nlohmann::json& body);
 
 }  // namespace fesbench::server::http

@@ -144,36 +144,8 @@ void HttpServer::Serve(std::uint64_t id) {
 
 namespace {
 
-// Accept-Encoding without its "br" codings (httplib picks brotli whenever
-// the header merely contains "br").
-void DropBrotli(httplib::Headers& headers) {
-  const auto it = headers.find("Accept-Encoding");
-  if (it == headers.end()) return;
-  std::string kept;
-  std::string_view rest = it->second;
-  while (!rest.empty()) {
-    const std::size_t comma = rest.find(',');
-    std::string_view coding = rest.substr(0, comma);
-    rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
-    while (!coding.empty() && (coding.front() == ' ' || coding.front() == '\t')) {
-      coding.remove_prefix(1);
-    }
-    const std::string_view name = coding.substr(0, coding.find_first_of(" \t;"));
-    if (name.size() == 2 && std::tolower(static_cast<unsigned char>(name[0])) == 'b' &&
-        std::tolower(static_cast<unsigned char>(name[1])) == 'r') {
-      continue;
-    }
-    if (!coding.empty()) kept += (kept.empty() ? "" : ", ") + std::string(coding);
-  }
-  if (kept.empty()) {
-    headers.erase(it);
-  } else {
-    it->second = kept;
-  }
-}
-
-// The head of an upload as httplib is to see it: the body is in a file, so
-// Content-Length is 0 (and Expect is gone: 100 Continue was ours to send).
+// The head of an upload as the parser is to see it: the body is in a file,
+// so Content-Length is 0 (and Expect is gone: 100 Continue was ours to send).
 std::string HeadWithoutBody(std::string_view head) {
   std::string out;
   out.reserve(head.size());
@@ -338,6 +310,7 @@ bool HttpServer::Answer(Connection& c, std::string_view request, std::size_t con
   c.in.erase(0, consumed);
   ++c.served;
   c.request_started = c.head_seen = c.admitted = c.continue_sent = false;
+  c.preadmission = {};
   if (!keep || last) {
     Close(c, true);
     return false;
@@ -345,7 +318,7 @@ bool HttpServer::Answer(Connection& c, std::string_view request, std::size_t con
   return true;
 }
 
-std::optional<HttpError> HttpServer::Preadmit(const Connection& c, std::string_view method,
+std::optional<HttpError> HttpServer::Preadmit(Connection& c, std::string_view method,
                                               std::string_view path,
                                               std::string_view authorization,
                                               std::string_view content_type,
@@ -355,25 +328,16 @@ std::optional<HttpError> HttpServer::Preadmit(const Connection& c, std::string_v
   const RouteMatch match = routes_.Match(method, path);
   if (!match.route) return std::nullopt;
   const Route& route = *match.route;
-  if (route.roles != 0) {
-    const std::string where(path.substr(0, 200));
-    Admission admitted = auth_.Admit(authorization, c.remote_ip, route.roles,
-                                     std::string(method) + " " + where, where);
-    if (!admitted.user) {
-      if (admitted.retry_after_s > 0) {
-        extra_headers = "Retry-After: " + std::to_string(admitted.retry_after_s) + "\r\n";
-        return HttpError{429, "too_many_requests", admitted.status.message(), {}};
-      }
-      if (admitted.status.code() == api::ErrorCode::kUnauthenticated) {
-        extra_headers = "WWW-Authenticate: Bearer\r\n";
-      }
-      return ToHttpError(admitted.status);
-    }
+  RouteAdmission admitted = AdmitTo(route, method, path, authorization, c.remote_ip);
+  if (admitted.refusal) {
+    for (const auto& [name, value] : admitted.headers) extra_headers += name + ": " + value + "\r\n";
+    return admitted.refusal;
   }
   if (route.json_body && !IsJsonContentType(content_type)) {
     return HttpError{415, "unsupported_media_type",
                      "the request body must be JSON (Content-Type: application/json)", {}};
   }
+  c.preadmission = {&route, std::move(admitted.user)};
   return std::nullopt;
 }
 
@@ -446,34 +410,69 @@ void HttpServer::EndSpool(Connection& c) {
 
 bool HttpServer::ProcessOne(Connection& c, std::string_view request, bool last,
                             const UploadBody* upload) {
-  RequestStream stream(c, request, options_.write_timeout);
-  bool connection_closed = false;
-  current_upload = upload;
-  const bool ok = engine_->process_request(
-      stream, last, connection_closed, [](httplib::Request& req) {
-        // Ranges are for files: an API answer (or its error) is never cut
-        // into multipart/byteranges.
-        req.ranges.clear();
-        // 100 Continue was sent by the front end when the body was awaited.
-        req.headers.erase("Expect");
-        // Brotli, as Debian's cpp-httplib builds it (quality 11), compresses
-        // about 0.6 MB/s (0.6 s for a 344 kB trial; browsers and Python's
-        // requests ask for it); gzip takes milliseconds. Offer only gzip.
-        DropBrotli(req.headers);
-        // Absolute form ("GET http://host/path HTTP/1.1"), RFC 9112 §3.2.2.
-        for (std::string_view scheme : {"http://", "https://"}) {
-          if (req.path.size() >= scheme.size() &&
-              std::equal(scheme.begin(), scheme.end(), req.path.begin(), [](char a, char b) {
-                return a == std::tolower(static_cast<unsigned char>(b));
-              })) {
-            const std::size_t slash = req.path.find('/', scheme.size());
-            req.path = slash == std::string::npos ? "/" : req.path.substr(slash);
-            break;
-          }
-        }
-      });
-  current_upload = nullptr;
-  return stream.Finish() && ok && !connection_closed;
+  Request req;
+  req.remote_addr = c.remote_ip;
+  req.remote_port = c.remote_port;
+  auto fresh_response = [] {
+    Response res;
+    res.set_header("Cache-Control", "no-store");
+    res.set_header("X-Content-Type-Options", "nosniff");
+    return res;
+  };
+  Response res = fresh_response();
+  bool keep = true;
+  if (auto refusal = ParseRequest(request, req)) {
+    WriteError(res, *refusal);
+  } else {
+    const std::string connection = req.get_header_value("Connection");
+    keep = connection != "close" && (req.version != "HTTP/1.0" || connection == "Keep-Alive");
+    if (req.has_header("Range") && !IsValidRange(req.get_header_value("Range"))) {
+      res.status = 416;  // FinishResponse gives it its JSON body
+    } else {
+      try {
+        Dispatch(req, res, upload, std::move(c.preadmission));
+      } catch (...) {
+        std::cerr << "fesbench-server: internal error on " << req.method << " "
+                  << req.path.substr(0, 120) << std::endl;
+        res = fresh_response();
+        WriteError(res, HttpError{500, "internal", "internal server error", {}});
+      }
+      if (res.status == -1) res.status = 200;
+    }
+  }
+  const KeepAliveTerms terms{
+      std::chrono::duration_cast<std::chrono::seconds>(options_.keep_alive_timeout),
+      options_.keep_alive_max_count};
+  c.out += FinishResponse(req, res, last, terms);
+  if (res.events && req.method != "HEAD") return SendEventStream(c, res) && keep;
+  if (req.method != "HEAD") c.out += res.body;
+  return c.Flush(options_.write_timeout) && keep;
+}
+
+bool HttpServer::SendEventStream(Connection& c, Response& res) {
+  bool ok = true;
+  bool open = true;
+  EventSink sink;
+  // The head waits in `out` for the first chunk, so both leave together.
+  sink.write = [&](std::string_view data) {
+    if (!ok) return false;
+    open = !data.empty();
+    if (!data.empty()) {
+      c.out += EventChunk(data);
+      ok = c.Flush(options_.write_timeout);
+    }
+    return ok;
+  };
+  sink.done = [&] {
+    if (!ok) return;
+    open = false;
+    c.out += kLastChunk;
+    ok = c.Flush(options_.write_timeout);
+  };
+  while (open && !stop_requested_.load()) {
+    if (!res.events(sink) || !ok) return false;
+  }
+  return c.Flush(options_.write_timeout);
 }
 
 void HttpServer::Rearm(Connection& c, bool want_write) {

@@ -1,7 +1,6 @@
 #include "server/http/http_server.h"
 
 #include <arpa/inet.h>
-#include <httplib.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -47,28 +46,6 @@ bool IsStateChanging(std::string_view method) {
 // Echo at most a short prefix of client text in messages.
 std::string Clip(std::string_view text, std::size_t n = 120) {
   return text.size() <= n ? std::string(text) : std::string(text.substr(0, n)) + "…";
-}
-
-// Library-made errors (parse failures, 413, 414, …) get the same JSON form.
-HttpError LibraryError(const httplib::Request& req, int status) {
-  switch (status) {
-    case 400:
-      if (req.method == "CONNECT" || req.method == "TRACE" || req.method == "PRI") {
-        return {405, "method_not_allowed", "method " + req.method + " is not supported", {}};
-      }
-      return {400, "bad_request", "malformed HTTP request", {}};
-    case 404:
-      return {404, "not_found", "no route for " + Clip(req.method) + " " + Clip(req.path), {}};
-    case 413:
-      return {413, "payload_too_large", "request body exceeds the server's limit", {}};
-    case 414:
-      return {414, "uri_too_long", "request line too long", {}};
-    case 416:
-      return {416, "range_not_satisfiable", "invalid Range header", {}};
-    default:
-      if (status >= 500) return {status, "internal", "internal server error", {}};
-      return {status, "bad_request", "request refused", {}};
-  }
 }
 
 }  // namespace
@@ -134,44 +111,6 @@ api::Result<int> HttpServer::Bind() {
     const char* tmp = std::getenv("TMPDIR");
     options_.upload_dir = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
   }
-  engine_ = std::make_unique<Engine>();
-  Engine& svr = *engine_;
-  svr.set_payload_max_length(std::max(options_.max_body_bytes, options_.max_upload_bytes));
-  svr.set_keep_alive_timeout(
-      std::chrono::duration_cast<std::chrono::seconds>(options_.keep_alive_timeout).count());
-  svr.set_keep_alive_max_count(options_.keep_alive_max_count);
-  svr.set_default_headers({{"Cache-Control", "no-store"}, {"X-Content-Type-Options", "nosniff"}});
-
-  auto dispatch = [this](const httplib::Request& req, httplib::Response& res) {
-    Dispatch(req, res);
-  };
-  svr.Get(".*", dispatch);
-  svr.Post(".*", dispatch);
-  svr.Put(".*", dispatch);
-  svr.Patch(".*", dispatch);
-  svr.Delete(".*", dispatch);
-  svr.Options(".*", dispatch);
-
-  svr.set_error_handler(httplib::Server::HandlerWithResponse(
-      [](const httplib::Request& req, httplib::Response& res) {
-        if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
-        WriteError(res, LibraryError(req, res.status));
-        return httplib::Server::HandlerResponse::Handled;
-      }));
-  svr.set_exception_handler(
-      [](const httplib::Request& req, httplib::Response& res, std::exception_ptr ep) {
-        std::string what = "unknown exception";
-        try {
-          if (ep) std::rethrow_exception(ep);
-        } catch (const std::exception& e) {
-          what = e.what();
-        } catch (...) {
-        }
-        std::cerr << "fesbench-server: internal error on " << req.method << " " << Clip(req.path)
-                  << ": " << what << std::endl;
-        WriteError(res, HttpError{500, "internal", "internal server error", {}});
-      });
-
   // The listening socket: SO_REUSEADDR (restart while old connections sit
   // in TIME_WAIT) but not SO_REUSEPORT, so a port in use is refused.
   addrinfo hints{};
@@ -234,13 +173,12 @@ api::Result<int> HttpServer::Bind() {
 }
 
 bool HttpServer::Run() {
-  if (!engine_ || listen_fd_ < 0) return false;
+  if (listen_fd_ < 0) return false;
   {
     std::lock_guard lock(run_mutex_);
     if (stop_requested_.load()) return true;
     running_.store(true);
   }
-  engine_->SetServing(listen_fd_);
   std::vector<std::thread> threads;
   threads.reserve(workers_ + 1);
   for (std::size_t i = 0; i < workers_; ++i) threads.emplace_back([this] { WorkerLoop(); });
@@ -267,7 +205,6 @@ bool HttpServer::Run() {
 void HttpServer::Stop() {
   stop_requested_.store(true);
   slots_.Shutdown();
-  if (engine_) engine_->SetServing(INVALID_SOCKET);  // ends event streams
   if (wake_fd_ >= 0) {
     const std::uint64_t one = 1;
     [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
@@ -334,86 +271,130 @@ void HttpServer::SweepLoop() {
   }
 }
 
-void HttpServer::AuditRefusal(const RequestContext& ctx, int status, const std::string& code) {
+void HttpServer::WriteAudit(const RequestContext& ctx, const std::string& outcome) {
   if (!ctx.user || !IsStateChanging(ctx.req.method)) return;
   storage::AuditLog log(db_);
   auto appended = log.Append({ctx.user->id, ctx.user->name, ctx.req.method + " " + Clip(ctx.req.path, 200),
-                              Clip(ctx.req.path, 200), AuditSummary(ctx.body),
-                              std::to_string(status) + " " + code});
+                              Clip(ctx.req.path, 200), AuditSummary(ctx.body), outcome});
   if (!appended.ok()) {
     std::cerr << "fesbench-server: audit log: " << appended.status().ToString() << std::endl;
   }
 }
 
-void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
+HttpServer::RouteAdmission HttpServer::AdmitTo(const Route& route, std::string_view method,
+                                               std::string_view path,
+                                               std::string_view authorization,
+                                               const std::string& address) {
+  RouteAdmission out;
+  if (route.roles == 0) return out;
+  // 401, 403 and a slowed-down burst (429) are audited by the Authenticator.
+  const std::string where = Clip(path, 200);
+  Admission admitted =
+      auth_.Admit(authorization, address, route.roles, std::string(method) + " " + where, where);
+  if (admitted.user) {
+    out.user = std::move(*admitted.user);
+  } else if (admitted.retry_after_s > 0) {
+    out.headers.emplace_back("Retry-After", std::to_string(admitted.retry_after_s));
+    out.refusal = HttpError{429, "too_many_requests", admitted.status.message(), {}};
+  } else {
+    if (admitted.status.code() == api::ErrorCode::kUnauthenticated) {
+      out.headers.emplace_back("WWW-Authenticate", "Bearer");
+    }
+    out.refusal = ToHttpError(admitted.status);
+  }
+  return out;
+}
+
+namespace {
+
+// 404, or 405 with Allow, for a request no route takes.
+void AnswerUnrouted(const Request& req, const RouteMatch& match, Response& res) {
+  if (match.allowed_methods.empty()) {
+    WriteError(res, HttpError{404, "not_found",
+                              "no route for " + Clip(req.method) + " " + Clip(req.path), {}});
+    return;
+  }
+  std::string allow;
+  for (const auto& m : match.allowed_methods) allow += (allow.empty() ? "" : ", ") + m;
+  res.set_header("Allow", allow);
+  WriteError(res, HttpError{405, "method_not_allowed",
+                            "method " + Clip(req.method) + " not allowed here (allowed: " + allow +
+                                ")",
+                            {}});
+}
+
+// The request's media type, query and body against the route's declaration;
+// fills ctx.body. The refusal, if any.
+std::optional<HttpError> CheckRequest(const Route& route, RequestContext& ctx) {
+  const Request& req = ctx.req;
+  if (route.json_body && !IsJsonContentType(req.get_header_value("Content-Type"))) {
+    return HttpError{415, "unsupported_media_type",
+                     "the request body must be JSON (Content-Type: application/json)", {}};
+  }
+  for (const auto& [name, value] : req.params) {
+    const bool known = std::any_of(route.query.begin(), route.query.end(),
+                                   [&](const QueryParam& q) { return q.name == name; });
+    if (!known) {
+      return ToHttpError(api::Status::InvalidArgument("unknown query parameter", Clip(name, 64)));
+    }
+  }
+  if (route.json_body) {
+    auto body = api::ParseJsonObject(req.body);
+    if (!body.ok()) return ToHttpError(body.status());
+    ctx.body = std::move(*body);
+  } else if (!req.body.empty() && !route.raw_body) {
+    return ToHttpError(api::Status::InvalidArgument("this request takes no body"));
+  }
+  return std::nullopt;
+}
+
+// A JSON value of the wrong type or range that a handler read without
+// api::JsonFields: the client's bytes, so a 400 (and audited), never a 500.
+HttpError JsonValueError(const nlohmann::json::exception& e, const RequestContext& ctx) {
+  std::string what = e.what();
+  if (const auto close = what.find("] ");
+      what.starts_with("[json.exception") && close != std::string::npos) {
+    what = what.substr(close + 2);
+  }
+  return ToHttpError(api::Status::InvalidArgument("invalid value in the request: " + Clip(what),
+                                                  ctx.body.is_null() ? "" : "body"));
+}
+
+}  // namespace
+
+void HttpServer::Dispatch(const Request& req, Response& res, const UploadBody* upload,
+                          Preadmission preadmitted) {
   const RouteMatch match = routes_.Match(req.method, req.path);
   if (!match.route) {
     if (match.allowed_methods.empty() && static_files_ && static_files_->Serve(req, res)) return;
-    if (match.allowed_methods.empty()) {
-      WriteError(res, HttpError{404, "not_found",
-                                "no route for " + Clip(req.method) + " " + Clip(req.path), {}});
-    } else {
-      std::string allow;
-      for (const auto& m : match.allowed_methods) allow += (allow.empty() ? "" : ", ") + m;
-      res.set_header("Allow", allow);
-      WriteError(res, HttpError{405, "method_not_allowed",
-                                "method " + Clip(req.method) + " not allowed here (allowed: " +
-                                    allow + ")",
-                                {}});
-    }
+    AnswerUnrouted(req, match, res);
     return;
   }
   const Route& route = *match.route;
-  RequestContext ctx{req, res, match.path, std::nullopt, nullptr, false, current_upload};
+  RequestContext ctx{req, res, match.path, std::nullopt, nullptr, upload};
+  // The route's audit declaration decides who writes the entry of a
+  // success; the dispatcher writes that of every refusal (Audit).
   auto refuse = [&](const HttpError& error) {
     WriteError(res, error);
-    AuditRefusal(ctx, error.http_status, error.code);
+    if (route.audit != Audit::kNever) WriteAudit(ctx, std::to_string(error.http_status) + " " + error.code);
   };
   try {
-    if (route.roles != 0) {
-      // 401, 403 and a slowed-down burst (429) are audited by the Authenticator.
-      Admission admitted =
-          auth_.Admit(req.get_header_value("Authorization"), req.remote_addr, route.roles,
-                      req.method + " " + Clip(req.path, 200), Clip(req.path, 200));
-      if (!admitted.user) {
-        if (admitted.retry_after_s > 0) {
-          res.set_header("Retry-After", std::to_string(admitted.retry_after_s));
-          WriteError(res, HttpError{429, "too_many_requests", admitted.status.message(), {}});
-        } else {
-          if (admitted.status.code() == api::ErrorCode::kUnauthenticated) {
-            res.set_header("WWW-Authenticate", "Bearer");
-          }
-          WriteError(res, admitted.status);
-        }
+    if (preadmitted.route == &route) {
+      ctx.user = std::move(preadmitted.user);
+    } else {
+      RouteAdmission admitted =
+          AdmitTo(route, req.method, req.path, req.get_header_value("Authorization"), req.remote_addr);
+      if (admitted.refusal) {
+        for (const auto& [name, value] : admitted.headers) res.set_header(name, value);
+        WriteError(res, *admitted.refusal);
         return;
       }
-      ctx.user = std::move(*admitted.user);
+      ctx.user = std::move(admitted.user);
     }
-    if (route.json_body && !IsJsonContentType(req.get_header_value("Content-Type"))) {
-      refuse(HttpError{415, "unsupported_media_type",
-                       "the request body must be JSON (Content-Type: application/json)", {}});
+    if (auto refusal = CheckRequest(route, ctx)) {
+      refuse(*refusal);
       return;
     }
-    for (const auto& [name, value] : req.params) {
-      const bool known = std::any_of(route.query.begin(), route.query.end(),
-                                     [&](const QueryParam& q) { return q.name == name; });
-      if (!known) {
-        refuse(ToHttpError(api::Status::InvalidArgument("unknown query parameter", Clip(name, 64))));
-        return;
-      }
-    }
-    if (route.json_body) {
-      auto body = api::ParseJsonObject(req.body);
-      if (!body.ok()) {
-        refuse(ToHttpError(body.status()));
-        return;
-      }
-      ctx.body = std::move(*body);
-    } else if (!req.body.empty() && !route.raw_body) {
-      refuse(ToHttpError(api::Status::InvalidArgument("this request takes no body")));
-      return;
-    }
-
     auto reply = route.handler(ctx);
     if (!reply.ok()) {
       if (reply.status().code() == api::ErrorCode::kInternal ||
@@ -421,33 +402,13 @@ void HttpServer::Dispatch(const httplib::Request& req, httplib::Response& res) {
         std::cerr << "fesbench-server: " << req.method << " " << Clip(req.path) << ": "
                   << reply.status().ToString() << std::endl;
       }
-      if (ctx.audited) {
-        WriteError(res, reply.status());
-      } else {
-        refuse(ToHttpError(reply.status()));
-      }
+      refuse(ToHttpError(reply.status()));
       return;
     }
     if (!reply->raw) WriteJson(res, reply->status, reply->body);
-    if (!ctx.audited && ctx.user && IsStateChanging(req.method)) {
-      storage::AuditLog log(db_);
-      auto appended =
-          log.Append({ctx.user->id, ctx.user->name, req.method + " " + Clip(req.path, 200),
-                      Clip(req.path, 200), AuditSummary(ctx.body), std::to_string(reply->status)});
-      if (!appended.ok()) {
-        std::cerr << "fesbench-server: audit log: " << appended.status().ToString() << std::endl;
-      }
-    }
+    if (route.audit == Audit::kDispatcher) WriteAudit(ctx, std::to_string(reply->status));
   } catch (const nlohmann::json::exception& e) {
-    // A JSON value of the wrong type or range that a handler read without
-    // api::JsonFields: the client's bytes, so a 400 (and audited), never a 500.
-    std::string what = e.what();
-    if (const auto close = what.find("] "); what.starts_with("[json.exception") &&
-                                            close != std::string::npos) {
-      what = what.substr(close + 2);
-    }
-    refuse(ToHttpError(api::Status::InvalidArgument("invalid value in the request: " + Clip(what),
-                                                    ctx.body.is_null() ? "" : "body")));
+    refuse(JsonValueError(e, ctx));
   } catch (const std::exception& e) {
     std::cerr << "fesbench-server: internal error on " << req.method << " " << Clip(req.path)
               << ": " << e.what() << std::endl;

@@ -1,18 +1,19 @@
 #pragma once
 
 /// @file
-/// The HTTP front end (docs/API.md). cpp-httplib 0.11 (Debian's) parses
-/// each request and writes each response, but the connections are ours
-/// (httplib's own loop gives every connection a thread for its whole life,
-/// so slow clients lock everyone out, and it binds with SO_REUSEPORT):
+/// The HTTP front end (docs/API.md; docs/ARCHITECTURE.md, "The HTTP front
+/// end"). The connections are ours, so that slow or crowding clients can
+/// never keep an e-stop out (docs/SAFETY.md, "The e-stop under load");
+/// Boost.Beast parses each framed request (request_parser.h), the route
+/// table dispatches it (router.h) and response_writer.h writes the answer:
 ///
 /// - We bind the listening socket ourselves (SO_REUSEADDR, never
 ///   SO_REUSEPORT): a second server on a port in use fails "address in use".
 /// - Worker threads share one epoll set; the listening socket is one-shot,
 ///   so one worker at a time accepts a batch of connections. A worker reads what a connection
 ///   has sent (non-blocking) and frames it (request_framing.h); only a whole
-///   request (head and body) is handed to httplib, from memory (an upload:
-///   its head, the body being in a file). Deadlines (below) hold whatever
+///   request (head and body) is parsed and dispatched, from memory (an
+///   upload: its head, the body being in a file). Deadlines (below) hold whatever
 ///   pace the bytes come at, and an idle keep-alive connection is closed
 ///   after `keep_alive_timeout`. Slow clients therefore hold no thread. Pipelined requests are answered in order; a request
 ///   whose client half-closed is still answered.
@@ -38,13 +39,18 @@
 ///   complete within `request_timeout` plus one second per MiB.
 /// - HTTPS (both TLS paths set) runs in the same loop over OpenSSL.
 ///
+/// - Event streams (Response::set_event_stream) are sent chunked by the
+///   worker that answered the request, which calls the stream's source until
+///   it is done, the client leaves or the server stops.
+///
 /// Dispatch order for each request: route (404 / 405 with Allow), bearer
 /// token (401, or 429 for an address presenting many wrong tokens), role
 /// (403), Content-Type (415), JSON body (400), handler.
 /// Any exception from a client's bytes ends as a 400 (never a 500).
-/// State-changing requests (POST, PUT, DELETE) by an authenticated user are
-/// audited: handlers that change storage audit in the same transaction;
-/// refusals are audited here.
+/// State-changing requests (POST, PUT, PATCH, DELETE) by an authenticated
+/// user are audited as their route declares (Route::audit): by the
+/// dispatcher, or by the handler in the transaction of its change; refusals
+/// are audited here.
 
 #include <atomic>
 #include <condition_variable>
@@ -134,10 +140,27 @@ class HttpServer {
   struct Connection;  ///< one client connection (http_server.cc).
 
  private:
-  class Engine;
-
-  void Dispatch(const httplib::Request& req, httplib::Response& res);
-  void AuditRefusal(const RequestContext& ctx, int status, const std::string& code);
+  /// The one role check (docs/API.md, roles): for a route with roles, the
+  /// bearer token's user if its role may use the route, else the refusal
+  /// (401, 403, or 429 for an address presenting many wrong tokens) with
+  /// the header fields that go with it.
+  struct RouteAdmission {
+    std::optional<storage::User> user;
+    std::optional<HttpError> refusal;
+    std::vector<std::pair<std::string, std::string>> headers;
+  };
+  RouteAdmission AdmitTo(const Route& route, std::string_view method, std::string_view path,
+                         std::string_view authorization, const std::string& address);
+  /// A request admitted on its head alone (Preadmit), before its body came.
+  struct Preadmission {
+    const Route* route = nullptr;
+    std::optional<storage::User> user;
+  };
+  void Dispatch(const Request& req, Response& res, const UploadBody* upload,
+                Preadmission preadmitted);
+  bool SendEventStream(Connection& c, Response& res);
+  /// Appends the audit entry of a state-changing request by a signed-in user.
+  void WriteAudit(const RequestContext& ctx, const std::string& outcome);
 
   // The connection loop (http_server.cc).
   void WorkerLoop();
@@ -148,7 +171,7 @@ class HttpServer {
   bool ProcessOne(Connection& c, std::string_view request, bool last, const UploadBody* upload);
   bool Answer(Connection& c, std::string_view request, std::size_t consumed, bool keep_alive,
               const UploadBody* upload);
-  std::optional<HttpError> Preadmit(const Connection& c, std::string_view method,
+  std::optional<HttpError> Preadmit(Connection& c, std::string_view method,
                                     std::string_view path, std::string_view authorization,
                                     std::string_view content_type, std::string& extra_headers);
   bool StartSpool(Connection& c, std::size_t head_length, std::size_t body_bytes,
@@ -167,7 +190,6 @@ class HttpServer {
   storage::Database& db_;
   StreamSlots& slots_;
   std::optional<StaticFiles> static_files_;
-  std::unique_ptr<Engine> engine_;
   SSL_CTX* tls_ = nullptr;
   int listen_fd_ = -1;
   int epoll_fd_ = -1;

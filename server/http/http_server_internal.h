@@ -7,7 +7,6 @@
 
 #include <arpa/inet.h>
 #include <fcntl.h>
-#include <httplib.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -31,6 +30,8 @@
 #include "server/http/errors.h"
 #include "api/json_fields.h"
 #include "server/http/request_framing.h"
+#include "server/http/request_parser.h"
+#include "server/http/response_writer.h"
 #include "server/http/http_server.h"
 #include "storage/audit_log.h"
 
@@ -47,26 +48,6 @@ inline constexpr std::size_t kAcceptBatch = 32;
 // a reset.
 inline constexpr auto kLinger = std::chrono::milliseconds(2000);
 inline constexpr std::size_t kReadChunk = 16 * 1024;
-inline constexpr std::size_t kWriteBuffer = 64 * 1024;
-
-inline const char* ReasonPhrase(int status) {
-  switch (status) {
-    case 400: return "Bad Request";
-    case 401: return "Unauthorized";
-    case 403: return "Forbidden";
-    case 404: return "Not Found";
-    case 405: return "Method Not Allowed";
-    case 415: return "Unsupported Media Type";
-    case 429: return "Too Many Requests";
-    case 408: return "Request Timeout";
-    case 411: return "Length Required";
-    case 413: return "Payload Too Large";
-    case 414: return "URI Too Long";
-    case 431: return "Request Header Fields Too Large";
-    case 503: return "Service Unavailable";
-    default: return "Error";
-  }
-}
 
 // "application/json", parameters and case aside.
 inline bool IsJsonContentType(std::string_view value) {
@@ -76,10 +57,6 @@ inline bool IsJsonContentType(std::string_view value) {
   }
   return lower == "application/json";
 }
-
-// The upload of the request a worker is answering, for the dispatcher
-// (httplib's Request has no room for it): set around process_request.
-inline thread_local const UploadBody* current_upload = nullptr;
 
 inline std::string AddressText(const sockaddr_storage& addr, int& port) {
   char text[INET6_ADDRSTRLEN] = "";
@@ -94,16 +71,6 @@ inline std::string AddressText(const sockaddr_storage& addr, int& port) {
   }
   return text;
 }
-
-// httplib's request parser, routing and response writer, fed one buffered
-// request at a time (process_request is protected: reached by subclassing).
-class HttpServer::Engine : public httplib::Server {
- public:
-  using httplib::Server::process_request;
-  // Content providers (event streams) run only while the library believes
-  // it is listening: it checks its own listening socket, which we hold.
-  void SetServing(socket_t listening) { svr_sock_ = listening; }
-};
 
 // One client connection. Owned by connections_; a worker holds `mutex`
 // while it reads, handles or closes it, so at most one thread touches it
@@ -122,6 +89,7 @@ struct HttpServer::Connection {
   bool request_started = false;  ///< `in` holds part of a request.
   bool head_seen = false;
   bool admitted = false;  ///< the pending request's head passed the route, token and role checks.
+  HttpServer::Preadmission preadmission;  ///< admitted: its route and user.
   bool continue_sent = false;
   bool urgent_only = false;  ///< accepted with no room left: serves urgent routes only.
   // Spooling an upload: its head is the first `head_length` bytes of `in`;
@@ -227,69 +195,6 @@ struct HttpServer::Connection {
     char byte;
     return ::recv(fd, &byte, 1, MSG_PEEK | MSG_DONTWAIT) > 0;
   }
-
-  // The client has closed its side (a FIN is waiting to be read).
-  bool PeerGone() const {
-    char byte;
-    const ssize_t n = ::recv(fd, &byte, 1, MSG_PEEK | MSG_DONTWAIT);
-    return n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR);
-  }
-};
-
-// One buffered request as httplib's Stream: reads come from memory, writes
-// go to the connection (the head joined with what follows it).
-class RequestStream final : public httplib::Stream {
- public:
-  RequestStream(HttpServer::Connection& c, std::string_view request,
-                std::chrono::milliseconds write_timeout)
-      : c_(c), request_(request), write_timeout_(write_timeout) {}
-
-  bool is_readable() const override { return pos_ < request_.size(); }
-  bool is_writable() const override {
-    // Asked by content providers (event streams): report a departed client
-    // so its worker is freed.
-    return !failed_ && c_.Flush(write_timeout_) && !c_.PeerGone() &&
-           c_.WaitFor(POLLOUT, write_timeout_);
-  }
-  ssize_t read(char* ptr, size_t size) override {
-    const std::size_t n = std::min(size, request_.size() - pos_);
-    std::memcpy(ptr, request_.data() + pos_, n);
-    pos_ += n;
-    return static_cast<ssize_t>(n);
-  }
-  ssize_t write(const char* ptr, size_t size) override {
-    if (failed_) return -1;
-    c_.out.append(ptr, size);
-    // The library writes the response head first: keep it until the body
-    // (or the end) so both leave in one segment; send every later write at
-    // once (event-stream chunks must not wait).
-    if ((writes_++ > 0 || c_.out.size() >= kWriteBuffer) && !c_.Flush(write_timeout_)) {
-      failed_ = true;
-      return -1;
-    }
-    return static_cast<ssize_t>(size);
-  }
-  void get_remote_ip_and_port(std::string& ip, int& port) const override {
-    ip = c_.remote_ip;
-    port = c_.remote_port;
-  }
-  void get_local_ip_and_port(std::string& ip, int& port) const override {
-    ip = c_.local_ip;
-    port = c_.local_port;
-  }
-  // The library's only server-side use is an FD_SETSIZE guard for its own
-  // select()-based socket reads, which this stream does not do.
-  socket_t socket() const override { return -1; }
-
-  bool Finish() { return !failed_ && c_.Flush(write_timeout_); }
-
- private:
-  HttpServer::Connection& c_;
-  std::string_view request_;
-  std::size_t pos_ = 0;
-  std::size_t writes_ = 0;
-  std::chrono::milliseconds write_timeout_;
-  mutable bool failed_ = false;
 };
 
 }  // namespace fesbench::server::http

@@ -12,7 +12,7 @@
 /// otherwise; no route matches a path with "..", empty or encoded-slash
 /// segments.
 
-#include <httplib.h>
+#include "server/http/message.h"
 
 #include <cstdint>
 #include <functional>
@@ -41,14 +41,11 @@ struct UploadBody {
 
 /// What a handler sees.
 struct RequestContext {
-  const httplib::Request& req;
-  httplib::Response& res;
+  const Request& req;
+  Response& res;
   std::map<std::string, std::string, std::less<>> path;  ///< template name → segment.
   std::optional<storage::User> user;                     ///< set on authenticated routes.
   nlohmann::json body;                                   ///< parsed JSON body (body routes).
-  /// Set by handlers that wrote their own audit entry (in the transaction of
-  /// the change); otherwise the dispatcher audits state-changing requests.
-  bool audited = false;
   /// Set for uploads (UploadBody); nullptr otherwise.
   const UploadBody* upload = nullptr;
 
@@ -68,6 +65,17 @@ struct Reply {
 
 using Handler = std::function<api::Result<Reply>(RequestContext&)>;
 
+/// Who writes the audit entry of a state-changing request (POST, PUT, PATCH,
+/// DELETE) by a signed-in user (docs/API.md, "HTTP conventions"). Whatever
+/// the route says, a refused request (an error answer) is audited by the
+/// dispatcher, unless the route is kNever.
+enum class Audit {
+  kDispatcher,  ///< the dispatcher, once the handler has succeeded.
+  kHandler,     ///< the handler, in the transaction of its change (AuditedWrite,
+                ///< AuditedCorrection, or the service it calls).
+  kNever,       ///< nobody: the request changes nothing (a heartbeat).
+};
+
 /// A query parameter, for validation and the OpenAPI document.
 struct QueryParam {
   std::string name;
@@ -79,6 +87,7 @@ struct Route {
   std::string method;      ///< "GET", "POST", "PUT", "DELETE".
   std::string path;        ///< "/api/v1/subjects/{subject_id}".
   RoleMask roles = 0;      ///< 0: open (no token needed).
+  Audit audit = Audit::kDispatcher;
   bool json_body = false;  ///< requires an application/json object body.
   std::string tag;         ///< OpenAPI tag.
   std::string summary = {};

@@ -94,6 +94,7 @@ void AddApprovalRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add({.method = "POST",
              .path = "/api/v1/parameter-sets/{parameter_set_id}/approve",
              .roles = kClinician | kAdmin,
+             .audit = Audit::kHandler,
              .json_body = true,
              .tag = "parameter-sets",
              .summary =

@@ -1,13 +1,11 @@
 // Bench and run routes: start / read / cancel / heartbeat runs, the live
 // event stream, bench state, e-stop, the virtual subject (docs/API.md; docs/SAFETY.md).
 
-// Eigen (via the bench headers) must come before httplib.h: <resolv.h>
-// defines `_res`, a name Eigen uses for parameters.
+#include <chrono>
+
 #include "server/services/bench_service.h"
 #include "server/services/run_service.h"
 #include "server/services/sample_hub.h"
-// (separate block: keep the order above)
-#include <chrono>
 
 #include "server/http/api_routes.h"
 #include "server/http/routes_common.h"
@@ -50,13 +48,13 @@ api::Result<Reply> ServeEventStream(RequestContext& ctx, std::shared_ptr<EventSt
                                     StreamSlots* slots) {
   ctx.res.status = 200;
   ctx.res.set_header("X-Accel-Buffering", "no");
-  ctx.res.set_chunked_content_provider(
+  ctx.res.set_event_stream(
       "text/event-stream",
-      [stream, slots](std::size_t, httplib::DataSink& sink) {
+      [stream, slots](EventSink& sink) {
         using namespace std::chrono;
         auto write = [&](const std::string& text) {
           stream->last_write = steady_clock::now();
-          return sink.write(text.data(), text.size());
+          return sink.write(text);
         };
         if (!stream->pending.empty()) {
           std::string pending = std::move(stream->pending);
@@ -92,8 +90,7 @@ api::Result<Reply> ServeEventStream(RequestContext& ctx, std::shared_ptr<EventSt
           sink.done();
         }
         return true;
-      },
-      [stream](bool) { stream->subscription.reset(); });
+      });
   return Reply{200, nullptr, true};
 }
 
@@ -130,6 +127,7 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
       {.method = "POST",
        .path = "/api/v1/sessions/{session_id}/runs",
        .roles = kClinician | kAdmin,
+       .audit = Audit::kHandler,
        .json_body = true,
        .tag = "runs",
        .summary = "Start a protocol for a session (one run at a time; 409 while the bench is busy)",
@@ -159,7 +157,6 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
                                  request->parameters, request->ceiling_reason,
                                  request->target ? &*request->target : nullptr);
          if (!view.ok()) return view.status();
-         ctx.audited = true;  // RunService audits the start with the stored run
          ctx.res.set_header("Location", "/api/v1/runs/" + std::to_string(view->run_id));
          return JsonReply(RunViewJson(*view), 201);
        }});
@@ -177,13 +174,13 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add({.method = "POST",
              .path = "/api/v1/runs/{run_id}/cancel",
              .roles = kClinician | kAdmin,
+             .audit = Audit::kHandler,
              .tag = "runs",
              .summary = "Cancel the run in progress (stimulation to zero)",
              .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                if (auto st = runs->Cancel(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok())
                  return st;
-               ctx.audited = true;
                auto view = runs->Get(ctx.Id("run_id"));
                if (!view.ok()) return view.status();
                return JsonReply(RunViewJson(*view));
@@ -191,6 +188,7 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add({.method = "POST",
              .path = "/api/v1/runs/{run_id}/stop",
              .roles = kClinician | kAdmin,
+             .audit = Audit::kHandler,
              .tag = "runs",
              .summary = "Stop with result (tolerance_test keeps the amplitude reached)",
              .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
@@ -198,7 +196,6 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (auto st = runs->StopWithResult(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok()) {
                  return st;
                }
-               ctx.audited = true;
                auto view = runs->Get(ctx.Id("run_id"));
                if (!view.ok()) return view.status();
                return JsonReply(RunViewJson(*view));
@@ -206,12 +203,12 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add({.method = "POST",
              .path = "/api/v1/runs/{run_id}/heartbeat",
              .roles = kClinician | kAdmin,
+             .audit = Audit::kNever,
              .tag = "runs",
              .summary = "Heartbeat of the controlling user (at least once per second during a run; "
                         "not audited: it changes nothing)",
              .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
-               ctx.audited = true;
                if (auto st = runs->Heartbeat(ActorOf(*ctx.user), ctx.Id("run_id")); !st.ok()) {
                  return st;
                }
@@ -310,24 +307,24 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add({.method = "POST",
              .path = "/api/v1/bench/estop",
              .roles = kAnyRole,
+             .audit = Audit::kHandler,
              .tag = "bench",
              .summary = "Emergency stop: stimulation to zero and motor disabled at once; latches "
                         "(any signed-in user may press it)",
              .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                if (auto st = runs->EStop(ActorOf(*ctx.user), "http"); !st.ok()) return st;
-               ctx.audited = true;
                return JsonReply(api::BenchStateToJson(runs->State()));
              }});
   table.Add({.method = "DELETE",
              .path = "/api/v1/bench/estop",
              .roles = kClinician | kAdmin,
+             .audit = Audit::kHandler,
              .tag = "bench",
              .summary = "Clear a latched e-stop",
              .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
                if (!runs) return NotAvailable("the bench");
                if (auto st = runs->ClearEStop(ActorOf(*ctx.user)); !st.ok()) return st;
-               ctx.audited = true;
                return JsonReply(api::BenchStateToJson(runs->State()));
              }});
   table.Add({.method = "GET",
@@ -344,6 +341,7 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add({.method = "PUT",
              .path = "/api/v1/bench/virtual-subject",
              .roles = kAdmin,
+             .audit = Audit::kHandler,
              .json_body = true,
              .tag = "bench",
              .summary =
@@ -359,7 +357,6 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!bench) return NotAvailable("the bench");
                auto subject = bench->PutVirtualSubject(ActorOf(*ctx.user), ctx.body);
                if (!subject.ok()) return subject.status();
-               ctx.audited = true;
                return JsonReply(std::move(*subject));
              }});
 }

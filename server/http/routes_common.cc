@@ -148,7 +148,6 @@ api::Result<nlohmann::json> AuditedCorrection(storage::Database& db, RequestCont
     if (!appended.ok()) return appended.status();
     return value;
   });
-  if (result.ok()) ctx.audited = true;
   return result;
 }
 

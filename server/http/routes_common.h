@@ -67,6 +67,7 @@ api::Result<std::optional<api::UtcTime>> QueryTime(const RequestContext& ctx,
 /// Runs `fn` (returning api::Result<T>) in one write transaction and, when it
 /// succeeds, appends the audit entry of this request (target from
 /// `target_of(value)`, outcome `success_status`) in the same transaction.
+/// For routes with Audit::kHandler.
 template <typename T, typename Fn, typename TargetOf>
 api::Result<T> AuditedWrite(storage::Database& db, RequestContext& ctx, int success_status,
                             Fn&& fn, TargetOf&& target_of) {
@@ -81,7 +82,6 @@ api::Result<T> AuditedWrite(storage::Database& db, RequestContext& ctx, int succ
     if (!appended.ok()) return appended.status();
     return value;
   });
-  if (result.ok()) ctx.audited = true;
   return result;
 }
 

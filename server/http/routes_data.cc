@@ -27,7 +27,7 @@ namespace {
 
 using nlohmann::json;
 
-std::string MediaType(const httplib::Request& req) {
+std::string MediaType(const Request& req) {
   std::string type = req.get_header_value("Content-Type");
   type = type.substr(0, type.find(';'));
   while (!type.empty() && type.back() == ' ') type.pop_back();
@@ -185,6 +185,7 @@ void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
        // Writing a session's data is a clinician's (docs/API.md, roles);
        // analysts read and analyse.
        .roles = kClinician | kAdmin,
+       .audit = Audit::kHandler,
        .tag = "trials",
        .summary =
            "Import trials into a session: one recording (CSV, TSV or OpenSim .sto, with its trial "

@@ -9,7 +9,6 @@
 #include "server/services/job_pool.h"
 #include "server/services/prediction_service.h"
 #include "storage/parameter_sets.h"
-// (separate block: Eigen before httplib.h, see routes_bench.cc)
 #include "server/http/api_routes.h"
 #include "server/http/routes_common.h"
 #include "server/http/services_json.h"

@@ -61,6 +61,7 @@ void AddSessionListRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add({.method = "POST",
              .path = "/api/v1/subjects/{subject_id}/sessions",
              .roles = kClinician | kAdmin,
+             .audit = Audit::kHandler,
              .json_body = true,
              .tag = "sessions",
              .summary = "Open a session for one leg of a subject",
@@ -124,6 +125,7 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
       {.method = "PATCH",
        .path = "/api/v1/sessions/{session_id}",
        .roles = kClinician | kAdmin,
+       .audit = Audit::kHandler,
        .json_body = true,
        .tag = "sessions",
        .summary = "Correct a session's details: a new revision with a reason (given fields replace "

@@ -75,6 +75,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add({.method = "POST",
              .path = "/api/v1/subjects",
              .roles = kClinician | kAdmin,
+             .audit = Audit::kHandler,
              .json_body = true,
              .tag = "subjects",
              .summary = "Create a subject (pseudonymous code, anthropometrics, legs)",
@@ -124,6 +125,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
       {.method = "PATCH",
        .path = "/api/v1/subjects/{subject_id}",
        .roles = kClinician | kAdmin,
+       .audit = Audit::kHandler,
        .json_body = true,
        .tag = "subjects",
        .summary = "Correct a subject's details: a new revision with a reason (given fields replace "

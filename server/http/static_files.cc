@@ -95,7 +95,7 @@ std::optional<std::filesystem::path> StaticFiles::Resolve(std::string_view reque
   return canonical;
 }
 
-bool StaticFiles::Serve(const httplib::Request& req, httplib::Response& res) const {
+bool StaticFiles::Serve(const Request& req, Response& res) const {
   if (req.method != "GET" && req.method != "HEAD") return false;
   if (req.path == "/api" || req.path.rfind("/api/", 0) == 0) return false;
   auto file = Resolve(req.path);

@@ -11,7 +11,7 @@
 /// cached for a year as immutable, everything else is revalidated
 /// ("no-cache").
 
-#include <httplib.h>
+#include "server/http/message.h"
 
 #include <filesystem>
 #include <optional>
@@ -29,7 +29,7 @@ class StaticFiles {
   /// Serves `req` from the root if it names a file there: fills `res` and
   /// returns true. False (res untouched) for other methods, /api/ paths,
   /// refused or missing files.
-  bool Serve(const httplib::Request& req, httplib::Response& res) const;
+  bool Serve(const Request& req, Response& res) const;
 
   /// The file under the root that `request_path` names, if it may be
   /// served and exists as a regular file.

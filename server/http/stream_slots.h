@@ -2,7 +2,7 @@
 
 /// @file
 /// Bounds the number of open event streams (each holds one worker thread
-/// for its whole life, NOTES-deps.md) and tells them when the server stops.
+/// for its whole life, http_server.h) and tells them when the server stops.
 
 #include <atomic>
 #include <cstddef>
