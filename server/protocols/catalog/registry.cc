@@ -20,7 +20,6 @@
   X(PassiveSequential) \
   X(PassiveSimultaneous) \
   X(FreeSwingPassive) \
-  X(PendulumTest) \
   X(ActiveRandomBinary) \
   X(PredictionStep) \
   X(PredictionRamp) \
