@@ -20,6 +20,7 @@
   X(PassiveSequential) \
   X(PassiveSimultaneous) \
   X(FreeSwingPassive) \
+  X(PendulumTest) \
   X(ActiveRandomBinary) \
   X(PredictionStep) \
   X(PredictionRamp) \

@@ -1,4 +1,6 @@
-// A pendulum test brought in as a lab would (docs/API.md, "Bringing your own
+// The pendulum test on the simulated bench (protocol pendulum_test, a
+// seeded cohort of both shape families) against the truth, and a pendulum
+// test brought in as a lab would (docs/API.md, "Bringing your own
 // recordings"): OpenSim motion files with the knee flexion-negative, other
 // coordinates left out, the knee starting hyperextended; the passive curves
 // identified from one swing with method passive, a held-out swing of the
@@ -159,6 +161,157 @@ TEST(PendulumImportTest, PassiveCurvesFromOneSwingPredictAnotherAndDriveNoStimul
                       clinician, {{"note", "looks fine"}});
   EXPECT_EQ(approve.status, 409) << approve.text;
   EXPECT_NE(approve.text.find("passive only"), std::string::npos) << approve.text;
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+// τ_pta + τ_ptv(0) (only the sum is identifiable, §6.5) at angle_deg.
+double StaticTorque(const model::ParameterSet& p, double angle_deg) {
+  return p.passive.torque_angle(angle_deg) + p.passive.torque_velocity(0.0);
+}
+
+// The least-squares slope of τ_ptv over [−v, v], N·m per deg/s: the
+// damping a swing of that speed meets.
+double DampingSlope(const model::ParameterSet& p, double v) {
+  double sxy = 0.0, sxx = 0.0;
+  for (int i = -50; i <= 50; ++i) {
+    const double x = v * i / 50.0;
+    sxy += x * (p.passive.torque_velocity(x) - p.passive.torque_velocity(0.0));
+    sxx += x * x;
+  }
+  return sxy / sxx;
+}
+
+// docs/MODEL.md, "Passive-only identification" on the bench: each leg's
+// first swing identified with every default (the subject's weight and
+// shank length recorded, nothing else given), its second predicted; J, the
+// static torque and the damping against the truth the bench's leg is made
+// of (its extras — hysteresis, friction, noise — are not in the model).
+// J is tried from the swing's period with gravity's moment from the body
+// measures; on these legs the swing does not determine it (the tissue's
+// stiffness reaches mid-range and passes for gravity's: J ×0.8 and ×1.25
+// fit as well), so the answer says so and takes Eq. 4.13's.
+TEST(PendulumImportTest, ThePendulumProtocolOnACohortOfBothFamiliesAgainstTheTruth) {
+  ServerProcess server;
+  auto c = server.Client();
+  c.set_read_timeout(60);
+  const std::string admin = server.admin_token();
+  std::vector<double> static_err, damping_err, held_out, j_err, j_eq413, pendulum_j, profile;
+  int leg = 0;
+  for (const std::string family : {"thesis", "analytic"}) {
+    for (int seed = 1; seed <= 4; ++seed, ++leg) {
+      auto drawn = Call(c, "PUT", "/api/v1/bench/virtual-subject", admin,
+                        {{"draw_seed", seed}, {"family", family}});
+      ASSERT_EQ(drawn.status, 200) << drawn.text;
+      const model::ParameterSet truth = *api::ParameterSetFromJson(drawn.body["truth"]);
+      const json& anthro = drawn.body["anthropometrics"];
+      const std::string code = "PEN-" + family + "-" + std::to_string(seed);
+      auto subject = Call(c, "POST", "/api/v1/subjects", admin,
+                          {{"code", code},
+                           {"details",
+                            {{"weight_kg", anthro["body_mass_kg"]},
+                             {"shank_length_cm", anthro["shank_length_m"].get<double>() * 100.0}}},
+                           {"legs", {"right"}}});
+      ASSERT_EQ(subject.status, 201) << subject.text;
+      auto session = Call(c, "POST",
+                          "/api/v1/subjects/" + std::to_string(subject.body["id"].get<int>()) +
+                              "/sessions",
+                          admin,
+                          {{"leg", "right"},
+                           {"date", "2026-11-28"},
+                           {"threshold_ma", drawn.body["threshold_ma"]},
+                           {"max_tolerated_ma", drawn.body["max_tolerated_ma"]}});
+      ASSERT_EQ(session.status, 201) << session.text;
+      const std::int64_t session_id = session.body["id"];
+      const json run = RunToEnd(c, admin, session_id, {{"protocol", "pendulum_test"}});
+      ASSERT_EQ(run["state"], "done") << run.dump().substr(0, 500);
+      auto trials = Call(c, "GET", "/api/v1/sessions/" + std::to_string(session_id) + "/trials",
+                         admin);
+      ASSERT_EQ(trials.status, 200);
+      std::map<std::string, std::int64_t> by_name;
+      for (const json& t : trials.body["items"]) by_name[t["name"]] = t["id"];
+      ASSERT_TRUE(by_name.count("pendulum_1") && by_name.count("pendulum_2")) << trials.text;
+
+      auto fit = Call(c, "POST", "/api/v1/identifications", admin,
+                      {{"trial_ids", {by_name["pendulum_1"]}}, {"method", "passive"}});
+      ASSERT_EQ(fit.status, 202) << fit.text;
+      const json job = WaitForJob(c, admin, fit.body["id"]);
+      ASSERT_EQ(job["state"], "done") << job.dump().substr(0, 1000);
+      const std::int64_t set_id = job["result"]["parameter_sets"][0]["id"];
+      auto set = Call(c, "GET", "/api/v1/parameter-sets/" + std::to_string(set_id), admin);
+      const model::ParameterSet est = *api::ParameterSetFromJson(set.body["parameters"]);
+      const json& values = job["result"]["report"]["values"];
+      EXPECT_EQ(values["pendulum_inertia_determined"], 0.0) << values.dump();
+      EXPECT_EQ(est.provenance.inertia_method, "anthropometric");
+      j_err.push_back(100.0 * (est.passive.inertia_kgm2 / truth.passive.inertia_kgm2 - 1.0));
+      pendulum_j.push_back(100.0 * (values["pendulum_inertia_kgm2"].get<double>() /
+                                        truth.passive.inertia_kgm2 -
+                                    1.0));
+      profile.push_back(100.0 * (std::min(values["pendulum_profile_low_deg"].get<double>(),
+                                          values["pendulum_profile_high_deg"].get<double>()) /
+                                     job["result"]["report"]["fit_rms"]["pendulum_inertia_deg"]
+                                         .get<double>() -
+                                 1.0));
+
+      // The static torque over the angles the swing visited, against the
+      // truth's span there; the damping over 80 % of the speeds it reached.
+      const model::CurveRange seen = est.provenance.identified_range_deg.at("tau_pta");
+      const model::CurveRange speeds = est.provenance.identified_range_deg_s.at("tau_ptv");
+      double sum = 0.0, lo = INFINITY, hi = -INFINITY;
+      int n = 0;
+      for (double a = seen.lo; a <= seen.hi; a += 1.0, ++n) {
+        const double e = StaticTorque(est, a) - StaticTorque(truth, a);
+        sum += e * e;
+        lo = std::min(lo, StaticTorque(truth, a));
+        hi = std::max(hi, StaticTorque(truth, a));
+      }
+      static_err.push_back(100.0 * std::sqrt(sum / n) / (hi - lo));
+      const double v = 0.8 * std::min(-speeds.lo, speeds.hi);
+      damping_err.push_back(100.0 * (DampingSlope(est, v) / DampingSlope(truth, v) - 1.0));
+      const double eq413 = 0.061 * anthro["body_mass_kg"].get<double>() *
+                           std::pow(0.735 * anthro["shank_length_m"].get<double>(), 2);
+      j_eq413.push_back(100.0 * (eq413 / truth.passive.inertia_kgm2 - 1.0));
+
+      auto predicted = Call(c, "POST", "/api/v1/predictions", admin,
+                            {{"parameter_set_id", set_id}, {"trial_id", by_name["pendulum_2"]}});
+      ASSERT_EQ(predicted.status, 202) << predicted.text;
+      const json p = WaitForJob(c, admin, predicted.body["id"]);
+      ASSERT_EQ(p["state"], "done") << p.dump().substr(0, 1000);
+      held_out.push_back(p["result"]["errors"]["e_rms"]);
+      std::cout << "[ figure ] " << code << ": swing " << seen.lo << "…" << seen.hi
+                << " deg; static torque RMS error " << static_err.back()
+                << " % of its span; damping " << damping_err.back()
+                << " %; held-out swing E_RMS " << held_out.back() << " deg; J " << j_err.back()
+                << " % (Eq. 4.13: " << j_eq413.back() << " %; the swing's best J "
+                << pendulum_j.back() << " %, J ×0.8 or ×1.25 fits within " << profile.back()
+                << " % of its output error)\n";
+    }
+  }
+  const auto worst = [](const std::vector<double>& v) {
+    double w = 0.0;
+    for (double x : v) w = std::max(w, std::abs(x));
+    return w;
+  };
+  const auto median = [](std::vector<double> v) {
+    for (double& x : v) x = std::abs(x);
+    std::sort(v.begin(), v.end());
+    return 0.5 * (v[(v.size() - 1) / 2] + v[v.size() / 2]);
+  };
+  std::cout << "[ figure ] J error median " << median(j_err) << " %, worst " << worst(j_err)
+            << " %; the swing's best J median " << median(pendulum_j) << " %, worst "
+            << worst(pendulum_j) << " %\n";
+  std::cout << "[ figure ] static torque error median " << median(static_err) << " %, worst "
+            << worst(static_err) << " %; damping median " << median(damping_err) << " %, worst "
+            << worst(damping_err) << " %; held-out E_RMS median " << median(held_out)
+            << " deg, worst " << worst(held_out) << " deg\n";
+  // Bounds a little above the figures when written (docs/MODEL.md): the
+  // held-out swing 0.24–0.63°, the static torque 2.7–5.3 % on six legs of
+  // eight (16 % and 38 % on two), with Eq. 4.13's J (−9.6…+1.9 %). One
+  // release angle leaves the split between τ_pta and τ_ptv ill-conditioned,
+  // and the damping takes the bench's hysteresis and friction (not in the
+  // model) too: 85–290 % above the truth's viscous damping, reported, not
+  // bounded.
+  EXPECT_LT(worst(held_out), 1.0);
+  EXPECT_LT(median(static_err), 6.0);
   EXPECT_EQ(server.Terminate(), 0);
 }
 
