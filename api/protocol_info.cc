@@ -33,6 +33,9 @@ json ProtocolInfoToJson(const ProtocolInfo& protocol) {
           {"stimulates", protocol.stimulates},
           {"bench_mode", protocol.bench_mode},
           {"min_rest_s", protocol.min_rest_s},
+          {"measures_max_tolerated", protocol.measures_max_tolerated},
+          {"follows_target", protocol.follows_target},
+          {"offered_first", protocol.offered_first},
           {"parameters", std::move(parameters)}};
 }
 
@@ -47,6 +50,9 @@ Result<ProtocolInfo> ProtocolInfoFromJson(const json& j) {
   ReadInto(in, "stimulates", protocol.stimulates);
   ReadInto(in, "bench_mode", protocol.bench_mode);
   ReadInto(in, "min_rest_s", protocol.min_rest_s);
+  ReadInto(in, "measures_max_tolerated", protocol.measures_max_tolerated);
+  ReadInto(in, "follows_target", protocol.follows_target);
+  ReadInto(in, "offered_first", protocol.offered_first);
   const json* parameters = in.Any("parameters", false);
   if (parameters != nullptr && !parameters->is_array()) in.Fail("parameters", "must be a list");
   for (std::size_t i = 0; in.ok() && parameters != nullptr && i < parameters->size(); ++i) {

@@ -46,11 +46,23 @@ struct ProtocolInfo {
   bool stimulates = true;
   std::string bench_mode = {};  ///< "locked", "motor", "decoupled", "mixed".
   double min_rest_s = 0.0;
+  /// The protocol measures the subject's max tolerated amplitude (the
+  /// tolerance test): it may run before a session has recorded limits, the
+  /// subject's stop records the result, a cancel records nothing, and a
+  /// ceiling above the recorded max takes an audited ceiling_reason.
+  bool measures_max_tolerated = false;
+  /// The run follows a target knee angle (tracking): its live view draws the
+  /// target, and the target may be uploaded as the start request's
+  /// target_samples.
+  bool follows_target = false;
+  /// The protocol a session with recorded limits offers first.
+  bool offered_first = false;
   std::vector<ProtocolParameterInfo> parameters = {};
 };
 
 /// {"name", "version", "title", "description", "thesis_section",
-///  "stimulates", "bench_mode", "min_rest_s", "parameters": [{"name",
+///  "stimulates", "bench_mode", "min_rest_s", "measures_max_tolerated",
+///  "follows_target", "offered_first", "parameters": [{"name",
 ///  "label", "unit", "description", "default" (null when unresolved),
 ///  "default_rule" (null when fixed), "min", "max", "integer", "advanced",
 ///  "scales_to", "rest", "choices"}]}.

@@ -2,7 +2,7 @@
 
 /// @file
 /// The kinds of trial the server knows (docs/MODEL.md, "Identification methods"): each protocol
-/// names the trials it records, identification and prediction select trials
+/// names the kinds it records (server/protocols/protocol_registry.h), identification and prediction select trials
 /// by these names, and an imported recording declares one. A kind is either
 /// an exact name ("free_swing_passive") or a family whose members carry a
 /// suffix ("passive_simultaneous_3", "active_random_binary_rb1",
@@ -50,7 +50,6 @@ struct TrialKindInfo {
   TrialKind kind;
   std::string_view name;         ///< the exact name, or the family's stem.
   bool family = false;           ///< members are "<name>_<suffix>" (and "<name>" itself).
-  std::string_view protocol;     ///< the protocol that records it.
   std::string_view description;  ///< what the trial holds, for people.
   /// Main-group channels a trial of this kind must have for identification
   /// or prediction to use it (t_s is always required).

@@ -364,6 +364,20 @@ std::string DetachRefusal(const json& sent) {
          "heart-beating, and Ctrl-C cancels it cleanly)";
 }
 
+// True when `protocol` measures the max tolerated amplitude (GET
+// /protocols/{name}, measures_max_tolerated): the subject's stop then records
+// the amplitude reached. False if the description cannot be read: the run
+// is followed without the stop key.
+bool MeasuresMaxTolerated(ApiClient& client, const std::string& protocol) {
+  try {
+    const api::Result<api::ProtocolInfo> info =
+        api::ProtocolInfoFromJson(client.Get("/protocols/" + protocol));
+    return info.ok() && info->measures_max_tolerated;
+  } catch (const CliError&) {
+    return false;
+  }
+}
+
 // `run VERB RUN`: POST /runs/{id}/VERB, then the run's state (after
 // `lead`, closed by ")" when lead is not empty) or, with --json, its view.
 void AddRunRequest(CLI::App& run, CliContext& context, const std::string& verb,
@@ -462,8 +476,10 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
                    << ")\n"
                    << std::flush;
         }
-        FollowRun(context, client, connection, run_id, progress,
-                  form->protocol == "tolerance_test");
+        // The stop key is for a terminal (StopKey).
+        const bool stop_key =
+            ::isatty(STDIN_FILENO) && MeasuresMaxTolerated(client, form->protocol);
+        FollowRun(context, client, connection, run_id, progress, stop_key);
       };
     });
   }

@@ -12,6 +12,7 @@
 #include "server/http/api_routes.h"
 #include "server/http/resources_json.h"
 #include "server/http/routes_common.h"
+#include "server/protocols/protocol_registry.h"
 #include "server/services/import_upload.h"
 #include "server/services/memory_budget.h"
 #include "server/services/run_service.h"
@@ -168,7 +169,7 @@ void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
                  for (std::string_view c : k.required_channels) channels.push_back(std::string(c));
                  items.push_back({{"name", k.name},
                                   {"family", k.family},
-                                  {"protocol", k.protocol},
+                                  {"protocol", protocols::RecordingProtocol(k.kind)},
                                   {"description", k.description},
                                   {"required_channels", std::move(channels)},
                                   {"motor", k.motor},

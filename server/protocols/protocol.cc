@@ -221,7 +221,7 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
     }
     out[p.name] = v;
   }
-  if (protocol.kind == ProtocolKind::kTolerance) {
+  if (protocol.measures_max_tolerated) {
     if (api::Status st = CheckToleranceCeiling(out, subject); !st.ok()) return st;
   } else if (subject.ceiling_above_max) {
     return api::Status::InvalidArgument("only a tolerance_test has a ceiling above the max",
@@ -363,19 +363,16 @@ bool IsStimulationScaling(Scaling s) {
 
 }  // namespace
 
-ParameterPresentation PresentationOf(std::string_view name, std::string_view protocol) {
-  // (protocol, parameter) → the words that protocol needs.
-  static const std::map<std::pair<std::string_view, std::string_view>, ParameterPresentation>
-      kOwnWords = {
-          {{"tracking", "duration_s"}, {"Length of the target (after the lead-in)", "s", false}},
-          {{"passive_simultaneous", "duration_s"}, {"Length of each trajectory", "s", false}},
-          {{"rapid_parameterisation", "duration_s"},
-           {"Length of the random-binary trial", "s", false}},
-      };
-  if (const auto it = kOwnWords.find({protocol, name}); it != kOwnWords.end()) return it->second;
+ParameterPresentation PresentationOf(std::string_view name) {
   const auto& table = PresentationTable();
   if (const auto it = table.find(name); it != table.end()) return it->second;
   return {std::string(name), Unit(name), true};
+}
+
+ParameterPresentation PresentationOf(const ParameterSpec& spec) {
+  ParameterPresentation look = PresentationOf(spec.name);
+  if (!spec.label.empty()) look.label = spec.label;
+  return look;
 }
 
 std::string ThesisSection(const ProtocolDescription& protocol) {
@@ -403,9 +400,12 @@ api::ProtocolInfo ProtocolInfoOf(const ProtocolDescription& protocol,
                          .thesis_section = ThesisSection(protocol),
                          .stimulates = Stimulates(protocol),
                          .bench_mode = std::string(BenchModeName(protocol.bench_mode)),
-                         .min_rest_s = protocol.min_rest_s};
+                         .min_rest_s = protocol.min_rest_s,
+                         .measures_max_tolerated = protocol.measures_max_tolerated,
+                         .follows_target = protocol.follows_target,
+                         .offered_first = protocol.offered_first};
   for (const ParameterSpec& p : protocol.parameters) {
-    const ParameterPresentation look = PresentationOf(p.name, protocol.name);
+    const ParameterPresentation look = PresentationOf(p);
     api::ProtocolParameterInfo& out = info.parameters.emplace_back(api::ProtocolParameterInfo{
         .name = p.name,
         .label = look.label,

@@ -4,9 +4,10 @@
 /// Protocols as data (docs/PROTOCOLS.md; thesis §5.3–§5.4, §7.4.1, Appendix F):
 /// a named, versioned description with typed parameters (units in their
 /// names, thesis defaults, limits) that the server lists
-/// (GET /api/v1/protocols) and validates client values against. How a
-/// description becomes bench steps is in plan.h; the engine that runs the
-/// steps is runner.h.
+/// (GET /api/v1/protocols) and validates client values against. Each
+/// protocol is a class (protocol_registry.h, one file each under catalog/)
+/// that gives its description, builds its plan (plan.h) and names the trials
+/// it records; the engine that runs the steps is runner.h.
 
 #include <cstdint>
 #include <map>
@@ -66,6 +67,10 @@ struct ParameterSpec {
   /// A choice among names: the value is the index of the chosen name
   /// (clients may send the name; GET /protocols lists them).
   std::vector<std::string> choices = {};
+  /// The protocol's own words for the parameter where the shared label
+  /// (PresentationOf) would mislead, e.g. tracking's duration_s is the
+  /// target's length, not a train's; empty: the shared label.
+  std::string label = {};
 };
 
 /// What the runner does with the bench during a protocol.
@@ -99,11 +104,19 @@ struct ProtocolDescription {
   ProtocolKind kind = ProtocolKind::kIsometric;
   double min_rest_s = 0.0;  ///< shortest allowed rest period, s.
   std::vector<ParameterSpec> parameters;
+  /// It measures the max tolerated amplitude (api::ProtocolInfo): its
+  /// ceiling_ma follows the tolerance ceiling rules (ResolveParameters).
+  bool measures_max_tolerated = false;
+  /// Its run follows a target knee angle (api::ProtocolInfo).
+  bool follows_target = false;
+  /// A session with recorded limits offers it first (api::ProtocolInfo).
+  bool offered_first = false;
 
   const ParameterSpec* FindParameter(std::string_view name) const;
 };
 
-/// Every protocol of docs/PROTOCOLS.md, in catalogue order.
+/// Every protocol of docs/PROTOCOLS.md, in catalogue order: the
+/// descriptions of the registered protocol classes (protocol_registry.h).
 const std::vector<ProtocolDescription>& ProtocolCatalog();
 /// The protocol called name, or nullptr.
 const ProtocolDescription* FindProtocol(std::string_view name);
@@ -189,10 +202,11 @@ struct ParameterPresentation {
   bool advanced = true;  ///< collapsed by default in the web form.
 };
 /// The presentation of `name` (every catalog parameter has one; an unknown
-/// name gets its own name as label, Unit-from-suffix and advanced); with
-/// `protocol`, that protocol's own words where a name means something else
-/// there (tracking's duration_s is the target's length, not a train's).
-ParameterPresentation PresentationOf(std::string_view name, std::string_view protocol = {});
+/// name gets its own name as label, Unit-from-suffix and advanced).
+ParameterPresentation PresentationOf(std::string_view name);
+/// The presentation of a protocol's parameter: PresentationOf its name, with
+/// the protocol's own label where it has one (ParameterSpec::label).
+ParameterPresentation PresentationOf(const ParameterSpec& spec);
 /// The thesis section a protocol implements, e.g. "§7.4.1" (the last
 /// section its description cites), or "".
 std::string ThesisSection(const ProtocolDescription& protocol);

@@ -15,7 +15,10 @@ TEST(ProtocolInfo, ReadsBackWhatItWrote) {
                     .thesis_section = "Appendix F",
                     .stimulates = true,
                     .bench_mode = "locked",
-                    .min_rest_s = 60.0};
+                    .min_rest_s = 60.0,
+                    .measures_max_tolerated = true,
+                    .follows_target = false,
+                    .offered_first = true};
   info.parameters.push_back({.name = "ceiling_ma",
                              .label = "Ceiling",
                              .unit = "mA",
@@ -53,6 +56,9 @@ TEST(ProtocolInfo, ReadsBackWhatItWrote) {
   EXPECT_EQ(back->thesis_section, "Appendix F");
   EXPECT_EQ(back->bench_mode, "locked");
   EXPECT_EQ(back->min_rest_s, 60.0);
+  EXPECT_TRUE(back->measures_max_tolerated);
+  EXPECT_FALSE(back->follows_target);
+  EXPECT_TRUE(back->offered_first);
   ASSERT_EQ(back->parameters.size(), 2u);
   EXPECT_FALSE(back->parameters[0].default_value.has_value());
   EXPECT_EQ(back->parameters[0].default_rule, info.parameters[0].default_rule);

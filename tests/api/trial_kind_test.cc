@@ -36,16 +36,16 @@ TEST(TrialKind, FreeSwingAndValidationFollowTheTable) {
   EXPECT_FALSE(IsFreeSwing(TrialKind::kRampIrc));              // knee locked
   EXPECT_FALSE(IsFreeSwing(TrialKind::kIsometricPrediction));  // knee locked
   EXPECT_FALSE(IsFreeSwing(TrialKind::kPassivePositions));     // the motor moves it
-  // Validation: the prediction protocols' trials, and nothing else.
-  int validation = 0;
+  // Validation: the prediction protocols' trials, and nothing else (the
+  // server's protocol_test checks which protocol records each).
+  const std::vector<TrialKind> expected = {
+      TrialKind::kIsometricPrediction, TrialKind::kPredictionRandomBinary,
+      TrialKind::kPredictionStep, TrialKind::kPredictionRamp, TrialKind::kPredictionSine};
+  std::vector<TrialKind> validation;
   for (const TrialKindInfo& info : TrialKinds()) {
-    if (!IsValidation(info.kind)) continue;
-    ++validation;
-    EXPECT_TRUE(info.protocol.starts_with("prediction_") ||
-                info.protocol == "isometric_prediction")
-        << info.name;
+    if (IsValidation(info.kind)) validation.push_back(info.kind);
   }
-  EXPECT_EQ(validation, 5);
+  EXPECT_EQ(validation, expected);
 }
 
 TEST(TrialKind, TheTrialJsonCarriesTheKindAndRefusesAWrongOne) {

@@ -5,10 +5,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <set>
 
+#include "api/trial_kind.h"
+#include "model/parameter_set.h"
 #include "model/stimulus_generators.h"
 #include "server/protocols/plan.h"
+#include "server/protocols/protocol_registry.h"
 #include "server/protocols/run_transitions.h"
 
 namespace fesbench::server::protocols {
@@ -39,19 +43,77 @@ std::vector<std::pair<std::size_t, std::size_t>> Runs(const std::vector<double>&
   return out;
 }
 
+// The thesis's protocols and the routines built on them; a protocol added
+// beyond them has its own test (tests/server/catalog/).
 TEST(ProtocolCatalog, HoldsEveryProtocolOfDesignTable) {
   const std::set<std::string> want = {
       "tolerance_test",           "isometric_ramp_irc",    "isometric_step_irc",
       "isometric_impulse_irc",    "isometric_prediction",  "passive_sequential",
       "passive_simultaneous",     "free_swing_passive",    "active_random_binary",
       "prediction_step",          "prediction_ramp",       "prediction_sine",
-      "prediction_random_binary", "rapid_parameterisation", "tracking", "daily_check",
-      "pendulum_test"};
+      "prediction_random_binary", "rapid_parameterisation", "tracking", "daily_check"};
   std::set<std::string> have;
   for (const ProtocolDescription& p : ProtocolCatalog()) have.insert(p.name);
-  EXPECT_EQ(have, want);
-  EXPECT_EQ(ProtocolCatalog().size(), want.size());
+  EXPECT_TRUE(std::includes(have.begin(), have.end(), want.begin(), want.end()));
+  EXPECT_EQ(ProtocolCatalog().size(), have.size()) << "two protocols share a name";
   EXPECT_EQ(FindProtocol("nope"), nullptr);
+  // The catalogue is the registry's, in its order.
+  ASSERT_EQ(RegisteredProtocols().size(), ProtocolCatalog().size());
+  for (std::size_t i = 0; i < ProtocolCatalog().size(); ++i) {
+    EXPECT_EQ(RegisteredProtocols()[i].description.name, ProtocolCatalog()[i].name);
+  }
+  EXPECT_EQ(ProtocolCatalog().front().name, "tolerance_test");
+  EXPECT_EQ(ProtocolCatalog().back().name, "rapid_parameterisation");
+}
+
+// Each protocol declares the trial kinds it records (protocol_registry.h):
+// every trial its plan makes is of one of them, and no kind has two
+// recording protocols.
+TEST(ProtocolCatalog, EveryProtocolRecordsTheTrialKindsItDeclares) {
+  SubjectContext subject = Subject();
+  subject.parameter_set = model::ExampleParameterSet();
+  std::map<api::TrialKind, std::string> recorder;
+  for (const RegisteredProtocol& r : RegisteredProtocols()) {
+    EXPECT_FALSE(r.records.empty()) << r.description.name;
+    for (api::TrialKind kind : r.records) {
+      EXPECT_TRUE(recorder.emplace(kind, r.description.name).second)
+          << api::TrialKindName(kind) << " has two recording protocols";
+      EXPECT_EQ(RecordingProtocol(kind), r.description.name);
+    }
+    api::Result<Plan> plan = MakePlan(r.description.name, {}, subject);
+    ASSERT_TRUE(plan.ok()) << r.description.name << ": " << plan.status().ToString();
+    for (const TrialPlan& trial : plan->trials) {
+      const std::optional<api::TrialKind> kind = api::TrialKindOf(trial.name);
+      ASSERT_TRUE(kind.has_value()) << trial.name;
+      EXPECT_NE(std::find(r.records.begin(), r.records.end(), *kind), r.records.end())
+          << r.description.name << " records " << trial.name << " of an undeclared kind";
+    }
+  }
+  // Validation kinds come from the prediction protocols.
+  for (const api::TrialKindInfo& info : api::TrialKinds()) {
+    if (!api::IsValidation(info.kind)) continue;
+    const ProtocolDescription* p = FindProtocol(RecordingProtocol(info.kind));
+    ASSERT_NE(p, nullptr) << info.name;
+    EXPECT_TRUE(p->kind == ProtocolKind::kPrediction || p->kind == ProtocolKind::kIsometric)
+        << info.name;
+  }
+}
+
+// The properties clients read instead of protocol names (api::ProtocolInfo).
+TEST(ProtocolCatalog, ClientFacingPropertiesBelongToOneProtocolEach) {
+  std::vector<std::string> measures, follows, first;
+  for (const ProtocolDescription& p : ProtocolCatalog()) {
+    if (p.measures_max_tolerated) measures.push_back(p.name);
+    if (p.follows_target) follows.push_back(p.name);
+    if (p.offered_first) first.push_back(p.name);
+  }
+  EXPECT_EQ(measures, std::vector<std::string>{"tolerance_test"});
+  EXPECT_EQ(follows, std::vector<std::string>{"tracking"});
+  EXPECT_EQ(first, std::vector<std::string>{"rapid_parameterisation"});
+  const nlohmann::json tolerance = ProtocolToJson(*FindProtocol("tolerance_test"));
+  EXPECT_EQ(tolerance.at("measures_max_tolerated"), true);
+  EXPECT_EQ(tolerance.at("follows_target"), false);
+  EXPECT_EQ(tolerance.at("offered_first"), false);
 }
 
 TEST(ProtocolCatalog, ParametersCarryUnitsAndConsistentLimits) {
@@ -143,7 +205,7 @@ TEST(ProtocolCatalog, EveryParameterHasAClinicianLabelAUnitAndAnHonestDefault) {
   }
   // A name means what its protocol needs: tracking's duration is the target's.
   EXPECT_EQ(PresentationOf("duration_s").label, "Length of each stimulation train");
-  EXPECT_EQ(PresentationOf("duration_s", "tracking").label,
+  EXPECT_EQ(PresentationOf(*FindProtocol("tracking")->FindParameter("duration_s")).label,
             "Length of the target (after the lead-in)");
   const nlohmann::json tracking = ProtocolToJson(*FindProtocol("tracking"));
   for (const auto& param : tracking.at("parameters")) {

@@ -76,6 +76,7 @@ const ctx = {
       state.user = null;
       throw e;
     }
+    await loadProtocolTraits();
     renderChrome();
     pollBench();
   },
@@ -280,6 +281,16 @@ function openClearDialog() {
 }
 
 // --- the run bar ---------------------------------------------------------------
+// The protocols that measure the max tolerated amplitude (GET /protocols,
+// measures_max_tolerated): their run bar offers the subject's stop, which
+// records it, before a cancel that records nothing.
+let measuringMaxTolerated = new Set();
+async function loadProtocolTraits() {
+  const catalog = await api('GET', '/protocols').catch(() => null);
+  if (!catalog) return;
+  measuringMaxTolerated = new Set(catalog.protocols.filter((p) => p.measures_max_tolerated).map((p) => p.name));
+}
+
 let lastEnded = null; // {run_id, protocol, state, reason, session_id}: shown until dismissed
 
 function renderRunBar(run) {
@@ -301,7 +312,7 @@ function renderRunBar(run) {
         h('span', { id: 'runbar-link' }),
         h('span', { id: 'runbar-owner', class: 'help' }),
         // A tolerance test: the subject's stop (recorded) first, in the bar too.
-        mayCancel && run.protocol === 'tolerance_test'
+        mayCancel && measuringMaxTolerated.has(run.protocol)
           ? h('button', { type: 'button', class: 'primary small', id: 'runbar-stop', onclick: async (e) => {
             e.target.disabled = true;
             try {
@@ -312,7 +323,7 @@ function renderRunBar(run) {
             }
           } }, 'Subject says stop')
           : '',
-        mayCancel ? h('button', { type: 'button', class: run.protocol === 'tolerance_test' ? 'small' : 'danger small', id: 'runbar-cancel', onclick: async (e) => {
+        mayCancel ? h('button', { type: 'button', class: measuringMaxTolerated.has(run.protocol) ? 'small' : 'danger small', id: 'runbar-cancel', onclick: async (e) => {
           e.target.disabled = true;
           try {
             await runs.cancel();
@@ -324,7 +335,7 @@ function renderRunBar(run) {
     bar.querySelector('#runbar-owner').textContent = `Cancel failed: ${err.message}`;
             e.target.disabled = false;
           }
-        } }, run.protocol === 'tolerance_test' ? 'Cancel (records nothing)' : 'Cancel run') : '');
+        } }, measuringMaxTolerated.has(run.protocol) ? 'Cancel (records nothing)' : 'Cancel run') : '');
     }
     bar.dataset.state = run.state || 'running';
     progress.value = fraction;

@@ -47,6 +47,8 @@ export async function sessionView(ctx, sessionId, { trialId = null, againRunId =
     api('GET', `/sessions/${sessionId}`), api('GET', `/protocols?session_id=${sessionId}`), api('GET', '/bench')]);
   const subject = await api('GET', `/subjects/${session.subject_id}`);
   let protocols = catalog.protocols;
+  // A protocol's description (GET /protocols), {} for a name the catalogue lacks.
+  const describedAs = (name) => protocols.find((p) => p.name === name) || {};
   const rate_hz = bench.limits.sample_rate_hz;
   const mayRun = ctx.user.role === 'clinician' || ctx.user.role === 'admin';
   const sessionPath = `/sessions/${sessionId}`;
@@ -244,13 +246,13 @@ export async function sessionView(ctx, sessionId, { trialId = null, againRunId =
     const advanced = p.parameters.filter((x) => x.advanced);
     // A tolerance test above the session's recorded max is the clinician's
     // explicit decision, with its reason audited (docs/SAFETY.md).
-    const reason = p.name === 'tolerance_test'
+    const reason = p.measures_max_tolerated
       ? field('ceiling_reason', 'Reason for a ceiling above the recorded max', {
         help: 'Only when the ceiling goes above the session\'s max tolerated amplitude (e.g. a re-test after training); audited.',
       })
       : '';
     // tracking's uploaded target: a CSV file with the columns t_s and angle_deg.
-    const targetFile = p.name === 'tracking'
+    const targetFile = p.follows_target
       ? field('target_file', 'Target trajectory file (CSV: t_s, angle_deg)', {
         type: 'file', help: 'For the target "uploaded": seconds and degrees, time strictly increasing.' })
       : '';
@@ -292,7 +294,7 @@ export async function sessionView(ctx, sessionId, { trialId = null, againRunId =
     try {
       const body = { protocol: p.name, parameters };
       const file = form.elements.target_file && form.elements.target_file.files[0];
-      if (p.name === 'tracking' && form.elements.target && form.elements.target.value === '3') {
+      if (p.follows_target && form.elements.target && form.elements.target.value === '3') {
         if (!file) throw new Error('choose the target trajectory file (CSV with t_s and angle_deg)');
         body.target_samples = parseTargetCsv(await file.text());
       }
@@ -330,7 +332,7 @@ export async function sessionView(ctx, sessionId, { trialId = null, againRunId =
     const phase = h('span', { id: 'run-phase' }, '');
     const endSlot = h('div', { id: 'run-end', 'aria-live': 'polite' });
     const trialsText = h('span', { id: 'run-trials' }, '');
-    const tolerance = run.protocol === 'tolerance_test';
+    const tolerance = Boolean(describedAs(run.protocol).measures_max_tolerated);
     // In a tolerance test the primary action is the subject's "stop" (the
     // amplitude reached is recorded as the max tolerated); cancelling
     // records nothing, and says so.
@@ -374,7 +376,7 @@ export async function sessionView(ctx, sessionId, { trialId = null, againRunId =
 
     // A tracking run (docs/PROTOCOLS.md, `tracking`) draws the target with the knee angle, the
     // tracking error and, for the adaptive controller, its τ_scale estimate.
-    const tracking = run.protocol === 'tracking';
+    const tracking = Boolean(describedAs(run.protocol).follows_target);
     const adaptive = tracking && run.parameters && run.parameters.controller === 2;
     const data = { t: [], angle: [], torque: [], stim: [], target: [], error: [], tau: [] };
     const mk = (title, label, unit, color) => makePlot(plotsBox, [{ label, color }], [[], []],
@@ -552,10 +554,12 @@ export async function sessionView(ctx, sessionId, { trialId = null, againRunId =
     h('section', { 'aria-labelledby': 'trials-h' }, h('h2', { id: 'trials-h' }, 'Trials of this session'), trialsSlot,
       trialStatus, trialPlot),
     await exchangeSection(sessionId, loadTrials));
-  // Without recorded limits only the tolerance test can run: offer it first.
+  // Without recorded limits only the tolerance test can run: offer it first;
+  // with them, the protocol the catalogue offers first (GET /protocols).
   const d = session.details;
-  const first = Number.isFinite(d.threshold_ma) && Number.isFinite(d.max_tolerated_ma) ? 'rapid_parameterisation' : 'tolerance_test';
-  if (protocols.some((p) => p.name === first)) select.value = first;
+  const limits = Number.isFinite(d.threshold_ma) && Number.isFinite(d.max_tolerated_ma);
+  const first = protocols.find((p) => (limits ? p.offered_first : p.measures_max_tolerated));
+  if (first) select.value = first.name;
   renderParameters();
   const [, , trials] = await Promise.all([renderDetails(), loadRuns(), loadTrials()]);
   // Opened from a run's page: a trial to plot, or the run to run again.

@@ -1,0 +1,64 @@
+#pragma once
+
+/// @file
+/// One protocol, one class (docs/PROTOCOLS.md, "Adding a protocol";
+/// docs/ARCHITECTURE.md, protocols): a Protocol describes its parameters,
+/// builds its plan from the generic step builders (plan_builder.h) and
+/// declares the kinds of trial it records. The registry
+/// (catalog/registry.cc) lists every protocol, one line each, in catalogue
+/// order; ProtocolCatalog() and FindProtocol() (protocol.h) read it.
+
+#include <memory>
+#include <string_view>
+#include <vector>
+
+#include "api/status.h"
+#include "api/trial_kind.h"
+#include "server/protocols/plan_builder.h"
+#include "server/protocols/protocol.h"
+
+namespace fesbench::server::protocols {
+
+/// What a protocol's plan is built from.
+struct PlanInputs {
+  const ParameterValues& values;  ///< resolved (ResolveParameters).
+  const SubjectContext& subject;
+  /// tracking's uploaded target at 200 Hz, or empty.
+  const std::vector<double>& uploaded_target;
+  /// The values the client gave, before defaults (null: every value counts
+  /// as given).
+  const ParameterValues* given;
+  double min_rest_s;  ///< the protocol's shortest rest, s.
+};
+
+class Protocol {
+ public:
+  virtual ~Protocol() = default;
+
+  /// Its name, version, parameters and properties (GET /api/v1/protocols).
+  virtual ProtocolDescription Describe() const = 0;
+  /// The kinds of trial its runs record (api/trial_kind.h).
+  virtual std::vector<api::TrialKind> Records() const = 0;
+  /// Appends its trials and steps (and the settings its run acts on) to
+  /// builder.plan(). A refusal is the returned status; a generator that
+  /// refuses a value throws std::invalid_argument, which BuildPlan reports
+  /// as kInvalidArgument.
+  virtual api::Status BuildSteps(const PlanInputs& inputs, PlanBuilder& builder) const = 0;
+};
+
+/// One registered protocol: the class and the description it gave.
+struct RegisteredProtocol {
+  std::unique_ptr<const Protocol> protocol;
+  ProtocolDescription description;
+  std::vector<api::TrialKind> records;
+};
+
+/// Every protocol, in catalogue order (catalog/registry.cc).
+const std::vector<RegisteredProtocol>& RegisteredProtocols();
+/// The protocol called name, or nullptr.
+const RegisteredProtocol* FindRegisteredProtocol(std::string_view name);
+/// The name of the protocol that records trials of `kind`, or "" (a kind
+/// only imports declare).
+std::string_view RecordingProtocol(api::TrialKind kind);
+
+}  // namespace fesbench::server::protocols
