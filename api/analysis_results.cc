@@ -80,10 +80,6 @@ void ReadFigure(JsonFields& in, std::string_view key, double& out) {
   ReadInto(in, key, out);
 }
 
-json ReportToJson(const model::IdentifyReport& r) {
-  return {{"fit_rms", r.fit_rms}, {"values", r.values}, {"warnings", r.warnings}};
-}
-
 void ReadReport(JsonFields& in, model::IdentifyReport& r) {
   ReadNumberMap(in, "fit_rms", r.fit_rms);
   ReadNumberMap(in, "values", r.values);
@@ -240,6 +236,10 @@ bool operator==(const ComparisonResult& a, const ComparisonResult& b) {
          a.test_note == b.test_note;
 }
 
+json IdentifyReportToJson(const model::IdentifyReport& r) {
+  return {{"fit_rms", r.fit_rms}, {"values", r.values}, {"warnings", r.warnings}};
+}
+
 json IdentificationResultToJson(const IdentificationResult& r) {
   json sets = json::array();
   for (const StoredFit& s : r.stored) {
@@ -247,7 +247,7 @@ json IdentificationResultToJson(const IdentificationResult& r) {
   }
   return {{"subject_id", r.subject_id},       {"leg_id", r.leg_id},
           {"parameter_sets", sets},           {"trial_ids", r.trial_ids},
-          {"report", ReportToJson(r.report)}, {"audit_id", r.audit_id}};
+          {"report", IdentifyReportToJson(r.report)}, {"audit_id", r.audit_id}};
 }
 
 Result<IdentificationResult> IdentificationResultFromJson(const json& j) {

@@ -48,6 +48,8 @@ struct IdentificationResult {
 };
 /// Field by field (model::IdentifyReport has no comparison of its own).
 bool operator==(const IdentificationResult& a, const IdentificationResult& b);
+/// {"fit_rms", "values", "warnings"}: a fit's report (the figures by name).
+nlohmann::json IdentifyReportToJson(const model::IdentifyReport& report);
 /// {"subject_id", "leg_id", "parameter_sets": [{"id", "version", "model"}],
 ///  "trial_ids", "report": {"fit_rms", "values", "warnings"}, "audit_id"}.
 nlohmann::json IdentificationResultToJson(const IdentificationResult& result);
