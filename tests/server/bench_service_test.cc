@@ -8,7 +8,7 @@
 #include <filesystem>
 
 #include "server/bench/replay_bench.h"
-#include "server/bench/virtual_subject_json.h"
+#include "api/virtual_subject.h"
 #include "storage/audit_log.h"
 #include "storage/subjects.h"
 #include "storage/users.h"

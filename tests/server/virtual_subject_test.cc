@@ -11,7 +11,7 @@
 #include "api/parameter_set_json.h"
 #include "model/evaluation.h"
 #include "model/units.h"
-#include "server/bench/virtual_subject_json.h"
+#include "api/virtual_subject.h"
 
 namespace fesbench::server {
 namespace {
