@@ -441,9 +441,8 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         if (!form->ceiling_reason.empty()) request.ceiling_reason = form->ceiling_reason;
         if (!form->target_csv.empty()) {
           request.target = TargetSamplesFromCsv(form->target_csv);
-          if (request.parameters.count("target") == 0) {
-            request.choices.try_emplace("target", "uploaded");
-          }
+          // typed-reads: not JSON (the request's own map of parameters)
+          if (!request.parameters.contains("target")) request.choices.try_emplace("target", "uploaded");
         }
         const json started = client.Post("/sessions/" + std::to_string(session) + "/runs",
                                          api::StartRunRequestToJson(request));
