@@ -29,8 +29,7 @@ Result<T> Done(const JsonFields& in, T value) {
 // The objects of the array `key`, each read by `read` with its own fields
 // (path "key[i]"); a value that is not an array is the reader's failure.
 template <typename T, typename Read>
-void ReadList(JsonFields& in, std::string_view key, bool required, std::vector<T>& out,
-              Read read) {
+void ReadList(JsonFields& in, std::string_view key, bool required, std::vector<T>& out, Read read) {
   const json* items = in.Any(key, required);
   if (items == nullptr) return;
   if (!items->is_array()) {
@@ -245,9 +244,12 @@ json IdentificationResultToJson(const IdentificationResult& r) {
   for (const StoredFit& s : r.stored) {
     sets.push_back({{"id", s.parameter_set_id}, {"version", s.version}, {"model", s.model}});
   }
-  return {{"subject_id", r.subject_id},       {"leg_id", r.leg_id},
-          {"parameter_sets", sets},           {"trial_ids", r.trial_ids},
-          {"report", IdentifyReportToJson(r.report)}, {"audit_id", r.audit_id}};
+  return {{"subject_id", r.subject_id},
+          {"leg_id", r.leg_id},
+          {"parameter_sets", sets},
+          {"trial_ids", r.trial_ids},
+          {"report", IdentifyReportToJson(r.report)},
+          {"audit_id", r.audit_id}};
 }
 
 Result<IdentificationResult> IdentificationResultFromJson(const json& j) {

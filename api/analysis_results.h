@@ -94,10 +94,10 @@ struct PredictionView {
   double initial_angle_deg = 0.0;
   double initial_velocity_deg_s = 0.0;
   std::size_t samples = 0;
-  std::optional<double> sample_rate_hz;         ///< with at least 2 samples.
-  std::optional<PredictionColumns> columns;     ///< when the writer includes them.
-  std::optional<PredictionErrors> errors;       ///< with a trial.
-  std::optional<double> fitted_scale;           ///< the §6.1.2 constant, with fit_scale.
+  std::optional<double> sample_rate_hz;      ///< with at least 2 samples.
+  std::optional<PredictionColumns> columns;  ///< when the writer includes them.
+  std::optional<PredictionErrors> errors;    ///< with a trial.
+  std::optional<double> fitted_scale;        ///< the §6.1.2 constant, with fit_scale.
   std::optional<double> share_outside_identified_ranges;
   std::optional<double> released_at_s;
   std::optional<double> strength_at_start;

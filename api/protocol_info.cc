@@ -88,9 +88,8 @@ Result<std::vector<ProtocolInfo>> ProtocolCatalogueFromJson(const json& j) {
     Result<ProtocolInfo> p = ProtocolInfoFromJson((*list)[i]);
     if (!p.ok()) {
       const std::string& field = p.status().field();
-      return Status::InvalidArgument(
-          p.status().message(),
-          "protocols[" + std::to_string(i) + "]" + (field.empty() ? "" : "." + field));
+      return Status::InvalidArgument(p.status().message(), "protocols[" + std::to_string(i) + "]" +
+                                                               (field.empty() ? "" : "." + field));
     }
     protocols.push_back(*std::move(p));
   }

@@ -31,8 +31,7 @@ void ReadLegs(JsonFields& in, std::vector<LegRef>& legs) {
     leg.id = item.Integer("id", true).value_or(0);
     ReadInto(item, "side", leg.side);
     if (!item.ok()) {
-      in.Fail("legs[" + std::to_string(i) + "]." + item.status().field(),
-              item.status().message());
+      in.Fail("legs[" + std::to_string(i) + "]." + item.status().field(), item.status().message());
       return;
     }
     legs.push_back(std::move(leg));

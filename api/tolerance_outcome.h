@@ -21,8 +21,8 @@ struct ToleranceOutcome {
   /// measured them but did not store them.
   std::optional<int> session_revision;
   std::optional<bool> subject_signalled_limit;  ///< when the run's values say.
-  bool ended_at_ceiling = false;  ///< stopped at the ceiling: no maximum recorded.
-  std::string message;            ///< why, when ended_at_ceiling.
+  bool ended_at_ceiling = false;                ///< stopped at the ceiling: no maximum recorded.
+  std::string message;                          ///< why, when ended_at_ceiling.
   friend bool operator==(const ToleranceOutcome&, const ToleranceOutcome&) = default;
 };
 

@@ -90,7 +90,7 @@ Status CheckAll(const NumberField<T> (&fields)[N], const T& value, const std::st
 // Reads the optional section `key` of `j` into `out` (fields default).
 template <class T, std::size_t N>
 Status ReadSection(const json& j, const char* key, const NumberField<T> (&fields)[N],
-                        const char* bool_key, bool T::*bool_member, T& out) {
+                   const char* bool_key, bool T::*bool_member, T& out) {
   const auto it = j.find(key);
   if (it == j.end() || it->is_null()) return {};
   if (!it->is_object()) return Status::InvalidArgument("must be an object", key);
@@ -189,10 +189,8 @@ Status ValidateVirtualSubject(const VirtualSubject& s) {
 
 Result<VirtualSubject> VirtualSubjectFromJson(const json& j) {
   if (!j.is_object()) return Status::InvalidArgument("a virtual subject must be an object");
-  static constexpr std::string_view kKnown[] = {"name",         "seed",
-                                                "truth",        "threshold_ma",
-                                                "max_tolerated_ma", "anthropometrics",
-                                                "fidelity"};
+  static constexpr std::string_view kKnown[] = {
+      "name", "seed", "truth", "threshold_ma", "max_tolerated_ma", "anthropometrics", "fidelity"};
   for (auto it = j.begin(); it != j.end(); ++it) {
     bool known = false;
     for (std::string_view k : kKnown) known = known || it.key() == k;
@@ -215,7 +213,7 @@ Result<VirtualSubject> VirtualSubjectFromJson(const json& j) {
   if (!params.ok()) {
     const std::string& inner = params.status().field();
     return Status::InvalidArgument(params.status().message(),
-                                        inner.empty() ? "truth" : "truth." + inner);
+                                   inner.empty() ? "truth" : "truth." + inner);
   }
   s.truth = std::move(params).value();
   for (const char* key : {"threshold_ma", "max_tolerated_ma"}) {
@@ -227,12 +225,12 @@ Result<VirtualSubject> VirtualSubjectFromJson(const json& j) {
   }
   if (Status st = CheckLevels(s); !st.ok()) return st;
   if (Status st = ReadSection<Anthropometrics>(j, "anthropometrics", kAnthroNumbers, nullptr,
-                                                    nullptr, s.anthropometrics);
+                                               nullptr, s.anthropometrics);
       !st.ok()) {
     return st;
   }
   if (Status st = ReadSection<Fidelity>(j, "fidelity", kFidelityNumbers, kQuantiseKey,
-                                             &Fidelity::quantise_adc, s.fidelity);
+                                        &Fidelity::quantise_adc, s.fidelity);
       !st.ok()) {
     return st;
   }

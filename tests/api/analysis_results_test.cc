@@ -203,8 +203,7 @@ TEST(AnalysisResults, MissingOrMistypedNeededFieldsAreNamed) {
 
   json identification = IdentificationResultToJson(AnIdentification());
   identification["parameter_sets"][1].erase("id");
-  EXPECT_EQ(IdentificationResultFromJson(identification).status().field(),
-            "parameter_sets[1].id");
+  EXPECT_EQ(IdentificationResultFromJson(identification).status().field(), "parameter_sets[1].id");
   EXPECT_EQ(IdentificationResultFromJson(json::object()).status().code(),
             ErrorCode::kInvalidArgument);
 

@@ -25,8 +25,12 @@ TEST(Resources, ReadsASubject) {
 }
 
 TEST(Resources, ReadsASession) {
-  const json j = {{"id", 9},      {"subject_id", 4},   {"leg_id", 7},
-                  {"leg", "right"}, {"date", "2026-11-21"}, {"revision", 1},
+  const json j = {{"id", 9},
+                  {"subject_id", 4},
+                  {"leg_id", 7},
+                  {"leg", "right"},
+                  {"date", "2026-11-21"},
+                  {"revision", 1},
                   {"details", json::object()}};
   EXPECT_EQ(*SessionResourceFromJson(j), (SessionResource{9, 4, 7, "right", "2026-11-21", 1}));
   json no_leg = j;
@@ -35,9 +39,14 @@ TEST(Resources, ReadsASession) {
 }
 
 TEST(Resources, ReadsATrialAndItsKind) {
-  json j = {{"id", 12},          {"session_id", 9},        {"run_id", 3},
-            {"name", "free_swing_passive"}, {"kind", "free_swing_passive"},
-            {"num_samples", 2000}, {"sample_rate_hz", 200.0}, {"duration_s", 10.0}};
+  json j = {{"id", 12},
+            {"session_id", 9},
+            {"run_id", 3},
+            {"name", "free_swing_passive"},
+            {"kind", "free_swing_passive"},
+            {"num_samples", 2000},
+            {"sample_rate_hz", 200.0},
+            {"duration_s", 10.0}};
   const Result<TrialResource> t = TrialResourceFromJson(j);
   ASSERT_TRUE(t.ok()) << t.status().ToString();
   EXPECT_EQ(t->kind, ParseTrialKind("free_swing_passive"));
@@ -53,9 +62,14 @@ TEST(Resources, ReadsATrialAndItsKind) {
 TEST(Resources, ReadsAParameterSetWithItsParameters) {
   model::ParameterSet set = model::ExampleParameterSet();
   set.provenance.trial_ids = {12, 13};
-  json j = {{"id", 5},      {"subject_id", 4}, {"leg_id", 7},
-            {"version", 2}, {"model", "full"}, {"trial_ids", {12, 13}},
-            {"fit_notes", json::array()},      {"parameters", ParameterSetToJson(set)}};
+  json j = {{"id", 5},
+            {"subject_id", 4},
+            {"leg_id", 7},
+            {"version", 2},
+            {"model", "full"},
+            {"trial_ids", {12, 13}},
+            {"fit_notes", json::array()},
+            {"parameters", ParameterSetToJson(set)}};
   const Result<ParameterSetResource> p = ParameterSetResourceFromJson(j);
   ASSERT_TRUE(p.ok()) << p.status().ToString();
   EXPECT_EQ(p->parameters, set);

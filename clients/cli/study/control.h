@@ -28,7 +28,7 @@ namespace fesbench::cli::study {
 /// Starts a protocol and heart-beats it to its end; the run as it ended.
 /// Throws CliError (server class) when the run is refused, fails or aborts.
 api::RunView RunProtocol(ApiClient& client, std::int64_t session_id,
-                           const api::StartRunRequest& request);
+                         const api::StartRunRequest& request);
 
 /// One tracking run's figures, or why there are none.
 struct TrackingFigures {
