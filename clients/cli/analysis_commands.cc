@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <map>
 #include <memory>
-#include <ostream>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -244,10 +244,10 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
             request.parameter_set_id = set_id;
             request.trial_id = trial_id;
             request.mode = api::ParsePredictionMode(form->mode);
-            api::PredictionView result = FromServer(
-                api::PredictionViewFromJson(
-                    RunJob(*client, "/predictions", api::PredictionRequestToJson(request))),
-                "prediction");
+            api::PredictionView result =
+                FromServer(api::PredictionViewFromJson(RunJob(
+                               *client, "/predictions", api::PredictionRequestToJson(request))),
+                           "prediction");
             result.columns.reset();
             const api::TrialResource trial = FromServer(
                 api::TrialResourceFromJson(client->Get("/trials/" + std::to_string(trial_id))),
@@ -290,10 +290,10 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         request.mode = api::ParsePredictionMode(form->mode);
         request.fit_scale = form->fit_scale;
         auto client = Connect(context);
-        api::PredictionView result = FromServer(
-            api::PredictionViewFromJson(
-                RunJob(*client, "/predictions", api::PredictionRequestToJson(request))),
-            "prediction");
+        api::PredictionView result =
+            FromServer(api::PredictionViewFromJson(
+                           RunJob(*client, "/predictions", api::PredictionRequestToJson(request))),
+                       "prediction");
         const bool training = request.trial_id.has_value() &&
                               Contains(TrainingTrials(*client, set_id), *request.trial_id);
         if (!form->out_path.empty()) {
@@ -433,8 +433,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         PrintTable(context.out,
                    {"set_a", "set_b", "subject", "trials", "a_error", "b_error", "a-b"}, rows);
         if (!result.test) {
-          context.out << (result.test_note.empty() ? "no paired t-test" : result.test_note)
-                      << "\n";
+          context.out << (result.test_note.empty() ? "no paired t-test" : result.test_note) << "\n";
           return;
         }
         const model::PairedTTestResult& t = *result.test;

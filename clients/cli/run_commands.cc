@@ -285,9 +285,9 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
   const std::optional<api::ToleranceOutcome> tolerance =
       FromServer(api::ToleranceOutcomeFromJson(end->result), "run result");
   if (tolerance) {
-    line += " threshold_ma " + Cell(api::OrNull(tolerance->threshold_ma)) +
-            " max_tolerated_ma " + Cell(api::OrNull(tolerance->max_tolerated_ma)) +
-            " session_revision " + Cell(api::OrNull(tolerance->session_revision));
+    line += " threshold_ma " + Cell(api::OrNull(tolerance->threshold_ma)) + " max_tolerated_ma " +
+            Cell(api::OrNull(tolerance->max_tolerated_ma)) + " session_revision " +
+            Cell(api::OrNull(tolerance->session_revision));
     if (tolerance->subject_signalled_limit.value_or(false)) {
       line += " (the subject signalled the limit)";
     }

@@ -19,7 +19,6 @@ namespace fesbench::cli::study {
 
 namespace {
 
-
 // ---- tables -----------------------------------------------------------
 
 double ErrorOf(const LegData& leg, const std::string& key, const std::string& input) {

@@ -64,11 +64,10 @@ double ValueOr(const std::map<std::string, double>& values, const char* key) {
 api::RunView RunProtocol(ApiClient& client, std::int64_t session_id,
                          const api::StartRunRequest& request) {
   const std::string& protocol = request.protocol;
-  const api::RunView started =
-      FromServer(api::RunViewFromJson(client.Post("/sessions/" + std::to_string(session_id) +
-                                                      "/runs",
-                                                  api::StartRunRequestToJson(request))),
-                 "run");
+  const api::RunView started = FromServer(
+      api::RunViewFromJson(client.Post("/sessions/" + std::to_string(session_id) + "/runs",
+                                       api::StartRunRequestToJson(request))),
+      "run");
   const std::int64_t run_id = started.run_id;
   const std::string path = "/runs/" + std::to_string(run_id);
   for (;;) {

@@ -22,10 +22,10 @@
 
 #include "api/analysis_requests.h"
 #include "api/analysis_results.h"
-#include "api/resources.h"
-#include "api/virtual_subject.h"
 #include "api/parameter_set_json.h"
+#include "api/resources.h"
 #include "api/trial.h"
+#include "api/virtual_subject.h"
 #include "clients/cli/cli.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/study/cohort.h"
@@ -230,12 +230,11 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
                                   {"shank_length_cm", vs.shank_length_m * 100.0}}}});
   const api::SubjectResource subject =
       FromServer(api::SubjectResourceFromJson(subject_answer), "subject");
-  const json session =
-      client.Post("/subjects/" + std::to_string(subject.id) + "/sessions",
-                  {{"leg", "right"},
-                   {"date", options.date},
-                   {"threshold_ma", vs.threshold_ma},
-                   {"max_tolerated_ma", vs.max_tolerated_ma}});
+  const json session = client.Post("/subjects/" + std::to_string(subject.id) + "/sessions",
+                                   {{"leg", "right"},
+                                    {"date", options.date},
+                                    {"threshold_ma", vs.threshold_ma},
+                                    {"max_tolerated_ma", vs.max_tolerated_ma}});
   leg.session_id = FromServer(api::SessionResourceFromJson(session), "session").id;
 
   std::int64_t rapid_set = 0;
@@ -351,8 +350,8 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   }
   // Control with the rapid set (docs/STUDY.md, "Control").
   if (const auto rapid = leg.sets.find("rapid"); rapid != leg.sets.end()) {
-    leg.control = RunLegControl(client, index, family, leg.session_id, rapid->second,
-                                vs.as_drawn, log);
+    leg.control =
+        RunLegControl(client, index, family, leg.session_id, rapid->second, vs.as_drawn, log);
   }
   log << "leg " << index << " done (" << leg.sets.size() << " parameter sets)\n" << std::flush;
   return leg;
