@@ -30,7 +30,7 @@
 #include "api/protocol_info.h"
 #include "api/run.h"
 #include "api/run_start.h"
-#include "api/tolerance_outcome.h"
+#include "api/tolerance_run_result.h"
 #include "api/trial.h"
 #include "api/trial_import.h"
 #include "clients/cli/commands.h"
@@ -282,8 +282,8 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
   }
   std::string line = "end " + state;
   if (end->parameter_set_id) line += " parameter_set " + std::to_string(*end->parameter_set_id);
-  const std::optional<api::ToleranceOutcome> tolerance =
-      FromServer(api::ToleranceOutcomeFromJson(end->result), "run result");
+  const std::optional<api::ToleranceRunResult> tolerance =
+      FromServer(api::ToleranceRunResultFromJson(end->result), "run result");
   if (tolerance) {
     line += " threshold_ma " + Cell(api::OrNull(tolerance->threshold_ma)) + " max_tolerated_ma " +
             Cell(api::OrNull(tolerance->max_tolerated_ma)) + " session_revision " +

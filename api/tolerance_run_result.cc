@@ -1,10 +1,10 @@
-#include "api/tolerance_outcome.h"
+#include "api/tolerance_run_result.h"
 
 #include "api/json_fields.h"
 
 namespace fesbench::api {
 
-nlohmann::json ToleranceOutcomeToJson(const ToleranceOutcome& o) {
+nlohmann::json ToleranceRunResultToJson(const ToleranceRunResult& o) {
   nlohmann::json j = {{"threshold_ma", OrNull(o.threshold_ma)},
                       {"max_tolerated_ma", OrNull(o.max_tolerated_ma)},
                       {"session_revision", OrNull(o.session_revision)}};
@@ -16,12 +16,12 @@ nlohmann::json ToleranceOutcomeToJson(const ToleranceOutcome& o) {
   return j;
 }
 
-Result<std::optional<ToleranceOutcome>> ToleranceOutcomeFromJson(const nlohmann::json& result) {
+Result<std::optional<ToleranceRunResult>> ToleranceRunResultFromJson(const nlohmann::json& result) {
   if (!result.is_object() || !result.contains("session_revision")) {
-    return std::optional<ToleranceOutcome>();
+    return std::optional<ToleranceRunResult>();
   }
   JsonFields in(result);
-  ToleranceOutcome o;
+  ToleranceRunResult o;
   ReadInto(in, "threshold_ma", o.threshold_ma);
   ReadInto(in, "max_tolerated_ma", o.max_tolerated_ma);
   ReadInto(in, "session_revision", o.session_revision);
@@ -31,7 +31,7 @@ Result<std::optional<ToleranceOutcome>> ToleranceOutcomeFromJson(const nlohmann:
   ReadInto(in, "ended_at_ceiling", o.ended_at_ceiling);
   ReadInto(in, "message", o.message);
   if (!in.ok()) return in.status();
-  return std::optional<ToleranceOutcome>(std::move(o));
+  return std::optional<ToleranceRunResult>(std::move(o));
 }
 
 }  // namespace fesbench::api

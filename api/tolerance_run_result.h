@@ -14,7 +14,7 @@
 
 namespace fesbench::api {
 
-struct ToleranceOutcome {
+struct ToleranceRunResult {
   std::optional<double> threshold_ma;      ///< null when no threshold was found.
   std::optional<double> max_tolerated_ma;  ///< null when none was recorded.
   /// The session revision that stores the limits; unset when the run
@@ -23,16 +23,16 @@ struct ToleranceOutcome {
   std::optional<bool> subject_signalled_limit;  ///< when the run's values say.
   bool ended_at_ceiling = false;                ///< stopped at the ceiling: no maximum recorded.
   std::string message;                          ///< why, when ended_at_ceiling.
-  friend bool operator==(const ToleranceOutcome&, const ToleranceOutcome&) = default;
+  friend bool operator==(const ToleranceRunResult&, const ToleranceRunResult&) = default;
 };
 
 /// {"threshold_ma", "max_tolerated_ma", "session_revision" (null when not
 ///  stored)} plus "subject_signalled_limit" when known and
 ///  "ended_at_ceiling": true, "message" when the run ended at its ceiling.
-nlohmann::json ToleranceOutcomeToJson(const ToleranceOutcome& outcome);
+nlohmann::json ToleranceRunResultToJson(const ToleranceRunResult& outcome);
 /// nullopt when `result` is not a tolerance outcome (not an object with a
 /// "session_revision" field: another protocol's result, or null);
 /// kInvalidArgument naming a mistyped field.
-Result<std::optional<ToleranceOutcome>> ToleranceOutcomeFromJson(const nlohmann::json& result);
+Result<std::optional<ToleranceRunResult>> ToleranceRunResultFromJson(const nlohmann::json& result);
 
 }  // namespace fesbench::api
