@@ -78,4 +78,28 @@ Result<ProtocolInfo> ProtocolInfoFromJson(const json& j) {
   return protocol;
 }
 
+json ProtocolCatalogueToJson(const std::vector<ProtocolInfo>& protocols) {
+  json list = json::array();
+  for (const ProtocolInfo& p : protocols) list.push_back(ProtocolInfoToJson(p));
+  return {{"protocols", std::move(list)}};
+}
+
+Result<std::vector<ProtocolInfo>> ProtocolCatalogueFromJson(const json& j) {
+  JsonFields in(j);
+  const json* list = in.Any("protocols", true);
+  if (list != nullptr && !list->is_array()) in.Fail("protocols", "must be a list");
+  if (!in.ok()) return in.status();
+  std::vector<ProtocolInfo> protocols;
+  for (std::size_t i = 0; i < list->size(); ++i) {
+    Result<ProtocolInfo> p = ProtocolInfoFromJson((*list)[i]);
+    if (!p.ok()) {
+      const std::string& field = p.status().field();
+      return Status::InvalidArgument(p.status().message(), "protocols[" + std::to_string(i) + "]" +
+                                                               (field.empty() ? "" : "." + field));
+    }
+    protocols.push_back(*std::move(p));
+  }
+  return protocols;
+}
+
 }  // namespace fesbench::api

@@ -71,4 +71,10 @@ nlohmann::json ProtocolInfoToJson(const ProtocolInfo& protocol);
 /// the wrong type or a missing name; fields it does not know are ignored.
 Result<ProtocolInfo> ProtocolInfoFromJson(const nlohmann::json& json);
 
+/// The catalogue (GET /protocols): {"protocols": [ProtocolInfoToJson, …]}.
+nlohmann::json ProtocolCatalogueToJson(const std::vector<ProtocolInfo>& protocols);
+/// Each protocol by ProtocolInfoFromJson, its failure named
+/// "protocols[i].…"; a missing list is kInvalidArgument.
+Result<std::vector<ProtocolInfo>> ProtocolCatalogueFromJson(const nlohmann::json& json);
+
 }  // namespace fesbench::api

@@ -3,15 +3,19 @@
 // waits for it, and prints its result.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <memory>
-#include <ostream>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
 #include "api/analysis_requests.h"
+#include "api/analysis_results.h"
+#include "api/json_fields.h"
+#include "api/resources.h"
 #include "api/trial.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/output.h"
@@ -34,29 +38,35 @@ const std::map<std::string, std::string>& StimulusAliases() {
   return aliases;
 }
 
-std::string Fixed(const json& value, int digits) {
-  if (!value.is_number()) return "-";
+// A figure with `digits` decimals; "-" when undefined.
+std::string Fixed(std::optional<double> value, int digits) {
+  if (!value || !std::isfinite(*value)) return "-";
   char buffer[48];
-  std::snprintf(buffer, sizeof buffer, "%.*f", digits, value.get<double>());
+  std::snprintf(buffer, sizeof buffer, "%.*f", digits, *value);
   return buffer;
 }
 
 // A trial recorded in free swing (the knee angle is what is predicted), by
 // the kind the server stored with it (api::IsFreeSwing).
-bool IsFreeSwingTrial(const json& trial) {
-  const json kind = trial.value("kind", json(nullptr));
-  if (!kind.is_string()) return false;
-  const std::optional<api::TrialKind> parsed = api::ParseTrialKind(kind.get<std::string>());
-  return parsed && api::IsFreeSwing(*parsed);
+bool IsFreeSwingTrial(const api::TrialResource& trial) {
+  return trial.kind && api::IsFreeSwing(*trial.kind);
+}
+
+api::ParameterSetResource GetParameterSet(ApiClient& client, std::int64_t set_id) {
+  return FromServer(
+      api::ParameterSetResourceFromJson(client.Get("/parameter-sets/" + std::to_string(set_id))),
+      "parameter set");
 }
 
 // The trials a parameter set was fitted on (its provenance): training data.
-std::vector<std::int64_t> TrainingTrials(const json& set) {
-  std::vector<std::int64_t> ids;
-  for (const auto& id : set.value("trial_ids", json::array())) {
-    if (id.is_number_integer()) ids.push_back(id.get<std::int64_t>());
-  }
-  return ids;
+std::vector<std::int64_t> TrainingTrials(ApiClient& client, std::int64_t set_id) {
+  return GetParameterSet(client, set_id).trial_ids;
+}
+
+// Submits an analysis job and waits for it: its result as sent.
+json RunJob(ApiClient& client, const std::string& path, const json& body) {
+  const api::JobReport job = FromServer(api::JobReportFromJson(client.Post(path, body)), "job");
+  return WaitForJob(client, job.id);
 }
 
 bool Contains(const std::vector<std::int64_t>& ids, std::int64_t id) {
@@ -65,28 +75,24 @@ bool Contains(const std::vector<std::int64_t>& ids, std::int64_t id) {
 
 // Honest validation by default: the free-swing trials of the
 // set's leg (every session of its subject) that the set was NOT fitted on.
-json ValidationTrials(ApiClient& client, std::int64_t set_id) {
-  const json set = client.Get("/parameter-sets/" + std::to_string(set_id));
-  const std::vector<std::int64_t> training = TrainingTrials(set);
-  const std::int64_t subject = set.value("subject_id", std::int64_t{0});
-  const std::int64_t leg = set.value("leg_id", std::int64_t{0});
-  json kept = json::array();
-  for (const auto& session :
-       client.GetAllPages("/subjects/" + std::to_string(subject) + "/sessions", "")) {
-    if (session.value("leg_id", std::int64_t{-1}) != leg) continue;
-    for (const auto& trial :
-         client.GetAllPages("/sessions/" + Cell(session["id"]) + "/trials", "")) {
-      const std::int64_t id = trial.value("id", std::int64_t{0});
-      if (IsFreeSwingTrial(trial) && !Contains(training, id)) {
-        kept.push_back(id);
-      }
+std::vector<std::int64_t> ValidationTrials(ApiClient& client, std::int64_t set_id) {
+  const api::ParameterSetResource set = GetParameterSet(client, set_id);
+  std::vector<std::int64_t> kept;
+  for (const auto& item :
+       client.GetAllPages("/subjects/" + std::to_string(set.subject_id) + "/sessions", "")) {
+    const api::SessionResource session = FromServer(api::SessionResourceFromJson(item), "session");
+    if (session.leg_id != set.leg_id) continue;
+    for (const auto& listed :
+         client.GetAllPages("/sessions/" + std::to_string(session.id) + "/trials", "")) {
+      const api::TrialResource trial = FromServer(api::TrialResourceFromJson(listed), "trial");
+      if (IsFreeSwingTrial(trial) && !Contains(set.trial_ids, trial.id)) kept.push_back(trial.id);
     }
   }
   if (kept.empty()) {
     throw CliError::Usage(
         "parameter set " + std::to_string(set_id) +
         " has no free-swing trial of its leg that it was not fitted on (it was fitted on trials " +
-        set.value("trial_ids", json::array()).dump() +
+        json(set.trial_ids).dump() +
         "): record one (e.g. `fesbench run start SESSION prediction_random_binary`) or name "
         "trials with --trials (training trials are then marked as such)");
   }
@@ -94,9 +100,9 @@ json ValidationTrials(ApiClient& client, std::int64_t set_id) {
 }
 
 // A pair's trial ids, comma-separated.
-std::string TrialList(const json& trials) {
+std::string TrialList(const std::vector<api::TrialComparison>& trials) {
   std::string text;
-  for (const auto& t : trials) text += (text.empty() ? "" : ",") + Cell(t["trial_id"]);
+  for (const auto& t : trials) text += (text.empty() ? "" : ",") + std::to_string(t.trial_id);
   return text;
 }
 
@@ -105,8 +111,7 @@ void NoteTrainingTrials(ApiClient& client, CliContext& context,
                         const std::vector<std::int64_t>& sets,
                         const std::vector<std::int64_t>& trials) {
   for (std::int64_t set : sets) {
-    const std::vector<std::int64_t> training =
-        TrainingTrials(client.Get("/parameter-sets/" + std::to_string(set)));
+    const std::vector<std::int64_t> training = TrainingTrials(client, set);
     for (std::int64_t t : trials) {
       if (Contains(training, t)) {
         context.err << "note: trial " << t << " is a training trial of parameter set " << set
@@ -188,20 +193,19 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         if (!form->passive_method.empty()) body["passive_method"] = form->passive_method;
         if (!form->irc_method.empty()) body["irc_method"] = form->irc_method;
         auto client = Connect(context);
-        const json job = client->Post("/identifications", body);
-        const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+        const json answer = RunJob(*client, "/identifications", body);
         if (context.options.json) {
-          context.out << result.dump(2) << "\n";
+          context.out << answer.dump(2) << "\n";
           return;
         }
-        const json sets =
-            result.contains("parameter_sets") ? result["parameter_sets"] : json::array();
-        for (const auto& set : sets) {
-          context.out << "parameter set " << Cell(set["id"]) << " (version " << Cell(set["version"])
-                      << ", model " << Cell(set["model"]) << ")\n";
+        const api::IdentificationResult result =
+            FromServer(api::IdentificationResultFromJson(answer), "identification");
+        for (const api::StoredFit& set : result.stored) {
+          context.out << "parameter set " << set.parameter_set_id << " (version " << set.version
+                      << ", model " << set.model << ")\n";
         }
         context.out << "report:\n";
-        if (result.contains("report")) PrintObject(context.out, result["report"], 2);
+        PrintObject(context.out, api::IdentifyReportToJson(result.report), 2);
       };
     });
   }
@@ -233,25 +237,27 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
             throw CliError::Usage("--out and --param need one --stimulus");
           }
           auto client = Connect(context);
-          const json trials = ValidationTrials(*client, set_id);
           json results = json::array();
           std::vector<std::vector<std::string>> rows;
-          for (const auto& trial : trials) {
+          for (const std::int64_t trial_id : ValidationTrials(*client, set_id)) {
             api::PredictionRequest request;
             request.parameter_set_id = set_id;
-            request.trial_id = trial.get<std::int64_t>();
+            request.trial_id = trial_id;
             request.mode = api::ParsePredictionMode(form->mode);
-            const json job = client->Post("/predictions", api::PredictionRequestToJson(request));
-            json result = WaitForJob(*client, job["id"].get<std::int64_t>());
-            result.erase("columns");
-            const json errors = result.value("errors", json(nullptr));
-            const json name = client->Get("/trials/" + Cell(trial)).value("name", json(nullptr));
-            rows.push_back({Cell(trial), Cell(name),
-                            errors.is_object() ? Fixed(errors["e_rms"], 3) : "-",
-                            errors.is_object() ? Fixed(errors["e_abs"], 3) : "-",
-                            errors.is_object() ? Cell(errors.value("unit", json(nullptr))) : "-",
-                            Cell(result.value("prediction_id", json(nullptr)))});
-            results.push_back(std::move(result));
+            api::PredictionView result =
+                FromServer(api::PredictionViewFromJson(RunJob(
+                               *client, "/predictions", api::PredictionRequestToJson(request))),
+                           "prediction");
+            result.columns.reset();
+            const api::TrialResource trial = FromServer(
+                api::TrialResourceFromJson(client->Get("/trials/" + std::to_string(trial_id))),
+                "trial");
+            const std::optional<api::PredictionErrors>& errors = result.errors;
+            rows.push_back({std::to_string(trial_id), Cell(api::OrNull(trial.name)),
+                            errors ? Fixed(errors->e_rms, 3) : "-",
+                            errors ? Fixed(errors->e_abs, 3) : "-", errors ? errors->unit : "-",
+                            Cell(api::OrNull(result.prediction_id))});
+            results.push_back(api::PredictionViewToJson(result));
           }
           if (context.options.json) {
             context.out << results.dump(2) << "\n";
@@ -284,55 +290,54 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         request.mode = api::ParsePredictionMode(form->mode);
         request.fit_scale = form->fit_scale;
         auto client = Connect(context);
-        const json job = client->Post("/predictions", api::PredictionRequestToJson(request));
-        json result = WaitForJob(*client, job["id"].get<std::int64_t>());
-        const bool training =
-            request.trial_id.has_value() &&
-            Contains(TrainingTrials(client->Get("/parameter-sets/" + std::to_string(set_id))),
-                     *request.trial_id);
+        api::PredictionView result =
+            FromServer(api::PredictionViewFromJson(
+                           RunJob(*client, "/predictions", api::PredictionRequestToJson(request))),
+                       "prediction");
+        const bool training = request.trial_id.has_value() &&
+                              Contains(TrainingTrials(*client, set_id), *request.trial_id);
         if (!form->out_path.empty()) {
+          if (!result.columns) throw CliError::Server("server: the prediction has no columns");
           api::ChannelGroup group;
-          group.sample_rate_hz = result.value("sample_rate_hz", 200.0);
-          if (!result.contains("columns") || !result["columns"].is_object()) {
-            throw CliError::Server("server: the prediction has no columns");
-          }
-          for (const auto& [name, values] : result["columns"].items()) {
-            group.Set(name, values.get<std::vector<double>>());
-          }
+          group.sample_rate_hz = result.sample_rate_hz.value_or(200.0);
+          // t_s first, as every fesbench CSV; then the others by name.
+          const api::PredictionColumns& c = *result.columns;
+          group.Set(std::string(api::kTimeChannel), c.t_s);
+          group.Set("activation", c.activation);
+          group.Set("angle_deg", c.angle_deg);
+          group.Set("stim_ma", c.stim_ma);
+          group.Set("torque_nm", c.torque_nm);
+          group.Set("velocity_deg_s", c.velocity_deg_s);
           if (const api::Status st = api::ValidateChannelGroup(group); !st.ok()) {
             throw CliError::Server("server sent an invalid prediction: " + st.ToString());
           }
-          // t_s first, as every fesbench CSV.
-          std::stable_partition(group.channels.begin(), group.channels.end(),
-                                [](const api::Channel& c) { return c.name == api::kTimeChannel; });
           WriteOutput(context, form->out_path, api::GroupToCsv(group));
         }
         if (context.options.json) {
-          result.erase("columns");
-          context.out << result.dump(2) << "\n";
+          result.columns.reset();
+          context.out << api::PredictionViewToJson(result).dump(2) << "\n";
           return;
         }
-        context.out << "prediction " << Cell(result.value("prediction_id", json(nullptr)))
-                    << ": parameter set " << Cell(result["parameter_set_id"]) << ", "
-                    << Cell(result.value("mode", json(nullptr))) << ", "
-                    << Cell(result.value("samples", json(nullptr))) << " samples\n";
-        const json errors = result.value("errors", json(nullptr));
-        if (errors.is_object()) {
-          const std::string unit = errors.value("unit", "");
-          context.out << "E_RMS " << Fixed(errors["e_rms"], 3) << " " << unit << "  E_ABS "
-                      << Fixed(errors["e_abs"], 3) << " " << unit << "  (trial "
-                      << Cell(result["trial_id"]) << ", " << Cell(errors["channel"]) << ", "
-                      << Cell(errors["samples"]) << " samples)\n";
+        context.out << "prediction " << Cell(api::OrNull(result.prediction_id))
+                    << ": parameter set " << result.parameter_set_id << ", "
+                    << api::PredictionModeName(result.mode) << ", " << result.samples
+                    << " samples\n";
+        if (result.errors) {
+          const api::PredictionErrors& errors = *result.errors;
+          const std::string& unit = errors.unit;
+          context.out << "E_RMS " << Fixed(errors.e_rms, 3) << " " << unit << "  E_ABS "
+                      << Fixed(errors.e_abs, 3) << " " << unit << "  (trial "
+                      << Cell(api::OrNull(result.trial_id)) << ", " << errors.channel << ", "
+                      << errors.samples << " samples)\n";
           if (training) {
-            context.out << "note: trial " << Cell(result["trial_id"]) << " is a training trial: "
-                        << "parameter set " << set_id
+            context.out << "note: trial " << Cell(api::OrNull(result.trial_id))
+                        << " is a training trial: parameter set " << set_id
                         << " was fitted on it, so these errors are not a validation\n";
           }
-          if (result.contains("fitted_scale") && result["fitted_scale"].is_number()) {
-            context.out << "fitted scale " << Fixed(result["fitted_scale"], 4)
-                        << " (§6.1.2)  normalised E_RMS "
-                        << Fixed(errors.value("normalised_rms", json(nullptr)), 4) << "  E_AVE "
-                        << Fixed(errors.value("e_ave", json(nullptr)), 5) << "\n";
+          if (result.fitted_scale) {
+            context.out << "fitted scale " << Fixed(result.fitted_scale, 4)
+                        << " (§6.1.2)  normalised E_RMS " << Fixed(errors.normalised_rms, 4)
+                        << "  E_AVE " << Fixed(errors.e_ave, 5) << "\n";
           }
         } else {
           context.out << "no measured trial: no errors computed\n";
@@ -383,10 +388,8 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
           const auto [a, b] = ids[0];
           std::vector<std::int64_t> over = trials;
           if (over.empty()) {
-            const std::vector<std::int64_t> b_training =
-                TrainingTrials(client->Get("/parameter-sets/" + std::to_string(b)));
-            for (const auto& t : ValidationTrials(*client, a)) {
-              const std::int64_t id = t.get<std::int64_t>();
+            const std::vector<std::int64_t> b_training = TrainingTrials(*client, b);
+            for (const std::int64_t id : ValidationTrials(*client, a)) {
               if (!Contains(b_training, id)) over.push_back(id);
             }
             if (over.empty()) {
@@ -403,7 +406,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
           for (const auto& [a, b] : ids) {
             api::ComparisonPair pair{a, b, trials};
             if (trials.empty()) {
-              pair.trial_ids = ValidationTrials(*client, a).get<std::vector<std::int64_t>>();
+              pair.trial_ids = ValidationTrials(*client, a);
             } else {
               NoteTrainingTrials(*client, context, {a, b}, trials);
             }
@@ -412,35 +415,35 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         }
         if (!form->metric.empty()) request.metric = form->metric;
         if (form->confidence > 0.0) request.confidence = form->confidence;
-        const json job = client->Post("/comparisons", api::ComparisonRequestToJson(request));
-        const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+        const json answer = RunJob(*client, "/comparisons", api::ComparisonRequestToJson(request));
         if (context.options.json) {
-          context.out << result.dump(2) << "\n";
+          context.out << answer.dump(2) << "\n";
           return;
         }
-        const std::string unit = result.value("unit", "");
+        const api::ComparisonResult result =
+            FromServer(api::ComparisonResultFromJson(answer), "comparison");
         std::vector<std::vector<std::string>> rows;
-        for (const auto& p : result["pairs"]) {
-          const double diff = p["a_error"].get<double>() - p["b_error"].get<double>();
-          rows.push_back({Cell(p["a_parameter_set_id"]), Cell(p["b_parameter_set_id"]),
-                          Cell(p["subject_id"]), TrialList(p["trials"]), Fixed(p["a_error"], 4),
-                          Fixed(p["b_error"], 4), Fixed(json(diff), 4)});
+        for (const api::PairComparison& p : result.pairs) {
+          rows.push_back({std::to_string(p.a_parameter_set_id),
+                          std::to_string(p.b_parameter_set_id), std::to_string(p.subject_id),
+                          TrialList(p.trials), Fixed(p.a_error, 4), Fixed(p.b_error, 4),
+                          Fixed(p.a_error - p.b_error, 4)});
         }
-        context.out << "metric " << Cell(result["metric"]) << " (" << unit << ")\n";
+        context.out << "metric " << result.metric << " (" << result.unit << ")\n";
         PrintTable(context.out,
                    {"set_a", "set_b", "subject", "trials", "a_error", "b_error", "a-b"}, rows);
-        const json& t = result["t_test"];
-        if (!t.is_object()) {
-          context.out << Cell(result.value("t_test_note", json("no paired t-test"))) << "\n";
+        if (!result.test) {
+          context.out << (result.test_note.empty() ? "no paired t-test" : result.test_note) << "\n";
           return;
         }
+        const model::PairedTTestResult& t = *result.test;
         context.out << "paired t-test:\n";
         PrintTable(context.out,
                    {"n", "mean_diff", "sd_diff", "t", "df", "p_value", "t_critical", "confidence",
                     "significant"},
-                   {{Cell(t["n"]), Fixed(t["mean_difference"], 4), Fixed(t["sd_difference"], 4),
-                     Fixed(t["t"], 3), Cell(t["df"]), Fixed(t["p_value"], 4),
-                     Fixed(t["t_critical"], 3), Cell(t["confidence"]), Cell(t["significant"])}});
+                   {{std::to_string(t.n), Fixed(t.mean_difference, 4), Fixed(t.sd_difference, 4),
+                     Fixed(t.t, 3), Cell(json(t.df)), Fixed(t.p_value, 4), Fixed(t.t_critical, 3),
+                     Cell(json(t.confidence)), Cell(json(t.significant))}});
       };
     });
   }

@@ -71,15 +71,17 @@ void RegisterProtocolCommands(CLI::App& app, CliContext& context) {
     list->callback([session, &context] {
       context.action = [session, &context] {
         auto client = Connect(context);
-        const json catalogue = client->Get("/protocols" + SessionQuery(*session));
-        const json items = catalogue.value("protocols", json::array());
+        const std::vector<api::ProtocolInfo> catalogue = FromServer(
+            api::ProtocolCatalogueFromJson(client->Get("/protocols" + SessionQuery(*session))),
+            "protocol catalogue");
         if (context.options.json) {
+          json items = json::array();
+          for (const api::ProtocolInfo& p : catalogue) items.push_back(api::ProtocolInfoToJson(p));
           context.out << items.dump(2) << "\n";
           return;
         }
         std::vector<std::vector<std::string>> rows;
-        for (const json& item : items) {
-          const api::ProtocolInfo p = FromServer(api::ProtocolInfoFromJson(item), "protocol");
+        for (const api::ProtocolInfo& p : catalogue) {
           rows.push_back({p.name, p.thesis_section, p.stimulates ? "yes" : "no", p.bench_mode,
                           std::to_string(p.parameters.size()), p.title});
         }

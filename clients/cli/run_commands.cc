@@ -26,9 +26,11 @@
 #include <thread>
 #include <vector>
 
+#include "api/json_fields.h"
 #include "api/protocol_info.h"
 #include "api/run.h"
 #include "api/run_start.h"
+#include "api/tolerance_run_result.h"
 #include "api/trial.h"
 #include "api/trial_import.h"
 #include "clients/cli/commands.h"
@@ -280,16 +282,17 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
   }
   std::string line = "end " + state;
   if (end->parameter_set_id) line += " parameter_set " + std::to_string(*end->parameter_set_id);
-  const json& result = end->result;
-  if (result.is_object() && result.contains("session_revision")) {
-    line += " threshold_ma " + Cell(result.value("threshold_ma", json(nullptr))) +
-            " max_tolerated_ma " + Cell(result.value("max_tolerated_ma", json(nullptr))) +
-            " session_revision " + Cell(result["session_revision"]);
-    if (result.value("subject_signalled_limit", false)) {
+  const std::optional<api::ToleranceRunResult> tolerance =
+      FromServer(api::ToleranceRunResultFromJson(end->result), "run result");
+  if (tolerance) {
+    line += " threshold_ma " + Cell(api::OrNull(tolerance->threshold_ma)) + " max_tolerated_ma " +
+            Cell(api::OrNull(tolerance->max_tolerated_ma)) + " session_revision " +
+            Cell(api::OrNull(tolerance->session_revision));
+    if (tolerance->subject_signalled_limit.value_or(false)) {
       line += " (the subject signalled the limit)";
     }
-    if (result.value("ended_at_ceiling", false)) {
-      line += " (no max tolerated recorded: " + result.value("message", std::string()) + ")";
+    if (tolerance->ended_at_ceiling) {
+      line += " (no max tolerated recorded: " + tolerance->message + ")";
     }
   }
   if (!json_lines) printer.Line(line);
@@ -452,11 +455,12 @@ void RegisterRunCommands(CLI::App& app, CliContext& context) {
         if (!form->ceiling_reason.empty()) request.ceiling_reason = form->ceiling_reason;
         if (!form->target_csv.empty()) {
           request.target = TargetSamplesFromCsv(form->target_csv);
+          // typed-reads: not JSON (the request's own map of parameters)
           if (!request.parameters.contains("target")) request.choices.try_emplace("target", "uploaded");
         }
         const json started = client.Post("/sessions/" + std::to_string(session) + "/runs",
                                          api::StartRunRequestToJson(request));
-        const std::int64_t run_id = started["run_id"].get<std::int64_t>();
+        const std::int64_t run_id = FromServer(api::RunViewFromJson(started), "run").run_id;
         if (form->detach) {
           if (context.options.json) {
             context.out << started.dump(2) << "\n";

@@ -7,7 +7,7 @@
 
 #include "model/integrators.h"
 #include "model/units.h"
-#include "server/bench/virtual_subject_json.h"
+#include "api/virtual_subject.h"
 
 namespace fesbench::server {
 namespace {

@@ -56,26 +56,6 @@ double DrawDampingNmPerDegS(Draw& draw, const SubjectRanges& ranges,
 
 }  // namespace
 
-Fidelity Fidelity::Off() {
-  Fidelity f;
-  f.twitch_variation = 0.0;
-  f.series_stiffness_nm_per_deg = 0.0;
-  f.hysteresis_nm = 0.0;
-  f.static_friction_nm = 0.0;
-  f.fatigue_rate_per_s = 0.0;
-  f.potentiation_max = 0.0;
-  f.potentiation_rate_per_s = 0.0;
-  f.pot_nonlinearity = 0.0;
-  f.angle_noise_deg = 0.0;
-  f.torque_noise_nm = 0.0;
-  f.accel_noise_m_s2 = 0.0;
-  f.emg_noise_mv = 0.0;
-  f.quantise_adc = false;
-  f.emg_m_wave_mv = 0.0;
-  f.cocontraction_per_min = 0.0;
-  return f;
-}
-
 double HangingAngleDeg(const Anthropometrics& anthropometrics) {
   return 90.0 - anthropometrics.thigh_elevation_deg;
 }

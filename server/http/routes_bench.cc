@@ -97,7 +97,7 @@ api::Result<Reply> ServeEventStream(RequestContext& ctx, std::shared_ptr<EventSt
 json RunViewJson(const services::RunView& view) { return api::RunViewToJson(view); }
 
 // PUT /bench/virtual-subject: a seeded draw of a shape family, or a full
-// subject (server/bench/virtual_subject_json.h).
+// subject (api/virtual_subject.h).
 json VirtualSubjectPutSchema() {
   const json draw = {
       {"type", "object"},

@@ -5,18 +5,9 @@
 #include <utility>
 #include <vector>
 
-#include "api/json_fields.h"
-
 namespace fesbench::server::services {
-namespace {
 
 using nlohmann::json;
-
-json ReportToJson(const model::IdentifyReport& r) {
-  return {{"fit_rms", r.fit_rms}, {"values", r.values}, {"warnings", r.warnings}};
-}
-
-}  // namespace
 
 api::Result<IdentificationRequest> ReadIdentificationRequest(const json& j) {
   api::Result<IdentificationRequest> request = api::IdentificationRequestFromJson(j);
@@ -39,123 +30,34 @@ api::Result<ComparisonRequest> ReadComparisonRequest(const json& j) {
   return request;
 }
 
-json IdentificationResultToJson(const IdentificationResult& r) {
-  json sets = json::array();
-  for (const StoredFit& s : r.stored) {
-    sets.push_back({{"id", s.parameter_set_id}, {"version", s.version}, {"model", s.model}});
+api::PredictionView PredictionViewOf(const PredictionResult& r, bool include_columns) {
+  api::PredictionView v;
+  if (r.prediction_id > 0) v.prediction_id = r.prediction_id;
+  v.evaluation_id = r.evaluation_id;
+  v.parameter_set_id = r.parameter_set_id;
+  v.trial_id = r.trial_id;
+  v.mode = r.mode;
+  v.model = r.model;
+  v.initial_angle_deg = r.initial_angle_deg;
+  v.initial_velocity_deg_s = r.initial_velocity_deg_s;
+  v.samples = r.predicted.size();
+  if (r.predicted.size() >= 2) v.sample_rate_hz = 1.0 / (r.predicted.t_s[1] - r.predicted.t_s[0]);
+  if (include_columns) {
+    v.columns = api::PredictionColumns{r.predicted.t_s,       r.predicted.stim_ma,
+                                       r.predicted.angle_deg, r.predicted.velocity_deg_s,
+                                       r.predicted.torque_nm, r.predicted.activation};
   }
-  return {{"subject_id", r.subject_id},       {"leg_id", r.leg_id},
-          {"parameter_sets", sets},           {"trial_ids", r.trial_ids},
-          {"report", ReportToJson(r.report)}, {"audit_id", r.audit_id}};
-}
-
-json PredictionErrorsToJson(const PredictionErrors& e) {
-  return {{"channel", e.channel},
-          {"unit", e.unit},
-          {"samples", e.samples},
-          {"e_rms", e.e_rms},
-          {"e_abs", e.e_abs},
-          {"max_abs", e.max_abs},
-          {"normalised_rms", api::OrNull(e.normalised_rms)},
-          {"normalised_samples_used", e.normalised_samples_used},
-          {"e_ave", api::OrNull(e.e_ave)}};
+  v.errors = r.errors;
+  v.fitted_scale = r.fitted_scale;
+  v.share_outside_identified_ranges = r.share_outside_identified_ranges;
+  v.released_at_s = r.released_at_s;
+  v.strength_at_start = r.strength_at_start;
+  v.joint_limits = r.joint_limits;
+  return v;
 }
 
 json PredictionResultToJson(const PredictionResult& r, bool include_columns) {
-  json j = {{"prediction_id", r.prediction_id > 0 ? json(r.prediction_id) : json(nullptr)},
-            {"evaluation_id", api::OrNull(r.evaluation_id)},
-            {"parameter_set_id", r.parameter_set_id},
-            {"trial_id", api::OrNull(r.trial_id)},
-            {"mode", PredictionModeName(r.mode)},
-            {"model", r.model},
-            {"initial_angle_deg", r.initial_angle_deg},
-            {"initial_velocity_deg_s", r.initial_velocity_deg_s},
-            {"samples", r.predicted.size()},
-            {"errors", r.errors ? PredictionErrorsToJson(*r.errors) : json(nullptr)},
-            {"fitted_scale", api::OrNull(r.fitted_scale)},
-            {"share_outside_identified_ranges", api::OrNull(r.share_outside_identified_ranges)},
-            {"released_at_s", api::OrNull(r.released_at_s)},
-            {"strength_at_start", api::OrNull(r.strength_at_start)}};
-  j["joint_limits"] = r.joint_limits ? json{{"min_angle_deg", r.joint_limits->min_angle_deg},
-                                            {"max_angle_deg", r.joint_limits->max_angle_deg}}
-                                     : json(nullptr);
-  if (r.predicted.size() >= 2) {
-    j["sample_rate_hz"] = 1.0 / (r.predicted.t_s[1] - r.predicted.t_s[0]);
-  }
-  if (include_columns) {
-    j["columns"] = {{"t_s", r.predicted.t_s},
-                    {"stim_ma", r.predicted.stim_ma},
-                    {"angle_deg", r.predicted.angle_deg},
-                    {"velocity_deg_s", r.predicted.velocity_deg_s},
-                    {"torque_nm", r.predicted.torque_nm},
-                    {"activation", r.predicted.activation}};
-  }
-  return j;
-}
-
-json ComparisonResultToJson(const ComparisonResult& r) {
-  json pairs = json::array();
-  for (const PairComparison& p : r.pairs) {
-    json trials = json::array();
-    for (const TrialComparison& t : p.trials) {
-      trials.push_back({{"trial_id", t.trial_id}, {"a_error", t.a_error}, {"b_error", t.b_error}});
-    }
-    pairs.push_back({{"a_parameter_set_id", p.pair.a_parameter_set_id},
-                     {"b_parameter_set_id", p.pair.b_parameter_set_id},
-                     {"subject_id", p.subject_id},
-                     {"leg_id", p.leg_id},
-                     {"a_error", p.a_error},
-                     {"b_error", p.b_error},
-                     {"trials", trials}});
-  }
-  json test = nullptr;
-  if (r.test) {
-    const model::PairedTTestResult& t = *r.test;
-    test = {{"mean_difference", t.mean_difference},
-            {"sd_difference", t.sd_difference},
-            {"n", t.n},
-            {"t", t.t},
-            {"df", t.df},
-            {"p_value", t.p_value},
-            {"confidence", t.confidence},
-            {"t_critical", t.t_critical},
-            {"significant", t.significant}};
-  }
-  return {{"metric", r.metric},
-          {"unit", r.unit},
-          {"pairs", pairs},
-          {"t_test", test},
-          {"t_test_note", r.test_note.empty() ? json(nullptr) : json(r.test_note)}};
-}
-
-json ModelCheckToJson(const ModelCheck& c) {
-  json trials = json::array();
-  for (const ModelCheckTrial& t : c.trials) {
-    trials.push_back({{"trial_id", t.trial_id},
-                      {"trial_name", t.trial_name},
-                      {"session_id", t.session_id},
-                      {"prediction_id", api::OrNull(t.prediction_id)},
-                      {"quantity", t.quantity},
-                      {"unit", t.unit},
-                      {"e_rms", api::OrNull(t.e_rms)},
-                      {"measured_range", api::OrNull(t.measured_range)},
-                      {"share_outside_identified_ranges", api::OrNull(t.share_outside)},
-                      {"verdict", ModelVerdictName(t.verdict)},
-                      {"explanation", t.explanation}});
-  }
-  const ModelCheckThresholds& th = c.thresholds;
-  return {{"parameter_set_id", c.parameter_set_id},
-          {"verdict", ModelVerdictName(c.verdict)},
-          {"summary", c.summary},
-          {"thresholds",
-           {{"angle_good_deg", th.angle_good_deg},
-            {"angle_care_deg", th.angle_care_deg},
-            {"torque_good_share", th.torque_good_share},
-            {"torque_care_share", th.torque_care_share},
-            {"outside_care_share", th.outside_care_share}}},
-          {"trials", std::move(trials)},
-          {"warnings", c.warnings},
-          {"technical_warnings", c.technical_warnings}};
+  return api::PredictionViewToJson(PredictionViewOf(r, include_columns));
 }
 
 }  // namespace fesbench::server::services

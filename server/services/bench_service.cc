@@ -7,7 +7,7 @@
 #include <string>
 #include <utility>
 
-#include "server/bench/virtual_subject_json.h"
+#include "api/virtual_subject.h"
 #include "storage/audit_log.h"
 
 namespace fesbench::server::services {

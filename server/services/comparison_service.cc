@@ -88,7 +88,8 @@ api::Result<ComparisonResult> ComparisonService::Compare(const ComparisonRequest
             field + ".b_parameter_set_id");
       }
       PairComparison pc;
-      pc.pair = p;
+      pc.a_parameter_set_id = p.a_parameter_set_id;
+      pc.b_parameter_set_id = p.b_parameter_set_id;
       pc.subject_id = sa->summary.subject_id;
       pc.leg_id = sa->summary.leg_id;
       for (std::size_t k = 0; k < p.trial_ids.size(); ++k) {

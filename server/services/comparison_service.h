@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "api/analysis_requests.h"
+#include "api/analysis_results.h"
 #include "api/status.h"
 #include "model/evaluation.h"
 #include "server/services/prediction_service.h"
@@ -28,30 +29,10 @@ using ComparisonPair = api::ComparisonPair;
 using ComparisonRequest = api::ComparisonRequest;
 
 /// The errors of one trial under both sets.
-struct TrialComparison {
-  std::int64_t trial_id = 0;
-  double a_error = 0.0;
-  double b_error = 0.0;
-};
-
-struct PairComparison {
-  ComparisonPair pair;
-  std::int64_t subject_id = 0;
-  std::int64_t leg_id = 0;
-  std::vector<TrialComparison> trials;
-  double a_error = 0.0;  ///< mean over the trials, in the metric's unit.
-  double b_error = 0.0;
-};
-
-struct ComparisonResult {
-  std::string metric;
-  std::string unit;  ///< "deg", "N.m", or "1" (dimensionless metrics).
-  std::vector<PairComparison> pairs;
-  /// Of a_error − b_error over the pairs; unset where undefined (1 pair, or
-  /// all differences equal), `test_note` then says why.
-  std::optional<model::PairedTTestResult> test;
-  std::string test_note;
-};
+/// The result's wire form (api/analysis_results.h).
+using TrialComparison = api::TrialComparison;
+using PairComparison = api::PairComparison;
+using ComparisonResult = api::ComparisonResult;
 
 /// Checks the request alone: kInvalidArgument naming the field ("pairs"
 /// when none, "pairs[1].trial_ids[0]", "metric", "confidence").

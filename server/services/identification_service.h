@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "api/analysis_requests.h"
+#include "api/analysis_results.h"
 #include "api/status.h"
 #include "model/identify_common.h"
 #include "model/simulate.h"
@@ -54,20 +55,9 @@ using IdentificationBreakpoints = api::IdentificationBreakpoints;
 using IdentificationRequest = api::IdentificationRequest;
 
 /// One stored version.
-struct StoredFit {
-  std::int64_t parameter_set_id = 0;
-  int version = 0;
-  std::string model;
-};
-
-struct IdentificationResult {
-  std::int64_t subject_id = 0;
-  std::int64_t leg_id = 0;
-  std::vector<StoredFit> stored;        ///< in request.models order.
-  std::vector<std::int64_t> trial_ids;  ///< the trials used, ascending.
-  model::IdentifyReport report;         ///< fit RMS, figures, warnings of all fits.
-  std::int64_t audit_id = 0;
-};
+/// The result's wire form (api/analysis_results.h).
+using StoredFit = api::StoredFit;
+using IdentificationResult = api::IdentificationResult;
 
 class IdentificationService {
  public:

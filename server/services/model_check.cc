@@ -111,20 +111,6 @@ std::string Summary(const ModelCheck& c) {
 
 }  // namespace
 
-std::string_view ModelVerdictName(ModelVerdict verdict) {
-  switch (verdict) {
-    case ModelVerdict::kGoodForControl:
-      return "good_for_control";
-    case ModelVerdict::kUseWithCare:
-      return "use_with_care";
-    case ModelVerdict::kDoNotUse:
-      return "do_not_use";
-    case ModelVerdict::kNoFreshTrials:
-      return "no_fresh_trials";
-  }
-  return "do_not_use";
-}
-
 std::string ClinicalWarning(const std::string& w) {
   std::smatch m;
   static const std::regex skipped(R"(active: (\d+) stimulated samples with non-positive .*)");

@@ -25,6 +25,7 @@
 #include <string>
 
 #include "api/analysis_requests.h"
+#include "api/analysis_results.h"
 #include "api/status.h"
 #include "model/parameter_set.h"
 #include "model/simulate.h"
@@ -59,20 +60,9 @@ using api::PredictionModeName;
 using StimulusSpec = api::StimulusSpec;
 using PredictionRequest = api::PredictionRequest;
 
-/// The errors of a prediction against a measured trial (ch. 6).
-struct PredictionErrors {
-  std::string channel;  ///< "angle_deg" (free swing) or "torque_nm" (isometric).
-  std::string unit;     ///< "deg" or "N.m".
-  std::size_t samples = 0;
-  double e_rms = 0.0;    ///< Eq. 6.9, unit.
-  double e_abs = 0.0;    ///< Eq. 6.10, unit.
-  double max_abs = 0.0;  ///< unit.
-  /// Eq. 6.1 (dimensionless), with the samples used; unset where undefined
-  /// (every sample excluded).
-  std::optional<double> normalised_rms;
-  std::size_t normalised_samples_used = 0;
-  std::optional<double> e_ave;  ///< Eq. 6.2; unset where Σ data = 0.
-};
+/// The errors of a prediction against a measured trial (ch. 6; the wire
+/// form of api/analysis_results.h).
+using PredictionErrors = api::PredictionErrors;
 
 struct PredictionResult {
   std::int64_t prediction_id = 0;             ///< 0 when not stored.

@@ -2,7 +2,7 @@
 
 #include <utility>
 
-#include "server/bench/virtual_subject_json.h"
+#include "api/virtual_subject.h"
 
 namespace fesbench::server::services {
 

@@ -7,8 +7,8 @@
 
 #include <filesystem>
 
+#include "api/virtual_subject.h"
 #include "server/bench/replay_bench.h"
-#include "server/bench/virtual_subject_json.h"
 #include "storage/audit_log.h"
 #include "storage/subjects.h"
 #include "storage/users.h"

@@ -9,9 +9,9 @@
 #include <vector>
 
 #include "api/parameter_set_json.h"
+#include "api/virtual_subject.h"
 #include "model/evaluation.h"
 #include "model/units.h"
-#include "server/bench/virtual_subject_json.h"
 
 namespace fesbench::server {
 namespace {

@@ -13,6 +13,8 @@
 #include <utility>
 #include <vector>
 
+#include "api/analysis_results.h"
+#include "api/virtual_subject.h"
 #include "clients/cli/study/control.h"
 #include "clients/cli/study/tables.h"
 #include "model/parameter_set.h"
@@ -73,7 +75,7 @@ struct DrawnSubject {
   double body_mass_kg = 0.0;
   double height_m = 0.0;
   double shank_length_m = 0.0;
-  nlohmann::json as_put;  // the server's full JSON of the subject (put again to reset the bench)
+  api::VirtualSubject as_drawn;  // the server's subject (put again to reset the bench)
 };
 
 // Everything one leg recorded: runs, trials, sets, errors, control.
@@ -87,11 +89,11 @@ struct LegData {
   std::map<std::string, std::string> set_failures;  // set key → message
   std::map<std::string, std::string> run_failures;  // run label → message
   std::map<std::string, model::ParameterSet> params;
-  nlohmann::json rapid_provenance;                                   // the rapid set's, as stored
+  std::optional<model::Provenance> rapid_provenance;  // the rapid set's, as stored
   std::map<std::string, std::string> prediction_failures;  // "set|input" → message
   // set key → input label → {e_rms, e_abs} (deg; isometric: N·m)
   std::map<std::string, std::map<std::string, std::pair<double, double>>> errors;
-  std::map<std::string, nlohmann::json> plot_columns;  // "set|input" → predicted columns
+  std::map<std::string, api::PredictionColumns> plot_columns;  // "set|input" → predicted columns
   std::optional<LegControl> control;         // the tracking runs with the rapid set
 };
 

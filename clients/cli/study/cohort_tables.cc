@@ -19,8 +19,6 @@ namespace fesbench::cli::study {
 
 namespace {
 
-using nlohmann::json;
-
 // ---- tables -----------------------------------------------------------
 
 double ErrorOf(const LegData& leg, const std::string& key, const std::string& input) {
@@ -47,24 +45,15 @@ const std::vector<std::string> kTTestHeader = {"input",  "set_a",     "set_b",  
                                                "mean_b", "mean_diff", "sd_diff",    "t", "df",
                                                "p",      "t_crit_95", "significant"};
 
-// An identified range from the provenance, compactly: [lo, hi] → "lo..hi",
-// {curve: [lo, hi], …} → "curve lo..hi; …", anything else as JSON; "n/a"
-// when the set does not record it.
-std::string RangeText(const json& provenance, const char* key) {
-  if (!provenance.is_object() || !provenance.contains(key) || provenance[key].is_null()) {
-    return "n/a";
-  }
-  const auto pair = [](const json& r) -> std::string {
-    if (r.is_array() && r.size() == 2 && r[0].is_number() && r[1].is_number()) {
-      return Num(r[0].get<double>(), 1) + ".." + Num(r[1].get<double>(), 1);
-    }
-    return r.dump();
-  };
-  const json& range = provenance[key];
-  if (!range.is_object()) return pair(range);
+// The ranges a set's curves were identified over, compactly: "curve lo..hi;
+// …"; "n/a" without the set.
+std::string RangeText(const std::optional<model::Provenance>& provenance,
+                      std::map<std::string, model::CurveRange> model::Provenance::*ranges) {
+  if (!provenance) return "n/a";
   std::string text;
-  for (const auto& [curve, r] : range.items())
-    text += (text.empty() ? "" : "; ") + curve + " " + pair(r);
+  for (const auto& [curve, r] : (*provenance).*ranges) {
+    text += (text.empty() ? "" : "; ") + curve + " " + Num(r.lo, 1) + ".." + Num(r.hi, 1);
+  }
   return text;
 }
 
@@ -125,8 +114,8 @@ Table BuildChainTable(const std::vector<LegData>& legs) {
     std::vector<std::string> row = {std::to_string(leg.index), leg.subject.family,
                                     std::to_string(leg.subject.draw_seed)};
     for (std::size_t i = 0; i + 1 < v.size(); ++i) row.push_back(Num(v[i], 3));
-    row.push_back(RangeText(leg.rapid_provenance, "identified_range_deg"));
-    row.push_back(RangeText(leg.rapid_provenance, "identified_range_deg_s"));
+    row.push_back(RangeText(leg.rapid_provenance, &model::Provenance::identified_range_deg));
+    row.push_back(RangeText(leg.rapid_provenance, &model::Provenance::identified_range_deg_s));
     row.push_back(Num(v.back(), 2));
     std::string notes;
     const auto note = [&](const std::string& text) { notes += (notes.empty() ? "" : "; ") + text; };
@@ -226,6 +215,7 @@ void InertiaTable(const std::vector<LegData>& legs, std::vector<Table>& out) {
       cols[key].push_back(j);
       row.push_back(Num(j));
     }
+    // typed-reads: not JSON (the table's column of true values)
     cols["truth"].push_back(leg.subject.truth.passive.inertia_kgm2);
     row.push_back(Num(leg.subject.truth.passive.inertia_kgm2));
     t.rows.push_back(row);

@@ -53,18 +53,22 @@ const std::vector<Condition>& Conditions() {
   return conditions;
 }
 
-double ValueOr(const json& values, const char* key) {
+// A figure the run decided, NaN when it has none (docs/PROTOCOLS.md, tracking).
+double ValueOr(const std::map<std::string, double>& values, const char* key) {
   const auto it = values.find(key);
-  return it != values.end() && it->is_number() ? it->get<double>() : kNaN;
+  return it != values.end() ? it->second : kNaN;
 }
 
 }  // namespace
 
-json RunProtocol(ApiClient& client, std::int64_t session_id, const api::StartRunRequest& request) {
+api::RunView RunProtocol(ApiClient& client, std::int64_t session_id,
+                         const api::StartRunRequest& request) {
   const std::string& protocol = request.protocol;
-  const json started = client.Post("/sessions/" + std::to_string(session_id) + "/runs",
-                                   api::StartRunRequestToJson(request));
-  const std::int64_t run_id = started.at("run_id").get<std::int64_t>();
+  const api::RunView started = FromServer(
+      api::RunViewFromJson(client.Post("/sessions/" + std::to_string(session_id) + "/runs",
+                                       api::StartRunRequestToJson(request))),
+      "run");
+  const std::int64_t run_id = started.run_id;
   const std::string path = "/runs/" + std::to_string(run_id);
   for (;;) {
     try {
@@ -72,9 +76,8 @@ json RunProtocol(ApiClient& client, std::int64_t session_id, const api::StartRun
     } catch (const CliError&) {
       // The run may have just ended; its state below says so.
     }
-    const json run = client.Get(path);
-    const api::RunView view = FromServer(api::RunViewFromJson(run), "run");
-    if (view.state == api::RunState::kDone) return run;
+    api::RunView view = FromServer(api::RunViewFromJson(client.Get(path)), "run");
+    if (view.state == api::RunState::kDone) return view;
     if (api::IsFinal(view.state)) {
       throw CliError::Server("study: run " + std::to_string(run_id) + " (" + protocol + ") " +
                              std::string(api::RunStateName(view.state)) + ": " + view.reason);
@@ -85,27 +88,24 @@ json RunProtocol(ApiClient& client, std::int64_t session_id, const api::StartRun
 
 LegControl RunLegControl(ApiClient& client, int index, const std::string& family,
                          std::int64_t session_id, std::int64_t parameter_set_id,
-                         const json& subject, std::ostream& log) {
+                         const api::VirtualSubject& subject, std::ostream& log) {
   LegControl leg;
   leg.index = index;
   leg.family = family;
   leg.parameter_set_id = parameter_set_id;
   for (const Condition& condition : Conditions()) {
-    json put = subject;
-    if (condition.fatigue_factor > 0.0) {
-      json& rate = put.at("fidelity").at("fatigue_rate_per_s");
-      rate = rate.get<double>() * condition.fatigue_factor;
-    }
+    api::VirtualSubject put = subject;
+    if (condition.fatigue_factor > 0.0) put.fidelity.fatigue_rate_per_s *= condition.fatigue_factor;
     for (const std::string& controller : kControllers) {
       // A fresh bench: no controller inherits another's fatigue.
-      client.Put("/bench/virtual-subject", put);
+      client.Put("/bench/virtual-subject", api::VirtualSubjectToJson(put));
       api::StartRunRequest request = condition.tracking;
       request.choices["controller"] = controller;
       request.parameters["parameter_set_id"] = static_cast<double>(parameter_set_id);
       TrackingFigures& f = leg.runs[condition.name][controller];
       try {
-        const json run = RunProtocol(client, session_id, request);
-        const json& v = run.at("values");
+        const api::RunView run = RunProtocol(client, session_id, request);
+        const std::map<std::string, double>& v = run.values;
         f.rms_deg = ValueOr(v, "tracking_rms_deg");
         f.max_error_deg = ValueOr(v, "tracking_max_error_deg");
         f.overshoot_deg = ValueOr(v, "overshoot_deg");
@@ -132,7 +132,7 @@ LegControl RunLegControl(ApiClient& client, int index, const std::string& family
       }
     }
   }
-  client.Put("/bench/virtual-subject", subject);
+  client.Put("/bench/virtual-subject", api::VirtualSubjectToJson(subject));
   return leg;
 }
 
@@ -250,6 +250,7 @@ void WriteControlChapter(const std::vector<LegControl>& legs, const std::filesys
         }
       }
     }
+    // typed-reads: not JSON (the study's own map of conditions and controllers)
     row.push_back(Num(leg.runs.at("fatigue").at("adaptive").tau_scale_nm, 2));
     per_leg.rows.push_back(std::move(row));
   }

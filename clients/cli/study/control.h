@@ -18,15 +18,17 @@
 #include <string>
 #include <vector>
 
+#include "api/run.h"
 #include "api/run_start.h"
+#include "api/virtual_subject.h"
 #include "clients/cli/api_client.h"
 
 namespace fesbench::cli::study {
 
-/// Starts a protocol and heart-beats it to its end; the run's final JSON.
+/// Starts a protocol and heart-beats it to its end; the run as it ended.
 /// Throws CliError (server class) when the run is refused, fails or aborts.
-nlohmann::json RunProtocol(ApiClient& client, std::int64_t session_id,
-                           const api::StartRunRequest& request);
+api::RunView RunProtocol(ApiClient& client, std::int64_t session_id,
+                         const api::StartRunRequest& request);
 
 /// One tracking run's figures, or why there are none.
 struct TrackingFigures {
@@ -60,7 +62,7 @@ struct LegControl {
 /// /bench/virtual-subject), put again before every run.
 LegControl RunLegControl(ApiClient& client, int index, const std::string& family,
                          std::int64_t session_id, std::int64_t parameter_set_id,
-                         const nlohmann::json& subject, std::ostream& log);
+                         const api::VirtualSubject& subject, std::ostream& log);
 
 /// The chapter's tables as Markdown (and one CSV each in dir).
 void WriteControlChapter(const std::vector<LegControl>& legs, const std::filesystem::path& dir,

@@ -21,8 +21,11 @@
 #include <vector>
 
 #include "api/analysis_requests.h"
+#include "api/analysis_results.h"
 #include "api/parameter_set_json.h"
+#include "api/resources.h"
 #include "api/trial.h"
+#include "api/virtual_subject.h"
 #include "clients/cli/cli.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/study/cohort.h"
@@ -74,22 +77,18 @@ DrawnSubject DrawSubject(ApiClient& client, std::uint64_t draw_seed, const std::
   DrawnSubject subject;
   subject.family = family;
   subject.draw_seed = draw_seed;
-  try {
-    auto truth = api::ParameterSetFromJson(drawn.at("truth"));
-    if (!truth.ok()) {
-      throw CliError::Server("study: the drawn subject's truth: " + truth.status().ToString());
-    }
-    subject.truth = std::move(truth).value();
-    subject.as_put = drawn;
-    subject.threshold_ma = drawn.at("threshold_ma").get<double>();
-    subject.max_tolerated_ma = drawn.at("max_tolerated_ma").get<double>();
-    const json& a = drawn.at("anthropometrics");
-    subject.body_mass_kg = a.at("body_mass_kg").get<double>();
-    subject.height_m = a.at("height_m").get<double>();
-    subject.shank_length_m = a.at("shank_length_m").get<double>();
-  } catch (const json::exception& e) {
-    throw CliError::Server(std::string("study: the drawn subject's JSON: ") + e.what());
+  api::Result<api::VirtualSubject> read = api::VirtualSubjectFromJson(drawn);
+  if (!read.ok()) {
+    throw CliError::Server("study: the drawn subject: " + read.status().ToString());
   }
+  subject.as_drawn = *std::move(read);
+  const api::VirtualSubject& drawn_subject = subject.as_drawn;
+  subject.truth = drawn_subject.truth;
+  subject.threshold_ma = drawn_subject.threshold_ma;
+  subject.max_tolerated_ma = drawn_subject.max_tolerated_ma;
+  subject.body_mass_kg = drawn_subject.anthropometrics.body_mass_kg;
+  subject.height_m = drawn_subject.anthropometrics.height_m;
+  subject.shank_length_m = drawn_subject.anthropometrics.shank_length_m;
   return subject;
 }
 
@@ -107,8 +106,8 @@ JobOutcome AwaitStudyJob(ApiClient& client, std::int64_t job_id) {
 }
 
 JobOutcome Submit(ApiClient& client, const std::string& path, const json& body) {
-  const json job = client.Post(path, body);
-  return AwaitStudyJob(client, job.at("id").get<std::int64_t>());
+  const api::JobReport job = FromServer(api::JobReportFromJson(client.Post(path, body)), "job");
+  return AwaitStudyJob(client, job.id);
 }
 
 std::vector<std::int64_t> TrialIds(const LegData& leg, const std::vector<std::string>& names) {
@@ -129,6 +128,15 @@ api::IdentificationRequest ThesisFit(std::vector<std::int64_t> trial_ids,
   return request;
 }
 
+// Stores the sets an identification returned under `keys` (by model order).
+void StoreSets(LegData& leg, const std::vector<std::string>& keys, const JobOutcome& outcome) {
+  const api::IdentificationResult result =
+      FromServer(api::IdentificationResultFromJson(outcome.result), "identification");
+  for (std::size_t i = 0; i < keys.size() && i < result.stored.size(); ++i) {
+    leg.sets[keys[i]] = result.stored[i].parameter_set_id;
+  }
+}
+
 // One identification; stores every returned set under `keys` (by model
 // order) or records the failure.
 void Identify(ApiClient& client, LegData& leg, const api::IdentificationRequest& request,
@@ -141,33 +149,18 @@ void Identify(ApiClient& client, LegData& leg, const api::IdentificationRequest&
     log << "  leg " << leg.index << ": " << keys.front() << " failed: " << outcome.error << "\n";
     return;
   }
-  const json& sets = outcome.result.at("parameter_sets");
-  for (std::size_t i = 0; i < keys.size() && i < sets.size(); ++i) {
-    leg.sets[keys[i]] = sets[i].at("id").get<std::int64_t>();
-  }
+  StoreSets(leg, keys, outcome);
 }
 
 void FetchParams(ApiClient& client, LegData& leg) {
   for (const auto& [key, id] : leg.sets) {
-    const json stored = client.Get("/parameter-sets/" + std::to_string(id));
-    auto parsed = api::ParameterSetFromJson(stored.at("parameters"));
-    if (parsed.ok()) leg.params[key] = std::move(parsed).value();
-    if (key != "rapid") continue;
-    // The provenance as the server stored it: fields this client does not
-    // parse (e.g. identified ranges) are kept.
-    const json& parameters = stored.at("parameters");
-    if (parameters.is_object() && parameters.contains("provenance")) {
-      leg.rapid_provenance = parameters["provenance"];
-    } else if (stored.contains("provenance")) {
-      leg.rapid_provenance = stored["provenance"];
-    }
+    const api::ParameterSetResource stored = FromServer(
+        api::ParameterSetResourceFromJson(client.Get("/parameter-sets/" + std::to_string(id))),
+        "parameter set");
+    if (!stored.parameters) continue;
+    leg.params[key] = *stored.parameters;
+    if (key == "rapid") leg.rapid_provenance = stored.parameters->provenance;
   }
-}
-
-// A JSON number, or NaN for null / missing.
-double NumberOr(const json& object, const char* key) {
-  const auto it = object.find(key);
-  return it != object.end() && it->is_number() ? it->get<double>() : kNaN;
 }
 
 void Predict(ApiClient& client, LegData& leg, const std::string& key, const std::string& input,
@@ -192,23 +185,24 @@ void Predict(ApiClient& client, LegData& leg, const std::string& key, const std:
     if (e.exit_code() != kExitServer) throw;
     outcome.error = e.what();
   }
-  if (outcome.error.empty() &&
-      (!outcome.result.contains("errors") || !outcome.result["errors"].is_object())) {
-    outcome.error = "the prediction returned no errors";
+  std::optional<api::PredictionView> prediction;
+  if (outcome.error.empty()) {
+    prediction = FromServer(api::PredictionViewFromJson(outcome.result), "prediction");
+    if (!prediction->errors) outcome.error = "the prediction returned no errors";
   }
   if (!outcome.error.empty()) {
     leg.errors[key][input] = {kNaN, kNaN};
     leg.prediction_failures[key + "|" + input] = outcome.error;
     return;
   }
-  const json& e = outcome.result["errors"];
-  leg.errors[key][input] = {NumberOr(e, "e_rms"), NumberOr(e, "e_abs")};
+  const api::PredictionErrors& e = *prediction->errors;
+  leg.errors[key][input] = {e.e_rms, e.e_abs};
   if (isometric) {
-    leg.errors[key][input + "_normalised"] = {NumberOr(e, "normalised_rms"), kNaN};
-    leg.errors[key][input + "_e_ave"] = {NumberOr(e, "e_ave"), kNaN};
+    leg.errors[key][input + "_normalised"] = {e.normalised_rms.value_or(kNaN), kNaN};
+    leg.errors[key][input + "_e_ave"] = {e.e_ave.value_or(kNaN), kNaN};
   }
-  if (keep_columns && outcome.result.contains("columns")) {
-    leg.plot_columns[key + "|" + input] = outcome.result["columns"];
+  if (keep_columns && prediction->columns) {
+    leg.plot_columns[key + "|" + input] = *std::move(prediction->columns);
   }
 }
 
@@ -227,25 +221,26 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   const std::string code =
       "V" + std::to_string(options.seed) + "-" + std::to_string(index) + "-" +
       std::to_string(std::chrono::system_clock::now().time_since_epoch().count() % 100000000);
-  const json subject =
+  const json subject_answer =
       client.Post("/subjects", {{"code", code},
                                 {"legs", {"right"}},
                                 {"details",
                                  {{"weight_kg", vs.body_mass_kg},
                                   {"height_cm", vs.height_m * 100.0},
                                   {"shank_length_cm", vs.shank_length_m * 100.0}}}});
-  const json session =
-      client.Post("/subjects/" + std::to_string(subject.at("id").get<std::int64_t>()) + "/sessions",
-                  {{"leg", "right"},
-                   {"date", options.date},
-                   {"threshold_ma", vs.threshold_ma},
-                   {"max_tolerated_ma", vs.max_tolerated_ma}});
-  leg.session_id = session.at("id").get<std::int64_t>();
+  const api::SubjectResource subject =
+      FromServer(api::SubjectResourceFromJson(subject_answer), "subject");
+  const json session = client.Post("/subjects/" + std::to_string(subject.id) + "/sessions",
+                                   {{"leg", "right"},
+                                    {"date", options.date},
+                                    {"threshold_ma", vs.threshold_ma},
+                                    {"max_tolerated_ma", vs.max_tolerated_ma}});
+  leg.session_id = FromServer(api::SessionResourceFromJson(session), "session").id;
 
   std::int64_t rapid_set = 0;
   std::map<std::int64_t, std::string> relabel;  // run id → its trial's study name
   for (const auto& spec : kRuns) {
-    json run;
+    api::RunView run;
     try {
       run = RunProtocol(client, leg.session_id, spec.request);
     } catch (const CliError& e) {
@@ -258,20 +253,19 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
       log << "  leg " << index << ": " << e.what() << "\n";
       continue;
     }
-    leg.bench_s[spec.label] = run.value("bench_total_s", kNaN);
-    if (spec.label != spec.request.protocol) relabel[run.at("run_id").get<std::int64_t>()] = spec.label;
-    if (spec.request.protocol == kRapid && run["parameter_set_id"].is_number_integer()) {
-      rapid_set = run["parameter_set_id"].get<std::int64_t>();
-    }
+    leg.bench_s[spec.label] = run.progress.bench_total_s;
+    if (spec.label != spec.request.protocol) relabel[run.run_id] = spec.label;
+    if (spec.request.protocol == kRapid && run.parameter_set_id) rapid_set = *run.parameter_set_id;
   }
-  for (const auto& trial :
+  for (const auto& listed :
        client.GetAllPages("/sessions/" + std::to_string(leg.session_id) + "/trials", "")) {
-    std::string name = trial.at("name").get<std::string>();
-    if (const auto run_id = trial.find("run_id"); run_id != trial.end() && run_id->is_number()) {
-      const auto it = relabel.find(run_id->get<std::int64_t>());
+    const api::TrialResource trial = FromServer(api::TrialResourceFromJson(listed), "trial");
+    std::string name = trial.name.value_or("");
+    if (trial.run_id) {
+      const auto it = relabel.find(*trial.run_id);
       if (it != relabel.end()) name = it->second;
     }
-    leg.trials[name] = trial.at("id").get<std::int64_t>();
+    leg.trials[name] = trial.id;
   }
   if (rapid_set != 0) leg.sets["rapid"] = rapid_set;
 
@@ -302,10 +296,7 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
     const JobOutcome first =
         Submit(client, "/identifications", api::IdentificationRequestToJson(request));
     if (first.error.empty()) {
-      const json& sets = first.result.at("parameter_sets");
-      for (std::size_t i = 0; i < keys.size() && i < sets.size(); ++i) {
-        leg.sets[keys[i]] = sets[i].at("id").get<std::int64_t>();
-      }
+      StoreSets(leg, keys, first);
     } else if (leg.sets.count(SetKey("simultaneous", train)) != 0) {
       log << "  leg " << leg.index << ": " << keys.front() << " with the position holds failed ("
           << first.error << "); retrying with the simultaneous set's tau_pta\n";
@@ -359,8 +350,8 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   }
   // Control with the rapid set (docs/STUDY.md, "Control").
   if (const auto rapid = leg.sets.find("rapid"); rapid != leg.sets.end()) {
-    leg.control = RunLegControl(client, index, family, leg.session_id, rapid->second,
-                                vs.as_put, log);
+    leg.control =
+        RunLegControl(client, index, family, leg.session_id, rapid->second, vs.as_drawn, log);
   }
   log << "leg " << index << " done (" << leg.sets.size() << " parameter sets)\n" << std::flush;
   return leg;
@@ -395,9 +386,8 @@ bool WritePlots(ApiClient& client, const LegData& leg, const fs::path& dir, bool
       for (const auto& key : shown) {
         auto c = leg.plot_columns.find(key + "|" + input.label);
         double v = kNaN;
-        if (c != leg.plot_columns.end() && c->second.contains("angle_deg") &&
-            i < c->second["angle_deg"].size()) {
-          v = c->second["angle_deg"][i].get<double>();
+        if (c != leg.plot_columns.end() && i < c->second.angle_deg.size()) {
+          v = c->second.angle_deg[i];
         }
         out << " " << (std::isfinite(v) ? Num(v, 3) : "NaN");
       }

@@ -1,4 +1,4 @@
-#include "server/bench/virtual_subject_json.h"
+#include "api/virtual_subject.h"
 
 #include <cmath>
 #include <limits>
@@ -11,7 +11,7 @@
 #include "model/contraction.h"
 #include "model/joint_model.h"
 
-namespace fesbench::server {
+namespace fesbench::api {
 namespace {
 
 using nlohmann::json;
@@ -67,21 +67,21 @@ std::string Num(double v) {
 }
 
 template <class T>
-api::Status CheckNumber(const NumberField<T>& f, double v, const std::string& path) {
-  if (!std::isfinite(v)) return api::Status::InvalidArgument("must be finite", path);
+Status CheckNumber(const NumberField<T>& f, double v, const std::string& path) {
+  if (!std::isfinite(v)) return Status::InvalidArgument("must be finite", path);
   const bool low = f.lo_open ? !(v > f.lo) : !(v >= f.lo);
   if (low || v > f.hi) {
     std::string range = std::string(f.lo_open ? "(" : "[") + Num(f.lo) + ", " +
                         (f.hi == kInf ? std::string("inf)") : Num(f.hi) + "]");
-    return api::Status::InvalidArgument("must be in " + range + ", got " + Num(v), path);
+    return Status::InvalidArgument("must be in " + range + ", got " + Num(v), path);
   }
   return {};
 }
 
 template <class T, std::size_t N>
-api::Status CheckAll(const NumberField<T> (&fields)[N], const T& value, const std::string& prefix) {
+Status CheckAll(const NumberField<T> (&fields)[N], const T& value, const std::string& prefix) {
   for (const auto& f : fields) {
-    api::Status st = CheckNumber(f, value.*(f.member), prefix + "." + f.key);
+    Status st = CheckNumber(f, value.*(f.member), prefix + "." + f.key);
     if (!st.ok()) return st;
   }
   return {};
@@ -89,15 +89,15 @@ api::Status CheckAll(const NumberField<T> (&fields)[N], const T& value, const st
 
 // Reads the optional section `key` of `j` into `out` (fields default).
 template <class T, std::size_t N>
-api::Status ReadSection(const json& j, const char* key, const NumberField<T> (&fields)[N],
-                        const char* bool_key, bool T::*bool_member, T& out) {
+Status ReadSection(const json& j, const char* key, const NumberField<T> (&fields)[N],
+                   const char* bool_key, bool T::*bool_member, T& out) {
   const auto it = j.find(key);
   if (it == j.end() || it->is_null()) return {};
-  if (!it->is_object()) return api::Status::InvalidArgument("must be an object", key);
+  if (!it->is_object()) return Status::InvalidArgument("must be an object", key);
   for (auto m = it->begin(); m != it->end(); ++m) {
     const std::string path = std::string(key) + "." + m.key();
     if (bool_key != nullptr && m.key() == bool_key) {
-      if (!m->is_boolean()) return api::Status::InvalidArgument("must be true or false", path);
+      if (!m->is_boolean()) return Status::InvalidArgument("must be true or false", path);
       out.*bool_member = m->get<bool>();
       continue;
     }
@@ -105,23 +105,23 @@ api::Status ReadSection(const json& j, const char* key, const NumberField<T> (&f
     for (const auto& f : fields) {
       if (m.key() == f.key) field = &f;
     }
-    if (field == nullptr) return api::Status::InvalidArgument("unknown field", path);
-    if (!m->is_number()) return api::Status::InvalidArgument("must be a number", path);
+    if (field == nullptr) return Status::InvalidArgument("unknown field", path);
+    if (!m->is_number()) return Status::InvalidArgument("must be a number", path);
     const double v = m->get<double>();
-    api::Status st = CheckNumber(*field, v, path);
+    Status st = CheckNumber(*field, v, path);
     if (!st.ok()) return st;
     out.*(field->member) = v;
   }
   return {};
 }
 
-api::Status CheckLevels(const VirtualSubject& s) {
+Status CheckLevels(const VirtualSubject& s) {
   if (!std::isfinite(s.threshold_ma) || s.threshold_ma < 0.0) {
-    return api::Status::InvalidArgument("must be a finite amplitude >= 0 mA", "threshold_ma");
+    return Status::InvalidArgument("must be a finite amplitude >= 0 mA", "threshold_ma");
   }
   if (!std::isfinite(s.max_tolerated_ma) || !(s.max_tolerated_ma > s.threshold_ma) ||
       s.max_tolerated_ma > 100.0) {
-    return api::Status::InvalidArgument(
+    return Status::InvalidArgument(
         "must be above threshold_ma (" + Num(s.threshold_ma) + " mA) and at most 100 mA",
         "max_tolerated_ma");
   }
@@ -129,6 +129,26 @@ api::Status CheckLevels(const VirtualSubject& s) {
 }
 
 }  // namespace
+
+Fidelity Fidelity::Off() {
+  Fidelity f;
+  f.twitch_variation = 0.0;
+  f.series_stiffness_nm_per_deg = 0.0;
+  f.hysteresis_nm = 0.0;
+  f.static_friction_nm = 0.0;
+  f.fatigue_rate_per_s = 0.0;
+  f.potentiation_max = 0.0;
+  f.potentiation_rate_per_s = 0.0;
+  f.pot_nonlinearity = 0.0;
+  f.angle_noise_deg = 0.0;
+  f.torque_noise_nm = 0.0;
+  f.accel_noise_m_s2 = 0.0;
+  f.emg_noise_mv = 0.0;
+  f.quantise_adc = false;
+  f.emg_m_wave_mv = 0.0;
+  f.cocontraction_per_min = 0.0;
+  return f;
+}
 
 json FidelityToJson(const Fidelity& fidelity) {
   json j = json::object();
@@ -142,15 +162,15 @@ json VirtualSubjectToJson(const VirtualSubject& s) {
   for (const auto& f : kAnthroNumbers) anthro[f.key] = s.anthropometrics.*(f.member);
   return {{"name", s.name},
           {"seed", s.seed},
-          {"truth", api::ParameterSetToJson(s.truth)},
+          {"truth", ParameterSetToJson(s.truth)},
           {"threshold_ma", s.threshold_ma},
           {"max_tolerated_ma", s.max_tolerated_ma},
           {"anthropometrics", anthro},
           {"fidelity", FidelityToJson(s.fidelity)}};
 }
 
-api::Status ValidateVirtualSubject(const VirtualSubject& s) {
-  if (api::Status valid = api::CallModel(
+Status ValidateVirtualSubject(const VirtualSubject& s) {
+  if (Status valid = CallModel(
           [&] {
             model::ValidateContraction(s.truth.contraction);
             (void)model::JointModel::FromParameters(s.truth);
@@ -159,65 +179,63 @@ api::Status ValidateVirtualSubject(const VirtualSubject& s) {
       !valid.ok()) {
     return valid;
   }
-  if (s.truth.irc.empty()) return api::Status::InvalidArgument("must not be empty", "truth.irc");
-  if (api::Status st = CheckLevels(s); !st.ok()) return st;
-  if (api::Status st = CheckAll(kAnthroNumbers, s.anthropometrics, "anthropometrics"); !st.ok()) {
+  if (s.truth.irc.empty()) return Status::InvalidArgument("must not be empty", "truth.irc");
+  if (Status st = CheckLevels(s); !st.ok()) return st;
+  if (Status st = CheckAll(kAnthroNumbers, s.anthropometrics, "anthropometrics"); !st.ok()) {
     return st;
   }
   return CheckAll(kFidelityNumbers, s.fidelity, "fidelity");
 }
 
-api::Result<VirtualSubject> VirtualSubjectFromJson(const json& j) {
-  if (!j.is_object()) return api::Status::InvalidArgument("a virtual subject must be an object");
-  static constexpr std::string_view kKnown[] = {"name",         "seed",
-                                                "truth",        "threshold_ma",
-                                                "max_tolerated_ma", "anthropometrics",
-                                                "fidelity"};
+Result<VirtualSubject> VirtualSubjectFromJson(const json& j) {
+  if (!j.is_object()) return Status::InvalidArgument("a virtual subject must be an object");
+  static constexpr std::string_view kKnown[] = {
+      "name", "seed", "truth", "threshold_ma", "max_tolerated_ma", "anthropometrics", "fidelity"};
   for (auto it = j.begin(); it != j.end(); ++it) {
     bool known = false;
     for (std::string_view k : kKnown) known = known || it.key() == k;
-    if (!known) return api::Status::InvalidArgument("unknown field", it.key());
+    if (!known) return Status::InvalidArgument("unknown field", it.key());
   }
   VirtualSubject s;
   if (const auto it = j.find("name"); it != j.end()) {
-    if (!it->is_string()) return api::Status::InvalidArgument("must be a string", "name");
+    if (!it->is_string()) return Status::InvalidArgument("must be a string", "name");
     s.name = it->get<std::string>();
   }
   if (const auto it = j.find("seed"); it != j.end()) {
     if (!it->is_number_unsigned()) {
-      return api::Status::InvalidArgument("must be a non-negative integer", "seed");
+      return Status::InvalidArgument("must be a non-negative integer", "seed");
     }
     s.seed = it->get<std::uint64_t>();
   }
   const auto truth = j.find("truth");
-  if (truth == j.end()) return api::Status::InvalidArgument("missing required field", "truth");
-  api::Result<model::ParameterSet> params = api::ParameterSetFromJson(*truth);
+  if (truth == j.end()) return Status::InvalidArgument("missing required field", "truth");
+  Result<model::ParameterSet> params = ParameterSetFromJson(*truth);
   if (!params.ok()) {
     const std::string& inner = params.status().field();
-    return api::Status::InvalidArgument(params.status().message(),
-                                        inner.empty() ? "truth" : "truth." + inner);
+    return Status::InvalidArgument(params.status().message(),
+                                   inner.empty() ? "truth" : "truth." + inner);
   }
   s.truth = std::move(params).value();
   for (const char* key : {"threshold_ma", "max_tolerated_ma"}) {
     const auto it = j.find(key);
-    if (it == j.end()) return api::Status::InvalidArgument("missing required field", key);
-    if (!it->is_number()) return api::Status::InvalidArgument("must be a number", key);
+    if (it == j.end()) return Status::InvalidArgument("missing required field", key);
+    if (!it->is_number()) return Status::InvalidArgument("must be a number", key);
     (std::string_view(key) == "threshold_ma" ? s.threshold_ma : s.max_tolerated_ma) =
         it->get<double>();
   }
-  if (api::Status st = CheckLevels(s); !st.ok()) return st;
-  if (api::Status st = ReadSection<Anthropometrics>(j, "anthropometrics", kAnthroNumbers, nullptr,
-                                                    nullptr, s.anthropometrics);
+  if (Status st = CheckLevels(s); !st.ok()) return st;
+  if (Status st = ReadSection<Anthropometrics>(j, "anthropometrics", kAnthroNumbers, nullptr,
+                                               nullptr, s.anthropometrics);
       !st.ok()) {
     return st;
   }
-  if (api::Status st = ReadSection<Fidelity>(j, "fidelity", kFidelityNumbers, kQuantiseKey,
-                                             &Fidelity::quantise_adc, s.fidelity);
+  if (Status st = ReadSection<Fidelity>(j, "fidelity", kFidelityNumbers, kQuantiseKey,
+                                        &Fidelity::quantise_adc, s.fidelity);
       !st.ok()) {
     return st;
   }
-  if (api::Status st = ValidateVirtualSubject(s); !st.ok()) return st;
+  if (Status st = ValidateVirtualSubject(s); !st.ok()) return st;
   return s;
 }
 
-}  // namespace fesbench::server
+}  // namespace fesbench::api
