@@ -194,9 +194,9 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
                                      std::pair{contraction_order.has_value(), "contraction_order"},
                                      std::pair{pole_method.has_value(), "pole_method"}}) {
       if (given) {
-        return Status::InvalidArgument(std::string("method passive fits no stimulated trial; ") +
-                                           key + " needs method thesis",
-                                       key);
+        return Status::InvalidArgument(
+            std::string("method passive fits no stimulated trial; ") + key + " needs method thesis",
+            key);
       }
     }
     if (passive_method && *passive_method != PassiveMethod::kFreeSwing) {
@@ -208,10 +208,10 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
   }
   if (r.method == IdentificationMethod::kRapid) {
     if (irc_method && *irc_method != IrcMethod::kRampCorrelation) {
-      return Status::InvalidArgument(
-          "method rapid fits the IRC by ramp_correlation; irc_method " + std::string(IrcMethods().Name(*irc_method)) +
-              " needs method thesis",
-          "irc_method");
+      return Status::InvalidArgument("method rapid fits the IRC by ramp_correlation; irc_method " +
+                                         std::string(IrcMethods().Name(*irc_method)) +
+                                         " needs method thesis",
+                                     "irc_method");
     }
     if (passive_method && *passive_method != PassiveMethod::kFreeSwing) {
       return Status::InvalidArgument(
@@ -230,9 +230,8 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
     }
   }
   r.irc_method = irc_method.value_or(r.irc_method);
-  r.passive_method = passive_method.value_or(r.method == IdentificationMethod::kThesis
-                                                 ? r.passive_method
-                                                 : PassiveMethod::kFreeSwing);
+  r.passive_method = passive_method.value_or(
+      r.method == IdentificationMethod::kThesis ? r.passive_method : PassiveMethod::kFreeSwing);
   r.contraction_order = static_cast<int>(contraction_order.value_or(3));
   r.pole_method = pole_method.value_or(r.pole_method);
   if (const json* models = fields.Any("models", false)) {

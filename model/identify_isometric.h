@@ -9,8 +9,8 @@
 /// its torque column is the brace torque (any constant offset is removed
 /// per event from the samples just before it).
 
-#include <cstddef>
 #include <array>
+#include <cstddef>
 #include <optional>
 #include <span>
 #include <string_view>

@@ -177,8 +177,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
       context.action = [form, &context] {
         api::IdentificationRequest request;
         request.session_id = ParseId(form->session, "session");
-        request.method =
-            model::IdentificationMethodFromName(form->method).value_or(request.method);
+        request.method = model::IdentificationMethodFromName(form->method).value_or(request.method);
         request.inertia_kgm2 = form->inertia_kgm2;
         request.gravity_moment_nm = form->gravity_moment_nm;
         // Every flag given reaches the request as given, even where the

@@ -397,7 +397,8 @@ model::ParameterSet RunIdentify(std::string_view method, std::vector<model::Tria
     Condition(trials, opt, rep);
     return Dispatch(method, trials, params_in, opt, rep);
   });
-  if (!fitted.ok()) throw CliError::BadInput(std::string(method) + ": " + fitted.status().message());
+  if (!fitted.ok())
+    throw CliError::BadInput(std::string(method) + ": " + fitted.status().message());
   model::ParameterSet out = *std::move(fitted);
   opt.RequireAllUsed();
   for (const auto& [k, v] : rep.fit_rms) out.provenance.fit_rms[k] = v;

@@ -21,7 +21,6 @@
 #include "model/identify_simplified.h"
 #include "model/parameter_set.h"
 #include "model/quality.h"
-#include "server/services/model_failure.h"
 #include "server/services/stored_trials.h"
 #include "storage/audit_log.h"
 #include "storage/parameter_sets.h"
@@ -95,24 +94,31 @@ class Fitter {
         ctx_(context),
         passive_(request.passive_method) {}
 
+  // What the model refuses in the stored trials is a failed precondition
+  // of the fit, named by the stage it stopped in (docs/ARCHITECTURE.md, Errors).
   api::Result<FitOutcome> Run() {
-    try {
-      switch (req_.method) {
-        case model::IdentificationMethod::kRapid:
-          return Rapid();
-        case model::IdentificationMethod::kPassive:
-          return PassiveOnly();
-        case model::IdentificationMethod::kThesis:
-          break;
-      }
-      return Thesis();
-    } catch (const std::exception& e) {
-      return ModelFailure("identification (" + stage_ + ")", e,
-                          api::ErrorCode::kFailedPrecondition);
+    api::Result<api::Result<FitOutcome>> fitted =
+        api::CallModel([&] { return Method(); }, {}, api::ErrorCode::kFailedPrecondition);
+    if (!fitted.ok()) {
+      return api::Status(fitted.status().code(),
+                         "identification (" + stage_ + "): " + fitted.status().message());
     }
+    return std::move(fitted).value();
   }
 
  private:
+  api::Result<FitOutcome> Method() {
+    switch (req_.method) {
+      case model::IdentificationMethod::kRapid:
+        return Rapid();
+      case model::IdentificationMethod::kPassive:
+        return PassiveOnly();
+      case model::IdentificationMethod::kThesis:
+        break;
+    }
+    return Thesis();
+  }
+
   TrialColumns Columns(const LoadedTrial& t) {
     used_.insert(t.id);
     TrialColumns c = api::ToTrialColumns(t.trial);
@@ -170,9 +176,8 @@ class Fitter {
           Missing("irc_method impulse", "an isometric_impulse_irc trial"));
     } else if (irc != model::IrcMethod::kStep && irc != model::IrcMethod::kImpulse &&
                !has(TrialKind::kRampIrc)) {
-      missing.stimulated.push_back(
-          Missing("irc_method " + std::string(model::IrcMethodName(irc)),
-                  "an isometric_ramp_irc trial"));
+      missing.stimulated.push_back(Missing("irc_method " + std::string(model::IrcMethodName(irc)),
+                                           "an isometric_ramp_irc trial"));
     }
     if (!has(TrialKind::kRampIrc) && !has(TrialKind::kImpulseIrc)) {
       missing.stimulated.push_back(
@@ -586,8 +591,7 @@ class Fitter {
         model::SimplifiedOptions so;
         if (bp.active_angle) so.active.angle = *bp.active_angle;
         if (bp.active_velocity) so.active.velocity = so.velocity = *bp.active_velocity;
-        const model::SimplifiedResult s =
-            model::IdentifySimplified(kind, active_trials, base, so);
+        const model::SimplifiedResult s = model::IdentifySimplified(kind, active_trials, base, so);
         fit.params = s.params;
         fit.params.provenance = base.provenance;
         fit.params.provenance.active_method = name;

@@ -140,8 +140,7 @@ TEST(AnalysisRequests, ChoiceNamesAreTheReadersOwn) {
             (std::vector<std::string>{"sequential", "simultaneous", "free_swing"}));
   EXPECT_EQ(IdentificationMethodNames(), (std::vector<std::string>{"thesis", "rapid", "passive"}));
   for (const std::string& name : IrcMethodNames()) {
-    const Result<IdentificationRequest> r =
-        IdentificationRequestFromJson({{"irc_method", name}});
+    const Result<IdentificationRequest> r = IdentificationRequestFromJson({{"irc_method", name}});
     ASSERT_TRUE(r.ok()) << name;
     EXPECT_EQ(model::IrcMethodName(r->irc_method), name);
   }

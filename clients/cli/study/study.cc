@@ -320,11 +320,10 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   }
   // IRC variants for the isometric prediction (Tables 6.1, 6.2).
   for (const auto& variant : kIrcVariants) {
-    api::IdentificationRequest request =
-        ThesisFit(TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc",
-                                 "passive_simultaneous_1", "passive_simultaneous_2",
-                                 "active_random_binary_rb1"}),
-                  model::PassiveMethod::kSimultaneous);
+    api::IdentificationRequest request = ThesisFit(
+        TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc", "passive_simultaneous_1",
+                       "passive_simultaneous_2", "active_random_binary_rb1"}),
+        model::PassiveMethod::kSimultaneous);
     request.irc_method = variant.irc_method;
     request.contraction_order = variant.order;
     Identify(client, leg, request, {"irc_" + variant.key}, failures, log);
