@@ -1,5 +1,6 @@
 #include "api/analysis_requests.h"
 
+#include <array>
 #include <cmath>
 #include <utility>
 
@@ -14,6 +15,54 @@ using nlohmann::json;
 constexpr NameTable<PredictionMode, 2> kPredictionModes(
     {{{PredictionMode::kFreeSwing, "free_swing"}, {PredictionMode::kIsometric, "isometric"}}},
     "free_swing");
+
+// The api's name table of a model enumeration: the model's own names, so
+// the wire, the stored provenance and the CLI spell each value one way.
+template <typename Enum, std::size_t N>
+NameTable<Enum, N> TableOf(const std::array<Enum, N>& values, std::string_view (*name)(Enum)) {
+  std::array<typename NameTable<Enum, N>::Entry, N> entries{};
+  for (std::size_t i = 0; i < N; ++i) entries[i] = {values[i], name(values[i])};
+  return NameTable<Enum, N>(entries, "unknown");
+}
+
+const auto& IdentificationMethods() {
+  static const auto table =
+      TableOf(model::kIdentificationMethods, &model::IdentificationMethodName);
+  return table;
+}
+const auto& IrcMethods() {
+  static const auto table = TableOf(model::kIrcMethods, &model::IrcMethodName);
+  return table;
+}
+const auto& PassiveMethods() {
+  static const auto table = TableOf(model::kPassiveMethods, &model::PassiveMethodName);
+  return table;
+}
+const auto& PoleMethods() {
+  static const auto table = TableOf(model::kPoleMethods, &model::PoleMethodName);
+  return table;
+}
+
+// "a, b or c".
+std::string OneOf(const std::vector<std::string>& names) {
+  std::string text;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    text += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
+  }
+  return text;
+}
+
+// The choice named at `key`: nullopt when absent, or when the name is none
+// of the table's (then recorded in `fields`, "must be a, b or c").
+template <typename Enum, std::size_t N>
+std::optional<Enum> ReadChoice(JsonFields& fields, std::string_view key,
+                               const NameTable<Enum, N>& table) {
+  const std::optional<std::string> name = fields.String(key, false);
+  if (!name) return std::nullopt;
+  const std::optional<Enum> value = table.Parse(*name);
+  if (!value) fields.Fail(key, "must be " + OneOf(table.Names()));
+  return value;
+}
 
 std::string Indexed(const std::string& path, std::size_t i) {
   return path + "[" + std::to_string(i) + "]";
@@ -66,16 +115,27 @@ Status ReadBreakpoints(const json& object, const std::string& path,
   return fields.Finish();
 }
 
-Result<std::vector<std::string>> Names(const json& value, const std::string& path) {
+// Model variant names (model::ModelKindName), each parsed once.
+Result<std::vector<model::ModelKind>> ModelKinds(const json& value, const std::string& path) {
   if (!value.is_array()) return Status::InvalidArgument("must be an array of names", path);
-  std::vector<std::string> names;
+  std::vector<model::ModelKind> kinds;
   for (std::size_t i = 0; i < value.size(); ++i) {
     if (!value[i].is_string()) {
       return Status::InvalidArgument("must be a string, got " + value[i].dump(), Indexed(path, i));
     }
-    names.push_back(value[i].get<std::string>());
+    const std::string name = value[i].get<std::string>();
+    const std::optional<model::ModelKind> kind = model::ParseModelKind(name);
+    if (!kind) {
+      std::vector<std::string> known;
+      for (model::ModelKind k : model::AllModelKinds()) known.emplace_back(model::ModelKindName(k));
+      std::string list;
+      for (std::size_t k = 0; k < known.size(); ++k) list += (k ? ", " : "") + known[k];
+      return Status::InvalidArgument("unknown model \"" + name.substr(0, 40) + "\" (" + list + ")",
+                                     Indexed(path, i));
+    }
+    kinds.push_back(*kind);
   }
-  return names;
+  return kinds;
 }
 
 Result<StimulusSpec> StimulusFromJson(const json& object, const std::string& path) {
@@ -97,6 +157,11 @@ Result<StimulusSpec> StimulusFromJson(const json& object, const std::string& pat
 
 }  // namespace
 
+std::vector<std::string> IdentificationMethodNames() { return IdentificationMethods().Names(); }
+std::vector<std::string> IrcMethodNames() { return IrcMethods().Names(); }
+std::vector<std::string> PassiveMethodNames() { return PassiveMethods().Names(); }
+std::vector<std::string> PoleMethodNames() { return PoleMethods().Names(); }
+
 std::string_view PredictionModeName(PredictionMode mode) { return kPredictionModes.Name(mode); }
 
 std::optional<PredictionMode> ParsePredictionMode(std::string_view name) {
@@ -104,48 +169,54 @@ std::optional<PredictionMode> ParsePredictionMode(std::string_view name) {
 }
 
 Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
+  using model::IdentificationMethod;
+  using model::IrcMethod;
+  using model::PassiveMethod;
   IdentificationRequest r;
   JsonFields fields(body);
   r.session_id = fields.Integer("session_id", false, 1);
   r.trial_ids = fields.IdList("trial_ids", false).value_or(std::vector<std::int64_t>{});
-  r.method = fields.String("method", false).value_or(r.method);
-  const std::optional<std::string> irc_method = fields.String("irc_method", false);
-  const std::optional<std::string> passive_method = fields.String("passive_method", false);
+  r.method = ReadChoice(fields, "method", IdentificationMethods()).value_or(r.method);
+  const std::optional<IrcMethod> irc_method = ReadChoice(fields, "irc_method", IrcMethods());
+  const std::optional<PassiveMethod> passive_method =
+      ReadChoice(fields, "passive_method", PassiveMethods());
   const std::optional<std::int64_t> contraction_order =
       fields.Integer("contraction_order", false, 0, 3);
-  const std::optional<std::string> pole_method = fields.String("pole_method", false);
+  const std::optional<model::PoleMethod> pole_method =
+      ReadChoice(fields, "pole_method", PoleMethods());
+  if (!fields.ok()) return fields.status();
   // The rapid routine (§7.4.1) fits with its own methods (docs/API.md,
   // Parameter sets: ramp_correlation, free swing): another method named with
   // it would be ignored, so it is refused instead.
   // Method passive fits the passive block alone, in free swing (docs/MODEL.md).
-  if (r.method == "passive") {
-    for (const auto& [given, name] : {std::pair{irc_method.has_value(), "irc_method"},
-                                      std::pair{contraction_order.has_value(), "contraction_order"},
-                                      std::pair{pole_method.has_value(), "pole_method"}}) {
+  if (r.method == IdentificationMethod::kPassive) {
+    for (const auto& [given, key] : {std::pair{irc_method.has_value(), "irc_method"},
+                                     std::pair{contraction_order.has_value(), "contraction_order"},
+                                     std::pair{pole_method.has_value(), "pole_method"}}) {
       if (given) {
-        return Status::InvalidArgument(std::string("method passive fits no stimulated trial; ") +
-                                           name + " needs method thesis",
-                                       name);
+        return Status::InvalidArgument(
+            std::string("method passive fits no stimulated trial; ") + key + " needs method thesis",
+            key);
       }
     }
-    if (passive_method && *passive_method != "free_swing") {
+    if (passive_method && *passive_method != PassiveMethod::kFreeSwing) {
       return Status::InvalidArgument(
           "method passive fits the passive curves in free swing; passive_method " +
-              *passive_method + " needs method thesis",
+              std::string(PassiveMethods().Name(*passive_method)) + " needs method thesis",
           "passive_method");
     }
   }
-  if (r.method == "rapid") {
-    if (irc_method && *irc_method != "ramp_correlation") {
-      return Status::InvalidArgument(
-          "method rapid fits the IRC by ramp_correlation; irc_method " + *irc_method +
-              " needs method thesis",
-          "irc_method");
+  if (r.method == IdentificationMethod::kRapid) {
+    if (irc_method && *irc_method != IrcMethod::kRampCorrelation) {
+      return Status::InvalidArgument("method rapid fits the IRC by ramp_correlation; irc_method " +
+                                         std::string(IrcMethods().Name(*irc_method)) +
+                                         " needs method thesis",
+                                     "irc_method");
     }
-    if (passive_method && *passive_method != "free_swing") {
+    if (passive_method && *passive_method != PassiveMethod::kFreeSwing) {
       return Status::InvalidArgument(
           "method rapid fits the passive curves in free swing; passive_method " +
-              *passive_method + " needs method thesis",
+              std::string(PassiveMethods().Name(*passive_method)) + " needs method thesis",
           "passive_method");
     }
     if (contraction_order) {
@@ -159,13 +230,14 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
     }
   }
   r.irc_method = irc_method.value_or(r.irc_method);
-  r.passive_method = passive_method.value_or(r.method == "passive" ? "free_swing" : r.passive_method);
+  r.passive_method = passive_method.value_or(
+      r.method == IdentificationMethod::kThesis ? r.passive_method : PassiveMethod::kFreeSwing);
   r.contraction_order = static_cast<int>(contraction_order.value_or(3));
   r.pole_method = pole_method.value_or(r.pole_method);
   if (const json* models = fields.Any("models", false)) {
-    Result<std::vector<std::string>> names = Names(*models, fields.PathOf("models"));
-    if (!names.ok()) return names.status();
-    r.models = *std::move(names);
+    Result<std::vector<model::ModelKind>> kinds = ModelKinds(*models, fields.PathOf("models"));
+    if (!kinds.ok()) return kinds.status();
+    r.models = *std::move(kinds);
   }
   if (const json* breakpoints = fields.Object("breakpoints", false)) {
     Status s = ReadBreakpoints(*breakpoints, fields.PathOf("breakpoints"), r.breakpoints);
@@ -173,7 +245,7 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
   }
   r.inertia_kgm2 = fields.Number("inertia_kgm2", false);
   r.gravity_moment_nm = fields.Number("gravity_moment_nm", false);
-  if (r.gravity_moment_nm && r.method != "passive") {
+  if (r.gravity_moment_nm && r.method != IdentificationMethod::kPassive) {
     return Status::InvalidArgument(
         "only method passive takes gravity_moment_nm (the others need no gravity moment)",
         "gravity_moment_nm");
@@ -184,13 +256,15 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
 }
 
 json IdentificationRequestToJson(const IdentificationRequest& r) {
-  json j = {{"method", r.method}, {"models", r.models}};
+  json models = json::array();
+  for (model::ModelKind kind : r.models) models.push_back(model::ModelKindName(kind));
+  json j = {{"method", IdentificationMethods().Name(r.method)}, {"models", models}};
   // Methods rapid and passive take none of the thesis methods (their own are fixed).
-  if (r.method == "thesis") {
-    j["irc_method"] = r.irc_method;
-    j["passive_method"] = r.passive_method;
+  if (r.method == model::IdentificationMethod::kThesis) {
+    j["irc_method"] = IrcMethods().Name(r.irc_method);
+    j["passive_method"] = PassiveMethods().Name(r.passive_method);
     j["contraction_order"] = r.contraction_order;
-    j["pole_method"] = r.pole_method;
+    j["pole_method"] = PoleMethods().Name(r.pole_method);
   }
   if (r.session_id) j["session_id"] = *r.session_id;
   if (!r.trial_ids.empty()) j["trial_ids"] = r.trial_ids;

@@ -6,12 +6,16 @@
 /// them and the clients (CLI, study) that send them. Every physical
 /// quantity names its unit in its key.
 ///
-/// Reading is strict and checks the form only: unknown fields, wrong types,
-/// non-integral or non-positive ids and out-of-range counts are
-/// kInvalidArgument with the field path ("breakpoints.active_angle[2]",
-/// "pairs[1].trial_ids[0]"). Whether the values make sense together (known
-/// method names, increasing breakpoints, at least one pair) is the
-/// services' validation (server/services), which runs on the parsed value.
+/// Reading is strict: unknown fields, wrong types, non-integral or
+/// non-positive ids, out-of-range counts and names that are none of a
+/// choice's are kInvalidArgument with the field path
+/// ("breakpoints.active_angle[2]", "pairs[1].trial_ids[0]"). A method or
+/// model name is parsed once, here, into the model's enumeration
+/// (model/identify_*.h, model/parameter_set.h) and travels as that; each has
+/// one wire spelling, the model's own name. Whether the values make sense
+/// together (increasing breakpoints, no model twice, at least one pair) is
+/// the services' validation (server/services), which runs on the parsed
+/// value.
 ///
 /// Identification request:
 ///   {"session_id": 3 | "trial_ids": [..], "method": "thesis" | "rapid",
@@ -39,6 +43,9 @@
 
 #include "api/status.h"
 #include "model/identify_common.h"
+#include "model/identify_isometric.h"
+#include "model/identify_passive.h"
+#include "model/parameter_set.h"
 #include "model/stimulus_generators.h"
 
 namespace fesbench::api {
@@ -61,17 +68,18 @@ struct IdentificationRequest {
   /// "thesis" (the chapter 4 methods below), "rapid" (§7.4.1, from the
   /// rapid_* trials) or "passive" (the passive block alone from unstimulated
   /// free swings, e.g. a pendulum test; docs/MODEL.md).
-  std::string method = "thesis";
+  model::IdentificationMethod method = model::IdentificationMethod::kThesis;
   /// "step", "impulse", "ramp_correlation", "ramp_deconvolution_ideal",
   /// "ramp_deconvolution_measured".
-  std::string irc_method = "ramp_correlation";
-  /// "sequential", "simultaneous", "free_swing".
-  std::string passive_method = "simultaneous";
-  int contraction_order = 3;         ///< 2, 3, or 0 = the better-fitting order.
-  std::string pole_method = "peak";  ///< "peak" or "least_squares".
+  model::IrcMethod irc_method = model::IrcMethod::kRampCorrelation;
+  /// "sequential", "simultaneous", "free_swing" (method passive and rapid:
+  /// free_swing).
+  model::PassiveMethod passive_method = model::PassiveMethod::kSimultaneous;
+  int contraction_order = 3;  ///< 2, 3, or 0 = the better-fitting order.
+  model::PoleMethod pole_method = model::PoleMethod::kPeak;  ///< "peak" or "least_squares".
   /// Model variants to fit and store, "full" and/or the simplified ones
   /// (model::ModelKindName). One stored version each.
-  std::vector<std::string> models = {"full"};
+  std::vector<model::ModelKind> models = {model::ModelKind::kFull};
   IdentificationBreakpoints breakpoints;
   /// Limb inertia, kg·m²: sequential and rapid. Unset: the subject's
   /// anthropometrics (Eq. 4.13: weight, shank length), else (rapid) the
@@ -86,6 +94,14 @@ struct IdentificationRequest {
   /// τ_pta is used (default: the leg's latest).
   std::optional<std::int64_t> torque_angle_parameter_set_id;
 };
+
+/// The wire names of the identification choices, each once, in the model's
+/// order: what IdentificationRequestFromJson accepts and a client offers
+/// (the CLI's --method and --passive-method).
+std::vector<std::string> IdentificationMethodNames();
+std::vector<std::string> IrcMethodNames();
+std::vector<std::string> PassiveMethodNames();
+std::vector<std::string> PoleMethodNames();
 
 enum class PredictionMode { kFreeSwing, kIsometric };
 /// "free_swing", "isometric".

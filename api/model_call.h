@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <typeinfo>
 #include <utility>
 
 #include "api/status.h"
@@ -23,12 +24,19 @@ namespace fesbench::api {
 template <typename R>
 using ModelCallResult = std::conditional_t<std::is_void_v<R>, Status, Result<R>>;
 
-/// Runs `call` (a call into model/) and returns its value, or
-/// kInvalidArgument with the exception's message (and `field`, the input it
-/// concerns, if given) when the model throws std::invalid_argument. Any
-/// other exception is a bug and passes through.
+/// Runs `call` (a call into model/) and returns its value, or what the
+/// model reported as a Status with the exception's message:
+///  - std::invalid_argument (input the model cannot take) → `refused`
+///    (kInvalidArgument unless the caller says what a refusal means for it,
+///    e.g. kFailedPrecondition for stored trials a fit cannot use), with
+///    `field`, the input it concerns, if given;
+///  - std::runtime_error itself (a computation that could not finish, e.g.
+///    an integration that diverged, model/integrators.h) → kFailedPrecondition.
+/// Any other exception (a subclass of std::runtime_error included) is not
+/// the model's report and passes through.
 template <typename F>
-auto CallModel(F&& call, std::string field = {}) -> ModelCallResult<std::invoke_result_t<F>> {
+auto CallModel(F&& call, std::string field = {}, ErrorCode refused = ErrorCode::kInvalidArgument)
+    -> ModelCallResult<std::invoke_result_t<F>> {
   using R = std::invoke_result_t<F>;
   try {
     if constexpr (std::is_void_v<R>) {
@@ -38,7 +46,12 @@ auto CallModel(F&& call, std::string field = {}) -> ModelCallResult<std::invoke_
       return Result<R>(std::invoke(std::forward<F>(call)));
     }
   } catch (const std::invalid_argument& e) {
-    return Status::InvalidArgument(e.what(), std::move(field));
+    return Status(refused, e.what(), std::move(field));
+  } catch (const std::runtime_error& e) {
+    // The model's own, not a caller's subclass passing through the call
+    // (e.g. a command line's usage error).
+    if (typeid(e) != typeid(std::runtime_error)) throw;
+    return Status(ErrorCode::kFailedPrecondition, e.what());
   }
 }
 

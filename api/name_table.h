@@ -9,8 +9,10 @@
 #include <array>
 #include <cstddef>
 #include <optional>
+#include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 namespace fesbench::api {
 
@@ -29,6 +31,13 @@ class NameTable {
       if (v == value) return name;
     }
     return fallback_;
+  }
+
+  /// Every name, in the table's order (a command line's choices).
+  std::vector<std::string> Names() const {
+    std::vector<std::string> names;
+    for (const auto& entry : entries_) names.emplace_back(entry.second);
+    return names;
   }
 
   /// The value named exactly `name`, or nullopt.

@@ -72,10 +72,10 @@ void BM_CommandToWire(benchmark::State& state) {
     std::vector<std::uint8_t> wire;
     if (p24) {
       const sciencemode4::Point points[] = {{300, ma * 0.5}, {100, 0.0}, {300, -ma * 0.5}};
-      wire = sciencemode4::BuildLlChannelConfig(number++ & 0x3F, 1, 0, points);
+      wire = *sciencemode4::BuildLlChannelConfig(number++ & 0x3F, 1, 0, points);
     } else {
       const ChannelPulse pulse{0, 300, ma};
-      wire = BuildStartChannelListMode(number++, std::span(&pulse, 1));
+      wire = *BuildStartChannelListMode(number++, std::span(&pulse, 1));
     }
     ma = (ma + 1) % 100;
     if (!port.Write(wire).ok()) {

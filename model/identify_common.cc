@@ -9,6 +9,25 @@
 
 namespace fesbench::model {
 
+std::string_view IdentificationMethodName(IdentificationMethod method) {
+  switch (method) {
+    case IdentificationMethod::kThesis:
+      return "thesis";
+    case IdentificationMethod::kRapid:
+      return "rapid";
+    case IdentificationMethod::kPassive:
+      return "passive";
+  }
+  return "unknown";
+}
+
+std::optional<IdentificationMethod> IdentificationMethodFromName(std::string_view name) {
+  for (IdentificationMethod m : kIdentificationMethods) {
+    if (IdentificationMethodName(m) == name) return m;
+  }
+  return std::nullopt;
+}
+
 double TrialColumns::SampleRateHz() const {
   if (t_s.size() < 2) throw std::invalid_argument("trial: need at least 2 samples for a rate");
   const double span = t_s.back() - t_s.front();

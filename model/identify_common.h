@@ -5,15 +5,32 @@
 /// docs/MODEL.md): the columns of one recorded trial, breakpoint choices for
 /// piecewise-linear fits, and the report every method returns.
 
+#include <array>
 #include <cstddef>
 #include <map>
+#include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "model/signal.h"
 
 namespace fesbench::model {
+
+/// The identification routines (docs/MODEL.md): the chapter 4 methods
+/// (kThesis, each block by its own trials and method), the rapid routine of
+/// §7.4.1 (kRapid) and the passive block alone from unstimulated free swings,
+/// e.g. a pendulum test (kPassive).
+enum class IdentificationMethod { kThesis, kRapid, kPassive };
+/// Every identification method, in declaration order.
+inline constexpr std::array<IdentificationMethod, 3> kIdentificationMethods = {
+    IdentificationMethod::kThesis, IdentificationMethod::kRapid, IdentificationMethod::kPassive};
+
+/// "thesis", "rapid", "passive".
+std::string_view IdentificationMethodName(IdentificationMethod method);
+/// The method called `name` (IdentificationMethodName's words), or nullopt.
+std::optional<IdentificationMethod> IdentificationMethodFromName(std::string_view name);
 
 /// The channels of one trial as plain columns, all sampled at the same
 /// instants t_s (docs/ARCHITECTURE.md, units). A column the trial did not record is empty;

@@ -340,15 +340,14 @@ std::string_view PoleMethodName(PoleMethod method) {
 }
 
 std::optional<PoleMethod> PoleMethodFromName(std::string_view name) {
-  for (PoleMethod m : {PoleMethod::kPeak, PoleMethod::kLeastSquares}) {
+  for (PoleMethod m : kPoleMethods) {
     if (PoleMethodName(m) == name) return m;
   }
   return std::nullopt;
 }
 
 std::optional<IrcMethod> IrcMethodFromName(std::string_view name) {
-  for (IrcMethod m : {IrcMethod::kStep, IrcMethod::kImpulse, IrcMethod::kRampCorrelation,
-                      IrcMethod::kRampDeconvolutionIdeal, IrcMethod::kRampDeconvolutionMeasured}) {
+  for (IrcMethod m : kIrcMethods) {
     if (IrcMethodName(m) == name) return m;
   }
   return std::nullopt;

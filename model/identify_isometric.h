@@ -9,6 +9,7 @@
 /// its torque column is the brace torque (any constant offset is removed
 /// per event from the samples just before it).
 
+#include <array>
 #include <cstddef>
 #include <optional>
 #include <span>
@@ -87,6 +88,9 @@ TwitchFit FitTwitchPole(std::span<const double> t_s, std::span<const double> tor
 
 /// Which pole estimate IdentifyContraction returns.
 enum class PoleMethod { kPeak, kLeastSquares };
+/// Every pole method, in declaration order.
+inline constexpr std::array<PoleMethod, 2> kPoleMethods = {PoleMethod::kPeak,
+                                                           PoleMethod::kLeastSquares};
 
 /// "peak" or "least_squares".
 std::string_view PoleMethodName(PoleMethod method);
@@ -125,6 +129,10 @@ enum class IrcMethod {
   kRampDeconvolutionIdeal,     ///< §4.1.3 Eqs. 4.6–4.8, ideal impulse.
   kRampDeconvolutionMeasured,  ///< §4.1.3, averaged measured impulse.
 };
+/// Every IRC method, in declaration order.
+inline constexpr std::array<IrcMethod, 5> kIrcMethods = {
+    IrcMethod::kStep, IrcMethod::kImpulse, IrcMethod::kRampCorrelation,
+    IrcMethod::kRampDeconvolutionIdeal, IrcMethod::kRampDeconvolutionMeasured};
 
 /// "step", "impulse", "ramp_correlation", "ramp_deconvolution_ideal",
 /// "ramp_deconvolution_measured".

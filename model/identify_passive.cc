@@ -474,8 +474,7 @@ std::string_view PassiveMethodName(PassiveMethod method) {
 }
 
 std::optional<PassiveMethod> PassiveMethodFromName(std::string_view name) {
-  for (PassiveMethod m :
-       {PassiveMethod::kSequential, PassiveMethod::kSimultaneous, PassiveMethod::kFreeSwing}) {
+  for (PassiveMethod m : kPassiveMethods) {
     if (PassiveMethodName(m) == name) return m;
   }
   return std::nullopt;

@@ -14,6 +14,7 @@
 /// (f_stim, e.g. from ActivationAt). Acceleration is in deg/s² and is
 /// converted to rad/s² for the inertia term.
 
+#include <array>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -34,6 +35,9 @@ struct PassiveResult {
 /// The three passive identifications of §4.2: sequential (§4.2.1),
 /// simultaneous (§4.2.2), free swing (§4.2.3).
 enum class PassiveMethod { kSequential, kSimultaneous, kFreeSwing };
+/// Every passive method, in declaration order.
+inline constexpr std::array<PassiveMethod, 3> kPassiveMethods = {
+    PassiveMethod::kSequential, PassiveMethod::kSimultaneous, PassiveMethod::kFreeSwing};
 
 /// "sequential", "simultaneous", "free_swing".
 std::string_view PassiveMethodName(PassiveMethod method);

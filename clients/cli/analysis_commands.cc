@@ -159,7 +159,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         ->add_option("--method", form->method,
                      "thesis (chapter 4), rapid (§7.4.1) or passive (the passive curves alone "
                      "from unstimulated swings, e.g. a pendulum test)")
-        ->check(CLI::IsMember({"thesis", "rapid", "passive"}));
+        ->check(CLI::IsMember(api::IdentificationMethodNames()));
     identify
         ->add_option("--inertia-kgm2", form->inertia_kgm2,
                      "the limb inertia J, kg·m² (default: from the subject's weight and shank "
@@ -175,16 +175,14 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
         ->add_option("--passive-method", form->passive_method,
                      "sequential (§4.2.1), simultaneous (Eq. 4.31) or free_swing (Eq. 4.35); "
                      "method rapid fits in free swing and refuses the others")
-        ->check(CLI::IsMember({"sequential", "simultaneous", "free_swing"}));
+        ->check(CLI::IsMember(api::PassiveMethodNames()));
     identify->add_option("--irc-method", form->irc_method,
                          "IRC method, e.g. ramp_correlation (method rapid: only that one)");
     identify->callback([form, &context] {
       context.action = [form, &context] {
         api::IdentificationRequest request;
         request.session_id = ParseId(form->session, "session");
-        request.method = form->method;
-        if (!form->passive_method.empty()) request.passive_method = form->passive_method;
-        if (!form->irc_method.empty()) request.irc_method = form->irc_method;
+        request.method = model::IdentificationMethodFromName(form->method).value_or(request.method);
         request.inertia_kgm2 = form->inertia_kgm2;
         request.gravity_moment_nm = form->gravity_moment_nm;
         // Every flag given reaches the request as given, even where the

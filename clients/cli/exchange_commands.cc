@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "api/model_call.h"
 #include "api/parameter_set_json.h"
 #include "api/trial.h"
 #include "clients/cli/commands.h"
@@ -231,13 +232,13 @@ void RegisterParamsCurves(CLI::App& params, CliContext& context) {
         throw CliError::Server("server sent an invalid parameter set: " +
                                params.status().ToString());
       }
-      model::JointModel joint = [&] {
-        try {
-          return model::JointModel::FromParameters(*params);
-        } catch (const std::invalid_argument& e) {
-          throw CliError::Server(std::string("server sent an unusable parameter set: ") + e.what());
-        }
-      }();
+      api::Result<model::JointModel> usable =
+          api::CallModel([&] { return model::JointModel::FromParameters(*params); });
+      if (!usable.ok()) {
+        throw CliError::Server("server sent an unusable parameter set: " +
+                               usable.status().message());
+      }
+      const model::JointModel& joint = *usable;
       struct Point {
         std::string curve, x_unit, y_unit;
         double x, y;

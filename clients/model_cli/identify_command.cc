@@ -7,6 +7,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "api/model_call.h"
 #include "api/parameter_set_json.h"
 #include "api/trial.h"
 #include "clients/model_cli/cli_io.h"
@@ -176,6 +177,51 @@ model::ParameterSet RefineByOutputError(std::vector<model::TrialColumns>& trials
   return std::move(r.parameters);
 }
 
+// The passive block by `method` (§4.2): sequential from a positions and a
+// velocities trial, simultaneous, or free swing with τ_pta from `in`.
+model::ParameterSet IdentifyPassiveBlock(model::PassiveMethod method,
+                                         std::vector<model::TrialColumns>& trials,
+                                         const model::ParameterSet& in, Options& opt,
+                                         double pulse_rate, model::IdentifyReport& report) {
+  using namespace model;
+  const std::string name = "passive_" + std::string(PassiveMethodName(method));
+  PassiveResult r;
+  switch (method) {
+    case PassiveMethod::kSequential: {
+      RequireTrials(name, trials, 2);
+      SequentialPassiveOptions o;
+      o.body_mass_kg = opt.Number("body_mass_kg");
+      o.leg_length_m = opt.Number("leg_length_m");
+      o.inertia_kgm2 = opt.Number("inertia_kgm2", in.passive.inertia_kgm2);
+      o.use_last_s = opt.Number("use_last_s", o.use_last_s);
+      r = IdentifyPassiveSequential(trials[0], trials[1], o);
+      break;
+    }
+    case PassiveMethod::kSimultaneous: {
+      RequireTrials(name, trials, 1);
+      SimultaneousPassiveOptions o;
+      opt.Breakpoints("angle_breakpoints", o.angle);
+      opt.Breakpoints("velocity_breakpoints", o.velocity);
+      r = IdentifyPassiveSimultaneous(trials, o);
+      break;
+    }
+    case PassiveMethod::kFreeSwing: {
+      RequireTrials(name, trials, 1);
+      FreeSwingPassiveOptions o;
+      opt.Breakpoints("velocity_breakpoints", o.velocity);
+      o.max_activation = opt.Number("max_activation", o.max_activation);
+      EnsureActivation(trials, in, pulse_rate);
+      r = IdentifyPassiveFreeSwing(trials, in.passive.torque_angle, o);
+      break;
+    }
+  }
+  ParameterSet out = in;
+  out.passive = r.passive;
+  out.provenance.passive_method = std::string(PassiveMethodName(method));
+  report.Merge(r.report);
+  return out;
+}
+
 model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialColumns>& trials,
                              const model::ParameterSet& in, Options& opt,
                              model::IdentifyReport& report) {
@@ -192,12 +238,9 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
     o.twitch = twitch;
     o.order = static_cast<int>(opt.Number("order", 3));
     if (const auto m = opt.Text("pole_method")) {
-      if (*m == "peak")
-        o.method = PoleMethod::kPeak;
-      else if (*m == "least_squares")
-        o.method = PoleMethod::kLeastSquares;
-      else
-        throw CliError::Usage("--option pole_method: peak or least_squares");
+      const std::optional<PoleMethod> pole = PoleMethodFromName(*m);
+      if (!pole) throw CliError::Usage("--option pole_method: peak or least_squares");
+      o.method = *pole;
     }
     const ContractionResult r = IdentifyContraction(trials, o);
     out.contraction = r.contraction;
@@ -215,8 +258,8 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
     o.guard = opt.Number("guard", o.guard);
     o.ideal.order = static_cast<int>(opt.Number("ideal_order", o.ideal.order));
     o.ideal.pole_per_s = opt.Number("ideal_pole_per_s", 0.0);
-    const std::optional<IrcMethod> m = IrcMethodFromName(std::string_view(method).substr(4));
-    if (!m) throw std::invalid_argument("unknown IRC method '" + std::string(method) + "'");
+    const std::optional<IrcMethod> m = IrcMethodFromName(method.substr(4));
+    if (!m) throw CliError::Usage("unknown identification method " + std::string(method));
     const IrcResult r = IdentifyIrc(*m, trials.front(), o);
     out.irc = r.irc;
     out.active.torque_scale_nm = r.torque_scale_nm;  // isometric full scale at 90°
@@ -224,41 +267,10 @@ model::ParameterSet Dispatch(std::string_view method, std::vector<model::TrialCo
     report.Merge(r.report);
     return out;
   }
-  if (method == "passive_sequential") {
-    RequireTrials(method, trials, 2);
-    SequentialPassiveOptions o;
-    o.body_mass_kg = opt.Number("body_mass_kg");
-    o.leg_length_m = opt.Number("leg_length_m");
-    o.inertia_kgm2 = opt.Number("inertia_kgm2", in.passive.inertia_kgm2);
-    o.use_last_s = opt.Number("use_last_s", o.use_last_s);
-    const PassiveResult r = IdentifyPassiveSequential(trials[0], trials[1], o);
-    out.passive = r.passive;
-    out.provenance.passive_method = "sequential";
-    report.Merge(r.report);
-    return out;
-  }
-  if (method == "passive_simultaneous") {
-    RequireTrials(method, trials, 1);
-    SimultaneousPassiveOptions o;
-    opt.Breakpoints("angle_breakpoints", o.angle);
-    opt.Breakpoints("velocity_breakpoints", o.velocity);
-    const PassiveResult r = IdentifyPassiveSimultaneous(trials, o);
-    out.passive = r.passive;
-    out.provenance.passive_method = "simultaneous";
-    report.Merge(r.report);
-    return out;
-  }
-  if (method == "passive_free_swing") {
-    RequireTrials(method, trials, 1);
-    FreeSwingPassiveOptions o;
-    opt.Breakpoints("velocity_breakpoints", o.velocity);
-    o.max_activation = opt.Number("max_activation", o.max_activation);
-    EnsureActivation(trials, in, pulse_rate);
-    const PassiveResult r = IdentifyPassiveFreeSwing(trials, in.passive.torque_angle, o);
-    out.passive = r.passive;
-    out.provenance.passive_method = "free_swing";
-    report.Merge(r.report);
-    return out;
+  if (method.starts_with("passive_")) {
+    const std::optional<PassiveMethod> m = PassiveMethodFromName(method.substr(8));
+    if (!m) throw CliError::Usage("unknown identification method " + std::string(method));
+    return IdentifyPassiveBlock(*m, trials, in, opt, pulse_rate, report);
   }
   if (method == "output_error") {
     RequireTrials(method, trials, 1);
@@ -327,15 +339,13 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
     if (!table.ok()) throw CliError::BadInput("trial " + path + ": " + table.status().message());
     trials.push_back(api::ToTrialColumns(*table));
     if (table->emg && table->emg->Values("emg")) {
-      try {
-        const auto c =
-            model::CompareEmgPrePost(*table->emg->Values("emg"), table->emg->sample_rate_hz);
-        if (c.voluntary_contraction) {
-          report.warnings.push_back("trial " + path + ": EMG differs before and after (ratio " +
-                                    std::to_string(c.ratio) + "): voluntary contraction? (§5.2.1)");
-        }
-      } catch (const std::invalid_argument&) {
-        // Too short an EMG recording: nothing to compare.
+      // Refused (too short an EMG recording): nothing to compare.
+      const api::Result<model::EmgComparison> c = api::CallModel([&] {
+        return model::CompareEmgPrePost(*table->emg->Values("emg"), table->emg->sample_rate_hz);
+      });
+      if (c.ok() && c->voluntary_contraction) {
+        report.warnings.push_back("trial " + path + ": EMG differs before and after (ratio " +
+                                  std::to_string(c->ratio) + "): voluntary contraction? (§5.2.1)");
       }
     }
   }
@@ -357,21 +367,22 @@ void RunIdentifyCommand(const IdentifyArgs& args, CliContext& context) {
 }  // namespace
 
 const std::vector<std::string>& IdentifyMethodNames() {
-  static const std::vector<std::string> kNames = {"contraction",
-                                                  "irc_step",
-                                                  "irc_impulse",
-                                                  "irc_ramp_correlation",
-                                                  "irc_ramp_deconvolution_ideal",
-                                                  "irc_ramp_deconvolution_measured",
-                                                  "passive_sequential",
-                                                  "passive_simultaneous",
-                                                  "passive_free_swing",
-                                                  "active",
-                                                  "output_error",
-                                                  "torque_generator",
-                                                  "single_segment",
-                                                  "static_gain_pwl_velocity",
-                                                  "parametric"};
+  // The block methods are the model's own names, prefixed by their block.
+  static const std::vector<std::string> kNames = [] {
+    std::vector<std::string> names = {"contraction"};
+    for (model::IrcMethod m : model::kIrcMethods) {
+      names.push_back("irc_" + std::string(model::IrcMethodName(m)));
+    }
+    for (model::PassiveMethod m : model::kPassiveMethods) {
+      names.push_back("passive_" + std::string(model::PassiveMethodName(m)));
+    }
+    names.push_back("active");
+    names.push_back("output_error");
+    for (model::ModelKind kind : model::AllModelKinds()) {
+      if (kind != model::ModelKind::kFull) names.emplace_back(model::ModelKindName(kind));
+    }
+    return names;
+  }();
   return kNames;
 }
 
@@ -382,13 +393,13 @@ model::ParameterSet RunIdentify(std::string_view method, std::vector<model::Tria
   model::IdentifyReport local;
   model::IdentifyReport& rep = report ? *report : local;
   Options opt(options);
-  model::ParameterSet out;
-  try {
+  api::Result<model::ParameterSet> fitted = api::CallModel([&] {
     Condition(trials, opt, rep);
-    out = Dispatch(method, trials, params_in, opt, rep);
-  } catch (const std::invalid_argument& e) {
-    throw CliError::BadInput(std::string(method) + ": " + e.what());
-  }
+    return Dispatch(method, trials, params_in, opt, rep);
+  });
+  if (!fitted.ok())
+    throw CliError::BadInput(std::string(method) + ": " + fitted.status().message());
+  model::ParameterSet out = *std::move(fitted);
   opt.RequireAllUsed();
   for (const auto& [k, v] : rep.fit_rms) out.provenance.fit_rms[k] = v;
   out.provenance.warnings.insert(out.provenance.warnings.end(), rep.warnings.begin(),

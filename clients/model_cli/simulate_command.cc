@@ -2,10 +2,10 @@
 
 #include <cmath>
 #include <memory>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "api/model_call.h"
 #include "clients/model_cli/cli_io.h"
 #include "clients/model_cli/commands.h"
 #include "model/integrators.h"
@@ -32,29 +32,47 @@ std::optional<SimulateMode> ParseSimulateMode(std::string_view name) {
   return std::nullopt;
 }
 
-api::Trial RunSimulation(const model::ParameterSet& params, const model::SampledSignal& envelope_ma,
-                         SimulateMode mode, double angle_deg, const model::Trajectory* trajectory,
-                         double trajectory_end_s, model::SimulationOptions options) {
-  const model::PulseTrain pulses = model::PulsesFromEnvelope(envelope_ma, options.pulse_rate_hz);
-  model::SimulationResult r;
+namespace {
+
+model::SimulationResult Simulate(const model::ParameterSet& params,
+                                 const model::SampledSignal& envelope_ma,
+                                 const model::PulseTrain& pulses, SimulateMode mode,
+                                 double angle_deg, const model::Trajectory* trajectory,
+                                 double trajectory_end_s, model::SimulationOptions& options) {
   switch (mode) {
     case SimulateMode::kFreeSwing:
       if (!options.duration_s) options.duration_s = envelope_ma.EndTime();
       options.initial_angle_deg = angle_deg;
-      r = model::SimulateFreeSwing(params, pulses, options);
-      break;
+      return model::SimulateFreeSwing(params, pulses, options);
     case SimulateMode::kIsometric:
       if (!options.duration_s) options.duration_s = envelope_ma.EndTime();
-      r = model::SimulateIsometric(params, pulses, angle_deg, options);
-      break;
+      return model::SimulateIsometric(params, pulses, angle_deg, options);
     case SimulateMode::kTrajectory:
-      if (trajectory == nullptr) {
-        throw std::invalid_argument("RunSimulation: trajectory mode needs a trajectory");
-      }
       if (!options.duration_s) options.duration_s = trajectory_end_s;
-      r = model::SimulateTrajectory(params, pulses, *trajectory, options);
-      break;
+      return model::SimulateTrajectory(params, pulses, *trajectory, options);
   }
+  return {};
+}
+
+}  // namespace
+
+api::Result<api::Trial> RunSimulation(const model::ParameterSet& params,
+                                      const model::SampledSignal& envelope_ma, SimulateMode mode,
+                                      double angle_deg, const model::Trajectory* trajectory,
+                                      double trajectory_end_s, model::SimulationOptions options) {
+  if (mode == SimulateMode::kTrajectory && trajectory == nullptr) {
+    return api::Status::InvalidArgument("trajectory mode needs a trajectory");
+  }
+  api::Result<model::PulseTrain> pulsed =
+      api::CallModel([&] { return model::PulsesFromEnvelope(envelope_ma, options.pulse_rate_hz); });
+  if (!pulsed.ok()) return pulsed.status();
+  const model::PulseTrain& pulses = *pulsed;
+  api::Result<model::SimulationResult> simulated = api::CallModel([&] {
+    return Simulate(params, envelope_ma, pulses, mode, angle_deg, trajectory, trajectory_end_s,
+                    options);
+  });
+  if (!simulated.ok()) return simulated.status();
+  model::SimulationResult& r = *simulated;
   api::Trial trial;
   trial.name = "simulated_" + std::string(SimulateModeName(mode));
   trial.sample_rate_hz = options.output_rate_hz;
@@ -141,27 +159,26 @@ void RunSimulateCommand(const SimulateArgs& args, CliContext& context) {
       throw CliError::BadInput("trajectory " + args.trajectory_path +
                                ": line 2: t_s must start at 0");
     }
-    try {
-      trajectory = std::make_unique<model::SampledTrajectory>(
+    api::Result<std::unique_ptr<model::SampledTrajectory>> sampled = api::CallModel([&] {
+      return std::make_unique<model::SampledTrajectory>(
           table.sample_rate_hz, *table.Values("angle_deg"), *table.Values("velocity_deg_s"),
           *table.Values("accel_deg_s2"));
-    } catch (const std::invalid_argument& e) {
-      throw CliError::BadInput("trajectory " + args.trajectory_path + ": " + e.what());
+    });
+    if (!sampled.ok()) {
+      throw CliError::BadInput("trajectory " + args.trajectory_path + ": " +
+                               sampled.status().message());
     }
+    trajectory = std::move(sampled).value();
     // The samples cover [0, N / rate), like a recording.
     trajectory_end_s = static_cast<double>(table.num_samples()) / table.sample_rate_hz;
   }
 
-  api::Trial result;
-  try {
-    result = RunSimulation(params, envelope, mode, args.angle_deg, trajectory.get(),
-                           trajectory_end_s, options);
-  } catch (const std::exception& e) {
-    // Invalid combinations of data (e.g. a variant whose fields the
-    // parameter set lacks) and integrator failures.
-    throw CliError::BadInput(std::string("simulation failed: ") + e.what());
-  }
-  WriteTable(result, args.out_path, format, context);
+  // Invalid combinations of data (e.g. a variant whose fields the parameter
+  // set lacks) and integrator failures.
+  const api::Result<api::Trial> result = RunSimulation(params, envelope, mode, args.angle_deg,
+                                                       trajectory.get(), trajectory_end_s, options);
+  if (!result.ok()) throw CliError::BadInput("simulation failed: " + result.status().message());
+  WriteTable(*result, args.out_path, format, context);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <optional>
 #include <string_view>
 
+#include "api/status.h"
 #include "api/trial.h"
 #include "model/parameter_set.h"
 #include "model/signal.h"
@@ -36,10 +37,12 @@ inline constexpr std::string_view kSimulationColumns[] = {
 /// @returns a trial with the kSimulationColumns channels at
 ///   options.output_rate_hz (stim_ma: model::StimulusColumn of the pulses)
 ///   and the pulses themselves (Trial::pulses, in its JSON form).
-/// @throws std::invalid_argument for invalid inputs (see model/simulate.h);
-///   trajectory must be non-null in trajectory mode.
-api::Trial RunSimulation(const model::ParameterSet& params, const model::SampledSignal& envelope_ma,
-                         SimulateMode mode, double angle_deg, const model::Trajectory* trajectory,
-                         double trajectory_end_s, model::SimulationOptions options);
+/// kInvalidArgument for inputs the model refuses (model/simulate.h; a null
+/// trajectory in trajectory mode), kFailedPrecondition for an integration
+/// that could not finish (api::CallModel).
+api::Result<api::Trial> RunSimulation(const model::ParameterSet& params,
+                                      const model::SampledSignal& envelope_ma, SimulateMode mode,
+                                      double angle_deg, const model::Trajectory* trajectory,
+                                      double trajectory_end_s, model::SimulationOptions options);
 
 }  // namespace fesbench::cli

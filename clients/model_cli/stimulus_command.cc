@@ -4,8 +4,8 @@
 #include <cmath>
 #include <memory>
 #include <ostream>
-#include <stdexcept>
 
+#include "api/model_call.h"
 #include "clients/model_cli/cli_io.h"
 #include "clients/model_cli/commands.h"
 #include "model/trajectory.h"
@@ -90,12 +90,10 @@ model::GeneratorParams ParseGeneratorParams(const std::vector<std::string>& entr
 
 api::Trial RunGenerator(std::string_view name, const model::GeneratorParams& params) {
   if (model::FindStimulusGenerator(name) != nullptr) {
-    model::SampledSignal envelope;
-    try {
-      envelope = model::MakeStimulus(name, params);
-    } catch (const std::invalid_argument& e) {
-      throw CliError::Usage(e.what());
-    }
+    api::Result<model::SampledSignal> made =
+        api::CallModel([&] { return model::MakeStimulus(name, params); });
+    if (!made.ok()) throw CliError::Usage(made.status().message());
+    model::SampledSignal envelope = *std::move(made);
     std::vector<double> t_s(envelope.size());
     for (std::size_t i = 0; i < t_s.size(); ++i) t_s[i] = envelope.TimeAt(i);
     api::Trial table;
@@ -106,12 +104,11 @@ api::Trial RunGenerator(std::string_view name, const model::GeneratorParams& par
     return table;
   }
   if (model::FindTrajectoryGenerator(name) != nullptr) {
-    model::TrajectorySamples samples;
-    try {
-      samples = model::SampleTrajectory(*model::MakeTrajectory(name, params), kTrajectoryRateHz);
-    } catch (const std::invalid_argument& e) {
-      throw CliError::Usage(e.what());
-    }
+    api::Result<model::TrajectorySamples> sampled = api::CallModel([&] {
+      return model::SampleTrajectory(*model::MakeTrajectory(name, params), kTrajectoryRateHz);
+    });
+    if (!sampled.ok()) throw CliError::Usage(sampled.status().message());
+    model::TrajectorySamples samples = *std::move(sampled);
     std::vector<double> t_s(samples.angle_deg.size());
     for (std::size_t i = 0; i < t_s.size(); ++i) {
       t_s[i] = static_cast<double>(i) / samples.rate_hz;

@@ -1,7 +1,6 @@
 #include "server/bench/sciencemode2_packet.h"
 
 #include <cmath>
-#include <stdexcept>
 
 namespace fesbench::server::sciencemode2 {
 namespace {
@@ -18,8 +17,8 @@ std::vector<std::uint8_t> Stuff(std::uint8_t packet_number, Command command,
   return out;
 }
 
-[[noreturn]] void OutOfRange(const std::string& field, const std::string& range, double got) {
-  throw std::invalid_argument(field + " must be " + range + ", got " + std::to_string(got));
+api::Status OutOfRange(const std::string& field, const std::string& range, double got) {
+  return api::Status::InvalidArgument(field + " must be " + range + ", got " + std::to_string(got));
 }
 
 }  // namespace
@@ -203,20 +202,20 @@ std::string StimulationModeName(std::uint8_t mode) {
   return "mode " + std::to_string(mode);
 }
 
-std::vector<std::uint8_t> BuildInitChannelListMode(std::uint8_t packet_number,
-                                                   const ChannelListInit& init) {
+api::Result<std::vector<std::uint8_t>> BuildInitChannelListMode(std::uint8_t packet_number,
+                                                                const ChannelListInit& init) {
   if (init.low_frequency_factor > 7) {
-    OutOfRange("low_frequency_factor", "0–7", init.low_frequency_factor);
+    return OutOfRange("low_frequency_factor", "0–7", init.low_frequency_factor);
   }
   // §4.3: inter pulse interval = code·0.5 ms + 1.5 ms, code ∈ [0, 255].
   const double ipi_code = std::round((init.inter_pulse_interval_ms - 1.5) / 0.5);
   if (!(ipi_code >= 0 && ipi_code <= 255)) {
-    OutOfRange("inter_pulse_interval_ms", "1.5–129 ms", init.inter_pulse_interval_ms);
+    return OutOfRange("inter_pulse_interval_ms", "1.5–129 ms", init.inter_pulse_interval_ms);
   }
   // §4.3: main stimulation interval = code·0.5 ms + 1 ms, code ∈ [0, 2048].
   const double main_code = std::round((init.main_interval_ms - 1.0) / 0.5);
   if (!(main_code >= 0 && main_code <= 2048)) {
-    OutOfRange("main_interval_ms", "1–1025 ms", init.main_interval_ms);
+    return OutOfRange("main_interval_ms", "1–1025 ms", init.main_interval_ms);
   }
   const auto main = static_cast<std::uint16_t>(main_code);
   const std::uint8_t data[] = {
@@ -231,18 +230,18 @@ std::vector<std::uint8_t> BuildInitChannelListMode(std::uint8_t packet_number,
   return EncodePacket(packet_number, Command::kInitChannelListMode, data);
 }
 
-std::vector<std::uint8_t> BuildStartChannelListMode(std::uint8_t packet_number,
-                                                    std::span<const ChannelPulse> pulses) {
-  if (pulses.size() > kChannelCount) OutOfRange("channels", "at most 8", pulses.size());
+api::Result<std::vector<std::uint8_t>> BuildStartChannelListMode(
+    std::uint8_t packet_number, std::span<const ChannelPulse> pulses) {
+  if (pulses.size() > kChannelCount) return OutOfRange("channels", "at most 8", pulses.size());
   std::vector<std::uint8_t> data;
   data.reserve(4 * pulses.size());
   for (const ChannelPulse& p : pulses) {
-    if (p.mode > 2) OutOfRange("mode", "0–2 (single, doublet, triplet)", p.mode);
+    if (p.mode > 2) return OutOfRange("mode", "0–2 (single, doublet, triplet)", p.mode);
     if (p.pulse_width_us < 0 || p.pulse_width_us > kMaxPulseWidthUs) {
-      OutOfRange("pulse_width_us", "0–500 µs", p.pulse_width_us);
+      return OutOfRange("pulse_width_us", "0–500 µs", p.pulse_width_us);
     }
     if (p.current_ma < 0 || p.current_ma > kMaxCurrentMa) {
-      OutOfRange("current_ma", "0–130 mA", p.current_ma);
+      return OutOfRange("current_ma", "0–130 mA", p.current_ma);
     }
     data.push_back(p.mode);
     data.push_back(static_cast<std::uint8_t>(p.pulse_width_us >> 8));    // byte 8: MSB
@@ -252,13 +251,14 @@ std::vector<std::uint8_t> BuildStartChannelListMode(std::uint8_t packet_number,
   return EncodePacket(packet_number, Command::kStartChannelListMode, data);
 }
 
-std::vector<std::uint8_t> BuildSinglePulse(std::uint8_t packet_number, int channel,
-                                           int pulse_width_us, int current_ma) {
-  if (channel < 1 || channel > kChannelCount) OutOfRange("channel", "1–8", channel);
+api::Result<std::vector<std::uint8_t>> BuildSinglePulse(std::uint8_t packet_number, int channel,
+                                                        int pulse_width_us, int current_ma) {
+  if (channel < 1 || channel > kChannelCount) return OutOfRange("channel", "1–8", channel);
   if (pulse_width_us < 0 || pulse_width_us > kMaxPulseWidthUs) {
-    OutOfRange("pulse_width_us", "0–500 µs", pulse_width_us);
+    return OutOfRange("pulse_width_us", "0–500 µs", pulse_width_us);
   }
-  if (current_ma < 0 || current_ma > kMaxCurrentMa) OutOfRange("current_ma", "0–130 mA", current_ma);
+  if (current_ma < 0 || current_ma > kMaxCurrentMa)
+    return OutOfRange("current_ma", "0–130 mA", current_ma);
   const std::vector<std::uint8_t> data{
       static_cast<std::uint8_t>(channel - 1),           // byte 7: channel number
       static_cast<std::uint8_t>(pulse_width_us >> 8),    // byte 8: MSB

@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "api/status.h"
+
 namespace fesbench::server::sciencemode2 {
 
 // Table 6 (§2.2): byte constants.
@@ -150,9 +152,9 @@ struct ChannelListInit {
   bool as_fast_as_possible = false;         ///< channel execution byte.
 };
 /// InitChannelListMode (§4.3). Intervals round to the 0.5 ms code.
-/// @throws std::invalid_argument naming the field if a value is out of range.
-std::vector<std::uint8_t> BuildInitChannelListMode(std::uint8_t packet_number,
-                                                   const ChannelListInit& init);
+/// kInvalidArgument naming the field if a value is out of range.
+api::Result<std::vector<std::uint8_t>> BuildInitChannelListMode(std::uint8_t packet_number,
+                                                                const ChannelListInit& init);
 
 /// One active channel's entry in StartChannelListMode (§4.3).
 struct ChannelPulse {
@@ -162,18 +164,18 @@ struct ChannelPulse {
 };
 /// StartChannelListMode (§4.3): 4 bytes per active channel in increasing
 /// channel order: mode, pulse width MSB, pulse width LSB, current.
-/// @throws std::invalid_argument naming the field if a value is out of range
-///   or there are more than 8 channels.
-std::vector<std::uint8_t> BuildStartChannelListMode(std::uint8_t packet_number,
-                                                    std::span<const ChannelPulse> pulses);
+/// kInvalidArgument naming the field if a value is out of range or there
+/// are more than 8 channels.
+api::Result<std::vector<std::uint8_t>> BuildStartChannelListMode(
+    std::uint8_t packet_number, std::span<const ChannelPulse> pulses);
 
 /// SinglePulse (§4.4): one pulse on one channel now, outside channel-list
 /// mode. Data: channel number (0–7, i.e. channel − 1), pulse width MSB and
 /// LSB (µs), current (mA) — the field list of §4.4, with the byte order of
 /// the other 16-bit fields (not checked against a device).
-/// @throws std::invalid_argument naming the field if a value is out of range.
-std::vector<std::uint8_t> BuildSinglePulse(std::uint8_t packet_number, int channel,
-                                           int pulse_width_us, int current_ma);
+/// kInvalidArgument naming the field if a value is out of range.
+api::Result<std::vector<std::uint8_t>> BuildSinglePulse(std::uint8_t packet_number, int channel,
+                                                        int pulse_width_us, int current_ma);
 
 /// A reply from the device, classified.
 struct Reply {

@@ -54,6 +54,12 @@ namespace {
 api::Status EStopped() {
   return api::Status::Conflict("stimulator e-stopped: nothing is sent until the e-stop is cleared");
 }
+
+// A packet the stimulator's configuration cannot express (a value out of
+// the packet's range): refused before anything is sent, and latched.
+api::Status Unbuildable(const api::Status& built) {
+  return api::Status::InvalidArgument("stimulator configuration: " + built.message());
+}
 }  // namespace
 
 api::Status Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
@@ -174,15 +180,11 @@ api::Status Stimulator::InitChannelList() {
   ChannelListInit init;
   init.active_channels = static_cast<std::uint8_t>(1u << (config_.channel - 1));
   init.main_interval_ms = 1000.0 / config_.pulse_rate_hz;
-  try {
-    const std::uint8_t number = NextPacketNumber();
-    const auto wire = BuildInitChannelListMode(number, init);
-    last_sent_number_ = number;
-    if (api::Status sent = Send(wire, /*stimulating=*/true); !sent.ok()) return sent;
-  } catch (const std::invalid_argument& e) {
-    return Fault(
-        api::Status::InvalidArgument(std::string("stimulator configuration: ") + e.what()));
-  }
+  const std::uint8_t number = NextPacketNumber();
+  const api::Result<std::vector<std::uint8_t>> wire = BuildInitChannelListMode(number, init);
+  if (!wire.ok()) return Fault(Unbuildable(wire.status()));
+  last_sent_number_ = number;
+  if (api::Status sent = Send(*wire, /*stimulating=*/true); !sent.ok()) return sent;
   if (api::Status acked = AwaitAck(Command::kInitChannelListModeAck); !acked.ok()) return acked;
   mode_ready_.store(!estop_.load());
   return api::Status::Ok();
@@ -200,11 +202,10 @@ api::Status Stimulator::SetAmplitude(double stim_ma) {
   const int current = static_cast<int>(std::floor(stim_ma + 1e-9));
   const ChannelPulse pulse{0, config_.pulse_width_us, current};
   last_sent_number_ = NextPacketNumber();
-  if (api::Status sent = Send(BuildStartChannelListMode(last_sent_number_, std::span(&pulse, 1)),
-                              /*stimulating=*/true);
-      !sent.ok()) {
-    return sent;
-  }
+  const api::Result<std::vector<std::uint8_t>> wire =
+      BuildStartChannelListMode(last_sent_number_, std::span(&pulse, 1));
+  if (!wire.ok()) return Fault(Unbuildable(wire.status()));
+  if (api::Status sent = Send(*wire, /*stimulating=*/true); !sent.ok()) return sent;
   if (api::Status acked = AwaitAck(Command::kStartChannelListModeAck); !acked.ok()) return acked;
   std::lock_guard lock(write_mu_);
   if (estop_.load()) return EStopped();  // an e-stop's StopChannelListMode followed this start
@@ -242,12 +243,10 @@ api::Result<double> Stimulator::SinglePulse(double stim_ma) {
   }
   const int current = static_cast<int>(std::floor(stim_ma + 1e-9));
   last_sent_number_ = NextPacketNumber();
-  if (api::Status sent = Send(
-          BuildSinglePulse(last_sent_number_, config_.channel, config_.pulse_width_us, current),
-          /*stimulating=*/true);
-      !sent.ok()) {
-    return sent;
-  }
+  const api::Result<std::vector<std::uint8_t>> wire =
+      BuildSinglePulse(last_sent_number_, config_.channel, config_.pulse_width_us, current);
+  if (!wire.ok()) return Fault(Unbuildable(wire.status()));
+  if (api::Status sent = Send(*wire, /*stimulating=*/true); !sent.ok()) return sent;
   if (api::Status acked = AwaitAck(Command::kSinglePulseAck); !acked.ok()) return acked;
   return static_cast<double>(current);
 }

@@ -1,7 +1,6 @@
 #include "server/bench/sciencemode4_packet.h"
 
 #include <cmath>
-#include <stdexcept>
 
 #include "server/bench/sciencemode2_packet.h"
 
@@ -14,8 +13,8 @@ constexpr std::uint8_t kStuffing = 0x81;
 constexpr std::uint8_t kKey = 0x55;
 constexpr std::size_t kHeaderBytes = 9;  // start, stuffed length, stuffed checksum
 
-[[noreturn]] void OutOfRange(const std::string& field, const std::string& range, double got) {
-  throw std::invalid_argument(field + " must be " + range + ", got " + std::to_string(got));
+api::Status OutOfRange(const std::string& field, const std::string& range, double got) {
+  return api::Status::InvalidArgument(field + " must be " + range + ", got " + std::to_string(got));
 }
 
 }  // namespace
@@ -128,29 +127,32 @@ DecodeResult DecodePacket(std::span<const std::uint8_t> frame) {
   return r;
 }
 
-std::vector<std::uint8_t> BuildLlInit(std::uint8_t packet_number, int high_voltage_level) {
+api::Result<std::vector<std::uint8_t>> BuildLlInit(std::uint8_t packet_number,
+                                                   int high_voltage_level) {
   if (high_voltage_level < 0 || high_voltage_level > 7) {
-    OutOfRange("high_voltage_level", "0–7", high_voltage_level);
+    return OutOfRange("high_voltage_level", "0–7", high_voltage_level);
   }
   const std::uint8_t data[] = {static_cast<std::uint8_t>((high_voltage_level & 0x07) << 1)};
   return EncodePacket(packet_number, Command::kLlInit, data);
 }
 
-std::vector<std::uint8_t> BuildLlChannelConfig(std::uint8_t packet_number, int channel,
-                                               int connector, std::span<const Point> points) {
-  if (channel < 0 || channel >= kChannelCount) OutOfRange("channel", "0–3", channel);
-  if (connector < 0 || connector > 1) OutOfRange("connector", "0–1", connector);
+api::Result<std::vector<std::uint8_t>> BuildLlChannelConfig(std::uint8_t packet_number, int channel,
+                                                            int connector,
+                                                            std::span<const Point> points) {
+  if (channel < 0 || channel >= kChannelCount) return OutOfRange("channel", "0–3", channel);
+  if (connector < 0 || connector > 1) return OutOfRange("connector", "0–1", connector);
   if (points.empty() || points.size() > static_cast<std::size_t>(kMaxPoints)) {
-    OutOfRange("points", "1–16 points", static_cast<double>(points.size()));
+    return OutOfRange("points", "1–16 points", static_cast<double>(points.size()));
   }
   std::vector<std::uint8_t> data;
   data.push_back(static_cast<std::uint8_t>(0x80 | ((channel << 5) & 0x60) |
                                            ((connector << 4) & 0x10) |
                                            ((points.size() - 1) & 0x0F)));
   for (const Point& p : points) {
-    if (p.time_us < 0 || p.time_us > kMaxPointTimeUs) OutOfRange("time_us", "0–4095 µs", p.time_us);
+    if (p.time_us < 0 || p.time_us > kMaxPointTimeUs)
+      return OutOfRange("time_us", "0–4095 µs", p.time_us);
     if (!(std::abs(p.current_ma) <= kMaxCurrentMa)) {
-      OutOfRange("current_ma", "−150–150 mA", p.current_ma);
+      return OutOfRange("current_ma", "−150–150 mA", p.current_ma);
     }
     // 2·I + 300: 0.5 mA steps, 0 … 600 in 10 bits.
     const auto code = static_cast<std::uint16_t>(std::lround(p.current_ma * 2.0 + 300.0));

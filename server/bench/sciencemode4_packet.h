@@ -26,6 +26,8 @@
 #include <string>
 #include <vector>
 
+#include "api/status.h"
+
 namespace fesbench::server::sciencemode4 {
 
 /// Low-level command numbers (smpt_definitions.h, Smpt_Cmd).
@@ -111,13 +113,15 @@ struct Point {
 };
 
 /// Ll_Init (smpt_build_ll_init): high-voltage level 0–7 (0: the device's
-/// default), no measurement.
-std::vector<std::uint8_t> BuildLlInit(std::uint8_t packet_number, int high_voltage_level = 0);
+/// default), no measurement; kInvalidArgument for another level.
+api::Result<std::vector<std::uint8_t>> BuildLlInit(std::uint8_t packet_number,
+                                                   int high_voltage_level = 0);
 /// Ll_Channel_Config (smpt_build_ll_channel_config): one pulse of 1–16
 /// points on a channel (0–3) and connector (0–1), stimulation enabled.
-/// @throws std::invalid_argument naming the field if a value is out of range.
-std::vector<std::uint8_t> BuildLlChannelConfig(std::uint8_t packet_number, int channel,
-                                               int connector, std::span<const Point> points);
+/// kInvalidArgument naming the field if a value is out of range.
+api::Result<std::vector<std::uint8_t>> BuildLlChannelConfig(std::uint8_t packet_number, int channel,
+                                                            int connector,
+                                                            std::span<const Point> points);
 /// Ll_Stop: leaves low-level mode.
 std::vector<std::uint8_t> BuildLlStop(std::uint8_t packet_number);
 /// Get_Stim_Status (general level): no data.

@@ -53,6 +53,12 @@ api::Status EStopped() {
   return api::Status::Conflict("stimulator e-stopped: nothing is sent until the e-stop is cleared");
 }
 
+// A packet the stimulator's configuration cannot express (a value out of
+// the packet's range): refused before anything is sent, and latched.
+api::Status Unbuildable(const api::Status& built) {
+  return api::Status::InvalidArgument("stimulator configuration: " + built.message());
+}
+
 }  // namespace
 
 api::Status Stimulator::Send(const std::vector<std::uint8_t>& wire, bool stimulating) {
@@ -98,9 +104,9 @@ api::Status Stimulator::AwaitAck(Command ack, std::vector<std::uint8_t>* data) {
 
 api::Status Stimulator::InitLowLevel() {
   last_sent_number_ = NextPacketNumber();
-  if (api::Status sent = Send(BuildLlInit(last_sent_number_), /*stimulating=*/true); !sent.ok()) {
-    return sent;
-  }
+  const api::Result<std::vector<std::uint8_t>> wire = BuildLlInit(last_sent_number_);
+  if (!wire.ok()) return Fault(Unbuildable(wire.status()));
+  if (api::Status sent = Send(*wire, /*stimulating=*/true); !sent.ok()) return sent;
   if (api::Status acked = AwaitAck(Command::kLlInitAck); !acked.ok()) return acked;
   initialised_.store(!estop_.load());
   return api::Status::Ok();
@@ -156,12 +162,10 @@ api::Result<double> Stimulator::SinglePulse(double stim_ma) {
                           {kInterPhaseUs, 0.0},
                           {config_.pulse_width_us, -current}};
   last_sent_number_ = NextPacketNumber();
-  if (api::Status sent =
-          Send(BuildLlChannelConfig(last_sent_number_, config_.channel - 1, 0, points),
-               /*stimulating=*/true);
-      !sent.ok()) {
-    return sent;
-  }
+  const api::Result<std::vector<std::uint8_t>> wire =
+      BuildLlChannelConfig(last_sent_number_, config_.channel - 1, 0, points);
+  if (!wire.ok()) return Fault(Unbuildable(wire.status()));
+  if (api::Status sent = Send(*wire, /*stimulating=*/true); !sent.ok()) return sent;
   if (api::Status acked = AwaitAck(Command::kLlChannelConfigAck); !acked.ok()) return acked;
   return current;
 }

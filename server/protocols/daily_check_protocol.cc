@@ -25,16 +25,14 @@ double SwingErms(const model::ParameterSet& params, const api::Trial& trial,
   o.output_rate_hz = trial.sample_rate_hz;
   o.pulse_rate_hz = trial.pulses->pulse_rate_hz;
   o.joint_limits = stops;
-  try {
-    const model::SimulationResult sim =
-        SimulateStimulatedSwing(params, trial.pulses->Train(), o);
-    const std::size_t n = std::min(sim.angle_deg.size(), angle->size());
-    double sum = 0.0;
-    for (std::size_t i = 0; i < n; ++i) sum += std::pow(sim.angle_deg[i] - (*angle)[i], 2);
-    return n ? std::sqrt(sum / static_cast<double>(n)) : std::nan("");
-  } catch (const std::exception&) {
-    return std::nan("");
-  }
+  // A swing the model cannot simulate has no E_RMS.
+  const api::Result<model::SimulationResult> sim =
+      api::CallModel([&] { return SimulateStimulatedSwing(params, trial.pulses->Train(), o); });
+  if (!sim.ok()) return std::nan("");
+  const std::size_t n = std::min(sim->angle_deg.size(), angle->size());
+  double sum = 0.0;
+  for (std::size_t i = 0; i < n; ++i) sum += std::pow(sim->angle_deg[i] - (*angle)[i], 2);
+  return n ? std::sqrt(sum / static_cast<double>(n)) : std::nan("");
 }
 
 nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; }

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "api/model_call.h"
 #include "model/evaluation.h"
 
 namespace fesbench::server::protocols {
@@ -78,13 +79,13 @@ api::Result<GatePrediction> PredictPlanSwing(const Plan& plan, const model::Para
     o.pulse_rate_hz = pulse_rate_hz;
     o.output_rate_hz = kGateOutputRateHz;
     o.joint_limits = stops;
-    model::SimulationResult sim;
-    try {
-      sim = SimulateStimulatedSwing(params, EnvelopePulses(env, pulse_rate_hz), o);
-    } catch (const std::exception& e) {
+    api::Result<model::SimulationResult> simulated = api::CallModel(
+        [&] { return SimulateStimulatedSwing(params, EnvelopePulses(env, pulse_rate_hz), o); });
+    if (!simulated.ok()) {
       return api::Status::FailedPrecondition("cannot simulate this input: trial " + name + ": " +
-                                             e.what());
+                                             simulated.status().message());
     }
+    const model::SimulationResult& sim = *simulated;
     for (std::size_t i = 0; i < sim.size(); ++i) {
       const double th = sim.angle_deg[i];
       const double v = i < sim.velocity_deg_s.size() ? sim.velocity_deg_s[i] : 0.0;

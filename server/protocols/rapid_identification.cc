@@ -87,16 +87,14 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
     options.mgl_prior_nm =
         model::AnthropometricGravityMoment(*subject.body_mass_kg, *subject.leg_length_m);
   }
-  try {
-    model::RapidResult r = model::IdentifyRapid(rapid, options);
-    if (r.parameters.provenance.inertia_method.empty()) {
-      r.parameters.provenance.inertia_method = source;
-    }
-    r.parameters.provenance.software_version = "fesbench 0.1.0";
-    return r.parameters;
-  } catch (const std::exception& e) {
-    return api::Status::FailedPrecondition(e.what());
-  }
+  api::Result<model::RapidResult> r =
+      api::CallModel([&] { return model::IdentifyRapid(rapid, options); }, {},
+                     api::ErrorCode::kFailedPrecondition);
+  if (!r.ok()) return r.status();
+  model::ParameterSet& params = r->parameters;
+  if (params.provenance.inertia_method.empty()) params.provenance.inertia_method = source;
+  params.provenance.software_version = "fesbench 0.1.0";
+  return params;
 }
 
 }  // namespace fesbench::server::protocols

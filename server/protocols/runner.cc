@@ -6,6 +6,7 @@
 #include <limits>
 #include <numeric>
 
+#include "api/model_call.h"
 #include "model/identify_isometric.h"
 #include "model/simulate.h"
 #include "server/protocols/run_execution.h"
@@ -104,16 +105,16 @@ RunResult ProtocolRunner::Run(const Plan& plan, const SubjectContext& subject) {
 
 api::Result<double> AmplitudeForTorque(const api::Trial& ramp_trial, double target_torque_nm,
                                        double min_ma, double max_ma) {
-  try {
-    const model::IrcResult irc =
-        model::IdentifyIrc(model::IrcMethod::kRampCorrelation, api::ToTrialColumns(ramp_trial));
-    for (double u = min_ma; u <= max_ma; u += 0.1) {
-      if (irc.torque_scale_nm * irc.irc(u) >= target_torque_nm) return u;
-    }
-    return max_ma;
-  } catch (const std::exception& e) {
-    return api::Status::FailedPrecondition(std::string("IRC of the ramp trial: ") + e.what());
+  const api::Result<model::IrcResult> irc = api::CallModel([&] {
+    return model::IdentifyIrc(model::IrcMethod::kRampCorrelation, api::ToTrialColumns(ramp_trial));
+  });
+  if (!irc.ok()) {
+    return api::Status::FailedPrecondition("IRC of the ramp trial: " + irc.status().message());
   }
+  for (double u = min_ma; u <= max_ma; u += 0.1) {
+    if (irc->torque_scale_nm * irc->irc(u) >= target_torque_nm) return u;
+  }
+  return max_ma;
 }
 
 }  // namespace fesbench::server::protocols

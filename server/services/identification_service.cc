@@ -21,7 +21,6 @@
 #include "model/identify_simplified.h"
 #include "model/parameter_set.h"
 #include "model/quality.h"
-#include "server/services/model_failure.h"
 #include "server/services/stored_trials.h"
 #include "storage/audit_log.h"
 #include "storage/parameter_sets.h"
@@ -93,23 +92,33 @@ class Fitter {
         config_(config),
         sel_(selection),
         ctx_(context),
-        // Both names were checked by ValidateIdentificationRequest.
-        passive_(model::PassiveMethodFromName(request.passive_method)
-                     .value_or(model::PassiveMethod::kSimultaneous)),
-        pole_(model::PoleMethodFromName(request.pole_method).value_or(model::PoleMethod::kPeak)) {}
+        passive_(request.passive_method) {}
 
+  // What the model refuses in the stored trials is a failed precondition
+  // of the fit, named by the stage it stopped in (docs/ARCHITECTURE.md, Errors).
   api::Result<FitOutcome> Run() {
-    try {
-      if (req_.method == "rapid") return Rapid();
-      if (req_.method == "passive") return PassiveOnly();
-      return Thesis();
-    } catch (const std::exception& e) {
-      return ModelFailure("identification (" + stage_ + ")", e,
-                          api::ErrorCode::kFailedPrecondition);
+    api::Result<api::Result<FitOutcome>> fitted =
+        api::CallModel([&] { return Method(); }, {}, api::ErrorCode::kFailedPrecondition);
+    if (!fitted.ok()) {
+      return api::Status(fitted.status().code(),
+                         "identification (" + stage_ + "): " + fitted.status().message());
     }
+    return std::move(fitted).value();
   }
 
  private:
+  api::Result<FitOutcome> Method() {
+    switch (req_.method) {
+      case model::IdentificationMethod::kRapid:
+        return Rapid();
+      case model::IdentificationMethod::kPassive:
+        return PassiveOnly();
+      case model::IdentificationMethod::kThesis:
+        break;
+    }
+    return Thesis();
+  }
+
   TrialColumns Columns(const LoadedTrial& t) {
     used_.insert(t.id);
     TrialColumns c = api::ToTrialColumns(t.trial);
@@ -158,7 +167,7 @@ class Fitter {
 
   MissingTrials CheckPresent() const {
     const auto has = [&](TrialKind k) { return !sel_.Of(k).empty(); };
-    const model::IrcMethod irc = *model::IrcMethodFromName(req_.irc_method);
+    const model::IrcMethod irc = req_.irc_method;
     MissingTrials missing;
     if (irc == model::IrcMethod::kStep && !has(TrialKind::kStepIrc)) {
       missing.stimulated.push_back(Missing("irc_method step", "an isometric_step_irc trial"));
@@ -167,8 +176,8 @@ class Fitter {
           Missing("irc_method impulse", "an isometric_impulse_irc trial"));
     } else if (irc != model::IrcMethod::kStep && irc != model::IrcMethod::kImpulse &&
                !has(TrialKind::kRampIrc)) {
-      missing.stimulated.push_back(
-          Missing("irc_method " + req_.irc_method, "an isometric_ramp_irc trial"));
+      missing.stimulated.push_back(Missing("irc_method " + std::string(model::IrcMethodName(irc)),
+                                           "an isometric_ramp_irc trial"));
     }
     if (!has(TrialKind::kRampIrc) && !has(TrialKind::kImpulseIrc)) {
       missing.stimulated.push_back(
@@ -224,6 +233,8 @@ class Fitter {
                  "without the stimulated muscle)";
   }
 
+  std::string PassiveName() const { return std::string(model::PassiveMethodName(passive_)); }
+
   std::optional<double> Inertia() const {
     if (req_.inertia_kgm2) return req_.inertia_kgm2;
     if (ctx_.body_mass_kg && ctx_.leg_length_m) {
@@ -240,14 +251,15 @@ class Fitter {
     if (!missing.passive.empty()) return Refusal(missing);
     const bool with_irc = missing.stimulated.empty();
     const bool with_active = with_irc && missing.active.empty();
-    if (!with_active && req_.models != std::vector<std::string>{"full"}) {
+    if (!with_active && req_.models != std::vector<model::ModelKind>{model::ModelKind::kFull}) {
       return Refusal(missing);  // the variants differ in their active curves
     }
     // The blocks not fitted keep the example set's values as placeholders.
     model::ParameterSet est = with_active ? model::ParameterSet{} : model::ExampleParameterSet();
     est.provenance = {};
     if (!with_irc) return PassiveOnlyThesis(est, missing, /*fit_passive=*/true);
-    const model::IrcMethod irc_method = *model::IrcMethodFromName(req_.irc_method);
+    const model::IrcMethod irc_method = req_.irc_method;
+    const std::string irc_name(model::IrcMethodName(irc_method));
 
     // Contraction dynamics from the averaged impulse responses (§4.1, Eqs. 4.2, 4.4).
     stage_ = "contraction dynamics";
@@ -256,13 +268,13 @@ class Fitter {
       twitch_trials.push_back(std::move(c));
     model::ContractionOptions co;
     co.order = req_.contraction_order;
-    co.method = pole_;
+    co.method = req_.pole_method;
     const model::ContractionResult contraction = model::IdentifyContraction(twitch_trials, co);
     est.contraction = contraction.contraction;
     common_.Merge(contraction.report);
 
     // IRC (§4.1) from the latest trial of the kind the method needs.
-    stage_ = "IRC (" + req_.irc_method + ")";
+    stage_ = "IRC (" + irc_name + ")";
     const TrialKind irc_kind = irc_method == model::IrcMethod::kStep      ? TrialKind::kStepIrc
                                : irc_method == model::IrcMethod::kImpulse ? TrialKind::kImpulseIrc
                                                                           : TrialKind::kRampIrc;
@@ -272,13 +284,13 @@ class Fitter {
         model::IdentifyIrc(irc_method, Columns(*sel_.Latest(irc_kind)), io);
     est.irc = irc.irc;
     est.active.torque_scale_nm = irc.torque_scale_nm;
-    est.provenance.irc_method = req_.irc_method;
+    est.provenance.irc_method = irc_name;
     common_.Merge(irc.report);
 
     // Passive (§4.2).
-    stage_ = "passive (" + req_.passive_method + ")";
+    stage_ = "passive (" + PassiveName() + ")";
     if (api::Status s = Passive(est); !s.ok()) return s;
-    est.provenance.passive_method = req_.passive_method;
+    est.provenance.passive_method = PassiveName();
     if (!with_active) return PassiveOnlyThesis(est, missing, /*fit_passive=*/false);
 
     // Active and variants (§4.3, §5.5.1, §7.3, §7.4.4) on the active trials.
@@ -298,9 +310,9 @@ class Fitter {
   api::Result<FitOutcome> PassiveOnlyThesis(model::ParameterSet& est, const MissingTrials& missing,
                                             bool fit_passive) {
     if (fit_passive) {
-      stage_ = "passive (" + req_.passive_method + ")";
+      stage_ = "passive (" + PassiveName() + ")";
       if (api::Status s = Passive(est); !s.ok()) return s;
-      est.provenance.passive_method = req_.passive_method;
+      est.provenance.passive_method = PassiveName();
     }
     std::string not_fitted;
     for (const std::string& m : missing.stimulated) not_fitted += "; " + m;
@@ -391,8 +403,8 @@ class Fitter {
     model::ActiveOptions ao;
     if (req_.breakpoints.active_angle) ao.angle = *req_.breakpoints.active_angle;
     if (req_.breakpoints.active_velocity) ao.velocity = *req_.breakpoints.active_velocity;
-    for (const std::string& name : req_.models) {
-      const model::ModelKind kind = *model::ParseModelKind(name);
+    for (const model::ModelKind kind : req_.models) {
+      const std::string name(model::ModelKindName(kind));
       stage_ = "model " + name;
       ModelFit fit;
       if (kind == model::ModelKind::kFull) {
@@ -563,9 +575,10 @@ class Fitter {
     base.provenance.active_trial_id = act->id;
     FitOutcome out;
     std::vector<TrialColumns> active_trials;
-    for (const std::string& name : req_.models) {
+    for (const model::ModelKind kind : req_.models) {
+      const std::string name(model::ModelKindName(kind));
       ModelFit fit;
-      if (name == "full") {
+      if (kind == model::ModelKind::kFull) {
         fit.params = base;
         fit.report = r.report;
       } else {
@@ -578,8 +591,7 @@ class Fitter {
         model::SimplifiedOptions so;
         if (bp.active_angle) so.active.angle = *bp.active_angle;
         if (bp.active_velocity) so.active.velocity = so.velocity = *bp.active_velocity;
-        const model::SimplifiedResult s =
-            model::IdentifySimplified(*model::ParseModelKind(name), active_trials, base, so);
+        const model::SimplifiedResult s = model::IdentifySimplified(kind, active_trials, base, so);
         fit.params = s.params;
         fit.params.provenance = base.provenance;
         fit.params.provenance.active_method = name;
@@ -599,7 +611,6 @@ class Fitter {
   const Selection& sel_;
   const FitContext& ctx_;
   const model::PassiveMethod passive_;
-  const model::PoleMethod pole_;
   model::IdentifyReport common_;
   std::set<std::int64_t> used_;
   std::string stage_ = "conditioning";
@@ -681,10 +692,12 @@ api::Result<Selection> Select(storage::Database& db, const IdentificationRequest
 }
 
 nlohmann::json RequestSummary(const IdentificationRequest& req) {
-  nlohmann::json j = {{"method", req.method},
-                      {"irc_method", req.irc_method},
-                      {"passive_method", req.passive_method},
-                      {"models", req.models}};
+  nlohmann::json models = nlohmann::json::array();
+  for (model::ModelKind kind : req.models) models.push_back(model::ModelKindName(kind));
+  nlohmann::json j = {{"method", model::IdentificationMethodName(req.method)},
+                      {"irc_method", model::IrcMethodName(req.irc_method)},
+                      {"passive_method", model::PassiveMethodName(req.passive_method)},
+                      {"models", models}};
   if (req.session_id) j["session_id"] = *req.session_id;
   if (!req.trial_ids.empty()) j["trial_ids"] = req.trial_ids;
   return j;
@@ -711,45 +724,22 @@ api::Status ValidateIdentificationRequest(const IdentificationRequest& req) {
   if (req.trial_ids.size() > 100) {
     return api::Status::InvalidArgument("at most 100 trials", "trial_ids");
   }
-  if (req.method != "thesis" && req.method != "rapid" && req.method != "passive") {
-    return api::Status::InvalidArgument("must be \"thesis\", \"rapid\" or \"passive\"",
-                                        "method");
-  }
-  if (req.method == "passive" && req.models != std::vector<std::string>{"full"}) {
+  if (req.method == model::IdentificationMethod::kPassive &&
+      req.models != std::vector<model::ModelKind>{model::ModelKind::kFull}) {
     return api::Status::InvalidArgument(
         "method passive fits the passive block of the full model only (the variants differ in "
         "their active curves)",
         "models");
   }
-  if (!model::IrcMethodFromName(req.irc_method)) {
-    return api::Status::InvalidArgument(
-        "must be step, impulse, ramp_correlation, ramp_deconvolution_ideal or "
-        "ramp_deconvolution_measured",
-        "irc_method");
-  }
-  if (!model::PassiveMethodFromName(req.passive_method)) {
-    return api::Status::InvalidArgument("must be sequential, simultaneous or free_swing",
-                                        "passive_method");
-  }
   if (req.contraction_order != 0 && req.contraction_order != 2 && req.contraction_order != 3) {
     return api::Status::InvalidArgument("must be 2, 3 or 0 (the better-fitting order)",
                                         "contraction_order");
   }
-  if (!model::PoleMethodFromName(req.pole_method)) {
-    return api::Status::InvalidArgument("must be peak or least_squares", "pole_method");
-  }
   if (req.models.empty()) return api::Status::InvalidArgument("name at least one model", "models");
-  std::set<std::string> names;
+  std::set<model::ModelKind> kinds;
   for (std::size_t i = 0; i < req.models.size(); ++i) {
-    const std::string field = "models[" + std::to_string(i) + "]";
-    if (!model::ParseModelKind(req.models[i])) {
-      return api::Status::InvalidArgument(
-          "unknown model \"" + req.models[i] +
-              "\" (full, torque_generator, single_segment, static_gain_pwl_velocity, parametric)",
-          field);
-    }
-    if (!names.insert(req.models[i]).second) {
-      return api::Status::InvalidArgument("duplicate model", field);
+    if (!kinds.insert(req.models[i]).second) {
+      return api::Status::InvalidArgument("duplicate model", "models[" + std::to_string(i) + "]");
     }
   }
   const auto& bp = req.breakpoints;

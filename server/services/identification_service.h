@@ -76,8 +76,9 @@ class IdentificationService {
   IdentificationConfig config_;
 };
 
-/// Checks the request's fields alone (no database): kInvalidArgument naming
-/// the field ("session_id", "trial_ids[2]", "irc_method", "models[1]", …).
+/// Checks the request's values together (no database; the names were parsed
+/// by api::IdentificationRequestFromJson): kInvalidArgument naming the field
+/// ("session_id", "trial_ids[2]", "contraction_order", "models[1]", …).
 api::Status ValidateIdentificationRequest(const IdentificationRequest& request);
 
 }  // namespace fesbench::server::services

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "api/model_call.h"
 #include "api/trial_import.h"
 #include "api/trial_kind.h"
 #include "model/conditioning.h"
@@ -18,7 +19,6 @@
 #include "model/strength_history.h"
 #include "server/protocols/model_gate.h"
 #include "server/services/analysis_json.h"
-#include "server/services/model_failure.h"
 #include "server/services/stored_trials.h"
 #include "storage/audit_log.h"
 #include "storage/parameter_sets.h"
@@ -416,7 +416,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
 
   PredictionInput in;
   in.options.pulse_rate_hz = config_.pulse_rate_hz;
-  try {
+  const auto predict = [&]() -> api::Result<PredictionResult> {
     api::Status prepared = request.stimulus
                                ? PrepareFromStimulus(request, config_, params, in, out)
                                : PrepareFromTrial(db_, request, config_, in, out);
@@ -465,13 +465,17 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
       in.stage = "errors";
       if (api::Status st = CompareWithTrial(request, config_, in, out); !st.ok()) return st;
     }
-  } catch (const std::exception& e) {
-    return ModelFailure(in.stage, e,
-                        in.stage == "simulation" || in.stage == "errors"
-                            ? api::ErrorCode::kFailedPrecondition
-                            : api::ErrorCode::kInvalidArgument);
+    return out;
+  };
+  api::Result<api::Result<PredictionResult>> computed = api::CallModel(predict);
+  if (!computed.ok()) {
+    // What the model refuses in the simulation or the comparison is a
+    // failed precondition of the stored set; before them, of the request.
+    const bool of_the_set = in.stage == "simulation" || in.stage == "errors";
+    return api::Status(of_the_set ? api::ErrorCode::kFailedPrecondition : computed.status().code(),
+                       std::string(in.stage) + ": " + computed.status().message());
   }
-  return out;
+  return std::move(computed).value();
 }
 
 api::Result<PredictionResult> PredictionService::Predict(const Actor& actor,

@@ -10,10 +10,10 @@ using nlohmann::json;
 TEST(AnalysisRequests, IdentificationRoundTripsThroughItsJson) {
   IdentificationRequest request;
   request.trial_ids = {4, 5, 9};
-  request.method = "thesis";
-  request.passive_method = "free_swing";
+  request.method = model::IdentificationMethod::kThesis;
+  request.passive_method = model::PassiveMethod::kFreeSwing;
   request.contraction_order = 2;
-  request.models = {"full", "parametric"};
+  request.models = {model::ModelKind::kFull, model::ModelKind::kParametric};
   request.breakpoints.active_angle = model::BreakpointSpec{};
   request.breakpoints.active_angle->explicit_x = {20.0, 60.0, 100.0};
   request.breakpoints.passive_velocity = model::BreakpointSpec{};
@@ -26,7 +26,7 @@ TEST(AnalysisRequests, IdentificationRoundTripsThroughItsJson) {
   ASSERT_TRUE(back.ok()) << back.status().ToString();
   EXPECT_EQ(back->trial_ids, request.trial_ids);
   EXPECT_FALSE(back->session_id.has_value());
-  EXPECT_EQ(back->passive_method, "free_swing");
+  EXPECT_EQ(back->passive_method, model::PassiveMethod::kFreeSwing);
   EXPECT_EQ(back->contraction_order, 2);
   EXPECT_EQ(back->models, request.models);
   ASSERT_TRUE(back->breakpoints.active_angle.has_value());
@@ -41,11 +41,12 @@ TEST(AnalysisRequests, IdentificationRoundTripsThroughItsJson) {
 TEST(AnalysisRequests, AnEmptyIdentificationBodyTakesTheDefaults) {
   const Result<IdentificationRequest> r = IdentificationRequestFromJson(json::object());
   ASSERT_TRUE(r.ok());
-  EXPECT_EQ(r->method, "thesis");
-  EXPECT_EQ(r->irc_method, "ramp_correlation");
-  EXPECT_EQ(r->passive_method, "simultaneous");
+  EXPECT_EQ(r->method, model::IdentificationMethod::kThesis);
+  EXPECT_EQ(r->irc_method, model::IrcMethod::kRampCorrelation);
+  EXPECT_EQ(r->passive_method, model::PassiveMethod::kSimultaneous);
+  EXPECT_EQ(r->pole_method, model::PoleMethod::kPeak);
   EXPECT_EQ(r->contraction_order, 3);
-  EXPECT_EQ(r->models, std::vector<std::string>{"full"});
+  EXPECT_EQ(r->models, std::vector<model::ModelKind>{model::ModelKind::kFull});
 }
 
 TEST(AnalysisRequests, IdentificationErrorsNameTheField) {
@@ -62,6 +63,15 @@ TEST(AnalysisRequests, IdentificationErrorsNameTheField) {
   EXPECT_EQ(field({{"breakpoints", {{"activ_angle", 5}}}}), "breakpoints.activ_angle");
   EXPECT_EQ(field({{"inertia_kgm2", "heavy"}}), "inertia_kgm2");
   EXPECT_EQ(field({{"methd", "rapid"}}), "methd");
+  // A name is parsed where it is read: none of a choice's names is refused
+  // there, naming the field and the names it takes.
+  EXPECT_EQ(field({{"method", "fast"}}), "method");
+  EXPECT_EQ(field({{"irc_method", "ramp"}}), "irc_method");
+  EXPECT_EQ(field({{"passive_method", "passive_sequential"}}), "passive_method");
+  EXPECT_EQ(field({{"pole_method", "Peak"}}), "pole_method");
+  EXPECT_EQ(field({{"models", {"full", "hill"}}}), "models[1]");
+  EXPECT_EQ(IdentificationRequestFromJson({{"passive_method", "free swing"}}).status().message(),
+            "must be sequential, simultaneous or free_swing");
   EXPECT_EQ(IdentificationRequestFromJson(json::array()).status().code(),
             ErrorCode::kInvalidArgument);
 }
@@ -87,7 +97,7 @@ TEST(AnalysisRequests, RapidRefusesTheThesisMethods) {
   // What the clients send for rapid reads back.
   IdentificationRequest rapid;
   rapid.session_id = 3;
-  rapid.method = "rapid";
+  rapid.method = model::IdentificationMethod::kRapid;
   const json sent = IdentificationRequestToJson(rapid);
   EXPECT_FALSE(sent.contains("passive_method"));
   EXPECT_TRUE(IdentificationRequestFromJson(sent).ok());
@@ -106,7 +116,7 @@ TEST(AnalysisRequests, PassiveRefusesTheStimulatedOptions) {
   const Result<IdentificationRequest> read =
       IdentificationRequestFromJson({{"method", "passive"}, {"trial_ids", {4}}, {"inertia_kgm2", 0.055}});
   ASSERT_TRUE(read.ok()) << read.status().message();
-  EXPECT_EQ(read->passive_method, "free_swing");
+  EXPECT_EQ(read->passive_method, model::PassiveMethod::kFreeSwing);
   const json sent = IdentificationRequestToJson(*read);
   EXPECT_FALSE(sent.contains("irc_method"));
   EXPECT_EQ(sent["inertia_kgm2"], 0.055);
@@ -122,6 +132,21 @@ TEST(AnalysisRequests, PassiveRefusesTheStimulatedOptions) {
             "gravity_moment_nm");
   EXPECT_EQ(status({{"method", "passive"}, {"gravity_moment_nm", "heavy"}}).field(),
             "gravity_moment_nm");
+}
+
+// The names a client offers are the reader's, each once.
+TEST(AnalysisRequests, ChoiceNamesAreTheReadersOwn) {
+  EXPECT_EQ(PassiveMethodNames(),
+            (std::vector<std::string>{"sequential", "simultaneous", "free_swing"}));
+  EXPECT_EQ(IdentificationMethodNames(), (std::vector<std::string>{"thesis", "rapid", "passive"}));
+  for (const std::string& name : IrcMethodNames()) {
+    const Result<IdentificationRequest> r = IdentificationRequestFromJson({{"irc_method", name}});
+    ASSERT_TRUE(r.ok()) << name;
+    EXPECT_EQ(model::IrcMethodName(r->irc_method), name);
+  }
+  for (const std::string& name : PoleMethodNames()) {
+    EXPECT_TRUE(IdentificationRequestFromJson({{"pole_method", name}}).ok()) << name;
+  }
 }
 
 TEST(AnalysisRequests, PredictionRoundTripsWithAStimulusOrATrial) {

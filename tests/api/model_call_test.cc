@@ -28,6 +28,19 @@ TEST(CallModel, MakesTheModelsInvalidArgumentAStatusWithItsMessage) {
 
 TEST(CallModel, LetsAnyOtherExceptionThrough) {
   EXPECT_THROW((void)CallModel([]() -> int { throw std::logic_error("a bug"); }), std::logic_error);
+  // A computation that could not finish, and a refusal the caller names.
+  const Status diverged =
+      CallModel([] { throw std::runtime_error("Dormand-Prince 5(4): non-finite state"); });
+  EXPECT_EQ(diverged.code(), ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(diverged.message(), "Dormand-Prince 5(4): non-finite state");
+  const Status refused = CallModel([] { throw std::invalid_argument("too few samples"); }, "",
+                                   ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(refused.code(), ErrorCode::kFailedPrecondition);
+  // A caller's own exception thrown through the call is not the model's.
+  struct UsageError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+  };
+  EXPECT_THROW((void)CallModel([] { throw UsageError("--option: expected k=v"); }), UsageError);
 }
 
 }  // namespace

@@ -177,8 +177,8 @@ IdentificationRequest SimultaneousRequest(std::int64_t session_id,
                                           const model::ParameterSet& truth) {
   IdentificationRequest r;
   r.session_id = session_id;
-  r.passive_method = "simultaneous";
-  r.irc_method = "ramp_correlation";
+  r.passive_method = model::PassiveMethod::kSimultaneous;
+  r.irc_method = model::IrcMethod::kRampCorrelation;
   r.breakpoints.passive_angle = model::BreakpointSpec{0, truth.passive.torque_angle.x()};
   r.breakpoints.passive_velocity = model::BreakpointSpec{0, truth.passive.torque_velocity.x()};
   return r;
@@ -190,7 +190,7 @@ TEST_F(AnalysisServicesTest, IdentificationRecoversKnownParametersAndStoresVersi
   std::vector<std::int64_t> trial_ids = StoreIdentificationTrials(s, truth);
   IdentificationService service(*db_);
   IdentificationRequest req = SimultaneousRequest(s.id, truth);
-  req.models = {"full", "torque_generator"};
+  req.models = {model::ModelKind::kFull, model::ModelKind::kTorqueGenerator};
   auto fit = service.Fit(kAnalyst, req);
   ASSERT_TRUE(fit.ok()) << fit.status().ToString();
   ASSERT_EQ(fit->stored.size(), 2u);
@@ -245,7 +245,7 @@ TEST_F(AnalysisServicesTest, IdentificationRecoversKnownParametersAndStoresVersi
   EXPECT_EQ(fit->audit_id, (*audit)[0].id);
 
   // A second fit is a new version; the first stays as it was.
-  req.models = {"full"};
+  req.models = {model::ModelKind::kFull};
   auto again = service.Fit(kAnalyst, req);
   ASSERT_TRUE(again.ok()) << again.status().ToString();
   ASSERT_EQ(again->stored.size(), 1u);
@@ -276,7 +276,7 @@ TEST_F(AnalysisServicesTest, IdentificationRefusesMissingTrialsUnknownIdsAndWron
   IdentificationService service(*db_);
   IdentificationRequest req;
   req.session_id = s.id;
-  req.passive_method = "sequential";
+  req.passive_method = model::PassiveMethod::kSequential;
   auto missing = service.Fit(kAnalyst, req);
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.status().code(), api::ErrorCode::kFailedPrecondition);
@@ -284,7 +284,7 @@ TEST_F(AnalysisServicesTest, IdentificationRefusesMissingTrialsUnknownIdsAndWron
   EXPECT_NE(missing.status().message().find("active_random_binary"), std::string::npos);
   EXPECT_EQ(missing.status().message().find("isometric_ramp_irc"), std::string::npos);
 
-  req.method = "rapid";
+  req.method = model::IdentificationMethod::kRapid;
   auto rapid = service.Fit(kAnalyst, req);
   EXPECT_EQ(rapid.status().code(), api::ErrorCode::kFailedPrecondition);
   EXPECT_NE(rapid.status().message().find("rapid_free_swing_passive"), std::string::npos);
@@ -300,7 +300,7 @@ TEST_F(AnalysisServicesTest, IdentificationRefusesMissingTrialsUnknownIdsAndWron
             api::ErrorCode::kPermissionDenied);
   IdentificationRequest bad;
   bad.session_id = s.id;
-  bad.models = {"full", "bogus"};
+  bad.models = {model::ModelKind::kFull, model::ModelKind::kFull};  // duplicate
   auto invalid = service.Fit(kAnalyst, bad);
   EXPECT_EQ(invalid.status().code(), api::ErrorCode::kInvalidArgument);
   EXPECT_EQ(invalid.status().field(), "models[1]");
@@ -353,9 +353,9 @@ TEST_F(AnalysisServicesTest, IdentificationFitsTheBlocksItsTrialsSupport) {
   EXPECT_GT(set->params.irc(45.0), 0.5);
 
   // A variant needs active curves; the active trials alone support nothing.
-  req.models = {"full", "torque_generator"};
+  req.models = {model::ModelKind::kFull, model::ModelKind::kTorqueGenerator};
   EXPECT_EQ(service.Fit(kAnalyst, req).status().code(), api::ErrorCode::kFailedPrecondition);
-  req.models = {"full"};
+  req.models = {model::ModelKind::kFull};
   req.trial_ids = {all[3], all[4]};
   auto none = service.Fit(kAnalyst, req);
   EXPECT_EQ(none.status().code(), api::ErrorCode::kFailedPrecondition);

@@ -59,8 +59,8 @@ TEST(ScienceMode2Encode, InitChannelListModeByteForByte) {
   init.active_channels = 0x03;
   init.inter_pulse_interval_ms = 8.0;
   init.main_interval_ms = 25.0;
-  EXPECT_EQ(BuildInitChannelListMode(7, init), (Bytes{0xF0, 0x81, 0x84, 0x81, 0x5C, 0x07, 30, 0x00,
-                                                      0x03, 0x00, 13, 0x00, 0x30, 0x00, 0x0F}));
+  EXPECT_EQ(*BuildInitChannelListMode(7, init), (Bytes{0xF0, 0x81, 0x84, 0x81, 0x5C, 0x07, 30, 0x00,
+                                                       0x03, 0x00, 13, 0x00, 0x30, 0x00, 0x0F}));
 }
 
 TEST(ScienceMode2Encode, StartChannelListModeStuffsReservedBytesInsideBody) {
@@ -70,7 +70,7 @@ TEST(ScienceMode2Encode, StartChannelListModeStuffsReservedBytesInsideBody) {
   // stuffed body (§2.2): 8 bytes, CRC = 0xA1 (sent as 0xA1^0x55 = 0xF4).
   const ChannelPulse pulse{0, 500, 15};
   EXPECT_EQ(
-      BuildStartChannelListMode(15, std::span(&pulse, 1)),
+      *BuildStartChannelListMode(15, std::span(&pulse, 1)),
       (Bytes{0xF0, 0x81, 0xF4, 0x81, 0x5D, 0x81, 0x5A, 0x20, 0x00, 0x01, 0xF4, 0x81, 0x5A, 0x0F}));
 }
 
@@ -89,39 +89,38 @@ TEST(ScienceMode2Encode, StopAndInitAck) {
 TEST(ScienceMode2Encode, SinglePulse) {
   // §4.4 SinglePulse (36): channel number (channel − 1), pulse width MSB,
   // LSB, current. 300 µs = 0x012C.
-  const DecodeResult r = DecodePacket(BuildSinglePulse(3, 2, 300, 25));
+  const DecodeResult r = DecodePacket(*BuildSinglePulse(3, 2, 300, 25));
   ASSERT_TRUE(r.packet);
   EXPECT_EQ(r.packet->packet_number, 3);
   EXPECT_EQ(r.packet->command, 36);
   EXPECT_EQ(r.packet->data, (Bytes{0x01, 0x01, 0x2C, 25}));
-  EXPECT_THROW(BuildSinglePulse(0, 9, 300, 10), std::invalid_argument);
-  EXPECT_THROW(BuildSinglePulse(0, 1, 501, 10), std::invalid_argument);
-  EXPECT_THROW(BuildSinglePulse(0, 1, 300, 131), std::invalid_argument);
+  EXPECT_FALSE(BuildSinglePulse(0, 9, 300, 10).ok());
+  EXPECT_FALSE(BuildSinglePulse(0, 1, 501, 10).ok());
+  EXPECT_FALSE(BuildSinglePulse(0, 1, 300, 131).ok());
 }
 
 TEST(ScienceMode2Encode, OutOfRangeFieldsAreRefusedNamingTheField) {
   const ChannelPulse too_much{0, 300, 131};
-  try {
-    BuildStartChannelListMode(0, std::span(&too_much, 1));
-    FAIL() << "131 mA accepted";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("current_ma"), std::string::npos) << e.what();
-  }
+  const auto refused = BuildStartChannelListMode(0, std::span(&too_much, 1));
+  ASSERT_FALSE(refused.ok()) << "131 mA accepted";
+  EXPECT_EQ(refused.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("current_ma"), std::string::npos)
+      << refused.status().message();
   const ChannelPulse too_wide{0, 501, 10};
-  EXPECT_THROW(BuildStartChannelListMode(0, std::span(&too_wide, 1)), std::invalid_argument);
+  EXPECT_FALSE(BuildStartChannelListMode(0, std::span(&too_wide, 1)).ok());
   const ChannelPulse bad_mode{3, 100, 10};
-  EXPECT_THROW(BuildStartChannelListMode(0, std::span(&bad_mode, 1)), std::invalid_argument);
+  EXPECT_FALSE(BuildStartChannelListMode(0, std::span(&bad_mode, 1)).ok());
   const std::vector<ChannelPulse> nine(9);
-  EXPECT_THROW(BuildStartChannelListMode(0, nine), std::invalid_argument);
+  EXPECT_FALSE(BuildStartChannelListMode(0, nine).ok());
   ChannelListInit init;
   init.main_interval_ms = 1026.0;
-  EXPECT_THROW(BuildInitChannelListMode(0, init), std::invalid_argument);
+  EXPECT_FALSE(BuildInitChannelListMode(0, init).ok());
   init.main_interval_ms = 25.0;
   init.inter_pulse_interval_ms = 1.0;
-  EXPECT_THROW(BuildInitChannelListMode(0, init), std::invalid_argument);
+  EXPECT_FALSE(BuildInitChannelListMode(0, init).ok());
   init.inter_pulse_interval_ms = 8.0;
   init.low_frequency_factor = 8;
-  EXPECT_THROW(BuildInitChannelListMode(0, init), std::invalid_argument);
+  EXPECT_FALSE(BuildInitChannelListMode(0, init).ok());
 }
 
 TEST(ScienceMode2Decode, RoundTripsEveryByteValue) {

@@ -92,13 +92,13 @@ TEST(ScienceMode2Pty, InitChannelListStartStopAreAckedAndRecorded) {
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
-  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(1, TwoChannels())).ok());
+  ASSERT_TRUE(link.port().Write(*BuildInitChannelListMode(1, TwoChannels())).ok());
   auto ack = link.Expect(Command::kInitChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ack->packet_number, 1);  // §2.2: echoed packet number
   EXPECT_EQ(ack->result, 0);
   const ChannelPulse pulses[] = {{0, 300, 40}, {0, 250, 15}};  // 15 mA is 0x0F: stuffed
-  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(2, pulses)).ok());
+  ASSERT_TRUE(link.port().Write(*BuildStartChannelListMode(2, pulses)).ok());
   ack = link.Expect(Command::kStartChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ack->result, 0);
@@ -124,13 +124,13 @@ TEST(ScienceMode2Pty, WrongChannelCountIsAParameterErrorAndStartBeforeInitAWrong
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
   const ChannelPulse one[] = {{0, 300, 40}};
-  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(1, one)).ok());
+  ASSERT_TRUE(link.port().Write(*BuildStartChannelListMode(1, one)).ok());
   auto ack = link.Expect(Command::kStartChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ResultName(ack->result), "Wrong mode error");
-  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(2, TwoChannels())).ok());
+  ASSERT_TRUE(link.port().Write(*BuildInitChannelListMode(2, TwoChannels())).ok());
   ASSERT_TRUE(link.Expect(Command::kInitChannelListModeAck));
-  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(3, one)).ok());  // 2 active, 1 sent
+  ASSERT_TRUE(link.port().Write(*BuildStartChannelListMode(3, one)).ok());  // 2 active, 1 sent
   ack = link.Expect(Command::kStartChannelListModeAck);
   ASSERT_TRUE(ack);
   EXPECT_EQ(ResultName(ack->result), "Parameter error");
@@ -142,7 +142,7 @@ TEST(ScienceMode2Pty, BadChecksumFromThePcIsAckedWithTransferError) {
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
-  auto wire = BuildInitChannelListMode(4, TwoChannels());
+  auto wire = *BuildInitChannelListMode(4, TwoChannels());
   wire[2] ^= 0x01;
   ASSERT_TRUE(link.port().Write(wire).ok());
   const auto ack = link.Expect(Command::kInitChannelListModeAck);
@@ -179,7 +179,7 @@ TEST(ScienceMode2Pty, SilentDeviceAnswersNothing) {
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
   emulator.set_fault(EmulatorFault::kSilent);
-  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(1, TwoChannels())).ok());
+  ASSERT_TRUE(link.port().Write(*BuildInitChannelListMode(1, TwoChannels())).ok());
   EXPECT_FALSE(link.Next(300ms));  // MaxResponseTime is 100 ms (§2.3)
 }
 
@@ -200,10 +200,10 @@ TEST(ScienceMode2Pty, DeviceWatchdogStopsStimulationWithoutTraffic) {
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
-  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(1, TwoChannels())).ok());
+  ASSERT_TRUE(link.port().Write(*BuildInitChannelListMode(1, TwoChannels())).ok());
   ASSERT_TRUE(link.Expect(Command::kInitChannelListModeAck));
   const ChannelPulse pulses[] = {{0, 300, 40}, {0, 300, 40}};
-  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(2, pulses)).ok());
+  ASSERT_TRUE(link.port().Write(*BuildStartChannelListMode(2, pulses)).ok());
   ASSERT_TRUE(link.Expect(Command::kStartChannelListModeAck));
   EXPECT_TRUE(link.Expect(Command::kInit, 2500ms)) << "no Init after the watchdog";
   EXPECT_FALSE(emulator.stimulating());
@@ -227,11 +227,11 @@ TEST(ScienceMode2Pty, GetStimulationModeIsAnsweredWithTheMode) {
     return reply ? reply->extra : 0xFF;
   };
   EXPECT_EQ(mode(1), 0);
-  ASSERT_TRUE(link.port().Write(BuildInitChannelListMode(2, TwoChannels())).ok());
+  ASSERT_TRUE(link.port().Write(*BuildInitChannelListMode(2, TwoChannels())).ok());
   ASSERT_TRUE(link.Expect(Command::kInitChannelListModeAck));
   EXPECT_EQ(mode(3), 1);
   const ChannelPulse pulses[] = {{0, 300, 10}, {0, 300, 10}};
-  ASSERT_TRUE(link.port().Write(BuildStartChannelListMode(4, pulses)).ok());
+  ASSERT_TRUE(link.port().Write(*BuildStartChannelListMode(4, pulses)).ok());
   ASSERT_TRUE(link.Expect(Command::kStartChannelListModeAck));
   EXPECT_EQ(mode(5), 2);
   EXPECT_EQ(StimulationModeName(2), "channel list running");

@@ -17,6 +17,7 @@
 #include "api/virtual_subject.h"
 #include "clients/cli/study/control.h"
 #include "clients/cli/study/tables.h"
+#include "model/identify_isometric.h"
 #include "model/parameter_set.h"
 
 namespace fesbench::cli::study {
@@ -51,13 +52,15 @@ inline const std::vector<std::string> kSimplified = {"torque_generator", "single
                                               "static_gain_pwl_velocity", "parametric"};
 // Isometric IRC variants (Tables 6.1, 6.2): irc method × contraction order.
 struct IrcVariant {
-  std::string key, irc_method;
+  std::string key;
+  model::IrcMethod irc_method;
   int order;
 };
-inline const std::vector<IrcVariant> kIrcVariants = {{"step_o3", "step", 3},
-                                              {"ramp_o3", "ramp_correlation", 3},
-                                              {"step_o2", "step", 2},
-                                              {"ramp_o2", "ramp_correlation", 2}};
+inline const std::vector<IrcVariant> kIrcVariants = {
+    {"step_o3", model::IrcMethod::kStep, 3},
+    {"ramp_o3", model::IrcMethod::kRampCorrelation, 3},
+    {"step_o2", model::IrcMethod::kStep, 2},
+    {"ramp_o2", model::IrcMethod::kRampCorrelation, 2}};
 
 inline std::string SetKey(const std::string& passive, const std::string& train) {
   return passive + "_" + train;

@@ -121,10 +121,10 @@ std::vector<std::int64_t> TrialIds(const LegData& leg, const std::vector<std::st
 
 // A thesis-method identification from `trial_ids` with `passive_method`.
 api::IdentificationRequest ThesisFit(std::vector<std::int64_t> trial_ids,
-                                     std::string passive_method) {
+                                     model::PassiveMethod passive_method) {
   api::IdentificationRequest request;
   request.trial_ids = std::move(trial_ids);
-  request.passive_method = std::move(passive_method);
+  request.passive_method = passive_method;
   return request;
 }
 
@@ -276,21 +276,21 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
     Identify(client, leg,
              ThesisFit(TrialIds(leg, {"isometric_ramp_irc", "passive_simultaneous_1",
                                       "passive_simultaneous_2", active}),
-                       "simultaneous"),
+                       model::PassiveMethod::kSimultaneous),
              {SetKey("simultaneous", train)}, failures, log);
     Identify(client, leg,
              ThesisFit(TrialIds(leg, {"isometric_ramp_irc", "passive_positions",
                                       "passive_velocities", active}),
-                       "sequential"),
+                       model::PassiveMethod::kSequential),
              {SetKey("sequential", train)}, failures, log);
     std::vector<std::string> keys = {SetKey("free_swing", train)};
     api::IdentificationRequest request = ThesisFit(
         TrialIds(leg, {"isometric_ramp_irc", "passive_positions", "free_swing_passive", active}),
-        "free_swing");
+        model::PassiveMethod::kFreeSwing);
     if (train == "rb1") {
       for (const auto& m : kSimplified) {
         keys.push_back(m);
-        request.models.push_back(m);
+        if (const auto kind = model::ParseModelKind(m)) request.models.push_back(*kind);
       }
     }
     const JobOutcome first =
@@ -311,11 +311,10 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   }
   // IRC variants for the isometric prediction (Tables 6.1, 6.2).
   for (const auto& variant : kIrcVariants) {
-    api::IdentificationRequest request =
-        ThesisFit(TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc",
-                                 "passive_simultaneous_1", "passive_simultaneous_2",
-                                 "active_random_binary_rb1"}),
-                  "simultaneous");
+    api::IdentificationRequest request = ThesisFit(
+        TrialIds(leg, {"isometric_ramp_irc", "isometric_step_irc", "passive_simultaneous_1",
+                       "passive_simultaneous_2", "active_random_binary_rb1"}),
+        model::PassiveMethod::kSimultaneous);
     request.irc_method = variant.irc_method;
     request.contraction_order = variant.order;
     Identify(client, leg, request, {"irc_" + variant.key}, failures, log);
