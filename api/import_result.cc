@@ -13,7 +13,8 @@ using nlohmann::json;
 json ItemsToJson(const std::vector<ImportedItem>& items) {
   json out = json::array();
   for (const ImportedItem& item : items) {
-    out.push_back({{"id", item.id}, {"name", item.name}, {"original_id", OrNull(item.original_id)}});
+    out.push_back(
+        {{"id", item.id}, {"name", item.name}, {"original_id", OrNull(item.original_id)}});
   }
   return out;
 }

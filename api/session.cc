@@ -19,9 +19,8 @@ void PutOptional(json& j, const char* key, const std::optional<T>& value) {
 }  // namespace
 
 json SessionDetailsToJson(const SessionDetails& d) {
-  json j = {{"date", d.date},
-            {"accelerometer_placement", d.accelerometer_placement},
-            {"notes", d.notes}};
+  json j = {
+      {"date", d.date}, {"accelerometer_placement", d.accelerometer_placement}, {"notes", d.notes}};
   PutOptional(j, "threshold_ma", d.threshold_ma);
   PutOptional(j, "max_tolerated_ma", d.max_tolerated_ma);
   return j;
@@ -91,7 +90,8 @@ json NewSessionRequestToJson(const NewSessionRequest& request) {
   PutOptional(body, "threshold_ma", d.threshold_ma);
   PutOptional(body, "max_tolerated_ma", d.max_tolerated_ma);
   if (!d.notes.empty()) body["notes"] = d.notes;
-  if (!d.accelerometer_placement.empty()) body["accelerometer_placement"] = d.accelerometer_placement;
+  if (!d.accelerometer_placement.empty())
+    body["accelerometer_placement"] = d.accelerometer_placement;
   return body;
 }
 

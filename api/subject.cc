@@ -69,7 +69,8 @@ Result<SubjectDetails> SubjectDetailsFromJson(const json& j) {
 
 json SubjectToJson(const Subject& s) {
   json legs = json::array();
-  for (const SubjectLeg& leg : s.legs) legs.push_back({{"id", leg.id}, {"side", SideName(leg.side)}});
+  for (const SubjectLeg& leg : s.legs)
+    legs.push_back({{"id", leg.id}, {"side", SideName(leg.side)}});
   return {{"id", s.id},
           {"code", s.code},
           {"created_at_utc", FormatUtc(s.created_at)},

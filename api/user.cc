@@ -12,10 +12,9 @@ namespace {
 
 using nlohmann::json;
 
-constexpr NameTable<Role, 3> kRoles({{{Role::kClinician, "clinician"},
-                                      {Role::kAnalyst, "analyst"},
-                                      {Role::kAdmin, "admin"}}},
-                                    "analyst");
+constexpr NameTable<Role, 3> kRoles(
+    {{{Role::kClinician, "clinician"}, {Role::kAnalyst, "analyst"}, {Role::kAdmin, "admin"}}},
+    "analyst");
 
 }  // namespace
 

@@ -27,7 +27,9 @@ namespace {
 using nlohmann::json;
 
 // A time with microseconds, as the database keeps them.
-UtcTime At(std::int64_t us) { return UtcTime(std::chrono::microseconds(1'795'000'000'123'456 + us)); }
+UtcTime At(std::int64_t us) {
+  return UtcTime(std::chrono::microseconds(1'795'000'000'123'456 + us));
+}
 
 // Writes `value`, sends it as text, reads it back.
 template <typename T>
@@ -100,8 +102,18 @@ TEST(ResourcesWire, TrialImportRecordRoundTrips) {
 }
 
 TEST(ResourcesWire, ParameterSetSummaryRoundTrips) {
-  ParameterSetSummary s{5, 7, 11, 2, "joint_v1", "ramp_correlation", "free_swing",
-                        "log_least_squares", "0.1.0", 4, At(7), std::nullopt};
+  ParameterSetSummary s{5,
+                        7,
+                        11,
+                        2,
+                        "joint_v1",
+                        "ramp_correlation",
+                        "free_swing",
+                        "log_least_squares",
+                        "0.1.0",
+                        4,
+                        At(7),
+                        std::nullopt};
   EXPECT_EQ(RoundTrip(s, &ParameterSetSummaryToJson, &ParameterSetSummaryFromJson), s);
   s.approval = ApprovalState{};  // never approved: {"approved": false, "approval": null}
   EXPECT_EQ(RoundTrip(s, &ParameterSetSummaryToJson, &ParameterSetSummaryFromJson), s);
@@ -114,8 +126,18 @@ TEST(ResourcesWire, ParameterSetSummaryRoundTrips) {
 
 TEST(ResourcesWire, StoredParameterSetRoundTrips) {
   StoredParameterSet set;
-  set.summary = {5, 7, 11, 1, "joint_v1", "ramp_correlation", "free_swing",
-                 "log_least_squares", "0.1.0", std::nullopt, At(9), std::nullopt};
+  set.summary = {5,
+                 7,
+                 11,
+                 1,
+                 "joint_v1",
+                 "ramp_correlation",
+                 "free_swing",
+                 "log_least_squares",
+                 "0.1.0",
+                 std::nullopt,
+                 At(9),
+                 std::nullopt};
   set.trial_ids = {10, 11, 12};
   set.parameters = model::ExampleParameterSet();
   set.fit_notes = {"The passive fit saw little of the knee's range."};
@@ -132,7 +154,12 @@ TEST(ResourcesWire, UsersAndTokensRoundTrip) {
   ASSERT_TRUE(me.ok());
   EXPECT_EQ(me->name, "cora");
   EXPECT_EQ(me->role, Role::kClinician);
-  TokenInfo t{8, 3, "cora", "laptop", "2026-11-27T10:00:00.000000Z", std::nullopt,
+  TokenInfo t{8,
+              3,
+              "cora",
+              "laptop",
+              "2026-11-27T10:00:00.000000Z",
+              std::nullopt,
               "2026-11-28T10:00:00.000000Z"};
   EXPECT_EQ(RoundTrip(t, &TokenInfoToJson, &TokenInfoFromJson), t);
   EXPECT_EQ(TokenInfoToJson(t).at("revoked"), true);
@@ -196,8 +223,8 @@ TEST(ResourcesWire, ReadersIgnoreUnknownFieldsAndNameMistypedOnes) {
 }
 
 TEST(ResourcesWire, CorrectionRequestSetsAndClearsTheNamedFields) {
-  CorrectionRequest<SubjectDetails> request{"re-measured", SomeDetails(), {"weight_kg", "sex"},
-                                            {"height_cm"}};
+  CorrectionRequest<SubjectDetails> request{
+      "re-measured", SomeDetails(), {"weight_kg", "sex"}, {"height_cm"}};
   const json body = CorrectionRequestToJson(request, &SubjectDetailsToJson);
   EXPECT_EQ(body.at("reason"), "re-measured");
   EXPECT_EQ(body.at("details"),
