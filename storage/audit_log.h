@@ -11,25 +11,15 @@
 #include <string>
 #include <vector>
 
+#include "api/audit.h"
 #include "api/status.h"
 #include "storage/database.h"
 
 namespace fesbench::storage {
 
-struct NewAuditEntry {
-  std::optional<std::int64_t> user_id;  ///< the authenticated user, if any.
-  std::string actor;                    ///< e.g. the user name, "system", a client address.
-  std::string action;                   ///< e.g. "POST /api/v1/subjects"; must not be empty.
-  std::string target;                   ///< e.g. "subjects/12".
-  std::string request_summary;          ///< short summary; never secrets or tokens.
-  std::string outcome;                  ///< e.g. "201", "409 already_exists".
-};
-
-struct AuditEntry {
-  std::int64_t id = 0;
-  api::UtcTime at;
-  NewAuditEntry entry;
-};
+// The entries are the wire's (api/audit.h).
+using api::AuditEntry;
+using api::NewAuditEntry;
 
 struct AuditQuery {
   std::optional<api::UtcTime> from;  ///< inclusive.

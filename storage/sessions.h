@@ -14,19 +14,14 @@
 
 #include "api/run.h"
 #include "api/run_state.h"
+#include "api/session.h"
 #include "api/status.h"
 #include "storage/database.h"
 
 namespace fesbench::storage {
 
-struct SessionDetails {
-  std::string date;                        ///< "YYYY-MM-DD" (local calendar date).
-  std::string accelerometer_placement;     ///< e.g. "shank, 20 cm below knee".
-  std::optional<double> threshold_ma;      ///< stimulation threshold, [0, 100] mA.
-  std::optional<double> max_tolerated_ma;  ///< [threshold, 100] mA.
-  std::string notes;
-  friend bool operator==(const SessionDetails&, const SessionDetails&) = default;
-};
+// The details are the wire's (api/session.h).
+using api::SessionDetails;
 
 struct SessionRevision {
   std::int64_t id = 0;

@@ -112,34 +112,6 @@ api::Result<Leg> ReadLeg(const Statement& s) {
 
 }  // namespace
 
-std::string_view SexName(Sex sex) {
-  switch (sex) {
-    case Sex::kFemale:
-      return "female";
-    case Sex::kMale:
-      return "male";
-    case Sex::kOther:
-      return "other";
-    case Sex::kUndisclosed:
-      return "undisclosed";
-  }
-  return "undisclosed";
-}
-
-std::optional<Sex> ParseSex(std::string_view name) {
-  for (Sex sex : {Sex::kFemale, Sex::kMale, Sex::kOther, Sex::kUndisclosed}) {
-    if (SexName(sex) == name) return sex;
-  }
-  return std::nullopt;
-}
-
-std::string_view SideName(Side side) { return side == Side::kLeft ? "left" : "right"; }
-
-std::optional<Side> ParseSide(std::string_view name) {
-  if (name == "left") return Side::kLeft;
-  if (name == "right") return Side::kRight;
-  return std::nullopt;
-}
 
 api::Status ValidateSubjectCode(std::string_view code) {
   if (code.empty() || code.size() > 32) {

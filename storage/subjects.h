@@ -12,36 +12,19 @@
 #include <vector>
 
 #include "api/status.h"
+#include "api/subject.h"
 #include "storage/database.h"
 
 namespace fesbench::storage {
 
-enum class Sex { kFemale, kMale, kOther, kUndisclosed };
-/// "female", "male", "other", "undisclosed".
-std::string_view SexName(Sex sex);
-std::optional<Sex> ParseSex(std::string_view name);
-
-enum class Side { kLeft, kRight };
-/// "left", "right".
-std::string_view SideName(Side side);
-std::optional<Side> ParseSide(std::string_view name);
-
-/// Anthropometrics; absent values were not measured.
-struct SubjectDetails {
-  std::optional<int> age_years;  ///< 0–130.
-  Sex sex = Sex::kUndisclosed;
-  std::optional<double> height_cm;              ///< (30, 250].
-  std::optional<double> weight_kg;              ///< (1, 400].
-  std::optional<double> shank_length_cm;        ///< (10, 80].
-  std::optional<double> calf_circumference_cm;  ///< (10, 100].
-  /// The knee's range of motion, deg (flexion positive, 0 = full
-  /// extension): from rom_min_deg (hyperextension negative, −30…60) to
-  /// rom_max_deg (60…180), both or neither, at least 30° apart. On the bench
-  /// it narrows the bench's range (the safety layer's limits, docs/SAFETY.md).
-  std::optional<double> rom_min_deg;
-  std::optional<double> rom_max_deg;
-  friend bool operator==(const SubjectDetails&, const SubjectDetails&) = default;
-};
+// Storage keeps the wire's vocabulary and details (api/subject.h).
+using api::ParseSex;
+using api::ParseSide;
+using api::Sex;
+using api::SexName;
+using api::Side;
+using api::SideName;
+using api::SubjectDetails;
 
 /// One recorded version of a subject's details.
 struct SubjectRevision {

@@ -14,6 +14,7 @@
 
 #include "api/status.h"
 #include "api/trial.h"
+#include "api/trial_summary.h"
 #include "storage/database.h"
 
 namespace fesbench::storage {
@@ -24,17 +25,8 @@ struct TrialOwner {
   std::optional<std::int64_t> run_id;  ///< the run that recorded it, if any.
 };
 
-/// A stored trial's metadata without samples.
-struct TrialSummary {
-  std::int64_t id = 0;
-  std::int64_t session_id = 0;
-  std::optional<std::int64_t> run_id;
-  std::optional<std::string> name;
-  std::optional<api::TrialKind> kind;  ///< none for a name of no kind.
-  std::size_t num_samples = 0;  ///< per main channel.
-  double sample_rate_hz = 0;
-  api::UtcTime created_at;
-};
+/// A stored trial's metadata without samples (api/trial_summary.h).
+using api::TrialSummary;
 
 /// Where an imported trial came from (POST /sessions/{id}/trials): kept
 /// beside the trial, which is otherwise an ordinary trial.

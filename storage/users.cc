@@ -54,24 +54,6 @@ api::Result<std::string> NewTokenText() {
 
 }  // namespace
 
-std::string_view RoleName(Role role) {
-  switch (role) {
-    case Role::kClinician:
-      return "clinician";
-    case Role::kAnalyst:
-      return "analyst";
-    case Role::kAdmin:
-      return "admin";
-  }
-  return "analyst";
-}
-
-std::optional<Role> ParseRole(std::string_view name) {
-  for (Role role : {Role::kClinician, Role::kAnalyst, Role::kAdmin}) {
-    if (RoleName(role) == name) return role;
-  }
-  return std::nullopt;
-}
 
 std::vector<std::byte> Sha256(std::string_view text) {
   std::vector<std::byte> digest(32);

@@ -13,22 +13,16 @@
 #include <vector>
 
 #include "api/status.h"
+#include "api/user.h"
 #include "storage/database.h"
 
 namespace fesbench::storage {
 
-enum class Role { kClinician, kAnalyst, kAdmin };
-/// "clinician", "analyst", "admin".
-std::string_view RoleName(Role role);
-std::optional<Role> ParseRole(std::string_view name);
-
-struct User {
-  std::int64_t id = 0;
-  std::string name;
-  Role role = Role::kAnalyst;
-  api::UtcTime created_at;
-  bool active = true;  ///< false once deactivated.
-};
+// Roles and users are the wire's (api/user.h).
+using api::ParseRole;
+using api::Role;
+using api::RoleName;
+using api::User;
 
 /// A newly issued token: `token` is the only copy of the secret.
 struct IssuedToken {

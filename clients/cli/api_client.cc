@@ -18,15 +18,22 @@ constexpr const char* kApiPrefix = "/api/v1";
 std::string ServerErrorMessage(int status, const std::string& body) {
   const json j = json::parse(body, nullptr, false);
   std::string message;
-  if (!j.is_discarded() && j.is_object() && j.contains("error") && j["error"].is_object()) {
-    const json& e = j["error"];
-    if (e.contains("message") && e["message"].is_string()) message = e["message"];
-    if (e.contains("field") && e["field"].is_string() && !e["field"].get<std::string>().empty()) {
-      message += " (field " + e["field"].get<std::string>() + ")";
+  if (!j.is_discarded()) {
+    if (const std::optional<api::Status> error = api::ErrorAnswerFromJson(j)) {
+      message = error->message();
+      if (!error->field().empty()) message += " (field " + error->field() + ")";
     }
   }
   if (message.empty()) message = body.substr(0, 200);
   return "server: " + message + " [HTTP " + std::to_string(status) + "]";
+}
+
+json PageItems(const json& page, const std::string& path) {
+  api::Result<api::Page> read = api::PageFromJson(page);
+  if (!read.ok()) {
+    throw CliError::Server("server: " + path + " did not answer with a page of items");
+  }
+  return json(std::move(read->items));
 }
 
 std::string UrlEncode(const std::string& value) {
@@ -141,13 +148,13 @@ json ApiClient::GetAllPages(const std::string& path, const std::string& query) {
     std::string url = path + "?limit=500";
     if (!query.empty()) url += "&" + query;
     if (!cursor.empty()) url += "&cursor=" + UrlEncode(cursor);
-    json page = Get(url);
-    if (!page.is_object() || !page.contains("items") || !page["items"].is_array()) {
+    api::Result<api::Page> page = api::PageFromJson(Get(url));
+    if (!page.ok()) {
       throw CliError::Server("server: " + path + " did not answer with a page of items");
     }
-    for (auto& item : page["items"]) items.push_back(std::move(item));
-    if (!page.contains("next_cursor") || !page["next_cursor"].is_string()) break;
-    cursor = page["next_cursor"].get<std::string>();
+    for (auto& item : page->items) items.push_back(std::move(item));
+    if (!page->next_cursor) break;
+    cursor = *page->next_cursor;
   }
   return items;
 }

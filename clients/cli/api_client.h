@@ -13,7 +13,12 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <string_view>
+#include <vector>
 
+#include "api/envelope.h"
+#include "api/status.h"
+#include "clients/cli/cli.h"
 #include "clients/cli/config.h"
 
 namespace httplib {
@@ -21,6 +26,26 @@ class Client;
 }
 
 namespace fesbench::cli {
+
+/// The items of a page answer (api::Page); CliError (server class) when
+/// `page` is not one.
+nlohmann::json PageItems(const nlohmann::json& page, const std::string& path);
+
+/// The elements of the array `items` read by `from`; CliError (server
+/// class) naming `what` for one it cannot read.
+template <typename T>
+std::vector<T> ItemsFromServer(const nlohmann::json& items,
+                               api::Result<T> (*from)(const nlohmann::json&),
+                               std::string_view what) {
+  std::vector<nlohmann::json> list;
+  if (items.is_array()) list.assign(items.begin(), items.end());
+  api::Result<std::vector<T>> read = api::ItemsFromJson(list, from);
+  if (!read.ok()) {
+    throw CliError::Server("server sent an unreadable " + std::string(what) + ": " +
+                           read.status().ToString());
+  }
+  return *std::move(read);
+}
 
 class ApiClient {
  public:
@@ -45,6 +70,20 @@ class ApiClient {
   /// Every item of a paged list (follows next_cursor; `query` without
   /// limit/cursor, e.g. "subject_id=3" or "").
   nlohmann::json GetAllPages(const std::string& path, const std::string& query);
+  /// Every item of a paged list, each read by `from` (api/…FromJson);
+  /// CliError (server class) naming `what` for an item it cannot read.
+  template <typename T>
+  std::vector<T> GetAllPagesOf(const std::string& path, const std::string& query,
+                               api::Result<T> (*from)(const nlohmann::json&),
+                               std::string_view what) {
+    return ItemsFromServer(GetAllPages(path, query), from, what);
+  }
+  /// The items of a list answer ({"items": [...]}) read by `from`.
+  template <typename T>
+  std::vector<T> GetItemsOf(const std::string& path,
+                            api::Result<T> (*from)(const nlohmann::json&), std::string_view what) {
+    return ItemsFromServer(PageItems(Get(path), path), from, what);
+  }
 
   /// Follows a Server-Sent Events stream; `on_event(event, data)` returns
   /// false to stop reading. Returns when the server closes the stream.

@@ -8,6 +8,7 @@
 #include <thread>
 #include <utility>
 
+#include "api/subject.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
 #include "clients/command_line.h"
@@ -37,11 +38,10 @@ std::int64_t ResolveSubject(ApiClient& client, const std::string& id_or_code) {
   if (!id_or_code.empty() && id_or_code.find_first_not_of("0123456789") == std::string::npos) {
     return std::stoll(id_or_code);
   }
-  const nlohmann::json page = client.Get("/subjects?code=" + UrlEncode(id_or_code));
-  if (!page.contains("items") || page["items"].empty()) {
-    throw CliError::Server("server: no subject with code '" + id_or_code + "'");
-  }
-  return page["items"][0]["id"].get<std::int64_t>();
+  const std::vector<api::Subject> found = client.GetItemsOf(
+      "/subjects?code=" + UrlEncode(id_or_code), &api::SubjectFromJson, "subject");
+  if (found.empty()) throw CliError::Server("server: no subject with code '" + id_or_code + "'");
+  return found.front().id;
 }
 
 api::JobReport AwaitJob(ApiClient& client, std::int64_t job_id,

@@ -9,8 +9,13 @@
 #include <string>
 #include <vector>
 
+#include "api/json_fields.h"
 #include "api/parameter_set_json.h"
+#include "api/parameter_set_record.h"
+#include "api/subject.h"
+#include "api/time_utc.h"
 #include "api/trial.h"
+#include "api/trial_summary.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/output.h"
 
@@ -71,12 +76,11 @@ void PrintWritten(CliContext& context, const std::string& what, std::int64_t id,
 
 // "yes (cora 2026-11-25T…)" for the leg's approved set; "earlier (…)" for a
 // set approved before it; "no" for a candidate never approved.
-std::string ApprovedCell(const json& set) {
-  const json approval = set.value("approval", json(nullptr));
-  if (!approval.is_object()) return "no";
-  const std::string who =
-      approval.value("approved_by", "") + " " + approval.value("approved_at_utc", "");
-  return (set.value("approved", false) ? "yes (" : "earlier (") + who + ")";
+std::string ApprovedCell(const api::ParameterSetSummary& set) {
+  if (!set.approval || !set.approval->newest) return "no";
+  const api::Approval& newest = *set.approval->newest;
+  const std::string who = newest.approved_by + " " + api::FormatUtc(newest.approved_at);
+  return (set.approval->approved ? "yes (" : "earlier (") + who + ")";
 }
 
 // `params approve ID --note TEXT`: a clinician makes the set its leg's
@@ -102,9 +106,10 @@ void RegisterApprove(CLI::App& params, CliContext& context) {
         context.out << shown.dump(2) << "\n";
         return;
       }
-      context.out << "parameter set " << set_id << " approved for leg "
-                  << Cell(approved.value("leg_id", json(nullptr))) << ": " << ApprovedCell(approved)
-                  << "\n";
+      const api::ParameterSetSummary set =
+          FromServer(api::ParameterSetSummaryFromJson(approved), "parameter set");
+      context.out << "parameter set " << set_id << " approved for leg " << set.leg_id << ": "
+                  << ApprovedCell(set) << "\n";
     };
   });
 }
@@ -125,7 +130,8 @@ void RegisterCheck(CLI::App& params, CliContext& context) {
       auto client = Connect(context);
       const json job =
           client->Post("/parameter-sets/" + std::to_string(set_id) + "/model-check");
-      const json result = WaitForJob(*client, job["id"].get<std::int64_t>());
+      const json result =
+          WaitForJob(*client, FromServer(api::JobReportFromJson(job), "job").id);
       if (context.options.json) {
         context.out << result.dump(2) << "\n";
         return;
@@ -184,21 +190,22 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
         }
         // Legs as right/left, not internal ids.
         std::map<std::int64_t, std::string> sides;
-        const json subject = client->Get("/subjects/" + std::to_string(subject_id));
-        for (const auto& leg : subject["legs"]) {
-          sides[leg.value("id", std::int64_t{0})] = leg.value("side", "");
-        }
+        const api::Subject subject = FromServer(
+            api::SubjectFromJson(client->Get("/subjects/" + std::to_string(subject_id))),
+            "subject");
+        for (const api::SubjectLeg& leg : subject.legs) sides[leg.id] = api::SideName(leg.side);
         if (form->format == "csv") {
           context.out << ParameterHistoryCsv(*client, subject_id, items, sides);
           return;
         }
         std::vector<std::vector<std::string>> rows;
-        for (const auto& s : items) {
-          const auto side = sides.find(s.value("leg_id", std::int64_t{0}));
-          rows.push_back({Cell(s["id"]), side == sides.end() ? Cell(s["leg_id"]) : side->second,
-                          Cell(s["version"]), Cell(s["model"]), Cell(s["irc_method"]),
-                          Cell(s["passive_method"]), Cell(s["active_method"]),
-                          Cell(s["supersedes_id"]), Cell(s["created_at_utc"]), ApprovedCell(s)});
+        for (const api::ParameterSetSummary& s :
+             ItemsFromServer(items, &api::ParameterSetSummaryFromJson, "parameter set")) {
+          const auto side = sides.find(s.leg_id);
+          rows.push_back({Cell(s.id), side == sides.end() ? Cell(s.leg_id) : side->second,
+                          Cell(s.version), s.model, s.irc_method, s.passive_method,
+                          s.active_method, Cell(api::OrNull(s.supersedes_id)),
+                          api::FormatUtc(s.created_at), ApprovedCell(s)});
         }
         PrintTable(context.out,
                    {"id", "leg", "version", "model", "irc_method", "passive_method",
@@ -234,16 +241,13 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
           context.out << stored.dump(2) << "\n";
           return;
         }
-        if (!stored.contains("parameters")) {
+        // Checked with the wire type, so what is written reads back.
+        const api::StoredParameterSet set =
+            FromServer(api::StoredParameterSetFromJson(stored), "parameter set");
+        if (!set.parameters) {
           throw CliError::Server("server: parameter set " + *id + " has no parameters");
         }
-        // Checked with the wire type, so what is written reads back.
-        auto parsed = api::ParameterSetFromJson(stored["parameters"]);
-        if (!parsed.ok()) {
-          throw CliError::Server("server sent an invalid parameter set: " +
-                                 parsed.status().ToString());
-        }
-        const json params_json = api::ParameterSetToJson(*parsed);
+        const json params_json = api::ParameterSetToJson(*set.parameters);
         std::string text;
         if (*format == "json") {
           text = params_json.dump(2) + "\n";
@@ -281,10 +285,12 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
           return;
         }
         std::vector<std::vector<std::string>> rows;
-        for (const auto& t : items) {
-          rows.push_back({Cell(t["id"]), Cell(t["run_id"]), Cell(t.value("kind", json(nullptr))),
-                          Cell(t["num_samples"]), Cell(t.value("duration_s", json(nullptr))),
-                          Cell(t["created_at_utc"])});
+        for (const api::TrialSummary& t :
+             ItemsFromServer(items, &api::TrialSummaryFromJson, "trial")) {
+          rows.push_back({Cell(t.id), Cell(api::OrNull(t.run_id)),
+                          t.kind ? std::string(api::TrialKindName(*t.kind)) : "-",
+                          Cell(t.num_samples), Cell(api::OrNull(t.duration_s())),
+                          api::FormatUtc(t.created_at)});
         }
         PrintTable(context.out,
                    {"id", "run_id", "kind", "num_samples", "duration_s", "created_at_utc"}, rows);
@@ -326,7 +332,8 @@ void RegisterDataCommands(CLI::App& app, CliContext& context) {
         } else {
           // The server's form: the trial and, if imported, where it came from.
           json out = api::TrialToJson(*trial);
-          if (raw.contains("import")) out["import"] = raw["import"];
+          const auto import = FromServer(api::TrialImportOf(raw), "trial");
+          if (import) out.emplace("import", api::TrialImportRecordToJson(*import));
           text = out.dump() + "\n";
         }
         WriteOutput(context, *out_path, text);

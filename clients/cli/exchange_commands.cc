@@ -13,9 +13,14 @@
 #include <string>
 #include <vector>
 
+#include "api/import_result.h"
+#include "api/json_fields.h"
 #include "api/model_call.h"
 #include "api/parameter_set_json.h"
+#include "api/parameter_set_record.h"
+#include "api/time_utc.h"
 #include "api/trial.h"
+#include "api/trial_import.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/output.h"
 #include "model/joint_model.h"
@@ -69,15 +74,17 @@ bool IsArchivePath(const std::string& path) {
 }
 
 // COLUMN=CHANNEL or COLUMN=CHANNEL:UNIT.
-json ParseMapping(const std::string& text) {
+api::ImportColumn ParseMapping(const std::string& text) {
   const std::size_t eq = text.rfind('=');
   if (eq == std::string::npos || eq == 0 || eq + 1 == text.size()) {
     throw CliError::Usage("--map wants COLUMN=CHANNEL[:UNIT], got '" + text + "'");
   }
   const std::string target = text.substr(eq + 1);
   const std::size_t colon = target.find(':');
-  json m = {{"column", text.substr(0, eq)}, {"channel", target.substr(0, colon)}};
-  if (colon != std::string::npos) m["unit"] = target.substr(colon + 1);
+  api::ImportColumn m;
+  m.column = text.substr(0, eq);
+  m.channel = target.substr(0, colon);
+  if (colon != std::string::npos) m.unit = target.substr(colon + 1);
   return m;
 }
 
@@ -95,20 +102,21 @@ struct ImportForm {
   std::int64_t start_ms = 0;
 };
 
-void PrintImportResult(CliContext& context, const json& result) {
+void PrintImportResult(CliContext& context, const json& answer) {
   if (context.options.json) {
-    context.out << result.dump(2) << "\n";
+    context.out << answer.dump(2) << "\n";
     return;
   }
+  const api::ImportResult result = FromServer(api::ImportResultFromJson(answer), "import result");
   std::vector<std::vector<std::string>> rows;
-  for (const auto& t : result["trials"]) {
-    rows.push_back({"trial", Cell(t["id"]), Cell(t["original_id"]), Cell(t["name"])});
+  for (const api::ImportedItem& t : result.trials) {
+    rows.push_back({"trial", Cell(t.id), Cell(api::OrNull(t.original_id)), t.name});
   }
-  for (const auto& s : result["parameter_sets"]) {
-    rows.push_back({"parameter set", Cell(s["id"]), Cell(s["original_id"]), Cell(s["name"])});
+  for (const api::ImportedItem& s : result.parameter_sets) {
+    rows.push_back({"parameter set", Cell(s.id), Cell(api::OrNull(s.original_id)), s.name});
   }
   PrintTable(context.out, {"imported", "id", "original_id", "name"}, rows);
-  for (const auto& note : result["notes"]) context.out << "note: " << Cell(note) << "\n";
+  for (const std::string& note : result.notes) context.out << "note: " << note << "\n";
 }
 
 void RegisterTrialsImport(CLI::App& trials, CliContext& context) {
@@ -159,18 +167,19 @@ void RegisterTrialsImport(CLI::App& trials, CliContext& context) {
              : form->file.ends_with(".tsv")                               ? "tsv"
                                                                           : "csv";
   }
-  json spec = {{"kind", form->kind}, {"format", format}};
-  json columns = json::array();
-  for (const std::string& m : form->maps) columns.push_back(ParseMapping(m));
-  spec["columns"] = std::move(columns);
-  if (!form->ignore.empty()) spec["ignore"] = form->ignore;
-  if (!form->time_column.empty()) spec["time_column"] = form->time_column;
-  if (!form->time_unit.empty()) spec["time_unit"] = form->time_unit;
-  if (form->rate_hz > 0.0) spec["sample_rate_hz"] = form->rate_hz;
-  if (form->start_ms != 0) spec["start_time_unix_ms"] = form->start_ms;
-  spec["source"] =
+  api::ImportSpec spec;
+  spec.kind = form->kind;
+  spec.format = format;
+  for (const std::string& m : form->maps) spec.columns.push_back(ParseMapping(m));
+  spec.ignore = form->ignore;
+  spec.time_column = form->time_column;
+  if (!form->time_unit.empty()) spec.time_unit = form->time_unit;
+  if (form->rate_hz > 0.0) spec.sample_rate_hz = form->rate_hz;
+  if (form->start_ms != 0) spec.start_time_unix_ms = form->start_ms;
+  spec.source =
       form->source.empty() ? form->file.substr(form->file.find_last_of('/') + 1) : form->source;
-  PrintImportResult(context, client->Post(path, {{"spec", spec}, {"data", bytes}}));
+  PrintImportResult(context,
+                    client->Post(path, {{"spec", api::ImportSpecToJson(spec)}, {"data", bytes}}));
 };
 }  // namespace
 );
@@ -226,12 +235,11 @@ void RegisterParamsCurves(CLI::App& params, CliContext& context) {
     context.action = [id, out_path, &context] {
       const std::int64_t set_id = ParseId(*id, "parameter set");
       auto client = Connect(context);
-      const json stored = client->Get("/parameter-sets/" + std::to_string(set_id));
-      auto params = api::ParameterSetFromJson(stored.value("parameters", json::object()));
-      if (!params.ok()) {
-        throw CliError::Server("server sent an invalid parameter set: " +
-                               params.status().ToString());
-      }
+      const api::StoredParameterSet stored = FromServer(
+          api::StoredParameterSetFromJson(client->Get("/parameter-sets/" + std::to_string(set_id))),
+          "parameter set");
+      const std::optional<model::ParameterSet> params = stored.parameters;
+      if (!params) throw CliError::Server("server: parameter set " + *id + " has no parameters");
       api::Result<model::JointModel> usable =
           api::CallModel([&] { return model::JointModel::FromParameters(*params); });
       if (!usable.ok()) {
@@ -324,19 +332,23 @@ std::string ParameterHistoryCsv(ApiClient& client, std::int64_t subject_id, cons
                                       "version",          "created_at_utc", "supersedes_id"};
   std::set<std::string> seen(columns.begin(), columns.end());
   std::vector<std::map<std::string, json>> rows;
-  for (const auto& summary : items) {
-    const std::int64_t set_id = summary.value("id", std::int64_t{0});
-    const json stored = client.Get("/parameter-sets/" + std::to_string(set_id));
-    const auto side = sides.find(summary.value("leg_id", std::int64_t{0}));
+  for (const api::ParameterSetSummary& summary :
+       ItemsFromServer(items, &api::ParameterSetSummaryFromJson, "parameter set")) {
+    const std::int64_t set_id = summary.id;
+    const api::StoredParameterSet stored = FromServer(
+        api::StoredParameterSetFromJson(client.Get("/parameter-sets/" + std::to_string(set_id))),
+        "parameter set");
+    const auto side = sides.find(summary.leg_id);
     std::map<std::string, json> row = {
         {"parameter_set_id", set_id},
         {"subject_id", subject_id},
         {"leg", side == sides.end() ? json(nullptr) : json(side->second)},
-        {"version", summary.value("version", json(nullptr))},
-        {"created_at_utc", summary.value("created_at_utc", json(nullptr))},
-        {"supersedes_id", summary.value("supersedes_id", json(nullptr))}};
+        {"version", summary.version},
+        {"created_at_utc", api::FormatUtc(summary.created_at)},
+        {"supersedes_id", api::OrNull(summary.supersedes_id)}};
     std::vector<std::pair<std::string, json>> leaves;
-    ScalarLeaves(stored.value("parameters", json::object()), "", leaves);
+    ScalarLeaves(stored.parameters ? api::ParameterSetToJson(*stored.parameters) : json::object(),
+                 "", leaves);
     for (auto& [key, value] : leaves) {
       if (seen.insert(key).second) columns.push_back(key);
       row[key] = std::move(value);

@@ -7,6 +7,7 @@
 #include <ostream>
 #include <string>
 
+#include "api/user.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/config.h"
 #include "clients/cli/output.h"
@@ -46,9 +47,9 @@ void RegisterLoginCommand(CLI::App& app, CliContext& context) {
                     << "\n";
         return;
       }
-      context.out << "logged in to " << config.server << " as " << Cell(me.value("name", ""))
-                  << " (" << Cell(me.value("role", "")) << "); configuration in " << path->string()
-                  << "\n";
+      const api::User user = FromServer(api::UserFromJson(me), "user");
+      context.out << "logged in to " << config.server << " as " << user.name << " ("
+                  << api::RoleName(user.role) << "); configuration in " << path->string() << "\n";
     };
   });
 }

@@ -9,6 +9,12 @@
 #include <string>
 #include <vector>
 
+#include "api/json_fields.h"
+#include "api/run.h"
+#include "api/session.h"
+#include "api/subject.h"
+#include "api/time_utc.h"
+#include "api/trial_summary.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/output.h"
 
@@ -18,26 +24,27 @@ namespace {
 
 using nlohmann::json;
 
-void PrintSubjects(CliContext& context, const json& items) {
+void PrintSubjects(CliContext& context, const std::vector<api::Subject>& subjects) {
   std::vector<std::vector<std::string>> rows;
-  for (const auto& s : items) {
+  for (const api::Subject& s : subjects) {
     std::string legs;
-    for (const auto& leg : s["legs"]) legs += (legs.empty() ? "" : ",") + Cell(leg["side"]);
-    rows.push_back({Cell(s["id"]), Cell(s["code"]), legs.empty() ? "-" : legs,
-                    Cell(s["details"].value("sex", json(nullptr))),
-                    Cell(s["details"].value("age_years", json(nullptr))),
-                    Cell(s["created_at_utc"])});
+    for (const api::SubjectLeg& leg : s.legs) {
+      legs += (legs.empty() ? "" : ",") + std::string(api::SideName(leg.side));
+    }
+    rows.push_back({Cell(s.id), s.code, legs.empty() ? "-" : legs,
+                    std::string(api::SexName(s.details.sex)),
+                    Cell(api::OrNull(s.details.age_years)), api::FormatUtc(s.created_at)});
   }
   PrintTable(context.out, {"id", "code", "legs", "sex", "age_years", "created_at_utc"}, rows);
 }
 
-void PrintSessions(CliContext& context, const json& items) {
+void PrintSessions(CliContext& context, const std::vector<api::Session>& sessions) {
   std::vector<std::vector<std::string>> rows;
-  for (const auto& s : items) {
-    const json& d = s["details"];
-    rows.push_back({Cell(s["id"]), Cell(s["subject_id"]), Cell(s["leg"]), Cell(s["date"]),
-                    Cell(d.value("threshold_ma", json(nullptr))),
-                    Cell(d.value("max_tolerated_ma", json(nullptr))), Cell(d.value("notes", ""))});
+  for (const api::Session& s : sessions) {
+    const api::SessionDetails& d = s.details;
+    rows.push_back({Cell(s.id), Cell(s.subject_id), std::string(api::SideName(s.leg)), d.date,
+                    Cell(api::OrNull(d.threshold_ma)), Cell(api::OrNull(d.max_tolerated_ma)),
+                    d.notes});
   }
   PrintTable(context.out,
              {"id", "subject_id", "leg", "date", "threshold_ma", "max_tolerated_ma", "notes"},
@@ -67,16 +74,30 @@ struct SubjectDetailsFlags {
     app->add_option("--rom-max-deg", rom_max_deg, "range of motion, flexion end, deg (60-180)");
   }
 
-  // The given flags into `details` (API field names).
-  void AddTo(json& details) const {
-    if (age_years) details["age_years"] = *age_years;
-    if (sex) details["sex"] = *sex;
-    if (height_cm) details["height_cm"] = *height_cm;
-    if (weight_kg) details["weight_kg"] = *weight_kg;
-    if (shank_length_cm) details["shank_length_cm"] = *shank_length_cm;
-    if (calf_circumference_cm) details["calf_circumference_cm"] = *calf_circumference_cm;
-    if (rom_min_deg) details["rom_min_deg"] = *rom_min_deg;
-    if (rom_max_deg) details["rom_max_deg"] = *rom_max_deg;
+  // The given flags into `details` (--sex is checked against the wire's names).
+  void AddTo(api::SubjectDetails& details) const {
+    if (age_years) details.age_years = *age_years;
+    if (sex) details.sex = api::ParseSex(*sex).value_or(api::Sex::kUndisclosed);
+    if (height_cm) details.height_cm = *height_cm;
+    if (weight_kg) details.weight_kg = *weight_kg;
+    if (shank_length_cm) details.shank_length_cm = *shank_length_cm;
+    if (calf_circumference_cm) details.calf_circumference_cm = *calf_circumference_cm;
+    if (rom_min_deg) details.rom_min_deg = *rom_min_deg;
+    if (rom_max_deg) details.rom_max_deg = *rom_max_deg;
+  }
+
+  // The wire names of the given flags.
+  std::vector<std::string> Given() const {
+    std::vector<std::string> given;
+    if (age_years) given.push_back("age_years");
+    if (sex) given.push_back("sex");
+    if (height_cm) given.push_back("height_cm");
+    if (weight_kg) given.push_back("weight_kg");
+    if (shank_length_cm) given.push_back("shank_length_cm");
+    if (calf_circumference_cm) given.push_back("calf_circumference_cm");
+    if (rom_min_deg) given.push_back("rom_min_deg");
+    if (rom_max_deg) given.push_back("rom_max_deg");
+    return given;
   }
 };
 
@@ -103,21 +124,25 @@ struct SessionEditForm {
 };
 
 // Prints a correction's result: the revision and the current details.
-void PrintCorrected(CliContext& context, const std::string& what, const json& record) {
+template <typename Record>
+void PrintCorrected(CliContext& context, const std::string& what, const json& answer,
+                    api::Result<Record> (*from)(const json&), json (*details_to_json)(
+                        const decltype(Record::details)&)) {
   if (context.options.json) {
-    context.out << record.dump(2) << "\n";
+    context.out << answer.dump(2) << "\n";
     return;
   }
-  context.out << what << " " << Cell(record["id"]) << " corrected: revision "
-              << Cell(record["revision"]) << "\n";
-  PrintObject(context.out, record["details"]);
+  const Record record = FromServer(from(answer), what);
+  context.out << what << " " << record.id << " corrected: revision " << record.revision << "\n";
+  PrintObject(context.out, details_to_json(record.details));
 }
 
-void PrintRevisions(CliContext& context, const json& items) {
+template <typename Revision>
+void PrintRevisions(CliContext& context, const std::vector<Revision>& revisions) {
   std::vector<std::vector<std::string>> rows;
-  for (const auto& r : items) {
-    rows.push_back({Cell(r["revision"]), Cell(r["changed_at_utc"]),
-                    Cell(r.value("changed_by", json(nullptr))), Cell(r["reason"])});
+  for (const Revision& r : revisions) {
+    rows.push_back({Cell(r.revision), api::FormatUtc(r.changed_at), Cell(api::OrNull(r.changed_by)),
+                    r.reason});
   }
   context.out << "revisions:\n";
   PrintTable(context.out, {"revision", "changed_at_utc", "changed_by", "reason"}, rows);
@@ -145,7 +170,7 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
           if (context.options.json) {
             context.out << items.dump(2) << "\n";
           } else {
-            PrintSubjects(context, items);
+            PrintSubjects(context, ItemsFromServer(items, &api::SubjectFromJson, "subject"));
           }
         };
       });
@@ -158,14 +183,15 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
         auto client = Connect(context);
         const std::string path = "/subjects/" + std::to_string(ResolveSubject(*client, *id));
         json subject = client->Get(path);
-        const json revisions = client->Get(path + "/revisions")["items"];
+        const json revisions = PageItems(client->Get(path + "/revisions"), path + "/revisions");
         if (context.options.json) {
-          subject["revisions"] = revisions;
+          subject.update(json{{"revisions", revisions}});
           context.out << subject.dump(2) << "\n";
           return;
         }
         PrintObject(context.out, subject);
-        PrintRevisions(context, revisions);
+        PrintRevisions(context,
+                       ItemsFromServer(revisions, &api::SubjectRevisionFromJson, "revision"));
       };
     });
   }
@@ -178,17 +204,19 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
     form->details.Register(create);
     create->callback([form, &context] {
       context.action = [form, &context] {
-        json details = json::object();
-        form->details.AddTo(details);
-        json body = {{"code", form->code}, {"legs", form->legs}};
-        if (!details.empty()) body["details"] = details;
+        api::NewSubjectRequest request;
+        request.code = form->code;
+        for (const std::string& leg : form->legs) {
+          request.legs.push_back(api::ParseSide(leg).value_or(api::Side::kRight));
+        }
+        form->details.AddTo(request.details);
         auto client = Connect(context);
-        const json created = client->Post("/subjects", body);
+        const json created = client->Post("/subjects", api::NewSubjectRequestToJson(request));
         if (context.options.json) {
           context.out << created.dump(2) << "\n";
         } else {
-          context.out << "created subject " << Cell(created["id"]) << " (" << Cell(created["code"])
-                      << ")\n";
+          const api::Subject subject = FromServer(api::SubjectFromJson(created), "subject");
+          context.out << "created subject " << subject.id << " (" << subject.code << ")\n";
         }
       };
     });
@@ -206,15 +234,19 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
                                "calf_circumference_cm", "rom_min_deg", "rom_max_deg"}));
     edit->callback([form, &context] {
       context.action = [form, &context] {
-        json details = json::object();
-        for (const std::string& field : form->clear) details[field] = nullptr;
-        form->details.AddTo(details);
-        if (details.empty()) throw CliError::Usage("name at least one field to correct");
+        api::CorrectionRequest<api::SubjectDetails> request{form->reason, {}, {}, form->clear};
+        form->details.AddTo(request.details);
+        request.set = form->details.Given();
+        if (request.set.empty() && request.clear.empty()) {
+          throw CliError::Usage("name at least one field to correct");
+        }
         auto client = Connect(context);
         const std::int64_t id = ResolveSubject(*client, form->subject);
         PrintCorrected(context, "subject",
                        client->Patch("/subjects/" + std::to_string(id),
-                                     {{"reason", form->reason}, {"details", details}}));
+                                     api::CorrectionRequestToJson(request,
+                                                                  &api::SubjectDetailsToJson)),
+                       &api::SubjectFromJson, &api::SubjectDetailsToJson);
       };
     });
   }
@@ -234,7 +266,7 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
         if (context.options.json) {
           context.out << items.dump(2) << "\n";
         } else {
-          PrintSessions(context, items);
+          PrintSessions(context, ItemsFromServer(items, &api::SessionFromJson, "session"));
         }
       };
     });
@@ -247,39 +279,41 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
       context.action = [id, &context] {
         const std::string path = "/sessions/" + std::to_string(ParseId(*id, "session"));
         auto client = Connect(context);
-        json session = client->Get(path);
-        session["runs"] = client->GetAllPages(path + "/runs", "");
-        session["trials"] = client->GetAllPages(path + "/trials", "");
-        session["revisions"] = client->Get(path + "/revisions")["items"];
+        const json head = client->Get(path);
+        const json runs_json = client->GetAllPages(path + "/runs", "");
+        const json trials_json = client->GetAllPages(path + "/trials", "");
+        const json revisions_json =
+            PageItems(client->Get(path + "/revisions"), path + "/revisions");
         if (context.options.json) {
+          json session = head;
+          session.update(
+              json{{"runs", runs_json}, {"trials", trials_json}, {"revisions", revisions_json}});
           context.out << session.dump(2) << "\n";
           return;
         }
         // The current values first: what the protocols are scaled to.
-        const json& d = session["details"];
-        context.out << "session " << Cell(session["id"]) << " (subject "
-                    << Cell(session["subject_id"]) << ", " << Cell(session["leg"]) << " leg, "
-                    << Cell(session["date"]) << "), revision " << Cell(session["revision"]) << "\n"
-                    << "threshold_ma: " << Cell(d.value("threshold_ma", json(nullptr))) << "\n"
-                    << "max_tolerated_ma: " << Cell(d.value("max_tolerated_ma", json(nullptr)))
-                    << "\n";
-        json head = session;
-        head.erase("runs");
-        head.erase("trials");
-        head.erase("revisions");
+        const api::Session session = FromServer(api::SessionFromJson(head), "session");
+        const api::SessionDetails& d = session.details;
+        context.out << "session " << session.id << " (subject " << session.subject_id << ", "
+                    << api::SideName(session.leg) << " leg, " << d.date << "), revision "
+                    << session.revision << "\n"
+                    << "threshold_ma: " << Cell(api::OrNull(d.threshold_ma)) << "\n"
+                    << "max_tolerated_ma: " << Cell(api::OrNull(d.max_tolerated_ma)) << "\n";
         PrintObject(context.out, head);
-        PrintRevisions(context, session["revisions"]);
+        PrintRevisions(context,
+                       ItemsFromServer(revisions_json, &api::SessionRevisionFromJson, "revision"));
         std::vector<std::vector<std::string>> runs;
-        for (const auto& r : session["runs"]) {
-          runs.push_back({Cell(r["run_id"]), Cell(r["protocol"]), Cell(r["state"]),
-                          Cell(r["started_at_utc"]), Cell(r["reason"])});
+        for (const api::RunView& r : ItemsFromServer(runs_json, &api::RunViewFromJson, "run")) {
+          runs.push_back({Cell(r.run_id), r.protocol, std::string(api::RunStateName(r.state)),
+                          r.started_at ? api::FormatUtc(*r.started_at) : "-", Cell(r.reason)});
         }
         context.out << "runs:\n";
         PrintTable(context.out, {"run_id", "protocol", "state", "started_at_utc", "reason"}, runs);
         std::vector<std::vector<std::string>> trials;
-        for (const auto& t : session["trials"]) {
-          trials.push_back({Cell(t["id"]), Cell(t["run_id"]), Cell(t["name"]),
-                            Cell(t["num_samples"]), Cell(t["sample_rate_hz"])});
+        for (const api::TrialSummary& t :
+             ItemsFromServer(trials_json, &api::TrialSummaryFromJson, "trial")) {
+          trials.push_back({Cell(t.id), Cell(api::OrNull(t.run_id)), Cell(api::OrNull(t.name)),
+                            Cell(t.num_samples), Cell(t.sample_rate_hz)});
         }
         context.out << "trials:\n";
         PrintTable(context.out, {"id", "run_id", "name", "num_samples", "sample_rate_hz"}, trials);
@@ -302,21 +336,24 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
     create->add_option("--accelerometer-placement", form->placement, "free text");
     create->callback([form, &context] {
       context.action = [form, &context] {
-        json body = {{"leg", form->leg}, {"date", form->date}};
-        if (form->threshold_ma) body["threshold_ma"] = *form->threshold_ma;
-        if (form->max_tolerated_ma) body["max_tolerated_ma"] = *form->max_tolerated_ma;
-        if (form->notes) body["notes"] = *form->notes;
-        if (form->placement) body["accelerometer_placement"] = *form->placement;
+        api::NewSessionRequest request;
+        request.leg = api::ParseSide(form->leg).value_or(api::Side::kRight);
+        request.details.date = form->date;
+        request.details.threshold_ma = form->threshold_ma;
+        request.details.max_tolerated_ma = form->max_tolerated_ma;
+        request.details.notes = form->notes.value_or("");
+        request.details.accelerometer_placement = form->placement.value_or("");
         auto client = Connect(context);
         const std::int64_t subject = ResolveSubject(*client, form->subject);
-        const json created =
-            client->Post("/subjects/" + std::to_string(subject) + "/sessions", body);
+        const json created = client->Post("/subjects/" + std::to_string(subject) + "/sessions",
+                                          api::NewSessionRequestToJson(request));
         if (context.options.json) {
           context.out << created.dump(2) << "\n";
         } else {
-          context.out << "created session " << Cell(created["id"]) << " (subject "
-                      << Cell(created["subject_id"]) << ", " << Cell(created["leg"]) << " leg, "
-                      << Cell(created["date"]) << ")\n";
+          const api::Session session = FromServer(api::SessionFromJson(created), "session");
+          context.out << "created session " << session.id << " (subject " << session.subject_id
+                      << ", " << api::SideName(session.leg) << " leg, " << session.details.date
+                      << ")\n";
         }
       };
     });
@@ -338,19 +375,27 @@ void RegisterRecordCommands(CLI::App& app, CliContext& context) {
             {"threshold_ma", "max_tolerated_ma", "notes", "accelerometer_placement"}));
     edit->callback([form, &context] {
       context.action = [form, &context] {
-        json details = json::object();
-        for (const std::string& field : form->clear) details[field] = nullptr;
-        if (form->date) details["date"] = *form->date;
-        if (form->threshold_ma) details["threshold_ma"] = *form->threshold_ma;
-        if (form->max_tolerated_ma) details["max_tolerated_ma"] = *form->max_tolerated_ma;
-        if (form->notes) details["notes"] = *form->notes;
-        if (form->placement) details["accelerometer_placement"] = *form->placement;
-        if (details.empty()) throw CliError::Usage("name at least one field to correct");
+        api::CorrectionRequest<api::SessionDetails> request{form->reason, {}, {}, form->clear};
+        api::SessionDetails& d = request.details;
+        if (form->date) request.set.push_back("date");
+        d.date = form->date.value_or("");
+        if (form->threshold_ma) request.set.push_back("threshold_ma");
+        d.threshold_ma = form->threshold_ma;
+        if (form->max_tolerated_ma) request.set.push_back("max_tolerated_ma");
+        d.max_tolerated_ma = form->max_tolerated_ma;
+        if (form->notes) request.set.push_back("notes");
+        d.notes = form->notes.value_or("");
+        if (form->placement) request.set.push_back("accelerometer_placement");
+        d.accelerometer_placement = form->placement.value_or("");
+        if (request.set.empty() && request.clear.empty()) {
+          throw CliError::Usage("name at least one field to correct");
+        }
         auto client = Connect(context);
         PrintCorrected(
             context, "session",
             client->Patch("/sessions/" + std::to_string(ParseId(form->session, "session")),
-                          {{"reason", form->reason}, {"details", details}}));
+                          api::CorrectionRequestToJson(request, &api::SessionDetailsToJson)),
+            &api::SessionFromJson, &api::SessionDetailsToJson);
       };
     });
   }

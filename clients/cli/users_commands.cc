@@ -15,6 +15,9 @@
 #include <string>
 #include <vector>
 
+#include "api/json_fields.h"
+#include "api/time_utc.h"
+#include "api/user.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/output.h"
 
@@ -29,8 +32,8 @@ std::int64_t ResolveUser(ApiClient& client, const std::string& id_or_name) {
   if (!id_or_name.empty() && id_or_name.find_first_not_of("0123456789") == std::string::npos) {
     return ParseId(id_or_name, "user");
   }
-  for (const auto& user : client.GetAllPages("/users", "")) {
-    if (user.value("name", "") == id_or_name) return user["id"].get<std::int64_t>();
+  for (const api::User& user : client.GetAllPagesOf("/users", "", &api::UserFromJson, "user")) {
+    if (user.name == id_or_name) return user.id;
   }
   throw CliError::Server("no user named " + id_or_name + " (fesbench users list names them)");
 }
@@ -80,24 +83,23 @@ struct IssueForm {
 // Issues a token and shows its secret once: on stdout, or in `form.out`.
 void IssueToken(CliContext& context, ApiClient& client, std::int64_t user_id,
                 const IssueForm& form) {
-  json body = {{"user_id", user_id}};
-  if (!form.label.empty()) body["label"] = form.label;
-  if (form.expires_in_s) body["expires_in_s"] = *form.expires_in_s;
+  const api::NewTokenRequest request{user_id, form.label, form.expires_in_s};
   std::unique_ptr<SecretFile> file;
   if (!form.out.empty()) file = std::make_unique<SecretFile>(form.out);
-  json issued = client.Post("/tokens", body);
-  const std::string secret = issued.value("token", "");
+  json answer = client.Post("/tokens", api::NewTokenRequestToJson(request));
+  const api::IssuedTokenView issued = FromServer(api::IssuedTokenFromJson(answer), "token");
+  const std::string& secret = issued.token;
   if (file) {
     file->Write(secret);
-    issued.erase("token");
-    issued["out"] = form.out;
+    answer.erase("token");
+    answer.emplace("out", form.out);
   }
   if (context.options.json) {
-    context.out << issued.dump(2) << "\n";
+    context.out << answer.dump(2) << "\n";
     return;
   }
-  context.out << "token " << Cell(issued["id"]) << " for user " << user_id
-              << " (expires: " << Cell(issued.value("expires_at_utc", json(nullptr))) << ")\n";
+  context.out << "token " << issued.id << " for user " << user_id << " (expires: "
+              << (issued.expires_at ? api::FormatUtc(*issued.expires_at) : "-") << ")\n";
   if (form.out.empty()) {
     context.out << secret << "\n"
                 << "shown once: the server keeps only its digest\n";
@@ -138,9 +140,9 @@ void RegisterUserCommands(CLI::App& app, CliContext& context) {
         return;
       }
       std::vector<std::vector<std::string>> rows;
-      for (const auto& u : items) {
-        rows.push_back({Cell(u["id"]), Cell(u["name"]), Cell(u["role"]),
-                        u.value("active", false) ? "yes" : "no", Cell(u["created_at_utc"])});
+      for (const api::User& u : ItemsFromServer(items, &api::UserFromJson, "user")) {
+        rows.push_back({Cell(u.id), u.name, std::string(api::RoleName(u.role)),
+                        u.active ? "yes" : "no", api::FormatUtc(u.created_at)});
       }
       PrintTable(context.out, {"id", "name", "role", "active", "created_at_utc"}, rows);
     };
@@ -163,21 +165,19 @@ void RegisterUserCommands(CLI::App& app, CliContext& context) {
           throw CliError::Usage("--label, --expires-in-s and --out need --token");
         }
         auto client = Connect(context);
-        const json user = client->Post("/users", {{"name", form->name}, {"role", form->role}});
-        if (!form->token) {
-          if (context.options.json) {
-            context.out << user.dump(2) << "\n";
-          } else {
-            context.out << "user " << Cell(user["id"]) << " " << Cell(user["name"]) << " ("
-                        << Cell(user["role"]) << ")\n";
-          }
+        const api::NewUserRequest request{
+            form->name, api::ParseRole(form->role).value_or(api::Role::kAnalyst)};
+        const json answer = client->Post("/users", api::NewUserRequestToJson(request));
+        const api::User user = FromServer(api::UserFromJson(answer), "user");
+        if (context.options.json && !form->token) {
+          context.out << answer.dump(2) << "\n";
           return;
         }
         if (!context.options.json) {
-          context.out << "user " << Cell(user["id"]) << " " << Cell(user["name"]) << " ("
-                      << Cell(user["role"]) << ")\n";
+          context.out << "user " << user.id << " " << user.name << " ("
+                      << api::RoleName(user.role) << ")\n";
         }
-        IssueToken(context, *client, user["id"].get<std::int64_t>(), form->issue);
+        if (form->token) IssueToken(context, *client, user.id, form->issue);
       };
     });
   }
@@ -199,8 +199,8 @@ void RegisterUserCommands(CLI::App& app, CliContext& context) {
           context.out << done.dump(2) << "\n";
           return;
         }
-        context.out << "user " << Cell(done["id"]) << " " << Cell(done["name"])
-                    << " deactivated\n";
+        const api::User deactivated = FromServer(api::UserFromJson(done), "user");
+        context.out << "user " << deactivated.id << " " << deactivated.name << " deactivated\n";
       };
     });
   }
@@ -213,24 +213,23 @@ void RegisterUserCommands(CLI::App& app, CliContext& context) {
     tokens->callback([user, &context] {
       context.action = [user, &context] {
         auto client = Connect(context);
-        json items = client->GetAllPages("/tokens", "");
-        if (!user->empty()) {
-          const std::int64_t id = ResolveUser(*client, *user);
-          json kept = json::array();
-          for (auto& t : items) {
-            if (t.value("user_id", std::int64_t{0}) == id) kept.push_back(std::move(t));
-          }
-          items = std::move(kept);
+        const json items = client->GetAllPages("/tokens", "");
+        const std::vector<api::TokenInfo> tokens =
+            ItemsFromServer(items, &api::TokenInfoFromJson, "token");
+        const std::optional<std::int64_t> only =
+            user->empty() ? std::nullopt : std::optional(ResolveUser(*client, *user));
+        json kept = json::array();
+        std::vector<std::vector<std::string>> rows;
+        for (std::size_t i = 0; i < tokens.size(); ++i) {
+          const api::TokenInfo& t = tokens[i];
+          if (only && t.user_id != *only) continue;
+          kept.push_back(items[i]);
+          rows.push_back({Cell(t.id), t.user_name, t.label, t.created_at_utc,
+                          Cell(api::OrNull(t.expires_at_utc)), t.revoked_at_utc ? "yes" : "no"});
         }
         if (context.options.json) {
-          context.out << items.dump(2) << "\n";
+          context.out << kept.dump(2) << "\n";
           return;
-        }
-        std::vector<std::vector<std::string>> rows;
-        for (const auto& t : items) {
-          rows.push_back({Cell(t["id"]), Cell(t["user_name"]), Cell(t["label"]),
-                          Cell(t["created_at_utc"]), Cell(t["expires_at_utc"]),
-                          t.value("revoked", false) ? "yes" : "no"});
         }
         PrintTable(context.out,
                    {"id", "user", "label", "created_at_utc", "expires_at_utc", "revoked"}, rows);

@@ -3,137 +3,22 @@
 #include <cmath>
 #include <sstream>
 
-#include "api/parameter_set_json.h"
 #include "api/json_fields.h"
 #include "server/services/model_check.h"
 #include "api/time_utc.h"
+#include "storage/resources.h"
 
 namespace fesbench::server::http {
 
-namespace {
-
-template <typename T>
-void PutOptional(nlohmann::json& j, const char* key, const std::optional<T>& value) {
-  if (value) j[key] = *value;
-}
-
-
-}  // namespace
-
-nlohmann::json SubjectDetailsToJson(const storage::SubjectDetails& d) {
-  nlohmann::json j = nlohmann::json::object();
-  PutOptional(j, "age_years", d.age_years);
-  j["sex"] = storage::SexName(d.sex);
-  PutOptional(j, "height_cm", d.height_cm);
-  PutOptional(j, "weight_kg", d.weight_kg);
-  PutOptional(j, "shank_length_cm", d.shank_length_cm);
-  PutOptional(j, "calf_circumference_cm", d.calf_circumference_cm);
-  PutOptional(j, "rom_min_deg", d.rom_min_deg);
-  PutOptional(j, "rom_max_deg", d.rom_max_deg);
-  return j;
-}
-
-nlohmann::json SubjectToJson(const storage::Subject& s, const std::vector<storage::Leg>& legs) {
-  nlohmann::json leg_list = nlohmann::json::array();
-  for (const auto& leg : legs)
-    leg_list.push_back({{"id", leg.id}, {"side", storage::SideName(leg.side)}});
-  return {{"id", s.id},
-          {"code", s.code},
-          {"created_at_utc", api::FormatUtc(s.created_at)},
-          {"revision", s.current.revision},
-          {"details", SubjectDetailsToJson(s.current.details)},
-          {"legs", std::move(leg_list)}};
-}
-
-nlohmann::json SessionToJson(const storage::Session& s, std::string_view leg_side) {
-  const auto& d = s.current.details;
-  nlohmann::json details = {
-      {"date", d.date}, {"accelerometer_placement", d.accelerometer_placement}, {"notes", d.notes}};
-  PutOptional(details, "threshold_ma", d.threshold_ma);
-  PutOptional(details, "max_tolerated_ma", d.max_tolerated_ma);
-  return {{"id", s.id},
-          {"subject_id", s.subject_id},
-          {"leg_id", s.leg_id},
-          {"leg", leg_side},
-          {"date", d.date},
-          {"created_at_utc", api::FormatUtc(s.created_at)},
-          {"revision", s.current.revision},
-          {"details", std::move(details)}};
-}
-
-nlohmann::json TrialSummaryToJson(const storage::TrialSummary& t) {
-  return {{"id", t.id},
-          {"session_id", t.session_id},
-          {"run_id", api::OrNull(t.run_id)},
-          {"name", t.name ? nlohmann::json(*t.name) : nlohmann::json(nullptr)},
-          {"kind", t.kind ? nlohmann::json(api::TrialKindName(*t.kind)) : nlohmann::json(nullptr)},
-          {"num_samples", t.num_samples},
-          {"sample_rate_hz", t.sample_rate_hz},
-          {"duration_s", t.sample_rate_hz > 0.0
-                             ? nlohmann::json(static_cast<double>(t.num_samples) / t.sample_rate_hz)
-                             : nlohmann::json(nullptr)},
-          {"created_at_utc", api::FormatUtc(t.created_at)}};
-}
-
-nlohmann::json ParameterSetSummaryToJson(const storage::ParameterSetSummary& s) {
-  return {{"id", s.id},
-          {"subject_id", s.subject_id},
-          {"leg_id", s.leg_id},
-          {"version", s.version},
-          {"model", s.model},
-          {"irc_method", s.irc_method},
-          {"passive_method", s.passive_method},
-          {"active_method", s.active_method},
-          {"software_version", s.software_version},
-          {"supersedes_id", api::OrNull(s.supersedes_id)},
-          {"created_at_utc", api::FormatUtc(s.created_at)}};
-}
-
-nlohmann::json ApprovalFieldsToJson(const std::optional<storage::Approval>& newest) {
-  if (!newest) return {{"approved", false}, {"approval", nullptr}};
-  return {{"approved", newest->current},
-          {"approval",
-           {{"approved_by", newest->approved_by},
-            {"approved_by_user_id", api::OrNull(newest->approved_by_user_id)},
-            {"approved_at_utc", api::FormatUtc(newest->approved_at)},
-            {"note", newest->note},
-            {"run_id", api::OrNull(newest->run_id)}}}};
-}
-
-nlohmann::json StoredParameterSetToJson(const storage::StoredParameterSet& set) {
-  nlohmann::json j = ParameterSetSummaryToJson(set.summary);
-  j["trial_ids"] = set.trial_ids;
-  j["parameters"] = api::ParameterSetToJson(set.params);
-  // The fit's warnings in a clinician's words (parameters.provenance.warnings
-  // keeps them as the fitting software wrote them).
-  nlohmann::json notes = nlohmann::json::array();
+api::StoredParameterSet ParameterSetResourceWithNotes(const storage::StoredParameterSet& set) {
+  api::StoredParameterSet resource = storage::StoredParameterSetResource(set);
   for (const std::string& w : set.params.provenance.warnings) {
-    notes.push_back(services::ClinicalWarning(w));
+    resource.fit_notes.push_back(services::ClinicalWarning(w));
   }
-  j["fit_notes"] = std::move(notes);
-  return j;
+  return resource;
 }
 
-nlohmann::json UserToJson(const storage::User& u) {
-  return {{"id", u.id},
-          {"name", u.name},
-          {"role", storage::RoleName(u.role)},
-          {"active", u.active},
-          {"created_at_utc", api::FormatUtc(u.created_at)}};
-}
-
-nlohmann::json AuditEntryToJson(const storage::AuditEntry& e) {
-  return {{"id", e.id},
-          {"at_utc", api::FormatUtc(e.at)},
-          {"user_id", api::OrNull(e.entry.user_id)},
-          {"actor", e.entry.actor},
-          {"action", e.entry.action},
-          {"target", e.entry.target},
-          {"request_summary", e.entry.request_summary},
-          {"outcome", e.entry.outcome}};
-}
-
-api::Result<storage::SubjectDetails> SubjectDetailsFromJson(const nlohmann::json& json,
+api::Result<storage::SubjectDetails> SubjectDetailsRequestFromJson(const nlohmann::json& json,
                                                             const std::string& path) {
   api::JsonFields f(json, path);
   storage::SubjectDetails d;
@@ -160,12 +45,12 @@ api::Result<storage::SubjectDetails> SubjectDetailsFromJson(const nlohmann::json
   return d;
 }
 
-api::Result<NewSubjectRequest> NewSubjectFromJson(const nlohmann::json& body) {
+api::Result<api::NewSubjectRequest> NewSubjectFromJson(const nlohmann::json& body) {
   api::JsonFields f(body);
-  NewSubjectRequest out;
+  api::NewSubjectRequest out;
   if (auto code = f.String("code", true, 32)) out.code = *code;
   if (const auto* details = f.Object("details", false)) {
-    auto d = SubjectDetailsFromJson(*details, "details");
+    auto d = SubjectDetailsRequestFromJson(*details, "details");
     if (!d.ok()) return d.status();
     out.details = *d;
   }
@@ -191,9 +76,9 @@ api::Result<NewSubjectRequest> NewSubjectFromJson(const nlohmann::json& body) {
   return out;
 }
 
-api::Result<NewSessionRequest> NewSessionFromJson(const nlohmann::json& body) {
+api::Result<api::NewSessionRequest> NewSessionFromJson(const nlohmann::json& body) {
   api::JsonFields f(body);
-  NewSessionRequest out;
+  api::NewSessionRequest out;
   if (auto leg = f.String("leg", true, 16)) {
     auto side = storage::ParseSide(*leg);
     if (!side) return api::Status::InvalidArgument("must be left or right", "leg");
@@ -397,38 +282,9 @@ api::Result<SessionCorrection> SessionCorrectionFromJson(const nlohmann::json& b
   return out;
 }
 
-namespace {
-
-template <typename Revision>
-nlohmann::json RevisionToJson(const Revision& r, std::optional<int> corrects_revision,
-                              nlohmann::json details) {
-  return {{"revision", r.revision},
-          {"corrects_revision",
-           corrects_revision ? nlohmann::json(*corrects_revision) : nlohmann::json(nullptr)},
-          {"reason", r.reason},
-          {"changed_by",
-           r.recorded_by.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.recorded_by)},
-          {"changed_at_utc", api::FormatUtc(r.recorded_at)},
-          {"details", std::move(details)}};
-}
-
-}  // namespace
-
-nlohmann::json SubjectRevisionToJson(const storage::SubjectRevision& r,
-                                     std::optional<int> corrects_revision) {
-  return RevisionToJson(r, corrects_revision, SubjectDetailsToJson(r.details));
-}
-
-nlohmann::json SessionRevisionToJson(const storage::SessionRevision& r,
-                                     std::optional<int> corrects_revision) {
-  storage::Session s;
-  s.current = r;
-  return RevisionToJson(r, corrects_revision, SessionToJson(s, "").at("details"));
-}
-
-api::Result<NewUserRequest> NewUserFromJson(const nlohmann::json& body) {
+api::Result<api::NewUserRequest> NewUserFromJson(const nlohmann::json& body) {
   api::JsonFields f(body);
-  NewUserRequest out;
+  api::NewUserRequest out;
   if (auto name = f.String("name", true, 64)) out.name = *name;
   if (auto role = f.String("role", true, 16)) {
     auto parsed = storage::ParseRole(*role);
@@ -440,9 +296,9 @@ api::Result<NewUserRequest> NewUserFromJson(const nlohmann::json& body) {
   return out;
 }
 
-api::Result<NewTokenRequest> NewTokenFromJson(const nlohmann::json& body) {
+api::Result<api::NewTokenRequest> NewTokenFromJson(const nlohmann::json& body) {
   api::JsonFields f(body);
-  NewTokenRequest out;
+  api::NewTokenRequest out;
   if (auto id = f.Integer("user_id", true, 1)) out.user_id = *id;
   if (auto label = f.String("label", false, 128)) out.label = *label;
   out.expires_in_s = f.Integer("expires_in_s", false, 60, 10LL * 365 * 24 * 3600);

@@ -17,31 +17,22 @@ namespace {
 
 using nlohmann::json;
 
-struct TokenRow {
-  std::int64_t id = 0;
-  std::int64_t user_id = 0;
-  std::string user_name;
-  std::string label;
-  std::string created_at_utc;
-  std::optional<std::string> expires_at_utc;
-  std::optional<std::string> revoked_at_utc;
-};
 
 // storage::UserRepository has no token listing; read the tokens table
 // (metadata only: the digests never leave the database).
-api::Result<std::vector<TokenRow>> ListTokens(storage::Database& db) {
-  return db.Read([](storage::Connection& c) -> api::Result<std::vector<TokenRow>> {
+api::Result<std::vector<api::TokenInfo>> ListTokens(storage::Database& db) {
+  return db.Read([](storage::Connection& c) -> api::Result<std::vector<api::TokenInfo>> {
     auto statement = c.Prepare(
         "SELECT t.id, t.user_id, u.name, t.label, t.created_at_utc, t.expires_at_utc, r.at_utc "
         "FROM tokens t JOIN users u ON u.id = t.user_id "
         "LEFT JOIN token_revocations r ON r.token_id = t.id ORDER BY t.id");
     if (!statement.ok()) return statement.status();
-    std::vector<TokenRow> rows;
+    std::vector<api::TokenInfo> rows;
     while (true) {
       auto more = statement->Step();
       if (!more.ok()) return more.status();
       if (!*more) break;
-      TokenRow row;
+      api::TokenInfo row;
       row.id = statement->Int64(0);
       row.user_id = statement->Int64(1);
       row.user_name = statement->Text(2);
@@ -55,16 +46,6 @@ api::Result<std::vector<TokenRow>> ListTokens(storage::Database& db) {
   });
 }
 
-json TokenRowToJson(const TokenRow& t) {
-  return {{"id", t.id},
-          {"user_id", t.user_id},
-          {"user_name", t.user_name},
-          {"label", t.label},
-          {"created_at_utc", t.created_at_utc},
-          {"expires_at_utc", t.expires_at_utc ? json(*t.expires_at_utc) : json(nullptr)},
-          {"revoked", t.revoked_at_utc.has_value()},
-          {"revoked_at_utc", t.revoked_at_utc ? json(*t.revoked_at_utc) : json(nullptr)}};
-}
 
 // Users: list, create, deactivate.
 void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
@@ -82,7 +63,7 @@ void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
                auto users = storage::UserRepository(db).ListUsers();
                if (!users.ok()) return users.status();
                return JsonReply(MakePage(
-                   *users, *page, [](const storage::User& u) { return u.id; }, UserToJson));
+                   *users, *page, [](const storage::User& u) { return u.id; }, api::UserToJson));
              }});
   table.Add(
       {.method = "POST",
@@ -105,7 +86,7 @@ void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
              [&] { return storage::UserRepository(db).CreateUser(request->name, request->role); },
              [](const storage::User& u) { return "users/" + std::to_string(u.id); });
          if (!user.ok()) return user.status();
-         return JsonReply(UserToJson(*user), 201);
+         return JsonReply(api::UserToJson(*user), 201);
        }});
   table.Add(
       {.method = "POST",
@@ -136,7 +117,7 @@ void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
              [](const storage::User& u) { return "users/" + std::to_string(u.id); });
          if (!user.ok()) return user.status();
          auth.Invalidate();
-         return JsonReply(UserToJson(*user));
+         return JsonReply(api::UserToJson(*user));
        }});
 }
 
@@ -156,7 +137,7 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
                auto tokens = ListTokens(db);
                if (!tokens.ok()) return tokens.status();
                return JsonReply(MakePage(
-                   *tokens, *page, [](const TokenRow& t) { return t.id; }, TokenRowToJson));
+                   *tokens, *page, [](const api::TokenInfo& t) { return t.id; }, api::TokenInfoToJson));
              }});
   table.Add(
       {.method = "POST",
@@ -191,14 +172,10 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
            }
            return issued.status();
          }
-         return JsonReply(
-             {{"id", issued->token_id},
-              {"user_id", request->user_id},
-              {"label", request->label},
-              {"token", issued->token},
-              {"expires_at_utc",
-               issued->expires_at ? json(api::FormatUtc(*issued->expires_at)) : json(nullptr)}},
-             201);
+         return JsonReply(api::IssuedTokenToJson({issued->token_id, request->user_id,
+                                                  request->label, issued->token,
+                                                  issued->expires_at}),
+                          201);
        }});
   table.Add({.method = "DELETE",
              .path = "/api/v1/tokens/{token_id}",
@@ -260,7 +237,7 @@ void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
                  json items = json::array();
                  std::int64_t last = 0;
                  for (std::size_t i = 0; i < entries->size() && i < page->limit; ++i) {
-                   items.push_back(AuditEntryToJson((*entries)[i]));
+                   items.push_back(api::AuditEntryToJson((*entries)[i]));
                    last = (*entries)[i].id;
                  }
                  const bool more = entries->size() > page->limit;

@@ -31,10 +31,10 @@ api::Result<std::string> ReadNote(const json& body) {
 api::Result<json> ApprovedSetJson(storage::Database& db, const storage::StoredParameterSet& set) {
   auto approval = storage::ParameterSetRepository(db).LatestApprovals({set.summary.id});
   if (!approval.ok()) return approval.status();
-  json j = StoredParameterSetToJson(set);
-  j.update(
-      ApprovalFieldsToJson(approval->empty() ? std::nullopt : std::optional(approval->front())));
-  return j;
+  api::StoredParameterSet resource = ParameterSetResourceWithNotes(set);
+  resource.summary.approval = storage::ApprovalResource(
+      approval->empty() ? std::nullopt : std::optional(approval->front()));
+  return api::StoredParameterSetToJson(resource);
 }
 
 api::Result<Reply> Approve(storage::Database& db, RequestContext& ctx) {

@@ -120,13 +120,13 @@ nlohmann::json ObjectSchema(nlohmann::json properties, std::vector<std::string> 
 api::Result<nlohmann::json> SubjectJson(storage::Database& db, const storage::Subject& subject) {
   auto legs = storage::SubjectRepository(db).Legs(subject.id);
   if (!legs.ok()) return legs.status();
-  return SubjectToJson(subject, *legs);
+  return api::SubjectToJson(storage::SubjectResource(subject, *legs));
 }
 
 api::Result<nlohmann::json> SessionJson(storage::Database& db, const storage::Session& session) {
   auto leg = storage::SubjectRepository(db).GetLeg(session.leg_id);
   if (!leg.ok()) return leg.status();
-  return SessionToJson(session, storage::SideName(leg->side));
+  return api::SessionToJson(storage::SessionResource(session, leg->side));
 }
 
 api::Result<nlohmann::json> AuditedCorrection(storage::Database& db, RequestContext& ctx,

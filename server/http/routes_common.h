@@ -96,7 +96,7 @@ inline api::Status NotAvailable(std::string_view what) {
 }
 
 /// A stored subject with its legs, and a session with its leg's side, in
-/// their resource shapes (resources_json.h).
+/// their resource shapes (api/subject.h, api/session.h).
 api::Result<nlohmann::json> SubjectJson(storage::Database& db, const storage::Subject& subject);
 api::Result<nlohmann::json> SessionJson(storage::Database& db, const storage::Session& session);
 
@@ -114,19 +114,12 @@ api::Result<nlohmann::json> AuditedCorrection(
 /// A correction's request schema: a reason and the corrected `details`.
 nlohmann::json CorrectionSchema(nlohmann::json details);
 
-/// Revisions as {"items": [...]}, each with the revision number it corrects
-/// (ids → numbers).
+/// Revisions (storage::RevisionResources) as {"items": [...]}.
 template <typename Revision>
 nlohmann::json RevisionsJson(const std::vector<Revision>& revisions,
-                             nlohmann::json (*to_json)(const Revision&, std::optional<int>)) {
+                             nlohmann::json (*to_json)(const Revision&)) {
   nlohmann::json items = nlohmann::json::array();
-  for (const Revision& r : revisions) {
-    std::optional<int> corrects;
-    for (const Revision& other : revisions) {
-      if (r.corrects_id && other.id == *r.corrects_id) corrects = other.revision;
-    }
-    items.push_back(to_json(r, corrects));
-  }
+  for (const Revision& r : revisions) items.push_back(to_json(r));
   return {{"items", std::move(items)}};
 }
 

@@ -148,7 +148,7 @@ api::Result<Reply> ImportTrials(storage::Database& db, services::MemoryBudget& b
       format ? ImportArchiveBody(db, ctx, upload, *format, budget, session_id, user)
              : ImportRecordingBody(db, ctx, upload, budget, session_id, user);
   if (!imported.ok()) return imported.status();
-  return JsonReply(services::ImportResultToJson(*imported), 201);
+  return JsonReply(api::ImportResultToJson(*imported), 201);
 }
 
 // The trial kinds, and importing a recording or a session archive.
@@ -236,7 +236,7 @@ void AddReportAndExportRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (!trials.ok()) return trials.status();
          base.trials = json::array();
          for (const storage::TrialSummary& t : *trials)
-           base.trials.push_back(TrialSummaryToJson(t));
+           base.trials.push_back(api::TrialSummaryToJson(t));
          auto report = services::GatherSessionReport(db, session_id, std::move(base));
          if (!report.ok()) return report.status();
          ctx.res.status = 200;

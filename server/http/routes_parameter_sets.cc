@@ -186,12 +186,12 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                  return JsonReply(MakePage(
                      *found, *page, [](const storage::ParameterSetSummary& s) { return s.id; },
                      [&](const storage::ParameterSetSummary& s) {
-                       json j = ParameterSetSummaryToJson(s);
+                       api::ParameterSetSummary summary = storage::ParameterSetResource(s);
                        const auto it = approvals->find(s.id);
-                       j.update(ApprovalFieldsToJson(
+                       summary.approval = storage::ApprovalResource(
                            it == approvals->end() ? std::nullopt
-                                                  : std::optional<storage::Approval>(it->second)));
-                       return j;
+                                                  : std::optional<storage::Approval>(it->second));
+                       return api::ParameterSetSummaryToJson(summary);
                      }));
                }});
   }
@@ -206,7 +206,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                if (!body) {
                  auto set = storage::ParameterSetRepository(db).Get(id);
                  if (!set.ok()) return set.status();
-                 body = StoredParameterSetToJson(*set).dump();
+                 body = api::StoredParameterSetToJson(ParameterSetResourceWithNotes(*set)).dump();
                  cache->Put(id, *body);
                }
                auto approval = approval_cache->Newest({id});
@@ -214,10 +214,10 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
                const auto it = approval->find(id);
                ctx.res.status = 200;
                ctx.res.set_content(
-                   WithFields(std::move(*body),
-                              ApprovalFieldsToJson(it == approval->end()
-                                                       ? std::nullopt
-                                                       : std::optional(it->second))),
+                   WithFields(std::move(*body), api::ApprovalStateToJson(storage::ApprovalResource(
+                                                    it == approval->end()
+                                                        ? std::nullopt
+                                                        : std::optional(it->second)))),
                    "application/json");
                return Reply{200, nullptr, true};
              }});

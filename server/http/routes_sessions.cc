@@ -96,7 +96,7 @@ void AddSessionListRoutes(RouteTable& table, const ApiDependencies& deps) {
                      auto session = storage::SessionRepository(db).Create(subject_id, *leg_id,
                                                                           request->details);
                      if (!session.ok()) return session.status();
-                     return SessionToJson(*session, storage::SideName(request->leg));
+                     return api::SessionToJson(storage::SessionResource(*session, request->leg));
                    },
                    [](const json& s) {
                      return "sessions/" + std::to_string(s["id"].get<std::int64_t>());
@@ -144,11 +144,9 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (!current.ok()) return current.status();
          auto correction = SessionCorrectionFromJson(ctx.body, current->current.details);
          if (!correction.ok()) return correction.status();
-         storage::Session preview = *current;
-         preview.current.details = correction->details;
          auto corrected = AuditedCorrection(
              db, ctx, "sessions/" + std::to_string(id), correction->reason, correction->changed,
-             SessionToJson(preview, "").at("details"), [&]() -> api::Result<json> {
+             api::SessionDetailsToJson(correction->details), [&]() -> api::Result<json> {
                auto s = sessions.Correct(id, correction->details, correction->reason,
                                          ctx.user ? ctx.user->name : std::string());
                if (!s.ok()) return s.status();
@@ -165,7 +163,7 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
              .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto revisions = storage::SessionRepository(db).Revisions(ctx.Id("session_id"));
                if (!revisions.ok()) return revisions.status();
-               return JsonReply(RevisionsJson(*revisions, &SessionRevisionToJson));
+               return JsonReply(RevisionsJson(storage::RevisionResources(*revisions), &api::SessionRevisionToJson));
              }});
 }
 
@@ -218,7 +216,7 @@ void AddSessionRunAndTrialRoutes(RouteTable& table, const ApiDependencies& deps)
                if (!trials.ok()) return trials.status();
                return JsonReply(MakePage(
                    *trials, *page, [](const storage::TrialSummary& t) { return t.id; },
-                   TrialSummaryToJson));
+                   api::TrialSummaryToJson));
              }});
 }
 

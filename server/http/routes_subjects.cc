@@ -140,7 +140,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
          if (!correction.ok()) return correction.status();
          auto corrected = AuditedCorrection(
              db, ctx, "subjects/" + std::to_string(id), correction->reason, correction->changed,
-             SubjectDetailsToJson(correction->details), [&]() -> api::Result<json> {
+             api::SubjectDetailsToJson(correction->details), [&]() -> api::Result<json> {
                auto s = subjects.Correct(id, correction->details, correction->reason,
                                          ctx.user ? ctx.user->name : std::string());
                if (!s.ok()) return s.status();
@@ -157,7 +157,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
              .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
                auto revisions = storage::SubjectRepository(db).Revisions(ctx.Id("subject_id"));
                if (!revisions.ok()) return revisions.status();
-               return JsonReply(RevisionsJson(*revisions, &SubjectRevisionToJson));
+               return JsonReply(RevisionsJson(storage::RevisionResources(*revisions), &api::SubjectRevisionToJson));
              }});
 }
 

@@ -6,6 +6,7 @@
 #include "api/bids.h"
 #include "api/trial.h"
 #include "server/http/api_routes.h"
+#include "api/trial_summary.h"
 #include "server/http/resources_json.h"
 #include "server/http/routes_common.h"
 #include "storage/trials.h"
@@ -67,12 +68,9 @@ void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
            if (*import) {
              const storage::TrialImport& i = **import;
              json spec = json::parse(i.spec_json, nullptr, false);
-             body["import"] = {{"format", i.format},
-                               {"source", i.source},
-                               {"spec", spec.is_discarded() ? json(nullptr) : spec},
-                               {"imported_by", i.imported_by},
-                               {"original_trial_id",
-                                i.original_trial_id ? json(*i.original_trial_id) : json(nullptr)}};
+             body["import"] = api::TrialImportRecordToJson(
+                 {i.format, i.source, spec.is_discarded() ? json(nullptr) : spec, i.imported_by,
+                  i.original_trial_id});
            }
            if (!format) return JsonReply(std::move(body));
            ctx.res.status = 200;

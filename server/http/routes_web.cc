@@ -19,9 +19,7 @@ void AddWebRoutes(RouteTable& table, const ApiDependencies&) {
                                        {"id", "name", "role"}),
        .handler = [](RequestContext& ctx) -> api::Result<Reply> {
          const storage::User& user = *ctx.user;
-         return JsonReply({{"id", user.id},
-                           {"name", user.name},
-                           {"role", std::string(storage::RoleName(user.role))}});
+         return JsonReply(api::SignedInUserToJson(user));
        }});
 }
 

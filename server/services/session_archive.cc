@@ -370,21 +370,6 @@ api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const Sessio
   return files;
 }
 
-json ImportResultToJson(const ImportResult& result) {
-  auto items = [](const std::vector<ImportedItem>& v) {
-    json out = json::array();
-    for (const ImportedItem& item : v) {
-      json j = {{"id", item.id}, {"name", item.name}};
-      j["original_id"] = item.original_id ? json(*item.original_id) : json(nullptr);
-      out.push_back(std::move(j));
-    }
-    return out;
-  };
-  return {{"trials", items(result.trials)},
-          {"parameter_sets", items(result.parameter_sets)},
-          {"notes", result.notes}};
-}
-
 api::Result<ImportResult> ImportRecording(storage::Database& db, std::int64_t session_id,
                                           std::string_view text, const api::ImportSpec& spec,
                                           std::string_view imported_by) {

@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "api/bids.h"
+#include "api/import_result.h"
 #include "api/status.h"
 #include "api/trial_import.h"
 #include "storage/database.h"
@@ -71,18 +72,9 @@ struct SessionExportInfo {
 /// parameter sets identified from them, read from `db`.
 api::Result<api::FileMap> SessionExportFiles(storage::Database& db, const SessionExportInfo& info);
 
-/// What an import stored.
-struct ImportedItem {
-  std::int64_t id = 0;
-  std::optional<std::int64_t> original_id;  ///< its id in the exporting server.
-  std::string name;
-};
-struct ImportResult {
-  std::vector<ImportedItem> trials;
-  std::vector<ImportedItem> parameter_sets;
-  std::vector<std::string> notes;  ///< what was left out and why.
-};
-nlohmann::json ImportResultToJson(const ImportResult& result);
+/// What an import stored (api/import_result.h).
+using api::ImportedItem;
+using api::ImportResult;
 
 /// Stores one recording (ImportTrialText) as a trial of the session.
 /// `text` is the file's content. Joins a caller's write transaction.

@@ -9,6 +9,12 @@
 #include <cmath>
 #include <thread>
 
+#include "api/audit.h"
+#include "api/envelope.h"
+#include "api/session.h"
+#include "api/subject.h"
+#include "api/trial_summary.h"
+#include "api/user.h"
 #include "server_process.h"
 
 namespace fesbench::testing {
@@ -321,6 +327,61 @@ TEST_F(CorrectionsTest, ToleranceTestWritesTheSessionAndRapidTakesAnExplicitIner
   const std::int64_t rapid_id = with_inertia.body["run_id"];
   EXPECT_EQ(Do("POST", "/api/v1/runs/" + std::to_string(rapid_id) + "/cancel", clinician_).status,
             200);
+}
+
+// The server's answers read as the api/ types the clients use, and the api
+// writers reproduce them exactly (the server writes through them).
+template <typename T>
+void ExpectReadsBack(const json& answer, json (*to)(const T&), api::Result<T> (*from)(const json&)) {
+  const api::Result<T> read = from(answer);
+  ASSERT_TRUE(read.ok()) << read.status().ToString() << " in " << answer.dump();
+  EXPECT_EQ(to(*read).dump(), answer.dump());
+}
+
+template <typename T>
+void ExpectItemsReadBack(const json& page, json (*to)(const T&),
+                         api::Result<T> (*from)(const json&)) {
+  const api::Result<api::Page> read = api::PageFromJson(page);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  ASSERT_FALSE(read->items.empty()) << page.dump();
+  for (const json& item : read->items) ExpectReadsBack(item, to, from);
+}
+
+TEST_F(CorrectionsTest, AnswersReadAsApiTypes) {
+  auto [subject_id, session_id] = NewSubjectAndSession("WIRE-01");
+  const std::string subject = "/api/v1/subjects/" + std::to_string(subject_id);
+  const std::string session = "/api/v1/sessions/" + std::to_string(session_id);
+  ASSERT_EQ(Do("PATCH", subject, clinician_,
+               {{"reason", "measured"}, {"details", {{"weight_kg", 71.5}, {"age_years", 40}}}})
+                .status,
+            200);
+  ASSERT_EQ(Do("PATCH", session, clinician_,
+               {{"reason", "measured"}, {"details", {{"threshold_ma", 11.5}}}})
+                .status,
+            200);
+
+  ExpectReadsBack(Do("GET", subject, analyst_).body, &api::SubjectToJson, &api::SubjectFromJson);
+  ExpectItemsReadBack(Do("GET", "/api/v1/subjects", analyst_).body, &api::SubjectToJson,
+                      &api::SubjectFromJson);
+  ExpectItemsReadBack(Do("GET", subject + "/revisions", analyst_).body,
+                      &api::SubjectRevisionToJson, &api::SubjectRevisionFromJson);
+  ExpectReadsBack(Do("GET", session, analyst_).body, &api::SessionToJson, &api::SessionFromJson);
+  ExpectItemsReadBack(Do("GET", subject + "/sessions", analyst_).body, &api::SessionToJson,
+                      &api::SessionFromJson);
+  ExpectItemsReadBack(Do("GET", session + "/revisions", analyst_).body,
+                      &api::SessionRevisionToJson, &api::SessionRevisionFromJson);
+  ExpectItemsReadBack(Do("GET", "/api/v1/users", admin_).body, &api::UserToJson,
+                      &api::UserFromJson);
+  ExpectItemsReadBack(Do("GET", "/api/v1/tokens", admin_).body, &api::TokenInfoToJson,
+                      &api::TokenInfoFromJson);
+  ExpectItemsReadBack(Do("GET", "/api/v1/audit", admin_).body, &api::AuditEntryToJson,
+                      &api::AuditEntryFromJson);
+  ExpectReadsBack(Do("GET", "/api/v1/me", clinician_).body, &api::SignedInUserToJson,
+                  &api::UserFromJson);
+
+  const auto error = api::ErrorAnswerFromJson(Do("GET", "/api/v1/subjects/999999", analyst_).body);
+  ASSERT_TRUE(error.has_value());
+  EXPECT_EQ(error->code(), api::ErrorCode::kNotFound);
 }
 
 }  // namespace
