@@ -15,7 +15,10 @@
 #include "api/analysis_requests.h"
 #include "api/analysis_results.h"
 #include "api/json_fields.h"
-#include "api/resources.h"
+#include "api/parameter_set_record.h"
+#include "api/session.h"
+#include "api/subject.h"
+#include "api/trial_summary.h"
 #include "api/trial.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/output.h"
@@ -48,13 +51,13 @@ std::string Fixed(std::optional<double> value, int digits) {
 
 // A trial recorded in free swing (the knee angle is what is predicted), by
 // the kind the server stored with it (api::IsFreeSwing).
-bool IsFreeSwingTrial(const api::TrialResource& trial) {
+bool IsFreeSwingTrial(const api::TrialSummary& trial) {
   return trial.kind && api::IsFreeSwing(*trial.kind);
 }
 
-api::ParameterSetResource GetParameterSet(ApiClient& client, std::int64_t set_id) {
+api::StoredParameterSet GetParameterSet(ApiClient& client, std::int64_t set_id) {
   return FromServer(
-      api::ParameterSetResourceFromJson(client.Get("/parameter-sets/" + std::to_string(set_id))),
+      api::StoredParameterSetFromJson(client.Get("/parameter-sets/" + std::to_string(set_id))),
       "parameter set");
 }
 
@@ -76,15 +79,15 @@ bool Contains(const std::vector<std::int64_t>& ids, std::int64_t id) {
 // Honest validation by default: the free-swing trials of the
 // set's leg (every session of its subject) that the set was NOT fitted on.
 std::vector<std::int64_t> ValidationTrials(ApiClient& client, std::int64_t set_id) {
-  const api::ParameterSetResource set = GetParameterSet(client, set_id);
+  const api::StoredParameterSet set = GetParameterSet(client, set_id);
   std::vector<std::int64_t> kept;
   for (const auto& item :
-       client.GetAllPages("/subjects/" + std::to_string(set.subject_id) + "/sessions", "")) {
-    const api::SessionResource session = FromServer(api::SessionResourceFromJson(item), "session");
-    if (session.leg_id != set.leg_id) continue;
+       client.GetAllPages("/subjects/" + std::to_string(set.summary.subject_id) + "/sessions", "")) {
+    const api::Session session = FromServer(api::SessionFromJson(item), "session");
+    if (session.leg_id != set.summary.leg_id) continue;
     for (const auto& listed :
          client.GetAllPages("/sessions/" + std::to_string(session.id) + "/trials", "")) {
-      const api::TrialResource trial = FromServer(api::TrialResourceFromJson(listed), "trial");
+      const api::TrialSummary trial = FromServer(api::TrialSummaryFromJson(listed), "trial");
       if (IsFreeSwingTrial(trial) && !Contains(set.trial_ids, trial.id)) kept.push_back(trial.id);
     }
   }
@@ -247,8 +250,8 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
                                *client, "/predictions", api::PredictionRequestToJson(request))),
                            "prediction");
             result.columns.reset();
-            const api::TrialResource trial = FromServer(
-                api::TrialResourceFromJson(client->Get("/trials/" + std::to_string(trial_id))),
+            const api::TrialSummary trial = FromServer(
+                api::TrialSummaryFromJson(client->Get("/trials/" + std::to_string(trial_id))),
                 "trial");
             const std::optional<api::PredictionErrors>& errors = result.errors;
             rows.push_back({std::to_string(trial_id), Cell(api::OrNull(trial.name)),

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "api/analysis_results.h"
 #include "api/json_fields.h"
 #include "api/parameter_set_json.h"
 #include "api/parameter_set_record.h"
@@ -34,7 +35,8 @@ void Flatten(const json& value, const std::string& path, std::string& csv) {
     }
   } else if (value.is_array()) {
     for (std::size_t i = 0; i < value.size(); ++i) {
-      Flatten(value[i], path + "[" + std::to_string(i) + "]", csv);
+      const std::string element = path + '[' + std::to_string(i) + ']';
+      Flatten(value.at(i), element, csv);
     }
   } else if (value.is_number_float()) {
     // The shortest text that reads back to the same double.
@@ -136,20 +138,20 @@ void RegisterCheck(CLI::App& params, CliContext& context) {
         context.out << result.dump(2) << "\n";
         return;
       }
-      context.out << "parameter set " << set_id << ": " << result.value("verdict", "") << "\n"
-                  << result.value("summary", "") << "\n";
+      const api::ModelCheck check = FromServer(api::ModelCheckFromJson(result), "model check");
+      context.out << "parameter set " << set_id << ": " << api::ModelVerdictName(check.verdict)
+                  << "\n"
+                  << check.summary << "\n";
       std::vector<std::vector<std::string>> rows;
-      for (const auto& t : result.value("trials", json::array())) {
-        rows.push_back({Cell(t["trial_id"]), t.value("trial_name", ""), t.value("quantity", ""),
-                        Cell(t["e_rms"]) + " " + t.value("unit", ""), t.value("verdict", ""),
-                        t.value("explanation", "")});
+      for (const api::ModelCheckTrial& t : check.trials) {
+        rows.push_back({Cell(json(t.trial_id)), t.trial_name, t.quantity,
+                        Cell(api::OrNull(t.e_rms)) + " " + t.unit,
+                        std::string(api::ModelVerdictName(t.verdict)), t.explanation});
       }
       if (!rows.empty()) {
         PrintTable(context.out, {"trial", "name", "compared", "e_rms", "verdict", "why"}, rows);
       }
-      for (const auto& w : result.value("warnings", json::array())) {
-        context.out << "fit: " << w.get<std::string>() << "\n";
-      }
+      for (const std::string& w : check.warnings) context.out << "fit: " << w << "\n";
     };
   });
 }

@@ -30,7 +30,6 @@
 #include "api/protocol_info.h"
 #include "api/run.h"
 #include "api/run_start.h"
-#include "api/tolerance_run_result.h"
 #include "api/trial.h"
 #include "api/trial_import.h"
 #include "clients/cli/commands.h"
@@ -277,22 +276,21 @@ void FollowRun(CliContext& context, ApiClient& client, const CliConfig& connecti
                                 " closed before the run ended");
   }
   const std::string state(api::RunStateName(end->state));
-  if (json_lines) {
-    JsonLine(context, "run", run_id, client.Get("/runs/" + std::to_string(run_id)));
-  }
+  const json answer = client.Get("/runs/" + std::to_string(run_id));
+  if (json_lines) JsonLine(context, "run", run_id, answer);
+  const api::RunView ended = FromServer(api::RunViewFromJson(answer), "run");
   std::string line = "end " + state;
   if (end->parameter_set_id) line += " parameter_set " + std::to_string(*end->parameter_set_id);
-  const std::optional<api::ToleranceRunResult> tolerance =
-      FromServer(api::ToleranceRunResultFromJson(end->result), "run result");
-  if (tolerance) {
-    line += " threshold_ma " + Cell(api::OrNull(tolerance->threshold_ma)) + " max_tolerated_ma " +
-            Cell(api::OrNull(tolerance->max_tolerated_ma)) + " session_revision " +
-            Cell(api::OrNull(tolerance->session_revision));
-    if (tolerance->subject_signalled_limit.value_or(false)) {
+  if (ended.outcome && ended.outcome->tolerance && end->state == api::RunState::kDone) {
+    const api::ToleranceOutcome& tolerance = *ended.outcome->tolerance;
+    line += " threshold_ma " + Cell(api::OrNull(tolerance.threshold_ma)) + " max_tolerated_ma " +
+            Cell(api::OrNull(tolerance.max_tolerated_ma)) + " session_revision " +
+            Cell(api::OrNull(ended.outcome->session_revision));
+    if (tolerance.subject_signalled_limit.value_or(false)) {
       line += " (the subject signalled the limit)";
     }
-    if (tolerance->ended_at_ceiling) {
-      line += " (no max tolerated recorded: " + tolerance->message + ")";
+    if (tolerance.ended_at_ceiling) {
+      line += " (no max tolerated recorded: " + tolerance.message + ")";
     }
   }
   if (!json_lines) printer.Line(line);

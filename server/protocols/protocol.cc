@@ -436,11 +436,11 @@ nlohmann::json ProtocolToJson(const ProtocolDescription& protocol, const Subject
 }
 
 nlohmann::json CatalogToJson(const SubjectContext* session, bool session_has_limits) {
-  nlohmann::json list = nlohmann::json::array();
+  std::vector<api::ProtocolInfo> protocols;
   for (const ProtocolDescription& p : ProtocolCatalog()) {
-    list.push_back(ProtocolToJson(p, session, session_has_limits));
+    protocols.push_back(ProtocolInfoOf(p, session, session_has_limits));
   }
-  return {{"protocols", std::move(list)}};
+  return api::ProtocolCatalogueToJson(protocols);
 }
 
 }  // namespace fesbench::server::protocols

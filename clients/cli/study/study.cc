@@ -23,7 +23,10 @@
 #include "api/analysis_requests.h"
 #include "api/analysis_results.h"
 #include "api/parameter_set_json.h"
-#include "api/resources.h"
+#include "api/parameter_set_record.h"
+#include "api/session.h"
+#include "api/subject.h"
+#include "api/trial_summary.h"
 #include "api/trial.h"
 #include "api/virtual_subject.h"
 #include "clients/cli/cli.h"
@@ -154,8 +157,8 @@ void Identify(ApiClient& client, LegData& leg, const api::IdentificationRequest&
 
 void FetchParams(ApiClient& client, LegData& leg) {
   for (const auto& [key, id] : leg.sets) {
-    const api::ParameterSetResource stored = FromServer(
-        api::ParameterSetResourceFromJson(client.Get("/parameter-sets/" + std::to_string(id))),
+    const api::StoredParameterSet stored = FromServer(
+        api::StoredParameterSetFromJson(client.Get("/parameter-sets/" + std::to_string(id))),
         "parameter set");
     if (!stored.parameters) continue;
     leg.params[key] = *stored.parameters;
@@ -228,14 +231,14 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
                                  {{"weight_kg", vs.body_mass_kg},
                                   {"height_cm", vs.height_m * 100.0},
                                   {"shank_length_cm", vs.shank_length_m * 100.0}}}});
-  const api::SubjectResource subject =
-      FromServer(api::SubjectResourceFromJson(subject_answer), "subject");
+  const api::Subject subject =
+      FromServer(api::SubjectFromJson(subject_answer), "subject");
   const json session = client.Post("/subjects/" + std::to_string(subject.id) + "/sessions",
                                    {{"leg", "right"},
                                     {"date", options.date},
                                     {"threshold_ma", vs.threshold_ma},
                                     {"max_tolerated_ma", vs.max_tolerated_ma}});
-  leg.session_id = FromServer(api::SessionResourceFromJson(session), "session").id;
+  leg.session_id = FromServer(api::SessionFromJson(session), "session").id;
 
   std::int64_t rapid_set = 0;
   std::map<std::int64_t, std::string> relabel;  // run id → its trial's study name
@@ -259,7 +262,7 @@ LegData RunLeg(ApiClient& client, const StudyOptions& options, int index, int& f
   }
   for (const auto& listed :
        client.GetAllPages("/sessions/" + std::to_string(leg.session_id) + "/trials", "")) {
-    const api::TrialResource trial = FromServer(api::TrialResourceFromJson(listed), "trial");
+    const api::TrialSummary trial = FromServer(api::TrialSummaryFromJson(listed), "trial");
     std::string name = trial.name.value_or("");
     if (trial.run_id) {
       const auto it = relabel.find(*trial.run_id);
