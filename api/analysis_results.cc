@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "api/json_fields.h"
+#include "api/json_read.h"
 #include "api/name_table.h"
 
 namespace fesbench::api {
@@ -20,16 +21,10 @@ constexpr NameTable<ModelVerdict, 4> kModelVerdicts(
       {ModelVerdict::kNoFreshTrials, "no_fresh_trials"}}},
     "do_not_use");
 
-template <typename T>
-Result<T> Done(const JsonFields& in, T value) {
-  if (!in.ok()) return in.status();
-  return value;
-}
-
 // The objects of the array `key`, each read by `read` with its own fields
 // (path "key[i]"); a value that is not an array is the reader's failure.
 template <typename T, typename Read>
-void ReadList(JsonFields& in, std::string_view key, bool required, std::vector<T>& out, Read read) {
+void ReadFieldsList(JsonFields& in, std::string_view key, bool required, std::vector<T>& out, Read read) {
   const json* items = in.Any(key, required);
   if (items == nullptr) return;
   if (!items->is_array()) {
@@ -51,7 +46,7 @@ void ReadList(JsonFields& in, std::string_view key, bool required, std::vector<T
 
 // A nested object read by `read` with its own fields (path "key").
 template <typename T, typename Read>
-void ReadObject(JsonFields& in, std::string_view key, std::optional<T>& out, Read read) {
+void ReadFieldsObject(JsonFields& in, std::string_view key, std::optional<T>& out, Read read) {
   const json* object = in.Object(key, false);
   if (object == nullptr) return;
   JsonFields fields(*object);
@@ -163,7 +158,7 @@ void ReadPair(JsonFields& in, PairComparison& p) {
   ReadInto(in, "leg_id", p.leg_id);
   ReadFigure(in, "a_error", p.a_error);
   ReadFigure(in, "b_error", p.b_error);
-  ReadList(in, "trials", false, p.trials, &ReadTrialComparison);
+  ReadFieldsList(in, "trials", false, p.trials, &ReadTrialComparison);
 }
 
 json ThresholdsToJson(const ModelCheckThresholds& th) {
@@ -257,13 +252,13 @@ Result<IdentificationResult> IdentificationResultFromJson(const json& j) {
   IdentificationResult r;
   ReadInto(in, "subject_id", r.subject_id);
   ReadInto(in, "leg_id", r.leg_id);
-  ReadList(in, "parameter_sets", true, r.stored, &ReadStoredFit);
+  ReadFieldsList(in, "parameter_sets", true, r.stored, &ReadStoredFit);
   ReadInto(in, "trial_ids", r.trial_ids);
   std::optional<model::IdentifyReport> report;
-  ReadObject(in, "report", report, &ReadReport);
+  ReadFieldsObject(in, "report", report, &ReadReport);
   if (report) r.report = *std::move(report);
   ReadInto(in, "audit_id", r.audit_id);
-  return Done(in, std::move(r));
+  return ReadResult(in, std::move(r));
 }
 
 json PredictionErrorsToJson(const PredictionErrors& e) {
@@ -282,7 +277,7 @@ Result<PredictionErrors> PredictionErrorsFromJson(const json& j) {
   JsonFields in(j);
   PredictionErrors e;
   ReadErrors(in, e);
-  return Done(in, std::move(e));
+  return ReadResult(in, std::move(e));
 }
 
 json PredictionViewToJson(const PredictionView& v) {
@@ -321,14 +316,14 @@ Result<PredictionView> PredictionViewFromJson(const json& j) {
   ReadInto(in, "initial_velocity_deg_s", v.initial_velocity_deg_s);
   ReadInto(in, "samples", v.samples);
   ReadInto(in, "sample_rate_hz", v.sample_rate_hz);
-  ReadObject(in, "columns", v.columns, &ReadColumns);
-  ReadObject(in, "errors", v.errors, &ReadErrors);
+  ReadFieldsObject(in, "columns", v.columns, &ReadColumns);
+  ReadFieldsObject(in, "errors", v.errors, &ReadErrors);
   ReadInto(in, "fitted_scale", v.fitted_scale);
   ReadInto(in, "share_outside_identified_ranges", v.share_outside_identified_ranges);
   ReadInto(in, "released_at_s", v.released_at_s);
   ReadInto(in, "strength_at_start", v.strength_at_start);
-  ReadObject(in, "joint_limits", v.joint_limits, &ReadJointLimits);
-  return Done(in, std::move(v));
+  ReadFieldsObject(in, "joint_limits", v.joint_limits, &ReadJointLimits);
+  return ReadResult(in, std::move(v));
 }
 
 json ComparisonResultToJson(const ComparisonResult& r) {
@@ -358,10 +353,10 @@ Result<ComparisonResult> ComparisonResultFromJson(const json& j) {
   ComparisonResult r;
   r.metric = in.String("metric", true).value_or("");
   ReadInto(in, "unit", r.unit);
-  ReadList(in, "pairs", true, r.pairs, &ReadPair);
-  ReadObject(in, "t_test", r.test, &ReadTTest);
+  ReadFieldsList(in, "pairs", true, r.pairs, &ReadPair);
+  ReadFieldsObject(in, "t_test", r.test, &ReadTTest);
   ReadInto(in, "t_test_note", r.test_note);
-  return Done(in, std::move(r));
+  return ReadResult(in, std::move(r));
 }
 
 std::string_view ModelVerdictName(ModelVerdict verdict) { return kModelVerdicts.Name(verdict); }
@@ -389,12 +384,12 @@ Result<ModelCheck> ModelCheckFromJson(const json& j) {
   ReadNamed(in, "verdict", true, c.verdict, &ParseModelVerdict);
   ReadInto(in, "summary", c.summary);
   std::optional<ModelCheckThresholds> thresholds;
-  ReadObject(in, "thresholds", thresholds, &ReadThresholds);
+  ReadFieldsObject(in, "thresholds", thresholds, &ReadThresholds);
   if (thresholds) c.thresholds = *thresholds;
-  ReadList(in, "trials", false, c.trials, &ReadCheckTrial);
+  ReadFieldsList(in, "trials", false, c.trials, &ReadCheckTrial);
   ReadInto(in, "warnings", c.warnings);
   ReadInto(in, "technical_warnings", c.technical_warnings);
-  return Done(in, std::move(c));
+  return ReadResult(in, std::move(c));
 }
 
 }  // namespace fesbench::api

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "api/json_fields.h"
+#include "api/json_read.h"
 #include "api/name_table.h"
 #include "api/time_utc.h"
 
@@ -44,34 +45,6 @@ json Finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 json TimeOrNull(const std::optional<UtcTime>& t) { return t ? json(FormatUtc(*t)) : json(nullptr); }
 
-// A time field: ISO-8601 UTC or null.
-void ReadTime(JsonFields& in, std::string_view key, std::optional<UtcTime>& out) {
-  if (const auto text = in.String(key, false)) {
-    out = ParseUtc(*text);
-    if (!out) in.Fail(key, "must be an ISO-8601 UTC time, got \"" + text->substr(0, 40) + "\"");
-  }
-}
-
-// A nested object read by `from`, its failure named by the nested path.
-template <typename T>
-void ReadNested(JsonFields& in, std::string_view key, T& out, Result<T> (*from)(const json&)) {
-  const json* object = in.Any(key, false);
-  if (object == nullptr) return;
-  Result<T> read = from(*object);
-  if (read.ok()) {
-    out = *std::move(read);
-  } else {
-    const std::string& field = read.status().field();
-    in.Fail(field.empty() ? key : std::string(key) + "." + field, read.status().message());
-  }
-}
-
-template <typename T>
-Result<T> Done(const JsonFields& in, T value) {
-  if (!in.ok()) return in.status();
-  return value;
-}
-
 }  // namespace
 
 std::string_view StepPhaseName(StepPhase phase) { return kStepPhases.Name(phase); }
@@ -99,7 +72,7 @@ Result<Progress> ProgressFromJson(const json& j) {
   ReadInto(in, "bench_planned_s", p.bench_planned_s);  // null or absent: unknown
   ReadInto(in, "step", p.step);
   ReadNamed(in, "phase", false, p.phase, &ParseStepPhase);
-  return Done(in, p);
+  return ReadResult(in, p);
 }
 
 std::string_view SafetyEventKindName(SafetyEvent::Kind kind) {
@@ -127,7 +100,7 @@ Result<SafetyEvent> SafetyEventFromJson(const json& j) {
   ReadInto(in, "requested", e.requested);
   ReadInto(in, "applied", e.applied);
   ReadInto(in, "detail", e.detail);
-  return Done(in, e);
+  return ReadResult(in, e);
 }
 
 json SampleBatchToJson(const SampleBatch& b) {
@@ -151,7 +124,7 @@ Result<SampleBatch> SampleBatchFromJson(const json& j) {
   ReadInto(in, "accel_m_s2", b.accel_m_s2);
   ReadInto(in, "target_deg", b.target_deg);
   ReadInto(in, "tau_scale_nm", b.tau_scale_nm);
-  return Done(in, b);
+  return ReadResult(in, b);
 }
 
 json RunViewToJson(const RunView& v) {
@@ -268,7 +241,7 @@ Result<RunView> RunViewFromJson(const json& j) {
       if (v.outcome->tolerance) v.tolerance = v.outcome->tolerance->test;
     }
   }
-  return Done(in, std::move(v));
+  return ReadResult(in, std::move(v));
 }
 
 json BenchStateToJson(const BenchState& s) {
@@ -298,8 +271,8 @@ Result<BenchState> BenchStateFromJson(const json& j) {
   ReadInto(in, "run_id", s.run_id);
   ReadInto(in, "protocol", s.protocol);
   ReadNamed(in, "run_state", false, s.run_state, &ParseRunState);
-  ReadNested(in, "progress", s.progress, &ProgressFromJson);
-  return Done(in, std::move(s));
+  ReadNested(in, "progress", false, s.progress, &ProgressFromJson);
+  return ReadResult(in, std::move(s));
 }
 
 std::string_view RunEventKindName(RunEvent::Kind kind) { return kRunEventKinds.Name(kind); }
@@ -354,8 +327,8 @@ Result<RunEvent> RunEventFromJson(const json& j) {
     ReadNamed(in, "state", true, e.state, &ParseRunState);
     ReadInto(in, "reason", e.reason);
   }
-  ReadNested(in, "progress", e.progress, &ProgressFromJson);
-  ReadNested(in, "samples", e.samples, &SampleBatchFromJson);
+  ReadNested(in, "progress", false, e.progress, &ProgressFromJson);
+  ReadNested(in, "samples", false, e.samples, &SampleBatchFromJson);
   ReadInto(in, "first_sample", e.first_sample);
   ReadInto(in, "trial", e.samples.trial);
   ReadInto(in, "trial_name", e.samples.trial_name);
@@ -365,7 +338,7 @@ Result<RunEvent> RunEventFromJson(const json& j) {
   ReadInto(in, "leg_id", e.leg_id);
   ReadInto(in, "approval", e.approval);
   if (const json* result = in.Any("result", false)) e.result = *result;
-  return Done(in, std::move(e));
+  return ReadResult(in, std::move(e));
 }
 
 }  // namespace fesbench::api

@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "api/json_fields.h"
+#include "api/json_read.h"
 
 namespace fesbench::api {
 namespace {
@@ -16,7 +17,7 @@ json FiniteOrNull(const std::optional<double>& v) {
 
 // A nested object read by `from`, its failure named by the nested path.
 template <typename T>
-void ReadObject(JsonFields& in, std::string_view key, std::optional<T>& out,
+void ReadOptionalObject(JsonFields& in, std::string_view key, std::optional<T>& out,
                 Result<T> (*from)(const json&)) {
   const json* object = in.Object(key, false);
   if (object == nullptr) return;
@@ -27,12 +28,6 @@ void ReadObject(JsonFields& in, std::string_view key, std::optional<T>& out,
     const std::string& field = read.status().field();
     in.Fail(field.empty() ? key : std::string(key) + "." + field, read.status().message());
   }
-}
-
-template <typename T>
-Result<T> Done(const JsonFields& in, T value) {
-  if (!in.ok()) return in.status();
-  return value;
 }
 
 void PutIfKnown(json& j, const char* key, const std::optional<double>& v) {
@@ -61,7 +56,7 @@ Result<ToleranceResult> ToleranceResultFromJson(const json& j) {
   ReadInto(in, "noise_band_nm", t.noise_band_nm);
   ReadInto(in, "stopped_by_clinician", t.stopped_by_clinician);
   ReadInto(in, "warnings", t.warnings);
-  return Done(in, std::move(t));
+  return ReadResult(in, std::move(t));
 }
 
 json ToleranceOutcomeToJson(const ToleranceOutcome& t) {
@@ -77,13 +72,13 @@ json ToleranceOutcomeToJson(const ToleranceOutcome& t) {
 Result<ToleranceOutcome> ToleranceOutcomeFromJson(const json& j) {
   JsonFields in(j);
   ToleranceOutcome t;
-  ReadObject(in, "test", t.test, &ToleranceResultFromJson);
+  ReadOptionalObject(in, "test", t.test, &ToleranceResultFromJson);
   ReadInto(in, "threshold_ma", t.threshold_ma);
   ReadInto(in, "max_tolerated_ma", t.max_tolerated_ma);
   t.subject_signalled_limit = in.Bool("subject_signalled_limit", false);
   ReadInto(in, "ended_at_ceiling", t.ended_at_ceiling);
   ReadInto(in, "message", t.message);
-  return Done(in, std::move(t));
+  return ReadResult(in, std::move(t));
 }
 
 json AmplitudeSearchOutcomeToJson(const AmplitudeSearchOutcome& a) {
@@ -100,7 +95,7 @@ Result<AmplitudeSearchOutcome> AmplitudeSearchOutcomeFromJson(const json& j) {
   ReadInto(in, "rb_amplitude_ma", a.rb_amplitude_ma);
   ReadInto(in, "full_extension_amplitude_ma", a.full_extension_amplitude_ma);
   a.full_extension_reached = in.Bool("full_extension_reached", false);
-  return Done(in, a);
+  return ReadResult(in, a);
 }
 
 std::optional<model::DailyVerdict> ParseDailyVerdict(std::string_view name) {
@@ -145,7 +140,7 @@ Result<DailyDrift> DailyDriftFromJson(const json& j) {
   ReadInto(in, "change", d.change);
   ReadInto(in, "bound", d.bound);
   ReadInto(in, "moved", d.moved);
-  return Done(in, std::move(d));
+  return ReadResult(in, std::move(d));
 }
 
 }  // namespace
@@ -178,7 +173,7 @@ Result<DailyCheckOutcome> DailyCheckOutcomeFromJson(const json& j) {
     ReadInto(s, "updated", d.swing_e_rms_updated_deg);
     if (!s.ok()) in.Fail("swing_e_rms_deg", s.status().message());
   }
-  return Done(in, std::move(d));
+  return ReadResult(in, std::move(d));
 }
 
 json RunOutcomeToJson(const RunOutcome& o) {
@@ -207,9 +202,9 @@ Result<RunOutcome> RunOutcomeFromJson(const json& j) {
   ReadInto(in, "parameter_set_id", o.parameter_set_id);
   ReadInto(in, "used_parameter_set_id", o.used_parameter_set_id);
   ReadInto(in, "session_revision", o.session_revision);
-  ReadObject(in, "tolerance", o.tolerance, &ToleranceOutcomeFromJson);
-  ReadObject(in, "amplitude_search", o.amplitude_search, &AmplitudeSearchOutcomeFromJson);
-  ReadObject(in, "daily_check", o.daily_check, &DailyCheckOutcomeFromJson);
+  ReadOptionalObject(in, "tolerance", o.tolerance, &ToleranceOutcomeFromJson);
+  ReadOptionalObject(in, "amplitude_search", o.amplitude_search, &AmplitudeSearchOutcomeFromJson);
+  ReadOptionalObject(in, "daily_check", o.daily_check, &DailyCheckOutcomeFromJson);
   if (const json* figures = in.Object("tracking", false)) {
     JsonFields f(*figures, in.PathOf("tracking"));
     TrackingOutcome tracking;
@@ -221,7 +216,7 @@ Result<RunOutcome> RunOutcomeFromJson(const json& j) {
     if (!f.ok()) in.Fail("tracking", f.status().message());
     o.tracking = std::move(tracking);
   }
-  return Done(in, std::move(o));
+  return ReadResult(in, std::move(o));
 }
 
 json RunResultJsonOf(const RunOutcome& o) {
