@@ -15,9 +15,10 @@ constexpr std::size_t kMaxReadBackPulses = 100'000;
 }  // namespace
 
 SafeBench::SafeBench(Bench& bench, EventSink sink, api::Clock* clock)
-    : bench_(bench), sink_(std::move(sink)), clock_(clock != nullptr ? clock : api::Clock::Real()) {
+    : bench_(bench),
+      sink_(std::move(sink)),
+      watchdog_(clock != nullptr ? clock : api::Clock::Real()) {
   estop_.store(bench_.HardwareEStopped());
-  last_heartbeat_s_.store(clock_->MonotonicSeconds());
 }
 
 void SafeBench::Configure(const SafetyLimits& limits) {
@@ -62,7 +63,7 @@ void SafeBench::Emit(SafetyEvent event) const {
 }
 
 void SafeBench::SetStimAmplitude(double stim_ma) {
-  if (estop_.load() || watchdog_fired_.load()) {
+  if (estop_.load() || watchdog_.fired()) {
     bench_.SetStimAmplitude(0.0);
     return;
   }
@@ -78,7 +79,7 @@ void SafeBench::SetStimAmplitude(double stim_ma) {
 }
 
 void SafeBench::TriggerPulse(double stim_ma) {
-  if (estop_.load() || watchdog_fired_.load()) return;
+  if (estop_.load() || watchdog_.fired()) return;
   const double max_ma = StimCeiling();
   double applied = std::isfinite(stim_ma) ? std::clamp(stim_ma, 0.0, max_ma) : 0.0;
   if (applied != stim_ma) {
@@ -89,7 +90,7 @@ void SafeBench::TriggerPulse(double stim_ma) {
 }
 
 void SafeBench::SetMotorMode(MotorMode mode) {
-  if (estop_.load() || watchdog_fired_.load()) mode = MotorMode::kDisabled;
+  if (estop_.load() || watchdog_.fired()) mode = MotorMode::kDisabled;
   bench_.SetMotorMode(mode);
 }
 
@@ -169,29 +170,16 @@ void SafeBench::ClearEStop(const std::string& source) {
 
 bool SafeBench::estopped() const { return estop_.load(); }
 
-void SafeBench::Heartbeat() { last_heartbeat_s_.store(clock_->MonotonicSeconds()); }
-
-void SafeBench::ArmWatchdog() {
-  last_heartbeat_s_.store(clock_->MonotonicSeconds());
-  watchdog_fired_.store(false);
-  watchdog_armed_.store(true);
-}
-
-void SafeBench::DisarmWatchdog() { watchdog_armed_.store(false); }
-
 void SafeBench::CheckWatchdog() {
-  if (!watchdog_armed_.load() || watchdog_fired_.load()) return;
   double timeout_s;
   {
     std::lock_guard lock(mu_);
     timeout_s = limits_.heartbeat_timeout_s;
   }
-  const double silent = clock_->MonotonicSeconds() - last_heartbeat_s_.load();
-  if (silent > timeout_s) {
-    watchdog_fired_.store(true);
+  if (const std::optional<double> silent = watchdog_.Check(timeout_s)) {
     MakeSafe();
-    Emit({SafetyEvent::Kind::kWatchdog, bench_.Now_s(), silent, 0.0,
-          "controlling client silent for " + std::to_string(silent) + " s"});
+    Emit({SafetyEvent::Kind::kWatchdog, bench_.Now_s(), *silent, 0.0,
+          "controlling client silent for " + std::to_string(*silent) + " s"});
   }
 }
 

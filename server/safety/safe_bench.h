@@ -10,7 +10,7 @@
 /// - e-stop zeroes stimulation and disables the motor at once, from any
 ///   thread, and latches until cleared;
 /// - a controlling client whose heartbeat stops for longer than the timeout
-///   trips the watchdog, which stops stimulation and the motor like an
+///   trips the watchdog (heartbeat_watchdog.h), which stops stimulation and the motor like an
 ///   e-stop (without latching the hardware);
 /// - the stimulator's read-back (Bench::DrainDeliveredPulses) is checked
 ///   after every AdvanceTo: a delivered pulse above the stimulation ceiling —
@@ -29,6 +29,7 @@
 #include "api/run.h"
 #include "api/status.h"
 #include "server/bench/bench.h"
+#include "server/safety/heartbeat_watchdog.h"
 
 namespace fesbench::server {
 
@@ -87,12 +88,12 @@ class SafeBench {
   bool estopped() const;
 
   /// Records a heartbeat of the controlling client (wall-clock now).
-  void Heartbeat();
+  void Heartbeat() { watchdog_.Beat(); }
   /// Starts watching heartbeats (a run begins); Disarm stops watching.
-  void ArmWatchdog();
-  void DisarmWatchdog();
+  void ArmWatchdog() { watchdog_.Arm(); }
+  void DisarmWatchdog() { watchdog_.Disarm(); }
   /// True once the watchdog has fired since it was last armed.
-  bool watchdog_fired() const { return watchdog_fired_.load(); }
+  bool watchdog_fired() const { return watchdog_.fired(); }
 
   /// What the layer above may read of the bench below. There is no way to
   /// the raw Bench through this class: every command goes through the
@@ -124,14 +125,11 @@ class SafeBench {
 
   Bench& bench_;
   EventSink sink_;
-  api::Clock* clock_;
+  HeartbeatWatchdog watchdog_;
   mutable std::mutex mu_;  // guards limits_
   SafetyLimits limits_;
   bool configured_ = false;
   std::atomic<bool> estop_{false};
-  std::atomic<bool> watchdog_armed_{false};
-  std::atomic<bool> watchdog_fired_{false};
-  std::atomic<double> last_heartbeat_s_{0.0};
   std::mutex readback_mu_;  // guards readback_
   std::vector<model::Pulse> readback_;
 };

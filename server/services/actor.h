@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <string>
 
+#include "api/status.h"
+#include "storage/database.h"
 #include "storage/users.h"
 
 namespace fesbench::server::services {
@@ -35,5 +37,12 @@ Actor SystemActor();
 /// True when `actor` may drive the bench (start/cancel runs, clear an
 /// e-stop): clinicians and admins.
 bool MayOperateBench(const Actor& actor);
+
+/// Appends an audit row by `actor` (storage::AuditLog): inside a caller's
+/// db.Write it joins that transaction. An actor without a name is recorded
+/// as "unknown".
+api::Status AppendAudit(storage::Database& db, const Actor& actor, const std::string& action,
+                        const std::string& target, const std::string& summary,
+                        const std::string& outcome);
 
 }  // namespace fesbench::server::services

@@ -8,7 +8,6 @@
 #include <utility>
 
 #include "api/virtual_subject.h"
-#include "storage/audit_log.h"
 
 namespace fesbench::server::services {
 
@@ -145,15 +144,8 @@ api::Result<nlohmann::json> BenchService::ReplaceVirtualSubject(const Actor& act
     // Audit first inside the bench's idle window: if the audit cannot be
     // written the subject stays as it was.
     api::Status audited = db_.Write([&](storage::Connection&) -> api::Status {
-      storage::NewAuditEntry e;
-      if (actor.user_id > 0) e.user_id = actor.user_id;
-      e.actor = actor.user_name.empty() ? std::string("unknown") : actor.user_name;
-      e.action = "bench.virtual_subject.put";
-      e.target = "bench/virtual-subject";
-      e.request_summary = summary;
-      e.outcome = "ok";
-      api::Result<std::int64_t> id = storage::AuditLog(db_).Append(e);
-      return id.ok() ? api::Status::Ok() : id.status();
+      return AppendAudit(db_, actor, "bench.virtual_subject.put", "bench/virtual-subject", summary,
+                         "ok");
     });
     if (!audited.ok()) return audited;
     return simulated_->ReplaceSubject(std::move(subject));

@@ -69,16 +69,10 @@ api::Status CommandService::RequireOperator(const Actor& actor) {
 void CommandService::AuditRefusal(const Actor& actor, const std::string& action,
                                   const std::string& target, const std::string& summary,
                                   const api::Status& status) {
-  storage::NewAuditEntry e;
-  if (actor.user_id > 0) e.user_id = actor.user_id;
-  e.actor = actor.user_name;
-  e.action = transport_ + " " + action;
-  e.target = target;
-  e.request_summary = summary;
-  e.outcome = std::string(api::ErrorCodeName(status.code()));
-  auto appended = storage::AuditLog(db_).Append(e);
+  const api::Status appended = AppendAudit(db_, actor, transport_ + " " + action, target, summary,
+                                           std::string(api::ErrorCodeName(status.code())));
   if (!appended.ok()) {
-    std::cerr << "fesbench-server: audit log: " << appended.status().ToString() << std::endl;
+    std::cerr << "fesbench-server: audit log: " << appended.ToString() << std::endl;
   }
 }
 

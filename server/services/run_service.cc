@@ -12,8 +12,6 @@
 #include "model/tracking.h"
 #include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_outcome.h"
-#include "server/services/run_service_internal.h"
-#include "storage/audit_log.h"
 #include "storage/estop_latch.h"
 #include "storage/parameter_sets.h"
 #include "storage/subjects.h"
@@ -21,7 +19,9 @@
 
 namespace fesbench::server::services {
 
-// --- construction and the recorder ------------------------------------------------
+using protocols::RunState;
+
+// --- construction ------------------------------------------------
 
 namespace {
 
@@ -43,9 +43,9 @@ RunService::RunService(storage::Database& db, Bench& bench, SampleHub& hub, RunS
       bench_(bench),
       hub_(hub),
       config_(std::move(config)),
-      owner_(bench, OwnerOptions(config_)) {
-  recorder_ = std::thread([this] { RecorderLoop(); });
-}
+      owner_(bench, OwnerOptions(config_)),
+      runs_(config_.finished_runs_kept),
+      recorder_(db, hub, runs_, owner_, [this](std::string_view message) { Log(message); }) {}
 
 RunService::~RunService() { Shutdown(); }
 
@@ -57,55 +57,7 @@ void RunService::Log(std::string_view message) const {
   }
 }
 
-void RunService::Enqueue(std::function<void()> task) {
-  {
-    std::lock_guard lock(queue_mu_);
-    queue_.push_back(std::move(task));
-  }
-  queue_cv_.notify_one();
-}
-
-api::Status RunService::Audit(const Actor& actor, const std::string& action,
-                              const std::string& target, const std::string& summary,
-                              const std::string& outcome) {
-  storage::NewAuditEntry e;
-  if (actor.user_id > 0) e.user_id = actor.user_id;
-  e.actor = actor.user_name.empty() ? std::string("unknown") : actor.user_name;
-  e.action = action;
-  e.target = target;
-  e.request_summary = summary;
-  e.outcome = outcome;
-  api::Result<std::int64_t> id = storage::AuditLog(db_).Append(e);
-  return id.ok() ? api::Status::Ok() : id.status();
-}
-
-void RunService::Forget() {
-  std::lock_guard lock(mu_);
-  std::size_t finished = 0;
-  for (const auto& [id, r] : runs_) finished += r->final ? 1 : 0;
-  for (auto it = runs_.begin(); it != runs_.end() && finished > config_.finished_runs_kept;) {
-    if (it->second->final && it->first != current_run_id_) {
-      it = runs_.erase(it);
-      --finished;
-    } else {
-      ++it;
-    }
-  }
-}
-
 // --- queries ------------------------------------------------------------------------
-
-std::shared_ptr<RunService::LiveRun> RunService::FindLive(std::int64_t run_id) const {
-  std::lock_guard lock(mu_);
-  const auto it = runs_.find(run_id);
-  return it == runs_.end() ? nullptr : it->second;
-}
-
-std::shared_ptr<RunService::LiveRun> RunService::Current() const {
-  std::lock_guard lock(mu_);
-  const auto it = runs_.find(current_run_id_);
-  return it == runs_.end() ? nullptr : it->second;
-}
 
 // A stored run reads back as it was stored: the runs table with its
 // outcome (storage::RunViewOf) and its trials.
@@ -136,21 +88,14 @@ auto RunService::Guarded(std::string_view command, const char* failure, Fn&& fn)
 
 api::Result<RunView> RunService::Get(std::int64_t run_id) {
   return Guarded("Get", "reading the run failed", [&]() -> api::Result<RunView> {
-    if (auto run = FindLive(run_id)) {
-      std::lock_guard lock(mu_);
-      return run->view;
-    }
+    if (auto run = FindLive(run_id)) return runs_.Locked([&] { return run->view; });
     return StoredView(run_id);
   });
 }
 
 api::Result<RunView> RunService::Wait(std::int64_t run_id, std::chrono::milliseconds timeout) {
   return Guarded("Wait", "reading the run failed", [&]() -> api::Result<RunView> {
-    if (auto run = FindLive(run_id)) {
-      std::unique_lock lock(mu_);
-      final_cv_.wait_for(lock, timeout, [&] { return run->final; });
-      return run->view;
-    }
+    if (auto run = FindLive(run_id)) return runs_.WaitFinal(*run, timeout);
     return StoredView(run_id);
   });
 }
@@ -161,29 +106,30 @@ BenchState RunService::State() const {
   s.estopped = const_cast<protocols::BenchOwner&>(owner_).safe_bench().estopped() ||
                bench_.HardwareEStopped();
   s.busy = owner_.busy();
-  std::lock_guard lock(mu_);
-  if (s.estopped) {
-    s.estop_source = estop_source_;
-    // A device that failed latched the e-stop itself: it is the source.
-    if (estop_source_.empty()) {
-      if (const api::Status fault = bench_.HardwareFault(); !fault.ok()) {
-        s.estop_source = fault.message();
-      }
+  {
+    std::lock_guard lock(mu_);
+    if (s.estopped) s.estop_source = estop_source_;
+  }
+  // A device that failed latched the e-stop itself: it is the source.
+  if (s.estopped && s.estop_source.empty()) {
+    if (const api::Status fault = bench_.HardwareFault(); !fault.ok()) {
+      s.estop_source = fault.message();
     }
   }
-  const auto it = runs_.find(current_run_id_);
-  if (it == runs_.end()) return s;
-  const LiveRun& r = *it->second;
-  s.run_id = r.run_id;
-  s.protocol = r.view.protocol;
-  s.run_state = r.view.state;
-  s.progress = r.view.progress;
-  if (!r.final) {
-    s.busy = true;  // still storing what it produced
-    s.mode = std::string(protocols::BenchModeName(r.mode));
-    s.owner = r.actor.user_name;
-    s.owner_user_id = r.actor.user_id;
-  }
+  const std::shared_ptr<LiveRun> run = runs_.Current();
+  if (!run) return s;
+  runs_.Locked([&] {
+    s.run_id = run->run_id;
+    s.protocol = run->view.protocol;
+    s.run_state = run->view.state;
+    s.progress = run->view.progress;
+    if (!run->final) {
+      s.busy = true;  // still storing what it produced
+      s.mode = std::string(protocols::BenchModeName(run->mode));
+      s.owner = run->actor.user_name;
+      s.owner_user_id = run->actor.user_id;
+    }
+  });
   return s;
 }
 
@@ -275,9 +221,10 @@ api::Status RunService::CheckBenchFree() {
   if (owner_.busy()) {
     return api::Status::Conflict("the bench is held by a run of " + owner_.owner());
   }
-  if (const std::shared_ptr<LiveRun> previous = Current()) {
-    std::lock_guard lock(mu_);
-    if (!previous->final) return api::Status::Conflict("the previous run is still being stored");
+  if (const std::shared_ptr<LiveRun> previous = runs_.Current()) {
+    if (!runs_.Locked([&] { return previous->final; })) {
+      return api::Status::Conflict("the previous run is still being stored");
+    }
   }
   if (owner_.safe_bench().estopped() || bench_.HardwareEStopped()) {
     return api::Status::Conflict("e-stop latched: clear it first");
@@ -324,7 +271,7 @@ api::Result<storage::Run> RunService::CreateRunRecord(
     std::string summary =
         "session " + std::to_string(session_id) + ", " + protocol + " v" + new_run.protocol_version;
     for (const auto& [k, v] : parameters) summary += ", " + k + "=" + FormatNumber(v);
-    if (api::Status a = Audit(actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
+    if (api::Status a = AppendAudit(db_, actor, "run.start", RunTarget(r->id), summary, "ok"); !a.ok()) {
       return a;
     }
     if (ceiling_reason) {
@@ -332,7 +279,7 @@ api::Result<storage::Run> RunService::CreateRunRecord(
           "tolerance test ceiling " + FormatNumber(plan.parameters.at("ceiling_ma")) +
           " mA above the session's recorded max tolerated " +
           FormatNumber(context.subject.max_tolerated_ma) + " mA; reason: " + *ceiling_reason;
-      if (api::Status a = Audit(actor, "run.ceiling_above_max", RunTarget(r->id), why, "ok");
+      if (api::Status a = AppendAudit(db_, actor, "run.ceiling_above_max", RunTarget(r->id), why, "ok");
           !a.ok()) {
         return a;
       }
@@ -341,7 +288,7 @@ api::Result<storage::Run> RunService::CreateRunRecord(
   });
 }
 
-std::shared_ptr<RunService::LiveRun> RunService::RegisterLiveRun(
+std::shared_ptr<LiveRun> RunService::RegisterLiveRun(
     const Actor& actor, const storage::Run& created, const protocols::Plan& plan,
     const protocols::ProtocolDescription& description, const SessionContext& context,
     std::int64_t session_id, const std::string& protocol) {
@@ -368,11 +315,7 @@ std::shared_ptr<RunService::LiveRun> RunService::RegisterLiveRun(
   v.progress.bench_total_s = v.progress.bench_planned_s = plan.duration_s();
   v.progress.eta_s = config_.time_scale > 0.0 ? plan.duration_s() / config_.time_scale : 0.0;
   v.live = true;
-  {
-    std::lock_guard lock(mu_);
-    runs_[run->run_id] = run;
-    current_run_id_ = run->run_id;
-  }
+  runs_.Add(run);
   HubItem queued;
   queued.kind = HubItem::Kind::kState;
   queued.run_id = run->run_id;
@@ -430,15 +373,14 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
       RegisterLiveRun(actor, *created, *plan, **description, *context, session_id, protocol);
 
   run->on_bench = true;
-  api::Status started = owner_.Start(*request, std::make_shared<Observer>(*this, run));
+  api::Status started = owner_.Start(*request, recorder_.Observe(run));
   if (!started.ok()) {
     run->on_bench = false;
     // Refused at the last moment (e.g. an e-stop in between): the run failed.
-    Enqueue([this, run, started] { RecordRefused(run, started.message()); });
+    recorder_.Refused(run, started.message());
     return started;
   }
-  std::lock_guard lock(mu_);
-  return run->view;
+  return runs_.Locked([&] { return run->view; });
 }
 
 api::Status RunService::CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRun>* out) {
@@ -455,10 +397,11 @@ api::Status RunService::CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRu
     return api::Status::Conflict("run " + std::to_string(run_id) + " is not in progress (" +
                                  std::string(api::RunStateName(stored->state)) + ")");
   }
-  std::lock_guard lock(mu_);
-  if (run->final || run_id != current_run_id_) {
+  const bool current = run == runs_.Current();
+  const auto [final, state] = runs_.Locked([&] { return std::pair(run->final, run->view.state); });
+  if (final || !current) {
     return api::Status::Conflict("run " + std::to_string(run_id) + " is not in progress (" +
-                                 std::string(protocols::RunStateName(run->view.state)) + ")");
+                                 std::string(protocols::RunStateName(state)) + ")");
   }
   *out = std::move(run);
   return api::Status::Ok();
@@ -475,7 +418,7 @@ api::Status RunService::Cancel(const Actor& actor, std::int64_t run_id) {
     if (api::Status st = owner_.Cancel("cancelled by " + actor.user_name); !st.ok()) {
       return api::Status::Conflict("run " + std::to_string(run_id) + " is no longer running");
     }
-    if (api::Status a = Audit(actor, "run.cancel", RunTarget(run_id), "cancel", "ok"); !a.ok()) {
+    if (api::Status a = AppendAudit(db_, actor, "run.cancel", RunTarget(run_id), "cancel", "ok"); !a.ok()) {
       Log("audit of cancel: " + a.ToString());
     }
     return api::Status::Ok();
@@ -493,7 +436,7 @@ api::Status RunService::StopWithResult(const Actor& actor, std::int64_t run_id) 
     if (api::Status st = owner_.Stop(); !st.ok()) {
       return api::Status::Conflict("run " + std::to_string(run_id) + " is no longer running");
     }
-    if (api::Status a = Audit(actor, "run.stop", RunTarget(run_id), "stop with result", "ok");
+    if (api::Status a = AppendAudit(db_, actor, "run.stop", RunTarget(run_id), "stop with result", "ok");
         !a.ok()) {
       Log("audit of stop: " + a.ToString());
     }
@@ -524,10 +467,12 @@ api::Status RunService::EStop(const Actor& actor, std::string_view source) {
   try {
     std::string target = "bench";
     {
-      std::lock_guard lock(mu_);  // a run's `final` is written under it
+      std::lock_guard lock(mu_);
       estop_source_ = who;
-      const auto it = runs_.find(current_run_id_);
-      if (it != runs_.end() && !it->second->final) target = RunTarget(it->second->run_id);
+    }
+    if (const std::shared_ptr<LiveRun> run = runs_.Current();
+        run && !runs_.Locked([&] { return run->final; })) {
+      target = RunTarget(run->run_id);
     }
     // The latch outlives this process: stored with its audit row, before the answer.
     const api::Status stored = db_.Write([&](storage::Connection&) -> api::Status {
@@ -535,7 +480,7 @@ api::Status RunService::EStop(const Actor& actor, std::string_view source) {
           !st.ok()) {
         return st;
       }
-      return Audit(actor, "bench.estop", target, "e-stop from " + who, "ok");
+      return AppendAudit(db_, actor, "bench.estop", target, "e-stop from " + who, "ok");
     });
     if (!stored.ok()) Log("storing the e-stop latch: " + stored.ToString());
   } catch (const std::exception& e) {
@@ -568,7 +513,7 @@ api::Status RunService::ClearEStop(const Actor& actor) {
       if (*current || was) {
         if (api::Status st = latch.RecordCleared(actor.user_name); !st.ok()) return st;
       }
-      return Audit(actor, "bench.clear_estop", "bench",
+      return AppendAudit(db_, actor, "bench.clear_estop", "bench",
                    *current || was ? "e-stop cleared" : "e-stop was not latched", "ok");
     });
     if (!stored.ok()) return stored;
@@ -614,7 +559,7 @@ api::Result<Recovery> RunService::RecoverAfterRestart() {
       api::Result<storage::Run> r = storage::SessionRepository(db_).RecordRunState(
           run.id, outcome.state, outcome.reason, std::nullopt, &outcome);
       if (!r.ok()) return r.status();
-      return Audit(system, "run.recovered", RunTarget(run.id),
+      return AppendAudit(db_, system, "run.recovered", RunTarget(run.id),
                    std::string("was ") + std::string(api::RunStateName(run.state)) + ": " +
                        kStoppedDuringRunReason,
                    "ok");
@@ -634,7 +579,7 @@ api::Result<Recovery> RunService::RecoverAfterRestart() {
       std::lock_guard lock(mu_);
       estop_source_ = who;
     }
-    if (api::Status a = Audit(system, "bench.estop_restored", "bench",
+    if (api::Status a = AppendAudit(db_, system, "bench.estop_restored", "bench",
                               "e-stop latched since " + api::FormatUtc((*latched)->at) +
                                   " by " + who + ": latched again at start",
                               "ok");
@@ -672,12 +617,7 @@ void RunService::Shutdown() {
   } catch (const std::exception& e) {
     Log(std::string("Shutdown: ") + e.what());
   }
-  {
-    std::lock_guard lock(queue_mu_);
-    queue_stop_ = true;
-  }
-  queue_cv_.notify_all();
-  if (recorder_.joinable()) recorder_.join();
+  recorder_.Stop();
 }
 
 }  // namespace fesbench::server::services

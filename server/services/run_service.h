@@ -2,41 +2,36 @@
 
 /// @file
 /// Protocol runs on the bench for stored sessions (docs/PROTOCOLS.md, "Runs";
-/// docs/ARCHITECTURE.md), transport-agnostic: HTTP today, DDS tomorrow call the
+/// docs/ARCHITECTURE.md, "Runs"), transport-agnostic: HTTP and DDS call the
 /// same methods.
 ///
-/// Start loads the session and subject from storage and builds the
-/// protocols::SubjectContext (threshold, max tolerated, range of motion,
-/// anthropometrics for Eq. 4.13, the leg's latest parameter set for the
-/// model gate), stores the run (state queued) with an audit entry in one
-/// transaction and hands it to the BenchOwner (one run at a time). While it
-/// runs, the runner's observer only copies events into a queue and the hub:
-/// a recorder thread stores the state events, each finished trial, and at
-/// the end the rapid protocol's parameter set (provenance trial ids = the
-/// stored trials) and the final state, each in one transaction with an
-/// audit entry. A run's view turns final only once all of that is stored.
+/// RunService holds the commands and the live run. Start loads the session
+/// and subject from storage and builds the protocols::SubjectContext
+/// (threshold, max tolerated, range of motion, anthropometrics for Eq. 4.13,
+/// the leg's approved parameter set for the model gate), stores the run
+/// (state queued) with an audit entry in one transaction and hands it to the
+/// BenchOwner (one run at a time). What the run produces is stored by the
+/// RunRecorder (run_recorder.h); the runs of this process are in LiveRuns
+/// (live_runs.h). A run's view turns final only once everything is stored.
 ///
 /// Heartbeats: while a run is going, its controlling user must call
 /// Heartbeat at least once per second (RunServiceConfig::heartbeat_timeout_s);
-/// otherwise the watchdog stops the run (state aborted, stimulation 0).
+/// otherwise the heartbeat watchdog (server/safety/heartbeat_watchdog.h,
+/// under everything a client reaches) stops the run (state aborted,
+/// stimulation 0).
 ///
 /// Errors are api::Status values; nothing a client sends can crash the
 /// server. Exceptions from lower layers are caught here, logged and returned
 /// as kInternal. Thread-safe.
 
 #include <chrono>
-#include <condition_variable>
 #include <cstdint>
-#include <deque>
 #include <functional>
-#include <map>
 #include <memory>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
-#include <thread>
 #include <vector>
 
 #include "api/status.h"
@@ -45,6 +40,8 @@
 #include "server/protocols/protocol.h"
 #include "server/protocols/runner.h"
 #include "server/services/actor.h"
+#include "server/services/live_runs.h"
+#include "server/services/run_recorder.h"
 #include "server/services/sample_hub.h"
 #include "storage/database.h"
 #include "storage/sessions.h"
@@ -195,35 +192,7 @@ class RunService {
   protocols::BenchOwner& bench_owner() { return owner_; }
 
  private:
-  struct LiveRun;
-  class Observer;
-
-  void Enqueue(std::function<void()> task);
-  void RecorderLoop();
-  void RecordState(const std::shared_ptr<LiveRun>& run, protocols::RunState state,
-                   const std::string& reason);
-  void RecordTrial(const std::shared_ptr<LiveRun>& run, const protocols::RecordedTrial& trial);
-  /// The run's end: ConcludeRun's outcome (server/protocols/run_outcome.h)
-  /// stored with the run's trials' set or session revision and its terminal
-  /// event in one transaction.
-  void RecordFinish(const std::shared_ptr<LiveRun>& run, const protocols::RunResult& result);
-  /// A run the bench refused at the last moment: failed from its stored state.
-  void RecordRefused(const std::shared_ptr<LiveRun>& run, const std::string& reason);
-  // RecordFinish's parts (run_recording.cc): the set and the session limits
-  // the run stores, the one write transaction (with fallbacks), the final
-  // view and its event.
-  struct FinishRecord;
-  void Finish(const std::shared_ptr<LiveRun>& run, FinishRecord& f);
-  void PrepareParameterSet(const LiveRun& run, FinishRecord& f) const;
-  void PrepareMeasuredLimits(const LiveRun& run, FinishRecord& f);
-  api::Status WriteFinish(const LiveRun& run, FinishRecord& f, bool with_results);
-  api::Status ApproveRunSet(const LiveRun& run, std::int64_t set_id);
-  void StoreFinish(const LiveRun& run, FinishRecord& f);
-  void PublishFinish(const std::shared_ptr<LiveRun>& run, FinishRecord& f);
-  api::Status Audit(const Actor& actor, const std::string& action, const std::string& target,
-                    const std::string& summary, const std::string& outcome);
-  std::shared_ptr<LiveRun> FindLive(std::int64_t run_id) const;
-  std::shared_ptr<LiveRun> Current() const;
+  std::shared_ptr<LiveRun> FindLive(std::int64_t run_id) const { return runs_.Find(run_id); }
   api::Result<RunView> StoredView(std::int64_t run_id);
   api::Status CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRun>* run);
   // StartImpl's parts.
@@ -253,28 +222,22 @@ class RunService {
   /// logged under `command` and becomes kInternal(`failure`).
   template <class Fn>
   auto Guarded(std::string_view command, const char* failure, Fn&& fn) const -> decltype(fn());
-  void Forget();
 
   storage::Database& db_;
   Bench& bench_;
   SampleHub& hub_;
   RunServiceConfig config_;
   protocols::BenchOwner owner_;
+  LiveRuns runs_;
 
   std::mutex start_mu_;  // serialises Start, WithIdleBench and Shutdown
-  mutable std::mutex mu_;
-  std::condition_variable final_cv_;
-  std::map<std::int64_t, std::shared_ptr<LiveRun>> runs_;  // current + last finished
-  std::int64_t current_run_id_ = 0;
+  mutable std::mutex mu_;  // guards the three below
   std::string estop_source_;
   bool shutting_down_ = false;
   std::string bench_lost_;  // why this server lost its bench; empty while it holds it
 
-  std::mutex queue_mu_;
-  std::condition_variable queue_cv_;
-  std::deque<std::function<void()>> queue_;
-  bool queue_stop_ = false;
-  std::thread recorder_;
+  // Last: stopped first (its thread uses runs_ and owner_).
+  RunRecorder recorder_;
 };
 
 }  // namespace fesbench::server::services

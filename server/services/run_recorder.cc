@@ -1,87 +1,32 @@
-#include "server/services/run_service_internal.h"
+#include "server/services/run_recorder.h"
 
-// RunService's recorder: what a run produces goes to storage on the
-// recorder thread (states, trials, the end with its set and session limits).
+#include <algorithm>
+#include <exception>
+#include <utility>
+
+#include "server/protocols/rapid_identification.h"
+#include "server/protocols/run_outcome.h"
+#include "storage/parameter_sets.h"
+#include "storage/sessions.h"
+#include "storage/trials.h"
 
 namespace fesbench::server::services {
 
-void RunService::RecorderLoop() {
-  for (;;) {
-    std::function<void()> task;
-    {
-      std::unique_lock lock(queue_mu_);
-      queue_cv_.wait(lock, [&] { return queue_stop_ || !queue_.empty(); });
-      if (queue_.empty()) return;  // stopping and drained
-      task = std::move(queue_.front());
-      queue_.pop_front();
-    }
-    try {
-      task();
-    } catch (const std::exception& e) {
-      Log(std::string("recorder: ") + e.what());
-    } catch (...) {
-      Log("recorder: unknown exception");
-    }
-  }
+using protocols::RunState;
+
+namespace {
+
+/// The reason of the session revision a tolerance_test run stores (for
+/// people reading the session's history; the run's outcome names the
+/// revision).
+std::string ToleranceRevisionReason(std::int64_t run_id) {
+  return "tolerance_test run " + std::to_string(run_id);
 }
 
-void RunService::RecordState(const std::shared_ptr<LiveRun>& run, RunState state,
-                             const std::string& reason) {
-  const api::Status st = db_.Write([&](storage::Connection&) -> api::Status {
-    api::Result<storage::Run> r =
-        storage::SessionRepository(db_).RecordRunState(run->run_id, state, reason);
-    if (!r.ok()) return r.status();
-    return Audit(run->actor, "run.state", RunTarget(run->run_id),
-                 std::string(protocols::RunStateName(state)), "ok");
-  });
-  if (st.ok()) run->stored_state = state;
-  if (!st.ok()) Log("storing state of run " + std::to_string(run->run_id) + ": " + st.ToString());
-}
+}  // namespace
 
-void RunService::RecordTrial(const std::shared_ptr<LiveRun>& run,
-                             const protocols::RecordedTrial& trial) {
-  const std::string name = trial.trial.name.value_or("trial");
-  std::optional<std::int64_t> id;
-  // A run stopped before a trial's first sample leaves nothing to store.
-  const api::Status st =
-      trial.trial.num_samples() == 0
-          ? api::Status::Ok()
-          : db_.Write([&](storage::Connection&) -> api::Status {
-              api::Result<std::int64_t> inserted = storage::TrialRepository(db_).Insert(
-                  storage::TrialOwner{run->view.session_id, run->run_id}, trial.trial);
-              if (!inserted.ok()) return inserted.status();
-              const std::size_t samples = trial.trial.num_samples();
-              api::Status a =
-                  Audit(run->actor, "trial.record", "trials/" + std::to_string(*inserted),
-                        RunTarget(run->run_id) + " trial " + name + ", " + std::to_string(samples) +
-                            " samples" + (trial.complete ? "" : " (incomplete)"),
-                        "ok");
-              if (!a.ok()) return a;
-              id = *inserted;
-              return api::Status::Ok();
-            });
-  if (!st.ok()) {
-    id.reset();
-    Log("storing trial " + name + " of run " + std::to_string(run->run_id) + ": " + st.ToString());
-  }
-  int index = -1;
-  {
-    std::lock_guard lock(mu_);
-    run->trial_ids.push_back(id);
-    index = static_cast<int>(run->trial_ids.size()) - 1;
-    if (id) run->view.trial_ids.push_back(*id);
-  }
-  HubItem item;
-  item.kind = HubItem::Kind::kTrial;
-  item.run_id = run->run_id;
-  item.samples.trial = index;
-  item.samples.trial_name = name;
-  item.trial_id = id;
-  hub_.Publish(std::move(item));
-}
-
-// What the end of a run stores and shows, built up by RecordFinish's parts.
-struct RunService::FinishRecord {
+// What the end of a run stores and shows, built up by Finish's parts.
+struct RunRecorder::FinishRecord {
   api::RunOutcome outcome;  // ConcludeRun's; the set and revision filled when stored
   std::optional<model::ParameterSet> parameter_set;  // the run's fit, to store
   std::vector<SafetyEvent> safety_events;
@@ -92,43 +37,228 @@ struct RunService::FinishRecord {
   std::optional<storage::Run> stored;  // filled by StoreFinish
 };
 
-void RunService::RecordFinish(const std::shared_ptr<LiveRun>& run,
-                              const protocols::RunResult& result) {
+// --- the runner's observer: the run's thread -----------------------------------------
+
+class RunRecorder::Observer final : public protocols::RunObserver {
+ public:
+  Observer(RunRecorder& recorder, std::shared_ptr<LiveRun> run)
+      : recorder_(recorder), run_(std::move(run)) {}
+
+  void OnStateChanged(RunState state, const std::string& reason) override {
+    Guard("state", [&] {
+      if (state != RunState::kRunning) return;  // final states: after storing (RecordFinish)
+      recorder_.runs_.Locked([&] {
+        run_->view.state = state;
+        run_->view.started_at = recorder_.db_.Now();
+      });
+      HubItem item;
+      item.kind = HubItem::Kind::kState;
+      item.run_id = run_->run_id;
+      item.state = state;
+      item.reason = reason;
+      recorder_.hub_.Publish(std::move(item));
+      recorder_.Enqueue(
+          [&r = recorder_, run = run_, state, reason] { r.RecordState(*run, state, reason); });
+    });
+  }
+
+  void OnProgress(const protocols::Progress& progress) override {
+    Guard("progress", [&] {
+      recorder_.runs_.Locked([&] { run_->view.progress = progress; });
+      HubItem item;
+      item.kind = HubItem::Kind::kProgress;
+      item.run_id = run_->run_id;
+      item.progress = progress;
+      recorder_.hub_.Publish(std::move(item));
+    });
+  }
+
+  void OnSamples(const protocols::SampleBatch& batch) override {
+    Guard("samples", [&] {
+      HubItem item;
+      item.kind = HubItem::Kind::kSamples;
+      item.run_id = run_->run_id;
+      item.first_sample = run_->next_sample;
+      item.samples = batch;
+      run_->next_sample += batch.t_s.size();
+      recorder_.hub_.Publish(std::move(item));
+    });
+  }
+
+  void OnTrial(const protocols::RecordedTrial& trial) override {
+    Guard("trial", [&] {
+      recorder_.Enqueue([&r = recorder_, run = run_, copy = trial] { r.RecordTrial(*run, copy); });
+    });
+  }
+
+  void OnFinished(const protocols::RunResult& result) override {
+    Guard("finish", [&] {
+      protocols::RunResult copy = result;
+      copy.trials.clear();  // each was queued by OnTrial
+      recorder_.Enqueue(
+          [&r = recorder_, run = run_, c = std::move(copy)] { r.RecordFinish(*run, c); });
+    });
+  }
+
+ private:
+  // An observer must never throw into the control loop.
+  template <typename F>
+  void Guard(const char* what, F&& f) noexcept {
+    try {
+      f();
+    } catch (const std::exception& e) {
+      recorder_.log_(std::string("run observer (") + what + "): " + e.what());
+    } catch (...) {
+      recorder_.log_(std::string("run observer (") + what + "): unknown exception");
+    }
+  }
+
+  RunRecorder& recorder_;
+  std::shared_ptr<LiveRun> run_;
+};
+
+// --- the recorder's thread ------------------------------------------------------------
+
+RunRecorder::RunRecorder(storage::Database& db, SampleHub& hub, LiveRuns& runs,
+                         protocols::BenchOwner& owner, Log log)
+    : db_(db), hub_(hub), runs_(runs), owner_(owner), log_(std::move(log)) {
+  thread_ = std::thread([this] { Loop(); });
+}
+
+RunRecorder::~RunRecorder() { Stop(); }
+
+std::shared_ptr<protocols::RunObserver> RunRecorder::Observe(std::shared_ptr<LiveRun> run) {
+  return std::make_shared<Observer>(*this, std::move(run));
+}
+
+void RunRecorder::Refused(std::shared_ptr<LiveRun> run, std::string reason) {
+  Enqueue([this, run = std::move(run), reason = std::move(reason)] {
+    FinishRecord f;
+    f.outcome = protocols::FailOutcome(api::RunOutcome{}, run->stored_state, reason);
+    Finish(*run, f);
+  });
+}
+
+void RunRecorder::Stop() {
+  {
+    std::lock_guard lock(queue_mu_);
+    stopping_ = true;
+  }
+  queue_cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void RunRecorder::Enqueue(std::function<void()> task) {
+  {
+    std::lock_guard lock(queue_mu_);
+    queue_.push_back(std::move(task));
+  }
+  queue_cv_.notify_one();
+}
+
+void RunRecorder::Loop() {
+  for (;;) {
+    std::function<void()> task;
+    {
+      std::unique_lock lock(queue_mu_);
+      queue_cv_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stopping and drained
+      task = std::move(queue_.front());
+      queue_.pop_front();
+    }
+    try {
+      task();
+    } catch (const std::exception& e) {
+      log_(std::string("recorder: ") + e.what());
+    } catch (...) {
+      log_("recorder: unknown exception");
+    }
+  }
+}
+
+void RunRecorder::RecordState(LiveRun& run, RunState state, const std::string& reason) {
+  const api::Status st = db_.Write([&](storage::Connection&) -> api::Status {
+    api::Result<storage::Run> r =
+        storage::SessionRepository(db_).RecordRunState(run.run_id, state, reason);
+    if (!r.ok()) return r.status();
+    return AppendAudit(db_, run.actor, "run.state", RunTarget(run.run_id),
+                       std::string(protocols::RunStateName(state)), "ok");
+  });
+  if (st.ok()) {
+    run.stored_state = state;
+  } else {
+    log_("storing state of run " + std::to_string(run.run_id) + ": " + st.ToString());
+  }
+}
+
+void RunRecorder::RecordTrial(LiveRun& run, const protocols::RecordedTrial& trial) {
+  const std::string name = trial.trial.name.value_or("trial");
+  std::optional<std::int64_t> id;
+  // A run stopped before a trial's first sample leaves nothing to store.
+  const api::Status st =
+      trial.trial.num_samples() == 0
+          ? api::Status::Ok()
+          : db_.Write([&](storage::Connection&) -> api::Status {
+              api::Result<std::int64_t> inserted = storage::TrialRepository(db_).Insert(
+                  storage::TrialOwner{run.view.session_id, run.run_id}, trial.trial);
+              if (!inserted.ok()) return inserted.status();
+              const std::size_t samples = trial.trial.num_samples();
+              api::Status a = AppendAudit(
+                  db_, run.actor, "trial.record", "trials/" + std::to_string(*inserted),
+                  RunTarget(run.run_id) + " trial " + name + ", " + std::to_string(samples) +
+                      " samples" + (trial.complete ? "" : " (incomplete)"),
+                  "ok");
+              if (!a.ok()) return a;
+              id = *inserted;
+              return api::Status::Ok();
+            });
+  if (!st.ok()) {
+    id.reset();
+    log_("storing trial " + name + " of run " + std::to_string(run.run_id) + ": " + st.ToString());
+  }
+  const int index = runs_.Locked([&] {
+    run.trial_ids.push_back(id);
+    if (id) run.view.trial_ids.push_back(*id);
+    return static_cast<int>(run.trial_ids.size()) - 1;
+  });
+  HubItem item;
+  item.kind = HubItem::Kind::kTrial;
+  item.run_id = run.run_id;
+  item.samples.trial = index;
+  item.samples.trial_name = name;
+  item.trial_id = id;
+  hub_.Publish(std::move(item));
+}
+
+// --- the end of a run -----------------------------------------------------------------
+
+void RunRecorder::RecordFinish(LiveRun& run, const protocols::RunResult& result) {
   FinishRecord f;
   protocols::RunConclusionInput input;
-  input.kind = run->kind;
-  input.parameters = run->view.parameters;
-  input.leg_parameter_set_id = run->prior_parameter_set_id;
+  input.kind = run.kind;
+  input.parameters = runs_.Locked([&] { return run.view.parameters; });
+  input.leg_parameter_set_id = run.prior_parameter_set_id;
   f.outcome = protocols::ConcludeRun(input, result);
   f.parameter_set = result.parameter_set;
   f.safety_events = result.safety_events;
   Finish(run, f);
 }
 
-void RunService::RecordRefused(const std::shared_ptr<LiveRun>& run, const std::string& reason) {
-  FinishRecord f;
-  f.outcome = protocols::FailOutcome(api::RunOutcome{}, run->stored_state, reason);
-  Finish(run, f);
-}
-
-void RunService::Finish(const std::shared_ptr<LiveRun>& run, FinishRecord& f) {
-  {
-    std::lock_guard lock(mu_);
-    f.trial_ids = run->trial_ids;
+void RunRecorder::Finish(LiveRun& run, FinishRecord& f) {
+  runs_.Locked([&] {
+    f.trial_ids = run.trial_ids;
     // The final progress (the time run) came before the result.
-    f.bench = {run->view.progress.bench_total_s, run->view.progress.bench_planned_s};
-  }
-  PrepareParameterSet(*run, f);
-  PrepareMeasuredLimits(*run, f);
-  StoreFinish(*run, f);
+    f.bench = {run.view.progress.bench_total_s, run.view.progress.bench_planned_s};
+  });
+  PrepareParameterSet(run, f);
+  PrepareMeasuredLimits(run, f);
+  StoreFinish(run, f);
   // The view turns final only once the bench is free again, so that a
   // caller who saw the end may start the next run at once.
-  if (run->on_bench.load()) (void)owner_.Wait();
+  if (run.on_bench.load()) (void)owner_.Wait();
   PublishFinish(run, f);
-  Forget();
 }
-
-void RunService::PrepareParameterSet(const LiveRun& run, FinishRecord& f) const {
+void RunRecorder::PrepareParameterSet(const LiveRun& run, FinishRecord& f) const {
   if (f.outcome.state != RunState::kDone || !f.parameter_set) return;
   const auto stored_id = [&](int index) -> std::optional<std::int64_t> {
     if (index < 0 || static_cast<std::size_t>(index) >= f.trial_ids.size()) return std::nullopt;
@@ -184,7 +314,7 @@ void Warn(api::RunOutcome& outcome, std::string warning) {
 
 }  // namespace
 
-void RunService::PrepareMeasuredLimits(const LiveRun& run, FinishRecord& f) {
+void RunRecorder::PrepareMeasuredLimits(const LiveRun& run, FinishRecord& f) {
   // tolerance_test writes what it measured into the session (docs/PROTOCOLS.md,
   // `tolerance_test`): a session revision by the run's user, so that the protocols that need
   // threshold and max tolerated may run at once. A ramp that ended at its
@@ -206,7 +336,7 @@ void RunService::PrepareMeasuredLimits(const LiveRun& run, FinishRecord& f) {
   f.measured = std::move(d);
 }
 
-api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool with_results) {
+api::Status RunRecorder::WriteFinish(const LiveRun& run, FinishRecord& f, bool with_results) {
   return db_.Write([&](storage::Connection&) -> api::Status {
     f.outcome.parameter_set_id.reset();
     f.outcome.session_revision.reset();
@@ -235,14 +365,14 @@ api::Status RunService::WriteFinish(const LiveRun& run, FinishRecord& f, bool wi
         run.run_id, f.outcome.state, f.outcome.reason, f.bench, &f.outcome);
     if (!r.ok()) return r.status();
     f.stored = *r;
-    return Audit(run.actor, "run.finish", RunTarget(run.run_id), summary, "ok");
+    return AppendAudit(db_, run.actor, "run.finish", RunTarget(run.run_id), summary, "ok");
   });
 }
 
 // docs/SAFETY.md, which set gates stimulation: a set a bench run measured
 // is the operating clinician's own measurement, approved by the run that
 // stored it (audited with the run), in the transaction that stores it.
-api::Status RunService::ApproveRunSet(const LiveRun& run, std::int64_t set_id) {
+api::Status RunRecorder::ApproveRunSet(const LiveRun& run, std::int64_t set_id) {
   if (!MayOperateBench(run.actor)) return api::Status::Ok();  // a candidate, as any other
   storage::NewApproval approval;
   approval.parameter_set_id = set_id;
@@ -253,33 +383,37 @@ api::Status RunService::ApproveRunSet(const LiveRun& run, std::int64_t set_id) {
                   ") on the bench";
   api::Result<storage::Approval> approved = storage::ParameterSetRepository(db_).Approve(approval);
   if (!approved.ok()) return approved.status();
-  return Audit(run.actor, "parameter_set.approve", "parameter-sets/" + std::to_string(set_id),
+  return AppendAudit(db_, run.actor, "parameter_set.approve", "parameter-sets/" + std::to_string(set_id),
                "approved by run " + std::to_string(run.run_id) + ": " + approval.note, "ok");
 }
 
-void RunService::StoreFinish(const LiveRun& run, FinishRecord& f) {
+void RunRecorder::StoreFinish(const LiveRun& run, FinishRecord& f) {
   api::Status st = WriteFinish(run, f, true);
   if (!st.ok() && f.measured) {
-    Log("storing the measured limits of run " + std::to_string(run.run_id) + ": " + st.ToString());
+    log_("storing the measured limits of run " + std::to_string(run.run_id) + ": " + st.ToString());
     Warn(f.outcome, "the measured values could not be stored in the session: " + st.message());
     f.measured.reset();
     st = WriteFinish(run, f, true);
   }
   if (!st.ok() && f.new_set) {
-    Log("storing the parameter set of run " + std::to_string(run.run_id) + ": " + st.ToString());
+    log_("storing the parameter set of run " + std::to_string(run.run_id) + ": " + st.ToString());
     f.outcome = protocols::FailOutcome(std::move(f.outcome), run.stored_state,
                                        "storing the parameter set failed: " + st.message());
     st = WriteFinish(run, f, false);
   }
   if (!st.ok()) {
-    Log("storing the end of run " + std::to_string(run.run_id) + ": " + st.ToString());
+    log_("storing the end of run " + std::to_string(run.run_id) + ": " + st.ToString());
   }
 }
 
-void RunService::PublishFinish(const std::shared_ptr<LiveRun>& run, FinishRecord& f) {
-  {
-    std::lock_guard lock(mu_);
-    RunView& v = run->view;
+void RunRecorder::PublishFinish(LiveRun& run, const FinishRecord& f) {
+  HubItem item;
+  item.kind = HubItem::Kind::kEnd;
+  item.run_id = run.run_id;
+  item.state = f.outcome.state;
+  item.reason = f.outcome.reason;
+  item.parameter_set_id = f.outcome.parameter_set_id;
+  runs_.Finalise(run, [&](api::RunView& v) {
     api::ShowOutcome(f.outcome, v);
     v.finished_at = f.stored && f.stored->finished_at ? f.stored->finished_at : db_.Now();
     if (f.stored && f.stored->started_at) v.started_at = f.stored->started_at;
@@ -288,20 +422,8 @@ void RunService::PublishFinish(const std::shared_ptr<LiveRun>& run, FinishRecord
       v.progress.fraction = 1.0;
       v.progress.eta_s = 0.0;
     }
-    run->final = true;
-  }
-  final_cv_.notify_all();
-
-  HubItem item;
-  item.kind = HubItem::Kind::kEnd;
-  item.run_id = run->run_id;
-  item.state = f.outcome.state;
-  item.reason = f.outcome.reason;
-  item.parameter_set_id = f.outcome.parameter_set_id;
-  {
-    std::lock_guard lock(mu_);
-    item.result = run->view.result;
-  }
+    item.result = v.result;
+  });
   hub_.Publish(std::move(item));
 }
 
