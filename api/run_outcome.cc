@@ -16,20 +16,6 @@ json FiniteOrNull(const std::optional<double>& v) {
 }
 
 // A nested object read by `from`, its failure named by the nested path.
-template <typename T>
-void ReadOptionalObject(JsonFields& in, std::string_view key, std::optional<T>& out,
-                Result<T> (*from)(const json&)) {
-  const json* object = in.Object(key, false);
-  if (object == nullptr) return;
-  Result<T> read = from(*object);
-  if (read.ok()) {
-    out = *std::move(read);
-  } else {
-    const std::string& field = read.status().field();
-    in.Fail(field.empty() ? key : std::string(key) + "." + field, read.status().message());
-  }
-}
-
 void PutIfKnown(json& j, const char* key, const std::optional<double>& v) {
   if (v) j[key] = FiniteOrNull(v);
 }
@@ -72,7 +58,7 @@ json ToleranceOutcomeToJson(const ToleranceOutcome& t) {
 Result<ToleranceOutcome> ToleranceOutcomeFromJson(const json& j) {
   JsonFields in(j);
   ToleranceOutcome t;
-  ReadOptionalObject(in, "test", t.test, &ToleranceResultFromJson);
+  ReadNested(in, "test", false, t.test, &ToleranceResultFromJson);
   ReadInto(in, "threshold_ma", t.threshold_ma);
   ReadInto(in, "max_tolerated_ma", t.max_tolerated_ma);
   t.subject_signalled_limit = in.Bool("subject_signalled_limit", false);
@@ -202,9 +188,9 @@ Result<RunOutcome> RunOutcomeFromJson(const json& j) {
   ReadInto(in, "parameter_set_id", o.parameter_set_id);
   ReadInto(in, "used_parameter_set_id", o.used_parameter_set_id);
   ReadInto(in, "session_revision", o.session_revision);
-  ReadOptionalObject(in, "tolerance", o.tolerance, &ToleranceOutcomeFromJson);
-  ReadOptionalObject(in, "amplitude_search", o.amplitude_search, &AmplitudeSearchOutcomeFromJson);
-  ReadOptionalObject(in, "daily_check", o.daily_check, &DailyCheckOutcomeFromJson);
+  ReadNested(in, "tolerance", false, o.tolerance, &ToleranceOutcomeFromJson);
+  ReadNested(in, "amplitude_search", false, o.amplitude_search, &AmplitudeSearchOutcomeFromJson);
+  ReadNested(in, "daily_check", false, o.daily_check, &DailyCheckOutcomeFromJson);
   if (const json* figures = in.Object("tracking", false)) {
     JsonFields f(*figures, in.PathOf("tracking"));
     TrackingOutcome tracking;
