@@ -12,7 +12,7 @@ RouteTable BuildApiRoutes(const ApiDependencies& deps) {
   auto document = std::make_shared<std::string>();
   table.Add({.method = "GET",
              .path = "/api/v1/openapi.json",
-             .roles = 0,
+             .permission = std::nullopt,
              .tag = "system",
              .summary = "This OpenAPI 3 document (built from the server's route table)",
              .handler = [document](RequestContext& ctx) -> api::Result<Reply> {

@@ -2,15 +2,9 @@
 
 /// @file
 /// The API's routes (docs/API.md, "Resources") over storage and the application
-/// services. Roles per route (admin may do everything):
-///   open:               health, openapi.json
-///   any role:           read subjects, sessions, runs, trials, parameter
-///                       sets, protocols, bench; e-stop (a safety action
-///                       anyone signed in may take)
-///   clinician, admin:   create subjects and sessions, start / cancel /
-///                       heartbeat runs, clear an e-stop
-///   analyst, admin:     identifications, predictions, comparisons, jobs
-///   admin:              users, tokens, audit log, backup, virtual subject
+/// services. Each route declares the permission it needs (Route::permission);
+/// who has which is services::RolesFor's table (docs/API.md, "Roles and
+/// permissions"). Open: health and openapi.json only.
 
 #include <memory>
 #include <string>

@@ -113,7 +113,7 @@ void Authenticator::AuditEntry(std::optional<std::int64_t> user_id, std::string 
 }
 
 Admission Authenticator::Admit(std::string_view header, std::string_view address,
-                               RoleMask allowed, std::string_view action,
+                               Permission permission, std::string_view action,
                                std::string_view target) {
   Admission out;
   const std::string who = address.empty() ? std::string("unknown address")
@@ -152,7 +152,7 @@ Admission Authenticator::Admit(std::string_view header, std::string_view address
                "401 unauthenticated");
     return out;
   }
-  if (api::Status st = Authorise(*user, allowed); !st.ok()) {
+  if (api::Status st = Authorise(*user, permission); !st.ok()) {
     AuditEntry(user->id, user->name, action, target, "role " + std::string(storage::RoleName(user->role)),
                "403 permission_denied");
     out.status = st;
@@ -162,26 +162,13 @@ Admission Authenticator::Admit(std::string_view header, std::string_view address
   return out;
 }
 
-api::Status Authenticator::Authorise(const storage::User& user, RoleMask allowed) {
-  if (allowed & RoleBit(user.role)) return api::Status::Ok();
-  return {api::ErrorCode::kPermissionDenied,
-          "role " + std::string(storage::RoleName(user.role)) + " may not do this (allowed: " +
-              RoleList(allowed) + ")"};
+api::Status Authenticator::Authorise(const storage::User& user, Permission permission) {
+  return services::Require(services::Actor{user.id, user.name, user.role}, permission);
 }
 
 void Authenticator::Invalidate() {
   std::lock_guard lock(mu_);
   cache_.clear();
-}
-
-std::string RoleList(RoleMask mask) {
-  std::string out;
-  for (auto role : {storage::Role::kClinician, storage::Role::kAnalyst, storage::Role::kAdmin}) {
-    if (!(mask & RoleBit(role))) continue;
-    if (!out.empty()) out += ", ";
-    out += storage::RoleName(role);
-  }
-  return out;
 }
 
 }  // namespace fesbench::server::http

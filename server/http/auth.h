@@ -30,18 +30,14 @@
 
 #include "api/clock.h"
 #include "api/status.h"
+#include "server/services/actor.h"
 #include "storage/database.h"
 #include "storage/users.h"
 
 namespace fesbench::server::http {
 
-/// A set of roles as bits (1 << Role).
-using RoleMask = unsigned;
-constexpr RoleMask RoleBit(storage::Role role) { return 1u << static_cast<unsigned>(role); }
-inline constexpr RoleMask kClinician = RoleBit(storage::Role::kClinician);
-inline constexpr RoleMask kAnalyst = RoleBit(storage::Role::kAnalyst);
-inline constexpr RoleMask kAdmin = RoleBit(storage::Role::kAdmin);
-inline constexpr RoleMask kAnyRole = kClinician | kAnalyst | kAdmin;
+/// What a route needs (server/services/actor.h: the one table of who may do what).
+using services::Permission;
 
 /// The per-address budget of failed tokens: a bucket of `burst` failures
 /// that refills at `refill_per_s`.
@@ -76,18 +72,18 @@ class Authenticator {
   /// kUnauthenticated (one message for every reason) when the header is
   /// missing, malformed, or names an unknown, revoked or expired token.
   api::Result<storage::User> Authenticate(std::string_view authorization_header);
-  /// kPermissionDenied naming the roles allowed, unless user's role is in
-  /// `allowed`.
-  static api::Status Authorise(const storage::User& user, RoleMask allowed);
+  /// kPermissionDenied naming the roles allowed (services::Require), unless
+  /// user's role has `permission`.
+  static api::Status Authorise(const storage::User& user, Permission permission);
 
   /// Authenticates and authorises a request from client `address` for a
-  /// route allowing `allowed`. `action` ("GET /api/v1/users") and `target`
+  /// route needing `permission`. `action` ("GET /api/v1/users") and `target`
   /// (the path) name it in the audit log. Audited: a presented token that
   /// fails (actor = the address, never the token), a role refusal (actor =
   /// the user), and the first request of a slowed-down burst. A request
   /// without an Authorization header is 401 but neither audited nor counted.
-  Admission Admit(std::string_view authorization_header, std::string_view address, RoleMask allowed,
-                  std::string_view action, std::string_view target);
+  Admission Admit(std::string_view authorization_header, std::string_view address,
+                  Permission permission, std::string_view action, std::string_view target);
 
   /// Drops every cached answer.
   void Invalidate();
@@ -117,8 +113,5 @@ class Authenticator {
   std::unordered_map<std::string, Entry> cache_;
   std::unordered_map<std::string, Bucket> buckets_;
 };
-
-/// "clinician, admin" for a mask.
-std::string RoleList(RoleMask mask);
 
 }  // namespace fesbench::server::http

@@ -286,11 +286,11 @@ HttpServer::RouteAdmission HttpServer::AdmitTo(const Route& route, std::string_v
                                                std::string_view authorization,
                                                const std::string& address) {
   RouteAdmission out;
-  if (route.roles == 0) return out;
+  if (!route.permission) return out;
   // 401, 403 and a slowed-down burst (429) are audited by the Authenticator.
   const std::string where = Clip(path, 200);
-  Admission admitted =
-      auth_.Admit(authorization, address, route.roles, std::string(method) + " " + where, where);
+  Admission admitted = auth_.Admit(authorization, address, *route.permission,
+                                   std::string(method) + " " + where, where);
   if (admitted.user) {
     out.user = std::move(*admitted.user);
   } else if (admitted.retry_after_s > 0) {

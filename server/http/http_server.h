@@ -140,10 +140,10 @@ class HttpServer {
   struct Connection;  ///< one client connection (http_server.cc).
 
  private:
-  /// The one role check (docs/API.md, roles): for a route with roles, the
-  /// bearer token's user if its role may use the route, else the refusal
-  /// (401, 403, or 429 for an address presenting many wrong tokens) with
-  /// the header fields that go with it.
+  /// The one role check (docs/API.md, "Roles and permissions"): for a route
+  /// that needs a permission, the bearer token's user if its role has it,
+  /// else the refusal (401, 403, or 429 for an address presenting many wrong
+  /// tokens) with the header fields that go with it.
   struct RouteAdmission {
     std::optional<storage::User> user;
     std::optional<HttpError> refusal;

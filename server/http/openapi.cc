@@ -83,14 +83,13 @@ json BuildOpenApi(const RouteTable& routes, const std::string& version) {
     }
     json responses = {{std::to_string(route.success_status), std::move(success)}};
     responses["400"] = ErrorRef("invalid input (field named in error.field)");
-    if (route.roles != 0) {
+    if (route.permission) {
       responses["401"] = ErrorRef("missing, unknown, revoked or expired bearer token");
       responses["403"] = ErrorRef("role not allowed (x-roles)");
       op["security"] = json::array({{{"bearer", json::array()}}});
       json roles = json::array();
-      for (auto role :
-           {storage::Role::kClinician, storage::Role::kAnalyst, storage::Role::kAdmin}) {
-        if (route.roles & RoleBit(role)) roles.push_back(storage::RoleName(role));
+      for (storage::Role role : services::RolesIn(services::RolesFor(*route.permission))) {
+        roles.push_back(storage::RoleName(role));
       }
       op["x-roles"] = std::move(roles);
     } else {

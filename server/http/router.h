@@ -2,7 +2,7 @@
 
 /// @file
 /// The route table: every route of the API as data (method, path template,
-/// roles, body, query parameters, summary, handler). The server dispatches
+/// permission, body, query parameters, summary, handler). The server dispatches
 /// from it and the OpenAPI document is built from it (openapi.h), so the
 /// two cannot drift apart.
 ///
@@ -86,7 +86,9 @@ struct QueryParam {
 struct Route {
   std::string method;      ///< "GET", "POST", "PUT", "DELETE".
   std::string path;        ///< "/api/v1/subjects/{subject_id}".
-  RoleMask roles = 0;      ///< 0: open (no token needed).
+  /// What the caller needs (services::RolesFor gives its roles); nullopt: the
+  /// route is open (no token needed).
+  std::optional<Permission> permission;
   Audit audit = Audit::kDispatcher;
   bool json_body = false;  ///< requires an application/json object body.
   std::string tag;         ///< OpenAPI tag.

@@ -53,7 +53,7 @@ void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
   Authenticator& auth = *deps.auth;
   table.Add({.method = "GET",
              .path = "/api/v1/users",
-             .roles = kAdmin,
+             .permission = Permission::kAdminister,
              .tag = "users",
              .summary = "List users",
              .query = PageParams(),
@@ -68,7 +68,7 @@ void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/users",
-       .roles = kAdmin,
+       .permission = Permission::kAdminister,
        .audit = Audit::kHandler,
        .json_body = true,
        .tag = "users",
@@ -91,7 +91,7 @@ void AddUserRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/users/{user_id}/deactivate",
-       .roles = kAdmin,
+       .permission = Permission::kAdminister,
        .audit = Audit::kHandler,
        .json_body = true,
        .tag = "users",
@@ -127,7 +127,7 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
   Authenticator& auth = *deps.auth;
   table.Add({.method = "GET",
              .path = "/api/v1/tokens",
-             .roles = kAdmin,
+             .permission = Permission::kAdminister,
              .tag = "tokens",
              .summary = "List tokens (metadata; secrets are never shown again)",
              .query = PageParams(),
@@ -142,7 +142,7 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/tokens",
-       .roles = kAdmin,
+       .permission = Permission::kAdminister,
        .audit = Audit::kHandler,
        .json_body = true,
        .tag = "tokens",
@@ -179,7 +179,7 @@ void AddTokenRoutes(RouteTable& table, const ApiDependencies& deps) {
        }});
   table.Add({.method = "DELETE",
              .path = "/api/v1/tokens/{token_id}",
-             .roles = kAdmin,
+             .permission = Permission::kAdminister,
              .audit = Audit::kHandler,
              .tag = "tokens",
              .summary = "Revoke a token",
@@ -210,7 +210,7 @@ void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
                                  {"to", "string", "before (YYYY-MM-DD or UTC time)"}};
     table.Add({.method = "GET",
                .path = "/api/v1/audit",
-               .roles = kAdmin,
+               .permission = Permission::kAdminister,
                .tag = "audit",
                .summary = "The audit log of state-changing requests, newest first",
                .query = q,
@@ -249,7 +249,7 @@ void AddAuditAndBackupRoutes(RouteTable& table, const ApiDependencies& deps) {
 
   table.Add({.method = "POST",
              .path = "/api/v1/backup",
-             .roles = kAdmin,
+             .permission = Permission::kAdminister,
              .audit = Audit::kHandler,
              .tag = "system",
              .summary = "Online backup of the database into the server's backup folder",

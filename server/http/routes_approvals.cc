@@ -93,7 +93,7 @@ void AddApprovalRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   table.Add({.method = "POST",
              .path = "/api/v1/parameter-sets/{parameter_set_id}/approve",
-             .roles = kClinician | kAdmin,
+             .permission = Permission::kApprove,
              .audit = Audit::kHandler,
              .json_body = true,
              .tag = "parameter-sets",
@@ -107,7 +107,7 @@ void AddApprovalRoutes(RouteTable& table, const ApiDependencies& deps) {
              .handler = [&db](RequestContext& ctx) { return Approve(db, ctx); }});
   table.Add({.method = "GET",
              .path = "/api/v1/subjects/{subject_id}/legs/{leg}/approved-parameter-set",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "parameter-sets",
              .summary = "The leg's approved parameter set (404 naming how to approve one when "
                         "none is)",

@@ -126,7 +126,7 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/sessions/{session_id}/runs",
-       .roles = kClinician | kAdmin,
+       .permission = Permission::kOperateBench,
        .audit = Audit::kHandler,
        .json_body = true,
        .tag = "runs",
@@ -162,7 +162,7 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
        }});
   table.Add({.method = "GET",
              .path = "/api/v1/runs/{run_id}",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "runs",
              .summary = "A run's state, progress (fraction, ETA), trials and result",
              .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
@@ -173,7 +173,7 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "POST",
              .path = "/api/v1/runs/{run_id}/cancel",
-             .roles = kClinician | kAdmin,
+             .permission = Permission::kOperateBench,
              .audit = Audit::kHandler,
              .tag = "runs",
              .summary = "Cancel the run in progress (stimulation to zero)",
@@ -187,7 +187,7 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "POST",
              .path = "/api/v1/runs/{run_id}/stop",
-             .roles = kClinician | kAdmin,
+             .permission = Permission::kOperateBench,
              .audit = Audit::kHandler,
              .tag = "runs",
              .summary = "Stop with result (tolerance_test keeps the amplitude reached)",
@@ -202,7 +202,7 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "POST",
              .path = "/api/v1/runs/{run_id}/heartbeat",
-             .roles = kClinician | kAdmin,
+             .permission = Permission::kOperateBench,
              .audit = Audit::kNever,
              .tag = "runs",
              .summary = "Heartbeat of the controlling user (at least once per second during a run; "
@@ -223,7 +223,7 @@ void AddStreamRoutes(RouteTable& table, const ApiDependencies& deps) {
   StreamSlots* slots = deps.streams;
   table.Add({.method = "GET",
              .path = "/api/v1/runs/{run_id}/stream",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "runs",
              .summary = "Server-Sent Events of a run: state, progress, samples (batched, with "
                         "first_sample), trial, end",
@@ -262,7 +262,7 @@ void AddStreamRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "GET",
        .path = "/api/v1/events/parameter-sets",
-       .roles = kAnyRole,
+       .permission = Permission::kRead,
        .tag = "parameter-sets",
        .summary = "Server-Sent Events: one parameter_set event (parameter_set_id, subject_id, "
                   "leg_id) for every parameter set stored from now on, by a run, an "
@@ -297,7 +297,7 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
   services::BenchService* bench = deps.bench;
   table.Add({.method = "GET",
              .path = "/api/v1/bench",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "bench",
              .summary = "The bench: kind, limits, mode, e-stop, owner, current run and progress",
              .handler = [bench](RequestContext&) -> api::Result<Reply> {
@@ -306,7 +306,7 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "POST",
              .path = "/api/v1/bench/estop",
-             .roles = kAnyRole,
+             .permission = Permission::kEStop,
              .audit = Audit::kHandler,
              .tag = "bench",
              .summary = "Emergency stop: stimulation to zero and motor disabled at once; latches "
@@ -318,7 +318,7 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "DELETE",
              .path = "/api/v1/bench/estop",
-             .roles = kClinician | kAdmin,
+             .permission = Permission::kOperateBench,
              .audit = Audit::kHandler,
              .tag = "bench",
              .summary = "Clear a latched e-stop",
@@ -329,7 +329,7 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "GET",
              .path = "/api/v1/bench/virtual-subject",
-             .roles = kAdmin,
+             .permission = Permission::kAdminister,
              .tag = "bench",
              .summary = "The simulated bench's virtual subject (truth JSON); 409 on a real bench",
              .handler = [bench](RequestContext& ctx) -> api::Result<Reply> {
@@ -340,7 +340,7 @@ void AddBenchStateRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "PUT",
              .path = "/api/v1/bench/virtual-subject",
-             .roles = kAdmin,
+             .permission = Permission::kAdminister,
              .audit = Audit::kHandler,
              .json_body = true,
              .tag = "bench",

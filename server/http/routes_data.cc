@@ -158,7 +158,7 @@ void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
   auto budget = std::make_shared<services::MemoryBudget>(kImportMemoryBytes);
   table.Add({.method = "GET",
              .path = "/api/v1/trial-kinds",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "trials",
              .summary = "The trial kinds the server knows (an import declares one), with the "
                         "channels each needs",
@@ -183,9 +183,9 @@ void AddImportRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/sessions/{session_id}/trials",
-       // Writing a session's data is a clinician's (docs/API.md, roles);
-       // analysts read and analyse.
-       .roles = kClinician | kAdmin,
+       // Writing a session's data is a clinician's (docs/API.md, "Roles and
+       // permissions"); analysts read and analyse.
+       .permission = Permission::kRecord,
        .audit = Audit::kHandler,
        .tag = "trials",
        .summary =
@@ -205,7 +205,7 @@ void AddReportAndExportRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "GET",
        .path = "/api/v1/sessions/{session_id}/report",
-       .roles = kAnyRole,
+       .permission = Permission::kRead,
        .tag = "sessions",
        .summary =
            "The session report: one self-contained, printable HTML page (subject by pseudonymous "
@@ -247,7 +247,7 @@ void AddReportAndExportRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "GET",
        .path = "/api/v1/sessions/{session_id}/export",
-       .roles = kAnyRole,
+       .permission = Permission::kRead,
        .tag = "sessions",
        .summary =
            "The whole session as one archive laid out after BIDS (motion/EMG TSV with channels and "

@@ -14,7 +14,7 @@ void AddHealthRoute(RouteTable& table, const ApiDependencies& deps) {
   const std::string version = deps.server_version;
   table.Add({.method = "GET",
              .path = "/api/v1/health",
-             .roles = 0,
+             .permission = std::nullopt,
              .tag = "system",
              .summary = "Liveness and database health",
              .handler = [&db, version](RequestContext&) -> api::Result<Reply> {

@@ -40,7 +40,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
 
   table.Add({.method = "POST",
              .path = "/api/v1/identifications",
-             .roles = kAnalyst | kAdmin,
+             .permission = Permission::kAnalyse,
              .json_body = true,
              .tag = "jobs",
              .summary = "Fit a model from stored trials (a session's, or listed trial ids); a job",
@@ -69,7 +69,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/predictions",
-       .roles = kClinician | kAnalyst | kAdmin,  // the clinician's model check
+       .permission = Permission::kPredict,  // the clinician's model check
        .json_body = true,
        .tag = "jobs",
        .summary = "Simulate a parameter set on a named stimulus or a stored trial (with errors "
@@ -100,7 +100,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/parameter-sets/{parameter_set_id}/model-check",
-       .roles = kClinician | kAnalyst | kAdmin,
+       .permission = Permission::kPredict,
        .tag = "jobs",
        .summary = "The model check: the set predicts its leg's validation trials it was not "
                   "fitted on (each stored as a prediction); E_RMS in each trial's quantity "
@@ -122,7 +122,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "POST",
        .path = "/api/v1/comparisons",
-       .roles = kAnalyst | kAdmin,
+       .permission = Permission::kAnalyse,
        .json_body = true,
        .tag = "jobs",
        .summary = "Each pair's errors under two parameter sets (or models) over its trials, "
@@ -150,7 +150,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
 
   table.Add({.method = "GET",
              .path = "/api/v1/jobs",
-             .roles = kAnalyst | kAdmin,
+             .permission = Permission::kAnalyse,
              .tag = "jobs",
              .summary = "Recent jobs (identifications, predictions, comparisons), newest first",
              .query = {{"limit", "integer", "at most this many, 1–500 (default 50)"}},
@@ -166,7 +166,7 @@ void AddJobRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "GET",
              .path = "/api/v1/jobs/{job_id}",
-             .roles = kClinician | kAnalyst | kAdmin,  // a clinician follows a prediction
+             .permission = Permission::kPredict,  // a clinician follows a prediction
              .tag = "jobs",
              .summary = "A job: state (queued, running, done, failed) and result or error",
              .handler = [jobs](RequestContext& ctx) -> api::Result<Reply> {

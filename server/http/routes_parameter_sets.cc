@@ -139,7 +139,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
     q.push_back({"to", "string", "created before (YYYY-MM-DD or UTC time)"});
     table.Add({.method = "GET",
                .path = "/api/v1/parameter-sets",
-               .roles = kAnyRole,
+               .permission = Permission::kRead,
                .tag = "parameter-sets",
                .summary = "Parameter-set history (filter by subject, leg, method, date range)",
                .query = q,
@@ -197,7 +197,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
   }
   table.Add({.method = "GET",
              .path = "/api/v1/parameter-sets/{parameter_set_id}",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "parameter-sets",
              .summary = "One parameter set (docs/MODEL.md JSON) with its provenance",
              .handler = [&db, cache, approval_cache](RequestContext& ctx) -> api::Result<Reply> {
@@ -223,7 +223,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "GET",
              .path = "/api/v1/parameter-sets/{parameter_set_id}/predictions",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "predictions",
              .summary = "Stored predictions of a parameter set",
              .query = PageParams(),
@@ -248,7 +248,7 @@ void AddParameterSetRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "GET",
              .path = "/api/v1/predictions/{prediction_id}",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "predictions",
              .summary = "A stored prediction with its input and output",
              .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {

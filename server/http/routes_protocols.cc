@@ -31,7 +31,7 @@ void AddProtocolRoutes(RouteTable& table, const ApiDependencies& deps) {
        "resolve the defaults derived from this session (threshold, max tolerated, range)"}};
   table.Add({.method = "GET",
              .path = "/api/v1/protocols",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "protocols",
              .summary =
                  "The protocol catalog (docs/PROTOCOLS.md): labels, units, defaults (resolved with "
@@ -46,7 +46,7 @@ void AddProtocolRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "GET",
              .path = "/api/v1/protocols/{name}",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "protocols",
              .summary = "One protocol with its parameters, labels, units and defaults",
              .query = protocol_query,

@@ -24,7 +24,7 @@ void AddSessionListRoutes(RouteTable& table, const ApiDependencies& deps) {
     q.push_back({"to", "string", "sessions before this date (YYYY-MM-DD)"});
     table.Add({.method = "GET",
                .path = "/api/v1/subjects/{subject_id}/sessions",
-               .roles = kAnyRole,
+               .permission = Permission::kRead,
                .tag = "sessions",
                .summary = "A subject's sessions (filter by date range)",
                .query = q,
@@ -60,7 +60,7 @@ void AddSessionListRoutes(RouteTable& table, const ApiDependencies& deps) {
   }
   table.Add({.method = "POST",
              .path = "/api/v1/subjects/{subject_id}/sessions",
-             .roles = kClinician | kAdmin,
+             .permission = Permission::kRecord,
              .audit = Audit::kHandler,
              .json_body = true,
              .tag = "sessions",
@@ -111,7 +111,7 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
   storage::Database& db = *deps.db;
   table.Add({.method = "GET",
              .path = "/api/v1/sessions/{session_id}",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "sessions",
              .summary = "One session",
              .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
@@ -124,7 +124,7 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "PATCH",
        .path = "/api/v1/sessions/{session_id}",
-       .roles = kClinician | kAdmin,
+       .permission = Permission::kRecord,
        .audit = Audit::kHandler,
        .json_body = true,
        .tag = "sessions",
@@ -157,7 +157,7 @@ void AddSessionRecordRoutes(RouteTable& table, const ApiDependencies& deps) {
        }});
   table.Add({.method = "GET",
              .path = "/api/v1/sessions/{session_id}/revisions",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "sessions",
              .summary = "A session's revisions, oldest first (who, when, why, the details)",
              .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
@@ -173,7 +173,7 @@ void AddSessionRunAndTrialRoutes(RouteTable& table, const ApiDependencies& deps)
   table.Add(
       {.method = "GET",
        .path = "/api/v1/sessions/{session_id}/runs",
-       .roles = kAnyRole,
+       .permission = Permission::kRead,
        .tag = "runs",
        .summary = "The runs of a session (history; each item has the shape of GET /runs/{id})",
        .query = PageParams(),
@@ -201,7 +201,7 @@ void AddSessionRunAndTrialRoutes(RouteTable& table, const ApiDependencies& deps)
        }});
   table.Add({.method = "GET",
              .path = "/api/v1/sessions/{session_id}/trials",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "trials",
              .summary = "The trials recorded in a session (summaries)",
              .query = PageParams(),

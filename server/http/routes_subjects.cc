@@ -34,7 +34,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
     q.push_back({"code", "string", "exact pseudonymous code"});
     table.Add({.method = "GET",
                .path = "/api/v1/subjects",
-               .roles = kAnyRole,
+               .permission = Permission::kRead,
                .tag = "subjects",
                .summary = "List subjects",
                .query = q,
@@ -74,7 +74,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
   }
   table.Add({.method = "POST",
              .path = "/api/v1/subjects",
-             .roles = kClinician | kAdmin,
+             .permission = Permission::kRecord,
              .audit = Audit::kHandler,
              .json_body = true,
              .tag = "subjects",
@@ -110,7 +110,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
              }});
   table.Add({.method = "GET",
              .path = "/api/v1/subjects/{subject_id}",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "subjects",
              .summary = "One subject with its current details and legs",
              .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {
@@ -124,7 +124,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "PATCH",
        .path = "/api/v1/subjects/{subject_id}",
-       .roles = kClinician | kAdmin,
+       .permission = Permission::kRecord,
        .audit = Audit::kHandler,
        .json_body = true,
        .tag = "subjects",
@@ -151,7 +151,7 @@ void AddSubjectRoutes(RouteTable& table, const ApiDependencies& deps) {
        }});
   table.Add({.method = "GET",
              .path = "/api/v1/subjects/{subject_id}/revisions",
-             .roles = kAnyRole,
+             .permission = Permission::kRead,
              .tag = "subjects",
              .summary = "A subject's revisions, oldest first (who, when, why, the details)",
              .handler = [&db](RequestContext& ctx) -> api::Result<Reply> {

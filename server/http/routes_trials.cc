@@ -21,7 +21,7 @@ void AddTrialRoutes(RouteTable& table, const ApiDependencies& deps) {
   table.Add(
       {.method = "GET",
        .path = "/api/v1/trials/{trial_id}",
-       .roles = kAnyRole,
+       .permission = Permission::kRead,
        .tag = "trials",
        .summary =
            "A recorded trial: JSON, CSV or OpenSim .sto (?format=json|csv|sto, or Accept: "

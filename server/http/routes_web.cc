@@ -10,7 +10,7 @@ void AddWebRoutes(RouteTable& table, const ApiDependencies&) {
   table.Add(
       {.method = "GET",
        .path = "/api/v1/me",
-       .roles = kAnyRole,
+       .permission = Permission::kRead,
        .tag = "users",
        .summary = "The signed-in user (id, name, role) of the bearer token",
        .response_schema = ObjectSchema({{"id", {{"type", "integer"}}},

@@ -1,13 +1,104 @@
 #include "server/services/actor.h"
 
+#include <array>
+
 #include "storage/audit_log.h"
 
 namespace fesbench::server::services {
+namespace {
+
+struct PermissionRow {
+  Permission permission;
+  std::string_view name;
+  RoleMask roles;
+};
+
+// Who may do what (docs/API.md, "Roles and permissions"): the one table.
+constexpr std::array<PermissionRow, 8> kPermissionTable{{
+    {Permission::kRead, "read", kAnyRole},
+    {Permission::kEStop, "estop", kAnyRole},
+    {Permission::kPredict, "predict", kAnyRole},
+    {Permission::kRecord, "record", kClinician | kAdmin},
+    {Permission::kApprove, "approve", kClinician | kAdmin},
+    {Permission::kOperateBench, "operate_bench", kClinician | kAdmin},
+    {Permission::kAnalyse, "analyse", kAnalyst | kAdmin},
+    {Permission::kAdminister, "administer", kAdmin},
+}};
+
+// In the enum's order, each once, to its last value: RowOf finds every permission.
+static_assert([] {
+  for (std::size_t i = 0; i < kPermissionTable.size(); ++i) {
+    if (kPermissionTable[i].permission != static_cast<Permission>(i)) return false;
+  }
+  return kPermissionTable.back().permission == Permission::kAdminister;
+}());
+
+constexpr std::array<Permission, kPermissionTable.size()> kPermissions = [] {
+  std::array<Permission, kPermissionTable.size()> out{};
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = kPermissionTable[i].permission;
+  return out;
+}();
+
+constexpr const PermissionRow& RowOf(Permission permission) {
+  for (const PermissionRow& row : kPermissionTable) {
+    if (row.permission == permission) return row;
+  }
+  return kPermissionTable.back();  // unreachable: every permission has its row
+}
+
+// "clinician or admin", "clinician, analyst or admin".
+std::string RoleAlternatives(RoleMask mask) {
+  const std::vector<Role> roles = RolesIn(mask);
+  std::string out;
+  for (std::size_t i = 0; i < roles.size(); ++i) {
+    if (i > 0) out += i + 1 == roles.size() ? " or " : ", ";
+    out += RoleName(roles[i]);
+  }
+  return out;
+}
+
+}  // namespace
 
 Actor SystemActor() { return Actor{0, "system", Role::kAdmin}; }
 
-bool MayOperateBench(const Actor& actor) {
-  return actor.role == Role::kClinician || actor.role == Role::kAdmin;
+std::vector<Role> RolesIn(RoleMask mask) {
+  std::vector<Role> roles;
+  for (Role role : {Role::kClinician, Role::kAnalyst, Role::kAdmin}) {
+    if (mask & RoleBit(role)) roles.push_back(role);
+  }
+  return roles;
+}
+
+std::string RoleList(RoleMask mask) {
+  std::string out;
+  for (Role role : RolesIn(mask)) {
+    if (!out.empty()) out += ", ";
+    out += RoleName(role);
+  }
+  return out;
+}
+
+std::span<const Permission> AllPermissions() { return kPermissions; }
+
+RoleMask RolesFor(Permission permission) { return RowOf(permission).roles; }
+
+std::string_view PermissionName(Permission permission) { return RowOf(permission).name; }
+
+bool May(const Actor& actor, Permission permission) {
+  return (RolesFor(permission) & RoleBit(actor.role)) != 0;
+}
+
+api::Status Require(const Actor& actor, Permission permission) {
+  if (May(actor, permission)) return api::Status::Ok();
+  return {api::ErrorCode::kPermissionDenied,
+          "role " + std::string(RoleName(actor.role)) +
+              " may not do this (allowed: " + RoleList(RolesFor(permission)) + ")"};
+}
+
+api::Status Require(const Actor& actor, Permission permission, std::string_view what) {
+  if (May(actor, permission)) return api::Status::Ok();
+  return {api::ErrorCode::kPermissionDenied,
+          std::string(what) + " needs the " + RoleAlternatives(RolesFor(permission)) + " role"};
 }
 
 api::Status AppendAudit(storage::Database& db, const Actor& actor, const std::string& action,

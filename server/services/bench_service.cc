@@ -56,12 +56,6 @@ BenchInfo BenchService::Info() const {
 
 namespace {
 
-api::Status NeedAdmin(const Actor& actor, const char* what) {
-  if (actor.role == Role::kAdmin) return api::Status::Ok();
-  return api::Status(api::ErrorCode::kPermissionDenied,
-                     std::string(what) + " needs the admin role");
-}
-
 // {"draw_seed": N, "family": F}: N a non-negative integer, F "thesis" (the
 // default), "analytic" or "plateau", no other key.
 struct DrawRequest {
@@ -104,7 +98,10 @@ api::Result<DrawRequest> DrawRequestFromJson(const nlohmann::json& json) {
 }  // namespace
 
 api::Result<nlohmann::json> BenchService::GetVirtualSubject(const Actor& actor) const {
-  if (api::Status st = NeedAdmin(actor, "reading the virtual subject"); !st.ok()) return st;
+  if (api::Status st = Require(actor, Permission::kAdminister, "reading the virtual subject");
+      !st.ok()) {
+    return st;
+  }
   if (simulated_ == nullptr) return api::Status::Conflict("not a simulated bench");
   try {
     return VirtualSubjectToJson(simulated_->subject());
@@ -116,7 +113,10 @@ api::Result<nlohmann::json> BenchService::GetVirtualSubject(const Actor& actor) 
 
 api::Result<nlohmann::json> BenchService::PutVirtualSubject(const Actor& actor,
                                                             const nlohmann::json& json) {
-  if (api::Status st = NeedAdmin(actor, "replacing the virtual subject"); !st.ok()) return st;
+  if (api::Status st = Require(actor, Permission::kAdminister, "replacing the virtual subject");
+      !st.ok()) {
+    return st;
+  }
   if (simulated_ == nullptr) return api::Status::Conflict("not a simulated bench");
   try {
     if (json.is_object() && (json.contains("draw_seed") || json.contains("family"))) {

@@ -60,12 +60,6 @@ void CommandService::AuditFailedSignIn(const std::string& action, const std::str
   }
 }
 
-api::Status CommandService::RequireOperator(const Actor& actor) {
-  if (MayOperateBench(actor)) return api::Status::Ok();
-  return {api::ErrorCode::kPermissionDenied, "role " + std::string(RoleName(actor.role)) +
-                                                 " may not do this (allowed: clinician, admin)"};
-}
-
 void CommandService::AuditRefusal(const Actor& actor, const std::string& action,
                                   const std::string& target, const std::string& summary,
                                   const api::Status& status) {
@@ -79,7 +73,11 @@ void CommandService::AuditRefusal(const Actor& actor, const std::string& action,
 api::Status CommandService::EStop(std::string_view token) {
   auto actor = Authenticate(token, "estop", "bench");
   if (!actor.ok()) return actor.status();
-  // Any signed-in user may press it (as POST /api/v1/bench/estop).
+  // As POST /api/v1/bench/estop: any signed-in user (Permission::kEStop).
+  if (api::Status allowed = Require(*actor, Permission::kEStop); !allowed.ok()) {
+    AuditRefusal(*actor, "estop", "bench", "e-stop", allowed);
+    return allowed;
+  }
   api::Status st = runs_.EStop(*actor, transport_);
   if (!st.ok()) AuditRefusal(*actor, "estop", "bench", "e-stop", st);
   return st;
@@ -92,7 +90,7 @@ api::Result<RunView> CommandService::StartRun(std::string_view token, std::int64
   auto actor = Authenticate(token, "start_run", target);
   if (!actor.ok()) return actor.status();
   const std::string summary = "start " + protocol.substr(0, 64);
-  if (api::Status allowed = RequireOperator(*actor); !allowed.ok()) {
+  if (api::Status allowed = Require(*actor, Permission::kOperateBench); !allowed.ok()) {
     AuditRefusal(*actor, "start_run", target, summary, allowed);
     return allowed;
   }
@@ -105,7 +103,7 @@ api::Status CommandService::CancelRun(std::string_view token, std::int64_t run_i
   const std::string target = "runs/" + std::to_string(run_id);
   auto actor = Authenticate(token, "cancel_run", target);
   if (!actor.ok()) return actor.status();
-  if (api::Status allowed = RequireOperator(*actor); !allowed.ok()) {
+  if (api::Status allowed = Require(*actor, Permission::kOperateBench); !allowed.ok()) {
     AuditRefusal(*actor, "cancel_run", target, "cancel", allowed);
     return allowed;
   }
@@ -118,7 +116,7 @@ api::Status CommandService::Heartbeat(std::string_view token, std::int64_t run_i
   const std::string target = "runs/" + std::to_string(run_id);
   auto actor = Authenticate(token, "heartbeat", target);
   if (!actor.ok()) return actor.status();
-  if (api::Status allowed = RequireOperator(*actor); !allowed.ok()) {
+  if (api::Status allowed = Require(*actor, Permission::kOperateBench); !allowed.ok()) {
     AuditRefusal(*actor, "heartbeat", target, "heartbeat", allowed);
     return allowed;
   }

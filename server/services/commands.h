@@ -56,8 +56,6 @@ class CommandService {
   api::Result<Actor> Authenticate(std::string_view token, const std::string& action,
                                   const std::string& target);
   void AuditFailedSignIn(const std::string& action, const std::string& target);
-  /// kPermissionDenied unless clinician/admin (the HTTP message).
-  static api::Status RequireOperator(const Actor& actor);
   void AuditRefusal(const Actor& actor, const std::string& action, const std::string& target,
                     const std::string& summary, const api::Status& status);
 

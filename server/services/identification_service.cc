@@ -769,9 +769,8 @@ IdentificationService::IdentificationService(storage::Database& db, Identificati
 
 api::Result<IdentificationResult> IdentificationService::Fit(const Actor& actor,
                                                              const IdentificationRequest& request) {
-  if (actor.role != Role::kAnalyst && actor.role != Role::kAdmin) {
-    return api::Status(api::ErrorCode::kPermissionDenied,
-                       "fitting parameter sets needs the analyst or admin role");
+  if (api::Status s = Require(actor, Permission::kAnalyse, "fitting parameter sets"); !s.ok()) {
+    return s;
   }
   if (api::Status s = ValidateIdentificationRequest(request); !s.ok()) return s;
   try {

@@ -481,11 +481,7 @@ api::Result<PredictionResult> PredictionService::Compute(const PredictionRequest
 api::Result<PredictionResult> PredictionService::Predict(const Actor& actor,
                                                          const PredictionRequest& request) {
   // Clinicians too: the model check of a set on fresh trials (docs/API.md).
-  if (actor.role != Role::kClinician && actor.role != Role::kAnalyst &&
-      actor.role != Role::kAdmin) {
-    return api::Status(api::ErrorCode::kPermissionDenied,
-                       "predictions need the clinician, analyst or admin role");
-  }
+  if (api::Status s = Require(actor, Permission::kPredict, "a prediction"); !s.ok()) return s;
   api::Result<PredictionResult> computed = Compute(request);
   if (!computed.ok()) return computed.status();
   PredictionResult result = std::move(computed).value();

@@ -373,7 +373,7 @@ api::Status RunRecorder::WriteFinish(const LiveRun& run, FinishRecord& f, bool w
 // is the operating clinician's own measurement, approved by the run that
 // stored it (audited with the run), in the transaction that stores it.
 api::Status RunRecorder::ApproveRunSet(const LiveRun& run, std::int64_t set_id) {
-  if (!MayOperateBench(run.actor)) return api::Status::Ok();  // a candidate, as any other
+  if (!May(run.actor, Permission::kApprove)) return api::Status::Ok();  // a candidate, as any other
   storage::NewApproval approval;
   approval.parameter_set_id = set_id;
   if (run.actor.user_id > 0) approval.approved_by_user_id = run.actor.user_id;

@@ -151,9 +151,8 @@ namespace {
 // session and no bench.
 api::Result<const protocols::ProtocolDescription*> CheckStartRequest(
     const Actor& actor, const std::string& protocol, const protocols::ParameterValues& parameters) {
-  if (!MayOperateBench(actor)) {
-    return api::Status(api::ErrorCode::kPermissionDenied,
-                       "starting a run needs the clinician or admin role");
+  if (api::Status st = Require(actor, Permission::kOperateBench, "starting a run"); !st.ok()) {
+    return st;
   }
   const protocols::ProtocolDescription* description = protocols::FindProtocol(protocol);
   if (description == nullptr) return api::Status::NotFound("unknown protocol '" + protocol + "'");
@@ -409,9 +408,8 @@ api::Status RunService::CheckCurrent(std::int64_t run_id, std::shared_ptr<LiveRu
 
 api::Status RunService::Cancel(const Actor& actor, std::int64_t run_id) {
   return Guarded("Cancel", "cancelling the run failed", [&]() -> api::Status {
-    if (!MayOperateBench(actor)) {
-      return api::Status(api::ErrorCode::kPermissionDenied,
-                         "cancelling a run needs the clinician or admin role");
+    if (api::Status st = Require(actor, Permission::kOperateBench, "cancelling a run"); !st.ok()) {
+      return st;
     }
     std::shared_ptr<LiveRun> run;
     if (api::Status st = CheckCurrent(run_id, &run); !st.ok()) return st;
@@ -427,9 +425,8 @@ api::Status RunService::Cancel(const Actor& actor, std::int64_t run_id) {
 
 api::Status RunService::StopWithResult(const Actor& actor, std::int64_t run_id) {
   return Guarded("StopWithResult", "stopping the run failed", [&]() -> api::Status {
-    if (!MayOperateBench(actor)) {
-      return api::Status(api::ErrorCode::kPermissionDenied,
-                         "stopping a run needs the clinician or admin role");
+    if (api::Status st = Require(actor, Permission::kOperateBench, "stopping a run"); !st.ok()) {
+      return st;
     }
     std::shared_ptr<LiveRun> run;
     if (api::Status st = CheckCurrent(run_id, &run); !st.ok()) return st;
@@ -491,9 +488,9 @@ api::Status RunService::EStop(const Actor& actor, std::string_view source) {
 
 api::Status RunService::ClearEStop(const Actor& actor) {
   return Guarded("ClearEStop", "clearing the e-stop failed", [&]() -> api::Status {
-    if (!MayOperateBench(actor)) {
-      return api::Status(api::ErrorCode::kPermissionDenied,
-                         "clearing the e-stop needs the clinician or admin role");
+    if (api::Status st = Require(actor, Permission::kOperateBench, "clearing the e-stop");
+        !st.ok()) {
+      return st;
     }
     if (owner_.busy()) {
       return api::Status::Conflict("a run is still stopping; clear the e-stop after it ends");

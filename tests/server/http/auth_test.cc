@@ -55,8 +55,8 @@ struct AuthRig {
     return out;
   }
   Admission Try(const std::string& header, const std::string& address = "10.0.0.7",
-                RoleMask allowed = kAnyRole) {
-    return auth->Admit(header, address, allowed, "GET /api/v1/subjects", "/api/v1/subjects");
+                Permission permission = Permission::kRead) {
+    return auth->Admit(header, address, permission, "GET /api/v1/subjects", "/api/v1/subjects");
   }
 
   std::filesystem::path dir;
@@ -75,9 +75,10 @@ TEST(Authenticator, FailedSignInsAndRoleRefusalsAreAuditedWithoutTheToken) {
   EXPECT_FALSE(bad.user);
   EXPECT_EQ(bad.status.code(), api::ErrorCode::kUnauthenticated);
   EXPECT_EQ(bad.retry_after_s, 0);
-  Admission denied =
-      rig.auth->Admit(rig.analyst_token, "10.0.0.7", kAdmin, "GET /api/v1/audit", "/api/v1/audit");
+  Admission denied = rig.auth->Admit(rig.analyst_token, "10.0.0.7", Permission::kAdminister,
+                                     "GET /api/v1/audit", "/api/v1/audit");
   EXPECT_EQ(denied.status.code(), api::ErrorCode::kPermissionDenied);
+  EXPECT_EQ(denied.status.message(), "role analyst may not do this (allowed: admin)");
   Admission ok = rig.Try(rig.analyst_token);
   ASSERT_TRUE(ok.user);
   EXPECT_EQ(ok.user->name, "ana");

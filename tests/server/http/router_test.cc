@@ -15,11 +15,12 @@ namespace {
 
 using nlohmann::json;
 
-Route MakeRoute(std::string method, std::string path, RoleMask roles = kAnyRole) {
+Route MakeRoute(std::string method, std::string path,
+                std::optional<Permission> permission = Permission::kRead) {
   Route r;
   r.method = std::move(method);
   r.path = std::move(path);
-  r.roles = roles;
+  r.permission = permission;
   r.tag = "t";
   r.summary = "s";
   r.handler = [](RequestContext&) -> api::Result<Reply> { return Reply{}; };
@@ -97,8 +98,8 @@ TEST(ErrorsTest, OneMappingForEveryCode) {
 
 TEST(OpenApiTest, DocumentsEveryRouteOfTheTable) {
   RouteTable table;
-  table.Add(MakeRoute("GET", "/api/v1/health", 0));
-  Route post = MakeRoute("POST", "/api/v1/subjects/{subject_id}/sessions", kClinician | kAdmin);
+  table.Add(MakeRoute("GET", "/api/v1/health", std::nullopt));
+  Route post = MakeRoute("POST", "/api/v1/subjects/{subject_id}/sessions", Permission::kRecord);
   post.json_body = true;
   post.query = {{"limit", "integer", "page size"}};
   table.Add(post);
