@@ -17,7 +17,6 @@
 #include "server/bench/simulated_bench.h"
 #include "server/protocols/plan.h"
 #include "server/protocols/rapid_identification.h"
-#include "server/protocols/run_json.h"
 #include "server/protocols/runner.h"
 
 namespace fesbench::server::protocols {
@@ -103,7 +102,7 @@ TEST_P(RapidRoutine, IdentifiesTheWholeRangeAndPredictsFreshTrials) {
   const Leg& leg = RunLeg(GetParam());
   ASSERT_EQ(leg.rapid.state, RunState::kDone) << leg.rapid.reason;
   ASSERT_TRUE(leg.rapid.parameter_set.has_value());
-  const auto wire = api::ParameterSetFromJson(RunResultToJson(leg.rapid).at("parameter_set"));
+  const auto wire = api::ParameterSetFromJson(api::ParameterSetToJson(*leg.rapid.parameter_set));
   ASSERT_TRUE(wire.ok()) << wire.status().ToString();
   const model::ParameterSet& p = *leg.rapid.parameter_set;
   // §7.4.1: under 30 s of bench time.
