@@ -184,4 +184,6 @@ std::string RoleList(RoleMask mask) {
   return out;
 }
 
+services::Actor ActorOf(const storage::User& user) { return {user.id, user.name, user.role}; }
+
 }  // namespace fesbench::server::http

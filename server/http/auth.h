@@ -30,6 +30,7 @@
 
 #include "api/clock.h"
 #include "api/status.h"
+#include "server/services/actor.h"
 #include "storage/database.h"
 #include "storage/users.h"
 
@@ -120,5 +121,8 @@ class Authenticator {
 
 /// "clinician, admin" for a mask.
 std::string RoleList(RoleMask mask);
+
+/// The services' Actor (who acts, with which role) for an authenticated user.
+services::Actor ActorOf(const storage::User& user);
 
 }  // namespace fesbench::server::http
