@@ -131,7 +131,7 @@ void BM_EStopToDevice(benchmark::State& state) {
     state.SkipWithError(stim->fault().message().c_str());
     return;
   }
-  ComposedBench bench(std::make_unique<SimulatedBench>(DrawVirtualSubject(1)), std::move(stim));
+  ComposedBench bench(SimulatedBench::Create(DrawVirtualSubject(1)).value(), std::move(stim));
   bench.SetStimulationCeiling(30.0);
   for (auto _ : state) {
     state.PauseTiming();

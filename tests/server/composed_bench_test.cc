@@ -96,7 +96,7 @@ struct Rig {
     SimulatedBenchOptions options;  // time scale 0: as fast as the device answers
     // As the server opens it: the leg's pulse clock at the device's own rate.
     options.limits.pulse_rate_hz = sciencemode2::DevicePulseRateHz(options.limits.pulse_rate_hz);
-    bench = std::make_unique<ComposedBench>(std::make_unique<SimulatedBench>(subject, options),
+    bench = std::make_unique<ComposedBench>(SimulatedBench::Create(subject, options).value(),
                                             std::move(recording));
     safe = std::make_unique<SafeBench>(*bench, log.sink());
   }

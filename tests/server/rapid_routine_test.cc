@@ -55,7 +55,8 @@ double Rms(const std::vector<double>& a, const std::vector<double>& b) {
 Leg RunLegUncached(std::pair<SubjectFamily, std::uint64_t> key) {
   Leg leg;
   leg.subject = DrawSubject(key.second, key.first);
-  SimulatedBench bench(leg.subject);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(leg.subject).value();
+  SimulatedBench& bench = *bench_owner;
   SafetyEventLog log;
   SafeBench safe(bench, log.sink());
   const SubjectContext ctx = Context(leg.subject);
@@ -171,7 +172,8 @@ TEST(RapidRoutineInertia, WithinTenPercentOnEveryFamily) {
         std::pair{SubjectFamily::kPlateau, std::uint64_t{13}}}) {
     const VirtualSubject subject = DrawSubject(seed, family);
     SCOPED_TRACE(subject.name);
-    SimulatedBench bench(subject);
+    const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(subject).value();
+    SimulatedBench& bench = *bench_owner;
     SafetyEventLog log;
     SafeBench safe(bench, log.sink());
     const SubjectContext ctx = Context(subject);
@@ -195,7 +197,8 @@ class FreeSwingInertia : public ::testing::TestWithParam<std::uint64_t> {};
 
 TEST_P(FreeSwingInertia, OutputErrorInertiaWithinTenPercent) {
   const VirtualSubject vs = DrawVirtualSubject(GetParam());
-  SimulatedBench bench(vs);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+  SimulatedBench& bench = *bench_owner;
   SafetyEventLog log;
   SafeBench safe(bench, log.sink());
   const SubjectContext ctx = Context(vs);

@@ -449,7 +449,8 @@ TEST(Runner, WatchdogStopsTheRunWhenHeartbeatsStop) {
     }
   };
   const VirtualSubject vs = Subject(7);
-  SimulatedBench bench(vs, o);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs, o).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwnerOptions bo;
   bo.clock = &wall;
   BenchOwner own(bench, bo);
@@ -501,7 +502,8 @@ class Gate : public RunObserver {
 
 TEST(BenchOwner, OneRunAtATimeAndCancelFromAnotherThread) {
   const VirtualSubject vs = Subject(7);
-  SimulatedBench bench(vs);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwnerOptions bo;
   bo.runner.arm_watchdog = false;
   BenchOwner own(bench, bo);
@@ -530,7 +532,8 @@ TEST(BenchOwner, OneRunAtATimeAndCancelFromAnotherThread) {
 
 TEST(BenchOwner, RefusesBadRequestsAndLatchedEStop) {
   const VirtualSubject vs = Subject(7);
-  SimulatedBench bench(vs);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwner own(bench);
   StartRequest bad{"isometric_step_irc", {{"rest_s", 3.0}}, Context(vs), "alice"};
   const api::Status st = own.Start(bad);
@@ -616,7 +619,8 @@ TEST(ModelGate, RefusesOnlyAFastArrivalAtAStopAndNamesIt) {
   const VirtualSubject vs = Subject(7);
   SimulatedBenchOptions strict;
   strict.limits.max_stop_impact_deg_s = 90.0;
-  SimulatedBench bench(vs, strict);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs, strict).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwner own(bench);
   const api::Status st = own.Start({"prediction_step", {}, ctx, "a"});
   EXPECT_EQ(st.code(), api::ErrorCode::kFailedPrecondition) << st.ToString();

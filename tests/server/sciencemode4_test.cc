@@ -255,7 +255,7 @@ TEST(ScienceMode4ComposedBench, EveryPulseTheLegReceivedWasSentToTheDevice) {
   auto device = std::make_unique<Stimulator>(config);
   ASSERT_TRUE(device->Connect().ok()) << device->fault().ToString();
   const VirtualSubject subject = DrawVirtualSubject(7);
-  ComposedBench bench(std::make_unique<SimulatedBench>(subject), std::move(device));
+  ComposedBench bench(SimulatedBench::Create(subject).value(), std::move(device));
   EXPECT_EQ(bench.kind(), "sciencemode4+sim");
   protocols::SafetyEventLog log;
   SafeBench safe(bench, log.sink());
