@@ -119,7 +119,10 @@ struct Rig {
     return runner.Run(*plan, ctx);
   }
 
-  Emulator emulator;
+  // A test's rig: a pseudo-terminal that will not open is the machine's
+  // fault, not the code's (Emulator::Open).
+  std::unique_ptr<Emulator> emulator_owner = Emulator::Open().value();
+  Emulator& emulator = *emulator_owner;
   VirtualSubject subject;
   bool connected = false;
   std::string connect_fault;
