@@ -30,7 +30,8 @@ void BM_SimulatedBench30s(benchmark::State& state) {
     o.initial_angle_deg = 80.0;
     o.initial_mode = mode == 0 ? MotorMode::kDecoupled
                                : (mode == 1 ? MotorMode::kPosition : MotorMode::kLocked);
-    SimulatedBench bench(subject, o);
+    const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(subject, o).value();
+    SimulatedBench& bench = *bench_owner;
     double sum = 0.0;
     for (int k = 0; k < kSteps; ++k) {
       const double t = k * 1e-3;

@@ -31,7 +31,9 @@ void BM_RapidParameterisation(benchmark::State& state) {
   }
   double bench_s = 0.0, wall_s = 0.0;
   for (auto _ : state) {
-    SimulatedBench bench(vs);  // time_scale 0: as fast as possible
+    const std::unique_ptr<SimulatedBench> bench_owner =
+        SimulatedBench::Create(vs).value();  // time_scale 0: as fast as possible
+    SimulatedBench& bench = *bench_owner;
     SafetyEventLog log;
     SafeBench safe(bench, log.sink());
     RunnerOptions o;

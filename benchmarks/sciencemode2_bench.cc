@@ -102,7 +102,8 @@ void BM_CommandToWire(benchmark::State& state) {
 BENCHMARK(BM_CommandToWire)->Arg(2)->Arg(4)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 void BM_AcknowledgedUpdate(benchmark::State& state) {
-  Emulator emulator;
+  const std::unique_ptr<Emulator> emulator_owner = Emulator::Open().value();
+  Emulator& emulator = *emulator_owner;
   StimulatorConfig config;
   config.port_path = emulator.port_path();
   Stimulator stim(config);
@@ -123,7 +124,8 @@ void BM_AcknowledgedUpdate(benchmark::State& state) {
 BENCHMARK(BM_AcknowledgedUpdate)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 void BM_EStopToDevice(benchmark::State& state) {
-  Emulator emulator;
+  const std::unique_ptr<Emulator> emulator_owner = Emulator::Open().value();
+  Emulator& emulator = *emulator_owner;
   StimulatorConfig config;
   config.port_path = emulator.port_path();
   auto stim = std::make_unique<Stimulator>(config);
@@ -131,7 +133,7 @@ void BM_EStopToDevice(benchmark::State& state) {
     state.SkipWithError(stim->fault().message().c_str());
     return;
   }
-  ComposedBench bench(std::make_unique<SimulatedBench>(DrawVirtualSubject(1)), std::move(stim));
+  ComposedBench bench(SimulatedBench::Create(DrawVirtualSubject(1)).value(), std::move(stim));
   bench.SetStimulationCeiling(30.0);
   for (auto _ : state) {
     state.PauseTiming();
@@ -146,7 +148,9 @@ void BM_EStopToDevice(benchmark::State& state) {
 BENCHMARK(BM_EStopToDevice)->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 void BM_Sm4PulseAcknowledged(benchmark::State& state) {
-  sciencemode4::Emulator emulator;
+  const std::unique_ptr<sciencemode4::Emulator> emulator_owner =
+      sciencemode4::Emulator::Open().value();
+  sciencemode4::Emulator& emulator = *emulator_owner;
   sciencemode4::StimulatorConfig config;
   config.port_path = emulator.port_path();
   sciencemode4::Stimulator stim(config);

@@ -106,7 +106,7 @@ api::Status BootstrapAdmin(storage::Database& db, const std::filesystem::path& t
 // trials. `simulated` is the simulated one (its subject can be swapped), or null.
 struct OpenedBench {
   std::unique_ptr<server::Bench> bench;
-  server::services::SwappableSimulatedBench* simulated = nullptr;
+  server::SwappableSimulatedBench* simulated = nullptr;
 };
 api::Result<OpenedBench> OpenBench(const server::ServerConfig& config) {
   OpenedBench opened;
@@ -122,8 +122,8 @@ api::Result<OpenedBench> OpenBench(const server::ServerConfig& config) {
       options.limits.pulse_rate_hz =
           server::sciencemode2::DevicePulseRateHz(options.limits.pulse_rate_hz);
     }
-    auto sim = server::services::SwappableSimulatedBench::Create(
-        server::DrawVirtualSubject(config.seed), options);
+    auto sim =
+        server::SwappableSimulatedBench::Create(server::DrawVirtualSubject(config.seed), options);
     if (!sim.ok()) return sim.status();
     opened.simulated = sim->get();
     opened.bench = std::move(*sim);
@@ -326,7 +326,7 @@ int main(int argc, char** argv) {
     return Fail(config.bench == "sim" ? "simulated bench" : "replay bench", opened.status());
   }
   std::unique_ptr<server::Bench> bench = std::move(opened->bench);
-  server::services::SwappableSimulatedBench* simulated = opened->simulated;
+  server::SwappableSimulatedBench* simulated = opened->simulated;
   if (auto st = AttachStimulator(config, bench); !st.ok()) {
     return Fail("stimulator on " + config.stimulator_port, st);
   }

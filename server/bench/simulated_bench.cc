@@ -2,12 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 #include <utility>
 
+#include "api/virtual_subject.h"
 #include "model/integrators.h"
 #include "model/units.h"
-#include "api/virtual_subject.h"
 
 namespace fesbench::server {
 namespace {
@@ -99,12 +98,7 @@ struct SimulatedBench::Forces {
 SimulatedBench::SimulatedBench(VirtualSubject subject, SimulatedBenchOptions options)
     : subject_(std::move(subject)),
       options_(std::move(options)),
-      joint_([this] {
-        if (api::Status st = ValidateVirtualSubject(subject_); !st.ok()) {
-          throw std::invalid_argument("SimulatedBench: " + st.ToString());
-        }
-        return model::JointModel::FromParameters(subject_.truth);
-      }()),
+      joint_(model::JointModel::FromParameters(subject_.truth)),
       pacer_(options_.clock, options_.time_scale),
       pulse_clock_(options_.limits.pulse_rate_hz),
       primary_(subject_.truth.contraction),
@@ -126,7 +120,8 @@ SimulatedBench::~SimulatedBench() = default;
 api::Result<std::unique_ptr<SimulatedBench>> SimulatedBench::Create(VirtualSubject subject,
                                                                     SimulatedBenchOptions options) {
   if (api::Status st = ValidateVirtualSubject(subject); !st.ok()) return st;
-  return std::make_unique<SimulatedBench>(std::move(subject), std::move(options));
+  return std::unique_ptr<SimulatedBench>(
+      new SimulatedBench(std::move(subject), std::move(options)));
 }
 
 void SimulatedBench::set_time_scale(double time_scale) {

@@ -105,10 +105,8 @@ struct LegTruth {
 
 class SimulatedBench final : public Bench {
  public:
-  /// @throws std::invalid_argument if the subject fails
-  ///   ValidateVirtualSubject (the message names the field).
-  explicit SimulatedBench(VirtualSubject subject, SimulatedBenchOptions options = {});
-  /// Non-throwing construction: kInvalidArgument on an invalid subject.
+  /// The bench for `subject`, or kInvalidArgument (naming the field) if it
+  /// fails ValidateVirtualSubject.
   static api::Result<std::unique_ptr<SimulatedBench>> Create(VirtualSubject subject,
                                                              SimulatedBenchOptions options = {});
   ~SimulatedBench() override;
@@ -143,6 +141,9 @@ class SimulatedBench final : public Bench {
   model::PulseTrain DeliveredPulses();
 
  private:
+  // `subject` has passed ValidateVirtualSubject (Create checks it).
+  SimulatedBench(VirtualSubject subject, SimulatedBenchOptions options);
+
   using State = Eigen::Matrix<double, 3, 1>;  // θ (deg), θ̇ (deg/s), τ_hyst (N·m)
   struct Forces;
 

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -208,10 +207,11 @@ namespace {
 // and plateau families: height and body-mass index uniform in their
 // ranges, redrawn until J is in range so the body measures and J always
 // agree; then the accelerometer's distance and the thigh's elevation.
-// Returns J.
+// Returns J. Ranges whose inertia no body of the family reaches in 1000
+// draws get the last J clamped into them, as DrawVirtualSubject does.
 double DrawBodyAndInertia(Draw& draw, const SubjectRanges& ranges,
                           std::pair<double, double> height_m, std::pair<double, double> bmi,
-                          const char* generator, Anthropometrics& a) {
+                          Anthropometrics& a) {
   double j = 0.0;
   for (int attempt = 0;; ++attempt) {
     a.height_m = draw.Uniform(height_m.first, height_m.second);
@@ -221,8 +221,8 @@ double DrawBodyAndInertia(Draw& draw, const SubjectRanges& ranges,
         draw.Uniform(0.9, 1.1);
     if (j >= ranges.min_inertia_kgm2 && j <= ranges.max_inertia_kgm2) break;
     if (attempt == 1000) {
-      throw std::invalid_argument(std::string(generator) +
-                                  ": the inertia range admits no subject");
+      j = std::clamp(j, ranges.min_inertia_kgm2, ranges.max_inertia_kgm2);
+      break;
     }
   }
   a.accel_distance_m = draw.Uniform(0.24, 0.31);  // ≈ 11 in (§5.1)
@@ -242,8 +242,7 @@ VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& rang
   s.fidelity = Fidelity::Default();
 
   Anthropometrics& a = s.anthropometrics;
-  const double j =
-      DrawBodyAndInertia(draw, ranges, {1.55, 1.93}, {19.0, 29.0}, "DrawAnalyticSubject", a);
+  const double j = DrawBodyAndInertia(draw, ranges, {1.55, 1.93}, {19.0, 29.0}, a);
   const double mgl_nm = kShankFootMassFraction * a.body_mass_kg * model::kStandardGravity_m_s2 *
                         kShankFootComFraction * a.shank_length_m;
   const double hang_deg = HangingAngleDeg(a);
@@ -353,8 +352,7 @@ VirtualSubject DrawPlateauSubject(std::uint64_t seed, const SubjectRanges& range
   s.fidelity.fatigue_recovery_s = draw.Uniform(90.0, 180.0);
 
   Anthropometrics& a = s.anthropometrics;
-  const double j =
-      DrawBodyAndInertia(draw, ranges, {1.50, 1.95}, {18.0, 32.0}, "DrawPlateauSubject", a);
+  const double j = DrawBodyAndInertia(draw, ranges, {1.50, 1.95}, {18.0, 32.0}, a);
   const double mgl_nm = kShankFootMassFraction * a.body_mass_kg * model::kStandardGravity_m_s2 *
                         kShankFootComFraction * a.shank_length_m;
   const double hang_deg = HangingAngleDeg(a);

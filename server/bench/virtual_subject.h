@@ -68,7 +68,8 @@ std::optional<SubjectFamily> SubjectFamilyFromName(std::string_view name);
 /// random stream: seed N here is unrelated to DrawVirtualSubject(N)):
 /// - anthropometrics: height 1.55–1.93 m, body-mass index 19–29 kg/m²;
 ///   J = (Eq. 4.13 + brace)·(0.9–1.1), redrawn until inside the ranges (so
-///   the anthropometrics and J always agree);
+///   the anthropometrics and J agree; for ranges no such body reaches in
+///   1000 draws, J is clamped into them, as DrawVirtualSubject does);
 /// - τ_pta(θ) = m·g·l·sin(θ − θ_hang) + k1·e^{k2(θ−θ_hi)} − k3·e^{−k4(θ−θ_lo)}
 ///   (gravity plus exponential end-range stiffness, Eq. 7.3 of §7.4.4 with an
 ///   extension-end term), θ_hi 100–115°, θ_lo 5–20°, each end term ≤ 50 N·m
@@ -93,7 +94,8 @@ VirtualSubject DrawAnalyticSubject(std::uint64_t seed, const SubjectRanges& rang
 /// Draws a subject of the plateau family from the seed (an independent
 /// random stream: seed N here is unrelated to the other families' seed N):
 /// - anthropometrics: height 1.50–1.95 m, body-mass index 18–32 kg/m²;
-///   J = (Eq. 4.13 + brace)·(0.9–1.1), redrawn until inside the ranges;
+///   J = (Eq. 4.13 + brace)·(0.9–1.1), redrawn until inside the ranges (or
+///   clamped into them, as DrawAnalyticSubject);
 /// - τ_pta(θ) = m·g·l·sin(θ − θ_hang) + A_hi·e^{(θ−110°)/w_hi} −
 ///   A_lo·e^{(10°−θ)/w_lo}: gravity plus steep exponential stiffness at both
 ///   ends (Eq. 7.3 of §7.4.4 with an extension-end term), A 20–50 N·m at

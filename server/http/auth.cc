@@ -171,4 +171,6 @@ void Authenticator::Invalidate() {
   cache_.clear();
 }
 
+services::Actor ActorOf(const storage::User& user) { return {user.id, user.name, user.role}; }
+
 }  // namespace fesbench::server::http

@@ -114,4 +114,7 @@ class Authenticator {
   std::unordered_map<std::string, Bucket> buckets_;
 };
 
+/// The services' Actor (who acts, with which role) for an authenticated user.
+services::Actor ActorOf(const storage::User& user);
+
 }  // namespace fesbench::server::http

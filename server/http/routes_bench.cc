@@ -2,14 +2,16 @@
 // event stream, bench state, e-stop, the virtual subject (docs/API.md; docs/SAFETY.md).
 
 #include <chrono>
+#include <utility>
 
+#include "api/run_start.h"
+#include "server/http/api_routes.h"
+#include "server/http/auth.h"
+#include "server/http/routes_common.h"
+#include "server/protocols/protocol.h"
 #include "server/services/bench_service.h"
 #include "server/services/run_service.h"
 #include "server/services/sample_hub.h"
-
-#include "server/http/api_routes.h"
-#include "server/http/routes_common.h"
-#include "server/http/services_json.h"
 
 namespace fesbench::server::http {
 
@@ -151,7 +153,9 @@ void AddRunRoutes(RouteTable& table, const ApiDependencies& deps) {
            {"protocol"}),
        .handler = [runs](RequestContext& ctx) -> api::Result<Reply> {
          if (!runs) return NotAvailable("the bench");
-         auto request = StartRunFromJson(ctx.body);
+         api::Result<api::StartRunRequest> read = api::StartRunRequestFromJson(ctx.body);
+         if (!read.ok()) return read.status();
+         auto request = protocols::ResolveChoiceNames(std::move(read).value());
          if (!request.ok()) return request.status();
          auto view = runs->Start(ActorOf(*ctx.user), ctx.Id("session_id"), request->protocol,
                                  request->parameters, request->ceiling_reason,

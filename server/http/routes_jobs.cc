@@ -3,15 +3,15 @@
 // A submission answers 202 with the job record (Location: /api/v1/jobs/{id});
 // GET /jobs/{id} follows it to "done" (result) or "failed" (error).
 
+#include "server/http/api_routes.h"
+#include "server/http/auth.h"
+#include "server/http/routes_common.h"
 #include "server/services/analysis_json.h"
 #include "server/services/comparison_service.h"
 #include "server/services/identification_service.h"
 #include "server/services/job_pool.h"
 #include "server/services/prediction_service.h"
 #include "storage/parameter_sets.h"
-#include "server/http/api_routes.h"
-#include "server/http/routes_common.h"
-#include "server/http/services_json.h"
 
 namespace fesbench::server::http {
 

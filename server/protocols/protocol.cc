@@ -443,4 +443,30 @@ nlohmann::json CatalogToJson(const SubjectContext* session, bool session_has_lim
   return api::ProtocolCatalogueToJson(protocols);
 }
 
+api::Result<api::StartRunRequest> ResolveChoiceNames(api::StartRunRequest request) {
+  const ProtocolDescription* description = FindProtocol(request.protocol);
+  if (description == nullptr) {
+    return api::Status(api::ErrorCode::kNotFound, "protocol " + request.protocol + " not found",
+                       "protocol");
+  }
+  for (const auto& [name, chosen] : request.choices) {
+    const std::string field = "parameters." + name;
+    const auto spec = std::find_if(description->parameters.begin(), description->parameters.end(),
+                                   [&](const ParameterSpec& s) { return s.name == name; });
+    if (spec == description->parameters.end() || spec->choices.empty()) {
+      return api::Status::InvalidArgument("must be a number, got string", field);
+    }
+    const auto it = std::find(spec->choices.begin(), spec->choices.end(), chosen);
+    if (it == spec->choices.end()) {
+      std::string names;
+      for (const std::string& c : spec->choices) names += (names.empty() ? "" : ", ") + c;
+      return api::Status::InvalidArgument("'" + chosen.substr(0, 40) + "' is not one of " + names,
+                                          field);
+    }
+    request.parameters[name] = static_cast<double>(it - spec->choices.begin());
+  }
+  request.choices.clear();
+  return request;
+}
+
 }  // namespace fesbench::server::protocols

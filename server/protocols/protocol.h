@@ -194,6 +194,13 @@ api::Result<ParameterValues> ResolveParameters(const ProtocolDescription& protoc
                                                const ParameterValues& values,
                                                const SubjectContext& subject);
 
+/// `request` with each choice it gives by name ("target": "uploaded") turned
+/// into its index among the protocol's choices, in `parameters` (`choices`
+/// is then empty): kNotFound naming "protocol" for a protocol not in the
+/// catalogue, kInvalidArgument naming "parameters.<name>" for a name that is
+/// not a choice parameter's or not one of its choices.
+api::Result<api::StartRunRequest> ResolveChoiceNames(api::StartRunRequest request);
+
 /// How a parameter reads to a clinician (docs/PROTOCOLS.md, "Parameters"): label, unit and
 /// whether the web form folds it away, by parameter name.
 struct ParameterPresentation {

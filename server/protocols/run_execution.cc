@@ -132,12 +132,13 @@ bool RunExecution::EnterStep(const Step& step) {
     move_from_ = std::clamp(move_from_, subject_.min_angle_deg, subject_.max_angle_deg);
   }
   if (step.closed_loop && plan_.tracking && !tracking_) {
-    try {
-      tracking_.emplace(*plan_.tracking, bench_.ReadSensors().angle_deg);
-    } catch (const std::invalid_argument& e) {
-      aborted_ = Abort{RunTransition::kError, std::string("tracking: ") + e.what()};
+    api::Result<TrackingLoop> loop =
+        TrackingLoop::Create(*plan_.tracking, bench_.ReadSensors().angle_deg);
+    if (!loop.ok()) {
+      aborted_ = Abort{RunTransition::kError, "tracking: " + loop.status().message()};
       return false;
     }
+    tracking_.emplace(std::move(loop).value());
     if (recorder_.open()) recorder_.MarkClosedLoop();
   }
   offset_sum_ = offset_sq_ = 0.0;

@@ -3,8 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
-#include <stdexcept>
 #include <vector>
+
+#include "api/model_call.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -13,34 +14,45 @@ constexpr double kSampleRateHz = 200.0;  // the controller's rate (the trials')
 
 }  // namespace
 
-TrackingLoop::TrackingLoop(const TrackingSettings& settings, double start_angle_deg)
-    : settings_(settings) {
-  model::KneeTarget target =
-      model::WithLeadIn(settings.target, start_angle_deg, settings.lead_in_s);
+api::Result<TrackingLoop> TrackingLoop::Create(const TrackingSettings& settings,
+                                               double start_angle_deg) {
+  api::Result<model::KneeTarget> target = api::CallModel(
+      [&] { return model::WithLeadIn(settings.target, start_angle_deg, settings.lead_in_s); });
+  if (!target.ok()) return target.status();
+  TrackingLoop loop(settings);
   if (settings.params) {
-    controller_.emplace(*settings.params, std::move(target), settings.options);
-    return;
+    if (api::Status st = api::CallModel([&] {
+          loop.controller_.emplace(*settings.params, std::move(target).value(), settings.options);
+        });
+        !st.ok()) {
+      return st;
+    }
+    return loop;
   }
   const model::TrackingOptions& o = settings.options;
   if (o.kind != model::ControllerKind::kPid || !o.gains) {
-    throw std::invalid_argument("only pid with its gains given runs without a parameter set");
+    return api::Status::InvalidArgument(
+        "only pid with its gains given runs without a parameter set");
   }
   if (!(std::isfinite(o.threshold_ma) && o.threshold_ma >= 0.0 &&
         std::isfinite(o.max_amplitude_ma) && o.max_amplitude_ma >= o.threshold_ma)) {
-    throw std::invalid_argument("need 0 ≤ threshold_ma ≤ max_amplitude_ma");
+    return api::Status::InvalidArgument("need 0 ≤ threshold_ma ≤ max_amplitude_ma");
   }
-  if (target.angle_deg.empty() || !(target.rate_hz > 0.0)) {
-    throw std::invalid_argument("the target is empty");
+  if (target->angle_deg.empty() || !(target->rate_hz > 0.0)) {
+    return api::Status::InvalidArgument("the target is empty");
   }
-  target_ = std::move(target);
-  pid_.emplace(*o.gains, 1.0 / target_.rate_hz, 0.0, o.max_amplitude_ma);
-  oscillation_.emplace(target_.rate_hz, model::OscillationDetector::Options{});
+  loop.target_ = std::move(target).value();
+  if (api::Status st = api::CallModel([&] {
+        loop.pid_.emplace(*o.gains, 1.0 / loop.target_.rate_hz, 0.0, o.max_amplitude_ma);
+        loop.oscillation_.emplace(loop.target_.rate_hz, model::OscillationDetector::Options{});
+      });
+      !st.ok()) {
+    return st;
+  }
+  return loop;
 }
 
 model::TrackingSample TrackingLoop::UpdateModelFreePid(double measured_deg) {
-  if (!std::isfinite(measured_deg)) {
-    throw std::invalid_argument("tracking: the measured angle is not finite");
-  }
   const std::size_t i = std::min(index_, target_.angle_deg.size() - 1);
   model::TrackingSample s;
   s.target_deg = target_.angle_deg[i];
@@ -57,6 +69,9 @@ model::TrackingSample TrackingLoop::UpdateModelFreePid(double measured_deg) {
 }
 
 std::optional<std::string> TrackingLoop::Sample(double measured_deg) {
+  // The one input the controllers cannot take once built (model::TrackingController::Update
+  // requires it): the run ends, as for a saturated or oscillating loop.
+  if (!std::isfinite(measured_deg)) return "tracking: the measured angle is not finite";
   last_ = controller_ ? controller_->Update(measured_deg) : UpdateModelFreePid(measured_deg);
   ++index_;
   // Below the controller: the slew limit (SafeBench then clamps the

@@ -11,6 +11,7 @@
 #include <optional>
 #include <string>
 
+#include "api/status.h"
 #include "api/trial.h"
 #include "model/tracking.h"
 #include "server/protocols/tracking_plan.h"
@@ -22,15 +23,17 @@ class TrackingLoop {
   /// Builds the controller for `settings`' target after a lead-in from
   /// `start_angle_deg`, the knee's angle when the step starts. Without a
   /// set, pid with its gains given runs as the amplitude PID alone (it uses
-  /// no model; docs/PROTOCOLS.md, tracking).
-  /// @throws std::invalid_argument as model::TrackingController, and for a
-  ///   model-based controller or pid without gains when there is no set.
-  TrackingLoop(const TrackingSettings& settings, double start_angle_deg);
+  /// no model; docs/PROTOCOLS.md, tracking). `settings` must outlive the
+  /// loop. kInvalidArgument with the model's message for what
+  /// model::WithLeadIn or model::TrackingController refuses, and for a
+  /// model-based controller or pid without gains when there is no set.
+  static api::Result<TrackingLoop> Create(const TrackingSettings& settings, double start_angle_deg);
 
   /// One 200 Hz sample: the controller's decision for the knee angle
   /// measured now, slew-limited. Returns the reason the run must end when
-  /// the controller has stayed saturated longer than max_saturation_s, or
-  /// when the knee still oscillates after the controller halved its gains
+  /// the measured angle is not finite, when the controller has stayed
+  /// saturated longer than max_saturation_s, or when the knee still
+  /// oscillates after the controller halved its gains
   /// model::kMaxOscillationBackoffs times (docs/SAFETY.md, "Closed-loop
   /// stimulation").
   std::optional<std::string> Sample(double measured_deg);
@@ -52,6 +55,8 @@ class TrackingLoop {
   void Summarise(const api::Trial& trial, std::map<std::string, double>& values) const;
 
  private:
+  explicit TrackingLoop(const TrackingSettings& settings) : settings_(settings) {}
+
   // pid without a set: the threshold plus the amplitude PID, as
   // model::TrackingController's pid does (model/tracking.h).
   model::TrackingSample UpdateModelFreePid(double measured_deg);

@@ -13,10 +13,10 @@
 
 #include "api/status.h"
 #include "server/bench/bench.h"
+#include "server/bench/swappable_bench.h"
 #include "server/bench/virtual_subject.h"
 #include "server/services/actor.h"
 #include "server/services/run_service.h"
-#include "server/services/swappable_bench.h"
 #include "storage/database.h"
 
 namespace fesbench::server::services {

@@ -7,8 +7,6 @@
 #include <utility>
 #include <vector>
 
-#include "server/protocols/run_json.h"
-
 namespace fesbench::server::services {
 
 struct Subscription::Queue {

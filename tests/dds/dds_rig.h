@@ -89,7 +89,7 @@ struct Rig {
     SimulatedBenchOptions bo;
     bo.time_scale = time_scale;
     bo.seed = 3;
-    bench = std::make_unique<services::SwappableSimulatedBench>(vs, bo);
+    bench = SwappableSimulatedBench::Create(vs, bo).value();
     services::RunServiceConfig config;
     config.time_scale = time_scale;
     config.arm_watchdog = false;
@@ -157,7 +157,7 @@ struct Rig {
   std::string clinician_token, analyst_token;
   VirtualSubject vs;
   std::int64_t subject_id = 0, left_leg = 0, right_leg = 0, session_id = 0;
-  std::unique_ptr<services::SwappableSimulatedBench> bench;
+  std::unique_ptr<SwappableSimulatedBench> bench;
   services::SampleHub hub;
   std::unique_ptr<services::ParameterSetEvents> set_events;
   std::unique_ptr<services::RunService> runs;

@@ -38,7 +38,7 @@ struct Rig {
 
     SimulatedBenchOptions bo;
     bo.time_scale = time_scale;
-    bench = std::make_unique<SwappableSimulatedBench>(DrawVirtualSubject(21), bo);
+    bench = SwappableSimulatedBench::Create(DrawVirtualSubject(21), bo).value();
     RunServiceConfig config;
     config.time_scale = time_scale;
     config.arm_watchdog = false;

@@ -96,7 +96,7 @@ struct Rig {
     SimulatedBenchOptions options;  // time scale 0: as fast as the device answers
     // As the server opens it: the leg's pulse clock at the device's own rate.
     options.limits.pulse_rate_hz = sciencemode2::DevicePulseRateHz(options.limits.pulse_rate_hz);
-    bench = std::make_unique<ComposedBench>(std::make_unique<SimulatedBench>(subject, options),
+    bench = std::make_unique<ComposedBench>(SimulatedBench::Create(subject, options).value(),
                                             std::move(recording));
     safe = std::make_unique<SafeBench>(*bench, log.sink());
   }
@@ -119,7 +119,10 @@ struct Rig {
     return runner.Run(*plan, ctx);
   }
 
-  Emulator emulator;
+  // A test's rig: a pseudo-terminal that will not open is the machine's
+  // fault, not the code's (Emulator::Open).
+  std::unique_ptr<Emulator> emulator_owner = Emulator::Open().value();
+  Emulator& emulator = *emulator_owner;
   VirtualSubject subject;
   bool connected = false;
   std::string connect_fault;

@@ -25,7 +25,8 @@ SubjectContext Context(const VirtualSubject& vs) { return test::WithKnownInertia
 
 RunResult RunOn(const VirtualSubject& vs, const std::string& protocol, const SubjectContext& ctx,
               ParameterValues values = {}) {
-  SimulatedBench bench(vs);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+  SimulatedBench& bench = *bench_owner;
   SafetyEventLog log;
   SafeBench safe(bench, log.sink());
   auto plan = MakePlan(protocol, values, ctx);

@@ -612,5 +612,40 @@ TEST(RunState, TransitionTable) {
   EXPECT_EQ(RunStateName(RunState::kAborted), "aborted");
 }
 
+TEST(ResolveChoiceNames, TurnsChoiceNamesIntoIndicesAndNamesWhatItRefuses) {
+  api::StartRunRequest request;
+  request.protocol = "tracking";
+  request.parameters["duration_s"] = 20.0;
+  request.choices["target"] = "uploaded";
+  request.choices["controller"] = "pid";
+  const api::Result<api::StartRunRequest> resolved = ResolveChoiceNames(request);
+  ASSERT_TRUE(resolved.ok()) << resolved.status().ToString();
+  EXPECT_TRUE(resolved->choices.empty());
+  EXPECT_EQ(resolved->parameters,
+            (ParameterValues{{"duration_s", 20.0}, {"target", 3.0}, {"controller", 0.0}}));
+
+  api::StartRunRequest unknown = request;
+  unknown.protocol = "juggling";
+  const api::Result<api::StartRunRequest> not_found = ResolveChoiceNames(unknown);
+  ASSERT_FALSE(not_found.ok());
+  EXPECT_EQ(not_found.status().code(), api::ErrorCode::kNotFound);
+  EXPECT_EQ(not_found.status().message(), "protocol juggling not found");
+  EXPECT_EQ(not_found.status().field(), "protocol");
+
+  api::StartRunRequest other = request;
+  other.choices["target"] = "circle";
+  const api::Result<api::StartRunRequest> not_a_choice = ResolveChoiceNames(other);
+  ASSERT_FALSE(not_a_choice.ok());
+  EXPECT_EQ(not_a_choice.status().message(), "'circle' is not one of sine, holds, ramp, uploaded");
+  EXPECT_EQ(not_a_choice.status().field(), "parameters.target");
+
+  api::StartRunRequest number = request;
+  number.choices = {{"duration_s", "long"}};
+  const api::Result<api::StartRunRequest> not_choice_parameter = ResolveChoiceNames(number);
+  ASSERT_FALSE(not_choice_parameter.ok());
+  EXPECT_EQ(not_choice_parameter.status().message(), "must be a number, got string");
+  EXPECT_EQ(not_choice_parameter.status().field(), "parameters.duration_s");
+}
+
 }  // namespace
 }  // namespace fesbench::server::protocols

@@ -17,7 +17,6 @@
 #include "server/bench/simulated_bench.h"
 #include "server/protocols/plan.h"
 #include "server/protocols/rapid_identification.h"
-#include "server/protocols/run_json.h"
 #include "server/protocols/runner.h"
 
 namespace fesbench::server::protocols {
@@ -56,7 +55,8 @@ double Rms(const std::vector<double>& a, const std::vector<double>& b) {
 Leg RunLegUncached(std::pair<SubjectFamily, std::uint64_t> key) {
   Leg leg;
   leg.subject = DrawSubject(key.second, key.first);
-  SimulatedBench bench(leg.subject);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(leg.subject).value();
+  SimulatedBench& bench = *bench_owner;
   SafetyEventLog log;
   SafeBench safe(bench, log.sink());
   const SubjectContext ctx = Context(leg.subject);
@@ -103,7 +103,7 @@ TEST_P(RapidRoutine, IdentifiesTheWholeRangeAndPredictsFreshTrials) {
   const Leg& leg = RunLeg(GetParam());
   ASSERT_EQ(leg.rapid.state, RunState::kDone) << leg.rapid.reason;
   ASSERT_TRUE(leg.rapid.parameter_set.has_value());
-  const auto wire = api::ParameterSetFromJson(RunResultToJson(leg.rapid).at("parameter_set"));
+  const auto wire = api::ParameterSetFromJson(api::ParameterSetToJson(*leg.rapid.parameter_set));
   ASSERT_TRUE(wire.ok()) << wire.status().ToString();
   const model::ParameterSet& p = *leg.rapid.parameter_set;
   // §7.4.1: under 30 s of bench time.
@@ -172,7 +172,8 @@ TEST(RapidRoutineInertia, WithinTenPercentOnEveryFamily) {
         std::pair{SubjectFamily::kPlateau, std::uint64_t{13}}}) {
     const VirtualSubject subject = DrawSubject(seed, family);
     SCOPED_TRACE(subject.name);
-    SimulatedBench bench(subject);
+    const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(subject).value();
+    SimulatedBench& bench = *bench_owner;
     SafetyEventLog log;
     SafeBench safe(bench, log.sink());
     const SubjectContext ctx = Context(subject);
@@ -196,7 +197,8 @@ class FreeSwingInertia : public ::testing::TestWithParam<std::uint64_t> {};
 
 TEST_P(FreeSwingInertia, OutputErrorInertiaWithinTenPercent) {
   const VirtualSubject vs = DrawVirtualSubject(GetParam());
-  SimulatedBench bench(vs);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+  SimulatedBench& bench = *bench_owner;
   SafetyEventLog log;
   SafeBench safe(bench, log.sink());
   const SubjectContext ctx = Context(vs);

@@ -69,7 +69,9 @@ class CountingObserver : public RunObserver {
 };
 
 TEST(TrialRecorder, RecordsChannelsOffsetsAndBatchesAtTheBenchsRates) {
-  SimulatedBench bench(DrawVirtualSubject(3));
+  const std::unique_ptr<SimulatedBench> bench_owner =
+      SimulatedBench::Create(DrawVirtualSubject(3)).value();
+  SimulatedBench& bench = *bench_owner;
   SafetyEventLog log;
   SafeBench safe(bench, log.sink());
   CountingObserver observer;

@@ -99,7 +99,7 @@ struct Rig {
     };
     VirtualSubject on_bench = vs;
     if (o.subject_tolerates_ma > 0.0) on_bench.max_tolerated_ma = o.subject_tolerates_ma;
-    bench = std::make_unique<SwappableSimulatedBench>(on_bench, bo);
+    bench = SwappableSimulatedBench::Create(on_bench, bo).value();
 
     config.time_scale = o.time_scale;
     config.arm_watchdog = o.arm_watchdog;

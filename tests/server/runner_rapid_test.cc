@@ -11,7 +11,6 @@
 #include "model/identify_rapid.h"
 #include "model/simulate.h"
 #include "server/protocols/rapid_identification.h"
-#include "server/protocols/run_json.h"
 #include "server/protocols/runner.h"
 #include "tests/server/runner_rig.h"
 
@@ -81,7 +80,7 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   EXPECT_EQ(p.provenance.irc_method, "ramp_correlation");
   EXPECT_EQ(p.provenance.passive_method, "free_swing_known_inertia");
   // A valid wire parameter set (docs/MODEL.md JSON), as the run summary carries it.
-  const auto wire = api::ParameterSetFromJson(RunResultToJson(out.run).at("parameter_set"));
+  const auto wire = api::ParameterSetFromJson(api::ParameterSetToJson(*out.run.parameter_set));
   EXPECT_TRUE(wire.ok()) << wire.status().ToString();
   // Contraction pole (3rd order): series elasticity delays the twitch peak
   // (Fig. 6-13), so the estimate runs low; within 10 % (measured over seeds

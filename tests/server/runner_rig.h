@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -40,9 +41,13 @@ struct Rig {
       : Rig(DrawVirtualSubject(seed), std::move(options)) {}
   /// The same for a given subject (another family, changed fidelity).
   explicit Rig(VirtualSubject vs, SimulatedBenchOptions options = {})
-      : subject(std::move(vs)), bench(subject, std::move(options)), safe(bench, log.sink()) {}
+      : subject(std::move(vs)),
+        bench_owner(SimulatedBench::Create(subject, std::move(options)).value()),
+        bench(*bench_owner),
+        safe(bench, log.sink()) {}
   VirtualSubject subject;
-  SimulatedBench bench;
+  std::unique_ptr<SimulatedBench> bench_owner;  // a valid subject: Create succeeds
+  SimulatedBench& bench;
   SafetyEventLog log;
   SafeBench safe;
 };

@@ -16,13 +16,13 @@
 #include <numeric>
 
 #include "api/parameter_set_json.h"
+#include "api/run_outcome.h"
 #include "model/identify_rapid.h"
 #include "model/simulate.h"
 #include "server/bench/simulated_bench.h"
 #include "server/protocols/bench_owner.h"
 #include "server/protocols/model_gate.h"
 #include "server/protocols/rapid_identification.h"
-#include "server/protocols/run_json.h"
 #include "tests/server/runner_rig.h"
 #include "tests/support/manual_clock.h"
 
@@ -221,21 +221,21 @@ TEST(Runner, ToleranceTestFindsThresholdAndStopsWhereTheClinicianStops) {
   EXPECT_DOUBLE_EQ(stop.last.bench_planned_s, plan->duration_s());  // kept, by its own name
 }
 
-TEST(RunJson, SummarisesTheRunWithUnitsInKeys) {
+TEST(RunWire, ARunsPiecesCarryTheirUnitsInTheirKeys) {
   Rig rig(7);
   const SubjectContext ctx = Context(rig.subject);
   auto plan = MakePlan("tolerance_test", {{"ceiling_ma", 30.0}, {"rate_ma_per_s", 5.0}}, ctx);
   ASSERT_TRUE(plan.ok());
   ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
   const RunResult r = runner.Run(*plan, ctx);
-  const nlohmann::json j = RunResultToJson(r);
-  EXPECT_EQ(j.at("state"), "done");
-  EXPECT_EQ(j.at("protocol"), "tolerance_test");
-  EXPECT_DOUBLE_EQ(j.at("parameters").at("ceiling_ma").get<double>(), 30.0);
-  ASSERT_EQ(j.at("trials").size(), 1u);
-  EXPECT_EQ(j.at("trials")[0].at("samples").get<std::size_t>(), r.trials[0].trial.num_samples());
-  EXPECT_NEAR(j.at("tolerance").at("max_tolerated_ma").get<double>(), 30.0, 0.05);
-  EXPECT_FALSE(j.contains("parameter_set"));
+  EXPECT_EQ(r.state, RunState::kDone);
+  EXPECT_EQ(r.protocol, "tolerance_test");
+  EXPECT_DOUBLE_EQ(r.parameters.at("ceiling_ma"), 30.0);
+  ASSERT_EQ(r.trials.size(), 1u);
+  ASSERT_TRUE(r.tolerance.has_value());
+  EXPECT_NEAR(api::ToleranceResultToJson(*r.tolerance).at("max_tolerated_ma").get<double>(), 30.0,
+              0.05);
+  EXPECT_FALSE(r.parameter_set.has_value());
   SafetyEvent e{SafetyEvent::Kind::kStimClamped, 1.5, 120.0, 45.0, "limited"};
   const nlohmann::json ej = api::SafetyEventToJson(e);
   EXPECT_EQ(ej.at("kind"), "stim_clamped");
@@ -449,7 +449,8 @@ TEST(Runner, WatchdogStopsTheRunWhenHeartbeatsStop) {
     }
   };
   const VirtualSubject vs = Subject(7);
-  SimulatedBench bench(vs, o);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs, o).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwnerOptions bo;
   bo.clock = &wall;
   BenchOwner own(bench, bo);
@@ -501,7 +502,8 @@ class Gate : public RunObserver {
 
 TEST(BenchOwner, OneRunAtATimeAndCancelFromAnotherThread) {
   const VirtualSubject vs = Subject(7);
-  SimulatedBench bench(vs);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwnerOptions bo;
   bo.runner.arm_watchdog = false;
   BenchOwner own(bench, bo);
@@ -530,7 +532,8 @@ TEST(BenchOwner, OneRunAtATimeAndCancelFromAnotherThread) {
 
 TEST(BenchOwner, RefusesBadRequestsAndLatchedEStop) {
   const VirtualSubject vs = Subject(7);
-  SimulatedBench bench(vs);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwner own(bench);
   StartRequest bad{"isometric_step_irc", {{"rest_s", 3.0}}, Context(vs), "alice"};
   const api::Status st = own.Start(bad);
@@ -616,7 +619,8 @@ TEST(ModelGate, RefusesOnlyAFastArrivalAtAStopAndNamesIt) {
   const VirtualSubject vs = Subject(7);
   SimulatedBenchOptions strict;
   strict.limits.max_stop_impact_deg_s = 90.0;
-  SimulatedBench bench(vs, strict);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs, strict).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwner own(bench);
   const api::Status st = own.Start({"prediction_step", {}, ctx, "a"});
   EXPECT_EQ(st.code(), api::ErrorCode::kFailedPrecondition) << st.ToString();

@@ -88,7 +88,9 @@ ChannelListInit TwoChannels() {
 }
 
 TEST(ScienceMode2Pty, InitChannelListStartStopAreAckedAndRecorded) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
@@ -119,7 +121,9 @@ TEST(ScienceMode2Pty, InitChannelListStartStopAreAckedAndRecorded) {
 }
 
 TEST(ScienceMode2Pty, WrongChannelCountIsAParameterErrorAndStartBeforeInitAWrongModeError) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
@@ -138,7 +142,9 @@ TEST(ScienceMode2Pty, WrongChannelCountIsAParameterErrorAndStartBeforeInitAWrong
 }
 
 TEST(ScienceMode2Pty, BadChecksumFromThePcIsAckedWithTransferError) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
@@ -152,7 +158,9 @@ TEST(ScienceMode2Pty, BadChecksumFromThePcIsAckedWithTransferError) {
 }
 
 TEST(ScienceMode2Pty, UnknownCommandIsEchoed) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
@@ -164,7 +172,9 @@ TEST(ScienceMode2Pty, UnknownCommandIsEchoed) {
 }
 
 TEST(ScienceMode2Pty, CorruptRepliesFailTheirChecksum) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   emulator.set_fault(EmulatorFault::kCorruptReplies);
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
@@ -174,7 +184,9 @@ TEST(ScienceMode2Pty, CorruptRepliesFailTheirChecksum) {
 }
 
 TEST(ScienceMode2Pty, SilentDeviceAnswersNothing) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
@@ -184,7 +196,9 @@ TEST(ScienceMode2Pty, SilentDeviceAnswersNothing) {
 }
 
 TEST(ScienceMode2Pty, PulledCableIsAHangUp) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
@@ -196,7 +210,9 @@ TEST(ScienceMode2Pty, PulledCableIsAHangUp) {
 
 TEST(ScienceMode2Pty, DeviceWatchdogStopsStimulationWithoutTraffic) {
   // §2.3: WatchdogTimeout 1200 ms; §5.2: stimulation stopped, Init resent.
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
@@ -215,7 +231,9 @@ TEST(ScienceMode2Pty, DeviceWatchdogStopsStimulationWithoutTraffic) {
 
 TEST(ScienceMode2Pty, GetStimulationModeIsAnsweredWithTheMode) {
   // §4.2: result 0, then 0 start mode, 1 initialised, 2 running.
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Link link(emulator.port_path());
   ASSERT_TRUE(link.error().ok()) << link.error().ToString();
   link.Connect();
@@ -241,7 +259,9 @@ TEST(ScienceMode2Pty, GetStimulationModeIsAnsweredWithTheMode) {
 // on a real pty: the RehaStim 2's (§2.1 Table 4) and the P24's (the
 // ScienceMode4 library's smpt_serial_port_linux.c).
 TEST(SerialPortOnAPty, EachDevicesSettingsReadBack) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   SerialPort port;
   ASSERT_TRUE(port.Open(emulator.port_path(), ScienceMode2Settings()).ok());
   const SerialSettings sm2 = port.settings();
@@ -263,7 +283,9 @@ TEST(SerialPortOnAPty, EachDevicesSettingsReadBack) {
 }
 
 TEST(SerialPortOnAPty, APortAnotherProgramLeftConfiguredOpens) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   {
     // What another program may leave: canonical mode, echo, XON/XOFF, odd
     // parity, 7 bits, 9600 baud, no CLOCAL (the open would wait for carrier).
@@ -295,7 +317,9 @@ TEST(SerialPortOnAPty, APortAnotherProgramLeftConfiguredOpens) {
 }
 
 TEST(SerialPortOnAPty, APortHeldByAnotherProcessIsRefusedNamingIt) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   const std::string path = emulator.port_path();
   // util-linux flock(1) holds the same advisory lock the server takes (-o:
   // flock itself, not the command it runs, keeps the port open).

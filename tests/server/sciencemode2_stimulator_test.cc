@@ -34,7 +34,9 @@ StimulatorConfig ConfigFor(const Emulator& emulator) {
 }
 
 TEST(ScienceMode2Stimulator, RampIsDeliveredWithinTheDeviceResolution) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   // A 0 → 50 mA ramp in 0.7 mA steps; the device's step is 1 mA (§4.3),
@@ -60,7 +62,9 @@ TEST(ScienceMode2Stimulator, RampIsDeliveredWithinTheDeviceResolution) {
 }
 
 TEST(ScienceMode2Stimulator, RefusesAboveTheSessionMaximumAndStops) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   ASSERT_TRUE(stim.SetAmplitude(30.0).ok());
@@ -75,7 +79,9 @@ TEST(ScienceMode2Stimulator, RefusesAboveTheSessionMaximumAndStops) {
 }
 
 TEST(ScienceMode2Stimulator, EmergencyStopFromAnotherThreadStopsTheDeviceAndLatches) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   ASSERT_TRUE(stim.SetAmplitude(20.0).ok());
@@ -103,7 +109,9 @@ TEST(ScienceMode2Stimulator, EmergencyStopFromAnotherThreadStopsTheDeviceAndLatc
 }
 
 TEST(ScienceMode2Stimulator, SinglePulseStopsTheTrainFirstAndIsRoundedDown) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   ASSERT_TRUE(stim.SetAmplitude(20.0).ok());
@@ -127,7 +135,9 @@ TEST(ScienceMode2Stimulator, SinglePulseStopsTheTrainFirstAndIsRoundedDown) {
 
 TEST(ScienceMode2Stimulator, FaultStopsTheDevice) {
   // The bench e-stop path: Fault() sends StopChannelListMode at once.
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   ASSERT_TRUE(stim.SetAmplitude(20.0).ok());
@@ -140,7 +150,9 @@ TEST(ScienceMode2Stimulator, FaultStopsTheDevice) {
 }
 
 TEST(ScienceMode2Stimulator, LostDeviceIsAFaultNamingTheCable) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   ASSERT_TRUE(stim.SetAmplitude(20.0).ok());
@@ -152,7 +164,9 @@ TEST(ScienceMode2Stimulator, LostDeviceIsAFaultNamingTheCable) {
 }
 
 TEST(ScienceMode2Stimulator, GarbledReplyIsAFaultNamingTheChecksum) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   emulator.set_fault(EmulatorFault::kCorruptReplies);
@@ -161,7 +175,9 @@ TEST(ScienceMode2Stimulator, GarbledReplyIsAFaultNamingTheChecksum) {
 }
 
 TEST(ScienceMode2Stimulator, SilenceIsATimeout) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   emulator.set_fault(EmulatorFault::kSilent);
@@ -187,7 +203,9 @@ TEST(ScienceMode2Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
   double worst_ms = 0;
   for (const Case& c : cases) {
     for (const auto phase : {0ms, 90ms, 170ms}) {  // where in the status period the fault falls
-      Emulator emulator;
+      auto opened = Emulator::Open();
+      ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+      Emulator& emulator = **opened;
       StimulatorConfig config;  // the defaults, as the server uses them
       config.port_path = emulator.port_path();
       config.session_max_ma = 60.0;
@@ -214,7 +232,9 @@ TEST(ScienceMode2Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
 }
 
 TEST(ScienceMode2Stimulator, ThePortHasTheDescriptionsSettings) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   const SerialSettings s = stim.port_settings();  // tcgetattr on the open port
@@ -227,7 +247,9 @@ TEST(ScienceMode2Stimulator, ThePortHasTheDescriptionsSettings) {
 TEST(ScienceMode2Stimulator, WatchdogKeepsTheDeviceStimulating) {
   // §2.3: without traffic the device stops after 1200 ms; the status query
   // (GetStimulationMode every 200 ms) is traffic.
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   ASSERT_TRUE(stim.SetAmplitude(10.0).ok());

@@ -129,7 +129,9 @@ StimulatorConfig ConfigFor(const Emulator& emulator) {
 }
 
 TEST(ScienceMode4Stimulator, PulsesAreBiphasicRoundedDownAndRefusedAboveTheMaximum) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   EXPECT_TRUE(emulator.initialised());
@@ -154,7 +156,9 @@ TEST(ScienceMode4Stimulator, PulsesAreBiphasicRoundedDownAndRefusedAboveTheMaxim
 }
 
 TEST(ScienceMode4Stimulator, EmergencyStopLatchesUntilCleared) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   std::thread([&] { stim.EmergencyStop(); }).join();
@@ -170,7 +174,9 @@ TEST(ScienceMode4Stimulator, EmergencyStopLatchesUntilCleared) {
 
 TEST(ScienceMode4Stimulator, LostGarbledAndSilentDevicesAreNamedFaults) {
   {
-    Emulator emulator;
+    auto opened = Emulator::Open();
+    ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+    Emulator& emulator = **opened;
     Stimulator stim(ConfigFor(emulator));
     ASSERT_TRUE(stim.Connect().ok());
     emulator.Unplug();
@@ -179,7 +185,9 @@ TEST(ScienceMode4Stimulator, LostGarbledAndSilentDevicesAreNamedFaults) {
         << stim.fault().ToString();
   }
   {
-    Emulator emulator;
+    auto opened = Emulator::Open();
+    ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+    Emulator& emulator = **opened;
     Stimulator stim(ConfigFor(emulator));
     ASSERT_TRUE(stim.Connect().ok());
     emulator.set_fault(EmulatorFault::kCorruptReplies);
@@ -187,7 +195,9 @@ TEST(ScienceMode4Stimulator, LostGarbledAndSilentDevicesAreNamedFaults) {
     EXPECT_EQ(stim.fault().message(), "stimulator reply garbled: checksum error");
   }
   {
-    Emulator emulator;
+    auto opened = Emulator::Open();
+    ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+    Emulator& emulator = **opened;
     Stimulator stim(ConfigFor(emulator));
     ASSERT_TRUE(stim.Connect().ok());
     emulator.set_fault(EmulatorFault::kSilent);
@@ -212,7 +222,9 @@ TEST(ScienceMode4Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
   double worst_ms = 0;
   for (const Case& c : cases) {
     for (const auto phase : {0ms, 90ms, 170ms}) {
-      Emulator emulator;
+      auto opened = Emulator::Open();
+      ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+      Emulator& emulator = **opened;
       StimulatorConfig config;  // the defaults
       config.port_path = emulator.port_path();
       config.session_max_ma = 60.0;
@@ -238,7 +250,9 @@ TEST(ScienceMode4Stimulator, ASilentResetOrStoppedDeviceIsNoticedWithinHalfASeco
 }
 
 TEST(ScienceMode4Stimulator, ThePortHasTheLibrarysSettings) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   Stimulator stim(ConfigFor(emulator));
   ASSERT_TRUE(stim.Connect().ok()) << stim.fault().ToString();
   const SerialSettings s = stim.port_settings();  // tcgetattr on the open port
@@ -249,13 +263,15 @@ TEST(ScienceMode4Stimulator, ThePortHasTheLibrarysSettings) {
 }
 
 TEST(ScienceMode4ComposedBench, EveryPulseTheLegReceivedWasSentToTheDevice) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   StimulatorConfig config;
   config.port_path = emulator.port_path();
   auto device = std::make_unique<Stimulator>(config);
   ASSERT_TRUE(device->Connect().ok()) << device->fault().ToString();
   const VirtualSubject subject = DrawVirtualSubject(7);
-  ComposedBench bench(std::make_unique<SimulatedBench>(subject), std::move(device));
+  ComposedBench bench(SimulatedBench::Create(subject).value(), std::move(device));
   EXPECT_EQ(bench.kind(), "sciencemode4+sim");
   protocols::SafetyEventLog log;
   SafeBench safe(bench, log.sink());

@@ -38,7 +38,8 @@ TEST(StrengthSession, KnownFatiguePredictsTheSessionsLaterTrialsCloser) {
         fid.fatigue_rate_per_s, fid.fatigue_recovery_s, fid.potentiation_max,
         fid.potentiation_rate_per_s, fid.potentiation_decay_s);
     const model::StrengthModel m(known);
-    SimulatedBench bench(vs);
+    const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+    SimulatedBench& bench = *bench_owner;
     SafetyEventLog log;
     SafeBench safe(bench, log.sink());
     SubjectContext ctx = test::WithKnownInertia(vs);

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <random>
 #include <sstream>
 
@@ -187,7 +188,8 @@ TEST(Tracking, TheDefaultTargetFitsAWeakLeg) {
   EXPECT_EQ(plan->tracking->max_rate_ma_per_s,
             std::round(model::DefaultSlewLimit(vs.truth, plan->tracking->target,
                                                plan->tracking->options)));
-  SimulatedBench bench(vs);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+  SimulatedBench& bench = *bench_owner;
   SafetyEventLog log;
   SafeBench safe(bench, log.sink());
   ProtocolRunner runner(safe, &log, nullptr, NoWatchdog());
@@ -411,7 +413,8 @@ TEST(Tracking, TheWatchdogStopsAnUnattendedRun) {
     if (owner != nullptr && t_s < 6.0 && std::fmod(t_s + 1e-9, 0.2) < 1e-6) owner->Heartbeat();
   };
   const VirtualSubject vs = DrawVirtualSubject(11);
-  SimulatedBench bench(vs, o);
+  const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs, o).value();
+  SimulatedBench& bench = *bench_owner;
   BenchOwnerOptions bo;
   bo.clock = &wall;
   BenchOwner own(bench, bo);
@@ -439,7 +442,8 @@ TEST(Tracking, TheDerivedSlewLimitLeavesTheThresholdStepFree) {
   ctx.body_mass_kg = vs.anthropometrics.body_mass_kg;
   ctx.leg_length_m = vs.anthropometrics.shank_length_m;
   {
-    SimulatedBench bench(vs);
+    const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+    SimulatedBench& bench = *bench_owner;
     SafetyEventLog log;
     SafeBench safe(bench, log.sink());
     auto plan = MakePlan("rapid_parameterisation", {}, ctx);
@@ -450,7 +454,8 @@ TEST(Tracking, TheDerivedSlewLimitLeavesTheThresholdStepFree) {
   ASSERT_TRUE(ctx.parameter_set.has_value());
   for (const double controller : {1.0, 2.0}) {
     SCOPED_TRACE("controller " + std::to_string(controller));
-    SimulatedBench bench(vs);
+    const std::unique_ptr<SimulatedBench> bench_owner = SimulatedBench::Create(vs).value();
+    SimulatedBench& bench = *bench_owner;
     SafetyEventLog log;
     SafeBench safe(bench, log.sink());
     auto plan = MakePlan("tracking", {{"controller", controller}}, ctx);
@@ -545,7 +550,9 @@ TrackingSettings LoopSettings() {
 
 TEST(TrackingLoop, SlewLimitsTheControllerAndStopsItWhenSaturated) {
   const TrackingSettings s = LoopSettings();
-  TrackingLoop loop(s, 40.0);
+  api::Result<TrackingLoop> made_loop = TrackingLoop::Create(s, 40.0);
+  ASSERT_TRUE(made_loop.ok()) << made_loop.status().ToString();
+  TrackingLoop& loop = *made_loop;
   // The knee stays at 100° while the target asks for 40°: the controller
   // wants the maximum at once; the engine turns stimulation on at the
   // threshold (20 mA, which recruits nothing) at once, lets the amplitude
@@ -569,14 +576,37 @@ TEST(TrackingLoop, SlewLimitsTheControllerAndStopsItWhenSaturated) {
   EXPECT_NEAR(loop.saturated_s(), 0.505, 1e-9);  // 101 saturated samples
   EXPECT_TRUE(loop.last().saturated);
   // The knee where it should be: no saturation, no stop.
-  TrackingLoop calm(s, 40.0);
+  api::Result<TrackingLoop> made_calm = TrackingLoop::Create(s, 40.0);
+  ASSERT_TRUE(made_calm.ok()) << made_calm.status().ToString();
+  TrackingLoop& calm = *made_calm;
   for (int i = 0; i < 400; ++i) ASSERT_FALSE(calm.Sample(40.0).has_value());
   EXPECT_EQ(calm.saturated_s(), 0.0);
 }
 
+TEST(TrackingLoop, RefusesWhatItCannotRunAndStopsOnANonFiniteAngle) {
+  TrackingSettings s = LoopSettings();
+  api::Result<TrackingLoop> made = TrackingLoop::Create(s, 40.0);
+  ASSERT_TRUE(made.ok()) << made.status().ToString();
+  const std::optional<std::string> stop = made->Sample(std::numeric_limits<double>::quiet_NaN());
+  ASSERT_TRUE(stop.has_value());
+  EXPECT_EQ(*stop, "tracking: the measured angle is not finite");
+
+  const api::Result<TrackingLoop> no_lead = TrackingLoop::Create(s, std::nan(""));
+  ASSERT_FALSE(no_lead.ok());
+  EXPECT_EQ(no_lead.status().code(), api::ErrorCode::kInvalidArgument);
+
+  s.params.reset();  // a model-based controller needs a set
+  const api::Result<TrackingLoop> no_set = TrackingLoop::Create(s, 40.0);
+  ASSERT_FALSE(no_set.ok());
+  EXPECT_EQ(no_set.status().message(),
+            "only pid with its gains given runs without a parameter set");
+}
+
 TEST(TrackingLoop, SummarisesTheTrialAfterTheLeadIn) {
   const TrackingSettings s = LoopSettings();
-  TrackingLoop loop(s, 40.0);
+  api::Result<TrackingLoop> made_loop = TrackingLoop::Create(s, 40.0);
+  ASSERT_TRUE(made_loop.ok()) << made_loop.status().ToString();
+  TrackingLoop& loop = *made_loop;
   api::Trial trial;
   std::vector<double> t, angle;
   for (std::size_t i = 0; i < 200 + s.target.size(); ++i) {

@@ -181,6 +181,20 @@ TEST(AnalyticSubject, SeededAndIndependentOfTheThesisFamily) {
   EXPECT_EQ(*back, s);
 }
 
+// Ranges whose inertia no drawn body reaches (J of Eq. 4.13 stays below
+// 1 kg·m² for these heights and masses): J is clamped into them, as the
+// thesis family's is, and the subject is still a valid one.
+TEST(AnalyticSubject, AnInertiaRangeNoBodyReachesClampsJ) {
+  SubjectRanges r;
+  r.min_inertia_kgm2 = 3.0;
+  r.max_inertia_kgm2 = 3.5;
+  for (SubjectFamily family : {SubjectFamily::kAnalytic, SubjectFamily::kPlateau}) {
+    const VirtualSubject s = DrawSubject(5, family, r);
+    EXPECT_EQ(s.truth.passive.inertia_kgm2, 3.0) << SubjectFamilyName(family);
+    EXPECT_TRUE(ValidateVirtualSubject(s).ok()) << ValidateVirtualSubject(s).ToString();
+  }
+}
+
 // The plateau family's stated shapes (DrawPlateauSubject) on 100 seeds,
 // inside the ranges.
 TEST(PlateauSubject, HasItsShapesInsideTheRanges) {

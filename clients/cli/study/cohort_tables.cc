@@ -5,11 +5,11 @@
 #include <cmath>
 #include <map>
 #include <optional>
-#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "api/model_call.h"
 #include "clients/cli/study/cohort.h"
 #include "clients/cli/study/tables.h"
 #include "model/evaluation.h"
@@ -255,12 +255,11 @@ void LinearisedTable(const std::vector<LegData>& legs, std::vector<Table>& out) 
               ? model::FindPassiveRestAngle(p->passive)
               : std::nullopt;
       if (rest_deg) {
-        try {
-          const model::PassiveLinearisation lin =
-              model::LinearisePassive(p->passive, *rest_deg, 0.0);
-          cells = {Num(*rest_deg, 2), Num(lin.damping_ratio), Num(lin.natural_frequency_rad_s)};
-        } catch (const std::invalid_argument&) {
-          // No restoring stiffness at the rest angle: not linearisable.
+        // Refused (no restoring stiffness at the rest angle): not linearisable.
+        if (const api::Result<model::PassiveLinearisation> lin =
+                api::CallModel([&] { return model::LinearisePassive(p->passive, *rest_deg, 0.0); });
+            lin.ok()) {
+          cells = {Num(*rest_deg, 2), Num(lin->damping_ratio), Num(lin->natural_frequency_rad_s)};
         }
       }
       row.insert(row.end(), cells.begin(), cells.end());

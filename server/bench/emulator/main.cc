@@ -24,32 +24,45 @@ void Wait(const std::string& port_path) {
   while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(50));
 }
 
-void RunSm2(const std::string& fault, const std::string& log_path) {
+// The exit code: 1 if no pseudo-terminal opens.
+int RunSm2(const std::string& fault, const std::string& log_path) {
   using fesbench::server::sciencemode2::Emulator;
   using fesbench::server::sciencemode2::EmulatorFault;
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  if (!opened.ok()) {
+    std::cerr << opened.status().message() << "\n";
+    return 1;
+  }
+  Emulator& emulator = **opened;
   if (fault == "corrupt-replies") emulator.set_fault(EmulatorFault::kCorruptReplies);
   if (fault == "silent") emulator.set_fault(EmulatorFault::kSilent);
   if (fault == "wrong-mode") emulator.set_fault(EmulatorFault::kWrongMode);
   Wait(emulator.port_path());
-  if (log_path.empty()) return;
+  if (log_path.empty()) return 0;
   std::ofstream out(log_path);
   for (const auto& d : emulator.deliveries()) {
     out << "{\"t_s\":" << d.t_s << ",\"channel\":" << d.channel << ",\"current_ma\":" << d.current_ma
         << ",\"pulse_width_us\":" << d.pulse_width_us << ",\"stop\":" << (d.stop ? "true" : "false")
         << ",\"reason\":\"" << d.reason << "\"}\n";
   }
+  return 0;
 }
 
-void RunSm4(const std::string& fault, const std::string& log_path) {
+// The exit code: 1 if no pseudo-terminal opens.
+int RunSm4(const std::string& fault, const std::string& log_path) {
   using fesbench::server::sciencemode4::Emulator;
   using fesbench::server::sciencemode4::EmulatorFault;
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  if (!opened.ok()) {
+    std::cerr << opened.status().message() << "\n";
+    return 1;
+  }
+  Emulator& emulator = **opened;
   if (fault == "corrupt-replies") emulator.set_fault(EmulatorFault::kCorruptReplies);
   if (fault == "silent") emulator.set_fault(EmulatorFault::kSilent);
   if (fault == "wrong-mode") emulator.set_fault(EmulatorFault::kWrongMode);
   Wait(emulator.port_path());
-  if (log_path.empty()) return;
+  if (log_path.empty()) return 0;
   std::ofstream out(log_path);
   for (const auto& d : emulator.deliveries()) {
     const int width = d.points.empty() ? 0 : d.points.front().time_us;
@@ -57,6 +70,7 @@ void RunSm4(const std::string& fault, const std::string& log_path) {
         << ",\"current_ma\":" << d.current_ma() << ",\"pulse_width_us\":" << width
         << ",\"stop\":" << (d.stop ? "true" : "false") << "}\n";
   }
+  return 0;
 }
 }  // namespace
 
@@ -77,10 +91,5 @@ int main(int argc, char** argv) {
 
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
-  if (device == "sm4") {
-    RunSm4(fault, log_path);
-  } else {
-    RunSm2(fault, log_path);
-  }
-  return 0;
+  return device == "sm4" ? RunSm4(fault, log_path) : RunSm2(fault, log_path);
 }

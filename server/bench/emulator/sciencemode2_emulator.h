@@ -17,10 +17,14 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "api/status.h"
+#include "server/bench/emulator/pseudo_terminal.h"
 
 namespace fesbench::server::sciencemode2 {
 
@@ -46,7 +50,9 @@ enum class EmulatorFault {
 
 class Emulator {
  public:
-  Emulator();  ///< opens the pty; throws std::runtime_error if it cannot.
+  /// Opens a pseudo-terminal and answers on it until destroyed; kUnavailable
+  /// (emulator::OpenPseudoTerminal) if none opens.
+  static api::Result<std::unique_ptr<Emulator>> Open();
   ~Emulator();
   Emulator(const Emulator&) = delete;
   Emulator& operator=(const Emulator&) = delete;
@@ -63,6 +69,8 @@ class Emulator {
   bool stimulating() const { return stimulating_; }
 
  private:
+  explicit Emulator(emulator::PseudoTerminal pty);
+
   void Loop();
   void HandleFrame(const std::vector<std::uint8_t>& frame);
   void Send(std::uint8_t packet_number, std::uint8_t command, std::vector<std::uint8_t> data);

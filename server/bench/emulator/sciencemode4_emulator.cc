@@ -8,26 +8,21 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <stdexcept>
+#include <utility>
 
+#include "server/bench/emulator/pseudo_terminal.h"
 #include "server/bench/sciencemode2_packet.h"
 
 namespace fesbench::server::sciencemode4 {
 
-Emulator::Emulator() {
-  master_fd_ = ::posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
-  if (master_fd_ < 0 || ::grantpt(master_fd_) != 0 || ::unlockpt(master_fd_) != 0) {
-    throw std::runtime_error(std::string("emulator: cannot open a pty: ") + std::strerror(errno));
-  }
-  char name[128];
-  if (::ptsname_r(master_fd_, name, sizeof name) != 0) {
-    throw std::runtime_error("emulator: ptsname failed");
-  }
-  port_path_ = name;
-  termios tio{};
-  ::tcgetattr(master_fd_, &tio);
-  ::cfmakeraw(&tio);
-  ::tcsetattr(master_fd_, TCSANOW, &tio);
+api::Result<std::unique_ptr<Emulator>> Emulator::Open() {
+  api::Result<emulator::PseudoTerminal> pty = emulator::OpenPseudoTerminal();
+  if (!pty.ok()) return pty.status();
+  return std::unique_ptr<Emulator>(new Emulator(std::move(pty).value()));
+}
+
+Emulator::Emulator(emulator::PseudoTerminal pty)
+    : master_fd_(pty.master_fd), port_path_(std::move(pty.port_path)) {
   start_ = std::chrono::steady_clock::now();
   thread_ = std::thread([this] { Loop(); });
 }

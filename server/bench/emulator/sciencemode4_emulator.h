@@ -13,11 +13,14 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "api/status.h"
+#include "server/bench/emulator/pseudo_terminal.h"
 #include "server/bench/sciencemode4_packet.h"
 
 namespace fesbench::server::sciencemode4 {
@@ -43,7 +46,9 @@ enum class EmulatorFault {
 
 class Emulator {
  public:
-  Emulator();  ///< opens the pty; throws std::runtime_error if it cannot.
+  /// Opens a pseudo-terminal and answers on it until destroyed; kUnavailable
+  /// (emulator::OpenPseudoTerminal) if none opens.
+  static api::Result<std::unique_ptr<Emulator>> Open();
   ~Emulator();
   Emulator(const Emulator&) = delete;
   Emulator& operator=(const Emulator&) = delete;
@@ -56,6 +61,8 @@ class Emulator {
   bool initialised() const { return initialised_; }
 
  private:
+  explicit Emulator(emulator::PseudoTerminal pty);
+
   void Loop();
   void HandleFrame(const std::vector<std::uint8_t>& frame);
   void Send(const std::vector<std::uint8_t>& wire);

@@ -29,7 +29,9 @@ std::vector<std::string> WithDevice(const Emulator& emulator, const std::string&
 }
 
 TEST(StimulatorServer, TimeScaleOtherThanOneIsRefusedWithADevice) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   const auto dir = std::filesystem::temp_directory_path() /
                    ("fesbench_stimsrv_" + std::to_string(::getpid()));
   std::vector<std::string> args = {"--port", "0", "--db", (dir / "fesbench.db").string(),
@@ -45,7 +47,9 @@ TEST(StimulatorServer, TimeScaleOtherThanOneIsRefusedWithADevice) {
 }
 
 TEST(StimulatorServer, ASecondServerOnThePortIsRefusedAndADeviceResetIsTheEStopsSource) {
-  Emulator emulator;
+  auto opened = Emulator::Open();
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  Emulator& emulator = **opened;
   ServerProcess first(WithDevice(emulator, "1"));
   auto client = first.Client();
   const std::string admin = first.admin_token();

@@ -1,20 +1,20 @@
-#include "server/services/swappable_bench.h"
+#include "server/bench/swappable_bench.h"
 
 #include <utility>
 
-#include "api/virtual_subject.h"
+namespace fesbench::server {
 
-namespace fesbench::server::services {
-
-SwappableSimulatedBench::SwappableSimulatedBench(VirtualSubject subject,
-                                                 SimulatedBenchOptions options)
-    : options_(std::move(options)),
-      bench_(std::make_shared<SimulatedBench>(std::move(subject), options_)) {}
+SwappableSimulatedBench::SwappableSimulatedBench(SimulatedBenchOptions options,
+                                                 std::shared_ptr<SimulatedBench> bench)
+    : options_(std::move(options)), bench_(std::move(bench)) {}
 
 api::Result<std::unique_ptr<SwappableSimulatedBench>> SwappableSimulatedBench::Create(
     VirtualSubject subject, SimulatedBenchOptions options) {
-  if (api::Status st = ValidateVirtualSubject(subject); !st.ok()) return st;
-  return std::make_unique<SwappableSimulatedBench>(std::move(subject), std::move(options));
+  api::Result<std::unique_ptr<SimulatedBench>> bench =
+      SimulatedBench::Create(std::move(subject), options);
+  if (!bench.ok()) return bench.status();
+  return std::unique_ptr<SwappableSimulatedBench>(
+      new SwappableSimulatedBench(std::move(options), std::move(bench).value()));
 }
 
 std::shared_ptr<SimulatedBench> SwappableSimulatedBench::current() const {
@@ -59,4 +59,4 @@ api::Status SwappableSimulatedBench::ReplaceSubject(VirtualSubject subject) {
   return api::Status::Ok();  // `old` is released outside the lock
 }
 
-}  // namespace fesbench::server::services
+}  // namespace fesbench::server

@@ -13,7 +13,7 @@
 #include "server/bench/simulated_bench.h"
 #include "server/bench/virtual_subject.h"
 
-namespace fesbench::server::services {
+namespace fesbench::server {
 
 /// A Bench that forwards to a SimulatedBench whose virtual subject can be
 /// replaced (a new SimulatedBench with the same options is built). Give it to
@@ -24,9 +24,8 @@ namespace fesbench::server::services {
 /// new subject's bench. Bench time restarts at 0 with a new subject.
 class SwappableSimulatedBench final : public Bench {
  public:
-  /// @throws std::invalid_argument if the subject fails ValidateVirtualSubject.
-  SwappableSimulatedBench(VirtualSubject subject, SimulatedBenchOptions options = {});
-  /// Non-throwing construction: kInvalidArgument naming the field.
+  /// The bench for `subject`, or kInvalidArgument (naming the field) if it
+  /// fails ValidateVirtualSubject.
   static api::Result<std::unique_ptr<SwappableSimulatedBench>> Create(
       VirtualSubject subject, SimulatedBenchOptions options = {});
 
@@ -57,9 +56,11 @@ class SwappableSimulatedBench final : public Bench {
   std::shared_ptr<SimulatedBench> current() const;
 
  private:
+  SwappableSimulatedBench(SimulatedBenchOptions options, std::shared_ptr<SimulatedBench> bench);
+
   SimulatedBenchOptions options_;
   mutable std::mutex mu_;  // guards bench_ (the pointer, not the bench)
   std::shared_ptr<SimulatedBench> bench_;
 };
 
-}  // namespace fesbench::server::services
+}  // namespace fesbench::server
