@@ -103,4 +103,15 @@ api::Result<DailyCheckOutcome> EvaluateDailyCheck(const DailyCheckSettings& sett
   return out;
 }
 
+api::Status DailyCheckEvaluation::Analyse(const std::vector<RecordedTrial>& trials,
+                                          const SubjectContext& subject,
+                                          const model::JointLimits& stops,
+                                          RunResult& result) const {
+  api::Result<DailyCheckOutcome> check = EvaluateDailyCheck(settings_, trials, subject, stops);
+  if (!check.ok()) return check.status();
+  result.daily_check = std::move(check->report);
+  if (check->updated) result.parameter_set = std::move(check->updated);
+  return api::Status::Ok();
+}
+
 }  // namespace fesbench::server::protocols

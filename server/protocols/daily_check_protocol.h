@@ -18,6 +18,14 @@ namespace fesbench::server::protocols {
 
 struct RecordedTrial;
 
+/// The daily check's trials: the isometric ramp it compares and the free
+/// swing it validates with (indices into the plan's trials).
+struct DailyCheckSettings {
+  int ramp_trial = 0;
+  int swing_trial = 1;
+  double lock_angle_deg = 90.0;
+};
+
 struct DailyCheckOutcome {
   /// {"verdict", "summary", "drifts": [{name, stored, today, change, bound,
   /// moved}], "refitted": [...], "swing_e_rms_deg": {"stored", "updated"},
@@ -34,5 +42,21 @@ api::Result<DailyCheckOutcome> EvaluateDailyCheck(const DailyCheckSettings& sett
                                                   const std::vector<RecordedTrial>& trials,
                                                   const SubjectContext& subject,
                                                   const model::JointLimits& stops);
+
+/// The daily check's evaluation, as its plan's RunAnalysis: EvaluateDailyCheck;
+/// the report goes to RunResult::daily_check, a re-fit to its
+/// parameter_set. A check that cannot be evaluated fails the run with the
+/// reason.
+class DailyCheckEvaluation final : public RunAnalysis {
+ public:
+  explicit DailyCheckEvaluation(DailyCheckSettings settings) : settings_(settings) {}
+
+  const DailyCheckSettings& settings() const { return settings_; }
+  api::Status Analyse(const std::vector<RecordedTrial>& trials, const SubjectContext& subject,
+                      const model::JointLimits& stops, RunResult& result) const override;
+
+ private:
+  DailyCheckSettings settings_;
+};
 
 }  // namespace fesbench::server::protocols

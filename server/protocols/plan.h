@@ -14,13 +14,16 @@
 #include <memory>
 #include <optional>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "api/status.h"
 #include "model/signal.h"
 #include "server/bench/bench.h"
 #include "server/protocols/protocol.h"
+
+namespace fesbench::model {
+struct JointLimits;
+}  // namespace fesbench::model
 
 namespace fesbench::server::protocols {
 
@@ -85,19 +88,6 @@ struct ToleranceSettings {
   double min_torque_at_max_nm = 6.0;  ///< Appendix F part II.K.3.
 };
 
-/// The identification the rapid protocol ends with.
-struct RapidSettings {
-  int ramp_trial = 0;
-  int passive_trial = 1;  ///< the first released free swing.
-  int active_trial = 2;
-  /// Every free-swing trial besides active_trial (the released swings and
-  /// the extension search), passive_trial first.
-  std::vector<int> swing_trials;
-  /// (recorded hold before a release, the free swing after it): they
-  /// measure J (model::InertiaFromReleases).
-  std::vector<std::pair<int, int>> release_trials;
-};
-
 /// Random-binary amplitude chosen during the run (rapid_parameterisation),
 /// applied by scaling the envelopes of `trials` by chosen/planned_ma, within
 /// [min_ma, max_ma] (planned_ma if it cannot be found):
@@ -120,12 +110,28 @@ struct AdaptiveAmplitude {
   double min_top_fraction = 0.0;
 };
 
-/// The daily check's trials (ProtocolKind::kDailyCheck): the isometric
-/// ramp it compares and the free swing it validates with.
-struct DailyCheckSettings {
-  int ramp_trial = 0;
-  int swing_trial = 1;
-  double lock_angle_deg = 90.0;
+struct RecordedTrial;
+struct RunResult;
+
+/// What a run does with its recorded trials after its last step, before it
+/// is done (docs/PROTOCOLS.md, "Adding a protocol"): the protocol's class
+/// installs it while building its plan (Plan::analysis), e.g. the rapid
+/// routine's identification (rapid_identification.h) and the daily check's
+/// comparison (daily_check_protocol.h). A plan without one runs none.
+class RunAnalysis {
+ public:
+  virtual ~RunAnalysis() = default;
+  /// The phase the run is in while it analyses: other than kRest, the run
+  /// announces a step of this phase (RunObserver::OnStep, labelled by its
+  /// name) before it; a run that ends done reports it as its last progress's.
+  virtual StepPhase phase() const { return StepPhase::kRest; }
+  /// Reads the trials of a run that reached its end (`stops`: the bench's
+  /// hard stops) and fills in `result` what it concludes (parameter set,
+  /// report, the set's provenance). A non-ok status fails the run with its
+  /// message.
+  virtual api::Status Analyse(const std::vector<RecordedTrial>& trials,
+                              const SubjectContext& subject, const model::JointLimits& stops,
+                              RunResult& result) const = 0;
 };
 
 /// A tracking run's target, controller and limits (tracking_plan.h; kept
@@ -144,10 +150,10 @@ struct Plan {
   /// tolerance test's ceiling).
   double max_stim_ma = 0.0;
   std::optional<ToleranceSettings> tolerance;
-  std::optional<RapidSettings> rapid;
   std::optional<AdaptiveAmplitude> adaptive_amplitude;
   std::shared_ptr<const TrackingSettings> tracking;
-  std::optional<DailyCheckSettings> daily_check;
+  /// What the run does after its last step, or null (none).
+  std::shared_ptr<const RunAnalysis> analysis;
 
   std::int64_t total_ticks() const;
   double duration_s() const { return static_cast<double>(total_ticks()) / kTicksPerSecond; }

@@ -3,8 +3,10 @@
 /// @file
 /// One protocol, one class (docs/PROTOCOLS.md, "Adding a protocol";
 /// docs/ARCHITECTURE.md, protocols): a Protocol describes its parameters,
-/// builds its plan from the generic step builders (plan_builder.h) and
-/// declares the kinds of trial it records. The registry
+/// builds its plan from the generic step builders (plan_builder.h), with
+/// what its run does after the last step (Plan::analysis), declares the
+/// kinds of trial it records and concludes its runs' outcomes
+/// (run_outcome.h). The registry
 /// (catalog/registry.cc) lists every protocol, one line each, in catalogue
 /// order; ProtocolCatalog() and FindProtocol() (protocol.h) read it.
 
@@ -16,6 +18,7 @@
 #include "api/trial_kind.h"
 #include "server/protocols/plan_builder.h"
 #include "server/protocols/protocol.h"
+#include "server/protocols/run_outcome.h"
 
 namespace fesbench::server::protocols {
 
@@ -39,11 +42,17 @@ class Protocol {
   virtual ProtocolDescription Describe() const = 0;
   /// The kinds of trial its runs record (api/trial_kind.h).
   virtual std::vector<api::TrialKind> Records() const = 0;
-  /// Appends its trials and steps (and the settings its run acts on) to
-  /// builder.plan(). A refusal is the returned status; a generator that
-  /// refuses a value throws std::invalid_argument, which BuildPlan reports
-  /// as kInvalidArgument.
+  /// Appends its trials and steps (the settings its run acts on, and its
+  /// analysis after the last step, Plan::analysis) to builder.plan(). A
+  /// refusal is the returned status (kInvalidArgument naming the parameter
+  /// for values it cannot build); a model generator that refuses a value
+  /// throws std::invalid_argument, which BuildPlan reports as
+  /// kInvalidArgument.
   virtual api::Status BuildSteps(const PlanInputs& inputs, PlanBuilder& builder) const = 0;
+  /// The outcome of its run (ConcludeRun): ConcludeCommon's state and
+  /// reason, then its figures from what ran (the set it used, its family's
+  /// figures). The default is ConcludeCommon alone.
+  virtual api::RunOutcome Conclude(const RunConclusionInput& input, const RunResult& result) const;
 };
 
 /// One registered protocol: the class and the description it gave.

@@ -33,6 +33,26 @@ api::Result<double> KnownInertia(const SubjectContext& subject) {
       "parameters.inertia_kgm2");
 }
 
+std::optional<double> ExplicitInertia(const ParameterValues& parameters) {
+  const auto it = parameters.find("inertia_kgm2");
+  if (it == parameters.end() || !(it->second > 0.0)) return std::nullopt;
+  return it->second;
+}
+
+api::Result<double> KnownInertia(const SubjectContext& subject, const ParameterValues& parameters) {
+  if (const std::optional<double> given = ExplicitInertia(parameters)) return *given;
+  return KnownInertia(subject);
+}
+
+std::vector<int> FittedTrials(const RapidSettings& settings) {
+  std::vector<int> fitted = {settings.ramp_trial, settings.passive_trial, settings.active_trial};
+  fitted.insert(fitted.end(), settings.swing_trials.begin(), settings.swing_trials.end());
+  for (const auto& [hold, swing] : settings.release_trials) fitted.push_back(hold);
+  std::sort(fitted.begin(), fitted.end());
+  fitted.erase(std::unique(fitted.begin(), fitted.end()), fitted.end());
+  return fitted;
+}
+
 std::string InertiaSource(const SubjectContext& subject) {
   if (subject.inertia_kgm2) return "given";
   if (subject.parameter_set && subject.parameter_set->passive.inertia_kgm2 > 0.0) {
@@ -95,6 +115,24 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
   if (params.provenance.inertia_method.empty()) params.provenance.inertia_method = source;
   params.provenance.software_version = "fesbench 0.1.0";
   return params;
+}
+
+api::Status RapidIdentification::Analyse(const std::vector<RecordedTrial>& trials,
+                                         const SubjectContext& subject,
+                                         const model::JointLimits& stops,
+                                         RunResult& result) const {
+  SubjectContext with_inertia = subject;
+  if (inertia_kgm2_) with_inertia.inertia_kgm2 = inertia_kgm2_;
+  api::Result<model::ParameterSet> params =
+      IdentifyRapidTrials(trials, settings_, with_inertia, stops);
+  if (!params.ok()) {
+    return api::Status(params.status().code(),
+                       "identification failed: " + params.status().message());
+  }
+  result.parameter_set = std::move(params).value();
+  result.parameter_set_trials = FittedTrials(settings_);
+  result.parameter_set_active_trial = settings_.active_trial;
+  return api::Status::Ok();
 }
 
 }  // namespace fesbench::server::protocols

@@ -7,9 +7,7 @@
 
 #include "api/json_fields.h"
 #include "model/simulate.h"
-#include "server/protocols/daily_check_protocol.h"
 #include "server/protocols/protocol.h"
-#include "server/protocols/rapid_identification.h"
 
 namespace fesbench::server::protocols {
 namespace {
@@ -366,32 +364,20 @@ RunResult RunExecution::Conclude() {
     runner_.Transition(aborted_->first, aborted_->second);
     return Finish();
   }
-  const model::JointLimits joint{hw_.min_angle_deg, hw_.max_angle_deg};
-  if (plan_.rapid) {
-    if (runner_.observer_ != nullptr) {
-      Step identify;
-      identify.phase = StepPhase::kIdentify;
-      identify.label = "identify";
-      runner_.observer_->OnStep(plan_.steps.size(), identify);
+  if (plan_.analysis) {
+    const StepPhase phase = plan_.analysis->phase();
+    if (runner_.observer_ != nullptr && phase != StepPhase::kRest) {
+      Step analysis;
+      analysis.phase = phase;
+      analysis.label = std::string(StepPhaseName(phase));
+      runner_.observer_->OnStep(plan_.steps.size(), analysis);
     }
-    api::Result<model::ParameterSet> params =
-        IdentifyRapidTrials(result_.trials, *plan_.rapid, subject_, joint);
-    if (!params.ok()) {
-      runner_.Transition(RunTransition::kError,
-                         "identification failed: " + params.status().message());
+    const model::JointLimits joint{hw_.min_angle_deg, hw_.max_angle_deg};
+    if (api::Status st = plan_.analysis->Analyse(result_.trials, subject_, joint, result_);
+        !st.ok()) {
+      runner_.Transition(RunTransition::kError, st.message());
       return Finish();
     }
-    result_.parameter_set = std::move(params).value();
-  }
-  if (plan_.daily_check) {
-    api::Result<DailyCheckOutcome> check =
-        EvaluateDailyCheck(*plan_.daily_check, result_.trials, subject_, joint);
-    if (!check.ok()) {
-      runner_.Transition(RunTransition::kError, check.status().message());
-      return Finish();
-    }
-    result_.daily_check = std::move(check->report);
-    if (check->updated) result_.parameter_set = std::move(check->updated);
   }
   runner_.Transition(RunTransition::kComplete, "");
   return Finish();
@@ -409,7 +395,7 @@ void RunExecution::ReportFinalProgress() {
   if (result_.state == RunState::kDone) {
     p.fraction = 1.0;
     p.step = plan_.steps.size();
-    p.phase = plan_.rapid ? StepPhase::kIdentify : StepPhase::kRest;
+    p.phase = plan_.analysis ? plan_.analysis->phase() : StepPhase::kRest;
   } else {
     p.fraction = planned > 0 ? std::min(1.0, static_cast<double>(n_) / static_cast<double>(planned))
                              : 0.0;

@@ -5,8 +5,8 @@
 /// state of the run between its ticks and the parts of ProtocolRunner::Run,
 /// each a member — checks before the start, the interlock limits, a step's
 /// entry, its ticks (set-point, amplitude, recording), its end (offsets,
-/// tolerance, amplitude search), and the conclusion (identification, daily
-/// check). The recording is a TrialRecorder, the tolerance test's
+/// tolerance, amplitude search), and the conclusion (the plan's analysis,
+/// Plan::analysis). The recording is a TrialRecorder, the tolerance test's
 /// measurement a ToleranceDetector, tracking a TrackingLoop.
 
 #include <cstdint>
@@ -61,7 +61,7 @@ class RunExecution {
   /// E-stop, watchdog or cancel, as the transition and reason to end with.
   std::optional<Abort> AbortReason();
   /// After the last step: the tolerance outcome, the tracking figures, the
-  /// aborted end, or identification / daily check and done.
+  /// aborted end, or the plan's analysis (Plan::analysis) and done.
   RunResult Conclude();
   /// Stops the bench's outputs and hands the result out.
   RunResult Finish();

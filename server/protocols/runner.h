@@ -79,6 +79,11 @@ struct RunResult {
   ParameterValues parameters;
   std::vector<RecordedTrial> trials;
   std::optional<model::ParameterSet> parameter_set;  ///< rapid_parameterisation.
+  /// The trials (plan indices, ascending) the set was fitted to, when the
+  /// analysis says (rapid_parameterisation); empty: every trial of the run.
+  std::vector<int> parameter_set_trials;
+  /// The set's active (random-binary) trial, a plan index, when it has one.
+  std::optional<int> parameter_set_active_trial;
   std::optional<ToleranceResult> tolerance;          ///< tolerance_test.
   /// daily_check: its report (daily_check.h); parameter_set holds a re-fit.
   std::optional<nlohmann::json> daily_check;

@@ -44,9 +44,7 @@ struct LiveRun {
   std::int64_t leg_id = 0;
   Actor actor;
   protocols::BenchMode mode = protocols::BenchMode::kLocked;
-  std::optional<protocols::RapidSettings> rapid;
   std::optional<std::int64_t> prior_parameter_set_id;
-  protocols::ProtocolKind kind = protocols::ProtocolKind::kIsometric;
   // The recorder's thread only: the last state stored (the error transition
   // starts there).
   protocols::RunState stored_state = protocols::RunState::kQueued;

@@ -4,7 +4,6 @@
 #include <exception>
 #include <utility>
 
-#include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_outcome.h"
 #include "storage/parameter_sets.h"
 #include "storage/sessions.h"
@@ -29,6 +28,8 @@ std::string ToleranceRevisionReason(std::int64_t run_id) {
 struct RunRecorder::FinishRecord {
   api::RunOutcome outcome;  // ConcludeRun's; the set and revision filled when stored
   std::optional<model::ParameterSet> parameter_set;  // the run's fit, to store
+  std::vector<int> parameter_set_trials;  // plan trials it was fitted to (empty: all)
+  std::optional<int> parameter_set_active_trial;
   std::vector<SafetyEvent> safety_events;
   std::vector<std::optional<std::int64_t>> trial_ids;  // stored id per plan trial
   std::optional<storage::NewParameterSet> new_set;
@@ -235,11 +236,13 @@ void RunRecorder::RecordTrial(LiveRun& run, const protocols::RecordedTrial& tria
 void RunRecorder::RecordFinish(LiveRun& run, const protocols::RunResult& result) {
   FinishRecord f;
   protocols::RunConclusionInput input;
-  input.kind = run.kind;
+  input.protocol = result.protocol;
   input.parameters = runs_.Locked([&] { return run.view.parameters; });
   input.leg_parameter_set_id = run.prior_parameter_set_id;
   f.outcome = protocols::ConcludeRun(input, result);
   f.parameter_set = result.parameter_set;
+  f.parameter_set_trials = result.parameter_set_trials;
+  f.parameter_set_active_trial = result.parameter_set_active_trial;
   f.safety_events = result.safety_events;
   Finish(run, f);
 }
@@ -274,19 +277,14 @@ void RunRecorder::PrepareParameterSet(const LiveRun& run, FinishRecord& f) const
   ns.supersedes_id = run.prior_parameter_set_id;
   ns.run_id = run.run_id;
   std::vector<std::int64_t> ids;
-  std::size_t expected = 0;  // trials the rapid set was fitted to
-  if (run.rapid) {
-    std::vector<int> fitted = {run.rapid->ramp_trial, run.rapid->passive_trial,
-                               run.rapid->active_trial};
-    fitted.insert(fitted.end(), run.rapid->swing_trials.begin(), run.rapid->swing_trials.end());
-    for (const auto& [hold, swing] : run.rapid->release_trials) fitted.push_back(hold);
-    std::sort(fitted.begin(), fitted.end());
-    fitted.erase(std::unique(fitted.begin(), fitted.end()), fitted.end());
-    expected = fitted.size();
+  const std::vector<int>& fitted = f.parameter_set_trials;  // the rapid set's
+  if (!fitted.empty()) {
     for (int k : fitted) {
       if (auto id = stored_id(k)) ids.push_back(*id);
     }
-    ns.params.provenance.active_trial_id = stored_id(run.rapid->active_trial);
+    if (f.parameter_set_active_trial) {
+      ns.params.provenance.active_trial_id = stored_id(*f.parameter_set_active_trial);
+    }
   } else {
     for (const auto& id : f.trial_ids) {
       if (id) ids.push_back(*id);
@@ -295,7 +293,7 @@ void RunRecorder::PrepareParameterSet(const LiveRun& run, FinishRecord& f) const
   std::sort(ids.begin(), ids.end());
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
   ns.params.provenance.trial_ids = ids;
-  if (ids.size() != expected && run.rapid) {
+  if (!fitted.empty() && ids.size() != fitted.size()) {
     f.outcome = protocols::FailOutcome(
         std::move(f.outcome), run.stored_state,
         "the run's trials could not all be stored; its parameter set is not stored");

@@ -10,7 +10,6 @@
 
 #include "api/model_call.h"
 #include "model/tracking.h"
-#include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_outcome.h"
 #include "storage/estop_latch.h"
 #include "storage/parameter_sets.h"
@@ -297,8 +296,6 @@ std::shared_ptr<LiveRun> RunService::RegisterLiveRun(
   run->leg_id = context.session.leg_id;
   run->actor = actor;
   run->mode = description.bench_mode;
-  run->rapid = plan.rapid;
-  run->kind = description.kind;
   run->prior_parameter_set_id = context.parameter_set_id;
   RunView& v = run->view;
   v.run_id = created.id;
@@ -355,15 +352,6 @@ api::Result<RunView> RunService::StartImpl(const Actor& actor, std::int64_t sess
   request->client = actor.user_name;
   api::Result<protocols::Plan> plan = owner_.Prepare(*request);
   if (!plan.ok()) return plan.status();
-  if (plan->rapid) {
-    // An explicit inertia (parameter inertia_kgm2 > 0) comes before any other source.
-    if (const auto it = plan->parameters.find("inertia_kgm2");
-        it != plan->parameters.end() && it->second > 0.0) {
-      request->subject.inertia_kgm2 = it->second;
-    }
-    api::Result<double> inertia = protocols::KnownInertia(request->subject);
-    if (!inertia.ok()) return inertia.status();
-  }
 
   api::Result<storage::Run> created =
       CreateRunRecord(actor, session_id, protocol, parameters, *plan, *context, ceiling_reason);

@@ -13,6 +13,7 @@
 #include "model/stimulus_generators.h"
 #include "server/protocols/plan.h"
 #include "server/protocols/protocol_registry.h"
+#include "server/protocols/rapid_identification.h"
 #include "server/protocols/run_transitions.h"
 
 namespace fesbench::server::protocols {
@@ -492,19 +493,25 @@ TEST(Plan, PredictionStepRampSineTimings) {
 }
 
 TEST(Plan, RapidParameterisationIsUnderThirtySeconds) {
-  const SubjectContext subject = Subject();
+  SubjectContext subject = Subject();
+  subject.inertia_kgm2 = 0.3;  // the fit needs one (§7.4.1)
   auto plan = MakePlan("rapid_parameterisation", {}, subject);
-  ASSERT_TRUE(plan.ok());
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
   EXPECT_LT(plan->duration_s(), 30.0);  // §7.4.1 (the search may end sooner)
   ASSERT_EQ(plan->trials.size(), 7u);
-  ASSERT_TRUE(plan->rapid.has_value());
+  const auto* rapid = dynamic_cast<const RapidIdentification*>(plan->analysis.get());
+  ASSERT_NE(rapid, nullptr);
+  EXPECT_EQ(rapid->phase(), StepPhase::kIdentify);
   EXPECT_EQ(plan->trials[0].mode, MotorMode::kLocked);
   // The held knee before each release (its torque measures J), then the swing.
   for (std::size_t k : {1u, 3u}) EXPECT_EQ(plan->trials[k].mode, MotorMode::kPosition);
   for (std::size_t k : {2u, 4u, 5u, 6u}) EXPECT_EQ(plan->trials[k].mode, MotorMode::kDecoupled);
-  EXPECT_EQ(plan->rapid->swing_trials, (std::vector<int>{2, 4, 5}));
-  EXPECT_EQ(plan->rapid->release_trials, (std::vector<std::pair<int, int>>{{1, 2}, {3, 4}}));
-  EXPECT_EQ(plan->rapid->active_trial, 6);
+  EXPECT_EQ(rapid->settings().swing_trials, (std::vector<int>{2, 4, 5}));
+  EXPECT_EQ(rapid->settings().release_trials,
+            (std::vector<std::pair<int, int>>{{1, 2}, {3, 4}}));
+  EXPECT_EQ(rapid->settings().active_trial, 6);
+  // Ramp, holds, swings and the active trial: every trial of the plan.
+  EXPECT_EQ(FittedTrials(rapid->settings()), (std::vector<int>{0, 1, 2, 3, 4, 5, 6}));
   // The isometric part: 2 impulses and one 4 s ramp.
   const auto runs = Runs(TrialEnvelope(*plan, 0).values);
   ASSERT_EQ(runs.size(), 3u);

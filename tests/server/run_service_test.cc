@@ -18,6 +18,7 @@
 
 #include "server/bench/virtual_subject.h"
 #include "server/protocols/plan.h"
+#include "server/protocols/rapid_identification.h"
 #include "server/services/bench_service.h"
 #include "storage/audit_log.h"
 #include "storage/estop_latch.h"
@@ -160,7 +161,10 @@ TEST(RunService, IsometricRampRunStoresStatesTrialsAndAudit) {
 TEST(RunService, RapidProtocolStoresAParameterSetWhoseProvenanceTrialsExist) {
   Rig rig;
   const protocols::Plan plan = rig.PlanFor("rapid_parameterisation", {});
-  ASSERT_TRUE(plan.rapid.has_value());
+  const auto* identification =
+      dynamic_cast<const protocols::RapidIdentification*>(plan.analysis.get());
+  ASSERT_NE(identification, nullptr);
+  const protocols::RapidSettings& rapid = identification->settings();
   auto started = rig.service->Start(rig.clinician, rig.session_id, "rapid_parameterisation", {});
   ASSERT_TRUE(started.ok()) << started.status().ToString();
   auto view = rig.service->Wait(started->run_id, kWait);
@@ -178,17 +182,16 @@ TEST(RunService, RapidProtocolStoresAParameterSetWhoseProvenanceTrialsExist) {
   // Every trial the set was fitted to: ramp, the holds before the releases,
   // the free swings, random binary.
   std::vector<std::int64_t> used = {
-      view->trial_ids[static_cast<std::size_t>(plan.rapid->ramp_trial)],
-      view->trial_ids[static_cast<std::size_t>(plan.rapid->active_trial)]};
-  for (int k : plan.rapid->swing_trials)
-    used.push_back(view->trial_ids[static_cast<std::size_t>(k)]);
-  for (const auto& [hold, swing] : plan.rapid->release_trials)
+      view->trial_ids[static_cast<std::size_t>(rapid.ramp_trial)],
+      view->trial_ids[static_cast<std::size_t>(rapid.active_trial)]};
+  for (int k : rapid.swing_trials) used.push_back(view->trial_ids[static_cast<std::size_t>(k)]);
+  for (const auto& [hold, swing] : rapid.release_trials)
     used.push_back(view->trial_ids[static_cast<std::size_t>(hold)]);
   std::sort(used.begin(), used.end());
   EXPECT_EQ(set->trial_ids, used);
   EXPECT_EQ(set->params.provenance.trial_ids, used);
   EXPECT_EQ(set->params.provenance.active_trial_id,
-            view->trial_ids[static_cast<std::size_t>(plan.rapid->active_trial)]);
+            view->trial_ids[static_cast<std::size_t>(rapid.active_trial)]);
   storage::TrialRepository trials(*rig.db);
   for (std::int64_t id : set->trial_ids) {
     auto owner = trials.Owner(id);

@@ -145,12 +145,24 @@ TEST(Rapid, CohortPredictsRandomBinaryUnderThreeDegrees) {
   EXPECT_LT(0.5 * (rms[7] + rms[8]), 2.0);  // median (the study's ≤ 2°)
 }
 
-TEST(Runner, RapidWithoutInertiaFailsWithTheReason) {
+TEST(Runner, RapidWithoutInertiaIsRefusedOrFailsWithTheReason) {
   Rig rig(7);
   SubjectContext ctx = test::WithKnownInertia(rig.subject);
   ctx.inertia_kgm2.reset();
-  auto plan = MakePlan("rapid_parameterisation", {}, ctx);
-  ASSERT_TRUE(plan.ok());
+  // Refused before anything moves, naming the parameter that would give it.
+  auto refused = MakePlan("rapid_parameterisation", {}, ctx);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), api::ErrorCode::kInvalidArgument);
+  EXPECT_EQ(refused.status().field(), "parameters.inertia_kgm2");
+  EXPECT_EQ(refused.status().message(), KnownInertia(ctx).status().message());
+  // An explicit inertia_kgm2 comes before any other source.
+  auto given = MakePlan("rapid_parameterisation", {{"inertia_kgm2", 0.35}}, ctx);
+  EXPECT_TRUE(given.ok()) << given.status().ToString();
+  EXPECT_EQ(*KnownInertia(ctx, {{"inertia_kgm2", 0.35}}), 0.35);
+  // A plan made while the inertia was known, run on a subject without it:
+  // the identification fails with the reason.
+  auto plan = MakePlan("rapid_parameterisation", {}, test::WithKnownInertia(rig.subject));
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
   ProtocolRunner runner(rig.safe, &rig.log, nullptr, NoWatchdog());
   const RunResult r = runner.Run(*plan, ctx);
   EXPECT_EQ(r.state, RunState::kFailed);

@@ -1,6 +1,10 @@
 // The `daily_check` protocol (docs/PROTOCOLS.md, `daily_check`).
 
+#include <memory>
+
+#include "server/protocols/catalog/conclusions.h"
 #include "server/protocols/catalog/parameters.h"
+#include "server/protocols/daily_check_protocol.h"
 #include "server/protocols/protocol_registry.h"
 
 namespace fesbench::server::protocols::catalog {
@@ -15,6 +19,7 @@ class DailyCheck final : public Protocol {
     return {api::TrialKind::kDailyCheckRamp, api::TrialKind::kDailyCheckSwing};
   }
   api::Status BuildSteps(const PlanInputs& in, PlanBuilder& b) const override;
+  api::RunOutcome Conclude(const RunConclusionInput& in, const RunResult& r) const override;
 };
 
 ProtocolDescription DailyCheck::Describe() const {
@@ -69,8 +74,19 @@ api::Status DailyCheck::BuildSteps(const PlanInputs& in, PlanBuilder& b) const {
   const int swing = b.AddTrial("daily_check_swing", MotorMode::kDecoupled);
   b.EnvelopeTrial(swing, RandomBinary(true, v.at("amplitude_ma"), v.at("swing_s"), v.at("seed")),
                   MotorMode::kDecoupled, lock, 0.0);
-  b.plan().daily_check = DailyCheckSettings{ramp, swing, lock};
+  b.plan().analysis = std::make_shared<const DailyCheckEvaluation>(
+      DailyCheckSettings{ramp, swing, lock});
   return api::Status::Ok();
+}
+
+// The leg's set it compared with, and its report (DailyCheckEvaluation's).
+api::RunOutcome DailyCheck::Conclude(const RunConclusionInput& in, const RunResult& r) const {
+  api::RunOutcome o = ConcludeWithLegSet(in, r);
+  if (r.daily_check) {
+    api::Result<api::DailyCheckOutcome> report = api::DailyCheckOutcomeFromJson(*r.daily_check);
+    if (report.ok()) o.daily_check = *std::move(report);
+  }
+  return o;
 }
 
 }  // namespace

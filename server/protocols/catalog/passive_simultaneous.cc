@@ -1,6 +1,5 @@
 // The `passive_simultaneous` protocol (docs/PROTOCOLS.md, `passive_simultaneous`).
 
-#include <stdexcept>
 
 #include "server/protocols/catalog/parameters.h"
 #include "server/protocols/protocol_registry.h"
@@ -49,7 +48,8 @@ api::Status PassiveSimultaneous::BuildSteps(const PlanInputs& in, PlanBuilder& b
   const ParameterValues& v = in.values;
   if (v.at("min_angle_deg") > 90.0 || v.at("max_angle_deg") < 90.0) {
     // §5.4.2: the reference torque is measured at 90° of flexion.
-    throw std::invalid_argument("min_angle_deg..max_angle_deg must include the 90° reference");
+    return api::Status::InvalidArgument(
+        "min_angle_deg..max_angle_deg must include the 90° reference", "parameters");
   }
   const int n = static_cast<int>(v.at("trajectories"));
   for (int k = 0; k < n; ++k) {

@@ -1,5 +1,6 @@
 // The `prediction_random_binary` protocol (docs/PROTOCOLS.md, `prediction_random_binary`).
 
+#include "server/protocols/catalog/conclusions.h"
 #include "server/protocols/catalog/parameters.h"
 #include "server/protocols/protocol_registry.h"
 
@@ -14,6 +15,10 @@ class PredictionRandomBinary final : public Protocol {
     return {api::TrialKind::kPredictionRandomBinary};
   }
   api::Status BuildSteps(const PlanInputs& in, PlanBuilder& b) const override;
+  // The set it is gated by (docs/SAFETY.md, model gate).
+  api::RunOutcome Conclude(const RunConclusionInput& in, const RunResult& r) const override {
+    return ConcludeWithLegSet(in, r);
+  }
 };
 
 ProtocolDescription PredictionRandomBinary::Describe() const {

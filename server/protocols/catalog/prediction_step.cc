@@ -1,5 +1,6 @@
 // The `prediction_step` protocol (docs/PROTOCOLS.md, `prediction_step`).
 
+#include "server/protocols/catalog/conclusions.h"
 #include "server/protocols/catalog/parameters.h"
 #include "server/protocols/protocol_registry.h"
 
@@ -12,6 +13,10 @@ class PredictionStep final : public Protocol {
   ProtocolDescription Describe() const override;
   std::vector<api::TrialKind> Records() const override { return {api::TrialKind::kPredictionStep}; }
   api::Status BuildSteps(const PlanInputs& in, PlanBuilder& b) const override;
+  // The set it is gated by (docs/SAFETY.md, model gate).
+  api::RunOutcome Conclude(const RunConclusionInput& in, const RunResult& r) const override {
+    return ConcludeWithLegSet(in, r);
+  }
 };
 
 ProtocolDescription PredictionStep::Describe() const {

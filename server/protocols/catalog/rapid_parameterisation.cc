@@ -1,11 +1,12 @@
 // The `rapid_parameterisation` protocol (docs/PROTOCOLS.md, `rapid_parameterisation`).
 
+#include <memory>
 #include <random>
-#include <stdexcept>
 #include <tuple>
 
 #include "server/protocols/catalog/parameters.h"
 #include "server/protocols/protocol_registry.h"
+#include "server/protocols/rapid_identification.h"
 
 namespace fesbench::server::protocols::catalog {
 namespace {
@@ -48,6 +49,7 @@ class RapidParameterisation final : public Protocol {
             api::TrialKind::kRapidActive};
   }
   api::Status BuildSteps(const PlanInputs& in, PlanBuilder& b) const override;
+  api::RunOutcome Conclude(const RunConclusionInput& in, const RunResult& r) const override;
 };
 
 ProtocolDescription RapidParameterisation::Describe() const {
@@ -150,7 +152,10 @@ api::Status RapidParameterisation::BuildSteps(const PlanInputs& in, PlanBuilder&
   const double rom = in.subject.max_angle_deg - in.subject.min_angle_deg;
   const double margin = v.at("release_margin_fraction") * rom;
   const double lo = in.subject.min_angle_deg + margin, hi = in.subject.max_angle_deg - margin;
-  if (!(hi > lo)) throw std::invalid_argument("release_margin_fraction: leaves no range of motion");
+  if (!(hi > lo)) {
+    return api::Status::InvalidArgument("release_margin_fraction: leaves no range of motion",
+                                        "parameters");
+  }
   std::vector<int> swings;
   std::vector<std::pair<int, int>> releases;
   // The flexion release keeps the name the identification service and
@@ -173,7 +178,9 @@ api::Status RapidParameterisation::BuildSteps(const PlanInputs& in, PlanBuilder&
   b.Prepare("swing", MotorMode::kDecoupled, lock, v.at("swing_settle_s"));
   // Ascending search: threshold → max in search_s, ended at full extension.
   const double thr = v.at("threshold_ma"), max_ma = v.at("max_ma");
-  if (!(max_ma > thr)) throw std::invalid_argument("max_ma: must be above threshold_ma");
+  if (!(max_ma > thr)) {
+    return api::Status::InvalidArgument("max_ma: must be above threshold_ma", "parameters");
+  }
   const int search = b.AddTrial("rapid_extension_search", MotorMode::kDecoupled);
   {
     const double search_s = v.at("search_s");
@@ -205,10 +212,29 @@ api::Status RapidParameterisation::BuildSteps(const PlanInputs& in, PlanBuilder&
                   LeveledRandomBinary(amp, thr, v.at("duration_s"), v.at("active_seed"),
                                       v.at("rb_level_min_fraction")),
                   MotorMode::kDecoupled, lock, 0.0);
-  b.plan().rapid = RapidSettings{ramp, swings.front(), active, swings, releases};
   b.plan().adaptive_amplitude = AdaptiveAmplitude{
       ramp, v.at("rb_torque_nm"), amp, thr, max_ma, {active}, v.at("rb_min_top_fraction")};
+  // The fit needs the limb inertia (§7.4.1): refused before anything moves.
+  if (api::Result<double> inertia = KnownInertia(in.subject, v); !inertia.ok()) {
+    return inertia.status();
+  }
+  b.plan().analysis = std::make_shared<const RapidIdentification>(
+      RapidSettings{ramp, swings.front(), active, swings, releases}, ExplicitInertia(v));
   return api::Status::Ok();
+}
+
+// The amplitude search's figures (AdaptiveAmplitude), when the run got that far.
+api::RunOutcome RapidParameterisation::Conclude(const RunConclusionInput& /*in*/,
+                                                const RunResult& r) const {
+  api::RunOutcome o = ConcludeCommon(r);
+  api::AmplitudeSearchOutcome a;
+  a.rb_amplitude_ma = RunFigure(r, "rb_amplitude_ma");
+  a.full_extension_amplitude_ma = RunFigure(r, "full_extension_amplitude_ma");
+  a.full_extension_reached = RunFlag(r, "full_extension_reached");
+  if (a.rb_amplitude_ma || a.full_extension_amplitude_ma || a.full_extension_reached) {
+    o.amplitude_search = a;
+  }
+  return o;
 }
 
 }  // namespace

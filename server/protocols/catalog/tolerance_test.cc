@@ -1,7 +1,5 @@
 // The `tolerance_test` protocol (docs/PROTOCOLS.md, `tolerance_test`).
 
-#include <stdexcept>
-
 #include "server/protocols/catalog/parameters.h"
 #include "server/protocols/protocol_registry.h"
 
@@ -14,6 +12,7 @@ class ToleranceTest final : public Protocol {
   ProtocolDescription Describe() const override;
   std::vector<api::TrialKind> Records() const override { return {api::TrialKind::kToleranceTest}; }
   api::Status BuildSteps(const PlanInputs& in, PlanBuilder& b) const override;
+  api::RunOutcome Conclude(const RunConclusionInput& in, const RunResult& r) const override;
 };
 
 ProtocolDescription ToleranceTest::Describe() const {
@@ -54,7 +53,7 @@ api::Status ToleranceTest::BuildSteps(const PlanInputs& in, PlanBuilder& b) cons
   b.plan().max_stim_ma = v.at("ceiling_ma");
   b.plan().tolerance = ToleranceSettings{v.at("threshold_torque_nm"), v.at("min_torque_at_max_nm")};
   if (!(v.at("ceiling_ma") > v.at("start_ma"))) {
-    throw std::invalid_argument("ceiling_ma: must be above start_ma");
+    return api::Status::InvalidArgument("ceiling_ma: must be above start_ma", "parameters");
   }
   b.Prepare("lock", MotorMode::kLocked, lock, v.at("settle_s"));
   const int t = b.AddTrial("tolerance_test", MotorMode::kLocked);
@@ -72,6 +71,34 @@ api::Status ToleranceTest::BuildSteps(const PlanInputs& in, PlanBuilder& b) cons
   b.Push(std::move(s));
   b.Rest("relax", 1.0, 0.0, t, MotorMode::kLocked, lock);
   return api::Status::Ok();
+}
+
+// docs/SAFETY.md, tolerance test ceiling: the ramp reaching its ceiling
+// says only that the subject bore the ceiling, not where their limit is.
+// Only a limit the subject signalled or the clinician stopped at is a
+// measured max tolerated amplitude.
+api::RunOutcome ToleranceTest::Conclude(const RunConclusionInput& in, const RunResult& r) const {
+  api::RunOutcome o = ConcludeCommon(r);
+  if (!r.tolerance) return o;
+  const bool done = o.state == RunState::kDone;
+  api::ToleranceOutcome t;
+  t.test = *r.tolerance;
+  t.threshold_ma = r.tolerance->threshold_ma;
+  t.subject_signalled_limit = RunFlag(r, "subject_signalled_limit");
+  t.ended_at_ceiling = done && !r.tolerance->stopped_by_clinician &&
+                       !t.subject_signalled_limit.value_or(false);
+  if (t.ended_at_ceiling) {
+    t.message = CeilingMessage(in.parameters);
+    t.test->warnings.push_back(t.message);
+  } else {
+    t.max_tolerated_ma = r.tolerance->max_tolerated_ma;
+    if (done && !t.threshold_ma) {
+      t.test->warnings.push_back(
+          "no threshold was detected: the session's threshold and max tolerated are unchanged");
+    }
+  }
+  o.tolerance = std::move(t);
+  return o;
 }
 
 }  // namespace

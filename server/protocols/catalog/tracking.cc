@@ -95,6 +95,7 @@ class Tracking final : public Protocol {
   ProtocolDescription Describe() const override;
   std::vector<api::TrialKind> Records() const override { return {api::TrialKind::kTracking}; }
   api::Status BuildSteps(const PlanInputs& in, PlanBuilder& b) const override;
+  api::RunOutcome Conclude(const RunConclusionInput& in, const RunResult& r) const override;
 };
 
 ProtocolDescription Tracking::Describe() const {
@@ -326,6 +327,16 @@ api::Status Tracking::BuildSteps(const PlanInputs& in, PlanBuilder& b) const {
     b.plan().parameters["parameter_set_id"] = static_cast<double>(*in.subject.parameter_set_id);
   }
   return api::Status::Ok();
+}
+
+// The set it inverted (the one it names, else the leg's approved set when the run started) and
+// its tracking figures.
+api::RunOutcome Tracking::Conclude(const RunConclusionInput& in, const RunResult& r) const {
+  api::RunOutcome o = ConcludeCommon(r);
+  o.used_parameter_set_id = api::UsedParameterSetOf(in.parameters);
+  if (!o.used_parameter_set_id) o.used_parameter_set_id = in.leg_parameter_set_id;
+  o.tracking = api::TrackingOutcome{r.values};
+  return o;
 }
 
 }  // namespace
