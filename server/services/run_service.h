@@ -112,10 +112,11 @@ class RunService {
 
   /// Starts `protocol` for the session. Errors: kPermissionDenied unless a
   /// clinician or admin; kNotFound for an unknown session or protocol;
-  /// kInvalidArgument naming the parameter ("parameters.<name>");
+  /// kInvalidArgument naming the parameter ("parameters.<name>"; the rapid
+  /// protocol without an inertia source: "parameters.inertia_kgm2");
   /// kFailedPrecondition when the session has no threshold/max tolerated
-  /// (any protocol but tolerance_test), the model gate refuses, or the rapid
-  /// protocol has no inertia source; kConflict while another run holds the
+  /// (any protocol but tolerance_test) or the model gate refuses; kConflict
+  /// while another run holds the
   /// bench or an e-stop is latched; kUnavailable after Shutdown.
   /// `ceiling_reason`: a clinician's reason for a tolerance test whose
   /// ceiling_ma goes above the session's recorded max tolerated amplitude
