@@ -328,11 +328,7 @@ function renderRunBar(run) {
           try {
             await runs.cancel();
           } catch (err) {
-            const link = bar.querySelector('#runbar-link');
-    if (run.session_id && !link.firstChild) {
-      link.appendChild(h('a', { href: `#/sessions/${run.session_id}`, id: 'runbar-session' }, `Go to session ${run.session_id}`));
-    }
-    bar.querySelector('#runbar-owner').textContent = `Cancel failed: ${err.message}`;
+            bar.querySelector('#runbar-owner').textContent = `Cancel failed: ${err.message}`;
             e.target.disabled = false;
           }
         } }, measuringMaxTolerated.has(run.protocol) ? 'Cancel (records nothing)' : 'Cancel run') : '');
