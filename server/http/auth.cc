@@ -163,7 +163,7 @@ Admission Authenticator::Admit(std::string_view header, std::string_view address
 }
 
 api::Status Authenticator::Authorise(const storage::User& user, Permission permission) {
-  return services::Require(services::Actor{user.id, user.name, user.role}, permission);
+  return services::Require(ActorOf(user), permission);
 }
 
 void Authenticator::Invalidate() {

@@ -25,7 +25,7 @@ constexpr std::array<PermissionRow, 8> kPermissionTable{{
     {Permission::kAdminister, "administer", kAdmin},
 }};
 
-// In the enum's order, each once, to its last value: RowOf finds every permission.
+// In the enum's order, each once, to its last value: RowOf indexes the table.
 static_assert([] {
   for (std::size_t i = 0; i < kPermissionTable.size(); ++i) {
     if (kPermissionTable[i].permission != static_cast<Permission>(i)) return false;
@@ -39,19 +39,18 @@ constexpr std::array<Permission, kPermissionTable.size()> kPermissions = [] {
   return out;
 }();
 
+// The static_assert above makes a permission its row's index.
 constexpr const PermissionRow& RowOf(Permission permission) {
-  for (const PermissionRow& row : kPermissionTable) {
-    if (row.permission == permission) return row;
-  }
-  return kPermissionTable.back();  // unreachable: every permission has its row
+  return kPermissionTable[static_cast<std::size_t>(permission)];
 }
 
-// "clinician or admin", "clinician, analyst or admin".
-std::string RoleAlternatives(RoleMask mask) {
+// The roles of `mask` in the order clinician, analyst, admin, the last one
+// after `last_separator`: "clinician, admin", "clinician, analyst or admin".
+std::string JoinRoles(RoleMask mask, std::string_view last_separator) {
   const std::vector<Role> roles = RolesIn(mask);
   std::string out;
   for (std::size_t i = 0; i < roles.size(); ++i) {
-    if (i > 0) out += i + 1 == roles.size() ? " or " : ", ";
+    if (i > 0) out += i + 1 == roles.size() ? last_separator : std::string_view(", ");
     out += RoleName(roles[i]);
   }
   return out;
@@ -69,14 +68,7 @@ std::vector<Role> RolesIn(RoleMask mask) {
   return roles;
 }
 
-std::string RoleList(RoleMask mask) {
-  std::string out;
-  for (Role role : RolesIn(mask)) {
-    if (!out.empty()) out += ", ";
-    out += RoleName(role);
-  }
-  return out;
-}
+std::string RoleList(RoleMask mask) { return JoinRoles(mask, ", "); }
 
 std::span<const Permission> AllPermissions() { return kPermissions; }
 
@@ -98,7 +90,7 @@ api::Status Require(const Actor& actor, Permission permission) {
 api::Status Require(const Actor& actor, Permission permission, std::string_view what) {
   if (May(actor, permission)) return api::Status::Ok();
   return {api::ErrorCode::kPermissionDenied,
-          std::string(what) + " needs the " + RoleAlternatives(RolesFor(permission)) + " role"};
+          std::string(what) + " needs the " + JoinRoles(RolesFor(permission), " or ") + " role"};
 }
 
 api::Status AppendAudit(storage::Database& db, const Actor& actor, const std::string& action,

@@ -261,6 +261,7 @@ void RunRecorder::Finish(LiveRun& run, FinishRecord& f) {
   if (run.on_bench.load()) (void)owner_.Wait();
   PublishFinish(run, f);
 }
+
 void RunRecorder::PrepareParameterSet(const LiveRun& run, FinishRecord& f) const {
   if (f.outcome.state != RunState::kDone || !f.parameter_set) return;
   const auto stored_id = [&](int index) -> std::optional<std::int64_t> {

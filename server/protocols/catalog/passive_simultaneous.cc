@@ -1,6 +1,5 @@
 // The `passive_simultaneous` protocol (docs/PROTOCOLS.md, `passive_simultaneous`).
 
-
 #include "server/protocols/catalog/parameters.h"
 #include "server/protocols/protocol_registry.h"
 
