@@ -420,6 +420,29 @@ std::vector<double> Deconvolve(std::span<const double> r, std::span<const double
   return s;
 }
 
+PiecewiseLinear WithOnsetAtThreshold(const PiecewiseLinear& irc, double threshold_ma) {
+  if (!std::isfinite(threshold_ma)) {
+    throw std::invalid_argument("WithOnsetAtThreshold: threshold_ma must be finite");
+  }
+  const std::vector<double>& x = irc.x();
+  const std::vector<double>& y = irc.y();
+  const auto above = std::upper_bound(x.begin(), x.end(), threshold_ma);
+  const std::size_t first_above = static_cast<std::size_t>(above - x.begin());
+  const bool responds_above =
+      std::any_of(y.begin() + static_cast<std::ptrdiff_t>(first_above), y.end(),
+                  [](double v) { return v > 0.0; });
+  if (first_above == 0 || !responds_above) return irc;
+  std::vector<double> xo(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(first_above));
+  std::vector<double> yo(first_above, 0.0);
+  if (xo.back() < threshold_ma) {
+    xo.push_back(threshold_ma);
+    yo.push_back(0.0);
+  }
+  xo.insert(xo.end(), above, x.end());
+  yo.insert(yo.end(), y.begin() + static_cast<std::ptrdiff_t>(first_above), y.end());
+  return PiecewiseLinear(std::move(xo), std::move(yo));
+}
+
 IrcResult IdentifyIrc(IrcMethod method, const TrialColumns& trial, const IrcOptions& options) {
   const char* what = "IdentifyIrc";
   const std::size_t n = CheckIsometricTrial(what, trial);

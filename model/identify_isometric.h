@@ -172,6 +172,19 @@ struct IrcResult {
 ///   torque.
 IrcResult IdentifyIrc(IrcMethod method, const TrialColumns& trial, const IrcOptions& options = {});
 
+/// R(u) with its onset at the session's threshold (beyond the thesis;
+/// docs/MODEL.md, "The IRC's onset at the measured threshold"): 0 at and
+/// below threshold_ma, a breakpoint inserted there, the curve unchanged
+/// from the first breakpoint above it. Ramp correlation's single delay
+/// smears a sharp onset into a toe below the threshold (§6.1.1, Fig. 6-10:
+/// "the threshold is estimated low"); the tolerance test saw no torque
+/// there (§5.2.1), and a controller inverting R over the toe commands
+/// amplitudes that recruit nothing. The curve is returned unchanged when
+/// threshold_ma is not above its first breakpoint or no breakpoint above
+/// threshold_ma is positive (a threshold that would leave no response).
+/// @throws std::invalid_argument for a non-finite threshold_ma.
+PiecewiseLinear WithOnsetAtThreshold(const PiecewiseLinear& irc, double threshold_ma);
+
 /// The delay s at which Corr(u, r)(lag) = Σ u(τ)·r(τ + lag) is largest over
 /// lags 0..max_lag (Eq. 4.5), summed directly at those lags and refined by a
 /// parabola.

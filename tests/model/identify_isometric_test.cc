@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <vector>
 
@@ -239,6 +240,54 @@ TEST(IdentifyIrc, RampCorrelationUnderestimatesSharpThresholdAndFitsSmoothIrc) {
   // 2 s ramps do worse than 4 s ramps (§6.1.1).
   const IrcResult s2 = IdentifyIrc(IrcMethod::kRampCorrelation, Isometric(sharp, stim(2)));
   EXPECT_GT(MaxIrcError(s2.irc, sharp.irc, 15.0, 45.0), MaxIrcError(s4.irc, sharp.irc, 15.0, 45.0));
+}
+
+TEST(WithOnsetAtThreshold, ZeroesTheToeAndKeepsTheCurveFromTheFirstBreakpointAbove) {
+  const PiecewiseLinear toe({0, 1, 2, 3, 4, 5}, {0, 0.02, 0.1, 0.4, 0.8, 1});
+  const PiecewiseLinear on = WithOnsetAtThreshold(toe, 2.5);
+  EXPECT_EQ(on.x(), (std::vector<double>{0, 1, 2, 2.5, 3, 4, 5}));
+  EXPECT_EQ(on.y(), (std::vector<double>{0, 0, 0, 0, 0.4, 0.8, 1}));
+  EXPECT_DOUBLE_EQ(on(2.75), 0.2);  // linear from the onset to the next breakpoint
+  // On a breakpoint: no breakpoint added.
+  EXPECT_EQ(WithOnsetAtThreshold(toe, 2.0).x(), toe.x());
+  EXPECT_EQ(WithOnsetAtThreshold(toe, 2.0).y(),
+            (std::vector<double>{0, 0, 0, 0.4, 0.8, 1}));
+  // Nothing to move: below the first breakpoint, or no response left above.
+  EXPECT_EQ(WithOnsetAtThreshold(toe, -1.0), toe);
+  EXPECT_EQ(WithOnsetAtThreshold(toe, 0.0), toe);
+  EXPECT_EQ(WithOnsetAtThreshold(toe, 5.0), toe);
+  EXPECT_THROW(WithOnsetAtThreshold(toe, std::nan("")), std::invalid_argument);
+}
+
+TEST(WithOnsetAtThreshold, PutsRampCorrelationsSmearedOnsetBackAtTheThreshold) {
+  // A plateau-family onset (slope largest at the threshold, 20 mA):
+  // p·(1 − (1 − x)³) up to 38 mA. Ramp correlation smears it into a toe
+  // below 20 mA (Fig. 6-10); with the threshold the toe is gone and the
+  // curve near the onset is closer to the truth.
+  ParameterSet p = ExampleParameterSet();
+  std::vector<double> u{0.0}, r{0.0};
+  for (double x = 20; x <= 45.01; x += 0.5) {
+    const double z = std::clamp((x - 20.0) / 18.0, 0.0, 1.0);
+    u.push_back(x);
+    r.push_back(1.0 - std::pow(1.0 - z, 3));
+  }
+  p.irc = PiecewiseLinear(u, r);
+  const IrcResult id = IdentifyIrc(
+      IrcMethod::kRampCorrelation,
+      Isometric(p, MakeStimulus("isometric_ramp_irc", {{"threshold_ma", 15}, {"max_ma", 45}})));
+  EXPECT_GT(id.irc(19.5), 0.01);  // the toe
+  const PiecewiseLinear on = WithOnsetAtThreshold(id.irc, 20.0);
+  for (double x = 0; x <= 20.0; x += 0.25) EXPECT_EQ(on(x), 0.0) << x;
+  const double before = MaxIrcError(id.irc, p.irc, 15.0, 45.0);
+  const double after = MaxIrcError(on, p.irc, 15.0, 45.0);
+  const double near_before = MaxIrcError(id.irc, p.irc, 15.0, 21.0);
+  const double near_after = MaxIrcError(on, p.irc, 15.0, 21.0);
+  std::printf("largest |R error| 15-45 mA: %.4f -> %.4f; 15-21 mA: %.4f -> %.4f\n", before, after,
+              near_before, near_after);
+  EXPECT_GT(before, 0.09);  // the toe (measured 0.105)
+  EXPECT_LT(after, 0.07);   // measured 0.061, within one grid step above the onset
+  EXPECT_LT(near_after, 0.6 * near_before);
+  EXPECT_LT(MaxIrcError(on, p.irc, 22.0, 45.0), 0.03);  // unchanged away from the onset
 }
 
 TEST(IdentifyContraction, SeriesElasticElementDelaysPeakAndFavoursThirdOrder) {
