@@ -520,6 +520,10 @@ RapidResult IdentifyRapid(const RapidTrials& trials, const RapidOptions& options
   const IrcResult irc = IdentifyIrc(IrcMethod::kRampCorrelation, isometric, options.irc);
   ps.irc = irc.irc;
   out.report.Merge(irc.report);
+  if (options.threshold_ma) {
+    ps.irc = WithOnsetAtThreshold(ps.irc, *options.threshold_ma);
+    out.report.values["irc_onset_ma"] = *options.threshold_ma;
+  }
   out.report.values["irc_torque_scale_nm"] = irc.torque_scale_nm;
 
   // 2. Kinematics and activation of the free-swing trials; the samples the

@@ -29,6 +29,8 @@
 /// the accelerometer"); f_stim from the identified IRC and contraction
 /// dynamics driven by the recorded envelope's pulses.
 
+#include <optional>
+
 #include "model/identify_active.h"
 #include "model/identify_common.h"
 #include "model/identify_isometric.h"
@@ -48,6 +50,10 @@ struct RapidOptions {
   /// docs/MODEL.md).
   ContractionOptions contraction{TwitchOptions{}, 3, PoleMethod::kLeastSquares};
   IrcOptions irc{};                     ///< ramp-correlation settings.
+  /// The session's threshold, mA (the tolerance test's first response,
+  /// §5.2.1): the IRC's onset is put there (WithOnsetAtThreshold). Unset:
+  /// the ramp correlation's curve as it is, toe and all.
+  std::optional<double> threshold_ma;
   BreakpointSpec passive_angle{9, {}};  ///< τ_pta breakpoints over the visited range.
   BreakpointSpec passive_velocity{7, {}};
   BreakpointSpec active_angle{7, {}};

@@ -100,6 +100,7 @@ api::Result<model::ParameterSet> IdentifyRapidTrials(const std::vector<RecordedT
   }
   model::RapidOptions options;
   options.inertia_kgm2 = *inertia;
+  if (subject.threshold_ma > 0.0) options.threshold_ma = subject.threshold_ma;
   options.joint_limits =
       stops.value_or(model::JointLimits{subject.min_angle_deg, subject.max_angle_deg});
   if (subject.body_mass_kg && subject.leg_length_m && *subject.body_mass_kg > 0.0 &&

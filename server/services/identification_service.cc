@@ -24,6 +24,7 @@
 #include "server/services/stored_trials.h"
 #include "storage/audit_log.h"
 #include "storage/parameter_sets.h"
+#include "storage/sessions.h"
 #include "storage/subjects.h"
 #include "storage/trials.h"
 
@@ -67,6 +68,9 @@ struct FitContext {
   std::optional<model::ParameterSet> torque_angle_source;  // free swing τ_pta
   std::optional<std::int64_t> torque_angle_source_id;
   std::optional<model::ParameterSet> latest;  // the leg's latest set (rapid inertia)
+  // The recorded threshold of the session of the rapid isometric ramp: the
+  // IRC's onset (model::RapidOptions::threshold_ma).
+  std::optional<double> rapid_threshold_ma;
 };
 
 struct ModelFit {
@@ -554,6 +558,7 @@ class Fitter {
     o.inertia_kgm2 = *inertia;
     o.pulse_rate_hz = config_.pulse_rate_hz;
     o.joint_limits = config_.joint_limits;
+    o.threshold_ma = ctx_.rapid_threshold_ma;
     if (ctx_.body_mass_kg && ctx_.leg_length_m) {
       o.mgl_prior_nm = model::AnthropometricGravityMoment(*ctx_.body_mass_kg, *ctx_.leg_length_m);
     }
@@ -808,6 +813,12 @@ api::Result<IdentificationResult> IdentificationService::Fit(const Actor& actor,
       ctx.torque_angle_source_id = latest->summary.id;
     }
 
+    if (const LoadedTrial* ramp = selection->Latest(TrialKind::kRapidRamp)) {
+      api::Result<storage::Session> session = storage::SessionRepository(db_).Get(ramp->session_id);
+      if (!session.ok()) return session.status();
+      const std::optional<double> threshold = session->current.details.threshold_ma;
+      if (threshold && *threshold > 0.0) ctx.rapid_threshold_ma = threshold;
+    }
     Fitter fitter(request, config_, *selection, ctx);
     api::Result<FitOutcome> outcome = fitter.Run();
     if (!outcome.ok()) return outcome.status();

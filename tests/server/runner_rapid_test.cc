@@ -79,6 +79,11 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   const model::ParameterSet& p = *out.run.parameter_set;
   EXPECT_EQ(p.provenance.irc_method, "ramp_correlation");
   EXPECT_EQ(p.provenance.passive_method, "free_swing_known_inertia");
+  // The IRC starts at the session's threshold (docs/MODEL.md, "The IRC's
+  // onset at the measured threshold") and responds above it.
+  EXPECT_EQ(p.irc(vs.threshold_ma), 0.0);
+  EXPECT_EQ(p.irc(vs.threshold_ma - 1.0), 0.0);
+  EXPECT_GT(p.irc(vs.threshold_ma + 1.0), 0.0);
   // A valid wire parameter set (docs/MODEL.md JSON), as the run summary carries it.
   const auto wire = api::ParameterSetFromJson(api::ParameterSetToJson(*out.run.parameter_set));
   EXPECT_TRUE(wire.ok()) << wire.status().ToString();

@@ -52,6 +52,8 @@ json Identify(httplib::Client& client, const std::string& token, std::int64_t se
   EXPECT_EQ(submitted.status, 202) << submitted.text;
   const json job = WaitForJob(client, token, submitted.body["id"]);
   EXPECT_EQ(job["state"], "done") << job.dump().substr(0, 2000);
+  // The IRC's onset is the session's threshold (NewSession: 14 mA).
+  EXPECT_EQ(job["result"]["report"]["values"].value("irc_onset_ma", -1.0), 14.0);
   const std::int64_t set_id = job["result"]["parameter_sets"][0]["id"];
   auto set = Call(client, "GET", "/api/v1/parameter-sets/" + std::to_string(set_id), token);
   EXPECT_EQ(set.status, 200);
