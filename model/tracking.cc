@@ -58,6 +58,25 @@ std::optional<ControllerKind> ControllerKindOf(std::string_view name) {
   return std::nullopt;
 }
 
+double PidRecruitmentSlope(const PiecewiseLinear& irc, double lo, double hi, double activation) {
+  Require(std::isfinite(lo) && std::isfinite(hi) && hi > lo && std::isfinite(activation),
+          "tracking: the recruitment slope needs finite lo < hi");
+  // The first amplitude recruiting `activation`, by bisection (hi if none).
+  double a = lo, b = hi;
+  if (irc(hi) < activation) {
+    a = hi;
+  } else {
+    for (int k = 0; k < 60; ++k) {
+      const double m = 0.5 * (a + b);
+      (irc(m) >= activation ? b : a) = m;
+    }
+    a = b;
+  }
+  const double c0 = std::max(lo, a - 0.5 * kPidSlopeChordMa);
+  const double c1 = std::min(hi, a + 0.5 * kPidSlopeChordMa);
+  return c1 > c0 ? (irc(c1) - irc(c0)) / (c1 - c0) : 0.0;
+}
+
 LoopShape LoopShapeOf(const ParameterSet& params, const KneeTarget& target,
                       const TrackingOptions& options, std::optional<double> about_deg) {
   Require(!target.angle_deg.empty() && target.rate_hz > 0.0, "tracking: the target is empty");
@@ -88,7 +107,7 @@ LoopShape LoopShapeOf(const ParameterSet& params, const KneeTarget& target,
   if (options.kind == ControllerKind::kPid) {
     const double lo = std::max(options.threshold_ma, 0.0);
     const double hi = std::max(options.max_amplitude_ma, lo + 1.0);
-    const double slope = std::max((params.irc(hi) - params.irc(lo)) / (hi - lo), 1e-4);
+    const double slope = std::max(PidRecruitmentSlope(params.irc, lo, hi, hold), 1e-4);
     l.plant_gain = std::max(gain * slope, 1e-6);
     l.integral_s = 1.0;
     l.derivative_s = 0.1;

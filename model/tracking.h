@@ -85,8 +85,10 @@ struct TrackingOptions {
 /// contraction dynamics (Eq. 3.21), and the delay one control sample of
 /// computation, half a sample of hold and half a pulse period. plant_gain
 /// is 1 for the torque PID around the compensator (`inverse_model`,
-/// `adaptive`) and K_u = τ_scale·f_ata(θ_m)·ΔR/Δu (the recruitment's mean
-/// slope from threshold to the maximum, N·m/mA) for `pid`'s amplitude PID.
+/// `adaptive`) and K_u = τ_scale·f_ata(θ_m)·dR/du for `pid`'s amplitude
+/// PID, N·m/mA, with dR/du the recruitment's slope where it holds f_m
+/// (PidRecruitmentSlope; docs/MODEL.md, "Tracking: pid's loop gain where it
+/// holds"): the same linearisation about the hold as K and B.
 /// The PID's shape: ki = kp/integral_s, kd = kp·derivative_s.
 struct LoopShape {
   double inertia = 0.0;    ///< J, N·m·s²/deg.
@@ -106,6 +108,15 @@ struct LoopShape {
 /// 0.1° more RMS on a sine and 1.3 no oscillation but less margin for a
 /// set identified from trials.
 inline constexpr double kGainMargin = 2.0;
+
+/// The chord over which PidRecruitmentSlope measures the slope, mA.
+inline constexpr double kPidSlopeChordMa = 1.0;
+
+/// The recruitment's slope `pid`'s loop sees while it holds `activation`,
+/// per mA: the chord of R over kPidSlopeChordMa about the first amplitude
+/// in [lo, hi] that recruits it (hi if none does), within [lo, hi].
+/// @throws std::invalid_argument unless lo < hi, all finite.
+double PidRecruitmentSlope(const PiecewiseLinear& irc, double lo, double hi, double activation);
 
 LoopShape LoopShapeOf(const ParameterSet& params, const KneeTarget& target,
                       const TrackingOptions& options,

@@ -199,6 +199,44 @@ TEST(TuneGainsTest, TheGainsGiveTheMarginOrTheCap) {
               std::abs(total(56.0) - total(54.0)) / 2.0, 1e-9);
 }
 
+TEST(PidRecruitmentSlopeTest, TheChordAboutTheAmplitudeThatHoldsTheActivation) {
+  // R: 0 up to 10 mA, then 0.1/mA to 14 mA (R = 0.4), then 0.025/mA to 38 mA.
+  const PiecewiseLinear irc({0, 10, 14, 38}, {0, 0, 0.4, 1.0});
+  EXPECT_NEAR(PidRecruitmentSlope(irc, 10, 38, 0.2), 0.1, 1e-9);   // at 12 mA
+  EXPECT_NEAR(PidRecruitmentSlope(irc, 10, 38, 0.7), 0.025, 1e-9); // at 26 mA
+  // At the kink (14 mA) the chord 13.5–14.5 mA averages both slopes.
+  EXPECT_NEAR(PidRecruitmentSlope(irc, 10, 38, 0.4), (0.05 + 0.0125) / 1.0, 1e-9);
+  // Nothing to hold: the onset, the chord clipped at lo (10–10.5 mA).
+  EXPECT_NEAR(PidRecruitmentSlope(irc, 10, 38, 0.0), 0.1, 1e-9);
+  // More than the maximum recruits: the top, clipped at hi.
+  EXPECT_NEAR(PidRecruitmentSlope(irc, 10, 30, 0.9), 0.025, 1e-9);
+  EXPECT_THROW(PidRecruitmentSlope(irc, 10, 10, 0.5), std::invalid_argument);
+}
+
+TEST(TuneGainsTest, PidsPlantGainIsTheRecruitmentSlopeWhereItHolds) {
+  // pid's K_u = τ_scale·f_ata(θ_m)·dR/du at the amplitude holding θ_m, not
+  // the mean slope from threshold to max: a recruitment steep at its onset
+  // gives a loop that holds near the onset a larger gain.
+  ParameterSet params = ExampleParameterSet();
+  const KneeTarget sine = SineTarget(30.0, 80.0, 0.2, 10.0);
+  TrackingOptions options = Options(ControllerKind::kPid);
+  const JointModel joint = JointModel::FromParameters(params);
+  const double f_m = -joint.PassiveAngleTorque(55.0) / joint.ActiveGain(55.0, 0.0);
+  const double lo = options.threshold_ma, hi = options.max_amplitude_ma;
+  const LoopShape l = LoopShapeOf(params, sine, options);
+  EXPECT_NEAR(l.plant_gain,
+              joint.ActiveGain(55.0, 0.0) * PidRecruitmentSlope(params.irc, lo, hi, f_m), 1e-9);
+  // Steep from the threshold (0.15/mA up to R = 0.6 at lo + 4 mA), flat
+  // above: the hold lies on the steep part.
+  ASSERT_GT(f_m, 0.075);
+  ASSERT_LT(f_m, 0.525);
+  params.irc = PiecewiseLinear({0, lo, lo + 4, hi}, {0, 0, 0.6, 1.0});
+  const LoopShape steep = LoopShapeOf(params, sine, options);
+  const double mean_slope = 1.0 / (hi - lo);
+  EXPECT_NEAR(steep.plant_gain, joint.ActiveGain(55.0, 0.0) * 0.15, 1e-9);
+  EXPECT_GT(steep.plant_gain, 5.0 * joint.ActiveGain(55.0, 0.0) * mean_slope);
+}
+
 TEST(SlewLimitTest, OnAKnownLinearPlantItIsThePhaseCrossoverTimesHalfTheSpan) {
   // A first-order activation (pole a) on a leg without stiffness, no delay,
   // a P controller: L(jω) = a/(jω + a) / (jω·(B + J·jω)), whose phase

@@ -1,7 +1,7 @@
 // The study's control conditions (docs/STUDY.md, "Control: knee-angle
-// tracking") without a server, for the model controllers: for each seeded
-// leg, the rapid routine identifies its default set on a fresh simulated
-// leg, then inverse_model and adaptive each run `tracking` with every
+// tracking") without a server: for each seeded leg, the rapid routine
+// identifies its default set on a fresh simulated leg, then each controller
+// asked for (inverse_model and adaptive unless told) runs `tracking` with every
 // default on a fresh leg: the default sine (30 s), the default holds (30 s)
 // and the default sine for 2 minutes with the leg's fatigue rate five times
 // its own. Leg i is drawn as `fesbench study --seed s` draws it with the
@@ -13,7 +13,9 @@
 // them. Not a
 // ctest: a measurement to run by hand,
 //   tracking_control_study [legs=24] [study_seed=1] [first_leg=1] [max_rate_ma_per_s=0]
-// (a slew limit given to every run; 0: the default, derived from the set).
+//                          [controllers=12]
+// (a slew limit given to every run; 0: the default, derived from the set;
+// the controllers run, by digit: 0 pid, 1 inverse_model, 2 adaptive).
 #include <cstdint>
 #include <cstdlib>
 #include <fstream>
@@ -58,7 +60,7 @@ void Track(int index, std::string_view family, const std::string& condition, Vir
   SubjectContext ctx = test::SessionValues(vs);
   ctx.parameter_set = set;
   std::cout << index << "," << family << "," << condition << ","
-            << (controller == 1 ? "inverse_model" : "adaptive") << ",";
+            << (controller == 0 ? "pid" : controller == 1 ? "inverse_model" : "adaptive") << ",";
   auto plan = MakePlan("tracking", values, ctx);
   if (!plan.ok()) {
     std::cout << "-1,-1,-1,-1,-1,-1,-1,-1,"
@@ -96,6 +98,7 @@ int Main(int argc, char** argv) {
   const std::uint64_t study_seed = argc > 2 ? std::strtoull(argv[2], nullptr, 10) : 1;
   const int first = argc > 3 ? std::atoi(argv[3]) : 1;
   const double max_rate = argc > 4 ? std::atof(argv[4]) : 0.0;
+  const std::string controllers = argc > 5 ? argv[5] : "12";
   const SubjectFamily families[] = {SubjectFamily::kThesis, SubjectFamily::kAnalytic,
                                     SubjectFamily::kPlateau};
   std::cout << std::fixed << std::setprecision(3);
@@ -112,7 +115,8 @@ int Main(int argc, char** argv) {
       continue;
     }
     for (const char* condition : {"sine", "holds", "fatigue"}) {
-      for (int controller : {1, 2}) {
+      for (char c : controllers) {
+        const int controller = c - '0';
         Track(index, SubjectFamilyName(family), condition, vs, *set, controller, max_rate);
       }
     }
