@@ -6,6 +6,7 @@
 
 #include "api/json_fields.h"
 #include "api/name_table.h"
+#include "model/identify_rapid.h"
 
 namespace fesbench::api {
 namespace {
@@ -186,7 +187,7 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
       ReadChoice(fields, "pole_method", PoleMethods());
   if (!fields.ok()) return fields.status();
   // The rapid routine (§7.4.1) fits with its own methods (docs/API.md,
-  // Parameter sets: ramp_correlation, free swing): another method named with
+  // Parameter sets: ramp_deconvolution_ideal, free swing): another method named with
   // it would be ignored, so it is refused instead.
   // Method passive fits the passive block alone, in free swing (docs/MODEL.md).
   if (r.method == IdentificationMethod::kPassive) {
@@ -207,8 +208,10 @@ Result<IdentificationRequest> IdentificationRequestFromJson(const json& body) {
     }
   }
   if (r.method == IdentificationMethod::kRapid) {
-    if (irc_method && *irc_method != IrcMethod::kRampCorrelation) {
-      return Status::InvalidArgument("method rapid fits the IRC by ramp_correlation; irc_method " +
+    if (irc_method && *irc_method != model::kRapidIrcMethod) {
+      return Status::InvalidArgument("method rapid fits the IRC by " +
+                                         std::string(IrcMethods().Name(model::kRapidIrcMethod)) +
+                                         "; irc_method " +
                                          std::string(IrcMethods().Name(*irc_method)) +
                                          " needs method thesis",
                                      "irc_method");

@@ -512,12 +512,14 @@ RapidResult IdentifyRapid(const RapidTrials& trials, const RapidOptions& options
   ps.model = ModelKind::kFull;
 
   // 1. Contraction dynamics from the averaged impulses (§4.1, Eqs. 4.2/4.4)
-  //    and the IRC by ramp correlation (§4.1.3, Eq. 4.5).
+  //    and the IRC by deconvolving the ramp with them (§4.1.3, Eqs. 4.6–4.8).
   const TrialColumns iso[] = {isometric};
   const ContractionResult contraction = IdentifyContraction(iso, options.contraction);
   ps.contraction = contraction.contraction;
   out.report.Merge(contraction.report);
-  const IrcResult irc = IdentifyIrc(IrcMethod::kRampCorrelation, isometric, options.irc);
+  IrcOptions irc_options = options.irc;
+  irc_options.ideal = ps.contraction;
+  const IrcResult irc = IdentifyIrc(kRapidIrcMethod, isometric, irc_options);
   ps.irc = irc.irc;
   out.report.Merge(irc.report);
   if (options.threshold_ma) {
@@ -648,7 +650,7 @@ RapidResult IdentifyRapid(const RapidTrials& trials, const RapidOptions& options
     }
   }
 
-  ps.provenance.irc_method = std::string(IrcMethodName(IrcMethod::kRampCorrelation));
+  ps.provenance.irc_method = std::string(IrcMethodName(kRapidIrcMethod));
   ps.provenance.passive_method = "free_swing_known_inertia";
   ps.provenance.active_method = "log_least_squares";
   ps.provenance.fit_rms = out.report.fit_rms;

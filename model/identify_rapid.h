@@ -5,7 +5,10 @@
 /// three short trials —
 ///  1. an isometric ramp trial (impulses + cosine ramp, knee locked): the
 ///     contraction pole from the averaged impulse responses (Eqs. 4.2, 4.4)
-///     and the IRC by ramp correlation (Eq. 4.5);
+///     and the IRC by deconvolving the ramp's torque with the contraction
+///     dynamics just identified (Eqs. 4.6–4.8; beyond the thesis, which
+///     used ramp correlation, Eq. 4.5: docs/MODEL.md, "The rapid routine's
+///     IRC");
 ///  2. a free-swing trial under a sparse random-binary train and
 ///  3. a free-swing trial under a dense random-binary train:
 ///     with the limb inertia J known ("the torque-angle curve can be
@@ -41,6 +44,10 @@
 
 namespace fesbench::model {
 
+/// How the rapid routine identifies the IRC: the ramp deconvolved by the
+/// contraction dynamics identified from the same trial's impulses.
+inline constexpr IrcMethod kRapidIrcMethod = IrcMethod::kRampDeconvolutionIdeal;
+
 /// Options of IdentifyRapid.
 struct RapidOptions {
   double inertia_kgm2 = 0.0;            ///< known limb inertia J > 0, kg·m².
@@ -49,10 +56,12 @@ struct RapidOptions {
   /// time alone is 2–7 % off on the cohort, the whole shape −2.7…−4.5 %:
   /// docs/MODEL.md).
   ContractionOptions contraction{TwitchOptions{}, 3, PoleMethod::kLeastSquares};
-  IrcOptions irc{};                     ///< ramp-correlation settings.
+  /// Ramp-deconvolution settings (`ideal` is replaced by the identified
+  /// contraction).
+  IrcOptions irc{};
   /// The session's threshold, mA (the tolerance test's first response,
   /// §5.2.1): the IRC's onset is put there (WithOnsetAtThreshold). Unset:
-  /// the ramp correlation's curve as it is, toe and all.
+  /// the deconvolved curve as it is, toe and all.
   std::optional<double> threshold_ma;
   BreakpointSpec passive_angle{9, {}};  ///< τ_pta breakpoints over the visited range.
   BreakpointSpec passive_velocity{7, {}};
@@ -208,7 +217,7 @@ struct RapidResult {
 /// The whole §7.4.1 identification. `isometric` needs t_s, stim_ma,
 /// torque_nm (offset-corrected or not); `passive` and `active` need t_s,
 /// stim_ma and angle_deg (velocity, acceleration and activation are
-/// computed). Provenance: irc_method "ramp_correlation", passive_method
+/// computed). Provenance: irc_method "ramp_deconvolution_ideal", passive_method
 /// "free_swing_known_inertia", active_method "log_least_squares"; with
 /// refine_iterations > 0 the passive and active curves are then refined
 /// by RefineOutputError on both free-swing trials (fit_rms

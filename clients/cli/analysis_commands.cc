@@ -180,7 +180,7 @@ void RegisterAnalysisCommands(CLI::App& app, CliContext& context) {
                      "method rapid fits in free swing and refuses the others")
         ->check(CLI::IsMember(api::PassiveMethodNames()));
     identify->add_option("--irc-method", form->irc_method,
-                         "IRC method, e.g. ramp_correlation (method rapid: only that one)");
+                         "IRC method, e.g. ramp_correlation (method rapid: only ramp_deconvolution_ideal)");
     identify->callback([form, &context] {
       context.action = [form, &context] {
         api::IdentificationRequest request;

@@ -91,7 +91,7 @@ TEST(AnalysisRequests, RapidRefusesTheThesisMethods) {
   // Its own methods, named, are accepted; the thesis method takes them all.
   EXPECT_TRUE(status({{"method", "rapid"},
                       {"passive_method", "free_swing"},
-                      {"irc_method", "ramp_correlation"}})
+                      {"irc_method", "ramp_deconvolution_ideal"}})
                   .ok());
   EXPECT_TRUE(status({{"method", "thesis"}, {"passive_method", "sequential"}}).ok());
   // What the clients send for rapid reads back.

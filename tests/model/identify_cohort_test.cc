@@ -5,7 +5,9 @@
 // fit faster must leave what it identifies where it was. The rapid figures
 // were recorded again when the output-error refinement's Jacobian became
 // the exact derivative of its simulation (it was a difference quotient;
-// that section says by how much they moved and why).
+// that section says by how much they moved and why), and again when the
+// rapid routine's IRC became the ramp deconvolved with the identified
+// contraction dynamics (docs/MODEL.md, "The rapid routine's IRC").
 //
 // Per leg, trials simulated by the model itself (model/simulate.h, the
 // bench's stops at 10° and 110°) with the bench's sensor noise added

@@ -77,7 +77,7 @@ TEST_P(Rapid, RecoversTheVirtualSubjectAndPredictsRandomBinary) {
   EXPECT_LT(out.run.bench_duration_s, 30.0);  // §7.4.1
   ASSERT_TRUE(out.run.parameter_set.has_value());
   const model::ParameterSet& p = *out.run.parameter_set;
-  EXPECT_EQ(p.provenance.irc_method, "ramp_correlation");
+  EXPECT_EQ(p.provenance.irc_method, "ramp_deconvolution_ideal");
   EXPECT_EQ(p.provenance.passive_method, "free_swing_known_inertia");
   // The IRC starts at the session's threshold (docs/MODEL.md, "The IRC's
   // onset at the measured threshold") and responds above it.
