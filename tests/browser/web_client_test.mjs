@@ -83,6 +83,11 @@ try {
     page.off('request', listen);
     assert.deepEqual(sent, [], 'a signed-out e-stop sent a request');
     await shot(page, 'estop-signed-out');
+    // The bench is polled every second; the failure stays until dismissed.
+    await page.waitForTimeout(2500);
+    assert.match(await page.locator('#latch').textContent(), /E-STOP NOT CONFIRMED/);
+    await page.locator('#estop-failed-dismiss').click();
+    assert.equal(await page.locator('#latch').isHidden(), true);
   });
 
   await step('sign in: a wrong token is refused plainly, the right one shows name and role', async () => {

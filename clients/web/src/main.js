@@ -193,8 +193,10 @@ function renderLatch() {
   const latched = !!(st && st.estopped);
   document.body.classList.toggle('estopped', latched);
   if (!latched) {
-    latch.hidden = true;
-    latch.replaceChildren();
+    // A failed e-stop stays until it is dismissed or an e-stop latches: the
+    // next bench refresh must not wipe the message to use the hardware stop.
+    if (latch.dataset.shown === 'failed' && !latch.hidden) return;
+    dismissLatch();
     return;
   }
   if (latch.dataset.shown === 'latched' && !latch.hidden) return;
@@ -225,11 +227,20 @@ function showBench() {
 
 const estopState = () => document.getElementById('estop-state');
 
-/// A failed e-stop is the loudest thing on the page.
+function dismissLatch() {
+  const latch = document.getElementById('latch');
+  latch.hidden = true;
+  latch.replaceChildren();
+  delete latch.dataset.shown;
+}
+
+/// A failed e-stop is the loudest thing on the page, and stays until the
+/// user dismisses it (or an e-stop latches).
 function estopFailed(text) {
   const latch = document.getElementById('latch');
   latch.dataset.shown = 'failed';
-  latch.replaceChildren(h('strong', {}, 'E-STOP NOT CONFIRMED'), h('span', {}, ` — ${text} Use the bench's hardware stop.`));
+  latch.replaceChildren(h('strong', {}, 'E-STOP NOT CONFIRMED'), h('span', {}, ` — ${text} Use the bench's hardware stop.`),
+    h('button', { type: 'button', id: 'estop-failed-dismiss', onclick: dismissLatch }, 'Dismiss'));
   latch.hidden = false;
 }
 
