@@ -92,7 +92,7 @@ run() {
   local status=0
   (cd "$dir" && ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:log_path=$reports/asan" \
       UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1" \
-      TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:log_path=$reports/tsan" \
+      TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:log_path=$reports/tsan:suppressions=$root/scripts/tsan.supp" \
       ctest --output-on-failure --no-tests=error -j "$jobs" -E "$exclude" -LE 'browser|package') || status=$?
   echo "== $name: tests ran in $((SECONDS - t0)) s ($(($(cpu_seconds) - c0)) s CPU)"
   if compgen -G "$reports/*" >/dev/null; then
