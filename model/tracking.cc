@@ -61,17 +61,7 @@ std::optional<ControllerKind> ControllerKindOf(std::string_view name) {
 double PidRecruitmentSlope(const PiecewiseLinear& irc, double lo, double hi, double activation) {
   Require(std::isfinite(lo) && std::isfinite(hi) && hi > lo && std::isfinite(activation),
           "tracking: the recruitment slope needs finite lo < hi");
-  // The first amplitude recruiting `activation`, by bisection (hi if none).
-  double a = lo, b = hi;
-  if (irc(hi) < activation) {
-    a = hi;
-  } else {
-    for (int k = 0; k < 60; ++k) {
-      const double m = 0.5 * (a + b);
-      (irc(m) >= activation ? b : a) = m;
-    }
-    a = b;
-  }
+  const double a = std::clamp(InverseRecruitment(irc, activation), lo, hi);
   const double c0 = std::max(lo, a - 0.5 * kPidSlopeChordMa);
   const double c1 = std::min(hi, a + 0.5 * kPidSlopeChordMa);
   return c1 > c0 ? (irc(c1) - irc(c0)) / (c1 - c0) : 0.0;
